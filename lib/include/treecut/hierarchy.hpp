@@ -1,0 +1,122 @@
+// Hierarchy: a QSplat-style bounding-sphere hierarchy over a PointSet
+// (Rusinkiewicz & Levoy, "QSplat", SIGGRAPH 2000), stored as flat arrays.
+//
+// Node ids are breadth-first: the root is 0, the nodes of depth d are the
+// contiguous range [level_begin(d), level_begin(d+1)), and the children of a
+// node are the contiguous range [first_child, first_child + child_count).
+// Every node is a splat; the leaves are exactly the input points.
+//
+// A Hierarchy is immutable once built. Copies are cheap and share storage, which
+// may be heap memory or a read-only memory mapping of a cache file; every span
+// returned stays valid as long as any copy of the Hierarchy lives. All const
+// members may be called from any thread.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <glm/gtc/type_precision.hpp>
+#include <glm/vec3.hpp>
+#include <glm/vec4.hpp>
+#include <limits>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "treecut/point_set.hpp"
+
+namespace treecut {
+
+using NodeId = std::uint32_t;
+inline constexpr NodeId kNoNode = std::numeric_limits<NodeId>::max();
+
+/// The arrays of a hierarchy; all have node_count() elements.
+struct HierarchyArrays {
+  /// xyz: splat/sphere center, w: radius of the sphere bounding the node's whole
+  /// subtree (for a leaf: its splat radius). Model units.
+  std::span<const glm::vec4> center_radius;
+  /// xyz: unit normal, w: cosine of the half-angle of the cone that contains the
+  /// normals of the whole subtree (1 for a leaf), all snorm16 (divide by 32767).
+  std::span<const glm::i16vec4> normal_cone;
+  std::span<const glm::u8vec4> color;     ///< sRGB, alpha 255
+  /// Static refinement priority: surface variation of the subtree, monotone
+  /// (a parent's priority is >= each child's). In [0, 1].
+  std::span<const float> priority;
+  std::span<const std::uint32_t> point_count;  ///< leaves under the node (1 for a leaf)
+  std::span<const NodeId> parent;              ///< kNoNode for the root
+  std::span<const NodeId> first_child;         ///< meaningful only if child_count > 0
+  std::span<const std::uint8_t> child_count;   ///< 0 for a leaf, else 2..4
+  std::span<const std::uint8_t> depth;         ///< root 0
+};
+
+class Hierarchy {
+ public:
+  Hierarchy() = default;
+
+  [[nodiscard]] bool empty() const { return node_count_ == 0; }
+  [[nodiscard]] std::uint32_t node_count() const { return node_count_; }
+  [[nodiscard]] std::uint32_t leaf_count() const { return leaf_count_; }
+  [[nodiscard]] NodeId root() const { return 0; }
+  /// Number of levels (max depth + 1).
+  [[nodiscard]] int level_count() const { return static_cast<int>(level_begin_.size()) - 1; }
+  /// First node id of depth d; level_begin(level_count()) == node_count().
+  [[nodiscard]] NodeId level_begin(int d) const { return level_begin_[static_cast<std::size_t>(d)]; }
+  [[nodiscard]] glm::vec3 bounds_min() const { return bounds_min_; }
+  [[nodiscard]] glm::vec3 bounds_max() const { return bounds_max_; }
+  [[nodiscard]] const HierarchyArrays& arrays() const { return a_; }
+  /// Bytes held by the node arrays (what a cache maps).
+  [[nodiscard]] std::size_t memory_bytes() const;
+
+  [[nodiscard]] bool is_leaf(NodeId n) const { return a_.child_count[n] == 0; }
+  [[nodiscard]] glm::vec3 center(NodeId n) const { return glm::vec3(a_.center_radius[n]); }
+  [[nodiscard]] float radius(NodeId n) const { return a_.center_radius[n].w; }
+  [[nodiscard]] glm::vec3 normal(NodeId n) const {
+    return glm::vec3(a_.normal_cone[n]) * (1.0f / 32767.0f);
+  }
+  [[nodiscard]] float cone_cos(NodeId n) const { return a_.normal_cone[n].w * (1.0f / 32767.0f); }
+  [[nodiscard]] NodeId first_child(NodeId n) const { return a_.first_child[n]; }
+  [[nodiscard]] unsigned child_count(NodeId n) const { return a_.child_count[n]; }
+  [[nodiscard]] NodeId parent(NodeId n) const { return a_.parent[n]; }
+
+  /// Assembles a hierarchy from arrays whose lifetime `storage` guarantees.
+  /// Used by the builder and the cache loader; checks only the sizes.
+  static Hierarchy from_arrays(std::shared_ptr<const void> storage, const HierarchyArrays& arrays,
+                               std::vector<NodeId> level_begin, glm::vec3 bounds_min,
+                               glm::vec3 bounds_max);
+
+ private:
+  std::shared_ptr<const void> storage_;
+  HierarchyArrays a_;
+  std::vector<NodeId> level_begin_;
+  std::uint32_t node_count_ = 0;
+  std::uint32_t leaf_count_ = 0;
+  glm::vec3 bounds_min_{0.0f};
+  glm::vec3 bounds_max_{0.0f};
+};
+
+/// Packs a unit vector and a cone cosine into the snorm16 layout above.
+glm::i16vec4 pack_normal_cone(glm::vec3 normal, float cone_cos);
+
+struct BuildOptions {
+  /// A parent splat sits on one of its real points (the one nearest the
+  /// average) instead of the average, so splats do not move when the cut
+  /// changes level (QSplat paper, section on possible enhancements).
+  bool parent_at_real_point = false;
+  /// Worker threads; 0 = all hardware threads.
+  unsigned threads = 0;
+  /// Called with (done, total) work units from the building thread, for a progress bar.
+  std::function<void(std::size_t, std::size_t)> progress;
+};
+
+/// Builds the hierarchy. `points` must have normals, radii and curvature
+/// (complete_attributes) and at least one point; it is consumed (its arrays are
+/// released while the node arrays fill, which bounds the peak memory).
+/// Deterministic: the same input gives byte-identical arrays for any thread count.
+Hierarchy build_hierarchy(PointSet&& points, const BuildOptions& options = {});
+
+/// Checks every structural invariant (children inside the parent's sphere,
+/// cone containing the children's normals, monotone priority, leaf count, depth
+/// bound, parent/child links). Returns an empty string or the first violation.
+std::string check_invariants(const Hierarchy& h);
+
+}  // namespace treecut
