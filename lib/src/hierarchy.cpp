@@ -1,0 +1,418 @@
+// QSplat-style bounding-sphere hierarchy, built top-down by median splits and
+// filled bottom-up (Rusinkiewicz & Levoy, "QSplat: A Multiresolution Point
+// Rendering System for Large Meshes", SIGGRAPH 2000, section 3.1).
+//
+// Build in three stages, each data-parallel over the nodes of one level:
+//   1. topology: split each node's point range at the median of its longest
+//      axis, twice, giving up to four children (QSplat's branching factor);
+//   2. leaves: copy the point attributes into the node arrays, attribute by
+//      attribute, releasing each PointSet array as soon as it is consumed so
+//      the peak memory stays near the size of the result;
+//   3. interior nodes, deepest level first: bounding sphere of the children's
+//      spheres, normal cone, average color, monotone priority.
+// Nothing depends on the thread count, so the output is byte-identical for
+// any number of workers.
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <glm/geometric.hpp>
+#include <numeric>
+#include <stdexcept>
+
+#include "treecut/hierarchy.hpp"
+#include "treecut/parallel.hpp"
+
+namespace treecut {
+
+namespace {
+
+struct OwnedArrays {
+  std::vector<glm::vec4> center_radius;
+  std::vector<glm::i16vec4> normal_cone;
+  std::vector<glm::u8vec4> color;
+  std::vector<float> priority;
+  std::vector<std::uint32_t> point_count;
+  std::vector<NodeId> parent;
+  std::vector<NodeId> first_child;
+  std::vector<std::uint8_t> child_count;
+  std::vector<std::uint8_t> depth;
+};
+
+struct Item {  // a point in build order: its position and its index in the PointSet
+  glm::vec3 p;
+  std::uint32_t index;
+};
+
+struct Range {
+  std::uint32_t begin, end;
+};
+
+int longest_axis(const Item* first, const Item* last) {
+  glm::vec3 lo(INFINITY), hi(-INFINITY);
+  for (const Item* it = first; it != last; ++it) {
+    lo = glm::min(lo, it->p);
+    hi = glm::max(hi, it->p);
+  }
+  const glm::vec3 ext = hi - lo;
+  return ext.x >= ext.y && ext.x >= ext.z ? 0 : (ext.y >= ext.z ? 1 : 2);
+}
+
+// Splits [b, e) at its median along the longest axis; ties are broken by the
+// point index so the order is a pure function of the input.
+std::uint32_t split_median(Item* items, std::uint32_t b, std::uint32_t e) {
+  const std::uint32_t m = b + (e - b) / 2;
+  const int axis = longest_axis(items + b, items + e);
+  std::nth_element(items + b, items + m, items + e, [axis](const Item& l, const Item& r) {
+    return l.p[axis] < r.p[axis] || (l.p[axis] == r.p[axis] && l.index < r.index);
+  });
+  return m;
+}
+
+// Up to four children: two levels of binary median split (QSplat). Ranges of
+// two to four points get one leaf per point, so every leaf is one point and the
+// depth is at most ceil(log2(n)/2) + 1 even for duplicate or colinear points.
+int split_node(Item* items, Range r, Range out[4]) {
+  const std::uint32_t n = r.end - r.begin;
+  if (n <= 1) return 0;
+  if (n <= 4) {
+    for (std::uint32_t i = 0; i < n; ++i) out[i] = {r.begin + i, r.begin + i + 1};
+    return static_cast<int>(n);
+  }
+  const std::uint32_t m = split_median(items, r.begin, r.end);
+  const std::uint32_t m0 = split_median(items, r.begin, m);
+  const std::uint32_t m1 = split_median(items, m, r.end);
+  out[0] = {r.begin, m0};
+  out[1] = {m0, m};
+  out[2] = {m, m1};
+  out[3] = {m1, r.end};
+  return 4;
+}
+
+template <class T>
+void release(std::vector<T>& v) {
+  std::vector<T>().swap(v);
+}
+
+float clamp01(float x) { return std::min(1.0f, std::max(0.0f, x)); }
+
+// A node's own geometric error: how far its normals spread, (1 - cos)/2 in [0,1].
+float cone_priority(float cone_cos) { return clamp01(0.5f * (1.0f - cone_cos)); }
+
+}  // namespace
+
+glm::i16vec4 pack_normal_cone(glm::vec3 normal, float cone_cos) {
+  auto q = [](float v) {
+    return static_cast<std::int16_t>(std::lround(std::clamp(v, -1.0f, 1.0f) * 32767.0f));
+  };
+  // The cone is rounded towards wider (smaller cosine) so it stays conservative.
+  const auto c = static_cast<std::int16_t>(
+      std::floor(std::clamp(cone_cos, -1.0f, 1.0f) * 32767.0f));
+  return {q(normal.x), q(normal.y), q(normal.z), std::max<std::int16_t>(c, -32767)};
+}
+
+std::size_t Hierarchy::memory_bytes() const {
+  const std::size_t n = node_count_;
+  return n * (sizeof(glm::vec4) + sizeof(glm::i16vec4) + sizeof(glm::u8vec4) + sizeof(float) +
+              sizeof(std::uint32_t) + 2 * sizeof(NodeId) + 2 * sizeof(std::uint8_t));
+}
+
+Hierarchy Hierarchy::from_arrays(std::shared_ptr<const void> storage, const HierarchyArrays& a,
+                                 std::vector<NodeId> level_begin, glm::vec3 bounds_min,
+                                 glm::vec3 bounds_max) {
+  const std::size_t n = a.center_radius.size();
+  if (a.normal_cone.size() != n || a.color.size() != n || a.priority.size() != n ||
+      a.point_count.size() != n || a.parent.size() != n || a.first_child.size() != n ||
+      a.child_count.size() != n || a.depth.size() != n)
+    throw std::invalid_argument("hierarchy arrays differ in size");
+  if (level_begin.empty() || level_begin.front() != 0 || level_begin.back() != n)
+    throw std::invalid_argument("hierarchy level table does not span the nodes");
+  Hierarchy h;
+  h.storage_ = std::move(storage);
+  h.a_ = a;
+  h.level_begin_ = std::move(level_begin);
+  h.node_count_ = static_cast<std::uint32_t>(n);
+  h.leaf_count_ = n ? a.point_count[0] : 0;
+  h.bounds_min_ = bounds_min;
+  h.bounds_max_ = bounds_max;
+  return h;
+}
+
+Hierarchy build_hierarchy(PointSet&& points, const BuildOptions& options) {
+  const std::size_t n_points = points.size();
+  if (n_points == 0) throw std::invalid_argument("build_hierarchy: no points");
+  if (n_points >= (std::size_t{1} << 31))
+    throw std::invalid_argument("build_hierarchy: more than 2^31 points");
+  if (!points.has_normals() || !points.has_radii() || !points.has_curvature())
+    throw std::invalid_argument("build_hierarchy: normals, radii and curvature are required");
+  const unsigned threads = worker_count(options.threads);
+  const auto N = static_cast<std::uint32_t>(n_points);
+
+  glm::vec3 bmin(INFINITY), bmax(-INFINITY);
+  std::vector<Item> items(N);
+  for (std::uint32_t i = 0; i < N; ++i) {
+    items[i] = {points.positions[i], i};
+    bmin = glm::min(bmin, points.positions[i]);
+    bmax = glm::max(bmax, points.positions[i]);
+  }
+  release(points.positions);
+  release(points.triangles);
+
+  // Stage 1: topology, one level at a time. `ranges` holds each node's span of
+  // `items`; a leaf's range is its single point.
+  OwnedArrays a;
+  std::vector<Range> ranges{{0, N}};
+  std::vector<NodeId> level_begin{0};
+  // Capacity only: untouched pages cost no memory. Interior nodes < N.
+  ranges.reserve(2 * std::size_t{N});
+  a.parent.reserve(2 * std::size_t{N});
+  a.depth.reserve(2 * std::size_t{N});
+  a.first_child.reserve(2 * std::size_t{N});
+  a.child_count.reserve(2 * std::size_t{N});
+  a.parent.push_back(kNoNode);
+  a.depth.push_back(0);
+  std::size_t progress_done = 0;
+  const std::size_t progress_total = 2 * std::size_t{N};
+  std::vector<Range> kids;
+  std::vector<std::uint8_t> kid_count;
+  for (int depth = 0;; ++depth) {
+    const std::size_t lb = level_begin.back(), le = ranges.size();
+    if (lb == le) break;
+    if (depth > 255) throw std::logic_error("build_hierarchy: depth exceeds 255");
+    level_begin.push_back(static_cast<NodeId>(le));
+    const std::size_t L = le - lb;
+    kids.assign(4 * L, Range{0, 0});
+    kid_count.assign(L, 0);
+    parallel_for(
+        L,
+        [&](std::size_t b, std::size_t e) {
+          Range out[4];
+          for (std::size_t i = b; i < e; ++i) {
+            const int c = split_node(items.data(), ranges[lb + i], out);
+            kid_count[i] = static_cast<std::uint8_t>(c);
+            std::copy(out, out + c, kids.begin() + static_cast<std::ptrdiff_t>(4 * i));
+          }
+        },
+        threads, 1);
+    for (std::size_t i = 0; i < L; ++i) {
+      a.first_child.push_back(kid_count[i] ? static_cast<NodeId>(ranges.size()) : kNoNode);
+      a.child_count.push_back(kid_count[i]);
+      for (int c = 0; c < kid_count[i]; ++c) {
+        ranges.push_back(kids[4 * i + static_cast<std::size_t>(c)]);
+        a.parent.push_back(static_cast<NodeId>(lb + i));
+        a.depth.push_back(static_cast<std::uint8_t>(depth + 1));
+      }
+    }
+    progress_done += N;
+    if (options.progress) options.progress(std::min(progress_done, progress_total / 2), progress_total);
+  }
+  const std::size_t M = ranges.size();
+  release(kids);
+  release(kid_count);
+
+  // Stage 2: leaves. A leaf's point, in `items` order; remembered in
+  // first_child (unused by leaves) until the arrays are final.
+  std::vector<NodeId>& leaf_point = a.first_child;
+  for (std::size_t i = 0; i < M; ++i)
+    if (a.child_count[i] == 0) leaf_point[i] = ranges[i].begin;
+  release(ranges);
+
+  a.center_radius.resize(M);
+  parallel_for(M, [&](std::size_t b, std::size_t e) {
+    for (std::size_t i = b; i < e; ++i)
+      if (a.child_count[i] == 0) {
+        const Item& it = items[leaf_point[i]];
+        a.center_radius[i] = glm::vec4(it.p, points.radii[it.index]);
+      }
+  }, threads);
+  // From here on a leaf refers to its PointSet index directly.
+  for (std::size_t i = 0; i < M; ++i)
+    if (a.child_count[i] == 0) leaf_point[i] = items[leaf_point[i]].index;
+  release(items);
+  release(points.radii);
+
+  a.normal_cone.resize(M);
+  parallel_for(M, [&](std::size_t b, std::size_t e) {
+    for (std::size_t i = b; i < e; ++i)
+      if (a.child_count[i] == 0) {
+        const glm::vec3 nrm = points.normals[leaf_point[i]];
+        const float len = glm::length(nrm);
+        // A point without a defined normal can face anywhere: full cone.
+        a.normal_cone[i] = len > 0.5f ? pack_normal_cone(nrm / len, 1.0f)
+                                      : pack_normal_cone(glm::vec3(0.0f), -1.0f);
+      }
+  }, threads);
+  release(points.normals);
+
+  a.color.resize(M);
+  const bool has_colors = points.has_colors();
+  parallel_for(M, [&](std::size_t b, std::size_t e) {
+    for (std::size_t i = b; i < e; ++i)
+      if (a.child_count[i] == 0)
+        a.color[i] = has_colors ? points.colors[leaf_point[i]] : glm::u8vec4(200, 200, 200, 255);
+  }, threads);
+  release(points.colors);
+
+  a.priority.resize(M);
+  a.point_count.resize(M);
+  parallel_for(M, [&](std::size_t b, std::size_t e) {
+    for (std::size_t i = b; i < e; ++i)
+      if (a.child_count[i] == 0) {
+        // Surface variation lies in [0, 1/3]; scale it to [0, 1].
+        a.priority[i] = clamp01(3.0f * points.curvature[leaf_point[i]]);
+        a.point_count[i] = 1;
+        leaf_point[i] = kNoNode;
+      }
+  }, threads);
+  release(points.curvature);
+
+  // Stage 3: interior nodes, deepest level first.
+  const int levels = static_cast<int>(level_begin.size()) - 1;
+  const bool at_real_point = options.parent_at_real_point;
+  for (int d = levels - 1; d >= 0; --d) {
+    const std::size_t lb = level_begin[static_cast<std::size_t>(d)];
+    const std::size_t le = level_begin[static_cast<std::size_t>(d) + 1];
+    parallel_for(le - lb, [&](std::size_t b, std::size_t e) {
+      for (std::size_t i = lb + b; i < lb + e; ++i) {
+        const unsigned cc = a.child_count[i];
+        if (cc == 0) continue;
+        const std::size_t c0 = a.first_child[i];
+        // Center: midpoint of the box around the children's spheres (or the
+        // real point nearest to it), radius: the smallest that bounds them.
+        glm::vec3 lo(INFINITY), hi(-INFINITY), nsum(0.0f);
+        glm::vec4 csum(0.0f);
+        std::uint32_t count = 0;
+        float prio = 0.0f;
+        for (std::size_t c = c0; c < c0 + cc; ++c) {
+          const glm::vec4 s = a.center_radius[c];
+          lo = glm::min(lo, glm::vec3(s) - s.w);
+          hi = glm::max(hi, glm::vec3(s) + s.w);
+          const float w = static_cast<float>(a.point_count[c]);
+          nsum += w * glm::vec3(a.normal_cone[c]) * (1.0f / 32767.0f);
+          csum += w * glm::vec4(a.color[c]);
+          count += a.point_count[c];
+          prio = std::max(prio, a.priority[c]);
+        }
+        glm::vec3 center = 0.5f * (lo + hi);
+        if (at_real_point) {
+          std::size_t best = c0;
+          float best_d = INFINITY;
+          for (std::size_t c = c0; c < c0 + cc; ++c) {
+            const float dd = glm::distance(glm::vec3(a.center_radius[c]), center);
+            if (dd < best_d) best_d = dd, best = c;
+          }
+          center = glm::vec3(a.center_radius[best]);
+        }
+        float radius = 0.0f;
+        for (std::size_t c = c0; c < c0 + cc; ++c)
+          radius = std::max(radius, glm::distance(center, glm::vec3(a.center_radius[c])) +
+                                        a.center_radius[c].w);
+        // Guard the containment invariant against float rounding.
+        radius = radius * (1.0f + 4e-6f) + 1e-30f;
+        a.center_radius[i] = glm::vec4(center, radius);
+
+        // Normal cone: average normal, half-angle covering every child's cone
+        // measured with the quantized values that are stored.
+        const float nlen = glm::length(nsum);
+        float cone_cos = -1.0f;
+        glm::vec3 nrm(0.0f);
+        if (nlen > 1e-6f) {
+          nrm = nsum / nlen;
+          const glm::i16vec4 qn = pack_normal_cone(nrm, 1.0f);
+          const glm::vec3 qv = glm::vec3(qn) * (1.0f / 32767.0f);
+          float half_angle = 0.0f;
+          for (std::size_t c = c0; c < c0 + cc; ++c) {
+            const glm::i16vec4 k = a.normal_cone[c];
+            const glm::vec3 kv = glm::vec3(k) * (1.0f / 32767.0f);
+            const float kc = static_cast<float>(k.w) * (1.0f / 32767.0f);
+            if (glm::dot(kv, kv) < 0.25f || kc <= -1.0f + 1e-6f) {
+              half_angle = 3.2f;  // a child facing anywhere: full cone
+              break;
+            }
+            const float between = std::acos(std::clamp(glm::dot(qv, glm::normalize(kv)), -1.0f, 1.0f));
+            half_angle = std::max(half_angle, between + std::acos(std::clamp(kc, -1.0f, 1.0f)));
+          }
+          // Margin for snorm16 rounding of the normals (about 1e-4 rad).
+          half_angle += 2e-4f;
+          cone_cos = half_angle >= 3.14159f ? -1.0f : std::cos(half_angle);
+        }
+        a.normal_cone[i] = pack_normal_cone(nrm, cone_cos);
+        const glm::vec4 avg = csum / static_cast<float>(count);
+        a.color[i] = glm::u8vec4(glm::round(glm::clamp(avg, 0.0f, 255.0f)));
+        // Monotone by construction: never below a child (parallel-treecut, sec. 4.1).
+        a.priority[i] = std::max(prio, cone_priority(cone_cos));
+        a.point_count[i] = count;
+      }
+    }, threads, 256);
+    progress_done += N / static_cast<std::size_t>(std::max(levels, 1));
+    if (options.progress) options.progress(std::min(progress_done, progress_total), progress_total);
+  }
+  if (options.progress) options.progress(progress_total, progress_total);
+
+  a.parent.shrink_to_fit();
+  a.depth.shrink_to_fit();
+  a.first_child.shrink_to_fit();
+  a.child_count.shrink_to_fit();
+  auto owned = std::make_shared<OwnedArrays>(std::move(a));
+  HierarchyArrays spans{owned->center_radius, owned->normal_cone, owned->color,
+                        owned->priority,      owned->point_count, owned->parent,
+                        owned->first_child,   owned->child_count, owned->depth};
+  return Hierarchy::from_arrays(owned, spans, std::move(level_begin), bmin, bmax);
+}
+
+std::string check_invariants(const Hierarchy& h) {
+  if (h.empty()) return "empty hierarchy";
+  const auto& a = h.arrays();
+  const std::uint32_t M = h.node_count();
+  auto fail = [](NodeId n, const std::string& what) {
+    return "node " + std::to_string(n) + ": " + what;
+  };
+  if (a.parent[0] != kNoNode) return fail(0, "root has a parent");
+  std::uint64_t leaves = 0;
+  for (int d = 0; d < h.level_count(); ++d)
+    for (NodeId n = h.level_begin(d); n < h.level_begin(d + 1); ++n)
+      if (a.depth[n] != d) return fail(n, "depth does not match its level");
+  for (NodeId n = 0; n < M; ++n) {
+    const unsigned cc = a.child_count[n];
+    const glm::vec4 s = a.center_radius[n];
+    if (!std::isfinite(s.x) || !std::isfinite(s.y) || !std::isfinite(s.z) || !(s.w > 0.0f) ||
+        !std::isfinite(s.w))
+      return fail(n, "non-finite center or non-positive radius");
+    if (cc == 0) {
+      ++leaves;
+      if (a.point_count[n] != 1) return fail(n, "leaf does not hold exactly one point");
+      continue;
+    }
+    if (cc < 2 || cc > 4) return fail(n, "child count outside 2..4");
+    const NodeId c0 = a.first_child[n];
+    if (c0 <= n || c0 + cc > M) return fail(n, "children out of range");
+    std::uint64_t count = 0;
+    const glm::vec3 pn = h.normal(n);
+    const float pc = h.cone_cos(n);
+    const float p_half = std::acos(std::clamp(pc, -1.0f, 1.0f));
+    for (NodeId c = c0; c < c0 + cc; ++c) {
+      if (a.parent[c] != n) return fail(c, "parent link does not match");
+      if (a.depth[c] != a.depth[n] + 1) return fail(c, "depth is not parent's + 1");
+      count += a.point_count[c];
+      const glm::vec4 cs = a.center_radius[c];
+      const float reach = glm::distance(glm::vec3(cs), glm::vec3(s)) + cs.w;
+      if (reach > s.w * (1.0f + 1e-5f)) return fail(c, "sphere not inside the parent's sphere");
+      if (a.priority[c] > a.priority[n]) return fail(c, "priority above the parent's");
+      if (pc > -1.0f + 1e-4f) {
+        const glm::vec3 cn = h.normal(c);
+        if (glm::dot(cn, cn) < 0.25f) return fail(c, "normal undefined inside a bounded cone");
+        const float between =
+            std::acos(std::clamp(glm::dot(glm::normalize(pn), glm::normalize(cn)), -1.0f, 1.0f));
+        const float c_half = std::acos(std::clamp(h.cone_cos(c), -1.0f, 1.0f));
+        if (between + c_half > p_half + 1e-3f) return fail(c, "normal cone not inside the parent's");
+      }
+    }
+    if (count != a.point_count[n]) return fail(n, "point count is not the children's sum");
+  }
+  if (leaves != h.leaf_count()) return "leaf count differs from the root's point count";
+  // Median splits halve the points at every binary level: depth <= ceil(log4 n) + 1.
+  const double bound = std::ceil(std::log2(std::max<double>(2.0, static_cast<double>(leaves))) / 2.0) + 1.0;
+  if (h.level_count() - 1 > bound) return "depth " + std::to_string(h.level_count() - 1) + " exceeds the bound";
+  return {};
+}
+
+}  // namespace treecut
