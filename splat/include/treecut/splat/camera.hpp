@@ -1,0 +1,39 @@
+// A look-at perspective camera and the helpers that place it around a model.
+// Plain data, no GL; any thread.
+#pragma once
+
+#include <glm/mat4x4.hpp>
+#include <glm/vec3.hpp>
+
+namespace treecut::splat {
+
+struct Camera {
+  glm::vec3 eye{0.0f, 0.0f, 3.0f};  ///< model units
+  glm::vec3 target{0.0f};           ///< the point looked at (the orbit pivot)
+  glm::vec3 up{0.0f, 1.0f, 0.0f};
+  float fov_y_deg = 45.0f;   ///< vertical field of view, degrees
+  float near_plane = 0.01f;  ///< model units, > 0
+  float far_plane = 100.0f;  ///< model units, > near_plane
+
+  [[nodiscard]] glm::mat4 view_matrix() const;
+  /// OpenGL clip space (z in [-1, 1]); aspect = width / height.
+  [[nodiscard]] glm::mat4 projection_matrix(float aspect) const;
+  [[nodiscard]] glm::vec3 forward() const;
+};
+
+/// Sets the clip planes so the sphere (center, radius) lies between them as
+/// seen from camera.eye, with a near plane no closer than radius / 1000.
+void fit_clip_planes(Camera& camera, glm::vec3 center, float radius);
+
+/// A camera that looks at the bounding sphere of the box [bmin, bmax] from
+/// `direction` (center -> eye, any length), far enough that the sphere fills
+/// the smaller of the two fields of view for `aspect`.
+Camera fit_camera(glm::vec3 bmin, glm::vec3 bmax, float aspect,
+                  glm::vec3 direction = {0.35f, 0.3f, 1.0f}, float fov_y_deg = 45.0f);
+
+/// fit_camera() from azimuth (radians about +y, 0 looks from +z) and elevation
+/// (radians above the xz plane).
+Camera orbit_camera(glm::vec3 bmin, glm::vec3 bmax, float aspect, float azimuth, float elevation,
+                    float fov_y_deg = 45.0f);
+
+}  // namespace treecut::splat

@@ -1,0 +1,52 @@
+// Camera paths: timed camera keys, recorded by `treecut view`, replayed by
+// `treecut view --path` and `treecut render --path`. The text format is
+// documented in docs/camera-paths.md:
+//
+//   treecut-camera-path 1
+//   # time eye.x eye.y eye.z target.x target.y target.z up.x up.y up.z fov_y_deg
+//   0.000 0.1 0.2 0.5 0 0.1 0 0 1 0 45
+//
+// Plain data, no GL; any thread.
+#pragma once
+
+#include <filesystem>
+#include <glm/vec3.hpp>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "treecut/splat/camera.hpp"
+
+namespace treecut::splat {
+
+struct CameraKey {
+  double time = 0.0;  ///< seconds from the start of the path, non-decreasing
+  Camera camera;      ///< clip planes are not stored (the player fits them)
+};
+
+struct CameraPath {
+  std::vector<CameraKey> keys;
+
+  [[nodiscard]] bool empty() const { return keys.empty(); }
+  /// Time of the last key (0 for zero or one key).
+  [[nodiscard]] double duration() const { return keys.empty() ? 0.0 : keys.back().time; }
+  /// The camera at time t (clamped to the path), eye/target/up/fov linearly
+  /// interpolated between the surrounding keys. Requires !empty().
+  [[nodiscard]] Camera at(double t) const;
+};
+
+/// Parses the text format; throws InputError "NAME:LINE: problem" on any
+/// malformed line, non-finite number, decreasing time, or a missing header.
+CameraPath parse_camera_path(std::string_view text, const std::string& name);
+std::string format_camera_path(const CameraPath& path);
+/// File versions of the two above; I/O failures throw InputError (load) or
+/// std::runtime_error (save).
+CameraPath load_camera_path(const std::filesystem::path& file);
+void save_camera_path(const std::filesystem::path& file, const CameraPath& path);
+
+/// One turn around the model's bounding box in `seconds`, `keys` keys (>= 2,
+/// the last equal to the first), at `elevation` radians.
+CameraPath orbit_path(glm::vec3 bmin, glm::vec3 bmax, float aspect, double seconds, int keys,
+                      float elevation = 0.35f);
+
+}  // namespace treecut::splat

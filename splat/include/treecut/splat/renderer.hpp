@@ -1,0 +1,168 @@
+// The splat renderer: every node of a Hierarchy lives in one static vertex
+// buffer; a cut is an index list of node ids in a CutBuffer, drawn with
+// glDrawElements(GL_POINTS). Exchanging cuts only changes which index buffer
+// is bound. Three splat modes:
+//
+//  - Fast: one pass. A geometry shader turns each node into a disc in its
+//    tangent plane (a real quad, so depth is per fragment and intersecting
+//    splats resolve correctly), lit per fragment with the node normal.
+//  - HighQuality: deferred surface splatting after Botsch, Hornung, Zwicker,
+//    Kobbelt, "High-Quality Surface Splatting on Today's GPUs" (PBG 2005):
+//    a visibility pass pushed back by a depth offset, an attribute pass that
+//    accumulates Gaussian-weighted color and normal of every splat within the
+//    offset of the visible surface, and a normalization pass that divides by
+//    the weight and shades per pixel (Phong).
+//  - FixedSize: screen-space points of a fixed pixel size (the stippling look
+//    of the bucket strategy).
+//
+// All methods: render thread only, with the renderer's context current.
+#pragma once
+
+#include <cstdint>
+#include <glm/mat4x4.hpp>
+#include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
+#include <span>
+#include <string_view>
+#include <vector>
+
+#include "treecut/hierarchy.hpp"
+#include "treecut/splat/camera.hpp"
+#include "treecut/splat/gl_objects.hpp"
+
+namespace treecut::splat {
+
+enum class SplatMode { Fast, HighQuality, FixedSize };
+
+/// "fast", "hq", "fixed".
+std::string_view splat_mode_name(SplatMode mode);
+/// Inverse of splat_mode_name (also accepts "high-quality"); throws InputError.
+SplatMode parse_splat_mode(std::string_view name);
+
+struct Light {
+  /// A headlight: the direction is given in view space and moves with the camera.
+  bool follow_camera = true;
+  /// Direction towards the light: view space if follow_camera, else world space.
+  glm::vec3 direction{-0.35f, 0.45f, 1.0f};
+  float ambient = 0.22f;
+  float diffuse = 0.85f;
+  float specular = 0.25f;
+  float shininess = 32.0f;
+};
+
+struct RenderSettings {
+  SplatMode mode = SplatMode::Fast;
+  /// Multiplies every node's radius (model units) before drawing; > 1 closes gaps.
+  float radius_scale = 1.0f;
+  /// FixedSize mode: point diameter in pixels.
+  float point_size_px = 2.0f;
+  /// HighQuality mode: how far the visibility pass is pushed back, in units of
+  /// each splat's radius (Botsch et al.'s epsilon, made scale-free).
+  float depth_offset = 0.6f;
+  /// Skip nodes whose whole normal cone faces away from the eye.
+  bool backface_culling = true;
+  glm::vec3 background{0.11f, 0.12f, 0.14f};  ///< sRGB in [0, 1]
+  Light light;
+};
+
+/// What one draw() did (feeds the HUD, the CSV of `treecut render` and tests).
+struct FrameStats {
+  std::size_t splats = 0;    ///< nodes in the drawn cut
+  std::uint64_t points = 0;  ///< input points those nodes stand for
+  double cpu_ms = 0.0;       ///< time to issue the frame (+ glFinish if asked)
+  bool finished = false;     ///< cpu_ms includes glFinish (the GPU work is done)
+};
+
+/// One index list on the GPU. upload() replaces the content; the buffer grows
+/// (to the next power of two) when needed and is never shrunk.
+class CutBuffer {
+ public:
+  CutBuffer() = default;
+  /// Copies the node ids of a cut of `h` and counts the input points they
+  /// stand for (the sum of their point_count). O(nodes).
+  void upload(const Hierarchy& h, std::span<const NodeId> nodes);
+  [[nodiscard]] std::size_t size() const { return count_; }
+  [[nodiscard]] std::uint64_t points() const { return points_; }
+  [[nodiscard]] const gl::Buffer& buffer() const { return buffer_; }
+
+ private:
+  gl::Buffer buffer_;
+  std::size_t count_ = 0;
+  std::uint64_t points_ = 0;
+};
+
+/// The frame's matrices, handed to a QueryHook.
+struct FrameView {
+  glm::mat4 view{1.0f};
+  glm::mat4 projection{1.0f};
+  glm::vec3 eye{0.0f};
+  glm::ivec2 size{0};
+};
+
+/// The place in a frame where GPU queries requested by a strategy run. The
+/// renderer calls run() once per draw(), after the depth of the visible
+/// surface is complete and before it is resolved to color, with the scene
+/// framebuffer bound (depth test on, depth writes off, color writes off) and
+/// the viewport set. An implementation issues its gl::Query objects here and
+/// polls earlier ones with Query::try_result(); it must never wait for a
+/// result, and must restore any other state it changes.
+class QueryHook {
+ public:
+  virtual ~QueryHook() = default;
+  virtual void run(const FrameView& view) = 0;
+};
+
+class Renderer {
+ public:
+  /// Uploads all nodes of `h` into the static vertex buffer and creates the
+  /// render targets for a `size` framebuffer. `h` need not outlive the renderer.
+  Renderer(const Hierarchy& h, glm::ivec2 size);
+  Renderer(const Renderer&) = delete;
+  Renderer& operator=(const Renderer&) = delete;
+  ~Renderer();
+
+  /// Re-creates the render targets; a no-op for the current size.
+  void resize(glm::ivec2 size);
+  [[nodiscard]] glm::ivec2 size() const { return size_; }
+  [[nodiscard]] std::uint32_t node_count() const { return node_count_; }
+
+  /// Draws `cut` into the renderer's own color target. With `finish`, waits for
+  /// the GPU so FrameStats::cpu_ms is the whole frame time.
+  FrameStats draw(const CutBuffer& cut, const Camera& camera, const RenderSettings& settings,
+                  bool finish = false);
+
+  /// Copies the last frame to the bound draw framebuffer 0 (a window), scaled
+  /// to `window_size`.
+  void present(glm::ivec2 window_size) const;
+
+  /// The last frame as tightly packed RGBA8, top row first (image order).
+  [[nodiscard]] std::vector<std::uint8_t> read_pixels() const;
+
+  /// The hook runs inside every draw() until reset to null. Not owned.
+  void set_query_hook(QueryHook* hook) { query_hook_ = hook; }
+
+ private:
+  void create_targets();
+  void draw_splats(const CutBuffer& cut) const;
+
+  glm::ivec2 size_{0};
+  std::uint32_t node_count_ = 0;
+  gl::Buffer nodes_;  // center_radius | normal_cone | color, one region each
+  gl::VertexArray vao_;
+  gl::VertexArray empty_vao_;  // for the full-screen pass (core profile needs a VAO)
+  gl::Program fast_;
+  gl::Program hq_visibility_;
+  gl::Program hq_attributes_;
+  gl::Program hq_normalize_;
+  gl::Program fixed_;
+  gl::Texture color_;               // RGBA8, the frame
+  gl::Texture depth_;               // DEPTH24, shared by every pass
+  gl::Texture accum_color_;         // RGBA16F: sum w*rgb (linear), sum w
+  gl::Texture accum_normal_;        // RGBA16F: sum w*n
+  gl::Framebuffer scene_fbo_;       // color_ + depth_
+  gl::Framebuffer visibility_fbo_;  // depth_ only
+  gl::Framebuffer accum_fbo_;       // accum_color_ + accum_normal_ + depth_ (test only)
+  QueryHook* query_hook_ = nullptr;
+};
+
+}  // namespace treecut::splat

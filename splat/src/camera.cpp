@@ -1,0 +1,60 @@
+#include "treecut/splat/camera.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <glm/geometric.hpp>
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/trigonometric.hpp>
+
+namespace treecut::splat {
+
+glm::mat4 Camera::view_matrix() const {
+  return glm::lookAt(eye, target, up);
+}
+
+glm::mat4 Camera::projection_matrix(float aspect) const {
+  return glm::perspective(glm::radians(fov_y_deg), aspect, near_plane, far_plane);
+}
+
+glm::vec3 Camera::forward() const {
+  const glm::vec3 d = target - eye;
+  const float len = glm::length(d);
+  return len > 0.0f ? d / len : glm::vec3(0.0f, 0.0f, -1.0f);
+}
+
+void fit_clip_planes(Camera& camera, glm::vec3 center, float radius) {
+  const float r = std::max(radius, 1e-6f);
+  const float d = glm::length(camera.eye - center);
+  // Inside or near the sphere the near plane cannot bracket it; keep depth
+  // precision reasonable with a near plane of radius / 1000.
+  camera.near_plane = std::max(d - 1.05f * r, r * 1e-3f);
+  camera.far_plane = std::max(d + 1.05f * r, camera.near_plane * 2.0f);
+}
+
+Camera fit_camera(glm::vec3 bmin, glm::vec3 bmax, float aspect, glm::vec3 direction,
+                  float fov_y_deg) {
+  const glm::vec3 center = 0.5f * (bmin + bmax);
+  const float radius = std::max(0.5f * glm::length(bmax - bmin), 1e-6f);
+  const float half_y = glm::radians(fov_y_deg) * 0.5f;
+  const float half_x = std::atan(std::tan(half_y) * std::max(aspect, 1e-3f));
+  const float half = std::min(half_x, half_y);
+  const float distance = radius / std::sin(half);
+  const float len = glm::length(direction);
+  const glm::vec3 dir = len > 0.0f ? direction / len : glm::vec3(0.0f, 0.0f, 1.0f);
+  Camera c;
+  c.target = center;
+  c.eye = center + dir * distance;
+  c.up = std::abs(dir.y) > 0.999f ? glm::vec3(0.0f, 0.0f, -1.0f) : glm::vec3(0.0f, 1.0f, 0.0f);
+  c.fov_y_deg = fov_y_deg;
+  fit_clip_planes(c, center, radius);
+  return c;
+}
+
+Camera orbit_camera(glm::vec3 bmin, glm::vec3 bmax, float aspect, float azimuth, float elevation,
+                    float fov_y_deg) {
+  const glm::vec3 dir(std::cos(elevation) * std::sin(azimuth), std::sin(elevation),
+                      std::cos(elevation) * std::cos(azimuth));
+  return fit_camera(bmin, bmax, aspect, dir, fov_y_deg);
+}
+
+}  // namespace treecut::splat

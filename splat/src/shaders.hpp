@@ -1,0 +1,235 @@
+// GLSL 4.50 sources of the splat renderer, embedded as raw strings. Each
+// program is kCommon + its stages' bodies (see renderer.cpp).
+#pragma once
+
+namespace treecut::splat::shaders {
+
+// Uniforms and functions every stage may use. Colors are sRGB in the node
+// arrays and the output; lighting happens in linear space.
+inline constexpr const char* kCommon = R"(#version 450 core
+uniform mat4 u_view;
+uniform mat4 u_proj;
+uniform vec3 u_eye;              // world space
+uniform float u_radius_scale;
+uniform int u_cull;              // 1: drop nodes whose normal cone faces away
+uniform float u_min_radius_px;   // quads smaller than this grow to it (no sub-pixel dropouts)
+uniform float u_viewport_h;      // pixels
+uniform vec3 u_light_dir;        // world space, unit, towards the light
+uniform vec4 u_light;            // ambient, diffuse, specular, shininess
+
+vec3 srgb_to_linear(vec3 c) {
+  return mix(c / 12.92, pow((c + 0.055) / 1.055, vec3(2.4)), step(0.04045, c));
+}
+vec3 linear_to_srgb(vec3 c) {
+  c = clamp(c, 0.0, 1.0);
+  return mix(c * 12.92, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, step(0.0031308, c));
+}
+// Blinn-Phong, two-sided: a normal facing away from the eye is flipped.
+vec3 shade(vec3 albedo, vec3 n, vec3 pos) {
+  vec3 v = normalize(u_eye - pos);
+  if (dot(n, v) < 0.0) n = -n;
+  float diffuse = max(dot(n, u_light_dir), 0.0);
+  vec3 h = normalize(u_light_dir + v);
+  float specular = diffuse > 0.0 ? pow(max(dot(n, h), 0.0), u_light.w) : 0.0;
+  return albedo * (u_light.x + u_light.y * diffuse) + vec3(u_light.z * specular);
+}
+// True when every normal of the cone (axis n, cosine cc) faces away from the
+// unit direction e towards the eye: angle(n, e) > 90 deg + half-angle, with a
+// little slack for noisy leaf normals.
+bool cone_faces_away(vec3 n, float cc, vec3 e) {
+  if (u_cull == 0 || cc <= 0.0) return false;
+  float sin_half = sqrt(max(1.0 - cc * cc, 0.0));
+  return dot(n, e) < -sin_half - 0.1;
+}
+)";
+
+// Vertex stage of the disc modes: passes the node through.
+inline constexpr const char* kSplatVertex = R"(
+layout(location = 0) in vec4 a_center_radius;
+layout(location = 1) in vec4 a_normal_cone;  // snorm16, normalized by the VAO
+layout(location = 2) in vec4 a_color;        // unorm8 sRGB
+out Node {
+  vec3 center;
+  float radius;
+  vec3 normal;
+  float cone_cos;
+  vec3 color;
+} v_node;
+void main() {
+  v_node.center = a_center_radius.xyz;
+  v_node.radius = a_center_radius.w * u_radius_scale;
+  v_node.normal = a_normal_cone.xyz;
+  v_node.cone_cos = a_normal_cone.w;
+  v_node.color = srgb_to_linear(a_color.rgb);
+}
+)";
+
+// Geometry stage of the disc modes: one quad per node in the disc's plane, so
+// the rasterizer interpolates a perspective-correct depth per fragment. A node
+// with a tight normal cone is a disc oriented by its normal; a node whose cone
+// is wider than ~45 degrees (coarse interior nodes) faces the eye, as QSplat's
+// round splats do. u_depth_offset (in radii) pushes the quad away from the eye
+// for the visibility pass of the high-quality mode.
+inline constexpr const char* kSplatGeometry = R"(
+layout(points) in;
+layout(triangle_strip, max_vertices = 4) out;
+in Node {
+  vec3 center;
+  float radius;
+  vec3 normal;
+  float cone_cos;
+  vec3 color;
+} g_node[];
+uniform float u_depth_offset;
+out vec2 f_uv;
+out vec3 f_pos;
+flat out vec3 f_normal;
+flat out vec3 f_color;
+void main() {
+  vec3 c = g_node[0].center;
+  float r = g_node[0].radius;
+  vec3 to_eye = u_eye - c;
+  float dist = length(to_eye);
+  vec3 e = dist > 0.0 ? to_eye / dist : vec3(0.0, 0.0, 1.0);
+  float nl = length(g_node[0].normal);
+  vec3 n = nl > 1e-4 ? g_node[0].normal / nl : e;
+  float cc = g_node[0].cone_cos;
+  if (cone_faces_away(n, cc, e)) return;
+
+  // Grow splats that would cover less than u_min_radius_px (they could fall
+  // between pixel centres and leave holes in a far-away surface).
+  float view_depth = max(-(u_view * vec4(c, 1.0)).z, 1e-6);
+  float r_px = r * u_proj[1][1] * 0.5 * u_viewport_h / view_depth;
+  if (r_px < u_min_radius_px) r *= u_min_radius_px / max(r_px, 1e-6);
+
+  vec3 d = cc < 0.7 ? e : n;
+  vec3 a = abs(d.x) < 0.9 ? vec3(1.0, 0.0, 0.0) : vec3(0.0, 1.0, 0.0);
+  vec3 u = normalize(cross(d, a));
+  vec3 w = cross(d, u);
+  vec3 base = c - e * (u_depth_offset * r);
+  mat4 vp = u_proj * u_view;
+  const vec2 corners[4] = vec2[4](vec2(-1.0, -1.0), vec2(1.0, -1.0), vec2(-1.0, 1.0), vec2(1.0, 1.0));
+  for (int i = 0; i < 4; ++i) {
+    vec3 p = base + r * (corners[i].x * u + corners[i].y * w);
+    gl_Position = vp * vec4(p, 1.0);
+    f_uv = corners[i];
+    f_pos = p;
+    f_normal = n;
+    f_color = g_node[0].color;
+    EmitVertex();
+  }
+  EndPrimitive();
+}
+)";
+
+// Fast mode: the disc, lit with its node normal.
+inline constexpr const char* kFastFragment = R"(
+in vec2 f_uv;
+in vec3 f_pos;
+flat in vec3 f_normal;
+flat in vec3 f_color;
+layout(location = 0) out vec4 o_color;
+void main() {
+  if (dot(f_uv, f_uv) > 1.0) discard;
+  o_color = vec4(linear_to_srgb(shade(f_color, f_normal, f_pos)), 1.0);
+}
+)";
+
+// High quality, pass 1 (visibility): depth of the discs only.
+inline constexpr const char* kVisibilityFragment = R"(
+in vec2 f_uv;
+void main() {
+  if (dot(f_uv, f_uv) > 1.0) discard;
+}
+)";
+
+// High quality, pass 2 (attributes): every disc fragment within the depth
+// offset of the visible surface adds its Gaussian-weighted linear color and
+// (eye-facing) normal; additive blending sums them.
+inline constexpr const char* kAttributeFragment = R"(
+in vec2 f_uv;
+in vec3 f_pos;
+flat in vec3 f_normal;
+flat in vec3 f_color;
+layout(location = 0) out vec4 o_color;
+layout(location = 1) out vec4 o_normal;
+void main() {
+  float q = dot(f_uv, f_uv);
+  if (q > 1.0) discard;
+  float w = exp(-3.0 * q);
+  vec3 n = dot(f_normal, u_eye - f_pos) < 0.0 ? -f_normal : f_normal;
+  o_color = vec4(f_color * w, w);
+  o_normal = vec4(n * w, 0.0);
+}
+)";
+
+// High quality, pass 3 (normalization + deferred shading): a full-screen
+// triangle divides the sums by the weight and lights each pixel with the
+// blended normal at the position reconstructed from the visibility depth.
+inline constexpr const char* kFullscreenVertex = R"(
+out vec2 f_ndc;
+void main() {
+  vec2 p = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));
+  f_ndc = p * 2.0 - 1.0;
+  gl_Position = vec4(f_ndc, 0.0, 1.0);
+}
+)";
+
+inline constexpr const char* kNormalizeFragment = R"(
+layout(binding = 0) uniform sampler2D u_accum_color;
+layout(binding = 1) uniform sampler2D u_accum_normal;
+layout(binding = 2) uniform sampler2D u_depth;
+uniform mat4 u_inv_view_proj;
+in vec2 f_ndc;
+layout(location = 0) out vec4 o_color;
+void main() {
+  ivec2 px = ivec2(gl_FragCoord.xy);
+  vec4 acc = texelFetch(u_accum_color, px, 0);
+  if (acc.a <= 1e-6) discard;  // no splat here: the cleared background stays
+  vec3 albedo = acc.rgb / acc.a;
+  vec3 n = texelFetch(u_accum_normal, px, 0).xyz;
+  float nl = length(n);
+  n = nl > 1e-6 ? n / nl : normalize(u_eye);
+  float z = texelFetch(u_depth, px, 0).r;
+  vec4 p = u_inv_view_proj * vec4(f_ndc, z * 2.0 - 1.0, 1.0);
+  o_color = vec4(linear_to_srgb(shade(albedo, n, p.xyz / p.w)), 1.0);
+}
+)";
+
+// Fixed-size mode: square (or, from 3 px, round) screen-space points.
+inline constexpr const char* kFixedVertex = R"(
+layout(location = 0) in vec4 a_center_radius;
+layout(location = 1) in vec4 a_normal_cone;
+layout(location = 2) in vec4 a_color;
+uniform float u_point_size;
+out vec3 f_pos;
+flat out vec3 f_normal;
+flat out vec3 f_color;
+void main() {
+  vec3 c = a_center_radius.xyz;
+  vec3 e = normalize(u_eye - c);
+  float nl = length(a_normal_cone.xyz);
+  vec3 n = nl > 1e-4 ? a_normal_cone.xyz / nl : e;
+  f_pos = c;
+  f_normal = n;
+  f_color = srgb_to_linear(a_color.rgb);
+  gl_PointSize = u_point_size;
+  // Outside the clip volume = not drawn.
+  gl_Position = cone_faces_away(n, a_normal_cone.w, e) ? vec4(2.0, 2.0, 2.0, 1.0)
+                                                        : u_proj * u_view * vec4(c, 1.0);
+}
+)";
+
+inline constexpr const char* kFixedFragment = R"(
+uniform float u_point_size;
+in vec3 f_pos;
+flat in vec3 f_normal;
+flat in vec3 f_color;
+layout(location = 0) out vec4 o_color;
+void main() {
+  if (u_point_size >= 3.0 && length(gl_PointCoord - vec2(0.5)) > 0.5) discard;
+  o_color = vec4(linear_to_srgb(shade(f_color, f_normal, f_pos)), 1.0);
+}
+)";
+
+}  // namespace treecut::splat::shaders

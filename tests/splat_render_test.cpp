@@ -1,0 +1,264 @@
+// Headless GL tests of the splat renderer on OSMesa (llvmpipe). They are not
+// optional: a machine without libOSMesa fails them.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <optional>
+
+#include "test_support.hpp"
+#include "treecut/error.hpp"
+#include "treecut/generate.hpp"
+#include "treecut/model.hpp"
+#include "treecut/model_io.hpp"
+#include "treecut/splat/context.hpp"
+#include "treecut/splat/gl_objects.hpp"
+#include "treecut/splat/image.hpp"
+#include "treecut/splat/renderer.hpp"
+#include "treecut/tree_cut.hpp"
+
+namespace treecut::splat {
+namespace {
+
+constexpr int kWidth = 320;
+constexpr int kHeight = 240;
+
+// One context per test program (a process uses one GL back end).
+GlContext& context() {
+  static OsmesaContext ctx(kWidth, kHeight);
+  ctx.make_current();
+  return ctx;
+}
+
+const Hierarchy& sphere() {
+  static const Hierarchy h = build_from_points(generate_model(ModelKind::Sphere, 20000, 7));
+  return h;
+}
+
+std::array<std::uint8_t, 3> background_bytes(const RenderSettings& s) {
+  auto to_byte = [](float v) {
+    return static_cast<std::uint8_t>(std::lround(std::clamp(v, 0.0f, 1.0f) * 255.0f));
+  };
+  return {to_byte(s.background.x), to_byte(s.background.y), to_byte(s.background.z)};
+}
+
+class SplatRender : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    context();
+    renderer_ = std::make_unique<Renderer>(sphere(), glm::ivec2(kWidth, kHeight));
+    camera_ = fit_camera(sphere().bounds_min(), sphere().bounds_max(), float(kWidth) / kHeight);
+    const TreeCut leaves = TreeCut::leaf_cut(sphere());
+    full_.upload(sphere(), leaves.nodes());
+  }
+
+  Image render(const CutBuffer& cut, const RenderSettings& s) {
+    renderer_->draw(cut, camera_, s, true);
+    return Image{kWidth, kHeight, renderer_->read_pixels()};
+  }
+
+  std::unique_ptr<Renderer> renderer_;
+  Camera camera_;
+  CutBuffer full_;
+};
+
+TEST_F(SplatRender, DefaultModelRendersNonEmptyCenteredAndLit) {
+  RenderSettings s;
+  const Image img = render(full_, s);
+  const auto bg = background_bytes(s);
+  const Coverage cov = coverage(img, bg.data());
+  // The fitted sphere covers a good part of the frame, around the centre.
+  EXPECT_GT(cov.pixels, std::size_t(kWidth * kHeight) / 8);
+  EXPECT_NEAR(cov.centroid_x, kWidth / 2.0, kWidth * 0.05);
+  EXPECT_NEAR(cov.centroid_y, kHeight / 2.0, kHeight * 0.05);
+  EXPECT_GT(cov.min_x, 0);
+  EXPECT_LT(cov.max_x, kWidth - 1);
+
+  // Lit: a light from the left makes the left half brighter than the right,
+  // and the mirrored light the other way round.
+  auto half_luma = [&](const Image& im, bool left) {
+    double sum = 0.0;
+    std::size_t n = 0;
+    for (int y = 0; y < kHeight; ++y) {
+      for (int x = left ? 0 : kWidth / 2; x < (left ? kWidth / 2 : kWidth); ++x) {
+        const std::uint8_t* p = &im.rgba[(std::size_t(y) * kWidth + std::size_t(x)) * 4];
+        if (std::abs(p[0] - bg[0]) + std::abs(p[1] - bg[1]) + std::abs(p[2] - bg[2]) < 10) continue;
+        sum += 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
+        ++n;
+      }
+    }
+    return n > 0 ? sum / double(n) : 0.0;
+  };
+  RenderSettings from_left = s;
+  from_left.light.direction = {-1.0f, 0.0f, 0.3f};
+  RenderSettings from_right = s;
+  from_right.light.direction = {1.0f, 0.0f, 0.3f};
+  const Image left = render(full_, from_left);
+  const Image right = render(full_, from_right);
+  EXPECT_GT(half_luma(left, true), half_luma(left, false) + 20.0);
+  EXPECT_GT(half_luma(right, false), half_luma(right, true) + 20.0);
+}
+
+TEST_F(SplatRender, SameInputGivesSameImage) {
+  for (SplatMode mode : {SplatMode::Fast, SplatMode::HighQuality, SplatMode::FixedSize}) {
+    RenderSettings s;
+    s.mode = mode;
+    const Image first = render(full_, s);
+    // Something else in between: another cut bound, another mode.
+    CutBuffer root;
+    root.upload(sphere(), TreeCut::root_cut(sphere()).nodes());
+    RenderSettings other = s;
+    other.mode = mode == SplatMode::Fast ? SplatMode::HighQuality : SplatMode::Fast;
+    render(root, other);
+    const Image second = render(full_, s);
+    EXPECT_GT(psnr(first, second), 50.0) << splat_mode_name(mode);
+    EXPECT_LT(changed_fraction(first, second), 0.001) << splat_mode_name(mode);
+  }
+}
+
+TEST_F(SplatRender, EachSplatModeRendersAndTheyDiffer) {
+  std::vector<Image> images;
+  for (SplatMode mode : {SplatMode::Fast, SplatMode::HighQuality, SplatMode::FixedSize}) {
+    RenderSettings s;
+    s.mode = mode;
+    s.point_size_px = 1.0f;
+    images.push_back(render(full_, s));
+    const auto bg = background_bytes(s);
+    const Coverage cov = coverage(images.back(), bg.data());
+    EXPECT_GT(cov.pixels, std::size_t(kWidth * kHeight) / 16) << splat_mode_name(mode);
+    EXPECT_NEAR(cov.centroid_x, kWidth / 2.0, kWidth * 0.05) << splat_mode_name(mode);
+    EXPECT_GT(cov.mean_luma, 40.0) << splat_mode_name(mode);
+  }
+  // Fixed 1-pixel points leave the background visible between them; the disc
+  // modes cover the surface, so they differ clearly from it.
+  EXPECT_LT(psnr(images[0], images[2]), 30.0);
+  EXPECT_LT(psnr(images[1], images[2]), 30.0);
+  // Fast and high quality show the same surface; blending changes the shading.
+  EXPECT_GT(psnr(images[0], images[1]), 20.0);
+  EXPECT_LT(psnr(images[0], images[1]), 60.0);
+}
+
+TEST_F(SplatRender, FullDetailDiffersFromRootOnly) {
+  CutBuffer root;
+  root.upload(sphere(), TreeCut::root_cut(sphere()).nodes());
+  EXPECT_EQ(root.size(), 1u);
+  EXPECT_EQ(root.points(), sphere().leaf_count());
+  EXPECT_EQ(full_.points(), sphere().leaf_count());
+  RenderSettings s;
+  const Image a = render(full_, s);
+  const Image b = render(root, s);
+  EXPECT_LT(psnr(a, b), 25.0);
+  // A mid-level cut lies in between: closer to full detail than the root is.
+  CutBuffer mid;
+  mid.upload(sphere(), breadth_first_cut(sphere(), 2000).nodes());
+  const Image c = render(mid, s);
+  EXPECT_GT(psnr(a, c), psnr(a, b));
+}
+
+TEST_F(SplatRender, EmptyCutDrawsOnlyBackground) {
+  CutBuffer empty;
+  empty.upload(sphere(), {});
+  RenderSettings s;
+  const Image img = render(empty, s);
+  const auto bg = background_bytes(s);
+  EXPECT_EQ(coverage(img, bg.data(), 2).pixels, 0u);
+}
+
+TEST_F(SplatRender, ResizeChangesTheFrameSize) {
+  renderer_->resize({64, 48});
+  RenderSettings s;
+  renderer_->draw(full_, camera_, s, true);
+  EXPECT_EQ(renderer_->read_pixels().size(), std::size_t(64 * 48 * 4));
+}
+
+// The query hook runs once per frame in every mode, with the frame's depth
+// bound and depth writes off, and an occlusion query issued there answers.
+class CountingHook : public QueryHook {
+ public:
+  void run(const FrameView& view) override {
+    ++calls;
+    GLint depth_writes = GL_TRUE;
+    gl::GetIntegerv(GL_DEPTH_WRITEMASK, &depth_writes);
+    if (depth_writes != GL_FALSE) ++writes_on;
+    last_size = view.size;
+  }
+  int calls = 0;
+  int writes_on = 0;
+  glm::ivec2 last_size{0};
+};
+
+TEST_F(SplatRender, QueryHookRunsOncePerFrameWithDepthWritesOff) {
+  CountingHook hook;
+  renderer_->set_query_hook(&hook);
+  for (SplatMode mode : {SplatMode::Fast, SplatMode::HighQuality, SplatMode::FixedSize}) {
+    RenderSettings s;
+    s.mode = mode;
+    renderer_->draw(full_, camera_, s, true);
+  }
+  renderer_->set_query_hook(nullptr);
+  renderer_->draw(full_, camera_, RenderSettings{}, true);
+  EXPECT_EQ(hook.calls, 3);
+  EXPECT_EQ(hook.writes_on, 0);
+  EXPECT_EQ(hook.last_size, glm::ivec2(kWidth, kHeight));
+}
+
+TEST(SplatQuery, SamplesPassedIsPolledWithoutBlocking) {
+  context();
+  Renderer renderer(sphere(), {kWidth, kHeight});
+  CutBuffer full;
+  full.upload(sphere(), TreeCut::leaf_cut(sphere()).nodes());
+  const Camera cam = fit_camera(sphere().bounds_min(), sphere().bounds_max(), 4.0f / 3.0f);
+  gl::Query q = gl::Query::create(GL_SAMPLES_PASSED);
+  ASSERT_TRUE(q);
+  q.begin();
+  renderer.draw(full, cam, RenderSettings{}, false);
+  q.end();
+  gl::Finish();
+  const std::optional<std::uint64_t> samples = q.try_result();
+  ASSERT_TRUE(samples.has_value());  // after glFinish the result must be there
+  EXPECT_GT(*samples, std::uint64_t(kWidth * kHeight) / 10);
+}
+
+TEST(GlObjects, MoveTransfersOwnershipAndEmptiesTheSource) {
+  context();
+  gl::Buffer a = gl::Buffer::create(64, nullptr, GL_DYNAMIC_STORAGE_BIT);
+  const GLuint id = a.id();
+  ASSERT_NE(id, 0u);
+  gl::Buffer b = std::move(a);
+  EXPECT_EQ(a.id(), 0u);  // NOLINT(bugprone-use-after-move): the moved-from state is the contract
+  EXPECT_EQ(b.id(), id);
+  gl::Buffer c;
+  c = std::move(b);
+  EXPECT_EQ(c.id(), id);
+  EXPECT_FALSE(b);
+  const GLuint released = c.release();
+  EXPECT_EQ(released, id);
+  EXPECT_FALSE(c);
+  gl::Buffer d = gl::Buffer::wrap(released);  // adopt it again so it is deleted
+  EXPECT_EQ(d.id(), id);
+  static_assert(!std::is_copy_constructible_v<gl::Buffer>);
+  static_assert(std::is_nothrow_move_constructible_v<gl::Program>);
+  static_assert(std::is_nothrow_move_assignable_v<gl::Query>);
+}
+
+TEST(GlObjects, ShaderCompileErrorCarriesTheLog) {
+  context();
+  try {
+    (void)gl::Shader::compile(GL_FRAGMENT_SHADER, "#version 450 core\nvoid main() { nonsense; }",
+                              "broken");
+    FAIL() << "a broken shader compiled";
+  } catch (const gl::GlError& e) {
+    EXPECT_NE(std::string(e.what()).find("broken"), std::string::npos);
+  }
+}
+
+TEST(SplatMode, NamesRoundTripAndUnknownIsInputError) {
+  for (SplatMode m : {SplatMode::Fast, SplatMode::HighQuality, SplatMode::FixedSize}) {
+    EXPECT_EQ(parse_splat_mode(splat_mode_name(m)), m);
+  }
+  EXPECT_THROW(parse_splat_mode("phong"), InputError);
+}
+
+}  // namespace
+}  // namespace treecut::splat
