@@ -131,29 +131,22 @@ void from_neighbours(PointSet& ps, int k, bool want_normals, bool want_radii, bo
   glm::dvec3 centroid(0.0);
   for (const auto& p : ps.positions) centroid += glm::dvec3(p);
   const glm::vec3 c = glm::vec3(centroid / static_cast<double>(std::max<std::size_t>(n, 1)));
-  const auto order = grid.order();
-  parallel_for(n, [&](std::size_t b, std::size_t e) {
-    std::vector<std::uint32_t> idx(static_cast<std::size_t>(k));
-    std::vector<float> d2(static_cast<std::size_t>(k));
-    for (std::size_t o = b; o < e; ++o) {
-      const std::uint32_t i = order[o];
-      const int found = grid.query(i, k, idx.data(), d2.data());
-      const glm::vec3 p = ps.positions[i];
-      if (want_radii && found > 0) {
-        // Discs of radius r at local density rho = found / (pi d_k^2) leave a
-        // fraction exp(-rho pi r^2) uncovered: r = d_k sqrt(4 / found) -> ~2%.
-        ps.radii[i] = std::sqrt(d2[static_cast<std::size_t>(found - 1)] * 4.0f / static_cast<float>(found));
-      }
-      if ((!want_normals && !want_curvature) || found < 2) continue;
-      Moments m;
-      for (int j = 0; j < found; ++j) m.add(ps.positions[idx[static_cast<std::size_t>(j)]] - p);
-      const detail::Eigen3 eig = detail::eigen_symmetric(m.covariance());
-      if (want_curvature) ps.curvature[i] = detail::surface_variation(eig);
-      if (want_normals) {
-        glm::vec3 nrm = eig.smallest;
-        if (glm::dot(nrm, p - c) < 0.0f) nrm = -nrm;  // outward from the centroid
-        ps.normals[i] = nrm;
-      }
+  grid.for_each_knn(k, [&](std::uint32_t i, int found, const std::uint32_t* idx, const float* d2) {
+    const glm::vec3 p = ps.positions[i];
+    if (want_radii && found > 0) {
+      // Discs of radius r at local density rho = found / (pi d_k^2) leave a
+      // fraction exp(-rho pi r^2) uncovered: r = d_k sqrt(4 / found) -> ~2%.
+      ps.radii[i] = std::sqrt(d2[found - 1] * 4.0f / static_cast<float>(found));
+    }
+    if ((!want_normals && !want_curvature) || found < 2) return;
+    Moments m;
+    for (int j = 0; j < found; ++j) m.add(ps.positions[idx[j]] - p);
+    const detail::Eigen3 eig = detail::eigen_symmetric(m.covariance());
+    if (want_curvature) ps.curvature[i] = detail::surface_variation(eig);
+    if (want_normals) {
+      glm::vec3 nrm = eig.smallest;
+      if (glm::dot(nrm, p - c) < 0.0f) nrm = -nrm;  // outward from the centroid
+      ps.normals[i] = nrm;
     }
   });
   if (want_radii) fill_missing_radii(ps.radii);

@@ -93,6 +93,13 @@ void release(std::vector<T>& v) {
   std::vector<T>().swap(v);
 }
 
+// Angle between two directions of any length: atan2 stays accurate for small
+// angles, where acos of a dot product of slightly non-unit (quantized)
+// vectors is off by more than the angle itself.
+float angle_between(glm::vec3 a, glm::vec3 b) {
+  return std::atan2(glm::length(glm::cross(a, b)), glm::dot(a, b));
+}
+
 float clamp01(float x) { return std::min(1.0f, std::max(0.0f, x)); }
 
 // A node's own geometric error: how far its normals spread, (1 - cos)/2 in [0,1].
@@ -328,7 +335,7 @@ Hierarchy build_hierarchy(PointSet&& points, const BuildOptions& options) {
               half_angle = 3.2f;  // a child facing anywhere: full cone
               break;
             }
-            const float between = std::acos(std::clamp(glm::dot(qv, glm::normalize(kv)), -1.0f, 1.0f));
+            const float between = angle_between(qv, kv);
             half_angle = std::max(half_angle, between + std::acos(std::clamp(kc, -1.0f, 1.0f)));
           }
           // Margin for snorm16 rounding of the normals (about 1e-4 rad).
@@ -400,10 +407,9 @@ std::string check_invariants(const Hierarchy& h) {
       if (pc > -1.0f + 1e-4f) {
         const glm::vec3 cn = h.normal(c);
         if (glm::dot(cn, cn) < 0.25f) return fail(c, "normal undefined inside a bounded cone");
-        const float between =
-            std::acos(std::clamp(glm::dot(glm::normalize(pn), glm::normalize(cn)), -1.0f, 1.0f));
+        const float between = angle_between(pn, cn);
         const float c_half = std::acos(std::clamp(h.cone_cos(c), -1.0f, 1.0f));
-        if (between + c_half > p_half + 1e-3f) return fail(c, "normal cone not inside the parent's");
+        if (between + c_half > p_half + 5e-4f) return fail(c, "normal cone not inside the parent's");
       }
     }
     if (count != a.point_count[n]) return fail(n, "point count is not the children's sum");

@@ -69,31 +69,31 @@ void KnnGrid::bucket(float cell_size) {
   if (n == 0) hi = origin_;
   dims_ = glm::clamp(glm::ivec3(glm::floor((hi - origin_) / cell_)) + 1, glm::ivec3(1), glm::ivec3(kMaxDim));
 
-  std::vector<std::uint64_t> keys(n);
+  // (key, index) pairs sorted together: direct comparisons, and the index
+  // breaks ties so the order is deterministic.
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> keyed(n);
   parallel_for(n, [&](std::size_t b, std::size_t e) {
-    for (std::size_t i = b; i < e; ++i) keys[i] = key_of(cell_of(points_[i]));
+    for (std::size_t i = b; i < e; ++i)
+      keyed[i] = {key_of(cell_of(points_[i])), static_cast<std::uint32_t>(i)};
   });
+  std::sort(keyed.begin(), keyed.end());
   order_.resize(n);
-  std::iota(order_.begin(), order_.end(), 0u);
-  std::sort(order_.begin(), order_.end(), [&](std::uint32_t a, std::uint32_t b) {
-    return keys[a] < keys[b] || (keys[a] == keys[b] && a < b);
-  });
-
-  occupied_ = 0;
-  for (std::size_t i = 0; i < n; ++i)
-    if (i == 0 || keys[order_[i]] != keys[order_[i - 1]]) ++occupied_;
+  runs_.clear();
+  for (std::size_t i = 0; i < n; ++i) {
+    order_[i] = keyed[i].second;
+    if (i == 0 || keyed[i].first != keyed[i - 1].first)
+      runs_.push_back(Cell{keyed[i].first, static_cast<std::uint32_t>(i), 0});
+    runs_.back().end = static_cast<std::uint32_t>(i + 1);
+  }
+  occupied_ = runs_.size();
   std::size_t cap = 16;
   while (cap < 2 * occupied_) cap <<= 1;
   table_.assign(cap, Cell{~0ull, 0, 0});
   mask_ = cap - 1;
-  for (std::size_t i = 0; i < n;) {
-    const std::uint64_t k = keys[order_[i]];
-    std::size_t j = i + 1;
-    while (j < n && keys[order_[j]] == k) ++j;
-    std::uint64_t h = mix(k) & mask_;
+  for (const Cell& run : runs_) {
+    std::uint64_t h = mix(run.key) & mask_;
     while (table_[h].key != ~0ull) h = (h + 1) & mask_;
-    table_[h] = Cell{k, static_cast<std::uint32_t>(i), static_cast<std::uint32_t>(j)};
-    i = j;
+    table_[h] = run;
   }
 }
 
@@ -103,6 +103,56 @@ const KnnGrid::Cell* KnnGrid::find(std::uint64_t key) const {
     if (c.key == key) return &c;
     if (c.key == ~0ull) return nullptr;
   }
+}
+
+void KnnGrid::gather(glm::ivec3 c, std::vector<glm::vec3>& p, std::vector<std::uint32_t>& idx) const {
+  p.clear();
+  idx.clear();
+  for (int dz = -1; dz <= 1; ++dz)
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx) {
+        const glm::ivec3 cc = c + glm::ivec3(dx, dy, dz);
+        if (glm::any(glm::lessThan(cc, glm::ivec3(0))) || glm::any(glm::greaterThanEqual(cc, dims_))) continue;
+        const Cell* cell = find(key_of(cc));
+        if (!cell) continue;
+        const std::uint32_t end = std::min(cell->end, cell->begin + kMaxScanPerCell);
+        for (std::uint32_t j = cell->begin; j < end; ++j) {
+          p.push_back(points_[order_[j]]);
+          idx.push_back(order_[j]);
+        }
+      }
+}
+
+float KnnGrid::reach(glm::vec3 p, glm::ivec3 c, int r) const {
+  const glm::vec3 lo = origin_ + glm::vec3(c - r) * cell_;
+  const glm::vec3 hi = origin_ + glm::vec3(c + r + 1) * cell_;
+  // Sides of the cube at the grid border have nothing beyond them.
+  glm::vec3 below = p - lo, above = hi - p;
+  for (int a = 0; a < 3; ++a) {
+    if (c[a] - r <= 0) below[a] = INFINITY;
+    if (c[a] + r >= dims_[a] - 1) above[a] = INFINITY;
+  }
+  const glm::vec3 m = glm::min(below, above);
+  return std::min({m.x, m.y, m.z});
+}
+
+int KnnGrid::top_k(glm::vec3 q, std::uint32_t self, int k, const glm::vec3* cand_p,
+                   const std::uint32_t* cand_i, std::size_t n, std::uint32_t* index, float* dist2) {
+  int found = 0;
+  for (std::size_t j = 0; j < n; ++j) {
+    const glm::vec3 d = cand_p[j] - q;
+    const float d2 = d.x * d.x + d.y * d.y + d.z * d.z;
+    if ((found == k && d2 >= dist2[k - 1]) || cand_i[j] == self) continue;
+    int pos = found < k ? found++ : k - 1;
+    while (pos > 0 && dist2[pos - 1] > d2) {
+      dist2[pos] = dist2[pos - 1];
+      index[pos] = index[pos - 1];
+      --pos;
+    }
+    dist2[pos] = d2;
+    index[pos] = cand_i[j];
+  }
+  return found;
 }
 
 int KnnGrid::query(std::uint32_t self, int k, std::uint32_t* index, float* dist2) const {

@@ -3,16 +3,20 @@
 // bounding volume. Read-only after construction, so queries run in parallel.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
+#include <glm/common.hpp>
 #include <glm/vec3.hpp>
 #include <span>
 #include <vector>
+
+#include "treecut/parallel.hpp"
 
 namespace treecut::detail {
 
 class KnnGrid {
  public:
-  explicit KnnGrid(std::span<const glm::vec3> points, float points_per_cell = 3.0f);
+  explicit KnnGrid(std::span<const glm::vec3> points, float points_per_cell = 5.0f);
 
   /// The (up to) k nearest points to points[self], self excluded, nearest
   /// first. Writes indices and squared distances; returns how many were found.
@@ -20,8 +24,12 @@ class KnnGrid {
   /// bounds the cost on degenerate input (all points at one place).
   int query(std::uint32_t self, int k, std::uint32_t* index, float* dist2) const;
 
-  /// Points in grid order (cell by cell): iterate in this order for locality.
-  [[nodiscard]] std::span<const std::uint32_t> order() const { return order_; }
+  /// Calls fn(i, found, index, dist2) once for every point i with its (up to)
+  /// k nearest neighbours, nearest first, from several threads. Points of one
+  /// cell share one gathered candidate list (the 27 surrounding cells), which
+  /// answers most queries from contiguous memory; the rest fall back to query().
+  template <class Fn>
+  void for_each_knn(int k, Fn&& fn) const;
 
  private:
   struct Cell {
@@ -33,14 +41,45 @@ class KnnGrid {
   const Cell* find(std::uint64_t key) const;
   void bucket(float cell_size);
 
+  // Exact top-k over gathered candidates; returns how many were found.
+  static int top_k(glm::vec3 q, std::uint32_t self, int k, const glm::vec3* cand_p,
+                   const std::uint32_t* cand_i, std::size_t n, std::uint32_t* index, float* dist2);
+  // Distance from p to the outside of the cube of cells within `r` of its cell.
+  float reach(glm::vec3 p, glm::ivec3 cell, int r) const;
+  void gather(glm::ivec3 cell, std::vector<glm::vec3>& p, std::vector<std::uint32_t>& i) const;
+
   std::span<const glm::vec3> points_;
   glm::vec3 origin_{0.0f};
   float cell_ = 1.0f;
   glm::ivec3 dims_{1};
   std::vector<std::uint32_t> order_;
   std::vector<Cell> table_;  // open addressing, capacity a power of two
+  std::vector<Cell> runs_;   // the occupied cells in key order
   std::uint64_t mask_ = 0;
   std::size_t occupied_ = 0;
 };
+
+template <class Fn>
+void KnnGrid::for_each_knn(int k, Fn&& fn) const {
+  const auto kk = static_cast<std::size_t>(std::max(k, 1));
+  parallel_for(runs_.size(), [&](std::size_t b, std::size_t e) {
+    std::vector<glm::vec3> cand_p;
+    std::vector<std::uint32_t> cand_i;
+    std::vector<std::uint32_t> index(kk);
+    std::vector<float> dist2(kk);
+    for (std::size_t c = b; c < e; ++c) {
+      const Cell& run = runs_[c];
+      const glm::ivec3 cell = cell_of(points_[order_[run.begin]]);
+      gather(cell, cand_p, cand_i);
+      for (std::uint32_t j = run.begin; j < run.end; ++j) {
+        const std::uint32_t i = order_[j];
+        int found = top_k(points_[i], i, k, cand_p.data(), cand_i.data(), cand_p.size(), index.data(), dist2.data());
+        const float r = reach(points_[i], cell, 1);
+        if (found < k || dist2[kk - 1] > r * r) found = query(i, k, index.data(), dist2.data());
+        fn(i, found, static_cast<const std::uint32_t*>(index.data()), static_cast<const float*>(dist2.data()));
+      }
+    }
+  }, 0, 64);
+}
 
 }  // namespace treecut::detail
