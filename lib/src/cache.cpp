@@ -1,0 +1,282 @@
+// Hierarchy cache files: one header, the node arrays (64-byte aligned, so the
+// loader can hand out spans straight into a read-only mapping), and a trailing
+// 64-bit checksum. Every field is checked before any of it is used, so any
+// truncation or flipped byte is reported, never rendered.
+#include "treecut/cache.hpp"
+
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <array>
+#include <bit>
+#include <cstring>
+#include <fstream>
+#include <stdexcept>
+
+namespace treecut {
+
+namespace {
+
+constexpr char kMagic[8] = {'T', 'C', 'U', 'T', 'H', 'I', 'E', 'R'};
+// Bump whenever the layout or the meaning of any array changes.
+constexpr std::uint32_t kVersion = 1;
+constexpr std::uint32_t kEndianTag = 0x01020304u;
+constexpr std::size_t kAlign = 64;
+constexpr int kArrays = 9;
+
+struct Header {
+  char magic[8];
+  std::uint32_t version;
+  std::uint32_t endian_tag;
+  std::uint32_t header_size;
+  std::uint32_t node_count;
+  std::uint32_t level_count;
+  std::uint32_t options_bits;
+  std::uint64_t source_size;
+  std::int64_t source_mtime_ns;
+  float bounds[6];
+  std::uint64_t level_table;           // offset of level_count + 1 NodeIds
+  std::uint64_t offsets[kArrays];      // in HierarchyArrays member order
+  std::uint64_t payload_end;           // checksum follows, file size = payload_end + 8
+};
+static_assert(std::is_trivially_copyable_v<Header>);
+
+constexpr std::array<std::size_t, kArrays> kElementSize = {
+    sizeof(glm::vec4), sizeof(glm::i16vec4), sizeof(glm::u8vec4), sizeof(float), sizeof(std::uint32_t),
+    sizeof(NodeId),    sizeof(NodeId),       sizeof(std::uint8_t), sizeof(std::uint8_t)};
+
+std::uint64_t align_up(std::uint64_t x) { return (x + kAlign - 1) / kAlign * kAlign; }
+
+// Four independent multiply-rotate lanes over 8-byte words (bandwidth-bound,
+// several GB/s), folded together with the length.
+std::uint64_t checksum(const unsigned char* data, std::size_t size) {
+  constexpr std::uint64_t P1 = 0x9e3779b185ebca87ull, P2 = 0xc2b2ae3d27d4eb4full;
+  std::uint64_t lane[4] = {P1, P2, P1 ^ P2, ~P1};
+  std::size_t i = 0;
+  for (; i + 32 <= size; i += 32)
+    for (int l = 0; l < 4; ++l) {
+      std::uint64_t w;
+      std::memcpy(&w, data + i + 8 * static_cast<std::size_t>(l), 8);
+      lane[l] = std::rotl(lane[l] ^ (w * P2), 31) * P1;
+    }
+  std::uint64_t h = static_cast<std::uint64_t>(size) * P1;
+  for (auto v : lane) h = std::rotl(h ^ (v * P2), 27) * P1 + P2;
+  for (; i < size; ++i) h = std::rotl(h ^ (data[i] * P1), 11) * P2;
+  h ^= h >> 33;
+  h *= P2;
+  return h ^ (h >> 29);
+}
+
+struct Mapping {
+  void* base = MAP_FAILED;
+  std::size_t size = 0;
+  Mapping() = default;
+  Mapping(const Mapping&) = delete;
+  Mapping& operator=(const Mapping&) = delete;
+  ~Mapping() {
+    if (base != MAP_FAILED) munmap(base, size);
+  }
+};
+
+bool fail(std::string* why, std::string text) {
+  if (why) *why = std::move(text);
+  return false;
+}
+
+// Structural sanity of the links, O(nodes): what a reader relies on to never
+// index out of bounds. (Geometric invariants are the builder's business and
+// are covered by the checksum.)
+bool links_ok(const HierarchyArrays& a, std::span<const NodeId> levels, std::string* why) {
+  const std::size_t n = a.center_radius.size();
+  if (levels.size() < 2 || levels.front() != 0 || levels.back() != n)
+    return fail(why, "level table does not span the nodes");
+  for (std::size_t d = 0; d + 1 < levels.size(); ++d)
+    if (levels[d] >= levels[d + 1]) return fail(why, "level table not increasing");
+  if (a.parent[0] != kNoNode || a.depth[0] != 0) return fail(why, "bad root");
+  for (std::size_t d = 0; d + 1 < levels.size(); ++d)
+    for (NodeId i = levels[d]; i < levels[d + 1]; ++i) {
+      if (a.depth[i] != d) return fail(why, "node depth disagrees with the level table");
+      const unsigned cc = a.child_count[i];
+      if (cc == 0) {
+        if (a.point_count[i] != 1) return fail(why, "leaf point count is not 1");
+        continue;
+      }
+      const NodeId c0 = a.first_child[i];
+      if (cc > 4 || c0 < levels[d + 1] || c0 > n || cc > n - c0 ||
+          (d + 2 < levels.size() && c0 + cc > levels[d + 2]))
+        return fail(why, "child range out of bounds");
+      for (NodeId c = c0; c < c0 + cc; ++c)
+        if (a.parent[c] != i) return fail(why, "parent link broken");
+    }
+  return true;
+}
+
+std::optional<Hierarchy> map_and_verify(const std::filesystem::path& path, Header* out_header,
+                                        std::string* why) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return fail(why, "cannot open"), std::nullopt;
+  struct stat st{};
+  if (fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+    ::close(fd);
+    return fail(why, "not a regular file"), std::nullopt;
+  }
+  const auto size = static_cast<std::uint64_t>(st.st_size);
+  if (size < sizeof(Header) + 8) {
+    ::close(fd);
+    return fail(why, "truncated (shorter than a header)"), std::nullopt;
+  }
+  auto map = std::make_shared<Mapping>();
+  map->base = mmap(nullptr, size, PROT_READ, MAP_PRIVATE, fd, 0);
+  map->size = size;
+  ::close(fd);
+  if (map->base == MAP_FAILED) return fail(why, "cannot map"), std::nullopt;
+  const auto* bytes = static_cast<const unsigned char*>(map->base);
+
+  Header h;
+  std::memcpy(&h, bytes, sizeof h);
+  if (std::memcmp(h.magic, kMagic, sizeof kMagic) != 0) return fail(why, "not a treecut cache"), std::nullopt;
+  if (h.version != kVersion)
+    return fail(why, "cache format version " + std::to_string(h.version) + ", expected " +
+                         std::to_string(kVersion)), std::nullopt;
+  if (h.endian_tag != kEndianTag) return fail(why, "written on a machine of other endianness"), std::nullopt;
+  if (h.header_size != sizeof(Header)) return fail(why, "header size mismatch"), std::nullopt;
+  if (h.payload_end != size - 8) return fail(why, "truncated or extended (size mismatch)"), std::nullopt;
+  std::uint64_t stored;
+  std::memcpy(&stored, bytes + size - 8, 8);
+  if (checksum(bytes, size - 8) != stored) return fail(why, "checksum mismatch (corrupted)"), std::nullopt;
+
+  // The checksum only proves the file is what some writer wrote; still check
+  // every offset before building spans.
+  const std::uint64_t n = h.node_count;
+  if (n == 0 || h.level_count == 0 || h.level_count > 256) return fail(why, "bad counts"), std::nullopt;
+  auto in_bounds = [&](std::uint64_t off, std::uint64_t bytes_needed) {
+    return off % kAlign == 0 && off >= sizeof(Header) && off <= h.payload_end &&
+           bytes_needed <= h.payload_end - off;
+  };
+  if (!in_bounds(h.level_table, (h.level_count + 1) * sizeof(NodeId)))
+    return fail(why, "level table out of bounds"), std::nullopt;
+  for (int i = 0; i < kArrays; ++i)
+    if (!in_bounds(h.offsets[i], n * kElementSize[static_cast<std::size_t>(i)]))
+      return fail(why, "array out of bounds"), std::nullopt;
+  auto at = [&](int i) { return bytes + h.offsets[i]; };
+  const std::size_t nn = static_cast<std::size_t>(n);
+  HierarchyArrays a{
+      {reinterpret_cast<const glm::vec4*>(at(0)), nn},
+      {reinterpret_cast<const glm::i16vec4*>(at(1)), nn},
+      {reinterpret_cast<const glm::u8vec4*>(at(2)), nn},
+      {reinterpret_cast<const float*>(at(3)), nn},
+      {reinterpret_cast<const std::uint32_t*>(at(4)), nn},
+      {reinterpret_cast<const NodeId*>(at(5)), nn},
+      {reinterpret_cast<const NodeId*>(at(6)), nn},
+      {reinterpret_cast<const std::uint8_t*>(at(7)), nn},
+      {reinterpret_cast<const std::uint8_t*>(at(8)), nn}};
+  std::vector<NodeId> levels(h.level_count + 1);
+  std::memcpy(levels.data(), bytes + h.level_table, levels.size() * sizeof(NodeId));
+  if (!links_ok(a, levels, why)) return std::nullopt;
+  if (out_header) *out_header = h;
+  return Hierarchy::from_arrays(map, a, std::move(levels),
+                                {h.bounds[0], h.bounds[1], h.bounds[2]},
+                                {h.bounds[3], h.bounds[4], h.bounds[5]});
+}
+
+}  // namespace
+
+CacheKey cache_key_for(const std::filesystem::path& source, std::uint32_t options_bits) {
+  struct stat st{};
+  if (::stat(source.c_str(), &st) != 0) throw std::runtime_error(source.string() + ": cannot stat");
+  return CacheKey{static_cast<std::uint64_t>(st.st_size),
+                  static_cast<std::int64_t>(st.st_mtim.tv_sec) * 1000000000 + st.st_mtim.tv_nsec,
+                  options_bits};
+}
+
+void save_cache(const Hierarchy& hier, const CacheKey& key, const std::filesystem::path& cache) {
+  const auto& a = hier.arrays();
+  Header h{};
+  std::memcpy(h.magic, kMagic, sizeof kMagic);
+  h.version = kVersion;
+  h.endian_tag = kEndianTag;
+  h.header_size = sizeof(Header);
+  h.node_count = hier.node_count();
+  h.level_count = static_cast<std::uint32_t>(hier.level_count());
+  h.options_bits = key.options_bits;
+  h.source_size = key.source_size;
+  h.source_mtime_ns = key.source_mtime_ns;
+  const glm::vec3 lo = hier.bounds_min(), hi = hier.bounds_max();
+  const float b[6] = {lo.x, lo.y, lo.z, hi.x, hi.y, hi.z};
+  std::memcpy(h.bounds, b, sizeof b);
+
+  const std::array<std::pair<const void*, std::size_t>, kArrays> arrays = {{
+      {a.center_radius.data(), a.center_radius.size_bytes()},
+      {a.normal_cone.data(), a.normal_cone.size_bytes()},
+      {a.color.data(), a.color.size_bytes()},
+      {a.priority.data(), a.priority.size_bytes()},
+      {a.point_count.data(), a.point_count.size_bytes()},
+      {a.parent.data(), a.parent.size_bytes()},
+      {a.first_child.data(), a.first_child.size_bytes()},
+      {a.child_count.data(), a.child_count.size_bytes()},
+      {a.depth.data(), a.depth.size_bytes()},
+  }};
+  std::vector<NodeId> levels;
+  for (int d = 0; d <= hier.level_count(); ++d) levels.push_back(hier.level_begin(d));
+  std::uint64_t off = align_up(sizeof(Header));
+  h.level_table = off;
+  off = align_up(off + levels.size() * sizeof(NodeId));
+  for (int i = 0; i < kArrays; ++i) {
+    h.offsets[i] = off;
+    off = align_up(off + arrays[static_cast<std::size_t>(i)].second);
+  }
+  h.payload_end = off;
+
+  std::vector<unsigned char> file(off + 8, 0);
+  std::memcpy(file.data(), &h, sizeof h);
+  std::memcpy(file.data() + h.level_table, levels.data(), levels.size() * sizeof(NodeId));
+  for (int i = 0; i < kArrays; ++i)
+    if (arrays[static_cast<std::size_t>(i)].second)
+      std::memcpy(file.data() + h.offsets[i], arrays[static_cast<std::size_t>(i)].first,
+                  arrays[static_cast<std::size_t>(i)].second);
+  const std::uint64_t sum = checksum(file.data(), off);
+  std::memcpy(file.data() + off, &sum, 8);
+
+  // Temporary + rename: readers see the old file or the complete new one.
+  if (cache.has_parent_path()) std::filesystem::create_directories(cache.parent_path());
+  auto tmp = cache;
+  tmp += ".tmp-" + std::to_string(::getpid());
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    out.write(reinterpret_cast<const char*>(file.data()), static_cast<std::streamsize>(file.size()));
+    out.flush();
+    if (!out) {
+      std::error_code ec;
+      std::filesystem::remove(tmp, ec);
+      throw std::runtime_error(cache.string() + ": cannot write cache");
+    }
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, cache, ec);
+  if (ec) {
+    std::filesystem::remove(tmp, ec);
+    throw std::runtime_error(cache.string() + ": cannot rename cache into place");
+  }
+}
+
+std::optional<Hierarchy> load_cache(const std::filesystem::path& cache,
+                                    const std::optional<CacheKey>& expected, std::string* why) {
+  Header h;
+  auto hier = map_and_verify(cache, &h, why);
+  if (!hier) return std::nullopt;
+  if (expected && (h.source_size != expected->source_size ||
+                   h.source_mtime_ns != expected->source_mtime_ns ||
+                   h.options_bits != expected->options_bits))
+    return fail(why, "stale (the model or the build options changed)"), std::nullopt;
+  return hier;
+}
+
+std::optional<CacheKey> read_cache_key(const std::filesystem::path& cache, std::string* why) {
+  Header h;
+  if (!map_and_verify(cache, &h, why)) return std::nullopt;
+  return CacheKey{h.source_size, h.source_mtime_ns, h.options_bits};
+}
+
+}  // namespace treecut

@@ -1,0 +1,114 @@
+#include "treecut/model_io.hpp"
+
+#include <chrono>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+
+#include "treecut/error.hpp"
+
+namespace treecut {
+
+namespace {
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+bool is_cache_file(const std::filesystem::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  char magic[8] = {};
+  in.read(magic, sizeof magic);
+  return in && std::memcmp(magic, "TCUTHIER", 8) == 0;
+}
+
+std::uint64_t fnv1a(const std::string& s) {
+  std::uint64_t h = 0xcbf29ce484222325ull;
+  for (unsigned char c : s) h = (h ^ c) * 0x100000001b3ull;
+  return h;
+}
+
+}  // namespace
+
+std::filesystem::path default_cache_path(const std::filesystem::path& model) {
+  std::filesystem::path dir;
+  if (const char* xdg = std::getenv("XDG_CACHE_HOME"); xdg && *xdg)
+    dir = xdg;
+  else if (const char* home = std::getenv("HOME"); home && *home)
+    dir = std::filesystem::path(home) / ".cache";
+  else
+    dir = std::filesystem::temp_directory_path();
+  std::error_code ec;
+  const auto abs = std::filesystem::weakly_canonical(model, ec);
+  char hex[17];
+  std::snprintf(hex, sizeof hex, "%016llx",
+                static_cast<unsigned long long>(fnv1a((ec ? model : abs).string())));
+  return dir / "treecut" / (model.filename().string() + "-" + hex + ".tch");
+}
+
+std::uint32_t options_bits(const AttributeOptions& attributes, const BuildOptions& build) {
+  return (build.parent_at_real_point ? 1u : 0u) | (attributes.recompute_normals ? 2u : 0u) |
+         (attributes.recompute_radii ? 4u : 0u) |
+         (static_cast<std::uint32_t>(std::clamp(attributes.k, 0, 255)) << 8);
+}
+
+Hierarchy build_from_points(PointSet points, const AttributeOptions& attributes,
+                            const BuildOptions& build) {
+  complete_attributes(points, attributes);
+  return build_hierarchy(std::move(points), build);
+}
+
+OpenedModel open_model(const std::filesystem::path& model, const OpenOptions& options) {
+  OpenedModel out;
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(model, ec))
+    throw InputError(model.string() + ": no such file");
+  if (is_cache_file(model)) {
+    std::string why;
+    auto t0 = std::chrono::steady_clock::now();
+    auto h = load_cache(model, std::nullopt, &why);
+    if (!h) throw InputError(model.string() + ": " + why);
+    out.hierarchy = std::move(*h);
+    out.cache = model;
+    out.from_cache = true;
+    out.cache_seconds = seconds_since(t0);
+    return out;
+  }
+  const std::uint32_t bits = options_bits(options.attributes, options.build);
+  out.cache = options.cache_path ? *options.cache_path : default_cache_path(model);
+  const CacheKey key = cache_key_for(model, bits);
+  if (options.use_cache && std::filesystem::exists(out.cache, ec)) {
+    auto t0 = std::chrono::steady_clock::now();
+    auto h = load_cache(out.cache, key, &out.cache_note);
+    out.cache_seconds = seconds_since(t0);
+    if (h) {
+      out.hierarchy = std::move(*h);
+      out.from_cache = true;
+      return out;
+    }
+    if (options.warn) options.warn(out.cache.string() + ": " + out.cache_note + "; rebuilding");
+  }
+  auto t0 = std::chrono::steady_clock::now();
+  PointSet points = load_ply(model, &out.ply, options.warn);
+  out.read_seconds = seconds_since(t0);
+  out.input_points = points.size();
+  t0 = std::chrono::steady_clock::now();
+  complete_attributes(points, options.attributes);
+  out.attribute_seconds = seconds_since(t0);
+  t0 = std::chrono::steady_clock::now();
+  out.hierarchy = build_hierarchy(std::move(points), options.build);
+  out.build_seconds = seconds_since(t0);
+  if (options.use_cache) {
+    t0 = std::chrono::steady_clock::now();
+    try {
+      save_cache(out.hierarchy, key, out.cache);
+    } catch (const std::exception& e) {
+      // A read-only cache folder must not stop anyone from viewing a model.
+      if (options.warn) options.warn(std::string(e.what()) + " (continuing without a cache)");
+    }
+    out.cache_seconds += seconds_since(t0);
+  }
+  return out;
+}
+
+}  // namespace treecut
