@@ -1,0 +1,119 @@
+// treecut build | info | gen
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+
+#include "commands.hpp"
+#include "progress.hpp"
+#include "treecut/error.hpp"
+#include "treecut/generate.hpp"
+#include "treecut/model_io.hpp"
+
+namespace treecut::cli {
+
+namespace {
+
+struct ModelArgs {
+  std::string model;
+  std::string out;
+  bool force = false;
+  bool real_points = false;
+  int k = 12;
+};
+
+void print_warning(const std::string& w) { std::fprintf(stderr, "warning: %s\n", w.c_str()); }
+
+void add_build_options(CLI::App& cmd, ModelArgs& args) {
+  cmd.add_option("-k,--neighbours", args.k, "Neighbours for normals, radii and curvature of point clouds")
+      ->check(CLI::Range(3, 64));
+  cmd.add_flag("--real-points", args.real_points,
+               "Place every parent splat on one of its real points (no splat motion on LOD changes)");
+}
+
+OpenOptions open_options(const ModelArgs& args) {
+  OpenOptions o;
+  o.attributes.k = args.k;
+  o.build.parent_at_real_point = args.real_points;
+  o.warn = print_warning;
+  if (!args.out.empty()) o.cache_path = args.out;
+  return o;
+}
+
+void print_summary(const std::filesystem::path& model, const OpenedModel& m) {
+  const Hierarchy& h = m.hierarchy;
+  const glm::vec3 lo = h.bounds_min(), hi = h.bounds_max();
+  std::printf("model       %s\n", model.string().c_str());
+  std::printf("points      %u\n", h.leaf_count());
+  std::printf("nodes       %u\n", h.node_count());
+  std::printf("depth       %d\n", h.level_count() - 1);
+  std::printf("bounds      [%g %g %g] .. [%g %g %g]\n", lo.x, lo.y, lo.z, hi.x, hi.y, hi.z);
+  std::printf("memory      %.1f MiB (%.1f bytes/point)\n",
+              static_cast<double>(h.memory_bytes()) / (1024.0 * 1024.0),
+              static_cast<double>(h.memory_bytes()) / std::max(1u, h.leaf_count()));
+  std::printf("cache       %s\n", m.cache.string().c_str());
+  if (m.from_cache) {
+    std::printf("loaded      from cache in %.3f s\n", m.cache_seconds);
+  } else {
+    if (m.ply.dropped_nonfinite)
+      std::printf("dropped     %zu non-finite points\n", m.ply.dropped_nonfinite);
+    std::printf("build time  %.3f s (read %.3f, attributes %.3f, hierarchy %.3f, cache write %.3f)\n",
+                m.total_seconds(), m.read_seconds, m.attribute_seconds, m.build_seconds, m.cache_seconds);
+  }
+}
+
+}  // namespace
+
+void add_model_commands(CLI::App& app) {
+  auto build_args = std::make_shared<ModelArgs>();
+  auto* build = app.add_subcommand("build", "Build (or refresh) the hierarchy cache of a PLY model");
+  build->add_option("MODEL", build_args->model, "PLY file")->required()->check(CLI::ExistingFile);
+  build->add_option("-o,--output", build_args->out, "Cache file to write (default: the user cache folder)");
+  build->add_flag("-f,--force", build_args->force, "Rebuild even when a valid cache exists");
+  add_build_options(*build, *build_args);
+  build->callback([build_args] {
+    OpenOptions o = open_options(*build_args);
+    o.use_cache = true;
+    if (build_args->force && o.cache_path == std::nullopt) o.cache_path = default_cache_path(build_args->model);
+    if (build_args->force) std::filesystem::remove(*o.cache_path);
+    ProgressBar bar("building");
+    o.build.progress = bar.callback();
+    const OpenedModel m = open_model(build_args->model, o);
+    print_summary(build_args->model, m);
+  });
+
+  auto info_args = std::make_shared<ModelArgs>();
+  auto* info = app.add_subcommand("info", "Summarize a model (PLY, through its cache) or a cache file");
+  info->add_option("MODEL", info_args->model, "PLY or .tch cache file")->required()->check(CLI::ExistingFile);
+  add_build_options(*info, *info_args);
+  info->callback([info_args] {
+    OpenOptions o = open_options(*info_args);
+    ProgressBar bar("building");
+    o.build.progress = bar.callback();
+    const OpenedModel m = open_model(info_args->model, o);
+    print_summary(info_args->model, m);
+  });
+
+  struct GenArgs {
+    std::string kind;
+    std::string out;
+    std::size_t points = 200000;
+    std::uint64_t seed = 1;
+  };
+  auto gen_args = std::make_shared<GenArgs>();
+  auto* gen = app.add_subcommand("gen", "Write a procedural model (sphere, terrain, city) as PLY");
+  gen->add_option("KIND", gen_args->kind, "sphere | terrain | city")->required();
+  gen->add_option("-n,--points", gen_args->points, "Number of points")->check(CLI::Range(1ull, 1ull << 31));
+  gen->add_option("-o,--output", gen_args->out, "Output PLY (default: assets/KIND.ply)");
+  gen->add_option("--seed", gen_args->seed, "Random seed");
+  gen->callback([gen_args] {
+    const ModelKind kind = parse_model_kind(gen_args->kind);
+    const std::filesystem::path out =
+        gen_args->out.empty() ? std::filesystem::path("assets") / (gen_args->kind + ".ply") : gen_args->out;
+    PointSet ps = generate_model(kind, gen_args->points, gen_args->seed);
+    if (out.has_parent_path()) std::filesystem::create_directories(out.parent_path());
+    save_ply(out, ps);
+    std::printf("wrote %s (%zu points)\n", out.string().c_str(), ps.size());
+  });
+}
+
+}  // namespace treecut::cli
