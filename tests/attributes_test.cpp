@@ -1,0 +1,81 @@
+// Attributes: normals, radii and curvature from faces and from neighbours.
+#include <gtest/gtest.h>
+
+#include <glm/geometric.hpp>
+
+#include "treecut/attributes.hpp"
+#include "treecut/generate.hpp"
+
+using namespace treecut;
+
+TEST(Attributes, PcaNormalsOfASphereMatchTheTrueNormals) {
+  PointSet ps = generate_model(ModelKind::Sphere, 20000, 3);
+  const std::vector<glm::vec3> truth = ps.normals;
+  ps.normals.clear();
+  complete_attributes(ps);
+  ASSERT_EQ(ps.normals.size(), truth.size());
+  std::size_t good = 0;
+  for (std::size_t i = 0; i < truth.size(); ++i) good += glm::dot(ps.normals[i], truth[i]) > 0.99f;
+  // Oriented outward and accurate almost everywhere.
+  EXPECT_GT(good, truth.size() * 99 / 100);
+}
+
+TEST(Attributes, CurvatureIsHigherOnCornersThanOnFlatGround) {
+  PointSet ps = generate_model(ModelKind::City, 60000, 9);
+  complete_attributes(ps);
+  double flat = 0, flat_n = 0, edge = 0, edge_n = 0;
+  for (std::size_t i = 0; i < ps.size(); ++i) {
+    const glm::vec3 p = ps.positions[i];
+    if (p.z == 0.0f && ps.normals[i].z > 0.99f) {
+      flat += ps.curvature[i], ++flat_n;
+    } else if (p.z > 0.0f && ps.normals[i].z > 0.99f) {
+      // Roof points near a roof edge see the walls in their neighbourhood.
+      edge += ps.curvature[i], ++edge_n;
+    }
+  }
+  ASSERT_GT(flat_n, 100);
+  ASSERT_GT(edge_n, 100);
+  EXPECT_LT(flat / flat_n, edge / edge_n);
+}
+
+TEST(Attributes, SplatRadiiFromNeighboursCloseThePlane) {
+  // A jittered grid of spacing h: discs must at least reach half the diagonal.
+  PointSet ps;
+  const float h = 0.01f;
+  for (int y = 0; y < 100; ++y)
+    for (int x = 0; x < 100; ++x) ps.positions.emplace_back(h * static_cast<float>(x), h * static_cast<float>(y), 0.0f);
+  complete_attributes(ps);
+  for (std::size_t i = 0; i < ps.size(); ++i) {
+    ASSERT_GE(ps.radii[i], 0.70f * h) << i;
+    ASSERT_LE(ps.radii[i], 3.0f * h) << i;
+    ASSERT_NEAR(ps.curvature[i], 0.0f, 1e-4f);
+    ASSERT_NEAR(std::abs(ps.normals[i].z), 1.0f, 1e-4f);
+  }
+}
+
+TEST(Attributes, MeshNormalsAreAreaWeightedAndRadiiCoverTriangles) {
+  // A unit square as two triangles, plus one vertex that no face uses.
+  PointSet ps;
+  ps.positions = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {5, 5, 5}};
+  ps.triangles = {{0, 1, 2}, {0, 2, 3}};
+  complete_attributes(ps);
+  for (int i = 0; i < 4; ++i) EXPECT_NEAR(ps.normals[static_cast<std::size_t>(i)].z, 1.0f, 1e-6f);
+  EXPECT_EQ(ps.normals[4], glm::vec3(0.0f)) << "an isolated vertex has no normal";
+  // Right triangles: the covering radius is half the hypotenuse.
+  for (int i = 0; i < 4; ++i) EXPECT_NEAR(ps.radii[static_cast<std::size_t>(i)], std::sqrt(2.0f) / 2.0f, 1e-5f);
+  EXPECT_GT(ps.radii[4], 0.0f);
+  for (float c : ps.curvature) EXPECT_NEAR(c, 0.0f, 1e-6f);
+}
+
+TEST(Attributes, FileNormalsAndRadiiAreKeptUnlessRecomputeIsAsked) {
+  PointSet ps = generate_model(ModelKind::Terrain, 2000, 1);
+  ps.radii.assign(ps.size(), 0.5f);
+  const auto normals = ps.normals;
+  complete_attributes(ps);
+  for (std::size_t i = 0; i < ps.size(); ++i) ASSERT_GT(glm::dot(ps.normals[i], normals[i]), 0.99999f);
+  EXPECT_EQ(ps.radii[10], 0.5f);
+  AttributeOptions o;
+  o.recompute_radii = true;
+  complete_attributes(ps, o);
+  EXPECT_LT(ps.radii[10], 0.5f);
+}

@@ -1,0 +1,131 @@
+// Hierarchy cache: round trip, determinism, and detection of every truncation,
+// flipped byte and stale source.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <iterator>
+
+#include "test_support.hpp"
+#include "treecut/cache.hpp"
+#include "treecut/generate.hpp"
+#include "treecut/model_io.hpp"
+#include "treecut/ply.hpp"
+
+using namespace treecut;
+namespace fs = std::filesystem;
+
+namespace {
+
+std::vector<char> read_all(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), {}};
+}
+
+void write_all(const fs::path& p, const std::vector<char>& bytes, std::size_t n) {
+  std::ofstream out(p, std::ios::binary | std::ios::trunc);
+  out.write(bytes.data(), static_cast<std::streamsize>(n));
+}
+
+Hierarchy small(std::size_t n = 300) { return build_from_points(generate_model(ModelKind::Sphere, n, 4)); }
+
+}  // namespace
+
+TEST(Cache, RoundTripGivesTheSameArrays) {
+  const fs::path dir = test::scratch_dir("cache_roundtrip");
+  const Hierarchy h = small(5000);
+  const CacheKey key{123, 456, 7};
+  save_cache(h, key, dir / "a.tch");
+  std::string why;
+  auto loaded = load_cache(dir / "a.tch", key, &why);
+  ASSERT_TRUE(loaded) << why;
+  EXPECT_EQ(loaded->node_count(), h.node_count());
+  EXPECT_EQ(loaded->level_count(), h.level_count());
+  EXPECT_EQ(check_invariants(*loaded), "");
+  for (NodeId n = 0; n < h.node_count(); ++n) {
+    ASSERT_EQ(loaded->arrays().center_radius[n], h.arrays().center_radius[n]);
+    ASSERT_EQ(loaded->arrays().first_child[n], h.arrays().first_child[n]);
+  }
+  for (const auto& e : fs::directory_iterator(dir))
+    EXPECT_EQ(e.path().extension(), ".tch") << "temporary left behind: " << e.path();
+}
+
+TEST(Cache, SameInputGivesAByteIdenticalFile) {
+  const fs::path dir = test::scratch_dir("cache_deterministic");
+  BuildOptions one, two;
+  one.threads = 1;
+  two.threads = 3;
+  save_cache(build_from_points(generate_model(ModelKind::Terrain, 20000, 2), {}, one), {1, 2, 3}, dir / "a.tch");
+  save_cache(build_from_points(generate_model(ModelKind::Terrain, 20000, 2), {}, two), {1, 2, 3}, dir / "b.tch");
+  EXPECT_EQ(read_all(dir / "a.tch"), read_all(dir / "b.tch"));
+}
+
+TEST(Cache, EveryTruncationIsDetected) {
+  const fs::path dir = test::scratch_dir("cache_truncate");
+  save_cache(small(), {1, 2, 3}, dir / "full.tch");
+  const auto bytes = read_all(dir / "full.tch");
+  for (std::size_t len = 0; len < bytes.size(); ++len) {
+    write_all(dir / "cut.tch", bytes, len);
+    std::string why;
+    ASSERT_FALSE(load_cache(dir / "cut.tch", std::nullopt, &why)) << "length " << len;
+    ASSERT_FALSE(why.empty());
+  }
+}
+
+TEST(Cache, EverySingleFlippedByteIsDetected) {
+  const fs::path dir = test::scratch_dir("cache_flip");
+  save_cache(small(200), {1, 2, 3}, dir / "full.tch");
+  auto bytes = read_all(dir / "full.tch");
+  for (std::size_t i = 0; i < bytes.size(); ++i) {
+    for (unsigned char mask : {0x01, 0x80}) {
+      bytes[i] = static_cast<char>(bytes[i] ^ mask);
+      write_all(dir / "flip.tch", bytes, bytes.size());
+      bytes[i] = static_cast<char>(bytes[i] ^ mask);
+      ASSERT_FALSE(load_cache(dir / "flip.tch", std::nullopt, nullptr)) << "byte " << i;
+    }
+  }
+}
+
+TEST(Cache, StaleKeyIsRejected) {
+  const fs::path dir = test::scratch_dir("cache_stale");
+  save_cache(small(), {10, 20, 0}, dir / "a.tch");
+  std::string why;
+  EXPECT_FALSE(load_cache(dir / "a.tch", CacheKey{11, 20, 0}, &why));
+  EXPECT_NE(why.find("stale"), std::string::npos);
+  EXPECT_FALSE(load_cache(dir / "a.tch", CacheKey{10, 20, 1}, &why)) << "other build options";
+  EXPECT_TRUE(load_cache(dir / "a.tch", CacheKey{10, 20, 0}, &why));
+}
+
+TEST(Cache, OpenModelUsesTheCacheAndRebuildsACorruptOne) {
+  const fs::path dir = test::scratch_dir("cache_open");
+  save_ply(dir / "m.ply", generate_model(ModelKind::City, 3000, 1));
+  OpenOptions o;
+  o.cache_path = dir / "m.tch";
+  std::vector<std::string> warnings;
+  o.warn = [&](const std::string& w) { warnings.push_back(w); };
+
+  const OpenedModel first = open_model(dir / "m.ply", o);
+  EXPECT_FALSE(first.from_cache);
+  const OpenedModel second = open_model(dir / "m.ply", o);
+  EXPECT_TRUE(second.from_cache) << "the second load skips the build";
+  EXPECT_EQ(second.hierarchy.node_count(), first.hierarchy.node_count());
+
+  auto bytes = read_all(dir / "m.tch");
+  bytes[bytes.size() / 2] ^= 0x10;
+  write_all(dir / "m.tch", bytes, bytes.size());
+  const OpenedModel third = open_model(dir / "m.ply", o);
+  EXPECT_FALSE(third.from_cache);
+  EXPECT_NE(third.cache_note.find("checksum"), std::string::npos) << third.cache_note;
+  ASSERT_FALSE(warnings.empty());
+  EXPECT_TRUE(open_model(dir / "m.ply", o).from_cache) << "the rebuilt cache was written back";
+
+  // Touching the model makes the cache stale.
+  fs::last_write_time(dir / "m.ply", fs::last_write_time(dir / "m.ply") + std::chrono::seconds(5));
+  const OpenedModel fourth = open_model(dir / "m.ply", o);
+  EXPECT_FALSE(fourth.from_cache);
+  EXPECT_NE(fourth.cache_note.find("stale"), std::string::npos);
+
+  // A cache file opened directly.
+  const OpenedModel direct = open_model(dir / "m.tch", o);
+  EXPECT_TRUE(direct.from_cache);
+  EXPECT_EQ(direct.hierarchy.node_count(), first.hierarchy.node_count());
+}

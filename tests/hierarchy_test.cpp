@@ -1,0 +1,158 @@
+// Hierarchy build: structural invariants on generated and real models,
+// determinism, degenerate inputs.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+
+#include "test_support.hpp"
+#include "treecut/attributes.hpp"
+#include "treecut/generate.hpp"
+#include "treecut/hierarchy.hpp"
+#include "treecut/model_io.hpp"
+#include "treecut/ply.hpp"
+
+using namespace treecut;
+
+namespace {
+
+Hierarchy build(PointSet ps, BuildOptions b = {}) {
+  complete_attributes(ps);
+  return build_hierarchy(std::move(ps), b);
+}
+
+std::vector<glm::vec3> sorted_leaf_centers(const Hierarchy& h) {
+  std::vector<glm::vec3> v;
+  for (NodeId n = 0; n < h.node_count(); ++n)
+    if (h.is_leaf(n)) v.push_back(h.center(n));
+  auto less = [](glm::vec3 a, glm::vec3 b) {
+    return std::tie(a.x, a.y, a.z) < std::tie(b.x, b.y, b.z);
+  };
+  std::sort(v.begin(), v.end(), less);
+  return v;
+}
+
+bool same_bytes(const Hierarchy& a, const Hierarchy& b) {
+  auto eq = [](auto x, auto y) {
+    return x.size() == y.size() && std::equal(reinterpret_cast<const char*>(x.data()),
+                                              reinterpret_cast<const char*>(x.data() + x.size()),
+                                              reinterpret_cast<const char*>(y.data()));
+  };
+  const auto &x = a.arrays(), &y = b.arrays();
+  return eq(x.center_radius, y.center_radius) && eq(x.normal_cone, y.normal_cone) && eq(x.color, y.color) &&
+         eq(x.priority, y.priority) && eq(x.point_count, y.point_count) && eq(x.parent, y.parent) &&
+         eq(x.first_child, y.first_child) && eq(x.child_count, y.child_count) && eq(x.depth, y.depth);
+}
+
+}  // namespace
+
+class GeneratedModels : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(GeneratedModels, InvariantsHold) {
+  const Hierarchy h = build(generate_model(parse_model_kind(GetParam()), 20000, 7));
+  EXPECT_EQ(check_invariants(h), "");
+  EXPECT_EQ(h.leaf_count(), 20000u);
+  EXPECT_GT(h.node_count(), 20000u);
+  EXPECT_EQ(h.level_begin(h.level_count()), h.node_count());
+}
+
+TEST_P(GeneratedModels, InvariantsHoldWithParentsOnRealPoints) {
+  BuildOptions b;
+  b.parent_at_real_point = true;
+  PointSet ps = generate_model(parse_model_kind(GetParam()), 5000, 3);
+  const std::vector<glm::vec3> inputs = ps.positions;
+  const Hierarchy h = build(std::move(ps), b);
+  EXPECT_EQ(check_invariants(h), "");
+  // Every node, not only the leaves, sits on an input point.
+  std::vector<glm::vec3> sorted = inputs;
+  auto less = [](glm::vec3 a, glm::vec3 c) { return std::tie(a.x, a.y, a.z) < std::tie(c.x, c.y, c.z); };
+  std::sort(sorted.begin(), sorted.end(), less);
+  for (NodeId n = 0; n < h.node_count(); n += 97)
+    EXPECT_TRUE(std::binary_search(sorted.begin(), sorted.end(), h.center(n), less)) << "node " << n;
+}
+
+INSTANTIATE_TEST_SUITE_P(Kinds, GeneratedModels, ::testing::Values("sphere", "terrain", "city"));
+
+TEST(Hierarchy, LeavesAreExactlyTheInputPoints) {
+  PointSet ps = generate_model(ModelKind::Terrain, 3001, 11);
+  std::vector<glm::vec3> inputs = ps.positions;
+  const Hierarchy h = build(std::move(ps));
+  auto less = [](glm::vec3 a, glm::vec3 b) { return std::tie(a.x, a.y, a.z) < std::tie(b.x, b.y, b.z); };
+  std::sort(inputs.begin(), inputs.end(), less);
+  EXPECT_EQ(sorted_leaf_centers(h), inputs);
+}
+
+TEST(Hierarchy, SamePointsGiveByteIdenticalArraysForAnyThreadCount) {
+  BuildOptions one, many;
+  one.threads = 1;
+  many.threads = 4;
+  const Hierarchy a = build(generate_model(ModelKind::City, 30000, 5), one);
+  const Hierarchy b = build(generate_model(ModelKind::City, 30000, 5), many);
+  EXPECT_TRUE(same_bytes(a, b));
+}
+
+TEST(Hierarchy, DuplicatePointsTerminateWithBoundedDepth) {
+  PointSet ps;
+  ps.positions.assign(5000, glm::vec3(1.0f, 2.0f, 3.0f));
+  const Hierarchy h = build(std::move(ps));
+  EXPECT_EQ(check_invariants(h), "");
+  EXPECT_LE(h.level_count() - 1, 8);  // ceil(log4 5000) + 1
+}
+
+TEST(Hierarchy, ColinearPointsHaveFullConesAndValidStructure) {
+  PointSet ps;
+  for (int i = 0; i < 1000; ++i) ps.positions.emplace_back(0.01f * static_cast<float>(i), 0.0f, 0.0f);
+  const Hierarchy h = build(std::move(ps));
+  EXPECT_EQ(check_invariants(h), "");
+  EXPECT_LT(h.cone_cos(h.root()), -0.99f);
+}
+
+TEST(Hierarchy, SinglePointIsOneNode) {
+  PointSet ps;
+  ps.positions.emplace_back(0.0f);
+  const Hierarchy h = build(std::move(ps));
+  EXPECT_EQ(h.node_count(), 1u);
+  EXPECT_TRUE(h.is_leaf(0));
+  EXPECT_EQ(check_invariants(h), "");
+}
+
+TEST(Hierarchy, CheckInvariantsDetectsABrokenSphere) {
+  PointSet ps = generate_model(ModelKind::Sphere, 500, 1);
+  complete_attributes(ps);
+  const Hierarchy ok = build_hierarchy(std::move(ps));
+  ASSERT_EQ(check_invariants(ok), "");
+  // The same arrays with the root's sphere halved: must be reported.
+  auto arrays = ok.arrays();
+  std::vector<glm::vec4> cr(arrays.center_radius.begin(), arrays.center_radius.end());
+  cr[0].w *= 0.5f;
+  auto keep = std::make_shared<std::vector<glm::vec4>>(std::move(cr));
+  arrays.center_radius = *keep;
+  std::vector<NodeId> levels;
+  for (int d = 0; d <= ok.level_count(); ++d) levels.push_back(ok.level_begin(d));
+  const Hierarchy bad = Hierarchy::from_arrays(keep, arrays, levels, ok.bounds_min(), ok.bounds_max());
+  EXPECT_NE(check_invariants(bad).find("sphere"), std::string::npos);
+}
+
+class RealModels : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(RealModels, InvariantsHoldAndLeavesMatchThePly) {
+  TREECUT_REQUIRE_ASSET(path, GetParam());
+  PointSet ps = load_ply(path);
+  const std::size_t n = ps.size();
+  complete_attributes(ps);
+  ASSERT_EQ(ps.normals.size(), n);
+  ASSERT_EQ(ps.radii.size(), n);
+  ASSERT_EQ(ps.curvature.size(), n);
+  for (float r : ps.radii) ASSERT_GT(r, 0.0f);
+  const Hierarchy h = build_hierarchy(std::move(ps));
+  EXPECT_EQ(check_invariants(h), "");
+  EXPECT_EQ(h.leaf_count(), n);
+}
+
+INSTANTIATE_TEST_SUITE_P(SharedAssets, RealModels,
+                         ::testing::Values("bun_zipper.ply", "dragon_vrip_normals.ply", "dragon_vrip.ply",
+                                           "lion_takanawa.ply"),
+                         [](const auto& info) {
+                           std::string s = info.param;
+                           std::replace_if(s.begin(), s.end(), [](char c) { return !std::isalnum(c); }, '_');
+                           return s;
+                         });
