@@ -8,15 +8,16 @@
 #include <filesystem>
 #include <functional>
 #include <string>
+#include <string_view>
 
 #include "treecut/point_set.hpp"
 
 namespace treecut {
 
 struct PlyLoadReport {
-  std::size_t vertices_in_file = 0;  ///< as the header declares
-  std::size_t dropped_nonfinite = 0; ///< points with NaN/inf coordinates, dropped
-  std::size_t faces_in_file = 0;     ///< face (or tristrip triangle) count read
+  std::size_t vertices_in_file = 0;   ///< as the header declares
+  std::size_t dropped_nonfinite = 0;  ///< points with NaN/inf coordinates, dropped
+  std::size_t faces_in_file = 0;      ///< face (or tristrip triangle) count read
   bool had_normals = false;
   bool had_colors = false;
   bool had_radius = false;
@@ -28,8 +29,31 @@ using WarningSink = std::function<void(const std::string&)>;
 /// Loads positions and whatever normals, colors, radii and triangles the file
 /// holds. Derives nothing (see attributes.hpp). Throws InputError with one line
 /// "PATH: problem" on any malformed input; never allocates more than the file
-/// size justifies. Thread-safe (no global state).
+/// size justifies. Thread-safe; concurrent calls serialize only while inside
+/// OpenMesh's reader, which is a process-wide singleton with per-file state.
+///
+/// What it normalizes, each with a warning through WARN: points with
+/// non-finite coordinates are dropped (with the faces that use them); faces
+/// with out-of-range indices or fewer than 3 vertices are dropped; polygons
+/// become triangle fans and tristrips become triangles; normals are scaled to
+/// unit length (non-finite or zero ones become zero); radii are kept only if
+/// all are finite and > 0; colors are opaque (a file alpha is ignored), float
+/// colors map [0, 1] to [0, 255] with rounding.
 PointSet load_ply(const std::filesystem::path& path, PlyLoadReport* report = nullptr,
                   const WarningSink& warn = {});
+
+/// load_ply() on the bytes of a file already in memory; NAME stands for the
+/// path in messages. Accepts arbitrary bytes (fuzzing entry point): anything
+/// malformed is an InputError, allocations stay proportional to BYTES.size().
+PointSet load_ply_from_memory(std::string_view bytes, const std::string& name,
+                              PlyLoadReport* report = nullptr, const WarningSink& warn = {});
+
+/// Writes binary little-endian PLY: x y z float, then nx ny nz float, red green
+/// blue uchar and radius float when present (curvature is not written), and a
+/// face element (list uchar int) when triangles are present. Writes
+/// "PATH.tmp-<pid>" and renames it over PATH, so readers never see a partial
+/// file. Throws std::invalid_argument if an attribute array has the wrong size
+/// or a triangle index is out of range, std::runtime_error on I/O errors.
+void save_ply(const std::filesystem::path& path, const PointSet& points);
 
 }  // namespace treecut

@@ -1,0 +1,624 @@
+// PLY import: our guard, then OpenMesh's reader, then our count checks.
+//
+// Pipeline: parse_header -> validate the body (binary: exact layout walk;
+// ascii: every token parsed and type-checked) -> hand OpenMesh a header we
+// wrote plus validated body bytes -> check OpenMesh's counts -> read what
+// OpenMesh ignores (radius, non-uchar colours, tristrips) -> drop non-finite
+// points -> tidy normals and radii.
+//
+// Two ways to OpenMesh. A binary file whose vertex and face layout OpenMesh's
+// reader decodes correctly goes straight through (our header, the file's body
+// bytes, no copy). Everything else is transcoded to a canonical binary body
+// first: ascii bodies (OpenMesh reads them with istream >>, which cannot parse
+// "nan"/"inf" or a leading '+', and whose failbit silently zeroes every later
+// value), and binary files with list properties in vertices, extra lists in
+// faces or integer coordinates (OpenMesh mis-sizes or skips those).
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <limits>
+#include <memory>
+#include <optional>
+
+#include "ply_format.hpp"
+#include "ply_openmesh.hpp"
+#include "treecut/error.hpp"
+#include "treecut/ply.hpp"
+
+namespace treecut {
+
+namespace {
+
+using ply::Element;
+using ply::Format;
+using ply::Header;
+using ply::Property;
+using ply::Row;
+using ply::Type;
+
+// Vertex properties by meaning; -1 when absent. Normals and colours count only
+// when all three components are present as scalars.
+struct VertexRoles {
+  int x = -1, y = -1, z = -1;
+  int nx = -1, ny = -1, nz = -1;
+  int red = -1, green = -1, blue = -1;
+  int radius = -1;
+
+  [[nodiscard]] bool normals() const { return nx >= 0; }
+  [[nodiscard]] bool colors() const { return red >= 0; }
+};
+
+class Warnings {
+ public:
+  Warnings(const std::string& name, const WarningSink& sink) : name_(name), sink_(sink) {}
+  void operator()(const std::string& message) const {
+    if (sink_) sink_(name_ + ": " + message);
+  }
+
+ private:
+  const std::string& name_;
+  const WarningSink& sink_;
+};
+
+int scalar_property(const Element& element, std::string_view name) {
+  int p = element.find(name);
+  if (p >= 0 && element.properties[static_cast<std::size_t>(p)].is_list) return -1;
+  return p;
+}
+
+const Property& property(const Element& element, int index) {
+  return element.properties[static_cast<std::size_t>(index)];
+}
+
+VertexRoles find_roles(const Element& vertex, const Warnings& warn) {
+  VertexRoles roles;
+  roles.x = scalar_property(vertex, "x");
+  roles.y = scalar_property(vertex, "y");
+  roles.z = scalar_property(vertex, "z");
+
+  const int nx = scalar_property(vertex, "nx");
+  const int ny = scalar_property(vertex, "ny");
+  const int nz = scalar_property(vertex, "nz");
+  if (nx >= 0 && ny >= 0 && nz >= 0) {
+    roles.nx = nx;
+    roles.ny = ny;
+    roles.nz = nz;
+  } else if (vertex.find("nx") >= 0 || vertex.find("ny") >= 0 || vertex.find("nz") >= 0) {
+    warn("ignoring normals: nx, ny and nz must all be scalar properties");
+  }
+
+  for (std::string_view prefix : {"", "diffuse_"}) {
+    const int r = scalar_property(vertex, std::string(prefix) + "red");
+    const int g = scalar_property(vertex, std::string(prefix) + "green");
+    const int b = scalar_property(vertex, std::string(prefix) + "blue");
+    if (r >= 0 && g >= 0 && b >= 0) {
+      roles.red = r;
+      roles.green = g;
+      roles.blue = b;
+      break;
+    }
+  }
+  if (!roles.colors() &&
+      (vertex.find("red") >= 0 || vertex.find("green") >= 0 || vertex.find("blue") >= 0)) {
+    warn("ignoring colors: red, green and blue must all be scalar properties");
+  }
+
+  roles.radius = scalar_property(vertex, "radius");
+  if (roles.radius < 0 && vertex.find("radius") >= 0) warn("ignoring radius: it is a list");
+  return roles;
+}
+
+int index_property(const Element& element) {
+  int p = element.find("vertex_indices");
+  return p >= 0 ? p : element.find("vertex_index");
+}
+
+bool is_float(Type type) {
+  return type == Type::f32 || type == Type::f64;
+}
+
+bool colors_are_u8(const Element& vertex, const VertexRoles& roles) {
+  return roles.colors() && property(vertex, roles.red).type == Type::u8 &&
+         property(vertex, roles.green).type == Type::u8 &&
+         property(vertex, roles.blue).type == Type::u8;
+}
+
+// OpenMesh's binary reader decodes a layout correctly only when positions and
+// normals are float or double (it reads nothing for integer ones), the vertex
+// element has no lists and the face element has no list besides its indices
+// (it skips one scalar for any other list).
+bool openmesh_reads_directly(const Header& header, const VertexRoles& roles, int face) {
+  if (header.format == Format::ascii) return false;
+  const Element& vertex = header.elements[static_cast<std::size_t>(header.find("vertex"))];
+  if (vertex.has_lists()) return false;
+  for (int p : {roles.x, roles.y, roles.z}) {
+    if (!is_float(property(vertex, p).type)) return false;
+  }
+  if (roles.normals()) {
+    for (int p : {roles.nx, roles.ny, roles.nz}) {
+      if (!is_float(property(vertex, p).type)) return false;
+    }
+  }
+  if (face >= 0) {
+    const Element& faces = header.elements[static_cast<std::size_t>(face)];
+    const int indices = index_property(faces);
+    for (std::size_t i = 0; i < faces.properties.size(); ++i) {
+      if (faces.properties[i].is_list && static_cast<int>(i) != indices) return false;
+    }
+  }
+  return true;
+}
+
+std::string format_line(Format format) {
+  return format == Format::binary_big_endian ? "format binary_big_endian 1.0\n"
+                                             : "format binary_little_endian 1.0\n";
+}
+
+// OpenMesh accepts only uchar/uint8/uint16/int as list length types; any
+// integer type of the same width reads the same bytes, and negative lengths
+// were already rejected by the layout walk.
+std::string_view length_type_alias(Type type) {
+  switch (ply::type_size(type)) {
+    case 1:
+      return "uchar";
+    case 2:
+      return "uint16";
+    default:
+      return "int";
+  }
+}
+
+// A property name OpenMesh does not interpret (it skips such a property by
+// the size of its type).
+std::string neutral_name(std::size_t index) {
+  std::string name(1, '_');
+  name += std::to_string(index);
+  return name;
+}
+
+// Our header for a body OpenMesh reads in place: the file's own vertex and
+// face layouts, with every property OpenMesh should not interpret renamed to
+// a neutral name so it is skipped by size.
+std::string direct_header(const Header& header, const VertexRoles& roles, bool u8_colors,
+                          int face) {
+  const Element& vertex = header.elements[static_cast<std::size_t>(header.find("vertex"))];
+  std::string out = "ply\n" + format_line(header.format);
+  out += "element vertex " + std::to_string(vertex.count) + "\n";
+  for (std::size_t i = 0; i < vertex.properties.size(); ++i) {
+    const int p = static_cast<int>(i);
+    std::string name = neutral_name(i);
+    if (p == roles.x) name = "x";
+    if (p == roles.y) name = "y";
+    if (p == roles.z) name = "z";
+    if (roles.normals() && p == roles.nx) name = "nx";
+    if (roles.normals() && p == roles.ny) name = "ny";
+    if (roles.normals() && p == roles.nz) name = "nz";
+    if (u8_colors && p == roles.red) name = "red";
+    if (u8_colors && p == roles.green) name = "green";
+    if (u8_colors && p == roles.blue) name = "blue";
+    out += "property " + std::string(ply::type_name(vertex.properties[i].type)) + " " + name + "\n";
+  }
+  if (face >= 0) {
+    const Element& faces = header.elements[static_cast<std::size_t>(face)];
+    const int indices = index_property(faces);
+    out += "element face " + std::to_string(faces.count) + "\n";
+    for (std::size_t i = 0; i < faces.properties.size(); ++i) {
+      const Property& p = faces.properties[i];
+      if (static_cast<int>(i) == indices) {
+        out += "property list " + std::string(length_type_alias(p.count_type)) + " " +
+               std::string(ply::type_name(p.type)) + " vertex_indices\n";
+      } else {
+        out += "property " + std::string(ply::type_name(p.type)) + " " + neutral_name(i) + "\n";
+      }
+    }
+  }
+  out += "end_header\n";
+  return out;
+}
+
+template <class T>
+void append_le(std::string& out, T value) {
+  static_assert(std::is_arithmetic_v<T>);
+  char bytes[sizeof(T)];
+  std::memcpy(bytes, &value, sizeof(T));
+  if constexpr (std::endian::native == std::endian::big) std::reverse(bytes, bytes + sizeof(T));
+  out.append(bytes, sizeof(T));
+}
+
+// Collects tristrips as triangles. A negative index restarts the strip; odd
+// triangles are flipped to keep the winding; the degenerate triangles strips
+// use as stitches are skipped.
+struct StripSink {
+  std::size_t vertices = 0;
+  std::vector<glm::uvec3> triangles;
+  std::size_t out_of_range = 0;
+  std::vector<double> strip;
+
+  void row(const Row& row, int indices) {
+    const auto p = static_cast<std::size_t>(indices);
+    strip.clear();
+    for (std::size_t k = 0; k < row.size[p]; ++k) {
+      const double v = row.values[row.first[p] + k];
+      if (v < 0) {
+        flush();
+        strip.clear();
+      } else {
+        strip.push_back(v);
+      }
+    }
+    flush();
+  }
+
+  void flush() {
+    for (std::size_t k = 0; k + 2 < strip.size(); ++k) {
+      double a = strip[k];
+      double b = strip[k + 1];
+      const double c = strip[k + 2];
+      if (k % 2 == 1) std::swap(a, b);
+      if (a == b || b == c || a == c) continue;
+      const auto n = static_cast<double>(vertices);
+      if (a >= n || b >= n || c >= n) {
+        ++out_of_range;
+        continue;
+      }
+      triangles.emplace_back(static_cast<unsigned>(a), static_cast<unsigned>(b),
+                             static_cast<unsigned>(c));
+    }
+  }
+};
+
+// The canonical body for OpenMesh when it cannot read the file's own:
+// little-endian float positions (and normals), uchar colours, faces as
+// "list int int". Values we read ourselves (radius) are kept aside.
+struct Transcoder {
+  const Element& vertex;
+  VertexRoles roles;
+  int face_indices = -1;  ///< index list of the face element, or -1
+  std::string vertex_bytes;
+  std::string face_bytes;
+  std::size_t vertex_rows = 0;
+  std::size_t face_rows = 0;
+  std::vector<float> radii;
+
+  void vertex_row(const Row& row) {
+    for (int p : {roles.x, roles.y, roles.z}) append_le(vertex_bytes, ply::to_float(row.scalar(p)));
+    if (roles.normals()) {
+      for (int p : {roles.nx, roles.ny, roles.nz}) {
+        append_le(vertex_bytes, ply::to_float(row.scalar(p)));
+      }
+    }
+    if (roles.colors()) {
+      for (int p : {roles.red, roles.green, roles.blue}) {
+        append_le(vertex_bytes, ply::color_channel(row.scalar(p), property(vertex, p).type));
+      }
+    }
+    if (roles.radius >= 0) radii.push_back(ply::to_float(row.scalar(roles.radius)));
+    ++vertex_rows;
+  }
+
+  void face_row(const Row& row) {
+    const auto p = static_cast<std::size_t>(face_indices);
+    append_le(face_bytes, static_cast<std::int32_t>(row.size[p]));
+    for (std::size_t k = 0; k < row.size[p]; ++k) {
+      const double v = row.values[row.first[p] + k];
+      // Anything that is not a vertex index becomes -1, which the importer
+      // counts as out of range.
+      const bool index = v >= 0 && v <= std::numeric_limits<std::int32_t>::max();
+      append_le(face_bytes, index ? static_cast<std::int32_t>(v) : std::int32_t{-1});
+    }
+    ++face_rows;
+  }
+
+  [[nodiscard]] std::string header() const {
+    std::string out = "ply\nformat binary_little_endian 1.0\n";
+    out += "element vertex " + std::to_string(vertex_rows) + "\n";
+    out += "property float x\nproperty float y\nproperty float z\n";
+    if (roles.normals()) out += "property float nx\nproperty float ny\nproperty float nz\n";
+    if (roles.colors()) out += "property uchar red\nproperty uchar green\nproperty uchar blue\n";
+    if (face_indices >= 0) {
+      out += "element face " + std::to_string(face_rows) + "\n";
+      out += "property list int int vertex_indices\n";
+    }
+    out += "end_header\n";
+    return out;
+  }
+};
+
+// Reads scalar property P of every row of a fixed-stride binary element.
+template <class F>
+void for_each_fixed(std::string_view bytes, const Element& element, int p, bool big_endian, F&& f) {
+  const std::size_t stride = element.fixed_stride();
+  std::size_t offset = 0;
+  for (int i = 0; i < p; ++i) offset += ply::type_size(property(element, i).type);
+  const Type type = property(element, p).type;
+  for (std::size_t row = 0; row < element.count; ++row) {
+    f(row, ply::load_scalar(bytes.data() + row * stride + offset, type, big_endian));
+  }
+}
+
+std::string plural(std::size_t n, const std::string& word) {
+  return std::to_string(n) + " " + word + (n == 1 ? "" : "s");
+}
+
+// Drops points with a non-finite coordinate from every array, and the faces
+// that use them; remaps the remaining indices. Returns {points, faces} dropped.
+std::pair<std::size_t, std::size_t> drop_nonfinite(PointSet& points) {
+  const std::size_t n = points.size();
+  std::size_t bad = 0;
+  for (const glm::vec3& p : points.positions) {
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) ++bad;
+  }
+  if (bad == 0) return {0, 0};
+
+  constexpr auto kDropped = std::numeric_limits<std::uint32_t>::max();
+  std::vector<std::uint32_t> remap(n, kDropped);
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const glm::vec3& p = points.positions[i];
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) continue;
+    remap[i] = static_cast<std::uint32_t>(kept);
+    points.positions[kept] = points.positions[i];
+    if (points.has_normals()) points.normals[kept] = points.normals[i];
+    if (points.has_colors()) points.colors[kept] = points.colors[i];
+    if (points.has_radii()) points.radii[kept] = points.radii[i];
+    ++kept;
+  }
+  points.positions.resize(kept);
+  if (points.has_normals()) points.normals.resize(kept);
+  if (points.has_colors()) points.colors.resize(kept);
+  if (points.has_radii()) points.radii.resize(kept);
+
+  std::size_t faces_kept = 0;
+  const std::size_t faces = points.triangles.size();
+  for (const glm::uvec3& t : points.triangles) {
+    const glm::uvec3 r(remap[t.x], remap[t.y], remap[t.z]);
+    if (r.x == kDropped || r.y == kDropped || r.z == kDropped) continue;
+    points.triangles[faces_kept++] = r;
+  }
+  points.triangles.resize(faces_kept);
+  return {bad, faces - faces_kept};
+}
+
+PointSet load(std::string_view file, const Warnings& warn, PlyLoadReport& report) {
+  const Header header = ply::parse_header(file);
+  const bool binary = header.format != Format::ascii;
+  const bool big_endian = header.format == Format::binary_big_endian;
+  const auto vertex_index = static_cast<std::size_t>(header.find("vertex"));
+  const Element& vertex = header.elements[vertex_index];
+
+  // Validate the body size before anything is sized from the header.
+  ply::BinaryLayout layout;
+  if (binary) {
+    layout = ply::binary_layout(header, file);
+  } else {
+    ply::check_ascii_capacity(header, file);
+  }
+  if (vertex.count > static_cast<std::uint64_t>(std::numeric_limits<std::int32_t>::max())) {
+    // OpenMesh's vertex handles and our triangle indices are 32-bit.
+    throw ply::Error("too many vertices (" + std::to_string(vertex.count) + ")");
+  }
+  const auto vertex_count = static_cast<std::size_t>(vertex.count);
+
+  const VertexRoles roles = find_roles(vertex, warn);
+  int face = -1;
+  int strips = -1;
+  for (std::size_t e = 0; e < header.elements.size(); ++e) {
+    const Element& element = header.elements[e];
+    if (e == vertex_index) continue;
+    const bool has_indices = index_property(element) >= 0;
+    if (element.name == "face" && has_indices) {
+      face = static_cast<int>(e);
+    } else if (element.name == "tristrips" && has_indices) {
+      strips = static_cast<int>(e);
+    } else {
+      warn("ignoring element '" + ply::printable(element.name) + "' (" +
+           plural(static_cast<std::size_t>(element.count), "row") + ")" +
+           (element.name == "face" || element.name == "tristrips" ? ": it has no vertex_indices"
+                                                                  : ""));
+    }
+  }
+
+  report.vertices_in_file = vertex_count;
+  report.had_normals = roles.normals();
+  report.had_colors = roles.colors();
+  report.had_radius = roles.radius >= 0;
+
+  PointSet points;
+  StripSink strip_sink;
+  strip_sink.vertices = vertex_count;
+  ply::OpenMeshInput input;
+  std::vector<float> radii;
+  std::vector<glm::u8vec4> own_colors;
+  Transcoder transcoder{vertex, roles, -1, {}, {}, 0, 0, {}};
+
+  if (openmesh_reads_directly(header, roles, face)) {
+    const bool u8_colors = colors_are_u8(vertex, roles);
+    input.header = direct_header(header, roles, u8_colors, face);
+    const ply::Range v = layout.elements[vertex_index];
+    input.body.push_back(file.substr(v.begin, v.end - v.begin));
+    input.vertices = vertex_count;
+    if (face >= 0) {
+      const ply::Range f = layout.elements[static_cast<std::size_t>(face)];
+      input.body.push_back(file.substr(f.begin, f.end - f.begin));
+      input.faces = static_cast<std::size_t>(header.elements[static_cast<std::size_t>(face)].count);
+    }
+    input.normals = roles.normals();
+    input.colors = u8_colors;
+
+    const std::string_view vertex_bytes = input.body.front();
+    if (roles.radius >= 0) {
+      radii.resize(vertex_count);
+      for_each_fixed(vertex_bytes, vertex, roles.radius, big_endian,
+                     [&](std::size_t i, double r) { radii[i] = ply::to_float(r); });
+    }
+    if (roles.colors() && !u8_colors) {
+      own_colors.assign(vertex_count, glm::u8vec4(0, 0, 0, 255));
+      const std::array<int, 3> channels{roles.red, roles.green, roles.blue};
+      for (std::size_t c = 0; c < 3; ++c) {
+        const Type type = property(vertex, channels[c]).type;
+        for_each_fixed(vertex_bytes, vertex, channels[c], big_endian, [&](std::size_t i, double x) {
+          own_colors[i][static_cast<glm::length_t>(c)] = ply::color_channel(x, type);
+        });
+      }
+    }
+    if (strips >= 0) {
+      const Element& element = header.elements[static_cast<std::size_t>(strips)];
+      const ply::Range s = layout.elements[static_cast<std::size_t>(strips)];
+      ply::BinaryRows rows(element, file.substr(s.begin, s.end - s.begin), big_endian);
+      Row row;
+      for (std::uint64_t r = 0; r < element.count; ++r) {
+        rows.next(row);
+        strip_sink.row(row, index_property(element));
+      }
+    }
+  } else {
+    // Reserve only what the validated body can hold: binary counts were
+    // checked byte for byte, ascii counts against the token capacity.
+    constexpr std::size_t kCanonicalVertexBytes = 27;
+    transcoder.vertex_bytes.reserve(vertex_count * kCanonicalVertexBytes);
+    if (roles.radius >= 0) transcoder.radii.reserve(vertex_count);
+    if (face >= 0) {
+      transcoder.face_indices = index_property(header.elements[static_cast<std::size_t>(face)]);
+    }
+
+    ply::AsciiRows ascii(file, header);
+    Row row;
+    for (std::size_t e = 0; e < header.elements.size(); ++e) {
+      const Element& element = header.elements[e];
+      const bool wanted =
+          e == vertex_index || static_cast<int>(e) == face || static_cast<int>(e) == strips;
+      if (binary && !wanted) continue;
+      std::optional<ply::BinaryRows> rows;
+      if (binary) {
+        const ply::Range range = layout.elements[e];
+        rows.emplace(element, file.substr(range.begin, range.end - range.begin), big_endian);
+      }
+      for (std::uint64_t r = 0; r < element.count; ++r) {
+        if (!wanted) {
+          ascii.skip(element, r);
+          continue;
+        }
+        if (rows) {
+          rows->next(row);
+        } else {
+          ascii.next(element, r, row);
+        }
+        if (e == vertex_index) {
+          transcoder.vertex_row(row);
+        } else if (static_cast<int>(e) == face) {
+          transcoder.face_row(row);
+        } else {
+          strip_sink.row(row, index_property(element));
+        }
+      }
+    }
+    if (!binary) {
+      if (std::size_t lines = ascii.trailing_lines(); lines > 0) {
+        warn("ignoring " + plural(lines, "line") + " after the last element");
+      }
+    }
+    input.header = transcoder.header();
+    input.body = {transcoder.vertex_bytes, transcoder.face_bytes};
+    input.vertices = transcoder.vertex_rows;
+    input.faces = transcoder.face_rows;
+    input.normals = roles.normals();
+    input.colors = roles.colors();
+    radii = std::move(transcoder.radii);
+  }
+  if (binary && layout.trailing_bytes > 0) {
+    warn("ignoring " + plural(layout.trailing_bytes, "byte") + " after the last element");
+  }
+
+  const ply::OpenMeshResult read = ply::read_with_openmesh(input, points);
+  if (!read.reader_ok || read.vertices_read != input.vertices || read.faces_read != input.faces) {
+    throw ply::Error("OpenMesh read " + std::to_string(read.vertices_read) + " of " +
+                     std::to_string(input.vertices) + " vertices and " +
+                     std::to_string(read.faces_read) + " of " + std::to_string(input.faces) +
+                     " faces" + (read.reader_ok ? "" : " and reported failure"));
+  }
+  if (!own_colors.empty()) points.colors = std::move(own_colors);
+  if (!radii.empty()) points.radii = std::move(radii);
+
+  points.triangles.insert(points.triangles.end(), strip_sink.triangles.begin(),
+                          strip_sink.triangles.end());
+  report.faces_in_file = input.faces + strip_sink.triangles.size() + strip_sink.out_of_range;
+  if (read.faces_out_of_range + strip_sink.out_of_range > 0) {
+    warn("ignoring " + plural(read.faces_out_of_range + strip_sink.out_of_range, "face") +
+         " with vertex indices out of range");
+  }
+  if (read.faces_degenerate > 0) {
+    warn("ignoring " + plural(read.faces_degenerate, "face") + " with fewer than 3 vertices");
+  }
+
+  const auto [dropped_points, dropped_faces] = drop_nonfinite(points);
+  report.dropped_nonfinite = dropped_points;
+  if (dropped_points > 0) {
+    warn("dropped " + plural(dropped_points, "point") + " with non-finite coordinates" +
+         (dropped_faces > 0 ? " and " + plural(dropped_faces, "face") + " using them" : ""));
+  }
+  if (points.size() == 0) throw ply::Error("no point has finite coordinates");
+
+  if (points.has_normals()) {
+    std::size_t undefined = 0;
+    for (glm::vec3& n : points.normals) {
+      const float length = std::sqrt(n.x * n.x + n.y * n.y + n.z * n.z);
+      if (std::isfinite(length) && length > 0.0f) {
+        n /= length;
+      } else {
+        if (!std::isfinite(length)) ++undefined;
+        n = glm::vec3(0.0f);
+      }
+    }
+    if (undefined > 0) warn(plural(undefined, "normal") + " not finite, set to zero");
+  }
+  if (points.has_radii()) {
+    const auto bad = std::count_if(points.radii.begin(), points.radii.end(),
+                                   [](float r) { return !(std::isfinite(r) && r > 0.0f); });
+    if (bad > 0) {
+      warn("ignoring the radius property: " + plural(static_cast<std::size_t>(bad), "radius") +
+           " not a positive finite number");
+      points.radii.clear();
+    }
+  }
+  return points;
+}
+
+}  // namespace
+
+PointSet load_ply_from_memory(std::string_view bytes, const std::string& name,
+                              PlyLoadReport* report, const WarningSink& warn) {
+  PlyLoadReport local;
+  try {
+    PointSet points = load(bytes, Warnings(name, warn), local);
+    if (report) *report = local;
+    return points;
+  } catch (const ply::Error& e) {
+    throw InputError(name + ": " + e.what());
+  }
+}
+
+PointSet load_ply(const std::filesystem::path& path, PlyLoadReport* report,
+                  const WarningSink& warn) {
+  const std::string name = path.string();
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) {
+    throw InputError(name + ": " + (ec ? ec.message() : "not a regular file"));
+  }
+  const std::uintmax_t size = std::filesystem::file_size(path, ec);
+  if (ec) throw InputError(name + ": " + ec.message());
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(name + ": cannot open for reading");
+  // Uninitialized: the buffer is overwritten by the read right away.
+  auto buffer = std::make_unique_for_overwrite<char[]>(static_cast<std::size_t>(size));
+  in.read(buffer.get(), static_cast<std::streamsize>(size));
+  if (static_cast<std::uintmax_t>(in.gcount()) != size) {
+    throw InputError(name + ": cannot read the whole file");
+  }
+  return load_ply_from_memory(std::string_view(buffer.get(), static_cast<std::size_t>(size)), name,
+                              report, warn);
+}
+
+}  // namespace treecut

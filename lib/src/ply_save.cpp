@@ -1,0 +1,131 @@
+// PLY export: binary little-endian, written to a temporary file and renamed
+// into place so a concurrent reader sees either the old file or the new one.
+#include <unistd.h>
+
+#include <algorithm>
+#include <bit>
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <limits>
+#include <memory>
+#include <stdexcept>
+#include <string>
+
+#include "treecut/ply.hpp"
+
+namespace treecut {
+
+namespace {
+
+template <class T>
+void put_le(std::string& out, T value) {
+  char bytes[sizeof(T)];
+  std::memcpy(bytes, &value, sizeof(T));
+  if constexpr (std::endian::native == std::endian::big) std::reverse(bytes, bytes + sizeof(T));
+  out.append(bytes, sizeof(T));
+}
+
+void check_sizes(const PointSet& points) {
+  const std::size_t n = points.size();
+  auto check = [n](std::size_t size, const char* what) {
+    if (size != 0 && size != n) {
+      throw std::invalid_argument(std::string("save_ply: ") + what + " has " +
+                                  std::to_string(size) + " entries for " + std::to_string(n) +
+                                  " points");
+    }
+  };
+  check(points.normals.size(), "normals");
+  check(points.colors.size(), "colors");
+  check(points.radii.size(), "radii");
+  if (n > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max())) {
+    throw std::invalid_argument("save_ply: too many points for 32-bit face indices");
+  }
+  for (const glm::uvec3& t : points.triangles) {
+    if (t.x >= n || t.y >= n || t.z >= n) {
+      throw std::invalid_argument("save_ply: a triangle refers to a point that does not exist");
+    }
+  }
+}
+
+std::string header(const PointSet& points) {
+  std::string out = "ply\nformat binary_little_endian 1.0\ncomment written by treecut\n";
+  out += "element vertex " + std::to_string(points.size()) + "\n";
+  out += "property float x\nproperty float y\nproperty float z\n";
+  if (points.has_normals()) out += "property float nx\nproperty float ny\nproperty float nz\n";
+  if (points.has_colors()) out += "property uchar red\nproperty uchar green\nproperty uchar blue\n";
+  if (points.has_radii()) out += "property float radius\n";
+  if (!points.triangles.empty()) {
+    out += "element face " + std::to_string(points.triangles.size()) + "\n";
+    out += "property list uchar int vertex_indices\n";
+  }
+  out += "end_header\n";
+  return out;
+}
+
+struct FileCloser {
+  void operator()(std::FILE* f) const { std::fclose(f); }
+};
+
+}  // namespace
+
+void save_ply(const std::filesystem::path& path, const PointSet& points) {
+  check_sizes(points);
+  const std::filesystem::path temporary =
+      path.string() + ".tmp-" + std::to_string(static_cast<long>(::getpid()));
+  auto fail = [&](const std::string& what, int error) {
+    std::error_code ignored;
+    std::filesystem::remove(temporary, ignored);
+    throw std::runtime_error(path.string() + ": " + what + ": " + std::strerror(error));
+  };
+
+  std::unique_ptr<std::FILE, FileCloser> file(std::fopen(temporary.c_str(), "wb"));
+  if (!file) fail("cannot create " + temporary.string(), errno);
+
+  // Rows are encoded into a chunk and written in large blocks.
+  constexpr std::size_t kChunk = std::size_t{1} << 20;
+  std::string chunk = header(points);
+  auto flush = [&](bool force) {
+    if (chunk.size() < kChunk && !force) return;
+    if (std::fwrite(chunk.data(), 1, chunk.size(), file.get()) != chunk.size()) {
+      fail("cannot write", errno);
+    }
+    chunk.clear();
+  };
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const glm::vec3& p = points.positions[i];
+    put_le(chunk, p.x);
+    put_le(chunk, p.y);
+    put_le(chunk, p.z);
+    if (points.has_normals()) {
+      const glm::vec3& n = points.normals[i];
+      put_le(chunk, n.x);
+      put_le(chunk, n.y);
+      put_le(chunk, n.z);
+    }
+    if (points.has_colors()) {
+      const glm::u8vec4& c = points.colors[i];
+      chunk.push_back(static_cast<char>(c.x));
+      chunk.push_back(static_cast<char>(c.y));
+      chunk.push_back(static_cast<char>(c.z));
+    }
+    if (points.has_radii()) put_le(chunk, points.radii[i]);
+    flush(false);
+  }
+  for (const glm::uvec3& t : points.triangles) {
+    chunk.push_back(3);
+    put_le(chunk, static_cast<std::int32_t>(t.x));
+    put_le(chunk, static_cast<std::int32_t>(t.y));
+    put_le(chunk, static_cast<std::int32_t>(t.z));
+    flush(false);
+  }
+  flush(true);
+  std::FILE* raw = file.release();
+  if (std::fclose(raw) != 0) fail("cannot write", errno);
+
+  std::error_code ec;
+  std::filesystem::rename(temporary, path, ec);
+  if (ec) fail("cannot rename " + temporary.string() + " into place", ec.value());
+}
+
+}  // namespace treecut

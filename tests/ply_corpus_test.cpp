@@ -1,0 +1,182 @@
+// PLY import against the shared files: every entry of ply-corpus/MANIFEST.tsv
+// is one test named after its file, and the four real models in assets/ load
+// with their published counts.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "test_support.hpp"
+#include "treecut/error.hpp"
+#include "treecut/ply.hpp"
+
+namespace {
+
+using treecut::InputError;
+using treecut::load_ply;
+using treecut::PlyLoadReport;
+using treecut::PointSet;
+
+struct CorpusEntry {
+  std::string file;
+  std::string expect;  // ok | error | nocrash
+  std::size_t points = 0;
+  std::string what;
+};
+
+std::vector<CorpusEntry> read_manifest() {
+  std::vector<CorpusEntry> entries;
+  auto dir = treecut::test::shared_dir();
+  if (!dir) return entries;
+  std::ifstream in(*dir / "ply-corpus" / "MANIFEST.tsv");
+  std::string line;
+  std::getline(in, line);  // column names
+  while (std::getline(in, line)) {
+    if (line.empty()) continue;
+    std::istringstream fields(line);
+    CorpusEntry entry;
+    std::string points;
+    std::getline(fields, entry.file, '\t');
+    std::getline(fields, entry.expect, '\t');
+    std::getline(fields, points, '\t');
+    std::getline(fields, entry.what);
+    if (entry.expect == "ok") entry.points = std::stoul(points);
+    entries.push_back(entry);
+  }
+  return entries;
+}
+
+std::string test_name(const testing::TestParamInfo<CorpusEntry>& info) {
+  std::string name;
+  for (char c : info.param.file) name += std::isalnum(static_cast<unsigned char>(c)) ? c : '_';
+  return name;
+}
+
+class PlyCorpus : public testing::TestWithParam<CorpusEntry> {};
+
+TEST_P(PlyCorpus, BehavesAsTheManifestSays) {
+  const CorpusEntry& entry = GetParam();
+  const auto path = *treecut::test::shared_dir() / "ply-corpus" / entry.file;
+  SCOPED_TRACE(entry.file + ": " + entry.what);
+  std::vector<std::string> warnings;
+  auto warn = [&](const std::string& w) { warnings.push_back(w); };
+
+  if (entry.expect == "ok") {
+    PlyLoadReport report;
+    PointSet points = load_ply(path, &report, warn);
+    EXPECT_EQ(points.size(), entry.points);
+    EXPECT_EQ(points.size() + report.dropped_nonfinite, report.vertices_in_file);
+    for (const std::string& w : warnings) {
+      EXPECT_EQ(w.rfind(path.string() + ": ", 0), 0u) << w;
+      EXPECT_EQ(w.find('\n'), std::string::npos) << w;
+    }
+  } else if (entry.expect == "error") {
+    try {
+      load_ply(path, nullptr, warn);
+      ADD_FAILURE() << "loaded without an error";
+    } catch (const InputError& e) {
+      const std::string message = e.what();
+      EXPECT_EQ(message.rfind(path.string() + ": ", 0), 0u) << message;
+      EXPECT_NE(message.find(entry.file), std::string::npos) << message;
+      EXPECT_EQ(message.find('\n'), std::string::npos) << message;
+    }
+  } else {
+    ASSERT_EQ(entry.expect, "nocrash");
+    try {
+      PointSet points = load_ply(path, nullptr, warn);
+      EXPECT_GT(points.size(), 0u);
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(entry.file), std::string::npos) << e.what();
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Manifest, PlyCorpus, testing::ValuesIn(read_manifest()), test_name);
+// Without ../shared there are no parameters; PlyCorpusManifest says why.
+GTEST_ALLOW_UNINSTANTIATED_PARAMETERIZED_TEST(PlyCorpus);
+
+TEST(PlyCorpusManifest, ListsEveryCorpusFile) {
+  auto dir = treecut::test::shared_dir();
+  if (!dir) GTEST_SKIP() << "../shared is absent: the corpus tests do not run";
+  const auto entries = read_manifest();
+  ASSERT_FALSE(entries.empty()) << "MANIFEST.tsv is missing or empty";
+  std::size_t files = 0;
+  for (const auto& f : std::filesystem::directory_iterator(*dir / "ply-corpus")) {
+    if (f.path().extension() != ".ply") continue;
+    ++files;
+    const auto name = f.path().filename().string();
+    EXPECT_TRUE(std::any_of(entries.begin(), entries.end(),
+                            [&](const CorpusEntry& e) { return e.file == name; }))
+        << name << " is not in MANIFEST.tsv";
+  }
+  EXPECT_EQ(files, entries.size());
+}
+
+TEST(PlySharedAssets, BunnyLoadsWithExactCounts) {
+  TREECUT_REQUIRE_ASSET(path, "bun_zipper.ply");
+  PlyLoadReport report;
+  PointSet points = load_ply(path, &report);
+  EXPECT_EQ(points.size(), 35947u);
+  EXPECT_EQ(points.triangles.size(), 69451u);
+  EXPECT_EQ(report.faces_in_file, 69451u);
+  EXPECT_FALSE(points.has_normals());
+  EXPECT_FALSE(points.has_colors());
+}
+
+TEST(PlySharedAssets, AsciiDragonLoadsWithExactCounts) {
+  TREECUT_REQUIRE_ASSET(path, "dragon_vrip.ply");
+  PointSet points = load_ply(path);
+  EXPECT_EQ(points.size(), 437645u);
+  EXPECT_EQ(points.triangles.size(), 871414u);
+  EXPECT_FALSE(points.has_normals());
+}
+
+TEST(PlySharedAssets, BinaryDragonLoadsWithExactCountsAndNormals) {
+  TREECUT_REQUIRE_ASSET(path, "dragon_vrip_normals.ply");
+  PlyLoadReport report;
+  PointSet points = load_ply(path, &report);
+  EXPECT_EQ(points.size(), 437645u);
+  EXPECT_EQ(points.triangles.size(), 871414u);
+  ASSERT_TRUE(points.has_normals());
+  EXPECT_TRUE(report.had_normals);
+  for (const glm::vec3& n : points.normals) {
+    const float length = std::sqrt(n.x * n.x + n.y * n.y + n.z * n.z);
+    // Unit, or zero for the isolated vertices the asset README mentions.
+    ASSERT_TRUE(length == 0.0f || std::abs(length - 1.0f) < 1e-5f) << length;
+  }
+}
+
+TEST(PlySharedAssets, LionLoadsWithColorsAndNormals) {
+  TREECUT_REQUIRE_ASSET(path, "lion_takanawa.ply");
+  PlyLoadReport report;
+  PointSet points = load_ply(path, &report);
+  EXPECT_EQ(points.size(), 341989u);
+  EXPECT_TRUE(points.triangles.empty());
+  ASSERT_TRUE(points.has_colors());
+  ASSERT_TRUE(points.has_normals());
+  EXPECT_TRUE(report.had_colors);
+  // A photogrammetry cloud is not one flat colour.
+  const bool varied = std::any_of(points.colors.begin(), points.colors.end(),
+                                  [&](const glm::u8vec4& c) { return c != points.colors[0]; });
+  EXPECT_TRUE(varied);
+}
+
+TEST(PlySharedAssets, AsciiAndBinaryDragonHaveTheSamePositionsAndFaces) {
+  TREECUT_REQUIRE_ASSET(ascii_path, "dragon_vrip.ply");
+  TREECUT_REQUIRE_ASSET(binary_path, "dragon_vrip_normals.ply");
+  PointSet ascii = load_ply(ascii_path);
+  PointSet binary = load_ply(binary_path);
+  ASSERT_EQ(ascii.size(), binary.size());
+  std::size_t differing = 0;
+  for (std::size_t i = 0; i < ascii.size(); ++i)
+    differing += ascii.positions[i] != binary.positions[i];
+  EXPECT_EQ(differing, 0u);
+  EXPECT_EQ(ascii.triangles, binary.triangles);
+}
+
+}  // namespace
