@@ -1,0 +1,136 @@
+// The Strategy API: one interface for every LOD strategy (Marton, Schiffner et
+// al., "Parallel TreeCut Manipulation", section 4: "LOD-strategies that are
+// based solely on the current cut" plus strategies that rebuild the cut from
+// the root).
+//
+// Contract
+// - An iteration is `iterate(input, output)`: a function of explicit inputs
+//   (the hierarchy, the view snapshot, the cut, the parameters and the
+//   strategy's own per-node state) that writes the new cut and fills
+//   `output.result` with counters. It must leave a valid cut (every leaf under
+//   exactly one cut node) even when it stops early on cancellation.
+// - Evolve strategies modify `*output.cut` in place with TreeCut::refine and
+//   TreeCut::coarsen; on entry it is the cut of the previous iteration (what
+//   the render thread draws). Rebuild strategies ignore the cut and fill
+//   `*output.nodes` (empty on entry, capacity kept) with a new cut.
+// - What may be read: only `input` and the strategy's members. The references
+//   in `input` and `output` are valid for the duration of the call only; the
+//   hierarchy stays the same until reset() is called with another.
+// - Threads: a Strategy is used by one thread at a time. Once it is handed to a
+//   FeedbackStage, only the Feedback Stage thread calls it (iterate, reset,
+//   set_param); parameter changes from the render thread travel through
+//   FeedbackStage::set_param. name(), mode() and param_specs() are immutable
+//   after construction and may be read from any thread.
+// - GPU queries: a strategy appends QueryRequests to `*output.queries`; the
+//   render thread executes them after it exchanges the list and reports the
+//   answers in `input.view.visibility` of a later iteration, frames later.
+// - State: a strategy may keep per-node state across iterations (hysteresis,
+//   event queues); reset() drops it when the hierarchy changes. Scratch
+//   buffers live in the strategy and are reused: no allocation per iteration
+//   once the buffers have grown.
+#pragma once
+
+#include <atomic>
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "treecut/hierarchy.hpp"
+#include "treecut/tree_cut.hpp"
+#include "treecut/view_snapshot.hpp"
+
+namespace treecut {
+
+/// One numeric parameter of a strategy. Values are doubles; `integer`
+/// parameters must hold whole numbers.
+struct ParamSpec {
+  std::string name;
+  std::string description;
+  double default_value = 0.0;
+  double min_value = 0.0;
+  double max_value = 0.0;
+  bool integer = false;
+};
+
+/// Counters of one iteration; they feed the stage statistics and the tests.
+struct IterationResult {
+  std::uint64_t visited = 0;     ///< nodes evaluated (cut nodes, or traversed nodes)
+  std::uint64_t refined = 0;     ///< refine operations applied
+  std::uint64_t coarsened = 0;   ///< coarsen operations applied
+  std::uint64_t culled = 0;      ///< recursion stopped by the view frustum
+  std::uint64_t backfacing = 0;  ///< recursion stopped by the normal cone
+  std::uint64_t too_small = 0;   ///< recursion stopped by the projected size
+  std::uint64_t blocked = 0;     ///< operations refused by a threshold or hysteresis rule
+  std::size_t cut_size = 0;      ///< nodes in the resulting cut
+  bool converged = false;        ///< another iteration under the same view changes nothing
+  bool cancelled = false;        ///< stopped early on request; the cut is still valid
+};
+
+/// What an iteration may read. Valid for the duration of iterate() only.
+struct IterationInput {
+  const Hierarchy& hierarchy;
+  const ViewSnapshot& view;
+  /// Which hierarchy of a scene this is (0 for a single model); copied into QueryRequests.
+  std::uint32_t object = 0;
+  /// Set by the owner to ask a long iteration to end early (strategy switch,
+  /// shutdown). May be null. Strategies test it every few thousand nodes.
+  const std::atomic<bool>* cancel = nullptr;
+
+  [[nodiscard]] bool cancelled() const {
+    return cancel != nullptr && cancel->load(std::memory_order_relaxed);
+  }
+};
+
+/// Where an iteration writes. Pointers are never null when the stage calls.
+struct IterationOutput {
+  TreeCut* cut = nullptr;                        ///< Evolve: modify in place
+  std::vector<NodeId>* nodes = nullptr;          ///< Rebuild: fill (empty on entry)
+  std::vector<QueryRequest>* queries = nullptr;  ///< append GPU query requests (empty on entry)
+  IterationResult result;
+};
+
+class Strategy {
+ public:
+  enum class Mode {
+    Evolve,   ///< refine/coarsen the current cut (optimization, bucket, event queue)
+    Rebuild,  ///< produce a new cut from the root (recursive, occlusion-driven)
+  };
+
+  virtual ~Strategy() = default;
+  Strategy(const Strategy&) = delete;
+  Strategy& operator=(const Strategy&) = delete;
+
+  [[nodiscard]] virtual std::string_view name() const = 0;
+  [[nodiscard]] virtual Mode mode() const = 0;
+
+  /// Runs one iteration (see the contract at the top of this file).
+  virtual void iterate(const IterationInput& input, IterationOutput& output) = 0;
+
+  /// Drops per-node state and sizes it for `hierarchy`. Called by the stage
+  /// before the first iteration and whenever the model changes.
+  virtual void reset(const Hierarchy& hierarchy) = 0;
+
+  [[nodiscard]] const std::vector<ParamSpec>& param_specs() const { return specs_; }
+  /// Throws InputError naming the parameter for an unknown name.
+  [[nodiscard]] double param(std::string_view name) const;
+  /// Checks range and integrality; throws InputError ("NAME: PARAM = V is out
+  /// of range [a, b]") and changes nothing on a bad value.
+  void set_param(std::string_view name, double value);
+
+ protected:
+  explicit Strategy(std::vector<ParamSpec> specs);
+  /// The value of param_specs()[index]; the hot path reads parameters this way.
+  [[nodiscard]] double param_at(std::size_t index) const { return values_[index]; }
+
+ private:
+  std::vector<ParamSpec> specs_;
+  std::vector<double> values_;
+};
+
+/// Checks `value` against `spec`; returns an empty string or the problem.
+std::string check_param(const ParamSpec& spec, double value);
+
+}  // namespace treecut

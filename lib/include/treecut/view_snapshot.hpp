@@ -1,0 +1,103 @@
+// ViewSnapshot: everything a strategy may read about the View for one
+// iteration (Marton & Schiffner et al., "Parallel TreeCut Manipulation",
+// section 3: "LOD-strategies may need to acquire additional data from the View
+// ... which can also be copied without a lock").
+//
+// The render thread fills a snapshot (camera, projection, viewport, light,
+// frame number, visibility results of GPU queries) and hands a copy to the
+// Feedback Stage with an update request; the strategy sees it as a const
+// reference valid for the duration of one iteration. Plain value type.
+//
+// GPU queries (occlusion strategies): a strategy posts QueryRequests with its
+// result; the render thread executes them on the GPU and reports the results
+// as VisibilityResults in a later snapshot, frames later. Nothing ever waits
+// for a query result.
+#pragma once
+
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <glm/mat4x4.hpp>
+#include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
+#include <glm/vec4.hpp>
+#include <vector>
+
+#include "treecut/hierarchy.hpp"
+
+namespace treecut {
+
+/// One occlusion (or other visibility) query a strategy asks the View to run.
+struct QueryRequest {
+  std::uint32_t object = 0;  ///< which hierarchy of a many-object scene (0 for one model)
+  NodeId node = kNoNode;     ///< the node whose bounding sphere is tested
+  std::uint32_t tag = 0;     ///< opaque to the View, returned unchanged in the result
+};
+
+/// The answer to a QueryRequest, delivered frames later in a ViewSnapshot.
+struct VisibilityResult {
+  std::uint32_t object = 0;
+  NodeId node = kNoNode;
+  std::uint32_t tag = 0;
+  std::uint32_t samples_passed = 0;  ///< GL_SAMPLES_PASSED (0 = occluded)
+  std::uint64_t frame_issued = 0;    ///< the frame number the query was issued in
+};
+
+/// A plane n.x + d >= 0 for points inside.
+using Plane = glm::vec4;
+
+struct ViewSnapshot {
+  glm::mat4 view{1.0f};                   ///< model-to-eye (the model matrix is folded in)
+  glm::mat4 projection{1.0f};             ///< eye-to-clip, perspective or orthographic
+  glm::ivec2 viewport{1, 1};              ///< pixels
+  glm::vec3 light_dir{0.0f, 0.0f, 1.0f};  ///< unit, model space, pointing towards the light
+  std::uint64_t frame = 0;                ///< the render thread's frame number when taken
+  /// Incremented by the render thread whenever camera, projection, viewport or
+  /// light change; strategies use it to tell "same view" (convergence) apart.
+  std::uint64_t version = 0;
+  /// Query results gathered since the previous snapshot, in issue order.
+  std::vector<VisibilityResult> visibility;
+
+  /// Derived from the fields above by finalize(); read-only for strategies.
+  struct Derived {
+    glm::vec3 eye{0.0f};             ///< camera position in model space
+    std::array<Plane, 6> frustum{};  ///< normalized, inward-facing
+    float pixel_scale = 1.0f;  ///< pixels per unit of (radius / distance), or per unit for ortho
+    bool perspective = true;
+  } derived;
+
+  /// Recomputes `derived`; call after changing view, projection or viewport.
+  void finalize();
+
+  /// A camera at `eye` looking at `target` with a vertical field of view
+  /// (radians), finalized. `near`/`far` in model units.
+  static ViewSnapshot look_at(glm::vec3 eye, glm::vec3 target, glm::ivec2 viewport,
+                              float fov_y = 0.8f, float near_plane = 0.01f,
+                              float far_plane = 1000.0f);
+
+  /// True when the sphere lies completely outside one frustum plane.
+  [[nodiscard]] bool outside_frustum(glm::vec3 center, float radius) const {
+    for (const Plane& p : derived.frustum) {
+      if (p.x * center.x + p.y * center.y + p.z * center.z + p.w < -radius) return true;
+    }
+    return false;
+  }
+
+  /// Upper bound of the projected radius in pixels of a sphere. Uses the
+  /// distance to the sphere's nearest point, so it is monotone: a sphere inside
+  /// another never projects larger (what keeps priorities parent >= child).
+  [[nodiscard]] float projected_radius_px(glm::vec3 center, float radius) const {
+    if (!derived.perspective) return radius * derived.pixel_scale;
+    const glm::vec3 d = center - derived.eye;
+    const float dist = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z) - radius;
+    constexpr float kMinDistance = 1e-6f;
+    return radius * derived.pixel_scale / (dist > kMinDistance ? dist : kMinDistance);
+  }
+
+  /// True when every point of the sphere is seen from behind by every normal of
+  /// the cone (QSplat's backface cone test, conservative).
+  [[nodiscard]] bool backfacing(glm::vec3 center, float radius, glm::vec3 normal,
+                                float cone_cos) const;
+};
+
+}  // namespace treecut

@@ -1,0 +1,57 @@
+// Optimization strategy (Marton, Schiffner et al., "Parallel TreeCut
+// Manipulation", section 4 and figure 3; partial sorting after Carr et al.
+// [Car11]). Evolves the cut under a maximal node count: the k cut nodes of
+// highest priority are refined, the k coarsenable parents of lowest priority
+// are coarsened to make room. O(n log k) for a cut of n nodes.
+#pragma once
+
+#include <cstdint>
+#include <utility>
+#include <vector>
+
+#include "treecut/strategy.hpp"
+
+namespace treecut::strategies {
+
+class OptimizationStrategy final : public Strategy {
+ public:
+  /// Parameter indices (param_specs() order).
+  enum Param : std::size_t {
+    kMaxNodes,         ///< maximal cut size (the budget)
+    kK,                ///< partial sort size: candidates kept per side
+    kThreshold,        ///< minimal priority gain that allows a coarse
+    kCurvatureWeight,  ///< 0: projected size only, 1: size x curvature
+    kMinSize,          ///< pixels: nodes projecting smaller are not refined
+  };
+
+  OptimizationStrategy();
+  [[nodiscard]] std::string_view name() const override { return "optimization"; }
+  [[nodiscard]] Mode mode() const override { return Mode::Evolve; }
+  void reset(const Hierarchy& hierarchy) override;
+  void iterate(const IterationInput& input, IterationOutput& output) override;
+
+  /// The view-dependent priority of a node: projected radius in pixels times
+  /// ((1 - w) + w * curvature), 0 outside the frustum. Monotone: a parent's
+  /// priority is >= each child's, because the child's sphere lies inside the
+  /// parent's and the hierarchy's curvature priority is monotone.
+  [[nodiscard]] static float priority(const Hierarchy& h, const ViewSnapshot& view, NodeId n,
+                                      float curvature_weight, float* size_px = nullptr);
+
+ private:
+  using Candidate = std::pair<float, NodeId>;  // (priority, node)
+
+  // Per-node hysteresis against "a node refined in an iteration while it is
+  // coarsened in the next" (the paper's threshold discussion): the iteration
+  // and kind of each node's last operation. A node coarsened under the current
+  // view is not refined again under it; a node refined in the previous
+  // iteration is not coarsened. Each node changes at most twice per view, so a
+  // static view converges.
+  std::vector<std::uint32_t> last_op_;  // iteration << 1 | refined
+  std::uint32_t iteration_ = 0;         // iterations since reset(), from 1
+  std::uint32_t view_start_ = 0;        // first iteration of the current view
+  std::uint64_t last_version_ = ~std::uint64_t{0};
+  std::vector<Candidate> high_;  // min-heap, then sorted descending
+  std::vector<Candidate> low_;   // max-heap, then sorted ascending
+};
+
+}  // namespace treecut::strategies

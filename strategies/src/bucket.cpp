@@ -1,0 +1,101 @@
+// Bucket-based strategy: Marton, Schiffner et al., "Parallel TreeCut
+// Manipulation", section 4, figure 4 (and the stippling of figure 7a).
+#include "treecut/strategies/bucket.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace treecut::strategies {
+
+BucketStrategy::BucketStrategy(BucketFunction function)
+    : Strategy({
+          {"threshold", "minimal negative delta (levels beyond 0) that forces a coarse", 0.0, 0.0,
+           255.0, true},
+          {"min_depth", "target depth of fully lit nodes, as a fraction of the deepest level", 0.35,
+           0.0, 1.0, false},
+          {"max_depth", "target depth of unlit nodes, as a fraction of the deepest level", 1.0, 0.0,
+           1.0, false},
+          {"ambient", "light every node receives", 0.1, 0.0, 1.0, false},
+      }),
+      function_(std::move(function)) {}
+
+void BucketStrategy::reset(const Hierarchy& hierarchy) {
+  refine_.clear();
+  coarsen_.clear();
+  refine_.reserve(hierarchy.node_count() < 4096 ? hierarchy.node_count() : 4096);
+}
+
+int BucketStrategy::illumination_bucket(const Hierarchy& h, const ViewSnapshot& view,
+                                        NodeId n) const {
+  // The darker the node, the deeper its target: more, smaller splats where
+  // the surface is in shadow (the paper's stippling).
+  const float deepest = static_cast<float>(h.level_count() - 1);
+  const float lit_depth = static_cast<float>(param_at(kMinDepth)) * deepest;
+  const float dark_depth = static_cast<float>(param_at(kMaxDepth)) * deepest;
+  const glm::vec4 cr = h.arrays().center_radius[n];
+  if (view.outside_frustum(glm::vec3(cr), cr.w)) return static_cast<int>(lit_depth);
+  const auto ambient = static_cast<float>(param_at(kAmbient));
+  const float diffuse = std::max(0.0f, glm::dot(h.normal(n), view.light_dir));
+  const float light = std::min(1.0f, ambient + (1.0f - ambient) * diffuse);
+  return static_cast<int>(lit_depth + (1.0f - light) * (dark_depth - lit_depth));
+}
+
+int BucketStrategy::bucket(const Hierarchy& h, const ViewSnapshot& view, NodeId n) const {
+  if (function_) return static_cast<int>(std::floor(function_(h, view, n)));
+  return illumination_bucket(h, view, n);
+}
+
+void BucketStrategy::iterate(const IterationInput& input, IterationOutput& output) {
+  const Hierarchy& h = input.hierarchy;
+  const ViewSnapshot& view = input.view;
+  TreeCut& cut = *output.cut;
+  IterationResult& r = output.result;
+  const HierarchyArrays& a = h.arrays();
+  const int threshold = static_cast<int>(param_at(kThreshold));
+
+  // Evaluate every cut node against its bucket; collect the operations first
+  // so the whole pass sees one consistent cut.
+  refine_.clear();
+  coarsen_.clear();
+  const std::span<const NodeId> nodes = cut.nodes();
+  for (std::size_t i = 0; i < nodes.size(); ++i) {
+    if ((i & 4095) == 0 && input.cancelled()) {
+      r.cancelled = true;
+      break;
+    }
+    const NodeId n = nodes[i];
+    const int depth = a.depth[n];
+    const int delta = bucket(h, view, n) - depth;
+    if (delta > 0 && a.child_count[n] != 0) refine_.push_back(n);  // '+' in figure 4
+
+    // A sibling group is judged once, at its first child: every sibling must
+    // ask for a coarse ('-'), and the parent's own delta must not be positive
+    // ('?' in figure 4), else the parent would be refined again next time.
+    const NodeId parent = a.parent[n];
+    if (parent == kNoNode || a.first_child[parent] != n || !cut.can_coarsen(h, parent)) continue;
+    bool all_negative = true;
+    for (NodeId c = n; c < n + a.child_count[parent]; ++c) {
+      const int dc = (c == n ? delta : bucket(h, view, c) - depth);
+      if (dc + threshold >= 0) {
+        all_negative = false;
+        break;
+      }
+    }
+    if (!all_negative) continue;
+    if (bucket(h, view, parent) - (depth - 1) > 0) {
+      ++r.blocked;
+      continue;
+    }
+    coarsen_.push_back(parent);
+  }
+  r.visited = nodes.size();
+
+  // Apply. Refines and coarsens never touch the same node: a group with a
+  // refinable member is not coarsened.
+  for (const NodeId n : refine_) r.refined += cut.refine(h, n) ? 1u : 0u;
+  for (const NodeId p : coarsen_) r.coarsened += cut.coarsen(h, p) ? 1u : 0u;
+  r.cut_size = cut.size();
+  r.converged = !r.cancelled && r.refined == 0 && r.coarsened == 0;
+}
+
+}  // namespace treecut::strategies

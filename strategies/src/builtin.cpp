@@ -1,0 +1,32 @@
+#include "treecut/strategies/builtin.hpp"
+
+#include <memory>
+
+#include "treecut/strategies/bucket.hpp"
+#include "treecut/strategies/optimization.hpp"
+#include "treecut/strategies/recursive.hpp"
+
+namespace treecut::strategies {
+
+void register_builtin(StrategyRegistry& registry) {
+  registry.add("bucket",
+               "target bucket per cut node (illumination -> depth, stippling); O(n) "
+               "[Parallel TreeCut Manipulation, fig. 4]",
+               [] { return std::make_unique<BucketStrategy>(); });
+  registry.add("optimization",
+               "refine the k highest, coarsen the k lowest priorities under a node budget; "
+               "O(n log k) [Parallel TreeCut Manipulation, fig. 3]",
+               [] { return std::make_unique<OptimizationStrategy>(); });
+  registry.add("recursive",
+               "QSplat traversal from the root: stops at culled, back-facing, small nodes and "
+               "leaves; new cut every iteration",
+               [] { return std::make_unique<RecursiveStrategy>(); });
+}
+
+StrategyRegistry builtin_registry() {
+  StrategyRegistry registry;
+  register_builtin(registry);
+  return registry;
+}
+
+}  // namespace treecut::strategies

@@ -1,0 +1,181 @@
+// Optimization strategy: Marton, Schiffner et al., "Parallel TreeCut
+// Manipulation", section 4, figure 3. Partial sorting of the cut after
+// Carr et al. [Car11]; priorities from curvature and projected splat size
+// (Schiffner & Kroemker [Sch10]).
+#include "treecut/strategies/optimization.hpp"
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+
+namespace treecut::strategies {
+namespace {
+
+constexpr std::uint32_t kRefinedBit = 1;
+constexpr std::uint32_t kMaxIteration = 0x7fffffffu;
+
+struct ByPriority {
+  bool operator()(const std::pair<float, NodeId>& a, const std::pair<float, NodeId>& b) const {
+    return a.first != b.first ? a.first < b.first : a.second < b.second;
+  }
+};
+
+// Keeps the k largest (or smallest) candidates: O(log k) per accepted node,
+// O(1) per rejected one, so the pass over n nodes is O(n log k).
+template <typename Better>
+void keep_best(std::vector<std::pair<float, NodeId>>& heap, std::size_t k,
+               std::pair<float, NodeId> c, Better better) {
+  if (heap.size() < k) {
+    heap.push_back(c);
+    std::push_heap(heap.begin(), heap.end(), better);
+  } else if (better(c, heap.front())) {
+    std::pop_heap(heap.begin(), heap.end(), better);
+    heap.back() = c;
+    std::push_heap(heap.begin(), heap.end(), better);
+  }
+}
+
+}  // namespace
+
+OptimizationStrategy::OptimizationStrategy()
+    : Strategy({
+          {"max_nodes", "maximal number of cut nodes", 100000, 1, 4e9, true},
+          {"k", "partial sort size: refine/coarsen candidates per iteration", 8192, 1, 1 << 24,
+           true},
+          {"threshold", "minimal priority gain that allows a coarse", 0.0, 0.0, 1e12, false},
+          {"curvature_weight", "weight of the curvature in the priority (0 = size only)", 0.5, 0.0,
+           1.0, false},
+          {"min_size", "pixels: nodes with a smaller projected radius are not refined", 0.5, 0.0,
+           1e6, false},
+      }) {}
+
+void OptimizationStrategy::reset(const Hierarchy& hierarchy) {
+  last_op_.assign(hierarchy.node_count(), 0);
+  iteration_ = 0;
+  view_start_ = 0;
+  last_version_ = ~std::uint64_t{0};
+}
+
+float OptimizationStrategy::priority(const Hierarchy& h, const ViewSnapshot& view, NodeId n,
+                                     float curvature_weight, float* size_px) {
+  const glm::vec4 cr = h.arrays().center_radius[n];
+  const glm::vec3 c(cr);
+  if (view.outside_frustum(c, cr.w)) {
+    if (size_px != nullptr) *size_px = 0.0f;
+    return 0.0f;
+  }
+  const float size = view.projected_radius_px(c, cr.w);
+  if (size_px != nullptr) *size_px = size;
+  return size * ((1.0f - curvature_weight) + curvature_weight * h.arrays().priority[n]);
+}
+
+void OptimizationStrategy::iterate(const IterationInput& input, IterationOutput& output) {
+  const Hierarchy& h = input.hierarchy;
+  const ViewSnapshot& view = input.view;
+  TreeCut& cut = *output.cut;
+  IterationResult& r = output.result;
+  assert(last_op_.size() == h.node_count() && "reset() was not called for this hierarchy");
+
+  const auto max_nodes = static_cast<std::size_t>(param_at(kMaxNodes));
+  const auto k = static_cast<std::size_t>(param_at(kK));
+  const auto threshold = static_cast<float>(param_at(kThreshold));
+  const auto weight = static_cast<float>(param_at(kCurvatureWeight));
+  const auto min_size = static_cast<float>(param_at(kMinSize));
+  if (iteration_ == kMaxIteration) {  // after 2^31 iterations: forget every mark
+    std::fill(last_op_.begin(), last_op_.end(), 0u);
+    iteration_ = 0;
+    last_version_ = ~std::uint64_t{0};
+  }
+  ++iteration_;
+  if (view.version != last_version_) {
+    last_version_ = view.version;  // a new view: earlier coarsens may be undone
+    view_start_ = iteration_;
+  }
+  const auto refine_blocked = [&](NodeId n) {
+    const std::uint32_t op = last_op_[n];
+    return (op & kRefinedBit) == 0 && (op >> 1) >= view_start_;
+  };
+  const auto coarsen_blocked = [&](NodeId n) {
+    return last_op_[n] == ((iteration_ - 1) << 1 | kRefinedBit);
+  };
+  const std::uint32_t refined_mark = iteration_ << 1 | kRefinedBit;
+  const std::uint32_t coarsened_mark = iteration_ << 1;
+
+  // Evaluate: one pass over the cut, keeping the k highest refinable nodes and
+  // the k lowest coarsenable parents (a parent is seen once, at its first child).
+  const HierarchyArrays& a = h.arrays();
+  high_.clear();
+  low_.clear();
+  const auto higher = ByPriority{};
+  const auto lower = [](const Candidate& x, const Candidate& y) { return ByPriority{}(y, x); };
+  const std::span<const NodeId> nodes = cut.nodes();
+  for (std::size_t i = 0; i < nodes.size(); ++i) {
+    const NodeId n = nodes[i];
+    if ((i & 4095) == 0 && input.cancelled()) {
+      r.cancelled = true;
+      break;
+    }
+    if (a.child_count[n] != 0) {
+      float size = 0.0f;
+      const float p = priority(h, view, n, weight, &size);
+      if (size >= min_size) {
+        if (refine_blocked(n)) {
+          ++r.blocked;
+        } else {
+          keep_best(high_, k, {p, n}, lower);  // min-heap on top: evicts the lowest
+        }
+      }
+    }
+    const NodeId parent = a.parent[n];
+    if (parent != kNoNode && a.first_child[parent] == n && cut.can_coarsen(h, parent)) {
+      if (coarsen_blocked(parent)) {
+        ++r.blocked;
+      } else {
+        keep_best(low_, k, {priority(h, view, parent, weight), parent}, higher);
+      }
+    }
+  }
+  r.visited = nodes.size();
+  std::sort(high_.begin(), high_.end(), lower);  // descending priority
+  std::sort(low_.begin(), low_.end(), higher);   // ascending priority
+
+  // Apply: refine in descending priority while there is room; make room by
+  // coarsening the lowest parents, but only for a gain above the threshold.
+  std::size_t next_low = 0;
+  const auto coarsen_next = [&](float must_beat, bool forced) {
+    for (; next_low < low_.size(); ++next_low) {
+      const auto [p, parent] = low_[next_low];
+      if (!cut.can_coarsen(h, parent)) continue;  // a child was refined meanwhile
+      if (!forced && !(p + threshold < must_beat)) return false;
+      cut.coarsen(h, parent);
+      last_op_[parent] = coarsened_mark;
+      ++r.coarsened;
+      ++next_low;
+      return true;
+    }
+    return false;
+  };
+  // A lowered budget: shrink first, whatever the gain.
+  while (cut.size() > max_nodes && coarsen_next(0.0f, true)) {
+  }
+  for (const auto& [p, n] : high_) {
+    if (!cut.contains(n)) continue;  // its parent was coarsened above
+    const std::size_t grow = a.child_count[n] - 1u;
+    bool room = true;
+    while (cut.size() + grow > max_nodes) {
+      if (!coarsen_next(p, false)) {
+        room = false;
+        break;
+      }
+    }
+    if (!room) break;  // every later candidate has a lower priority
+    if (!cut.contains(n)) continue;
+    cut.refine(h, n);
+    last_op_[n] = refined_mark;
+    ++r.refined;
+  }
+  r.cut_size = cut.size();
+  r.converged = !r.cancelled && r.refined == 0 && r.coarsened == 0;
+}
+
+}  // namespace treecut::strategies

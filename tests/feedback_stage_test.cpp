@@ -1,0 +1,345 @@
+// The wait/process protocol driven synchronously (Launch::Manual): the test
+// thread is both the render thread (poll) and the Feedback Stage (step).
+#include "treecut/feedback_stage.hpp"
+
+#include <gtest/gtest.h>
+
+#include <memory>
+#include <set>
+#include <stdexcept>
+#include <vector>
+
+#include "strategy_fixtures.hpp"
+#include "treecut/controller.hpp"
+#include "treecut/error.hpp"
+#include "treecut/model.hpp"
+#include "treecut/strategies/optimization.hpp"
+#include "treecut/strategies/recursive.hpp"
+
+namespace treecut {
+namespace {
+
+using test::orbit_view;
+using test::small_hierarchy;
+
+Model sphere_model() {
+  auto h = small_hierarchy(ModelKind::Sphere, 5000);
+  return Model{h, TreeCut::root_cut(*h)};
+}
+
+StageOptions manual(ReleaseMode release = ReleaseMode::OnExchange, unsigned buffers = 3,
+                    unsigned blend = 0) {
+  StageOptions o;
+  o.launch = Launch::Manual;
+  o.release = release;
+  o.list_buffers = buffers;
+  o.blend_frames = blend;
+  return o;
+}
+
+// Records what it was given and posts one query per iteration.
+class ProbeStrategy final : public Strategy {
+ public:
+  ProbeStrategy() : Strategy({{"level", "refine down to this depth", 2, 0, 64, true}}) {}
+  [[nodiscard]] std::string_view name() const override { return "probe"; }
+  [[nodiscard]] Mode mode() const override { return Mode::Evolve; }
+  void reset(const Hierarchy&) override { ++resets; }
+  void iterate(const IterationInput& in, IterationOutput& out) override {
+    frames.push_back(in.view.frame);
+    versions.push_back(in.view.version);
+    for (const VisibilityResult& v : in.view.visibility) seen.push_back(v);
+    const int level = static_cast<int>(param_at(0));
+    std::vector<NodeId> refine;
+    do {  // down to `level` in one iteration
+      refine.clear();
+      for (const NodeId n : out.cut->nodes()) {
+        if (in.hierarchy.arrays().depth[n] < level && !in.hierarchy.is_leaf(n)) {
+          refine.push_back(n);
+        }
+      }
+      for (const NodeId n : refine) out.result.refined += out.cut->refine(in.hierarchy, n);
+    } while (!refine.empty());
+    out.queries->push_back(
+        QueryRequest{0, out.cut->nodes()[0], static_cast<std::uint32_t>(frames.size())});
+    out.result.converged = out.result.refined == 0;
+    if (throw_next) {
+      throw_next = false;
+      throw std::runtime_error("probe failure");
+    }
+  }
+  std::vector<std::uint64_t> frames;
+  std::vector<std::uint64_t> versions;
+  std::vector<VisibilityResult> seen;
+  int resets = 0;
+  bool throw_next = false;
+};
+
+TEST(FeedbackStage, StartsInWaitWithTheModelCutAsGenerationOne) {
+  FeedbackStage stage(sphere_model(), std::make_unique<ProbeStrategy>(), manual());
+  EXPECT_FALSE(stage.processing());
+  EXPECT_EQ(stage.front().generation, 1u);
+  EXPECT_EQ(stage.front().nodes.size(), 1u);
+  EXPECT_FALSE(stage.step()) << "nothing was requested yet";
+}
+
+TEST(FeedbackStage, RequestsThenExchangesOnTheNextPollUntilConverged) {
+  auto probe = std::make_unique<ProbeStrategy>();
+  ProbeStrategy* p = probe.get();
+  FeedbackStage stage(sphere_model(), std::move(probe), manual());
+  FrameLists f = stage.poll();
+  EXPECT_TRUE(f.requested);
+  EXPECT_FALSE(f.exchanged);
+  EXPECT_TRUE(stage.processing());
+  EXPECT_FALSE(stage.poll().exchanged) << "no exchange while Process runs";
+  ASSERT_TRUE(stage.step());
+  EXPECT_FALSE(stage.processing());
+  f = stage.poll();
+  EXPECT_TRUE(f.exchanged);
+  EXPECT_EQ(f.current.generation, 2u);
+  EXPECT_EQ(stage.counters().frames_last_iteration, 2u);
+  const Hierarchy& h = *f.current.hierarchy;
+  EXPECT_EQ(TreeCut::validate(h, f.current.nodes), "");
+  for (const NodeId n : f.current.nodes) EXPECT_EQ(h.arrays().depth[n], 2);
+  // Converged after the second iteration (nothing left to refine): no more requests.
+  ASSERT_TRUE(f.requested);
+  ASSERT_TRUE(stage.step());
+  f = stage.poll();
+  EXPECT_TRUE(f.exchanged);
+  EXPECT_TRUE(stage.counters().converged);
+  EXPECT_FALSE(f.requested);
+  EXPECT_FALSE(stage.poll().requested);
+  EXPECT_EQ(stage.counters().iterations, 2u);
+  EXPECT_EQ(stage.counters().exchanges, 2u);
+  EXPECT_EQ(p->frames, (std::vector<std::uint64_t>{1, 3}));
+}
+
+TEST(FeedbackStage, AViewChangeRequestsAgainAfterConvergence) {
+  auto probe = std::make_unique<ProbeStrategy>();
+  ProbeStrategy* p = probe.get();
+  FeedbackStage stage(sphere_model(), std::move(probe), manual());
+  for (int i = 0; i < 6; ++i) {
+    stage.poll();
+    stage.step();
+  }
+  ASSERT_TRUE(stage.counters().converged);
+  EXPECT_FALSE(stage.poll().requested);
+  ViewSnapshot v = orbit_view(*sphere_model().hierarchy, 1.0f);
+  v.version = 42;
+  stage.set_view(v);
+  EXPECT_TRUE(stage.poll().requested);
+  stage.step();
+  EXPECT_EQ(p->versions.back(), 42u);
+  stage.set_view(v);  // same version: not a change
+  stage.poll();
+  EXPECT_FALSE(stage.poll().requested);
+}
+
+TEST(FeedbackStage, ParametersApplyAtTheNextIterationAndBadOnesThrowAtOnce) {
+  FeedbackStage stage(sphere_model(), std::make_unique<ProbeStrategy>(), manual());
+  EXPECT_THROW(stage.set_param("nope", 1), InputError);
+  EXPECT_THROW(stage.set_param("level", 1.5), InputError);
+  EXPECT_THROW(stage.set_param("level", 99), InputError);
+  stage.set_param("level", 4);
+  for (int i = 0; i < 8; ++i) {
+    stage.poll();
+    stage.step();
+  }
+  const FrontList& f = stage.front();
+  for (const NodeId n : f.nodes) {
+    EXPECT_TRUE(f.hierarchy->arrays().depth[n] == 4 || f.hierarchy->is_leaf(n));
+  }
+}
+
+TEST(FeedbackStage, QueriesReachTheRenderThreadAndResultsComeBack) {
+  auto probe = std::make_unique<ProbeStrategy>();
+  ProbeStrategy* p = probe.get();
+  FeedbackStage stage(sphere_model(), std::move(probe), manual());
+  stage.poll();
+  stage.step();
+  const FrameLists f = stage.poll();
+  ASSERT_EQ(f.current.queries.size(), 1u);
+  const QueryRequest q = f.current.queries[0];
+  const VisibilityResult r{q.object, q.node, q.tag, 17, 3};
+  stage.post_visibility(std::span(&r, 1));
+  stage.step();  // requested before the result was posted
+  EXPECT_TRUE(p->seen.empty());
+  stage.poll();
+  stage.step();
+  ASSERT_EQ(p->seen.size(), 1u);
+  EXPECT_EQ(p->seen[0].node, q.node);
+  EXPECT_EQ(p->seen[0].samples_passed, 17u);
+  stage.poll();
+  stage.step();
+  EXPECT_EQ(p->seen.size(), 1u) << "a result is delivered once";
+}
+
+TEST(FeedbackStage, ManualReleaseHoldsRetiredListsUntilReleased) {
+  FeedbackStage stage(sphere_model(), std::make_unique<test::RandomWalkStrategy>(),
+                      manual(ReleaseMode::Manual, 3));
+  std::vector<std::uint64_t> in_flight;
+  // front(1) + back: exchange 1 retires gen 1, exchange 2 retires gen 2; then
+  // all three buffers are taken (front + two retired) and no request is made.
+  for (int i = 0; i < 6; ++i) {
+    const FrameLists f = stage.poll();
+    if (f.exchanged) in_flight.push_back(f.current.generation - 1);
+    stage.step();
+  }
+  EXPECT_EQ(stage.counters().exchanges, 2u);
+  EXPECT_GT(stage.counters().no_free_buffer, 0u);
+  EXPECT_FALSE(stage.poll().requested);
+  stage.release(in_flight.front());
+  EXPECT_TRUE(stage.poll().requested);
+  stage.release(12345);  // unknown: ignored
+}
+
+TEST(FeedbackStage, RetiredListsKeepTheirContentUntilReleased) {
+  FeedbackStage stage(sphere_model(), std::make_unique<test::RandomWalkStrategy>(),
+                      manual(ReleaseMode::Manual, 4));
+  struct InFlight {
+    FrontList list;
+    std::vector<NodeId> copy;
+  };
+  std::vector<InFlight> gpu;  // lists a pretend GPU still reads
+  gpu.push_back({stage.front(), {stage.front().nodes.begin(), stage.front().nodes.end()}});
+  for (int i = 0; i < 300; ++i) {
+    const FrameLists f = stage.poll();
+    if (f.exchanged) gpu.push_back({f.current, {f.current.nodes.begin(), f.current.nodes.end()}});
+    stage.step();
+    for (const InFlight& g : gpu) {
+      ASSERT_EQ(std::vector<NodeId>(g.list.nodes.begin(), g.list.nodes.end()), g.copy)
+          << "generation " << g.list.generation << " was overwritten while in flight";
+    }
+    if (gpu.size() > 3) {  // the oldest retired list's fence signalled
+      stage.release(gpu.front().list.generation);
+      gpu.erase(gpu.begin());
+    }
+  }
+  EXPECT_GT(stage.counters().exchanges, 100u);
+}
+
+TEST(FeedbackStage, BlendingKeepsThePreviousListWithRisingWeight) {
+  FeedbackStage stage(sphere_model(), std::make_unique<test::RandomWalkStrategy>(),
+                      manual(ReleaseMode::OnExchange, 4, 3));
+  stage.poll();
+  stage.step();
+  FrameLists f = stage.poll();
+  ASSERT_TRUE(f.exchanged);
+  EXPECT_EQ(f.previous.generation, 1u);
+  float last = f.blend;
+  EXPECT_GT(last, 0.0f);
+  EXPECT_LT(last, 1.0f);
+  for (int i = 0; i < 2; ++i) {
+    f = stage.poll();  // no step: nothing new to exchange
+    EXPECT_EQ(f.previous.generation, 1u);
+    EXPECT_GT(f.blend, last);
+    last = f.blend;
+  }
+  f = stage.poll();
+  EXPECT_TRUE(f.previous.nodes.empty());
+  EXPECT_EQ(f.blend, 1.0f);
+}
+
+TEST(FeedbackStage, AStrategyExceptionReachesTheRenderThreadAndTheStageGoesOn) {
+  auto probe = std::make_unique<ProbeStrategy>();
+  probe->throw_next = true;
+  FeedbackStage stage(sphere_model(), std::move(probe), manual());
+  stage.poll();
+  stage.step();
+  EXPECT_THROW(stage.poll(), std::runtime_error);
+  EXPECT_EQ(stage.front().generation, 1u);
+  EXPECT_TRUE(stage.poll().requested);
+  stage.step();
+  EXPECT_TRUE(stage.poll().exchanged);
+}
+
+TEST(FeedbackStage, SwitchingToARecursiveStrategyAndBackKeepsTheCutValid) {
+  Model m = sphere_model();
+  const auto h = m.hierarchy;
+  FeedbackStage stage(std::move(m), std::make_unique<strategies::OptimizationStrategy>(), manual());
+  ViewSnapshot v = orbit_view(*h, 0.5f);
+  v.version = 1;
+  stage.set_view(v);
+  for (int round = 0; round < 3; ++round) {
+    for (int i = 0; i < 5; ++i) {
+      const FrameLists f = stage.poll();
+      ASSERT_EQ(TreeCut::validate(*h, f.current.nodes), "");
+      stage.step();
+    }
+    stage.set_strategy(std::make_unique<strategies::RecursiveStrategy>());
+    EXPECT_EQ(stage.strategy_name(), "recursive");
+    for (int i = 0; i < 5; ++i) {
+      ASSERT_EQ(TreeCut::validate(*h, stage.poll().current.nodes), "");
+      stage.step();
+    }
+    stage.set_strategy(std::make_unique<strategies::OptimizationStrategy>());
+  }
+}
+
+TEST(FeedbackStage, ANewModelResetsTheStrategy) {
+  auto probe = std::make_unique<ProbeStrategy>();
+  ProbeStrategy* p = probe.get();
+  FeedbackStage stage(sphere_model(), std::move(probe), manual());
+  EXPECT_EQ(p->resets, 1);
+  auto terrain = small_hierarchy(ModelKind::Terrain, 3000);
+  stage.set_model(Model{terrain, TreeCut::root_cut(*terrain)});
+  stage.poll();
+  stage.step();
+  EXPECT_EQ(p->resets, 2);
+  const FrameLists f = stage.poll();
+  EXPECT_EQ(f.current.hierarchy, terrain.get());
+  EXPECT_EQ(TreeCut::validate(*terrain, f.current.nodes), "");
+}
+
+TEST(FeedbackStage, RejectsBadConstruction) {
+  Model m = sphere_model();
+  EXPECT_THROW(FeedbackStage(Model{}, std::make_unique<ProbeStrategy>(), manual()),
+               std::invalid_argument);
+  EXPECT_THROW(FeedbackStage(sphere_model(), nullptr, manual()), std::invalid_argument);
+  EXPECT_THROW(FeedbackStage(sphere_model(), std::make_unique<ProbeStrategy>(),
+                             manual(ReleaseMode::OnExchange, 1)),
+               std::invalid_argument);
+  EXPECT_THROW(
+      FeedbackStage(Model{m.hierarchy, TreeCut()}, std::make_unique<ProbeStrategy>(), manual()),
+      std::invalid_argument)
+      << "an empty cut covers no leaf";
+}
+
+TEST(Controller, VersionsTheViewOnlyWhenTheCameraMoves) {
+  Model m = sphere_model();
+  const auto h = m.hierarchy;
+  const ViewSnapshot v = orbit_view(*h, 0.0f);
+  Controller c(std::move(m), std::make_unique<strategies::OptimizationStrategy>(), v, manual());
+  const std::uint64_t v0 = c.view().version;
+  c.set_camera(v.view, v.projection, v.viewport);
+  EXPECT_EQ(c.view().version, v0);
+  const ViewSnapshot w = orbit_view(*h, 1.0f);
+  c.set_camera(w.view, w.projection, w.viewport);
+  EXPECT_EQ(c.view().version, v0 + 1);
+  EXPECT_NEAR(glm::length(c.view().derived.eye - w.derived.eye), 0.0f, 1e-4f);
+  c.set_light(glm::vec3(0, 1, 0));
+  EXPECT_EQ(c.view().version, v0 + 2);
+  EXPECT_TRUE(c.begin_frame().requested);
+  c.stage().step();
+  EXPECT_TRUE(c.begin_frame().exchanged);
+}
+
+TEST(ViewSnapshot, FrustumProjectionAndBackfacing) {
+  const ViewSnapshot v =
+      ViewSnapshot::look_at({0, 0, 10}, {0, 0, 0}, {1000, 1000}, 0.8f, 0.1f, 100.0f);
+  EXPECT_FALSE(v.outside_frustum({0, 0, 0}, 0.1f));
+  EXPECT_TRUE(v.outside_frustum({0, 0, 20}, 1.0f)) << "behind the camera";
+  EXPECT_TRUE(v.outside_frustum({100, 0, 0}, 1.0f));
+  EXPECT_FALSE(v.outside_frustum({0, 0, -95}, 10.0f)) << "straddles the far plane";
+  // tan(0.4) * 10 is half the screen height (500 px) at distance 10.
+  const float px = v.projected_radius_px({0, 0, 0}, 0.1f);
+  EXPECT_NEAR(px, 0.1f / (10.0f - 0.1f) * 500.0f / std::tan(0.4f), 0.01f);
+  EXPECT_LT(v.projected_radius_px({0, 0, -10}, 0.1f), px);
+  EXPECT_TRUE(v.backfacing({0, 0, 0}, 0.1f, {0, 0, -1}, 1.0f));
+  EXPECT_FALSE(v.backfacing({0, 0, 0}, 0.1f, {0, 0, 1}, 1.0f));
+  EXPECT_FALSE(v.backfacing({0, 0, 0}, 0.1f, {0, 0, -1}, 0.0f)) << "a half-space cone";
+  EXPECT_FALSE(v.backfacing({-3, 0, 0}, 0.1f, {1, 0, 0}, 0.99f));
+  EXPECT_TRUE(v.backfacing({3, 0, 0}, 0.1f, {1, 0, 0}, 0.99f));
+}
+
+}  // namespace
+}  // namespace treecut
