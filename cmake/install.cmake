@@ -1,0 +1,34 @@
+# Install and export rules: `cmake --install BUILD --prefix P` gives P a
+# find_package(treecut CONFIG) package with the imported targets
+# treecut::core and treecut::strategies (static, position independent, so a
+# plugin shared library can link them), their headers, and the `treecut`
+# program. Components: treecut_development (libraries, headers, CMake
+# package) and treecut_runtime (the program).
+include(GNUInstallDirs)
+include(CMakePackageConfigHelpers)
+
+set(TREECUT_INSTALL_CMAKEDIR ${CMAKE_INSTALL_LIBDIR}/cmake/treecut)
+
+install(TARGETS treecut_core treecut_strategies EXPORT treecutTargets
+  ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT treecut_development
+  LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT treecut_development
+  INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
+install(DIRECTORY ${PROJECT_SOURCE_DIR}/lib/include/treecut
+                  ${PROJECT_SOURCE_DIR}/strategies/include/treecut
+  DESTINATION ${CMAKE_INSTALL_INCLUDEDIR} COMPONENT treecut_development
+  FILES_MATCHING PATTERN "*.hpp")
+install(EXPORT treecutTargets NAMESPACE treecut:: DESTINATION ${TREECUT_INSTALL_CMAKEDIR}
+  COMPONENT treecut_development)
+
+configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/treecutConfig.cmake.in
+  ${PROJECT_BINARY_DIR}/treecutConfig.cmake INSTALL_DESTINATION ${TREECUT_INSTALL_CMAKEDIR})
+# The plugin ABI carries C++ types, so only the same minor version is compatible.
+write_basic_package_version_file(${PROJECT_BINARY_DIR}/treecutConfigVersion.cmake
+  COMPATIBILITY SameMinorVersion)
+install(FILES ${PROJECT_BINARY_DIR}/treecutConfig.cmake
+              ${PROJECT_BINARY_DIR}/treecutConfigVersion.cmake
+  DESTINATION ${TREECUT_INSTALL_CMAKEDIR} COMPONENT treecut_development)
+
+if(TARGET treecut)
+  install(TARGETS treecut RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR} COMPONENT treecut_runtime)
+endif()
