@@ -48,7 +48,7 @@ class SplatRender : public ::testing::Test {
   void SetUp() override {
     context();
     renderer_ = std::make_unique<Renderer>(sphere(), glm::ivec2(kWidth, kHeight));
-    camera_ = fit_camera(sphere().bounds_min(), sphere().bounds_max(), float(kWidth) / kHeight);
+    camera_ = default_camera(sphere().bounds_min(), sphere().bounds_max(), float(kWidth) / kHeight);
     const TreeCut leaves = TreeCut::leaf_cut(sphere());
     full_.upload(sphere(), leaves.nodes());
   }
@@ -208,7 +208,7 @@ TEST(SplatQuery, SamplesPassedIsPolledWithoutBlocking) {
   Renderer renderer(sphere(), {kWidth, kHeight});
   CutBuffer full;
   full.upload(sphere(), TreeCut::leaf_cut(sphere()).nodes());
-  const Camera cam = fit_camera(sphere().bounds_min(), sphere().bounds_max(), 4.0f / 3.0f);
+  const Camera cam = default_camera(sphere().bounds_min(), sphere().bounds_max(), 4.0f / 3.0f);
   gl::Query q = gl::Query::create(GL_SAMPLES_PASSED);
   ASSERT_TRUE(q);
   q.begin();

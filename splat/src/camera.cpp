@@ -31,7 +31,7 @@ void fit_clip_planes(Camera& camera, glm::vec3 center, float radius) {
   camera.far_plane = std::max(d + 1.05f * r, camera.near_plane * 2.0f);
 }
 
-Camera fit_camera(glm::vec3 bmin, glm::vec3 bmax, float aspect, glm::vec3 direction,
+Camera fit_camera(glm::vec3 bmin, glm::vec3 bmax, float aspect, glm::vec3 direction, glm::vec3 up,
                   float fov_y_deg) {
   const glm::vec3 center = 0.5f * (bmin + bmax);
   const float radius = std::max(0.5f * glm::length(bmax - bmin), 1e-6f);
@@ -41,20 +41,39 @@ Camera fit_camera(glm::vec3 bmin, glm::vec3 bmax, float aspect, glm::vec3 direct
   const float distance = radius / std::sin(half);
   const float len = glm::length(direction);
   const glm::vec3 dir = len > 0.0f ? direction / len : glm::vec3(0.0f, 0.0f, 1.0f);
+  const float up_len = glm::length(up);
+  glm::vec3 u = up_len > 0.0f ? up / up_len : glm::vec3(0.0f, 1.0f, 0.0f);
+  // Looking along the up axis: any perpendicular up will do.
+  if (std::abs(glm::dot(u, dir)) > 0.999f) {
+    u = std::abs(dir.z) < 0.9f ? glm::vec3(0.0f, 0.0f, 1.0f) : glm::vec3(0.0f, 1.0f, 0.0f);
+  }
   Camera c;
   c.target = center;
   c.eye = center + dir * distance;
-  c.up = std::abs(dir.y) > 0.999f ? glm::vec3(0.0f, 0.0f, -1.0f) : glm::vec3(0.0f, 1.0f, 0.0f);
+  c.up = u;
   c.fov_y_deg = fov_y_deg;
   fit_clip_planes(c, center, radius);
   return c;
 }
 
+glm::vec3 orbit_direction(glm::vec3 up, float azimuth, float elevation) {
+  const float up_len = glm::length(up);
+  const glm::vec3 u = up_len > 0.0f ? up / up_len : glm::vec3(0.0f, 1.0f, 0.0f);
+  const glm::vec3 ref =
+      std::abs(u.z) < 0.9f ? glm::vec3(0.0f, 0.0f, 1.0f) : glm::vec3(0.0f, -1.0f, 0.0f);
+  const glm::vec3 front = glm::normalize(ref - glm::dot(ref, u) * u);
+  const glm::vec3 side = glm::cross(u, front);
+  return std::cos(elevation) * (std::cos(azimuth) * front + std::sin(azimuth) * side) +
+         std::sin(elevation) * u;
+}
+
+Camera default_camera(glm::vec3 bmin, glm::vec3 bmax, float aspect, glm::vec3 up) {
+  return fit_camera(bmin, bmax, aspect, orbit_direction(up, 0.35f, 0.35f), up);
+}
+
 Camera orbit_camera(glm::vec3 bmin, glm::vec3 bmax, float aspect, float azimuth, float elevation,
-                    float fov_y_deg) {
-  const glm::vec3 dir(std::cos(elevation) * std::sin(azimuth), std::sin(elevation),
-                      std::cos(elevation) * std::cos(azimuth));
-  return fit_camera(bmin, bmax, aspect, dir, fov_y_deg);
+                    glm::vec3 up, float fov_y_deg) {
+  return fit_camera(bmin, bmax, aspect, orbit_direction(up, azimuth, elevation), up, fov_y_deg);
 }
 
 }  // namespace treecut::splat

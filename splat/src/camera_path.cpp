@@ -142,15 +142,15 @@ void save_camera_path(const std::filesystem::path& file, const CameraPath& path)
 }
 
 CameraPath orbit_path(glm::vec3 bmin, glm::vec3 bmax, float aspect, double seconds, int keys,
-                      float elevation) {
+                      glm::vec3 up, float elevation) {
   keys = std::max(keys, 2);
   CameraPath path;
   for (int i = 0; i < keys; ++i) {
     const double f = double(i) / double(keys - 1);
     CameraKey k;
     k.time = f * seconds;
-    k.camera =
-        orbit_camera(bmin, bmax, aspect, static_cast<float>(f * 2.0 * std::numbers::pi), elevation);
+    k.camera = orbit_camera(bmin, bmax, aspect, static_cast<float>(f * 2.0 * std::numbers::pi),
+                            elevation, up);
     path.keys.push_back(k);
   }
   return path;

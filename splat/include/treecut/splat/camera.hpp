@@ -27,13 +27,21 @@ void fit_clip_planes(Camera& camera, glm::vec3 center, float radius);
 
 /// A camera that looks at the bounding sphere of the box [bmin, bmax] from
 /// `direction` (center -> eye, any length), far enough that the sphere fills
-/// the smaller of the two fields of view for `aspect`.
-Camera fit_camera(glm::vec3 bmin, glm::vec3 bmax, float aspect,
-                  glm::vec3 direction = {0.35f, 0.3f, 1.0f}, float fov_y_deg = 45.0f);
+/// the smaller of the two fields of view for `aspect`, with `up` as up.
+Camera fit_camera(glm::vec3 bmin, glm::vec3 bmax, float aspect, glm::vec3 direction,
+                  glm::vec3 up = {0.0f, 1.0f, 0.0f}, float fov_y_deg = 45.0f);
 
-/// fit_camera() from azimuth (radians about +y, 0 looks from +z) and elevation
-/// (radians above the xz plane).
+/// The unit direction (center -> eye) at `azimuth` radians about the unit
+/// `up` axis and `elevation` radians above the plane normal to it. Azimuth 0
+/// looks from +z for a y-up model and from -y for a z-up model.
+glm::vec3 orbit_direction(glm::vec3 up, float azimuth, float elevation);
+
+/// The default view of a model: fit_camera() from a little above and to the side.
+Camera default_camera(glm::vec3 bmin, glm::vec3 bmax, float aspect,
+                      glm::vec3 up = {0.0f, 1.0f, 0.0f});
+
+/// fit_camera() from orbit_direction(up, azimuth, elevation).
 Camera orbit_camera(glm::vec3 bmin, glm::vec3 bmax, float aspect, float azimuth, float elevation,
-                    float fov_y_deg = 45.0f);
+                    glm::vec3 up = {0.0f, 1.0f, 0.0f}, float fov_y_deg = 45.0f);
 
 }  // namespace treecut::splat

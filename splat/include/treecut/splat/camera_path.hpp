@@ -44,9 +44,9 @@ std::string format_camera_path(const CameraPath& path);
 CameraPath load_camera_path(const std::filesystem::path& file);
 void save_camera_path(const std::filesystem::path& file, const CameraPath& path);
 
-/// One turn around the model's bounding box in `seconds`, `keys` keys (>= 2,
-/// the last equal to the first), at `elevation` radians.
+/// One turn about `up` around the model's bounding box in `seconds`, `keys`
+/// keys (>= 2, the last equal to the first), at `elevation` radians.
 CameraPath orbit_path(glm::vec3 bmin, glm::vec3 bmax, float aspect, double seconds, int keys,
-                      float elevation = 0.35f);
+                      glm::vec3 up = {0.0f, 1.0f, 0.0f}, float elevation = 0.35f);
 
 }  // namespace treecut::splat

@@ -1,0 +1,388 @@
+// treecut render (headless, OSMesa) | treecut view (GLFW window).
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <memory>
+#include <numeric>
+#include <sstream>
+
+#include "commands.hpp"
+#include "treecut/error.hpp"
+#include "treecut/model.hpp"
+#include "treecut/splat/camera_path.hpp"
+#include "treecut/splat/context.hpp"
+#include "treecut/splat/image.hpp"
+#include "viewer.hpp"
+
+namespace treecut::cli {
+
+namespace {
+
+struct RenderArgs {
+  SceneArgs scene;
+  std::string path;
+  std::string out = "render-out";
+  int frames = 120;
+  int width = 1280;
+  int height = 720;
+  double orbit_seconds = 8.0;
+  int warmup = 30;
+  bool sync = false;
+  bool psnr = false;
+  int stability = 0;
+  bool no_png = false;
+};
+
+struct FrameRow {
+  int frame = 0;
+  double time_s = 0.0;
+  double frame_ms = 0.0;
+  std::size_t cut_size = 0;
+  std::uint64_t points = 0;
+  double iteration_ms = 0.0;
+  std::uint64_t exchanges = 0;
+  std::uint64_t iterations = 0;
+  bool converged = false;
+  double psnr_db = std::numeric_limits<double>::quiet_NaN();
+};
+
+struct RunSummary {
+  std::string strategy;
+  std::vector<FrameRow> rows;
+  double stability_changed = std::numeric_limits<double>::quiet_NaN();  // mean fraction
+  double stability_max = std::numeric_limits<double>::quiet_NaN();
+  int stability_frames = 0;
+  bool stability_converged = false;
+  double converged_psnr = std::numeric_limits<double>::quiet_NaN();
+  std::size_t converged_cut = 0;
+};
+
+double mean_of(const std::vector<FrameRow>& rows, double FrameRow::*field) {
+  double s = 0.0;
+  std::size_t n = 0;
+  for (const FrameRow& r : rows) {
+    if (std::isfinite(r.*field)) {
+      s += r.*field;
+      ++n;
+    }
+  }
+  return n > 0 ? s / double(n) : std::numeric_limits<double>::quiet_NaN();
+}
+
+double median_frame_ms(const std::vector<FrameRow>& rows) {
+  std::vector<double> v;
+  for (const FrameRow& r : rows) v.push_back(r.frame_ms);
+  if (v.empty()) return 0.0;
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+  return v[v.size() / 2];
+}
+
+std::string json_number(double v) {
+  if (!std::isfinite(v)) return "null";
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g", v);
+  return buf;
+}
+
+void write_csv(const std::filesystem::path& file, const std::vector<FrameRow>& rows) {
+  std::ofstream out(file);
+  out << "frame,time_s,frame_ms,cut_size,points_drawn,iteration_ms,exchanges,iterations,converged,"
+         "psnr_db\n";
+  for (const FrameRow& r : rows) {
+    out << r.frame << ',' << r.time_s << ',' << r.frame_ms << ',' << r.cut_size << ',' << r.points
+        << ',' << r.iteration_ms << ',' << r.exchanges << ',' << r.iterations << ','
+        << (r.converged ? 1 : 0) << ',' << (std::isfinite(r.psnr_db) ? json_number(r.psnr_db) : "")
+        << '\n';
+  }
+  if (!out) throw std::runtime_error(file.string() + ": could not write");
+}
+
+std::string summary_json(const RunSummary& s) {
+  std::ostringstream o;
+  std::size_t cut_sum = 0;
+  std::uint64_t points_sum = 0;
+  for (const FrameRow& r : s.rows) {
+    cut_sum += r.cut_size;
+    points_sum += r.points;
+  }
+  const double n = std::max<double>(1.0, double(s.rows.size()));
+  o << "{\"strategy\": \"" << s.strategy << "\", \"frames\": " << s.rows.size()
+    << ", \"mean_frame_ms\": " << json_number(mean_of(s.rows, &FrameRow::frame_ms))
+    << ", \"median_frame_ms\": " << json_number(median_frame_ms(s.rows))
+    << ", \"mean_cut_size\": " << json_number(double(cut_sum) / n)
+    << ", \"mean_points_drawn\": " << json_number(double(points_sum) / n)
+    << ", \"mean_iteration_ms\": " << json_number(mean_of(s.rows, &FrameRow::iteration_ms))
+    << ", \"exchanges\": " << (s.rows.empty() ? 0 : s.rows.back().exchanges)
+    << ", \"mean_psnr_db\": " << json_number(mean_of(s.rows, &FrameRow::psnr_db))
+    << ", \"stability\": {\"frames\": " << s.stability_frames
+    << ", \"converged\": " << (s.stability_converged ? "true" : "false")
+    << ", \"mean_changed_fraction\": " << json_number(s.stability_changed)
+    << ", \"max_changed_fraction\": " << json_number(s.stability_max)
+    << ", \"cut_size\": " << s.converged_cut << ", \"psnr_db\": " << json_number(s.converged_psnr)
+    << "}}";
+  return o.str();
+}
+
+// Two stacked charts (frame time, cut size) over the frame index, one line per
+// strategy: the plot of the README's benchmark section.
+void write_plot_svg(const std::filesystem::path& file, const std::vector<RunSummary>& runs,
+                    const std::string& title) {
+  constexpr double kW = 900, kH = 260, kLeft = 70, kRight = 20, kTop = 40, kGap = 50;
+  const char* colors[] = {"#d62728", "#1f77b4", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b"};
+  std::ostringstream o;
+  o << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << kW << "\" height=\""
+    << kTop + 2 * kH + kGap + 40 << "\" font-family=\"sans-serif\" font-size=\"12\">\n";
+  o << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
+  o << "<text x=\"" << kLeft << "\" y=\"20\" font-size=\"14\">" << title << "</text>\n";
+  auto chart = [&](int index, const char* label, auto value) {
+    const double y0 = kTop + index * (kH + kGap);
+    double vmax = 0.0;
+    std::size_t frames = 1;
+    for (const RunSummary& r : runs) {
+      frames = std::max(frames, r.rows.size());
+      for (const FrameRow& row : r.rows) vmax = std::max(vmax, double(value(row)));
+    }
+    if (vmax <= 0.0) vmax = 1.0;
+    const double pw = kW - kLeft - kRight;
+    o << "<rect x=\"" << kLeft << "\" y=\"" << y0 << "\" width=\"" << pw << "\" height=\"" << kH
+      << "\" fill=\"none\" stroke=\"#888\"/>\n";
+    o << "<text x=\"" << kLeft << "\" y=\"" << y0 - 6 << "\">" << label << " (max "
+      << json_number(vmax) << ")</text>\n";
+    for (int t = 0; t <= 4; ++t) {
+      const double y = y0 + kH - kH * t / 4.0;
+      o << "<text x=\"" << kLeft - 6 << "\" y=\"" << y + 4 << "\" text-anchor=\"end\">"
+        << json_number(vmax * t / 4.0) << "</text>\n";
+    }
+    o << "<text x=\"" << kLeft + pw / 2 << "\" y=\"" << y0 + kH + 16
+      << "\" text-anchor=\"middle\">frame</text>\n";
+    for (std::size_t ri = 0; ri < runs.size(); ++ri) {
+      o << "<polyline fill=\"none\" stroke=\"" << colors[ri % 6]
+        << "\" stroke-width=\"1.5\" points=\"";
+      const auto& rows = runs[ri].rows;
+      for (std::size_t i = 0; i < rows.size(); ++i) {
+        const double x = kLeft + pw * double(i) / double(std::max<std::size_t>(frames - 1, 1));
+        const double y = y0 + kH - kH * double(value(rows[i])) / vmax;
+        o << x << ',' << y << ' ';
+      }
+      o << "\"/>\n";
+    }
+  };
+  chart(0, "frame time [ms]", [](const FrameRow& r) { return r.frame_ms; });
+  chart(1, "cut size [nodes]", [](const FrameRow& r) { return double(r.cut_size); });
+  for (std::size_t ri = 0; ri < runs.size(); ++ri) {
+    const double x = kLeft + 150.0 * double(ri);
+    const double y = kTop + 2 * kH + kGap + 30;
+    o << "<rect x=\"" << x << "\" y=\"" << y - 10 << "\" width=\"14\" height=\"4\" fill=\""
+      << colors[ri % 6] << "\"/><text x=\"" << x + 20 << "\" y=\"" << y - 5 << "\">"
+      << runs[ri].strategy << "</text>\n";
+  }
+  o << "</svg>\n";
+  std::ofstream out(file);
+  out << o.str();
+  if (!out) throw std::runtime_error(file.string() + ": could not write");
+}
+
+void run_render(const RenderArgs& a) {
+  if (a.frames < 1) throw InputError("--frames must be at least 1");
+  const splat::RenderSettings settings = render_settings(a.scene);  // validates --mode early
+  const StrategyRegistry registry = make_registry(a.scene);
+  for (const std::string& name : a.scene.strategies) {
+    (void)make_strategy(registry, name, a.scene.params);  // bad names/params: exit 2 before work
+  }
+  const float aspect = float(a.width) / float(a.height);
+  splat::CameraPath path;
+  if (!a.path.empty()) path = splat::load_camera_path(a.path);
+
+  const Scene scene = load_scene(a.scene);
+  const Hierarchy& h = *scene.hierarchy;
+  if (a.path.empty())
+    path = splat::orbit_path(h.bounds_min(), h.bounds_max(), aspect, a.orbit_seconds, 73, scene.up);
+  std::printf("model     %s: %u points, %u nodes\n", scene.label.c_str(), h.leaf_count(),
+              h.node_count());
+
+  splat::OsmesaContext context(a.width, a.height);
+  std::printf("renderer  %s, %dx%d, %s splats\n", splat::GlContext::renderer_string().c_str(),
+              a.width, a.height, std::string(splat::splat_mode_name(settings.mode)).c_str());
+  splat::Renderer renderer(h, {a.width, a.height});
+  const glm::ivec2 size(a.width, a.height);
+  splat::CutBuffer full;
+  if (a.psnr || a.stability > 0) full.upload(h, TreeCut::leaf_cut(h).nodes());
+  auto grab = [&] { return splat::Image{a.width, a.height, renderer.read_pixels()}; };
+
+  const std::filesystem::path out(a.out);
+  std::filesystem::create_directories(out);
+  std::vector<RunSummary> runs;
+  for (const std::string& name : a.scene.strategies) {
+    const std::filesystem::path dir = a.scene.strategies.size() > 1 ? out / name : out;
+    std::filesystem::create_directories(dir);
+    auto camera_at = [&](double t) {
+      splat::Camera c = path.at(t);
+      splat::fit_clip_planes(c, scene.center, scene.radius);
+      return c;
+    };
+    splat::Camera cam = camera_at(0.0);
+    StageOptions stage_options;
+    stage_options.launch = a.sync ? Launch::Manual : Launch::Thread;
+    Controller controller(make_model(h), make_strategy(registry, name, a.scene.params),
+                          snapshot_of(cam, size, world_light_dir(settings.light, cam)),
+                          stage_options);
+    splat::CutBuffer cut;
+    FrameDriver driver{&controller, &cut};
+    auto frame = [&](const splat::Camera& c) {
+      const auto t0 = std::chrono::steady_clock::now();
+      driver.begin(c, size, world_light_dir(settings.light, c));
+      renderer.draw(cut, c, settings, true);
+      const double ms =
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      // Synchronous mode: the stage's iteration runs here, outside the frame time.
+      if (a.sync) controller.stage().step();
+      return ms;
+    };
+
+    RunSummary run;
+    run.strategy = name;
+    for (int i = 0; i < a.warmup; ++i) frame(cam);
+    for (int f = 0; f < a.frames; ++f) {
+      const double t = a.frames > 1 ? path.duration() * f / (a.frames - 1) : 0.0;
+      cam = camera_at(t);
+      FrameRow row;
+      row.frame = f;
+      row.time_s = t;
+      row.frame_ms = frame(cam);
+      const StageCounters& counters = controller.stage().counters();
+      row.cut_size = cut.size();
+      row.points = cut.points();
+      row.iteration_ms = double(counters.iteration_ns_last) * 1e-6;
+      row.exchanges = counters.exchanges;
+      row.iterations = counters.iterations;
+      row.converged = counters.converged;
+      if (!a.no_png || a.psnr) {
+        const splat::Image lod = grab();
+        if (!a.no_png) {
+          char file[32];
+          std::snprintf(file, sizeof file, "frame_%05d.png", f);
+          splat::write_png(dir / file, lod);
+        }
+        if (a.psnr) {
+          renderer.draw(full, cam, settings, true);
+          row.psnr_db = splat::psnr(lod, grab());
+        }
+      }
+      run.rows.push_back(row);
+    }
+
+    if (a.stability > 0) {
+      // Static camera at the end of the path: let the strategy converge, then
+      // count the pixels that still change from one frame to the next.
+      for (int i = 0; i < 600 && !controller.stage().counters().converged; ++i) frame(cam);
+      run.stability_converged = controller.stage().counters().converged;
+      splat::Image previous = grab();
+      double sum = 0.0, worst = 0.0;
+      for (int i = 0; i < a.stability; ++i) {
+        frame(cam);
+        splat::Image current = grab();
+        const double changed = splat::changed_fraction(previous, current);
+        sum += changed;
+        worst = std::max(worst, changed);
+        previous = std::move(current);
+      }
+      run.stability_frames = a.stability;
+      run.stability_changed = sum / a.stability;
+      run.stability_max = worst;
+      run.converged_cut = cut.size();
+      renderer.draw(full, cam, settings, true);
+      run.converged_psnr = splat::psnr(previous, grab());
+    }
+
+    write_csv(dir / "stats.csv", run.rows);
+    {
+      std::ofstream js(dir / "summary.json");
+      js << summary_json(run) << "\n";
+    }
+    std::printf(
+        "%-13s %d frames: frame %.2f ms (median %.2f), cut %.0f nodes, iteration %.2f ms, "
+        "%llu exchanges",
+        name.c_str(), a.frames, mean_of(run.rows, &FrameRow::frame_ms), median_frame_ms(run.rows),
+        std::accumulate(run.rows.begin(), run.rows.end(), 0.0,
+                        [](double s, const FrameRow& r) { return s + double(r.cut_size); }) /
+            double(run.rows.size()),
+        mean_of(run.rows, &FrameRow::iteration_ms),
+        static_cast<unsigned long long>(run.rows.back().exchanges));
+    if (a.psnr) std::printf(", PSNR %.2f dB", mean_of(run.rows, &FrameRow::psnr_db));
+    if (a.stability > 0) {
+      std::printf(", stability %.5f changed (max %.5f)%s", run.stability_changed, run.stability_max,
+                  run.stability_converged ? "" : " [not converged]");
+    }
+    std::printf("\n");
+    runs.push_back(std::move(run));
+  }
+  write_plot_svg(out / "plot.svg", runs, scene.label + ": frame time and cut size per strategy");
+  std::printf("wrote     %s (stats.csv, summary.json, plot.svg%s)\n", out.string().c_str(),
+              a.no_png ? "" : ", frame_*.png");
+}
+
+}  // namespace
+
+void add_render_commands(CLI::App& app) {
+  auto ra = std::make_shared<RenderArgs>();
+  auto* render = app.add_subcommand(
+      "render", "Render frames headless (OSMesa) along a camera path; write PNGs and statistics");
+  add_scene_options(*render, ra->scene);
+  render->add_option("--path", ra->path, "Camera path file (default: one orbit around the model)")
+      ->check(CLI::ExistingFile);
+  render->add_option("-n,--frames", ra->frames, "Frames along the path")
+      ->check(CLI::Range(1, 1000000))
+      ->capture_default_str();
+  render->add_option("-o,--out", ra->out, "Output folder")->capture_default_str();
+  render->add_option("--width", ra->width, "Frame width")
+      ->check(CLI::Range(16, 8192))
+      ->capture_default_str();
+  render->add_option("--height", ra->height, "Frame height")
+      ->check(CLI::Range(16, 8192))
+      ->capture_default_str();
+  render->add_option("--orbit-seconds", ra->orbit_seconds, "Duration of the default orbit")
+      ->check(CLI::Range(0.1, 3600.0))
+      ->capture_default_str();
+  render->add_option("--warmup", ra->warmup, "Frames rendered at the first camera before recording")
+      ->check(CLI::Range(0, 100000))
+      ->capture_default_str();
+  render->add_flag("--sync", ra->sync,
+                   "Run the Feedback Stage synchronously, one iteration per frame (deterministic)");
+  render->add_flag("--psnr", ra->psnr, "Also render full detail per frame and record the PSNR");
+  render
+      ->add_option("--stability", ra->stability,
+                   "After the path: converge at the last camera, then measure this many frames "
+                   "of temporal stability")
+      ->check(CLI::Range(0, 100000));
+  render->add_flag("--no-png", ra->no_png, "Write statistics only");
+  render->callback([ra] { run_render(*ra); });
+
+  auto va = std::make_shared<ViewArgs>();
+  auto* view = app.add_subcommand("view", "Open a window on a model (GLFW, OpenGL 4.5 core)");
+  add_scene_options(*view, va->scene);
+  view->add_option("--width", va->width, "Window width")
+      ->check(CLI::Range(16, 8192))
+      ->capture_default_str();
+  view->add_option("--height", va->height, "Window height")
+      ->check(CLI::Range(16, 8192))
+      ->capture_default_str();
+  view->add_option("--path", va->path, "Replay this camera path")->check(CLI::ExistingFile);
+  view->add_option("--script", va->script,
+                   "Scripted run (see docs/camera-paths.md): replay, screenshot, exit")
+      ->check(CLI::ExistingFile);
+  view->add_option("--screenshot-dir", va->screenshot_dir, "Where F12 / scripts save PNGs")
+      ->capture_default_str();
+  view->add_option("--target-fps", va->target_fps,
+                   "Adapt the strategy's budget to hold this frame rate (0 = off)")
+      ->check(CLI::Range(0.0, 1000.0));
+  view->callback([va] {
+    const int code = run_viewer(*va);
+    if (code != 0) throw std::runtime_error("viewer failed");
+  });
+}
+
+}  // namespace treecut::cli

@@ -1,0 +1,96 @@
+// Shared pieces of `treecut render` (headless) and `treecut view` (window):
+// model and strategy set-up from the command line, the per-frame loop body
+// that drives the Controller and the renderer, and the viewer entry point.
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "treecut/controller.hpp"
+#include "treecut/hierarchy.hpp"
+#include "treecut/registry.hpp"
+#include "treecut/splat/camera.hpp"
+#include "treecut/splat/renderer.hpp"
+
+namespace treecut::cli {
+
+/// Options common to render and view.
+struct SceneArgs {
+  std::string model;  ///< PLY or .tch; empty = the generated default model
+  std::string default_kind = "terrain";
+  std::size_t default_points = 200000;
+  std::vector<std::string> strategies{"optimization"};
+  std::vector<std::string> params;  ///< "name=value"
+  std::vector<std::string> plugins;
+  std::string mode = "fast";
+  float radius_scale = 1.0f;
+  float point_size = 2.0f;
+  int k = 12;
+  bool fixed_light = false;
+  std::string up = "auto";  ///< x | y | z | auto (z for generated models, y for files)
+};
+
+void add_scene_options(CLI::App& cmd, SceneArgs& args);
+
+struct Scene {
+  std::shared_ptr<const Hierarchy> hierarchy;
+  std::string label;  ///< file name or "generated terrain (200000 points)"
+  glm::vec3 center{0.0f};
+  float radius = 1.0f;
+  glm::vec3 up{0.0f, 1.0f, 0.0f};  ///< the model's up axis (orbits turn about it)
+};
+
+/// Opens the model (through its cache) or generates the default one.
+/// Throws InputError for a bad model file.
+Scene load_scene(const SceneArgs& args);
+
+/// The built-in strategies plus the plugins named in `args`.
+StrategyRegistry make_registry(const SceneArgs& args);
+
+/// Parses "name=value"; throws InputError.
+std::pair<std::string, double> parse_param(const std::string& text);
+
+/// A strategy with `args.params` applied (parameters the strategy does not
+/// have are an InputError naming them).
+std::unique_ptr<Strategy> make_strategy(const StrategyRegistry& registry, const std::string& name,
+                                        const std::vector<std::string>& params);
+
+splat::RenderSettings render_settings(const SceneArgs& args);
+
+/// The light direction handed to the strategies (model space, towards the
+/// light) for a camera, matching what the renderer lights with.
+glm::vec3 world_light_dir(const splat::Light& light, const splat::Camera& camera);
+
+/// One frame of the Controller/renderer protocol on the render thread:
+/// camera in, poll (exchange/request), upload the index list if it changed.
+/// Returns whether the list was exchanged this frame.
+struct FrameDriver {
+  Controller* controller = nullptr;
+  splat::CutBuffer* cut = nullptr;
+  std::uint64_t uploaded_generation = 0;
+
+  bool begin(const splat::Camera& camera, glm::ivec2 size, glm::vec3 light_dir);
+};
+
+/// The ViewSnapshot of a camera (initial view of a Controller).
+ViewSnapshot snapshot_of(const splat::Camera& camera, glm::ivec2 size, glm::vec3 light_dir);
+
+struct ViewArgs {
+  SceneArgs scene;
+  int width = 1280;
+  int height = 720;
+  std::string path;    ///< replay this camera path, then keep running (or exit with script)
+  std::string script;  ///< scripted run: see docs/camera-paths.md
+  std::string screenshot_dir = ".";
+  double target_fps = 0.0;  ///< > 0: adapt the strategy's budget to hold this rate
+};
+
+/// Runs the window until it is closed (or the script ends). Returns an exit code.
+int run_viewer(const ViewArgs& args);
+
+}  // namespace treecut::cli

@@ -1,0 +1,147 @@
+// Model, strategy and frame set-up shared by `treecut render` and `treecut view`.
+#include <cmath>
+#include <cstdio>
+#include <glm/geometric.hpp>
+#include <glm/mat3x3.hpp>
+#include <glm/matrix.hpp>
+
+#include "treecut/error.hpp"
+#include "treecut/generate.hpp"
+#include "treecut/model_io.hpp"
+#include "treecut/strategies/builtin.hpp"
+#include "viewer.hpp"
+
+namespace treecut::cli {
+
+void add_scene_options(CLI::App& cmd, SceneArgs& args) {
+  cmd.add_option("MODEL", args.model,
+                 "PLY model or .tch cache (default: a generated model, see --default-kind)");
+  cmd.add_option("--default-kind", args.default_kind,
+                 "Procedural model used without MODEL: sphere | terrain | city")
+      ->capture_default_str();
+  cmd.add_option("--default-points", args.default_points, "Points of the generated model")
+      ->check(CLI::Range(std::size_t{1}, std::size_t{1} << 28))
+      ->capture_default_str();
+  cmd.add_option("-s,--strategy", args.strategies,
+                 "LOD strategy (optimization, bucket, recursive or a plugin's); render accepts "
+                 "several and runs the path once per strategy")
+      ->capture_default_str();
+  cmd.add_option("-p,--param", args.params, "Strategy parameter NAME=VALUE (repeatable)");
+  cmd.add_option("--plugin", args.plugins, "Load strategies from a plugin shared library");
+  cmd.add_option("-m,--mode", args.mode, "Splat mode: fast | hq | fixed")->capture_default_str();
+  cmd.add_option("--radius-scale", args.radius_scale, "Multiply every splat radius")
+      ->check(CLI::Range(0.05f, 20.0f))
+      ->capture_default_str();
+  cmd.add_option("--point-size", args.point_size, "Point size in pixels of the fixed mode")
+      ->check(CLI::Range(1.0f, 64.0f))
+      ->capture_default_str();
+  cmd.add_option("-k,--neighbours", args.k, "Neighbours for normals and radii of point clouds")
+      ->check(CLI::Range(3, 64))
+      ->capture_default_str();
+  cmd.add_option("--up", args.up,
+                 "Up axis of the model: x | y | z | auto (z for generated, y for files)")
+      ->check(CLI::IsMember({"auto", "x", "y", "z"}))
+      ->capture_default_str();
+  cmd.add_flag("--fixed-light", args.fixed_light,
+               "Keep the light fixed in the world instead of following the camera");
+}
+
+Scene load_scene(const SceneArgs& args) {
+  Scene s;
+  if (args.model.empty()) {
+    const ModelKind kind = parse_model_kind(args.default_kind);
+    s.hierarchy = std::make_shared<const Hierarchy>(
+        build_from_points(generate_model(kind, args.default_points, 1)));
+    s.label =
+        "generated " + args.default_kind + " (" + std::to_string(args.default_points) + " points)";
+  } else {
+    OpenOptions o;
+    o.attributes.k = args.k;
+    o.warn = [](const std::string& w) { std::fprintf(stderr, "warning: %s\n", w.c_str()); };
+    s.hierarchy = std::make_shared<const Hierarchy>(open_model(args.model, o).hierarchy);
+    s.label = std::filesystem::path(args.model).filename().string();
+  }
+  const std::string up = args.up == "auto" ? (args.model.empty() ? "z" : "y") : args.up;
+  s.up = up == "x" ? glm::vec3(1, 0, 0) : up == "z" ? glm::vec3(0, 0, 1) : glm::vec3(0, 1, 0);
+  const Hierarchy& h = *s.hierarchy;
+  s.center = 0.5f * (h.bounds_min() + h.bounds_max());
+  s.radius = std::max(0.5f * glm::length(h.bounds_max() - h.bounds_min()), 1e-6f);
+  return s;
+}
+
+StrategyRegistry make_registry(const SceneArgs& args) {
+  StrategyRegistry registry;
+  strategies::register_builtin(registry);
+  for (const std::string& p : args.plugins) registry.load_plugin(p);
+  return registry;
+}
+
+std::pair<std::string, double> parse_param(const std::string& text) {
+  const auto eq = text.find('=');
+  if (eq == std::string::npos || eq == 0) {
+    throw InputError("--param '" + text + "': expected NAME=VALUE");
+  }
+  const std::string value = text.substr(eq + 1);
+  char* end = nullptr;
+  const double v = std::strtod(value.c_str(), &end);
+  if (value.empty() || end != value.c_str() + value.size() || !std::isfinite(v)) {
+    throw InputError("--param '" + text + "': '" + value + "' is not a finite number");
+  }
+  return {text.substr(0, eq), v};
+}
+
+std::unique_ptr<Strategy> make_strategy(const StrategyRegistry& registry, const std::string& name,
+                                        const std::vector<std::string>& params) {
+  std::unique_ptr<Strategy> s = registry.create(name);
+  for (const std::string& p : params) {
+    const auto [key, value] = parse_param(p);
+    s->set_param(key, value);
+  }
+  return s;
+}
+
+splat::RenderSettings render_settings(const SceneArgs& args) {
+  splat::RenderSettings r;
+  r.mode = splat::parse_splat_mode(args.mode);
+  r.radius_scale = args.radius_scale;
+  r.point_size_px = args.point_size;
+  if (args.fixed_light) {
+    r.light.follow_camera = false;
+    r.light.direction = {-0.4f, 0.8f, 0.45f};
+  }
+  return r;
+}
+
+glm::vec3 world_light_dir(const splat::Light& light, const splat::Camera& camera) {
+  glm::vec3 d = light.direction;
+  if (light.follow_camera) d = glm::mat3(glm::inverse(camera.view_matrix())) * d;
+  const float len = glm::length(d);
+  return len > 0.0f ? d / len : glm::vec3(0.0f, 0.0f, 1.0f);
+}
+
+ViewSnapshot snapshot_of(const splat::Camera& camera, glm::ivec2 size, glm::vec3 light_dir) {
+  ViewSnapshot v;
+  v.view = camera.view_matrix();
+  v.projection = camera.projection_matrix(static_cast<float>(size.x) / static_cast<float>(size.y));
+  v.viewport = size;
+  v.light_dir = light_dir;
+  v.finalize();
+  return v;
+}
+
+bool FrameDriver::begin(const splat::Camera& camera, glm::ivec2 size, glm::vec3 light_dir) {
+  controller->set_camera(
+      camera.view_matrix(),
+      camera.projection_matrix(static_cast<float>(size.x) / static_cast<float>(size.y)), size);
+  controller->set_light(light_dir);
+  const FrameLists lists = controller->begin_frame();
+  if (lists.current.generation != uploaded_generation && lists.current.hierarchy != nullptr) {
+    // ReleaseMode::OnExchange: the list is copied into the GPU index buffer
+    // now, so the stage may reuse it after the next exchange.
+    cut->upload(*lists.current.hierarchy, lists.current.nodes);
+    uploaded_generation = lists.current.generation;
+  }
+  return lists.exchanged;
+}
+
+}  // namespace treecut::cli
