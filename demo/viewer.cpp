@@ -448,8 +448,12 @@ class Viewer {
                 static_cast<unsigned long long>(c.iterations),
                 static_cast<unsigned long long>(c.exchanges));
     ImGui::Text("converged: %s", c.converged ? "yes" : "no");
-    ImGui::Separator();
-    if (ImGui::BeginCombo("strategy", strategy_.c_str())) {
+    if (!ImGui::CollapsingHeader("strategy", ImGuiTreeNodeFlags_DefaultOpen)) {
+      rendering_panel();
+      ImGui::End();
+      return;
+    }
+    if (ImGui::BeginCombo("##strategy", strategy_.c_str())) {
       for (const std::string& n : strategy_names_) {
         if (ImGui::Selectable(n.c_str(), n == strategy_) && n != strategy_) switch_strategy(n);
       }
@@ -490,7 +494,15 @@ class Viewer {
     } else {
       ImGui::TextDisabled("hold frame rate: strategy has no budget/threshold");
     }
-    ImGui::Separator();
+    rendering_panel();
+    ImGui::End();
+  }
+
+  void rendering_panel() {
+    if (!ImGui::CollapsingHeader("rendering")) {
+      if (!status_.empty()) ImGui::TextUnformatted(status_.c_str());
+      return;
+    }
     int mode = static_cast<int>(settings_.mode);
     ImGui::RadioButton("fast", &mode, 0);
     ImGui::SameLine();
@@ -512,7 +524,6 @@ class Viewer {
     ImGui::SameLine();
     if (!path_.empty() && ImGui::Button("play (Space)")) start_playback();
     if (!status_.empty()) ImGui::TextUnformatted(status_.c_str());
-    ImGui::End();
   }
 
   struct ParamState {

@@ -1,0 +1,43 @@
+# Runs `treecut view` in a real window under Xvfb on a scripted path and checks
+# the screenshots it took through its own screenshot function.
+# -DTREECUT=<program> -DXVFB_RUN=<xvfb-run or empty> -DSCRIPT=<run.script> -DOUT=<folder>
+if(NOT XVFB_RUN)
+  message(FATAL_ERROR "xvfb-run not found: the window test needs Xvfb (apt install xvfb)")
+endif()
+file(REMOVE_RECURSE "${OUT}")
+file(MAKE_DIRECTORY "${OUT}")
+execute_process(
+  COMMAND "${XVFB_RUN}" -a -s "-screen 0 1024x768x24"
+          "${TREECUT}" view --default-points 30000 --width 640 --height 400
+          --script "${SCRIPT}" --screenshot-dir "${OUT}"
+  RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err TIMEOUT 240)
+message("${out}${err}")
+if(NOT rc EQUAL 0)
+  message(FATAL_ERROR "treecut view exited with ${rc}")
+endif()
+foreach(shot start.png end.png)
+  set(png "${OUT}/${shot}")
+  if(NOT EXISTS "${png}")
+    message(FATAL_ERROR "${shot} was not written")
+  endif()
+  file(READ "${png}" head LIMIT 24 HEX)
+  string(SUBSTRING "${head}" 0 16 magic)
+  string(SUBSTRING "${head}" 32 16 size)
+  if(NOT magic STREQUAL "89504e470d0a1a0a")
+    message(FATAL_ERROR "${shot} is not a PNG (${magic})")
+  endif()
+  # IHDR width 640 (0x280), height 400 (0x190): the window's framebuffer.
+  if(NOT size STREQUAL "0000028000000190")
+    message(FATAL_ERROR "${shot} has size ${size}, expected 640x400")
+  endif()
+  file(SIZE "${png}" bytes)
+  # A flat frame compresses to a few KiB; a rendered model and HUD do not.
+  if(bytes LESS 20000)
+    message(FATAL_ERROR "${shot} is only ${bytes} bytes: nothing rendered?")
+  endif()
+endforeach()
+file(SHA256 "${OUT}/start.png" a)
+file(SHA256 "${OUT}/end.png" b)
+if(a STREQUAL b)
+  message(FATAL_ERROR "the camera path did not change the view")
+endif()
