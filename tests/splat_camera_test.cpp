@@ -1,0 +1,224 @@
+// Tests of the renderer's non-GL parts: cameras, camera paths, image metrics
+// and the target-frame-rate governor.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <glm/geometric.hpp>
+#include <limits>
+
+#include "test_support.hpp"
+#include "treecut/error.hpp"
+#include "treecut/splat/camera.hpp"
+#include "treecut/splat/camera_path.hpp"
+#include "treecut/splat/frame_rate.hpp"
+#include "treecut/splat/image.hpp"
+
+namespace treecut::splat {
+namespace {
+
+constexpr const char* kPath =
+    "treecut-camera-path 1\n"
+    "# time eye target up fov\n"
+    "0 0 0 5  0 0 0  0 1 0  40\n"
+    "\n"
+    "2 10 0 5  0 0 0  0 1 0  60\n";
+
+TEST(CameraPath, ParsesAndInterpolatesLinearly) {
+  const CameraPath p = parse_camera_path(kPath, "test");
+  ASSERT_EQ(p.keys.size(), 2u);
+  EXPECT_DOUBLE_EQ(p.duration(), 2.0);
+  const Camera mid = p.at(1.0);
+  EXPECT_FLOAT_EQ(mid.eye.x, 5.0f);
+  EXPECT_FLOAT_EQ(mid.fov_y_deg, 50.0f);
+  // Clamped outside the path.
+  EXPECT_FLOAT_EQ(p.at(-1.0).eye.x, 0.0f);
+  EXPECT_FLOAT_EQ(p.at(99.0).eye.x, 10.0f);
+}
+
+TEST(CameraPath, FormatRoundTrips) {
+  const CameraPath p = parse_camera_path(kPath, "test");
+  const CameraPath q = parse_camera_path(format_camera_path(p), "again");
+  ASSERT_EQ(q.keys.size(), p.keys.size());
+  for (std::size_t i = 0; i < p.keys.size(); ++i) {
+    EXPECT_DOUBLE_EQ(q.keys[i].time, p.keys[i].time);
+    EXPECT_EQ(q.keys[i].camera.eye, p.keys[i].camera.eye);
+    EXPECT_EQ(q.keys[i].camera.target, p.keys[i].camera.target);
+    EXPECT_EQ(q.keys[i].camera.fov_y_deg, p.keys[i].camera.fov_y_deg);
+  }
+}
+
+TEST(CameraPath, FileRoundTrips) {
+  const auto dir = test::scratch_dir("camera_path_file");
+  const CameraPath p = orbit_path({-1, -1, -1}, {1, 1, 1}, 1.5f, 4.0, 9);
+  save_camera_path(dir / "orbit.campath", p);
+  const CameraPath q = load_camera_path(dir / "orbit.campath");
+  ASSERT_EQ(q.keys.size(), 9u);
+  EXPECT_NEAR(glm::length(q.keys[4].camera.eye - p.keys[4].camera.eye), 0.0f, 1e-5f);
+  EXPECT_THROW(load_camera_path(dir / "missing.campath"), InputError);
+}
+
+TEST(CameraPath, RejectsEveryMalformedLine) {
+  const char* bad[] = {
+      "",                                                                         // no header
+      "treecut-camera-path 2\n0 0 0 5 0 0 0 0 1 0 40\n",                          // wrong version
+      "treecut-camera-path 1\n",                                                  // no keys
+      "treecut-camera-path 1\n0 0 0 5 0 0 0 0 1 0\n",                             // 10 numbers
+      "treecut-camera-path 1\n0 0 0 5 0 0 0 0 1 0 40 7\n",                        // 12 numbers
+      "treecut-camera-path 1\n0 0 0 5 0 0 0 0 1 0 4x0\n",                         // garbage token
+      "treecut-camera-path 1\n0 0 0 nan 0 0 0 0 1 0 40\n",                        // not finite
+      "treecut-camera-path 1\n0 0 0 1e999 0 0 0 0 1 0 40\n",                      // overflow
+      "treecut-camera-path 1\n-1 0 0 5 0 0 0 0 1 0 40\n",                         // negative time
+      "treecut-camera-path 1\n1 0 0 5 0 0 0 0 1 0 40\n0 0 0 5 0 0 0 0 1 0 40\n",  // backwards
+      "treecut-camera-path 1\n0 0 0 0 0 0 0 0 1 0 40\n",                          // eye == target
+      "treecut-camera-path 1\n0 0 0 5 0 0 0 0 0 0 40\n",                          // zero up
+      "treecut-camera-path 1\n0 0 0 5 0 0 0 0 1 0 180\n",  // fov out of range
+  };
+  for (const char* text : bad) {
+    EXPECT_THROW(parse_camera_path(text, "bad"), InputError) << text;
+  }
+  // Every truncation of a valid file either parses or throws InputError.
+  const std::string good = kPath;
+  for (std::size_t n = 0; n <= good.size(); ++n) {
+    try {
+      (void)parse_camera_path(good.substr(0, n), "cut");
+    } catch (const InputError&) {
+    }
+  }
+}
+
+TEST(Camera, FitSeesTheWholeBoundingSphere) {
+  const glm::vec3 lo(-2, 0, 1), hi(4, 3, 2);
+  for (glm::vec3 up : {glm::vec3(0, 1, 0), glm::vec3(0, 0, 1)}) {
+    const Camera c = default_camera(lo, hi, 16.0f / 9.0f, up);
+    const glm::vec3 center = 0.5f * (lo + hi);
+    const float r = 0.5f * glm::length(hi - lo);
+    const float d = glm::length(c.eye - center);
+    // The sphere fits the vertical field of view and lies between the planes.
+    EXPECT_GE(std::asin(r / d), 0.0f);
+    EXPECT_LE(std::asin(r / d), glm::radians(c.fov_y_deg) * 0.5f + 1e-4f);
+    EXPECT_LE(c.near_plane, d - r);
+    EXPECT_GE(c.far_plane, d + r);
+    EXPECT_NEAR(glm::length(c.target - center), 0.0f, 1e-5f);
+    // Seen from above the plane normal to `up`.
+    EXPECT_GT(glm::dot(c.eye - center, up), 0.0f);
+  }
+}
+
+TEST(Camera, OrbitDirectionIsUnitAndTurnsAboutUp) {
+  const glm::vec3 up(0, 0, 1);
+  for (float az : {0.0f, 1.0f, 2.5f, 4.0f}) {
+    const glm::vec3 d = orbit_direction(up, az, 0.3f);
+    EXPECT_NEAR(glm::length(d), 1.0f, 1e-5f);
+    EXPECT_NEAR(glm::dot(d, up), std::sin(0.3f), 1e-5f);
+  }
+}
+
+Image flat(int w, int h, std::uint8_t v) {
+  return Image{w, h, std::vector<std::uint8_t>(std::size_t(w) * std::size_t(h) * 4, v)};
+}
+
+TEST(ImageMetrics, PsnrOfKnownError) {
+  const Image a = flat(4, 4, 100);
+  Image b = a;
+  EXPECT_EQ(psnr(a, b), std::numeric_limits<double>::infinity());
+  for (std::size_t i = 0; i < b.rgba.size(); i += 4) b.rgba[i] = 110;  // R off by 10
+  // MSE = 100 / 3 over RGB.
+  EXPECT_NEAR(psnr(a, b), 10.0 * std::log10(255.0 * 255.0 / (100.0 / 3.0)), 1e-9);
+  // Alpha does not count.
+  Image c = a;
+  c.rgba[3] = 0;
+  EXPECT_EQ(psnr(a, c), std::numeric_limits<double>::infinity());
+  EXPECT_THROW((void)psnr(a, flat(4, 5, 100)), std::invalid_argument);
+}
+
+TEST(ImageMetrics, ChangedFractionCountsPixelsOverTheThreshold) {
+  const Image a = flat(10, 10, 50);
+  Image b = a;
+  b.rgba[0] = 50 + 9;    // pixel 0 changes by 9 (over 8)
+  b.rgba[5] = 50 + 8;    // pixel 1 changes by 8 (not over)
+  b.rgba[10] = 50 - 20;  // pixel 2 changes
+  EXPECT_DOUBLE_EQ(changed_fraction(a, b), 2.0 / 100.0);
+  EXPECT_DOUBLE_EQ(changed_fraction(a, a), 0.0);
+}
+
+TEST(ImageMetrics, CoverageFindsBoxAndCentroid) {
+  Image img = flat(8, 6, 0);
+  const std::uint8_t bg[3] = {0, 0, 0};
+  for (int y = 2; y <= 3; ++y) {
+    for (int x = 4; x <= 6; ++x) img.rgba[(std::size_t(y) * 8 + std::size_t(x)) * 4 + 1] = 200;
+  }
+  const Coverage c = coverage(img, bg);
+  EXPECT_EQ(c.pixels, 6u);
+  EXPECT_EQ(c.min_x, 4);
+  EXPECT_EQ(c.max_x, 6);
+  EXPECT_EQ(c.min_y, 2);
+  EXPECT_EQ(c.max_y, 3);
+  EXPECT_DOUBLE_EQ(c.centroid_x, 5.0);
+  EXPECT_DOUBLE_EQ(c.centroid_y, 2.5);
+}
+
+TEST(ImageMetrics, WritesAPngAndRejectsMalformedImages) {
+  const auto dir = test::scratch_dir("image_png");
+  write_png(dir / "a.png", flat(3, 2, 128));
+  EXPECT_GT(std::filesystem::file_size(dir / "a.png"), 8u);
+  Image bad = flat(3, 2, 0);
+  bad.rgba.pop_back();
+  EXPECT_THROW(write_png(dir / "b.png", bad), std::runtime_error);
+}
+
+std::vector<ParamSpec> specs(const char* name, double lo, double hi) {
+  ParamSpec s;
+  s.name = name;
+  s.min_value = lo;
+  s.max_value = hi;
+  return {s};
+}
+
+TEST(FrameRateGovernor, PicksTheKnobByName) {
+  EXPECT_EQ(FrameRateGovernor::for_params(specs("max_nodes", 1, 1e9), 1000)->knob(),
+            FrameRateGovernor::Knob::Budget);
+  EXPECT_EQ(FrameRateGovernor::for_params(specs("min_size", 0, 100), 1)->knob(),
+            FrameRateGovernor::Knob::Threshold);
+  EXPECT_FALSE(FrameRateGovernor::for_params(specs("ambient", 0, 1), 0.1).has_value());
+}
+
+TEST(FrameRateGovernor, BudgetShrinksWhenSlowAndGrowsWhenFast) {
+  FrameRateGovernor g("max_nodes", FrameRateGovernor::Knob::Budget, 100000, 1, 1e9);
+  // 50 ms frames against a 30 fps target (33 ms): the budget goes down, in
+  // steps of at most 10 %.
+  double last = 100000;
+  for (int i = 0; i < 20; ++i) {
+    if (auto v = g.update(50.0, 30.0)) {
+      EXPECT_LT(*v, last);
+      EXPECT_GE(*v, last * 0.9 - 1.0);
+      last = *v;
+    }
+  }
+  EXPECT_LT(g.value(), 50000);
+  // Fast frames: it grows again, and never past the maximum.
+  FrameRateGovernor h("max_nodes", FrameRateGovernor::Knob::Budget, 1000, 1, 2000);
+  for (int i = 0; i < 100; ++i) (void)h.update(5.0, 30.0);
+  EXPECT_EQ(h.value(), 2000);
+  // Disabled: no change.
+  FrameRateGovernor off("max_nodes", FrameRateGovernor::Knob::Budget, 1000, 1, 2000);
+  EXPECT_FALSE(off.update(500.0, 0.0).has_value());
+  EXPECT_EQ(off.value(), 1000);
+}
+
+TEST(FrameRateGovernor, ThresholdGrowsWhenSlow) {
+  FrameRateGovernor g("min_size", FrameRateGovernor::Knob::Threshold, 1.0, 0.0, 100.0);
+  for (int i = 0; i < 10; ++i) (void)g.update(100.0, 30.0);
+  EXPECT_GT(g.value(), 1.5);
+  // A threshold at 0 can still move up.
+  FrameRateGovernor z("min_size", FrameRateGovernor::Knob::Threshold, 0.0, 0.0, 100.0);
+  for (int i = 0; i < 10; ++i) (void)z.update(100.0, 30.0);
+  EXPECT_GT(z.value(), 0.0);
+  // Non-finite or non-positive frame times are ignored.
+  FrameRateGovernor n("min_size", FrameRateGovernor::Knob::Threshold, 1.0, 0.0, 100.0);
+  EXPECT_FALSE(n.update(std::nan(""), 30.0).has_value());
+  EXPECT_FALSE(n.update(-1.0, 30.0).has_value());
+  EXPECT_EQ(n.value(), 1.0);
+}
+
+}  // namespace
+}  // namespace treecut::splat
