@@ -366,6 +366,130 @@ TEST(PlyLoad, ListsInVerticesAndExtraFaceListsAreSkippedInBinary) {
   EXPECT_EQ(p.triangles, (std::vector<glm::uvec3>{{0, 1, 2}}));
 }
 
+// Every scalar type in every role OpenMesh might read, in both byte orders:
+// the import must not depend on which layouts OpenMesh decodes by itself.
+struct TypedBody : Body {
+  TypedBody& put_as(const std::string& type, double v) {
+    if (type == "char") put(static_cast<std::int8_t>(v));
+    if (type == "uchar") put(static_cast<std::uint8_t>(v));
+    if (type == "short") put(static_cast<std::int16_t>(v));
+    if (type == "ushort") put(static_cast<std::uint16_t>(v));
+    if (type == "int") put(static_cast<std::int32_t>(v));
+    if (type == "uint") put(static_cast<std::uint32_t>(v));
+    if (type == "float") put(static_cast<float>(v));
+    if (type == "double") put(v);
+    return *this;
+  }
+};
+
+const std::vector<std::string> kAllTypes{"char", "uchar", "short", "ushort",
+                                         "int",  "uint",  "float", "double"};
+
+struct Layout {
+  std::string position = "float";
+  std::string normal;  // empty: none
+  std::string color;   // empty: none
+  std::string count;   // empty: no faces
+  std::string index = "int";
+  int flags_at = -1;  // -1 none, 0 before the index list, 1 after it
+};
+
+std::string make_file(const Layout& l, bool big_endian) {
+  std::string h = std::string("ply\nformat ") +
+                  (big_endian ? "binary_big_endian" : "binary_little_endian") +
+                  " 1.0\nelement vertex 4\n";
+  for (const char* axis : {"x", "y", "z"}) h += "property " + l.position + " " + axis + "\n";
+  if (!l.normal.empty()) {
+    for (const char* axis : {"nx", "ny", "nz"}) h += "property " + l.normal + " " + axis + "\n";
+  }
+  if (!l.color.empty()) {
+    for (const char* c : {"red", "green", "blue"}) h += "property " + l.color + " " + c + "\n";
+  }
+  TypedBody body;
+  body.big_endian = big_endian;
+  for (int i = 0; i < 4; ++i) {
+    body.put_as(l.position, i).put_as(l.position, i + 1).put_as(l.position, 2);
+    if (!l.normal.empty()) body.put_as(l.normal, 0).put_as(l.normal, 0).put_as(l.normal, 1);
+    const double scale = l.color == "float" || l.color == "double" ? 1.0 / 255.0
+                         : l.color == "ushort"                     ? 257.0
+                                                                   : 1.0;
+    if (!l.color.empty()) {
+      body.put_as(l.color, 10 * scale).put_as(l.color, 20 * scale).put_as(l.color, 30 * scale);
+    }
+  }
+  if (!l.count.empty()) {
+    h += "element face 2\n";
+    const std::string list = "property list " + l.count + " " + l.index + " vertex_indices\n";
+    h += l.flags_at == 0   ? "property uchar flags\n" + list
+         : l.flags_at == 1 ? list + "property uchar flags\n"
+                           : list;
+    for (const std::vector<int>& face : {std::vector<int>{0, 1, 2, 3}, std::vector<int>{1, 2, 3}}) {
+      if (l.flags_at == 0) body.put(std::uint8_t{5});
+      body.put_as(l.count, static_cast<double>(face.size()));
+      for (int v : face) body.put_as(l.index, v);
+      if (l.flags_at == 1) body.put(std::uint8_t{5});
+    }
+  }
+  return h + "end_header\n" + body.bytes;
+}
+
+void expect_layout_loads(const Layout& l) {
+  for (bool big_endian : {false, true}) {
+    SCOPED_TRACE(make_file(l, big_endian).substr(0, make_file(l, big_endian).find("end_header")));
+    PointSet p;
+    ASSERT_NO_THROW(p = load(make_file(l, big_endian)));
+    ASSERT_EQ(p.size(), 4u);
+    for (int i = 0; i < 4; ++i) {
+      EXPECT_EQ(p.positions[i], glm::vec3(static_cast<float>(i), static_cast<float>(i + 1), 2.0f));
+    }
+    EXPECT_EQ(p.has_normals(), !l.normal.empty());
+    if (p.has_normals()) {
+      EXPECT_EQ(p.normals[3], glm::vec3(0, 0, 1));
+    }
+    EXPECT_EQ(p.has_colors(), !l.color.empty());
+    if (p.has_colors()) {
+      EXPECT_EQ(p.colors[3], glm::u8vec4(10, 20, 30, 255));
+    }
+    const std::vector<glm::uvec3> faces{{0, 1, 2}, {0, 2, 3}, {1, 2, 3}};
+    EXPECT_EQ(p.triangles, l.count.empty() ? std::vector<glm::uvec3>{} : faces);
+  }
+}
+
+TEST(PlyLoad, EveryPositionTypeLoads) {
+  for (const std::string& type : kAllTypes) {
+    Layout layout;
+    layout.position = type;
+    expect_layout_loads(layout);
+  }
+}
+
+TEST(PlyLoad, EveryNormalAndColorTypeLoads) {
+  for (const char* normal : {"", "float", "double", "short"}) {
+    for (const char* color : {"", "uchar", "float", "double", "ushort", "int"}) {
+      Layout layout;
+      layout.normal = normal;
+      layout.color = color;
+      expect_layout_loads(layout);
+    }
+  }
+}
+
+TEST(PlyLoad, EveryFaceListLayoutLoads) {
+  for (const char* count : {"uchar", "char", "ushort", "short", "int", "uint"}) {
+    for (const char* index : {"char", "uchar", "short", "ushort", "int", "uint"}) {
+      for (int flags_at : {-1, 0, 1}) {
+        Layout layout;
+        layout.normal = "float";
+        layout.color = "uchar";
+        layout.count = count;
+        layout.index = index;
+        layout.flags_at = flags_at;
+        expect_layout_loads(layout);
+      }
+    }
+  }
+}
+
 // ---- faces ----------------------------------------------------------------
 
 const std::string kSquareHeader =
@@ -460,6 +584,23 @@ TEST(PlyLoad, ElementOrderDoesNotMatter) {
   EXPECT_EQ(p.positions[1], glm::vec3(1, 0, 0));
   ASSERT_EQ(warnings.size(), 1u);
   EXPECT_NE(warnings[0].find("ignoring element 'edge'"), std::string::npos);
+}
+
+TEST(PlyLoad, ManyIgnoredElementsGiveOneWarning) {
+  std::string file = "ply\nformat ascii 1.0\n";
+  std::string rows;
+  for (int e = 0; e < 10; ++e) {
+    file += "element extra" + std::to_string(e) + " 1\nproperty int v\n";
+    rows += std::to_string(e) + "\n";
+  }
+  file += "element vertex 1\nproperty float x\nproperty float y\nproperty float z\nend_header\n" +
+          rows + "0 0 0\n";
+  std::vector<std::string> warnings;
+  load(file, nullptr, &warnings);
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("ignoring elements 'extra0' (1 row), 'extra1'"), std::string::npos)
+      << warnings[0];
+  EXPECT_NE(warnings[0].find("and 6 more"), std::string::npos) << warnings[0];
 }
 
 // ---- rejection ------------------------------------------------------------

@@ -2,6 +2,7 @@
 #include <array>
 #include <charconv>
 #include <optional>
+#include <unordered_set>
 
 #include "ply_format.hpp"
 
@@ -93,7 +94,14 @@ Type require_type(std::string_view name) {
   return *type;
 }
 
-void add_property(Header& header, const Tokens& t) {
+// Names seen so far, so that a header with many thousands of declarations
+// is still checked for duplicates in linear time.
+struct SeenNames {
+  std::unordered_set<std::string> elements;
+  std::unordered_set<std::string> properties;  ///< of the current element
+};
+
+void add_property(Header& header, const Tokens& t, SeenNames& seen) {
   if (header.elements.empty()) throw Error("property declared before any element");
   Element& element = header.elements.back();
   Property property;
@@ -113,7 +121,7 @@ void add_property(Header& header, const Tokens& t) {
     property.type = require_type(t.items[1]);
     property.name = std::string(t.items[2]);
   }
-  if (element.find(property.name) >= 0) {
+  if (!seen.properties.insert(property.name).second) {
     throw Error("element '" + printable(element.name) + "' declares property '" +
                 printable(property.name) + "' twice");
   }
@@ -238,6 +246,7 @@ Header parse_header(std::string_view file) {
   if (file.empty()) throw Error("empty file");
   Header header;
   bool have_format = false;
+  SeenNames seen;
   std::size_t pos = 0;
   std::size_t line_number = 0;
   while (pos < file.size()) {
@@ -280,12 +289,13 @@ Header parse_header(std::string_view file) {
       Element element;
       element.name = std::string(t.items[1]);
       element.count = parse_count(t.items[2], element.name);
-      if (header.find(element.name) >= 0) {
+      if (!seen.elements.insert(element.name).second) {
         throw Error("element '" + printable(element.name) + "' declared twice");
       }
+      seen.properties.clear();
       header.elements.push_back(std::move(element));
     } else if (keyword == "property") {
-      add_property(header, t);
+      add_property(header, t, seen);
     } else if (keyword == "end_header") {
       if (t.size != 1) throw Error("malformed end_header line");
       if (!have_format) throw Error("no format line");

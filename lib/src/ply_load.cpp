@@ -116,37 +116,42 @@ int index_property(const Element& element) {
   return p >= 0 ? p : element.find("vertex_index");
 }
 
-bool is_float(Type type) {
-  return type == Type::f32 || type == Type::f64;
-}
-
 bool colors_are_u8(const Element& vertex, const VertexRoles& roles) {
   return roles.colors() && property(vertex, roles.red).type == Type::u8 &&
          property(vertex, roles.green).type == Type::u8 &&
          property(vertex, roles.blue).type == Type::u8;
 }
 
-// OpenMesh's binary reader decodes a layout correctly only when positions and
-// normals are float or double (it reads nothing for integer ones), the vertex
-// element has no lists and the face element has no list besides its indices
-// (it skips one scalar for any other list).
+// The layouts OpenMesh's binary reader decodes correctly, in every OpenMesh
+// release we know of (the reader changed between releases):
+// - positions and normals float32: some releases read nothing for double or
+//   integer coordinates, leaving the stream misaligned;
+// - no list in the vertex element: it skips one scalar for a list;
+// - in the face element, the index list first (some releases drop the
+//   declarations before it, yet not the bytes), no other list, lengths of 1 or
+//   4 bytes and indices of 1 or 4 bytes (16-bit ones are not read everywhere).
+// Anything else is transcoded to a canonical body first.
 bool openmesh_reads_directly(const Header& header, const VertexRoles& roles, int face) {
   if (header.format == Format::ascii) return false;
   const Element& vertex = header.elements[static_cast<std::size_t>(header.find("vertex"))];
   if (vertex.has_lists()) return false;
   for (int p : {roles.x, roles.y, roles.z}) {
-    if (!is_float(property(vertex, p).type)) return false;
+    if (property(vertex, p).type != Type::f32) return false;
   }
   if (roles.normals()) {
     for (int p : {roles.nx, roles.ny, roles.nz}) {
-      if (!is_float(property(vertex, p).type)) return false;
+      if (property(vertex, p).type != Type::f32) return false;
     }
   }
   if (face >= 0) {
     const Element& faces = header.elements[static_cast<std::size_t>(face)];
-    const int indices = index_property(faces);
-    for (std::size_t i = 0; i < faces.properties.size(); ++i) {
-      if (faces.properties[i].is_list && static_cast<int>(i) != indices) return false;
+    if (index_property(faces) != 0) return false;
+    const Property& indices = faces.properties.front();
+    const std::size_t count_size = ply::type_size(indices.count_type);
+    const std::size_t index_size = ply::type_size(indices.type);
+    if ((count_size != 1 && count_size != 4) || (index_size != 1 && index_size != 4)) return false;
+    for (std::size_t i = 1; i < faces.properties.size(); ++i) {
+      if (faces.properties[i].is_list) return false;
     }
   }
   return true;
@@ -159,16 +164,9 @@ std::string format_line(Format format) {
 
 // OpenMesh accepts only uchar/uint8/uint16/int as list length types; any
 // integer type of the same width reads the same bytes, and negative lengths
-// were already rejected by the layout walk.
+// were already rejected by the layout walk (only widths 1 and 4 come here).
 std::string_view length_type_alias(Type type) {
-  switch (ply::type_size(type)) {
-    case 1:
-      return "uchar";
-    case 2:
-      return "uint16";
-    default:
-      return "int";
-  }
+  return ply::type_size(type) == 1 ? "uchar" : "int";
 }
 
 // A property name OpenMesh does not interpret (it skips such a property by
@@ -405,6 +403,11 @@ PointSet load(std::string_view file, const Warnings& warn, PlyLoadReport& report
   const VertexRoles roles = find_roles(vertex, warn);
   int face = -1;
   int strips = -1;
+  // One warning for all ignored elements, naming the first few: a header may
+  // declare thousands.
+  constexpr std::size_t kNamed = 4;
+  std::string ignored;
+  std::size_t ignored_count = 0;
   for (std::size_t e = 0; e < header.elements.size(); ++e) {
     const Element& element = header.elements[e];
     if (e == vertex_index) continue;
@@ -413,12 +416,19 @@ PointSet load(std::string_view file, const Warnings& warn, PlyLoadReport& report
       face = static_cast<int>(e);
     } else if (element.name == "tristrips" && has_indices) {
       strips = static_cast<int>(e);
-    } else {
-      warn("ignoring element '" + ply::printable(element.name) + "' (" +
-           plural(static_cast<std::size_t>(element.count), "row") + ")" +
-           (element.name == "face" || element.name == "tristrips" ? ": it has no vertex_indices"
-                                                                  : ""));
+    } else if (++ignored_count <= kNamed) {
+      if (!ignored.empty()) ignored += ", ";
+      ignored +=
+          "'" + ply::printable(element.name) + "' (" +
+          plural(static_cast<std::size_t>(element.count), "row") +
+          (element.name == "face" || element.name == "tristrips" ? ", no vertex_indices" : "") +
+          ")";
     }
+  }
+  if (ignored_count > 0) {
+    if (ignored_count > kNamed)
+      ignored += " and " + std::to_string(ignored_count - kNamed) + " more";
+    warn(std::string(ignored_count > 1 ? "ignoring elements " : "ignoring element ") + ignored);
   }
 
   report.vertices_in_file = vertex_count;

@@ -4,6 +4,7 @@
 #include <OpenMesh/Core/IO/IOManager.hh>
 #include <OpenMesh/Core/IO/Options.hh>
 #include <OpenMesh/Core/IO/importer/BaseImporter.hh>
+#include <OpenMesh/Core/System/omstream.hh>
 #include <algorithm>
 #include <cstring>
 #include <istream>
@@ -48,7 +49,14 @@ class PiecesBuffer final : public std::streambuf {
   std::streamsize xsgetn(char* out, std::streamsize count) override {
     // OpenMesh reads one value at a time: keep the common case to one copy.
     if (count <= egptr() - gptr()) {
-      std::memcpy(out, gptr(), static_cast<std::size_t>(count));
+      // Constant sizes let the compiler inline the copy of a float or an int.
+      if (count == 4) {
+        std::memcpy(out, gptr(), 4);
+      } else if (count == 1) {
+        *out = *gptr();
+      } else {
+        std::memcpy(out, gptr(), static_cast<std::size_t>(count));
+      }
       setg(eback(), gptr() + count, egptr());
       return count;
     }
@@ -242,7 +250,15 @@ OpenMeshResult read_with_openmesh(const OpenMeshInput& input, PointSet& points) 
   bool ok = false;
   {
     std::lock_guard lock(reader_mutex);
+    // Its diagnostics go to stderr; load_ply reports problems itself, one
+    // line each, through the caller's WarningSink.
+    const bool err_enabled = ::omerr().is_enabled();
+    const bool log_enabled = ::omlog().is_enabled();
+    ::omerr().disable();
+    ::omlog().disable();
     ok = OpenMesh::IO::IOManager().read(stream, "ply", importer, options);
+    if (err_enabled) ::omerr().enable();
+    if (log_enabled) ::omlog().enable();
   }
   OpenMeshResult result = importer.result();
   result.reader_ok = ok;

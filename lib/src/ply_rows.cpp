@@ -184,16 +184,27 @@ BinaryLayout binary_layout(const Header& header, std::string_view file) {
       }
       pos += static_cast<std::size_t>(element.count) * stride;
     } else {
+      // Per-property sizes hoisted out of the row loop: this walk visits every
+      // face of a mesh before OpenMesh reads it.
+      struct Step {
+        bool is_list;
+        Type count_type;
+        std::size_t count_size;
+        std::size_t size;
+      };
+      std::vector<Step> steps;
+      for (const Property& p : element.properties) {
+        steps.push_back({p.is_list, p.count_type, type_size(p.count_type), type_size(p.type)});
+      }
       for (std::uint64_t row = 0; row < element.count; ++row) {
-        for (const Property& p : element.properties) {
+        for (const Step& step : steps) {
           std::size_t n = 1;
-          if (p.is_list) {
-            const std::size_t count_size = type_size(p.count_type);
-            if (end - pos < count_size) {
+          if (step.is_list) {
+            if (end - pos < step.count_size) {
               throw Error("binary body is truncated inside " + row_context(element, row));
             }
-            const std::int64_t length = load_length(file.data() + pos, p.count_type, big_endian);
-            pos += count_size;
+            const std::int64_t length = load_length(file.data() + pos, step.count_type, big_endian);
+            pos += step.count_size;
             if (length < 0) {
               throw Error("negative list length in " + row_context(element, row));
             }
@@ -202,11 +213,10 @@ BinaryLayout binary_layout(const Header& header, std::string_view file) {
             }
             n = static_cast<std::size_t>(length);
           }
-          const std::size_t size = type_size(p.type);
-          if (n > (end - pos) / size) {
+          if (n > (end - pos) / step.size) {
             throw Error("binary body is truncated inside " + row_context(element, row));
           }
-          pos += n * size;
+          pos += n * step.size;
         }
       }
     }
@@ -323,7 +333,8 @@ void AsciiRows::next(const Element& element, std::uint64_t row_index, Row& row) 
       if (length < 0) throw Error(where() + ": negative list length");
       // Each item needs at least two characters of this line, which bounds
       // the loop below by the line length rather than by the number.
-      if (length > static_cast<double>(line.size() - i)) {
+      if (length > static_cast<double>(line.size() - i) ||
+          length > static_cast<double>(kMaxListLength)) {
         throw Error(where() + ": list '" + printable(p.name) + "' is longer than its line");
       }
       n = static_cast<std::size_t>(length);
