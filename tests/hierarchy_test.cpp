@@ -151,8 +151,8 @@ TEST_P(RealModels, InvariantsHoldAndLeavesMatchThePly) {
 INSTANTIATE_TEST_SUITE_P(SharedAssets, RealModels,
                          ::testing::Values("bun_zipper.ply", "dragon_vrip_normals.ply", "dragon_vrip.ply",
                                            "lion_takanawa.ply"),
-                         [](const auto& info) {
-                           std::string s = info.param;
+                         [](const auto& param_info) {
+                           std::string s = param_info.param;
                            std::replace_if(s.begin(), s.end(), [](char c) { return !std::isalnum(c); }, '_');
                            return s;
                          });

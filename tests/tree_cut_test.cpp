@@ -69,7 +69,9 @@ TEST(TreeCut, RandomRefineCoarsenSequencesStayValid) {
     } else if (h.parent(n) != kNoNode) {
       cut.coarsen(h, h.parent(n));
     }
-    if (step % 997 == 0) ASSERT_EQ(cut.validate(h), "") << "step " << step;
+    if (step % 997 == 0) {
+      ASSERT_EQ(cut.validate(h), "") << "step " << step;
+    }
   }
   EXPECT_EQ(cut.validate(h), "");
   EXPECT_GT(cut.refinements(), 0u);

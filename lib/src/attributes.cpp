@@ -57,16 +57,16 @@ void normalize_normals(std::vector<glm::vec3>& normals) {
 // E[dd^T] - E[d]E[d]^T (the point counts as one offset of zero).
 struct Moments {
   Sym3 outer;
-  glm::dvec3 sum{0.0};
+  glm::vec3 sum{0.0f};
   std::uint32_t count = 1;
   void add(glm::vec3 d) {
     outer.add(d);
-    sum += glm::dvec3(d);
+    sum += d;
     ++count;
   }
   [[nodiscard]] Sym3 covariance() const {
-    const double inv = 1.0 / count;
-    const glm::dvec3 m = sum * inv;
+    const float inv = 1.0f / static_cast<float>(count);
+    const glm::vec3 m = sum * inv;
     Sym3 c = outer;
     c.xx = c.xx * inv - m.x * m.x, c.xy = c.xy * inv - m.x * m.y, c.xz = c.xz * inv - m.x * m.z;
     c.yy = c.yy * inv - m.y * m.y, c.yz = c.yz * inv - m.y * m.z, c.zz = c.zz * inv - m.z * m.z;
@@ -80,46 +80,69 @@ void fill_missing_radii(std::vector<float>& radii) {
     if (!(r > 0.0f) || !std::isfinite(r)) r = fallback > 0.0f ? fallback : 1.0f;
 }
 
+// Vertex -> incident faces, as compressed rows (faces ascending per vertex).
+struct Incidence {
+  std::vector<std::uint32_t> begin;  // size n + 1
+  std::vector<std::uint32_t> faces;
+};
+
+Incidence incidence(std::size_t n, const std::vector<glm::uvec3>& triangles) {
+  Incidence inc;
+  inc.begin.assign(n + 1, 0);
+  for (const glm::uvec3& t : triangles) ++inc.begin[t.x + 1], ++inc.begin[t.y + 1], ++inc.begin[t.z + 1];
+  for (std::size_t i = 0; i < n; ++i) inc.begin[i + 1] += inc.begin[i];
+  inc.faces.resize(inc.begin[n]);
+  std::vector<std::uint32_t> fill(inc.begin.begin(), inc.begin.end() - 1);
+  for (std::size_t f = 0; f < triangles.size(); ++f) {
+    const glm::uvec3 t = triangles[f];
+    inc.faces[fill[t.x]++] = static_cast<std::uint32_t>(f);
+    inc.faces[fill[t.y]++] = static_cast<std::uint32_t>(f);
+    inc.faces[fill[t.z]++] = static_cast<std::uint32_t>(f);
+  }
+  return inc;
+}
+
+// Per-face quantities first (parallel over faces), then each vertex gathers
+// from its own faces: no write conflicts, and the summation order (ascending
+// face index) does not depend on the thread count.
 void from_faces(PointSet& ps, bool want_normals, bool want_radii, bool want_curvature) {
-  const std::size_t n = ps.size();
-  std::vector<glm::vec3> normals(want_normals ? n : 0, glm::vec3(0.0f));
-  std::vector<float> radii(want_radii ? n : 0, 0.0f);
-  std::vector<Moments> ring(want_curvature ? n : 0);
-  for (const glm::uvec3& t : ps.triangles) {
-    const glm::vec3 a = ps.positions[t.x], b = ps.positions[t.y], c = ps.positions[t.z];
-    if (want_normals) {
-      const glm::vec3 fn = glm::cross(b - a, c - a);  // length = 2 * area: area weighting
-      normals[t.x] += fn, normals[t.y] += fn, normals[t.z] += fn;
+  const std::size_t n = ps.size(), nf = ps.triangles.size();
+  const Incidence inc = incidence(n, ps.triangles);
+  std::vector<glm::vec4> face(nf);  // xyz: normal * 2 * area, w: covering radius
+  parallel_for(nf, [&](std::size_t b, std::size_t e) {
+    for (std::size_t f = b; f < e; ++f) {
+      const glm::uvec3 t = ps.triangles[f];
+      const glm::vec3 a = ps.positions[t.x], bb = ps.positions[t.y], c = ps.positions[t.z];
+      face[f] = glm::vec4(glm::cross(bb - a, c - a), want_radii ? covering_radius(a, bb, c) : 0.0f);
     }
-    if (want_radii) {
-      const float r = covering_radius(a, b, c);
-      radii[t.x] = std::max(radii[t.x], r);
-      radii[t.y] = std::max(radii[t.y], r);
-      radii[t.z] = std::max(radii[t.z], r);
+  });
+  if (want_normals) ps.normals.assign(n, glm::vec3(0.0f));
+  if (want_radii) ps.radii.assign(n, 0.0f);
+  if (want_curvature) ps.curvature.assign(n, 0.0f);
+  parallel_for(n, [&](std::size_t b, std::size_t e) {
+    for (std::size_t v = b; v < e; ++v) {
+      glm::vec4 sum(0.0f);
+      Moments ring;
+      const glm::vec3 p = ps.positions[v];
+      for (std::uint32_t j = inc.begin[v]; j < inc.begin[v + 1]; ++j) {
+        const glm::vec4 fq = face[inc.faces[j]];
+        sum = glm::vec4(glm::vec3(sum) + glm::vec3(fq), std::max(sum.w, fq.w));
+        if (want_curvature) {  // the two other corners, relative to the vertex itself
+          const glm::uvec3 t = ps.triangles[inc.faces[j]];
+          for (std::uint32_t q : {t.x, t.y, t.z})
+            if (q != v) ring.add(ps.positions[q] - p);
+        }
+      }
+      if (want_normals) {
+        const float len = glm::length(glm::vec3(sum));
+        ps.normals[v] = len > 1e-30f && std::isfinite(len) ? glm::vec3(sum) / len : glm::vec3(0.0f);
+      }
+      if (want_radii) ps.radii[v] = sum.w;
+      if (want_curvature && ring.count >= 3)
+        ps.curvature[v] = detail::surface_variation(detail::eigen_symmetric(ring.covariance()));
     }
-    if (want_curvature) {
-      // Offsets relative to the vertex itself, so float positions lose nothing.
-      ring[t.x].add(b - a), ring[t.x].add(c - a);
-      ring[t.y].add(a - b), ring[t.y].add(c - b);
-      ring[t.z].add(a - c), ring[t.z].add(b - c);
-    }
-  }
-  if (want_normals) {
-    normalize_normals(normals);
-    ps.normals = std::move(normals);
-  }
-  if (want_radii) {
-    fill_missing_radii(radii);  // vertices outside every face: the typical radius
-    ps.radii = std::move(radii);
-  }
-  if (want_curvature) {
-    ps.curvature.assign(n, 0.0f);
-    parallel_for(n, [&](std::size_t b, std::size_t e) {
-      for (std::size_t i = b; i < e; ++i)
-        if (ring[i].count >= 3)
-          ps.curvature[i] = detail::surface_variation(detail::eigen_symmetric(ring[i].covariance()));
-    });
-  }
+  }, 0, 1024);
+  if (want_radii) fill_missing_radii(ps.radii);  // vertices outside every face: the typical radius
 }
 
 void from_neighbours(PointSet& ps, int k, bool want_normals, bool want_radii, bool want_curvature) {

@@ -48,23 +48,24 @@ struct Range {
 };
 
 int longest_axis(const Item* first, const Item* last) {
-  glm::vec3 lo(INFINITY), hi(-INFINITY);
+  // Plain scalar min/max: the compiler vectorizes this, glm's calls it does not.
+  float lx = INFINITY, ly = INFINITY, lz = INFINITY, hx = -INFINITY, hy = -INFINITY, hz = -INFINITY;
   for (const Item* it = first; it != last; ++it) {
-    lo = glm::min(lo, it->p);
-    hi = glm::max(hi, it->p);
+    lx = std::min(lx, it->p.x), hx = std::max(hx, it->p.x);
+    ly = std::min(ly, it->p.y), hy = std::max(hy, it->p.y);
+    lz = std::min(lz, it->p.z), hz = std::max(hz, it->p.z);
   }
-  const glm::vec3 ext = hi - lo;
-  return ext.x >= ext.y && ext.x >= ext.z ? 0 : (ext.y >= ext.z ? 1 : 2);
+  const float ex = hx - lx, ey = hy - ly, ez = hz - lz;
+  return ex >= ey && ex >= ez ? 0 : (ey >= ez ? 1 : 2);
 }
 
-// Splits [b, e) at its median along the longest axis; ties are broken by the
-// point index so the order is a pure function of the input.
+// Splits [b, e) at its median along the longest axis. One thread owns a range
+// and nth_element is deterministic, so the order is a pure function of the input.
 std::uint32_t split_median(Item* items, std::uint32_t b, std::uint32_t e) {
   const std::uint32_t m = b + (e - b) / 2;
   const int axis = longest_axis(items + b, items + e);
-  std::nth_element(items + b, items + m, items + e, [axis](const Item& l, const Item& r) {
-    return l.p[axis] < r.p[axis] || (l.p[axis] == r.p[axis] && l.index < r.index);
-  });
+  std::nth_element(items + b, items + m, items + e,
+                   [axis](const Item& l, const Item& r) { return l.p[axis] < r.p[axis]; });
   return m;
 }
 
@@ -108,8 +109,9 @@ float cone_priority(float cone_cos) { return clamp01(0.5f * (1.0f - cone_cos)); 
 }  // namespace
 
 glm::i16vec4 pack_normal_cone(glm::vec3 normal, float cone_cos) {
-  auto q = [](float v) {
-    return static_cast<std::int16_t>(std::lround(std::clamp(v, -1.0f, 1.0f) * 32767.0f));
+  auto q = [](float v) {  // round to nearest (lround is a library call, this is not)
+    const float x = std::clamp(v, -1.0f, 1.0f) * 32767.0f;
+    return static_cast<std::int16_t>(x + (x >= 0.0f ? 0.5f : -0.5f));
   };
   // The cone is rounded towards wider (smaller cosine) so it stays conservative.
   const auto c = static_cast<std::int16_t>(

@@ -11,11 +11,13 @@
 namespace treecut::detail {
 
 /// Upper triangle of a symmetric matrix: xx xy xz yy yz zz.
+/// Accumulated in float: callers add offsets relative to the point itself,
+/// so there is no large mean to cancel; the solve below runs in double.
 struct Sym3 {
-  double xx = 0, xy = 0, xz = 0, yy = 0, yz = 0, zz = 0;
-  void add(glm::vec3 d, double w = 1.0) {
-    xx += w * d.x * d.x, xy += w * d.x * d.y, xz += w * d.x * d.z;
-    yy += w * d.y * d.y, yz += w * d.y * d.z, zz += w * d.z * d.z;
+  float xx = 0, xy = 0, xz = 0, yy = 0, yz = 0, zz = 0;
+  void add(glm::vec3 d) {
+    xx += d.x * d.x, xy += d.x * d.y, xz += d.x * d.z;
+    yy += d.y * d.y, yz += d.y * d.z, zz += d.z * d.z;
   }
 };
 
