@@ -190,9 +190,7 @@ void run_render(const RenderArgs& a) {
   if (a.frames < 1) throw InputError("--frames must be at least 1");
   const splat::RenderSettings settings = render_settings(a.scene);  // validates --mode early
   const StrategyRegistry registry = make_registry(a.scene);
-  for (const std::string& name : a.scene.strategies) {
-    (void)make_strategy(registry, name, a.scene.params);  // bad names/params: exit 2 before work
-  }
+  check_params(registry, a.scene.strategies, a.scene.params);  // exit 2 before any work
   const float aspect = float(a.width) / float(a.height);
   splat::CameraPath path;
   if (!a.path.empty()) path = splat::load_camera_path(a.path);

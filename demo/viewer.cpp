@@ -112,6 +112,7 @@ class Viewer {
     glfwSetWindowTitle(window_.handle(), ("treecut - " + scene_.label).c_str());
     strategy_names_ = registry_.names();
     strategy_ = args.scene.strategies.empty() ? "optimization" : args.scene.strategies.front();
+    check_params(registry_, {strategy_}, args.scene.params);
     renderer_ = std::make_unique<splat::Renderer>(*scene_.hierarchy, window_.framebuffer_size());
     fit();
     auto strategy = make_strategy(registry_, strategy_, args.scene.params);

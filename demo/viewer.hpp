@@ -55,10 +55,15 @@ StrategyRegistry make_registry(const SceneArgs& args);
 /// Parses "name=value"; throws InputError.
 std::pair<std::string, double> parse_param(const std::string& text);
 
-/// A strategy with `args.params` applied (parameters the strategy does not
-/// have are an InputError naming them).
+/// A strategy with those of `params` ("name=value") applied that it has;
+/// values out of range are an InputError.
 std::unique_ptr<Strategy> make_strategy(const StrategyRegistry& registry, const std::string& name,
                                         const std::vector<std::string>& params);
+
+/// Throws InputError for an unknown strategy, a parameter no selected strategy
+/// has, or a value out of range.
+void check_params(const StrategyRegistry& registry, const std::vector<std::string>& strategies,
+                  const std::vector<std::string>& params);
 
 splat::RenderSettings render_settings(const SceneArgs& args);
 

@@ -1,4 +1,5 @@
 // Model, strategy and frame set-up shared by `treecut render` and `treecut view`.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <glm/geometric.hpp>
@@ -95,9 +96,31 @@ std::unique_ptr<Strategy> make_strategy(const StrategyRegistry& registry, const 
   std::unique_ptr<Strategy> s = registry.create(name);
   for (const std::string& p : params) {
     const auto [key, value] = parse_param(p);
+    const auto& specs = s->param_specs();
+    // With several strategies (render -s a -s b) a parameter applies to those that have it.
+    if (std::none_of(specs.begin(), specs.end(),
+                     [&](const ParamSpec& ps) { return ps.name == key; })) {
+      continue;
+    }
     s->set_param(key, value);
   }
   return s;
+}
+
+void check_params(const StrategyRegistry& registry, const std::vector<std::string>& strategies,
+                  const std::vector<std::string>& params) {
+  for (const std::string& p : params) {
+    const std::string key = parse_param(p).first;
+    bool known = false;
+    for (const std::string& name : strategies) {
+      const auto specs = registry.create(name)->param_specs();
+      known |= std::any_of(specs.begin(), specs.end(),
+                           [&](const ParamSpec& ps) { return ps.name == key; });
+    }
+    if (!known)
+      throw InputError("--param " + p + ": no selected strategy has a parameter '" + key + "'");
+  }
+  for (const std::string& name : strategies) (void)make_strategy(registry, name, params);
 }
 
 splat::RenderSettings render_settings(const SceneArgs& args) {
