@@ -108,7 +108,8 @@ void add_model_commands(CLI::App& app) {
   gen->callback([gen_args] {
     const ModelKind kind = parse_model_kind(gen_args->kind);
     const std::filesystem::path out =
-        gen_args->out.empty() ? std::filesystem::path("assets") / (gen_args->kind + ".ply") : gen_args->out;
+        gen_args->out.empty() ? std::filesystem::path("assets") / (gen_args->kind + ".ply")
+                              : std::filesystem::path(gen_args->out);
     PointSet ps = generate_model(kind, gen_args->points, gen_args->seed);
     if (out.has_parent_path()) std::filesystem::create_directories(out.parent_path());
     save_ply(out, ps);
