@@ -13,16 +13,16 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct Run {
+struct CliRun {
   int code = -1;
   std::string out;
 };
 
 // Runs the treecut program with the given arguments (shell-quoted by the caller).
-Run treecut(const std::string& args) {
+CliRun run_treecut(const std::string& args) {
   const fs::path bin = fs::path(TREECUT_BINARY_DIR) / "demo" / "treecut";
   const std::string cmd = "'" + bin.string() + "' " + args + " 2>&1";
-  Run r;
+  CliRun r;
   FILE* p = popen(cmd.c_str(), "r");
   if (!p) return r;
   std::array<char, 4096> buf;
@@ -38,29 +38,29 @@ std::string quote(const fs::path& p) { return "'" + p.string() + "'"; }
 
 TEST(Cli, HelpWorksForEveryCommand) {
   for (const char* c : {"", "build", "info", "gen", "bench build"}) {
-    const Run r = treecut(std::string(c) + " --help");
+    const CliRun r = run_treecut(std::string(c) + " --help");
     EXPECT_EQ(r.code, 0) << c << "\n" << r.out;
     EXPECT_NE(r.out.find("Usage"), std::string::npos) << c;
   }
 }
 
 TEST(Cli, UsageErrorsExitWithTwo) {
-  EXPECT_EQ(treecut("").code, 2);
-  EXPECT_EQ(treecut("no-such-command").code, 2);
-  EXPECT_EQ(treecut("build").code, 2) << "missing MODEL";
-  EXPECT_EQ(treecut("gen pyramid -o /tmp/x.ply").code, 2) << "unknown kind";
+  EXPECT_EQ(run_treecut("").code, 2);
+  EXPECT_EQ(run_treecut("no-such-command").code, 2);
+  EXPECT_EQ(run_treecut("build").code, 2) << "missing MODEL";
+  EXPECT_EQ(run_treecut("gen pyramid -o /tmp/x.ply").code, 2) << "unknown kind";
 }
 
 TEST(Cli, GenBuildInfoRoundTrip) {
   const fs::path dir = treecut::test::scratch_dir("cli_gen");
-  Run r = treecut("gen terrain -n 20000 -o " + quote(dir / "t.ply"));
+  CliRun r = run_treecut("gen terrain -n 20000 -o " + quote(dir / "t.ply"));
   ASSERT_EQ(r.code, 0) << r.out;
   ASSERT_TRUE(fs::exists(dir / "t.ply"));
-  r = treecut("build " + quote(dir / "t.ply") + " -o " + quote(dir / "t.tch"));
+  r = run_treecut("build " + quote(dir / "t.ply") + " -o " + quote(dir / "t.tch"));
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("points      20000"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("build time"), std::string::npos) << r.out;
-  r = treecut("info " + quote(dir / "t.tch"));
+  r = run_treecut("info " + quote(dir / "t.tch"));
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("points      20000"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("from cache"), std::string::npos) << r.out;
@@ -78,7 +78,7 @@ TEST(Cli, MalformedPlyExitsWithTwoAndWritesNothing) {
     if (tab == std::string::npos || line.find("\terror\t") == std::string::npos) continue;
     const std::string file = line.substr(0, tab);
     const fs::path out = dir / (file + ".tch");
-    const Run r = treecut("build " + quote(*shared / "ply-corpus" / file) + " -o " + quote(out));
+    const CliRun r = run_treecut("build " + quote(*shared / "ply-corpus" / file) + " -o " + quote(out));
     EXPECT_EQ(r.code, 2) << file << "\n" << r.out;
     EXPECT_NE(r.out.find(file), std::string::npos) << "the message names the file: " << r.out;
     EXPECT_FALSE(fs::exists(out)) << file;
