@@ -6,6 +6,11 @@
 #include <cmath>
 
 namespace treecut::strategies {
+namespace {
+
+constexpr std::size_t kPrefetch = 16;  // nodes ahead, enough to cover a DRAM miss
+
+}  // namespace
 
 BucketStrategy::BucketStrategy(BucketFunction function)
     : Strategy({
@@ -64,6 +69,13 @@ void BucketStrategy::iterate(const IterationInput& input, IterationOutput& outpu
       break;
     }
     const NodeId n = nodes[i];
+    // The cut is unordered, so every node is a cache miss: fetch ahead.
+    if (i + kPrefetch < nodes.size()) {
+      const NodeId ahead = nodes[i + kPrefetch];
+      __builtin_prefetch(&a.center_radius[ahead]);
+      __builtin_prefetch(&a.normal_cone[ahead]);
+      __builtin_prefetch(&a.depth[ahead]);
+    }
     const int depth = a.depth[n];
     const int delta = bucket(h, view, n) - depth;
     if (delta > 0 && a.child_count[n] != 0) refine_.push_back(n);  // '+' in figure 4
@@ -71,11 +83,12 @@ void BucketStrategy::iterate(const IterationInput& input, IterationOutput& outpu
     // A sibling group is judged once, at its first child: every sibling must
     // ask for a coarse ('-'), and the parent's own delta must not be positive
     // ('?' in figure 4), else the parent would be refined again next time.
+    if (delta + threshold >= 0) continue;  // this node does not ask for a coarse
     const NodeId parent = a.parent[n];
     if (parent == kNoNode || a.first_child[parent] != n || !cut.can_coarsen(h, parent)) continue;
     bool all_negative = true;
-    for (NodeId c = n; c < n + a.child_count[parent]; ++c) {
-      const int dc = (c == n ? delta : bucket(h, view, c) - depth);
+    for (NodeId c = n + 1; c < n + a.child_count[parent]; ++c) {
+      const int dc = bucket(h, view, c) - depth;
       if (dc + threshold >= 0) {
         all_negative = false;
         break;

@@ -3,6 +3,8 @@
 // "QSplat: A Multiresolution Point Rendering System for Large Meshes", 2000).
 #include "treecut/strategies/recursive.hpp"
 
+#include <cmath>
+
 namespace treecut::strategies {
 namespace {
 
@@ -41,10 +43,16 @@ void RecursiveStrategy::iterate(const IterationInput& input, IterationOutput& ou
     out.push_back(n);
     hash = (hash ^ n) * kFnvPrime;
   };
+  // Hierarchical frustum culling: a sphere completely inside a plane's half
+  // space keeps its descendants inside it too, so the plane is not tested
+  // again below it.
+  constexpr std::uint32_t kAllPlanes = 0x3f;
+  const float pixel_scale = view.derived.pixel_scale;
+  const glm::vec3 eye = view.derived.eye;
   stack_.clear();
-  stack_.push_back(h.root());
+  stack_.push_back({h.root(), kAllPlanes});
   while (!stack_.empty()) {
-    const NodeId n = stack_.back();
+    const auto [n, planes_in] = stack_.back();
     stack_.pop_back();
     ++r.visited;
     if ((r.visited & 4095) == 0 && input.cancelled()) {
@@ -52,17 +60,30 @@ void RecursiveStrategy::iterate(const IterationInput& input, IterationOutput& ou
       // them all keeps the cut complete.
       r.cancelled = true;
       emit(n);
-      for (const NodeId s : stack_) emit(s);
+      for (const Pending& p : stack_) emit(p.node);
       break;
     }
     const glm::vec4 cr = a.center_radius[n];
     const glm::vec3 c(cr);
-    if (view.outside_frustum(c, cr.w)) {
+    std::uint32_t planes = planes_in;
+    bool outside = false;
+    for (std::uint32_t i = 0; i < 6 && planes != 0; ++i) {
+      if ((planes & (1u << i)) == 0) continue;
+      const Plane& pl = view.derived.frustum[i];
+      const float d = pl.x * c.x + pl.y * c.y + pl.z * c.z + pl.w;
+      if (d < -cr.w) {
+        outside = true;
+        break;
+      }
+      if (d > cr.w) planes &= ~(1u << i);
+    }
+    if (outside) {
       ++r.culled;
       emit(n);
       continue;
     }
-    if (backface && view.backfacing(c, cr.w, h.normal(n), h.cone_cos(n))) {
+    if (backface && a.normal_cone[n].w > 0 &&
+        view.backfacing(c, cr.w, h.normal(n), h.cone_cos(n))) {
       ++r.backfacing;
       emit(n);
       continue;
@@ -72,14 +93,23 @@ void RecursiveStrategy::iterate(const IterationInput& input, IterationOutput& ou
       emit(n);
       continue;
     }
-    if (view.projected_radius_px(c, cr.w) < min_size) {
+    // Projected radius as in ViewSnapshot::projected_radius_px, with the
+    // division turned into a multiplication.
+    const glm::vec3 d = c - eye;
+    const float dist = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z) - cr.w;
+    const bool small = view.derived.perspective ? cr.w * pixel_scale < min_size * dist
+                                                : cr.w * pixel_scale < min_size;
+    if (small) {
       ++r.too_small;
       emit(n);
       continue;
     }
     // Reverse order so the first child is traversed first (deterministic order).
     const NodeId first = a.first_child[n];
-    for (unsigned i = children; i-- > 0;) stack_.push_back(first + i);
+    __builtin_prefetch(&a.center_radius[first]);  // siblings share one or two lines
+    __builtin_prefetch(&a.normal_cone[first]);
+    __builtin_prefetch(&a.first_child[first]);
+    for (unsigned i = children; i-- > 0;) stack_.push_back({first + i, planes});
   }
   r.cut_size = out.size();
   r.converged = !r.cancelled && hash == last_hash_ && out.size() == last_size_;

@@ -26,7 +26,11 @@ class RecursiveStrategy final : public Strategy {
   void iterate(const IterationInput& input, IterationOutput& output) override;
 
  private:
-  std::vector<NodeId> stack_;  // scratch
+  struct Pending {
+    NodeId node;
+    std::uint32_t planes;  // frustum planes the node's ancestors did not clear
+  };
+  std::vector<Pending> stack_;  // scratch
   std::uint64_t last_hash_ = 0;
   std::size_t last_size_ = 0;
 };
