@@ -36,6 +36,20 @@ void keep_best(std::vector<std::pair<float, NodeId>>& heap, std::size_t k,
   }
 }
 
+// The body of OptimizationStrategy::priority, inlined into the hot loop.
+[[gnu::always_inline]] inline float view_priority(const HierarchyArrays& a,
+                                                  const ViewSnapshot& view, NodeId n,
+                                                  float curvature_weight, float& size) {
+  const glm::vec4 cr = a.center_radius[n];
+  const glm::vec3 c(cr);
+  if (view.outside_frustum(c, cr.w)) {
+    size = 0.0f;
+    return 0.0f;
+  }
+  size = view.projected_radius_px(c, cr.w);
+  return size * ((1.0f - curvature_weight) + curvature_weight * a.priority[n]);
+}
+
 }  // namespace
 
 OptimizationStrategy::OptimizationStrategy()
@@ -59,15 +73,10 @@ void OptimizationStrategy::reset(const Hierarchy& hierarchy) {
 
 float OptimizationStrategy::priority(const Hierarchy& h, const ViewSnapshot& view, NodeId n,
                                      float curvature_weight, float* size_px) {
-  const glm::vec4 cr = h.arrays().center_radius[n];
-  const glm::vec3 c(cr);
-  if (view.outside_frustum(c, cr.w)) {
-    if (size_px != nullptr) *size_px = 0.0f;
-    return 0.0f;
-  }
-  const float size = view.projected_radius_px(c, cr.w);
+  float size = 0.0f;
+  const float p = view_priority(h.arrays(), view, n, curvature_weight, size);
   if (size_px != nullptr) *size_px = size;
-  return size * ((1.0f - curvature_weight) + curvature_weight * h.arrays().priority[n]);
+  return p;
 }
 
 void OptimizationStrategy::iterate(const IterationInput& input, IterationOutput& output) {
@@ -124,7 +133,7 @@ void OptimizationStrategy::iterate(const IterationInput& input, IterationOutput&
       __builtin_prefetch(&a.parent[ahead]);
     }
     float size = 0.0f;
-    const float p = priority(h, view, n, weight, &size);
+    const float p = view_priority(a, view, n, weight, size);
     if (a.child_count[n] != 0 && size >= min_size) {
       if (refine_blocked(n)) {
         ++r.blocked;
@@ -138,7 +147,8 @@ void OptimizationStrategy::iterate(const IterationInput& input, IterationOutput&
     const NodeId parent = a.parent[n];
     if (parent == kNoNode || a.first_child[parent] != n) continue;
     // Rank before the coarsenability test, which touches the cut's slot map.
-    const Candidate c{priority(h, view, parent, weight), parent};
+    float parent_size = 0.0f;
+    const Candidate c{view_priority(a, view, parent, weight, parent_size), parent};
     if (low_.size() == k && !higher(c, low_.front())) continue;
     if (!cut.can_coarsen(h, parent)) continue;
     if (coarsen_blocked(parent)) {
