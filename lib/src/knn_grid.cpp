@@ -1,6 +1,7 @@
 #include "knn_grid.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <glm/common.hpp>
 #include <numeric>
@@ -105,22 +106,34 @@ const KnnGrid::Cell* KnnGrid::find(std::uint64_t key) const {
   }
 }
 
-void KnnGrid::gather(glm::ivec3 c, std::vector<glm::vec3>& p, std::vector<std::uint32_t>& idx) const {
-  p.clear();
-  idx.clear();
-  for (int dz = -1; dz <= 1; ++dz)
-    for (int dy = -1; dy <= 1; ++dy)
-      for (int dx = -1; dx <= 1; ++dx) {
-        const glm::ivec3 cc = c + glm::ivec3(dx, dy, dz);
-        if (glm::any(glm::lessThan(cc, glm::ivec3(0))) || glm::any(glm::greaterThanEqual(cc, dims_))) continue;
-        const Cell* cell = find(key_of(cc));
-        if (!cell) continue;
-        const std::uint32_t end = std::min(cell->end, cell->begin + kMaxScanPerCell);
-        for (std::uint32_t j = cell->begin; j < end; ++j) {
-          p.push_back(points_[order_[j]]);
-          idx.push_back(order_[j]);
-        }
-      }
+// The 27 offsets of a cell's neighbourhood, nearest first: the cell, its 6
+// faces, 12 edges and 8 corners.
+constexpr std::array<std::array<int, 3>, 27> kNeighbourhood = [] {
+  std::array<std::array<int, 3>, 27> out{};
+  int n = 0;
+  for (int ring = 0; ring <= 3; ++ring)
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx)
+          if ((dx != 0) + (dy != 0) + (dz != 0) == ring) out[static_cast<std::size_t>(n++)] = {dx, dy, dz};
+  return out;
+}();
+
+void KnnGrid::gather(glm::ivec3 c, Candidates& out) const {
+  out.x.clear(), out.y.clear(), out.z.clear(), out.index.clear();
+  for (const auto& o : kNeighbourhood) {
+    const glm::ivec3 cc = c + glm::ivec3(o[0], o[1], o[2]);
+    if (glm::any(glm::lessThan(cc, glm::ivec3(0))) || glm::any(glm::greaterThanEqual(cc, dims_))) continue;
+    const Cell* cell = find(key_of(cc));
+    if (!cell) continue;
+    const std::uint32_t end = std::min(cell->end, cell->begin + kMaxScanPerCell);
+    for (std::uint32_t j = cell->begin; j < end; ++j) {
+      const glm::vec3 p = points_[order_[j]];
+      out.x.push_back(p.x), out.y.push_back(p.y), out.z.push_back(p.z);
+      out.index.push_back(order_[j]);
+    }
+  }
+  out.d2.resize(out.x.size());
 }
 
 float KnnGrid::reach(glm::vec3 p, glm::ivec3 c, int r) const {
@@ -136,21 +149,33 @@ float KnnGrid::reach(glm::vec3 p, glm::ivec3 c, int r) const {
   return std::min({m.x, m.y, m.z});
 }
 
-int KnnGrid::top_k(glm::vec3 q, std::uint32_t self, int k, const glm::vec3* cand_p,
-                   const std::uint32_t* cand_i, std::size_t n, std::uint32_t* index, float* dist2) {
+int KnnGrid::top_k(glm::vec3 q, std::uint32_t self, int k, Candidates& c, std::uint32_t* index,
+                   float* dist2) {
+  const std::size_t n = c.x.size();
+  const float* __restrict x = c.x.data();
+  const float* __restrict y = c.y.data();
+  const float* __restrict z = c.z.data();
+  float* __restrict d2 = c.d2.data();
+  for (std::size_t j = 0; j < n; ++j) {  // vectorized
+    const float dx = x[j] - q.x, dy = y[j] - q.y, dz = z[j] - q.z;
+    d2[j] = dx * dx + dy * dy + dz * dz;
+  }
+  // Candidates come nearest cells first (see gather), so the bound tightens
+  // early and most later candidates are rejected by one comparison.
   int found = 0;
+  float worst = INFINITY;  // dist2[k - 1] once k are found
   for (std::size_t j = 0; j < n; ++j) {
-    const glm::vec3 d = cand_p[j] - q;
-    const float d2 = d.x * d.x + d.y * d.y + d.z * d.z;
-    if ((found == k && d2 >= dist2[k - 1]) || cand_i[j] == self) continue;
+    const float d = d2[j];
+    if (d >= worst || c.index[j] == self) continue;
     int pos = found < k ? found++ : k - 1;
-    while (pos > 0 && dist2[pos - 1] > d2) {
+    while (pos > 0 && dist2[pos - 1] > d) {
       dist2[pos] = dist2[pos - 1];
       index[pos] = index[pos - 1];
       --pos;
     }
-    dist2[pos] = d2;
-    index[pos] = cand_i[j];
+    dist2[pos] = d;
+    index[pos] = c.index[j];
+    if (found == k) worst = dist2[k - 1];
   }
   return found;
 }

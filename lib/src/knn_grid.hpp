@@ -41,12 +41,18 @@ class KnnGrid {
   const Cell* find(std::uint64_t key) const;
   void bucket(float cell_size);
 
+  // Candidates gathered from the 27 cells around one cell, structure of
+  // arrays so that the distance loop vectorizes.
+  struct Candidates {
+    std::vector<float> x, y, z, d2;
+    std::vector<std::uint32_t> index;
+  };
   // Exact top-k over gathered candidates; returns how many were found.
-  static int top_k(glm::vec3 q, std::uint32_t self, int k, const glm::vec3* cand_p,
-                   const std::uint32_t* cand_i, std::size_t n, std::uint32_t* index, float* dist2);
+  static int top_k(glm::vec3 q, std::uint32_t self, int k, Candidates& c, std::uint32_t* index,
+                   float* dist2);
   // Distance from p to the outside of the cube of cells within `r` of its cell.
   float reach(glm::vec3 p, glm::ivec3 cell, int r) const;
-  void gather(glm::ivec3 cell, std::vector<glm::vec3>& p, std::vector<std::uint32_t>& i) const;
+  void gather(glm::ivec3 cell, Candidates& c) const;
 
   std::span<const glm::vec3> points_;
   glm::vec3 origin_{0.0f};
@@ -63,17 +69,16 @@ template <class Fn>
 void KnnGrid::for_each_knn(int k, Fn&& fn) const {
   const auto kk = static_cast<std::size_t>(std::max(k, 1));
   parallel_for(runs_.size(), [&](std::size_t b, std::size_t e) {
-    std::vector<glm::vec3> cand_p;
-    std::vector<std::uint32_t> cand_i;
+    Candidates cand;
     std::vector<std::uint32_t> index(kk);
     std::vector<float> dist2(kk);
     for (std::size_t c = b; c < e; ++c) {
       const Cell& run = runs_[c];
       const glm::ivec3 cell = cell_of(points_[order_[run.begin]]);
-      gather(cell, cand_p, cand_i);
+      gather(cell, cand);
       for (std::uint32_t j = run.begin; j < run.end; ++j) {
         const std::uint32_t i = order_[j];
-        int found = top_k(points_[i], i, k, cand_p.data(), cand_i.data(), cand_p.size(), index.data(), dist2.data());
+        int found = top_k(points_[i], i, k, cand, index.data(), dist2.data());
         const float r = reach(points_[i], cell, 1);
         if (found < k || dist2[kk - 1] > r * r) found = query(i, k, index.data(), dist2.data());
         fn(i, found, static_cast<const std::uint32_t*>(index.data()), static_cast<const float*>(dist2.data()));
