@@ -268,44 +268,60 @@ struct StripSink {
   }
 };
 
+// The elements load_ply uses, by index into Header::elements.
+struct Elements {
+  std::size_t vertex = 0;
+  int face = -1;    ///< "face" with an index list, or -1
+  int strips = -1;  ///< "tristrips" with an index list, or -1
+  VertexRoles roles;
+};
+
+// Everything the read needs: OpenMesh's input, the transcoded body it may
+// point into, and what we read ourselves because OpenMesh does not.
+struct Plan {
+  ply::OpenMeshInput input;
+  std::string vertex_bytes;  ///< transcoded vertex rows (unused when direct)
+  std::string face_bytes;    ///< transcoded face rows (unused when direct)
+  std::vector<float> radii;
+  std::vector<glm::u8vec4> colors;  ///< colours OpenMesh does not read, or empty
+  StripSink strips;
+};
+
 // The canonical body for OpenMesh when it cannot read the file's own:
 // little-endian float positions (and normals), uchar colours, faces as
-// "list int int". Values we read ourselves (radius) are kept aside.
+// "list int int". Radii go straight to the plan.
 struct Transcoder {
   const Element& vertex;
-  VertexRoles roles;
-  int face_indices = -1;  ///< index list of the face element, or -1
-  std::string vertex_bytes;
-  std::string face_bytes;
+  const VertexRoles& roles;
+  int face_indices;  ///< index list of the face element, or -1
+  Plan& plan;
   std::size_t vertex_rows = 0;
   std::size_t face_rows = 0;
-  std::vector<float> radii;
 
   void vertex_row(const Row& row) {
-    for (int p : {roles.x, roles.y, roles.z}) append_le(vertex_bytes, ply::to_float(row.scalar(p)));
+    std::string& out = plan.vertex_bytes;
+    for (int p : {roles.x, roles.y, roles.z}) append_le(out, ply::to_float(row.scalar(p)));
     if (roles.normals()) {
-      for (int p : {roles.nx, roles.ny, roles.nz}) {
-        append_le(vertex_bytes, ply::to_float(row.scalar(p)));
-      }
+      for (int p : {roles.nx, roles.ny, roles.nz}) append_le(out, ply::to_float(row.scalar(p)));
     }
     if (roles.colors()) {
       for (int p : {roles.red, roles.green, roles.blue}) {
-        append_le(vertex_bytes, ply::color_channel(row.scalar(p), property(vertex, p).type));
+        append_le(out, ply::color_channel(row.scalar(p), property(vertex, p).type));
       }
     }
-    if (roles.radius >= 0) radii.push_back(ply::to_float(row.scalar(roles.radius)));
+    if (roles.radius >= 0) plan.radii.push_back(ply::to_float(row.scalar(roles.radius)));
     ++vertex_rows;
   }
 
   void face_row(const Row& row) {
     const auto p = static_cast<std::size_t>(face_indices);
-    append_le(face_bytes, static_cast<std::int32_t>(row.size[p]));
+    append_le(plan.face_bytes, static_cast<std::int32_t>(row.size[p]));
     for (std::size_t k = 0; k < row.size[p]; ++k) {
       const double v = row.values[row.first[p] + k];
       // Anything that is not a vertex index becomes -1, which the importer
       // counts as out of range.
       const bool index = v >= 0 && v <= std::numeric_limits<std::int32_t>::max();
-      append_le(face_bytes, index ? static_cast<std::int32_t>(v) : std::int32_t{-1});
+      append_le(plan.face_bytes, index ? static_cast<std::int32_t>(v) : std::int32_t{-1});
     }
     ++face_rows;
   }
@@ -380,29 +396,27 @@ std::pair<std::size_t, std::size_t> drop_nonfinite(PointSet& points) {
   return {bad, faces - faces_kept};
 }
 
-PointSet load(std::string_view file, const Warnings& warn, PlyLoadReport& report) {
-  const Header header = ply::parse_header(file);
-  const bool binary = header.format != Format::ascii;
-  const bool big_endian = header.format == Format::binary_big_endian;
-  const auto vertex_index = static_cast<std::size_t>(header.find("vertex"));
-  const Element& vertex = header.elements[vertex_index];
-
-  // Validate the body size before anything is sized from the header.
-  ply::BinaryLayout layout;
-  if (binary) {
-    layout = ply::binary_layout(header, file);
-  } else {
+// Binary: the exact layout, walked byte for byte. Ascii: a capacity bound
+// (every token is checked later, while transcoding). Either way nothing is
+// sized from a header count before this has passed.
+ply::BinaryLayout validate_body(const Header& header, std::string_view file) {
+  if (header.format == Format::ascii) {
     ply::check_ascii_capacity(header, file);
+    return {};
   }
+  return ply::binary_layout(header, file);
+}
+
+Elements classify(const Header& header, const Warnings& warn) {
+  Elements elements;
+  elements.vertex = static_cast<std::size_t>(header.find("vertex"));
+  const Element& vertex = header.elements[elements.vertex];
   if (vertex.count > static_cast<std::uint64_t>(std::numeric_limits<std::int32_t>::max())) {
     // OpenMesh's vertex handles and our triangle indices are 32-bit.
     throw ply::Error("too many vertices (" + std::to_string(vertex.count) + ")");
   }
-  const auto vertex_count = static_cast<std::size_t>(vertex.count);
+  elements.roles = find_roles(vertex, warn);
 
-  const VertexRoles roles = find_roles(vertex, warn);
-  int face = -1;
-  int strips = -1;
   // One warning for all ignored elements, naming the first few: a header may
   // declare thousands.
   constexpr std::size_t kNamed = 4;
@@ -410,12 +424,12 @@ PointSet load(std::string_view file, const Warnings& warn, PlyLoadReport& report
   std::size_t ignored_count = 0;
   for (std::size_t e = 0; e < header.elements.size(); ++e) {
     const Element& element = header.elements[e];
-    if (e == vertex_index) continue;
+    if (e == elements.vertex) continue;
     const bool has_indices = index_property(element) >= 0;
     if (element.name == "face" && has_indices) {
-      face = static_cast<int>(e);
+      elements.face = static_cast<int>(e);
     } else if (element.name == "tristrips" && has_indices) {
-      strips = static_cast<int>(e);
+      elements.strips = static_cast<int>(e);
     } else if (++ignored_count <= kNamed) {
       if (!ignored.empty()) ignored += ", ";
       ignored +=
@@ -425,123 +439,138 @@ PointSet load(std::string_view file, const Warnings& warn, PlyLoadReport& report
           ")";
     }
   }
+  if (ignored_count > kNamed) ignored += " and " + std::to_string(ignored_count - kNamed) + " more";
   if (ignored_count > 0) {
-    if (ignored_count > kNamed)
-      ignored += " and " + std::to_string(ignored_count - kNamed) + " more";
     warn(std::string(ignored_count > 1 ? "ignoring elements " : "ignoring element ") + ignored);
   }
+  return elements;
+}
 
-  report.vertices_in_file = vertex_count;
-  report.had_normals = roles.normals();
-  report.had_colors = roles.colors();
-  report.had_radius = roles.radius >= 0;
+std::string_view element_bytes(std::string_view file, const ply::BinaryLayout& layout,
+                               std::size_t element) {
+  const ply::Range range = layout.elements[element];
+  return file.substr(range.begin, range.end - range.begin);
+}
 
-  PointSet points;
-  StripSink strip_sink;
-  strip_sink.vertices = vertex_count;
-  ply::OpenMeshInput input;
-  std::vector<float> radii;
-  std::vector<glm::u8vec4> own_colors;
-  Transcoder transcoder{vertex, roles, -1, {}, {}, 0, 0, {}};
+// OpenMesh reads the file's own vertex and face bytes; we read radius,
+// non-uchar colours and tristrips from the same validated ranges.
+void plan_direct(const Header& header, const ply::BinaryLayout& layout, std::string_view file,
+                 const Elements& elements, Plan& plan) {
+  const Element& vertex = header.elements[elements.vertex];
+  const VertexRoles& roles = elements.roles;
+  const bool big_endian = header.format == Format::binary_big_endian;
+  const bool u8_colors = colors_are_u8(vertex, roles);
+  const std::string_view vertex_bytes = element_bytes(file, layout, elements.vertex);
+  const auto vertex_count = static_cast<std::size_t>(vertex.count);
 
-  if (openmesh_reads_directly(header, roles, face)) {
-    const bool u8_colors = colors_are_u8(vertex, roles);
-    input.header = direct_header(header, roles, u8_colors, face);
-    const ply::Range v = layout.elements[vertex_index];
-    input.body.push_back(file.substr(v.begin, v.end - v.begin));
-    input.vertices = vertex_count;
-    if (face >= 0) {
-      const ply::Range f = layout.elements[static_cast<std::size_t>(face)];
-      input.body.push_back(file.substr(f.begin, f.end - f.begin));
-      input.faces = static_cast<std::size_t>(header.elements[static_cast<std::size_t>(face)].count);
-    }
-    input.normals = roles.normals();
-    input.colors = u8_colors;
+  ply::OpenMeshInput& input = plan.input;
+  input.header = direct_header(header, roles, u8_colors, elements.face);
+  input.body.push_back(vertex_bytes);
+  input.vertices = vertex_count;
+  if (elements.face >= 0) {
+    const auto face = static_cast<std::size_t>(elements.face);
+    input.body.push_back(element_bytes(file, layout, face));
+    input.faces = static_cast<std::size_t>(header.elements[face].count);
+  }
+  input.normals = roles.normals();
+  input.colors = u8_colors;
 
-    const std::string_view vertex_bytes = input.body.front();
-    if (roles.radius >= 0) {
-      radii.resize(vertex_count);
-      for_each_fixed(vertex_bytes, vertex, roles.radius, big_endian,
-                     [&](std::size_t i, double r) { radii[i] = ply::to_float(r); });
+  if (roles.radius >= 0) {
+    plan.radii.resize(vertex_count);
+    for_each_fixed(vertex_bytes, vertex, roles.radius, big_endian,
+                   [&](std::size_t i, double r) { plan.radii[i] = ply::to_float(r); });
+  }
+  if (roles.colors() && !u8_colors) {
+    plan.colors.assign(vertex_count, glm::u8vec4(0, 0, 0, 255));
+    const std::array<int, 3> channels{roles.red, roles.green, roles.blue};
+    for (std::size_t c = 0; c < 3; ++c) {
+      const Type type = property(vertex, channels[c]).type;
+      for_each_fixed(vertex_bytes, vertex, channels[c], big_endian, [&](std::size_t i, double x) {
+        plan.colors[i][static_cast<glm::length_t>(c)] = ply::color_channel(x, type);
+      });
     }
-    if (roles.colors() && !u8_colors) {
-      own_colors.assign(vertex_count, glm::u8vec4(0, 0, 0, 255));
-      const std::array<int, 3> channels{roles.red, roles.green, roles.blue};
-      for (std::size_t c = 0; c < 3; ++c) {
-        const Type type = property(vertex, channels[c]).type;
-        for_each_fixed(vertex_bytes, vertex, channels[c], big_endian, [&](std::size_t i, double x) {
-          own_colors[i][static_cast<glm::length_t>(c)] = ply::color_channel(x, type);
-        });
-      }
-    }
-    if (strips >= 0) {
-      const Element& element = header.elements[static_cast<std::size_t>(strips)];
-      const ply::Range s = layout.elements[static_cast<std::size_t>(strips)];
-      ply::BinaryRows rows(element, file.substr(s.begin, s.end - s.begin), big_endian);
-      Row row;
-      for (std::uint64_t r = 0; r < element.count; ++r) {
-        rows.next(row);
-        strip_sink.row(row, index_property(element));
-      }
-    }
-  } else {
-    // Reserve only what the validated body can hold: binary counts were
-    // checked byte for byte, ascii counts against the token capacity.
-    constexpr std::size_t kCanonicalVertexBytes = 27;
-    transcoder.vertex_bytes.reserve(vertex_count * kCanonicalVertexBytes);
-    if (roles.radius >= 0) transcoder.radii.reserve(vertex_count);
-    if (face >= 0) {
-      transcoder.face_indices = index_property(header.elements[static_cast<std::size_t>(face)]);
-    }
-
-    ply::AsciiRows ascii(file, header);
+  }
+  if (elements.strips >= 0) {
+    const auto strips = static_cast<std::size_t>(elements.strips);
+    const Element& element = header.elements[strips];
+    ply::BinaryRows rows(element, element_bytes(file, layout, strips), big_endian);
     Row row;
-    for (std::size_t e = 0; e < header.elements.size(); ++e) {
-      const Element& element = header.elements[e];
-      const bool wanted =
-          e == vertex_index || static_cast<int>(e) == face || static_cast<int>(e) == strips;
-      if (binary && !wanted) continue;
-      std::optional<ply::BinaryRows> rows;
-      if (binary) {
-        const ply::Range range = layout.elements[e];
-        rows.emplace(element, file.substr(range.begin, range.end - range.begin), big_endian);
-      }
-      for (std::uint64_t r = 0; r < element.count; ++r) {
-        if (!wanted) {
-          ascii.skip(element, r);
-          continue;
-        }
-        if (rows) {
-          rows->next(row);
-        } else {
-          ascii.next(element, r, row);
-        }
-        if (e == vertex_index) {
-          transcoder.vertex_row(row);
-        } else if (static_cast<int>(e) == face) {
-          transcoder.face_row(row);
-        } else {
-          strip_sink.row(row, index_property(element));
-        }
-      }
+    for (std::uint64_t r = 0; r < element.count; ++r) {
+      rows.next(row);
+      plan.strips.row(row, index_property(element));
     }
-    if (!binary) {
-      if (std::size_t lines = ascii.trailing_lines(); lines > 0) {
-        warn("ignoring " + plural(lines, "line") + " after the last element");
-      }
-    }
-    input.header = transcoder.header();
-    input.body = {transcoder.vertex_bytes, transcoder.face_bytes};
-    input.vertices = transcoder.vertex_rows;
-    input.faces = transcoder.face_rows;
-    input.normals = roles.normals();
-    input.colors = roles.colors();
-    radii = std::move(transcoder.radii);
   }
-  if (binary && layout.trailing_bytes > 0) {
-    warn("ignoring " + plural(layout.trailing_bytes, "byte") + " after the last element");
+}
+
+// Decodes every row we need (ascii: every row, each token checked) and
+// writes the canonical body OpenMesh then reads.
+void plan_transcoded(const Header& header, const ply::BinaryLayout& layout, std::string_view file,
+                     const Elements& elements, const Warnings& warn, Plan& plan) {
+  const bool binary = header.format != Format::ascii;
+  const bool big_endian = header.format == Format::binary_big_endian;
+  const Element& vertex = header.elements[elements.vertex];
+  const int face_indices =
+      elements.face >= 0 ? index_property(header.elements[static_cast<std::size_t>(elements.face)])
+                         : -1;
+  Transcoder transcoder{vertex, elements.roles, face_indices, plan};
+
+  // Reserve only what the validated body can hold: binary counts were
+  // checked byte for byte, ascii counts against the token capacity.
+  constexpr std::size_t kCanonicalVertexBytes = 27;
+  const auto vertex_count = static_cast<std::size_t>(vertex.count);
+  plan.vertex_bytes.reserve(vertex_count * kCanonicalVertexBytes);
+  if (elements.roles.radius >= 0) plan.radii.reserve(vertex_count);
+
+  ply::AsciiRows ascii(file, header);
+  Row row;
+  for (std::size_t e = 0; e < header.elements.size(); ++e) {
+    const Element& element = header.elements[e];
+    const bool is_face = static_cast<int>(e) == elements.face;
+    const bool is_strips = static_cast<int>(e) == elements.strips;
+    const bool wanted = e == elements.vertex || is_face || is_strips;
+    // A binary element we do not want was validated by the layout walk.
+    if (binary && !wanted) continue;
+    std::optional<ply::BinaryRows> rows;
+    if (binary) rows.emplace(element, element_bytes(file, layout, e), big_endian);
+    for (std::uint64_t r = 0; r < element.count; ++r) {
+      if (!wanted) {
+        ascii.skip(element, r);
+        continue;
+      }
+      if (rows) {
+        rows->next(row);
+      } else {
+        ascii.next(element, r, row);
+      }
+      if (is_face) {
+        transcoder.face_row(row);
+      } else if (is_strips) {
+        plan.strips.row(row, index_property(element));
+      } else {
+        transcoder.vertex_row(row);
+      }
+    }
+  }
+  if (!binary) {
+    if (std::size_t lines = ascii.trailing_lines(); lines > 0) {
+      warn("ignoring " + plural(lines, "line") + " after the last element");
+    }
   }
 
+  ply::OpenMeshInput& input = plan.input;
+  input.header = transcoder.header();
+  input.body = {plan.vertex_bytes, plan.face_bytes};
+  input.vertices = transcoder.vertex_rows;
+  input.faces = transcoder.face_rows;
+  input.normals = elements.roles.normals();
+  input.colors = elements.roles.colors();
+}
+
+// Runs OpenMesh, checks that it read exactly the rows it was given, and adds
+// what we read ourselves.
+PointSet read_plan(Plan& plan, const Warnings& warn, PlyLoadReport& report) {
+  PointSet points;
+  const ply::OpenMeshInput& input = plan.input;
   const ply::OpenMeshResult read = ply::read_with_openmesh(input, points);
   if (!read.reader_ok || read.vertices_read != input.vertices || read.faces_read != input.faces) {
     throw ply::Error("OpenMesh read " + std::to_string(read.vertices_read) + " of " +
@@ -549,20 +578,25 @@ PointSet load(std::string_view file, const Warnings& warn, PlyLoadReport& report
                      std::to_string(read.faces_read) + " of " + std::to_string(input.faces) +
                      " faces" + (read.reader_ok ? "" : " and reported failure"));
   }
-  if (!own_colors.empty()) points.colors = std::move(own_colors);
-  if (!radii.empty()) points.radii = std::move(radii);
+  if (!plan.colors.empty()) points.colors = std::move(plan.colors);
+  if (!plan.radii.empty()) points.radii = std::move(plan.radii);
 
-  points.triangles.insert(points.triangles.end(), strip_sink.triangles.begin(),
-                          strip_sink.triangles.end());
-  report.faces_in_file = input.faces + strip_sink.triangles.size() + strip_sink.out_of_range;
-  if (read.faces_out_of_range + strip_sink.out_of_range > 0) {
-    warn("ignoring " + plural(read.faces_out_of_range + strip_sink.out_of_range, "face") +
+  const StripSink& strips = plan.strips;
+  points.triangles.insert(points.triangles.end(), strips.triangles.begin(), strips.triangles.end());
+  report.faces_in_file = input.faces + strips.triangles.size() + strips.out_of_range;
+  if (read.faces_out_of_range + strips.out_of_range > 0) {
+    warn("ignoring " + plural(read.faces_out_of_range + strips.out_of_range, "face") +
          " with vertex indices out of range");
   }
   if (read.faces_degenerate > 0) {
     warn("ignoring " + plural(read.faces_degenerate, "face") + " with fewer than 3 vertices");
   }
+  return points;
+}
 
+// Makes the PointSet contract hold: finite positions, unit (or zero)
+// normals, radii all positive or none.
+void tidy(PointSet& points, const Warnings& warn, PlyLoadReport& report) {
   const auto [dropped_points, dropped_faces] = drop_nonfinite(points);
   report.dropped_nonfinite = dropped_points;
   if (dropped_points > 0) {
@@ -574,9 +608,14 @@ PointSet load(std::string_view file, const Warnings& warn, PlyLoadReport& report
   if (points.has_normals()) {
     std::size_t undefined = 0;
     for (glm::vec3& n : points.normals) {
-      const float length = std::sqrt(n.x * n.x + n.y * n.y + n.z * n.z);
-      if (std::isfinite(length) && length > 0.0f) {
-        n /= length;
+      // In double: squaring a large finite float component must not overflow.
+      const double x = n.x;
+      const double y = n.y;
+      const double z = n.z;
+      const double length = std::sqrt(x * x + y * y + z * z);
+      if (std::isfinite(length) && length > 0.0) {
+        n = glm::vec3(static_cast<float>(x / length), static_cast<float>(y / length),
+                      static_cast<float>(z / length));
       } else {
         if (!std::isfinite(length)) ++undefined;
         n = glm::vec3(0.0f);
@@ -585,14 +624,39 @@ PointSet load(std::string_view file, const Warnings& warn, PlyLoadReport& report
     if (undefined > 0) warn(plural(undefined, "normal") + " not finite, set to zero");
   }
   if (points.has_radii()) {
-    const auto bad = std::count_if(points.radii.begin(), points.radii.end(),
-                                   [](float r) { return !(std::isfinite(r) && r > 0.0f); });
+    const auto bad = static_cast<std::size_t>(
+        std::count_if(points.radii.begin(), points.radii.end(),
+                      [](float r) { return !(std::isfinite(r) && r > 0.0f); }));
     if (bad > 0) {
-      warn("ignoring the radius property: " + plural(static_cast<std::size_t>(bad), "radius") +
-           " not a positive finite number");
+      warn("ignoring the radius property: " + std::to_string(bad) + " of " +
+           std::to_string(points.radii.size()) + " radii are not positive finite numbers");
       points.radii.clear();
     }
   }
+}
+
+PointSet load(std::string_view file, const Warnings& warn, PlyLoadReport& report) {
+  const Header header = ply::parse_header(file);
+  const ply::BinaryLayout layout = validate_body(header, file);
+  const Elements elements = classify(header, warn);
+  const VertexRoles& roles = elements.roles;
+  report.vertices_in_file = static_cast<std::size_t>(header.elements[elements.vertex].count);
+  report.had_normals = roles.normals();
+  report.had_colors = roles.colors();
+  report.had_radius = roles.radius >= 0;
+  if (layout.trailing_bytes > 0) {
+    warn("ignoring " + plural(layout.trailing_bytes, "byte") + " after the last element");
+  }
+
+  Plan plan;
+  plan.strips.vertices = report.vertices_in_file;
+  if (openmesh_reads_directly(header, roles, elements.face)) {
+    plan_direct(header, layout, file, elements, plan);
+  } else {
+    plan_transcoded(header, layout, file, elements, warn, plan);
+  }
+  PointSet points = read_plan(plan, warn, report);
+  tidy(points, warn, report);
   return points;
 }
 
