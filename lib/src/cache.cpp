@@ -50,23 +50,53 @@ constexpr std::array<std::size_t, kArrays> kElementSize = {
 std::uint64_t align_up(std::uint64_t x) { return (x + kAlign - 1) / kAlign * kAlign; }
 
 // Four independent multiply-rotate lanes over 8-byte words (bandwidth-bound,
-// several GB/s), folded together with the length.
-std::uint64_t checksum(const unsigned char* data, std::size_t size) {
-  constexpr std::uint64_t P1 = 0x9e3779b185ebca87ull, P2 = 0xc2b2ae3d27d4eb4full;
-  std::uint64_t lane[4] = {P1, P2, P1 ^ P2, ~P1};
-  std::size_t i = 0;
-  for (; i + 32 <= size; i += 32)
+// several GB/s), folded together with the length. Streaming, so the writer
+// never holds a second copy of the arrays.
+class Checksum {
+ public:
+  void update(const unsigned char* data, std::size_t size) {
+    if (size == 0) return;
+    size_ += size;
+    if (fill_) {
+      const std::size_t take = std::min(size, sizeof block_ - fill_);
+      std::memcpy(block_ + fill_, data, take);
+      fill_ += take, data += take, size -= take;
+      if (fill_ < sizeof block_) return;
+      mix(block_);
+      fill_ = 0;
+    }
+    for (; size >= sizeof block_; data += sizeof block_, size -= sizeof block_) mix(data);
+    std::memcpy(block_, data, size);
+    fill_ = size;
+  }
+  [[nodiscard]] std::uint64_t finish() const {
+    std::uint64_t h = static_cast<std::uint64_t>(size_) * P1;
+    for (auto v : lane_) h = std::rotl(h ^ (v * P2), 27) * P1 + P2;
+    for (std::size_t i = 0; i < fill_; ++i) h = std::rotl(h ^ (block_[i] * P1), 11) * P2;
+    h ^= h >> 33;
+    h *= P2;
+    return h ^ (h >> 29);
+  }
+
+ private:
+  static constexpr std::uint64_t P1 = 0x9e3779b185ebca87ull, P2 = 0xc2b2ae3d27d4eb4full;
+  void mix(const unsigned char* b) {
     for (int l = 0; l < 4; ++l) {
       std::uint64_t w;
-      std::memcpy(&w, data + i + 8 * static_cast<std::size_t>(l), 8);
-      lane[l] = std::rotl(lane[l] ^ (w * P2), 31) * P1;
+      std::memcpy(&w, b + 8 * l, 8);
+      lane_[l] = std::rotl(lane_[l] ^ (w * P2), 31) * P1;
     }
-  std::uint64_t h = static_cast<std::uint64_t>(size) * P1;
-  for (auto v : lane) h = std::rotl(h ^ (v * P2), 27) * P1 + P2;
-  for (; i < size; ++i) h = std::rotl(h ^ (data[i] * P1), 11) * P2;
-  h ^= h >> 33;
-  h *= P2;
-  return h ^ (h >> 29);
+  }
+  std::uint64_t lane_[4] = {P1, P2, P1 ^ P2, ~P1};
+  unsigned char block_[32] = {};
+  std::size_t fill_ = 0;
+  std::uint64_t size_ = 0;
+};
+
+std::uint64_t checksum(const unsigned char* data, std::size_t size) {
+  Checksum c;
+  c.update(data, size);
+  return c.finish();
 }
 
 struct Mapping {
@@ -229,29 +259,40 @@ void save_cache(const Hierarchy& hier, const CacheKey& key, const std::filesyste
   }
   h.payload_end = off;
 
-  std::vector<unsigned char> file(off + 8, 0);
-  std::memcpy(file.data(), &h, sizeof h);
-  std::memcpy(file.data() + h.level_table, levels.data(), levels.size() * sizeof(NodeId));
-  for (int i = 0; i < kArrays; ++i)
-    if (arrays[static_cast<std::size_t>(i)].second)
-      std::memcpy(file.data() + h.offsets[i], arrays[static_cast<std::size_t>(i)].first,
-                  arrays[static_cast<std::size_t>(i)].second);
-  const std::uint64_t sum = checksum(file.data(), off);
-  std::memcpy(file.data() + off, &sum, 8);
-
   // Temporary + rename: readers see the old file or the complete new one.
   if (cache.has_parent_path()) std::filesystem::create_directories(cache.parent_path());
   auto tmp = cache;
   tmp += ".tmp-" + std::to_string(::getpid());
-  {
+  try {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    out.write(reinterpret_cast<const char*>(file.data()), static_cast<std::streamsize>(file.size()));
-    out.flush();
-    if (!out) {
-      std::error_code ec;
-      std::filesystem::remove(tmp, ec);
-      throw std::runtime_error(cache.string() + ": cannot write cache");
-    }
+    out.exceptions(std::ios::failbit | std::ios::badbit);
+    Checksum sum;
+    std::uint64_t at = 0;
+    const unsigned char zeros[kAlign] = {};
+    auto put = [&](const void* data, std::size_t size, std::uint64_t offset) {
+      while (at < offset) {  // alignment padding
+        const auto pad = static_cast<std::size_t>(std::min<std::uint64_t>(offset - at, kAlign));
+        out.write(reinterpret_cast<const char*>(zeros), static_cast<std::streamsize>(pad));
+        sum.update(zeros, pad);
+        at += pad;
+      }
+      if (size == 0) return;
+      out.write(static_cast<const char*>(data), static_cast<std::streamsize>(size));
+      sum.update(static_cast<const unsigned char*>(data), size);
+      at += size;
+    };
+    put(&h, sizeof h, 0);
+    put(levels.data(), levels.size() * sizeof(NodeId), h.level_table);
+    for (int i = 0; i < kArrays; ++i)
+      put(arrays[static_cast<std::size_t>(i)].first, arrays[static_cast<std::size_t>(i)].second, h.offsets[i]);
+    put(nullptr, 0, h.payload_end);
+    const std::uint64_t digest = sum.finish();
+    out.write(reinterpret_cast<const char*>(&digest), sizeof digest);
+    out.close();
+  } catch (const std::exception&) {
+    std::error_code ec;
+    std::filesystem::remove(tmp, ec);
+    throw std::runtime_error(cache.string() + ": cannot write cache");
   }
   std::error_code ec;
   std::filesystem::rename(tmp, cache, ec);

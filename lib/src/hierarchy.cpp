@@ -357,10 +357,8 @@ Hierarchy build_hierarchy(PointSet&& points, const BuildOptions& options) {
   }
   if (options.progress) options.progress(progress_total, progress_total);
 
-  a.parent.shrink_to_fit();
-  a.depth.shrink_to_fit();
-  a.first_child.shrink_to_fit();
-  a.child_count.shrink_to_fit();
+  // No shrink_to_fit: the spare capacity of the topology arrays was never
+  // touched, so it costs address space only, while shrinking would copy.
   auto owned = std::make_shared<OwnedArrays>(std::move(a));
   HierarchyArrays spans{owned->center_radius, owned->normal_cone, owned->color,
                         owned->priority,      owned->point_count, owned->parent,
