@@ -158,21 +158,29 @@ void OptimizationStrategy::iterate(const IterationInput& input, IterationOutput&
     }
   }
   r.visited = nodes.size();
-  std::sort(high_.begin(), high_.end(), lower);  // descending priority
-  std::sort(low_.begin(), low_.end(), higher);   // ascending priority
+  // Turn the selection heaps around (O(k)) and pop lazily: an iteration that
+  // stops early pays O(log k) per candidate used, not a full sort.
+  std::make_heap(high_.begin(), high_.end(), higher);  // highest on top
+  std::make_heap(low_.begin(), low_.end(), lower);     // lowest on top
+  const auto pop = [](std::vector<Candidate>& heap, auto order) {
+    std::pop_heap(heap.begin(), heap.end(), order);
+    heap.pop_back();
+  };
 
   // Apply: refine in descending priority while there is room; make room by
   // coarsening the lowest parents, but only for a gain above the threshold.
-  std::size_t next_low = 0;
   const auto coarsen_next = [&](float must_beat, bool forced) {
-    for (; next_low < low_.size(); ++next_low) {
-      const auto [p, parent] = low_[next_low];
-      if (!cut.can_coarsen(h, parent)) continue;  // a child was refined meanwhile
+    while (!low_.empty()) {
+      const auto [p, parent] = low_.front();
+      if (!cut.can_coarsen(h, parent)) {  // a child was refined meanwhile
+        pop(low_, lower);
+        continue;
+      }
       if (!forced && !(p + threshold < must_beat)) return false;
+      pop(low_, lower);
       cut.coarsen(h, parent);
       last_op_[parent] = coarsened_mark;
       ++r.coarsened;
-      ++next_low;
       return true;
     }
     return false;
@@ -180,7 +188,9 @@ void OptimizationStrategy::iterate(const IterationInput& input, IterationOutput&
   // A lowered budget: shrink first, whatever the gain.
   while (cut.size() > max_nodes && coarsen_next(0.0f, true)) {
   }
-  for (const auto& [p, n] : high_) {
+  while (!high_.empty()) {
+    const auto [p, n] = high_.front();
+    pop(high_, higher);
     if (!cut.contains(n)) continue;  // its parent was coarsened above
     const std::size_t grow = a.child_count[n] - 1u;
     bool room = true;

@@ -104,15 +104,15 @@ void BM_Bucket(benchmark::State& state) {
   const auto n = static_cast<std::size_t>(state.range(1));
   if (n > h->leaf_count()) return state.SkipWithError("cut larger than the model");
   TreeCut cut = breadth_first_cut(*h, n);
-  // Buckets one level either side of the starting cut's depth, so the cut
-  // stays near n nodes while the turning light moves it.
+  // Buckets from 1.5 levels above to half a level below the starting cut's
+  // mean depth, so the cut stays near n nodes while the turning light moves it.
   double depth = 0;
   for (const NodeId c : cut.nodes()) depth += h->arrays().depth[c];
   depth /= static_cast<double>(cut.size());
   const double deepest = h->level_count() - 1;
   strategies::BucketStrategy s;
-  s.set_param("min_depth", std::max(0.0, (depth - 0.5) / deepest));
-  s.set_param("max_depth", std::min(1.0, (depth + 1.5) / deepest));
+  s.set_param("min_depth", std::max(0.0, (depth - 1.5) / deepest));
+  s.set_param("max_depth", std::min(1.0, (depth + 0.5) / deepest));
   s.set_param("ambient", 0.0);
   s.reset(*h);
   std::vector<NodeId> unused;
