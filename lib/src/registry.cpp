@@ -89,6 +89,10 @@ void StrategyRegistry::load_plugin(const std::filesystem::path& path) {
     entries_.resize(before);  // all or nothing
     origin_ = "built-in";
     throw InputError(where + ": plugin registration failed: " + e.what());
+  } catch (...) {
+    entries_.resize(before);
+    origin_ = "built-in";
+    throw InputError(where + ": plugin registration failed");
   }
   origin_ = "built-in";
 }
