@@ -59,34 +59,44 @@ int longest_axis(const Item* first, const Item* last) {
   return ex >= ey && ex >= ez ? 0 : (ey >= ez ? 1 : 2);
 }
 
-// Splits [b, e) at its median along the longest axis. One thread owns a range
-// and nth_element is deterministic, so the order is a pure function of the input.
-std::uint32_t split_median(Item* items, std::uint32_t b, std::uint32_t e) {
-  const std::uint32_t m = b + (e - b) / 2;
-  const int axis = longest_axis(items + b, items + e);
-  std::nth_element(items + b, items + m, items + e,
-                   [axis](const Item& l, const Item& r) { return l.p[axis] < r.p[axis]; });
-  return m;
-}
-
-// Up to four children: two levels of binary median split (QSplat). Ranges of
-// two to four points get one leaf per point, so every leaf is one point and the
-// depth is at most ceil(log2(n)/2) + 1 even for duplicate or colinear points.
-int split_node(Item* items, Range r, Range out[4]) {
+// The children of a range: up to four, from two levels of binary median
+// splits (QSplat's branching factor). Ranges of two to four points get one
+// leaf per point, so every leaf is one point and the depth is at most
+// ceil(log2(n) / 2) + 1, even for duplicate or colinear points. The split
+// positions depend on the counts only, so the topology is known before any
+// point moves; partition() then moves the points to match.
+int child_ranges(Range r, Range out[4]) {
   const std::uint32_t n = r.end - r.begin;
   if (n <= 1) return 0;
   if (n <= 4) {
     for (std::uint32_t i = 0; i < n; ++i) out[i] = {r.begin + i, r.begin + i + 1};
     return static_cast<int>(n);
   }
-  const std::uint32_t m = split_median(items, r.begin, r.end);
-  const std::uint32_t m0 = split_median(items, r.begin, m);
-  const std::uint32_t m1 = split_median(items, m, r.end);
+  const std::uint32_t m = r.begin + n / 2;
+  const std::uint32_t m0 = r.begin + (m - r.begin) / 2;
+  const std::uint32_t m1 = m + (r.end - m) / 2;
   out[0] = {r.begin, m0};
   out[1] = {m0, m};
   out[2] = {m, m1};
   out[3] = {m1, r.end};
   return 4;
+}
+
+// Moves the points of [b, e) so that [b, m) lies below m along the longest
+// axis of the range. One thread owns a range and nth_element is
+// deterministic, so the result is a pure function of the input.
+void split_at(Item* items, std::uint32_t b, std::uint32_t m, std::uint32_t e) {
+  const int axis = longest_axis(items + b, items + e);
+  std::nth_element(items + b, items + m, items + e,
+                   [axis](const Item& l, const Item& r) { return l.p[axis] < r.p[axis]; });
+}
+
+void partition(Item* items, Range r) {
+  Range c[4];
+  if (child_ranges(r, c) != 4) return;  // single points need no order
+  split_at(items, r.begin, c[2].begin, r.end);
+  split_at(items, r.begin, c[1].begin, c[2].begin);
+  split_at(items, c[2].begin, c[3].begin, r.end);
 }
 
 template <class T>
@@ -181,33 +191,25 @@ Hierarchy build_hierarchy(PointSet&& points, const BuildOptions& options) {
   a.depth.push_back(0);
   std::size_t progress_done = 0;
   const std::size_t progress_total = 2 * std::size_t{N};
-  std::vector<Range> kids;
-  std::vector<std::uint8_t> kid_count;
   for (int depth = 0;; ++depth) {
     const std::size_t lb = level_begin.back(), le = ranges.size();
     if (lb == le) break;
     if (depth > 255) throw std::logic_error("build_hierarchy: depth exceeds 255");
     level_begin.push_back(static_cast<NodeId>(le));
-    const std::size_t L = le - lb;
-    kids.assign(4 * L, Range{0, 0});
-    kid_count.assign(L, 0);
     parallel_for(
-        L,
+        le - lb,
         [&](std::size_t b, std::size_t e) {
-          Range out[4];
-          for (std::size_t i = b; i < e; ++i) {
-            const int c = split_node(items.data(), ranges[lb + i], out);
-            kid_count[i] = static_cast<std::uint8_t>(c);
-            std::copy(out, out + c, kids.begin() + static_cast<std::ptrdiff_t>(4 * i));
-          }
+          for (std::size_t i = lb + b; i < lb + e; ++i) partition(items.data(), ranges[i]);
         },
         threads, 1);
-    for (std::size_t i = 0; i < L; ++i) {
-      a.first_child.push_back(kid_count[i] ? static_cast<NodeId>(ranges.size()) : kNoNode);
-      a.child_count.push_back(kid_count[i]);
-      for (int c = 0; c < kid_count[i]; ++c) {
-        ranges.push_back(kids[4 * i + static_cast<std::size_t>(c)]);
-        a.parent.push_back(static_cast<NodeId>(lb + i));
+    for (std::size_t i = lb; i < le; ++i) {
+      Range c[4];
+      const int cc = child_ranges(ranges[i], c);
+      a.first_child.push_back(cc ? static_cast<NodeId>(ranges.size()) : kNoNode);
+      a.child_count.push_back(static_cast<std::uint8_t>(cc));
+      for (int k = 0; k < cc; ++k) {
+        ranges.push_back(c[k]);
+        a.parent.push_back(static_cast<NodeId>(i));
         a.depth.push_back(static_cast<std::uint8_t>(depth + 1));
       }
     }
@@ -215,8 +217,6 @@ Hierarchy build_hierarchy(PointSet&& points, const BuildOptions& options) {
     if (options.progress) options.progress(std::min(progress_done, progress_total / 2), progress_total);
   }
   const std::size_t M = ranges.size();
-  release(kids);
-  release(kid_count);
 
   // Stage 2: leaves. A leaf's point, in `items` order; remembered in
   // first_child (unused by leaves) until the arrays are final.

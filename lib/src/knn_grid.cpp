@@ -19,6 +19,11 @@ constexpr std::uint32_t kMaxScanPerCell = 512;
 // are found within 2-3 shells; an isolated outlier stops here with fewer.
 constexpr int kMaxShell = 8;
 
+template <class T>
+void release_keys(std::vector<T>& v) {
+  std::vector<T>().swap(v);
+}
+
 std::uint64_t mix(std::uint64_t x) {  // splitmix64 finalizer
   x ^= x >> 30;
   x *= 0xbf58476d1ce4e5b9ull;
@@ -87,6 +92,13 @@ void KnnGrid::bucket(float cell_size) {
     runs_.back().end = static_cast<std::uint32_t>(i + 1);
   }
   occupied_ = runs_.size();
+  release_keys(keyed);
+  // Positions in grid order: a cell's points are contiguous in memory, so
+  // gathering a neighbourhood does not miss the cache once per point.
+  sorted_.resize(n);
+  parallel_for(n, [&](std::size_t b, std::size_t e) {
+    for (std::size_t i = b; i < e; ++i) sorted_[i] = points_[order_[i]];
+  });
   std::size_t cap = 16;
   while (cap < 2 * occupied_) cap <<= 1;
   table_.assign(cap, Cell{~0ull, 0, 0});
@@ -128,7 +140,7 @@ void KnnGrid::gather(glm::ivec3 c, Candidates& out) const {
     if (!cell) continue;
     const std::uint32_t end = std::min(cell->end, cell->begin + kMaxScanPerCell);
     for (std::uint32_t j = cell->begin; j < end; ++j) {
-      const glm::vec3 p = points_[order_[j]];
+      const glm::vec3 p = sorted_[j];
       out.x.push_back(p.x), out.y.push_back(p.y), out.z.push_back(p.z);
       out.index.push_back(order_[j]);
     }

@@ -59,6 +59,7 @@ class KnnGrid {
   float cell_ = 1.0f;
   glm::ivec3 dims_{1};
   std::vector<std::uint32_t> order_;
+  std::vector<glm::vec3> sorted_;  // points_ in order_ order
   std::vector<Cell> table_;  // open addressing, capacity a power of two
   std::vector<Cell> runs_;   // the occupied cells in key order
   std::uint64_t mask_ = 0;
