@@ -672,6 +672,11 @@ TEST(PlyLoad, AbsurdCountsFailWithoutLargeAllocations) {
   const std::vector<std::string> files{
       "ply\nformat binary_little_endian 1.0\nelement vertex 4000000000\n" + xyz + "end_header\n" +
           std::string(64, '\0'),
+      // Below the 32-bit vertex limit, so only the body checks stand between
+      // these counts and a reservation.
+      "ply\nformat binary_little_endian 1.0\nelement vertex 2000000000\n" + xyz + "end_header\n" +
+          std::string(64, '\0'),
+      "ply\nformat ascii 1.0\nelement vertex 2000000000\n" + xyz + "end_header\n0 0 0\n",
       "ply\nformat ascii 1.0\nelement vertex 18446744073709551615\n" + xyz + "end_header\n0 0 0\n",
       "ply\nformat ascii 1.0\nelement vertex 1\n" + xyz +
           "element face 999999999999\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n",

@@ -22,7 +22,7 @@ using OpenMesh::VertexHandle;
 using StatusInfo = OpenMesh::Attributes::StatusInfo;
 
 // A read-only stream over consecutive pieces of memory, so the header we wrote
-// and the body ranges of the mapped file reach OpenMesh without a copy.
+// and the body ranges of the file buffer reach OpenMesh without a copy.
 // OpenMesh seeks back inside the header once (to find the first body byte),
 // so seeking is supported across the whole sequence.
 class PiecesBuffer final : public std::streambuf {
