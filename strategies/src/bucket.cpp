@@ -21,6 +21,7 @@ BucketStrategy::BucketStrategy(BucketFunction function)
           {"max_depth", "target depth of unlit nodes, as a fraction of the deepest level", 1.0, 0.0,
            1.0, false},
           {"ambient", "light every node receives", 0.1, 0.0, 1.0, false},
+          {"cull", "1: nodes outside the view frustum target the lit depth", 0.0, 0.0, 1.0, true},
       }),
       function_(std::move(function)) {}
 
@@ -30,24 +31,40 @@ void BucketStrategy::reset(const Hierarchy& hierarchy) {
   refine_.reserve(hierarchy.node_count() < 4096 ? hierarchy.node_count() : 4096);
 }
 
+namespace {
+
+// The default bucket function with its parameters resolved once per iteration.
+struct Illumination {
+  float lit_depth;
+  float depth_range;  // dark depth - lit depth
+  float ambient;
+  bool cull;
+
+  // The darker the node, the deeper its target: more, smaller splats where
+  // the surface is in shadow (the paper's stippling, figure 7a).
+  [[gnu::always_inline]] int operator()(const HierarchyArrays& a, const ViewSnapshot& view,
+                                        NodeId n) const {
+    if (cull) {
+      const glm::vec4 cr = a.center_radius[n];
+      if (view.outside_frustum(glm::vec3(cr), cr.w)) return static_cast<int>(lit_depth);
+    }
+    const glm::vec3 normal = glm::vec3(a.normal_cone[n]) * (1.0f / 32767.0f);
+    const float diffuse = std::max(0.0f, glm::dot(normal, view.light_dir));
+    const float light = std::min(1.0f, ambient + (1.0f - ambient) * diffuse);
+    return static_cast<int>(lit_depth + (1.0f - light) * depth_range);
+  }
+};
+
+}  // namespace
+
 int BucketStrategy::illumination_bucket(const Hierarchy& h, const ViewSnapshot& view,
                                         NodeId n) const {
-  // The darker the node, the deeper its target: more, smaller splats where
-  // the surface is in shadow (the paper's stippling).
   const float deepest = static_cast<float>(h.level_count() - 1);
-  const float lit_depth = static_cast<float>(param_at(kMinDepth)) * deepest;
-  const float dark_depth = static_cast<float>(param_at(kMaxDepth)) * deepest;
-  const glm::vec4 cr = h.arrays().center_radius[n];
-  if (view.outside_frustum(glm::vec3(cr), cr.w)) return static_cast<int>(lit_depth);
-  const auto ambient = static_cast<float>(param_at(kAmbient));
-  const float diffuse = std::max(0.0f, glm::dot(h.normal(n), view.light_dir));
-  const float light = std::min(1.0f, ambient + (1.0f - ambient) * diffuse);
-  return static_cast<int>(lit_depth + (1.0f - light) * (dark_depth - lit_depth));
-}
-
-int BucketStrategy::bucket(const Hierarchy& h, const ViewSnapshot& view, NodeId n) const {
-  if (function_) return static_cast<int>(std::floor(function_(h, view, n)));
-  return illumination_bucket(h, view, n);
+  const float lit = static_cast<float>(param_at(kMinDepth)) * deepest;
+  const float dark = static_cast<float>(param_at(kMaxDepth)) * deepest;
+  const Illumination light{lit, dark - lit, static_cast<float>(param_at(kAmbient)),
+                           param_at(kCull) != 0.0};
+  return light(h.arrays(), view, n);
 }
 
 void BucketStrategy::iterate(const IterationInput& input, IterationOutput& output) {
@@ -59,47 +76,62 @@ void BucketStrategy::iterate(const IterationInput& input, IterationOutput& outpu
   const int threshold = static_cast<int>(param_at(kThreshold));
 
   // Evaluate every cut node against its bucket; collect the operations first
-  // so the whole pass sees one consistent cut.
+  // so the whole pass sees one consistent cut. The pass is instantiated for
+  // the default function (inlined) and for a custom one.
   refine_.clear();
   coarsen_.clear();
   const std::span<const NodeId> nodes = cut.nodes();
-  for (std::size_t i = 0; i < nodes.size(); ++i) {
-    if ((i & 4095) == 0 && input.cancelled()) {
-      r.cancelled = true;
-      break;
-    }
-    const NodeId n = nodes[i];
-    // The cut is unordered, so every node is a cache miss: fetch ahead.
-    if (i + kPrefetch < nodes.size()) {
-      const NodeId ahead = nodes[i + kPrefetch];
-      __builtin_prefetch(&a.center_radius[ahead]);
-      __builtin_prefetch(&a.normal_cone[ahead]);
-      __builtin_prefetch(&a.depth[ahead]);
-    }
-    const int depth = a.depth[n];
-    const int delta = bucket(h, view, n) - depth;
-    if (delta > 0 && a.child_count[n] != 0) refine_.push_back(n);  // '+' in figure 4
-
-    // A sibling group is judged once, at its first child: every sibling must
-    // ask for a coarse ('-'), and the parent's own delta must not be positive
-    // ('?' in figure 4), else the parent would be refined again next time.
-    if (delta + threshold >= 0) continue;  // this node does not ask for a coarse
-    const NodeId parent = a.parent[n];
-    if (parent == kNoNode || a.first_child[parent] != n || !cut.can_coarsen(h, parent)) continue;
-    bool all_negative = true;
-    for (NodeId c = n + 1; c < n + a.child_count[parent]; ++c) {
-      const int dc = bucket(h, view, c) - depth;
-      if (dc + threshold >= 0) {
-        all_negative = false;
+  const bool cull = function_ || param_at(kCull) != 0.0;
+  const auto pass = [&](const auto& bucket) {
+    for (std::size_t i = 0; i < nodes.size(); ++i) {
+      if ((i & 4095) == 0 && input.cancelled()) {
+        r.cancelled = true;
         break;
       }
+      const NodeId n = nodes[i];
+      // The cut is unordered, so every node is a cache miss: fetch ahead.
+      if (i + kPrefetch < nodes.size()) {
+        const NodeId ahead = nodes[i + kPrefetch];
+        if (cull) __builtin_prefetch(&a.center_radius[ahead]);
+        __builtin_prefetch(&a.normal_cone[ahead]);
+        __builtin_prefetch(&a.depth[ahead]);
+      }
+      const int depth = a.depth[n];
+      const int delta = bucket(n) - depth;
+      if (delta > 0 && a.child_count[n] != 0) refine_.push_back(n);  // '+' in figure 4
+
+      // A sibling group is judged once, at its first child: every sibling
+      // must ask for a coarse ('-'), and the parent's own delta must not be
+      // positive ('?' in figure 4), else the parent would be refined again.
+      if (delta + threshold >= 0) continue;  // this node does not ask for a coarse
+      const NodeId parent = a.parent[n];
+      if (parent == kNoNode || a.first_child[parent] != n || !cut.can_coarsen(h, parent)) {
+        continue;
+      }
+      bool all_negative = true;
+      for (NodeId c = n + 1; c < n + a.child_count[parent]; ++c) {
+        if (bucket(c) - depth + threshold >= 0) {
+          all_negative = false;
+          break;
+        }
+      }
+      if (!all_negative) continue;
+      if (bucket(parent) - (depth - 1) > 0) {
+        ++r.blocked;
+        continue;
+      }
+      coarsen_.push_back(parent);
     }
-    if (!all_negative) continue;
-    if (bucket(h, view, parent) - (depth - 1) > 0) {
-      ++r.blocked;
-      continue;
-    }
-    coarsen_.push_back(parent);
+  };
+  if (function_) {
+    pass([&](NodeId n) { return static_cast<int>(std::floor(function_(h, view, n))); });
+  } else {
+    const float deepest = static_cast<float>(h.level_count() - 1);
+    const float lit = static_cast<float>(param_at(kMinDepth)) * deepest;
+    const float dark = static_cast<float>(param_at(kMaxDepth)) * deepest;
+    const Illumination light{lit, dark - lit, static_cast<float>(param_at(kAmbient)),
+                             param_at(kCull) != 0.0};
+    pass([&](NodeId n) { return light(a, view, n); });
   }
   r.visited = nodes.size();
 

@@ -15,26 +15,52 @@ constexpr std::uint32_t kRefinedBit = 1;
 constexpr std::uint32_t kMaxIteration = 0x7fffffffu;
 constexpr std::size_t kPrefetch = 16;  // nodes ahead, enough to cover a DRAM miss
 
+using Candidate = std::pair<float, NodeId>;  // (priority, node)
+
 struct ByPriority {
-  bool operator()(const std::pair<float, NodeId>& a, const std::pair<float, NodeId>& b) const {
+  bool operator()(const Candidate& a, const Candidate& b) const {
     return a.first != b.first ? a.first < b.first : a.second < b.second;
   }
 };
 
-// Keeps the k largest (or smallest) candidates: O(log k) per accepted node,
-// O(1) per rejected one, so the pass over n nodes is O(n log k).
+// Keeps the k best candidates of a stream (Carr et al. keep a partial sort of
+// size k): candidates better than the current bound are appended; when 2k
+// have gathered, nth_element keeps the best k and tightens the bound. O(1)
+// amortized per candidate, O(n) per pass; the caller may test bound() first
+// to skip computing a candidate at all.
 template <typename Better>
-void keep_best(std::vector<std::pair<float, NodeId>>& heap, std::size_t k,
-               std::pair<float, NodeId> c, Better better) {
-  if (heap.size() < k) {
-    heap.push_back(c);
-    std::push_heap(heap.begin(), heap.end(), better);
-  } else if (better(c, heap.front())) {
-    std::pop_heap(heap.begin(), heap.end(), better);
-    heap.back() = c;
-    std::push_heap(heap.begin(), heap.end(), better);
+class Selection {
+ public:
+  Selection(std::vector<Candidate>& buffer, std::size_t k, Better better)
+      : buf_(buffer), k_(k), better_(better) {
+    buf_.clear();
   }
-}
+  /// True when `c` could still be among the best k.
+  [[nodiscard]] bool admits(const Candidate& c) const { return !bounded_ || better_(c, bound_); }
+  void add(const Candidate& c) {
+    if (!admits(c)) return;
+    buf_.push_back(c);
+    if (buf_.size() >= 2 * k_) shrink();
+  }
+  /// Leaves the best k (or fewer) in the buffer, unordered.
+  void finish() {
+    if (buf_.size() > k_) shrink();
+  }
+
+ private:
+  void shrink() {
+    const auto kth = buf_.begin() + static_cast<std::ptrdiff_t>(k_ - 1);
+    std::nth_element(buf_.begin(), kth, buf_.end(), better_);
+    bound_ = *kth;
+    bounded_ = true;
+    buf_.resize(k_);
+  }
+  std::vector<Candidate>& buf_;
+  std::size_t k_;
+  Better better_;
+  Candidate bound_{};
+  bool bounded_ = false;
+};
 
 // The body of OptimizationStrategy::priority, inlined into the hot loop.
 [[gnu::always_inline]] inline float view_priority(const HierarchyArrays& a,
@@ -118,6 +144,8 @@ void OptimizationStrategy::iterate(const IterationInput& input, IterationOutput&
   low_.clear();
   const auto higher = ByPriority{};
   const auto lower = [](const Candidate& x, const Candidate& y) { return ByPriority{}(y, x); };
+  Selection highs(high_, k, lower);  // `lower` orders by descending priority
+  Selection lows(low_, k, higher);
   const std::span<const NodeId> nodes = cut.nodes();
   for (std::size_t i = 0; i < nodes.size(); ++i) {
     const NodeId n = nodes[i];
@@ -134,32 +162,33 @@ void OptimizationStrategy::iterate(const IterationInput& input, IterationOutput&
     }
     float size = 0.0f;
     const float p = view_priority(a, view, n, weight, size);
-    if (a.child_count[n] != 0 && size >= min_size) {
+    if (a.child_count[n] != 0 && size >= min_size && highs.admits({p, n})) {
       if (refine_blocked(n)) {
         ++r.blocked;
-      } else if (high_.size() < k || p > high_.front().first) {
-        keep_best(high_, k, {p, n}, lower);  // a min-heap: evicts the lowest
+      } else {
+        highs.add({p, n});
       }
     }
     // Parents are ranked at their first child. p(parent) >= p(n) (monotone
     // priorities), so a node above the k-th lowest rejects its parent unseen.
-    if (low_.size() == k && p > low_.front().first) continue;
+    if (!lows.admits({p, 0})) continue;
     const NodeId parent = a.parent[n];
     if (parent == kNoNode || a.first_child[parent] != n) continue;
     // Rank before the coarsenability test, which touches the cut's slot map.
     float parent_size = 0.0f;
     const Candidate c{view_priority(a, view, parent, weight, parent_size), parent};
-    if (low_.size() == k && !higher(c, low_.front())) continue;
-    if (!cut.can_coarsen(h, parent)) continue;
+    if (!lows.admits(c) || !cut.can_coarsen(h, parent)) continue;
     if (coarsen_blocked(parent)) {
       ++r.blocked;
     } else {
-      keep_best(low_, k, c, higher);
+      lows.add(c);
     }
   }
+  highs.finish();
+  lows.finish();
   r.visited = nodes.size();
-  // Turn the selection heaps around (O(k)) and pop lazily: an iteration that
-  // stops early pays O(log k) per candidate used, not a full sort.
+  // Heaps over the k selected (O(k)), popped lazily: an iteration that stops
+  // early pays O(log k) per candidate used, not a full sort.
   std::make_heap(high_.begin(), high_.end(), higher);  // highest on top
   std::make_heap(low_.begin(), low_.end(), lower);     // lowest on top
   const auto pop = [](std::vector<Candidate>& heap, auto order) {

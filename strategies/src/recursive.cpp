@@ -3,7 +3,9 @@
 // "QSplat: A Multiresolution Point Rendering System for Large Meshes", 2000).
 #include "treecut/strategies/recursive.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <glm/geometric.hpp>
 
 namespace treecut::strategies {
 namespace {
@@ -12,6 +14,22 @@ namespace {
 // strategy has converged.
 constexpr std::uint64_t kFnvOffset = 0xcbf29ce484222325ull;
 constexpr std::uint64_t kFnvPrime = 0x100000001b3ull;
+
+// ViewSnapshot::backfacing with the distance to the eye already known: the
+// cone (axis, half-angle a) faces away from the whole sphere, seen under the
+// half-angle b, iff the angle to the eye exceeds 90 degrees + a + b (QSplat).
+[[gnu::always_inline]] inline bool backfacing(glm::i16vec4 cone, glm::vec3 to_eye, float dist,
+                                              float radius) {
+  const float cone_cos = static_cast<float>(cone.w) * (1.0f / 32767.0f);
+  if (cone_cos <= 0.0f || dist <= radius) return false;
+  const float sin_b = radius / dist;
+  const float cos_b = std::sqrt(1.0f - sin_b * sin_b);
+  const float sin_a = std::sqrt(std::max(0.0f, 1.0f - cone_cos * cone_cos));
+  if (cone_cos * cos_b - sin_a * sin_b <= 0.0f) return false;  // a + b >= 90 degrees
+  const float sin_ab = sin_a * cos_b + cone_cos * sin_b;
+  const glm::vec3 axis = glm::vec3(cone) * (1.0f / 32767.0f);
+  return glm::dot(axis, to_eye) < -sin_ab * dist;
+}
 
 }  // namespace
 
@@ -82,25 +100,25 @@ void RecursiveStrategy::iterate(const IterationInput& input, IterationOutput& ou
       emit(n);
       continue;
     }
-    if (backface && a.normal_cone[n].w > 0 &&
-        view.backfacing(c, cr.w, h.normal(n), h.cone_cos(n))) {
-      ++r.backfacing;
-      emit(n);
-      continue;
-    }
     const unsigned children = a.child_count[n];
     if (children == 0) {
       emit(n);
       continue;
     }
     // Projected radius as in ViewSnapshot::projected_radius_px, with the
-    // division turned into a multiplication.
-    const glm::vec3 d = c - eye;
-    const float dist = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z) - cr.w;
-    const bool small = view.derived.perspective ? cr.w * pixel_scale < min_size * dist
+    // division turned into a multiplication; the distance serves the cone
+    // test too.
+    const glm::vec3 to_eye = eye - c;
+    const float dist = std::sqrt(glm::dot(to_eye, to_eye));
+    const bool small = view.derived.perspective ? cr.w * pixel_scale < min_size * (dist - cr.w)
                                                 : cr.w * pixel_scale < min_size;
     if (small) {
       ++r.too_small;
+      emit(n);
+      continue;
+    }
+    if (backface && view.derived.perspective && backfacing(a.normal_cone[n], to_eye, dist, cr.w)) {
+      ++r.backfacing;
       emit(n);
       continue;
     }

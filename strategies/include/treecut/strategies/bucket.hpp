@@ -25,11 +25,13 @@ class BucketStrategy final : public Strategy {
     kMinDepth,   ///< fraction of the depth range used for fully lit nodes
     kMaxDepth,   ///< fraction of the depth range used for unlit nodes
     kAmbient,    ///< light every node receives, [0, 1]
+    kCull,       ///< 1: nodes outside the view frustum target kMinDepth
   };
 
   /// Without a function: the stippling look of the paper's figure 7a, the
   /// target depth interpolates from kMinDepth (lit) to kMaxDepth (dark) by the
-  /// node's diffuse illumination; nodes outside the frustum target kMinDepth.
+  /// node's diffuse illumination (with kCull, nodes outside the frustum
+  /// target kMinDepth).
   explicit BucketStrategy(BucketFunction function = {});
   [[nodiscard]] std::string_view name() const override { return "bucket"; }
   [[nodiscard]] Mode mode() const override { return Mode::Evolve; }
@@ -41,8 +43,6 @@ class BucketStrategy final : public Strategy {
                                         NodeId n) const;
 
  private:
-  [[nodiscard]] int bucket(const Hierarchy& h, const ViewSnapshot& view, NodeId n) const;
-
   BucketFunction function_;
   std::vector<NodeId> refine_;   // scratch
   std::vector<NodeId> coarsen_;  // scratch

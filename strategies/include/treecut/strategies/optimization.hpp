@@ -2,7 +2,10 @@
 // Manipulation", section 4 and figure 3; partial sorting after Carr et al.
 // [Car11]). Evolves the cut under a maximal node count: the k cut nodes of
 // highest priority are refined, the k coarsenable parents of lowest priority
-// are coarsened to make room. O(n log k) for a cut of n nodes.
+// are coarsened to make room. The partial sort of size k is a bounded
+// selection (nth_element over at most 2k candidates at a time) plus lazily
+// popped heaps: O(n + m log k) for a cut of n nodes and m operations, within
+// the paper's O(n log k).
 #pragma once
 
 #include <cstdint>
@@ -50,8 +53,8 @@ class OptimizationStrategy final : public Strategy {
   std::uint32_t iteration_ = 0;         // iterations since reset(), from 1
   std::uint32_t view_start_ = 0;        // first iteration of the current view
   std::uint64_t last_version_ = ~std::uint64_t{0};
-  std::vector<Candidate> high_;  // min-heap, then sorted descending
-  std::vector<Candidate> low_;   // max-heap, then sorted ascending
+  std::vector<Candidate> high_;  // selection buffer, then a max-heap
+  std::vector<Candidate> low_;   // selection buffer, then a min-heap
 };
 
 }  // namespace treecut::strategies
