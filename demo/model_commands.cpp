@@ -75,8 +75,8 @@ void add_model_commands(CLI::App& app) {
     o.use_cache = true;
     if (build_args->force && o.cache_path == std::nullopt) o.cache_path = default_cache_path(build_args->model);
     if (build_args->force) std::filesystem::remove(*o.cache_path);
-    ProgressBar bar("building");
-    o.build.progress = bar.callback();
+    ProgressBar bar("read");
+    o.progress = bar.callback();
     const OpenedModel m = open_model(build_args->model, o);
     print_summary(build_args->model, m);
   });
@@ -87,8 +87,8 @@ void add_model_commands(CLI::App& app) {
   add_build_options(*info, *info_args);
   info->callback([info_args] {
     OpenOptions o = open_options(*info_args);
-    ProgressBar bar("building");
-    o.build.progress = bar.callback();
+    ProgressBar bar("read");
+    o.progress = bar.callback();
     const OpenedModel m = open_model(info_args->model, o);
     print_summary(info_args->model, m);
   });

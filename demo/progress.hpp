@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <functional>
 #include <string>
+#include <string_view>
 
 namespace treecut::cli {
 
@@ -22,20 +23,26 @@ class ProgressBar {
     if (drawn_) std::fputc('\n', stderr);
   }
 
+  /// Switches to another named stage of the same job.
+  void update(std::string_view label, std::size_t done, std::size_t total) {
+    label_ = label;
+    update(done, total);
+  }
+
   void update(std::size_t done, std::size_t total) {
     if (!enabled_ || total == 0) return;
     const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
     if (elapsed < 1.0) return;
     const int width = 40;
     const int filled = static_cast<int>(static_cast<double>(width) * static_cast<double>(done) / static_cast<double>(total));
-    std::fprintf(stderr, "\r%s [%.*s%*s] %3d%% %5.1fs", label_.c_str(), filled,
+    std::fprintf(stderr, "\r%-10s [%.*s%*s] %3d%% %5.1fs", label_.c_str(), filled,
                  "########################################", width - filled, "",
                  static_cast<int>(100.0 * static_cast<double>(done) / static_cast<double>(total)), elapsed);
     std::fflush(stderr);
     drawn_ = true;
   }
-  std::function<void(std::size_t, std::size_t)> callback() {
-    return [this](std::size_t d, std::size_t t) { update(d, t); };
+  std::function<void(std::string_view, std::size_t, std::size_t)> callback() {
+    return [this](std::string_view stage, std::size_t d, std::size_t t) { update(stage, d, t); };
   }
 
  private:

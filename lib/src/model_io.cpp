@@ -88,17 +88,30 @@ OpenedModel open_model(const std::filesystem::path& model, const OpenOptions& op
     }
     if (options.warn) options.warn(out.cache.string() + ": " + out.cache_note + "; rebuilding");
   }
+  auto stage = [&](std::string_view name) {
+    if (options.progress) options.progress(name, 0, 1);
+  };
+  stage("read");
   auto t0 = std::chrono::steady_clock::now();
   PointSet points = load_ply(model, &out.ply, options.warn);
   out.read_seconds = seconds_since(t0);
   out.input_points = points.size();
+  stage("attributes");
   t0 = std::chrono::steady_clock::now();
   complete_attributes(points, options.attributes);
   out.attribute_seconds = seconds_since(t0);
+  stage("hierarchy");
+  BuildOptions build = options.build;
+  if (options.progress)
+    build.progress = [&](std::size_t done, std::size_t total) {
+      if (options.build.progress) options.build.progress(done, total);
+      options.progress("hierarchy", done, total);
+    };
   t0 = std::chrono::steady_clock::now();
-  out.hierarchy = build_hierarchy(std::move(points), options.build);
+  out.hierarchy = build_hierarchy(std::move(points), build);
   out.build_seconds = seconds_since(t0);
   if (options.use_cache) {
+    stage("cache");
     t0 = std::chrono::steady_clock::now();
     try {
       save_cache(out.hierarchy, key, out.cache);

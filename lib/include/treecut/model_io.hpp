@@ -4,6 +4,8 @@
 #pragma once
 
 #include <filesystem>
+#include <functional>
+#include <string_view>
 #include <optional>
 #include <string>
 
@@ -20,6 +22,9 @@ struct OpenOptions {
   bool use_cache = true;         ///< read a valid cache, write one after a build
   std::optional<std::filesystem::path> cache_path;  ///< default: default_cache_path(model)
   WarningSink warn;              ///< PLY warnings and cache notes (may be empty)
+  /// Called on the calling thread with the stage ("read", "attributes",
+  /// "hierarchy", "cache") and (done, total) work units within it; may be empty.
+  std::function<void(std::string_view stage, std::size_t done, std::size_t total)> progress;
 };
 
 struct OpenedModel {
