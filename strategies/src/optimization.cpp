@@ -26,8 +26,9 @@ struct ByPriority {
 // Keeps the k best candidates of a stream (Carr et al. keep a partial sort of
 // size k): candidates better than the current bound are appended; when 2k
 // have gathered, nth_element keeps the best k and tightens the bound. O(1)
-// amortized per candidate, O(n) per pass; the caller may test bound() first
-// to skip computing a candidate at all.
+// amortized per candidate, O(n) per pass; the caller may test admits() first
+// to skip computing a candidate at all. The buffer ends with the best k among
+// at most 2k candidates, unordered.
 template <typename Better>
 class Selection {
  public:
@@ -41,10 +42,6 @@ class Selection {
     if (!admits(c)) return;
     buf_.push_back(c);
     if (buf_.size() >= 2 * k_) shrink();
-  }
-  /// Leaves the best k (or fewer) in the buffer, unordered.
-  void finish() {
-    if (buf_.size() > k_) shrink();
   }
 
  private:
@@ -159,6 +156,7 @@ void OptimizationStrategy::iterate(const IterationInput& input, IterationOutput&
       __builtin_prefetch(&a.center_radius[ahead]);
       __builtin_prefetch(&a.priority[ahead]);
       __builtin_prefetch(&a.parent[ahead]);
+      __builtin_prefetch(&a.child_count[ahead]);
     }
     float size = 0.0f;
     const float p = view_priority(a, view, n, weight, size);
@@ -184,13 +182,14 @@ void OptimizationStrategy::iterate(const IterationInput& input, IterationOutput&
       lows.add(c);
     }
   }
-  highs.finish();
-  lows.finish();
   r.visited = nodes.size();
-  // Heaps over the k selected (O(k)), popped lazily: an iteration that stops
-  // early pays O(log k) per candidate used, not a full sort.
+  // Heaps over the selection buffers (O(k)), popped lazily and at most k
+  // times: an iteration that stops early pays O(log k) per candidate used,
+  // not a sort of k.
   std::make_heap(high_.begin(), high_.end(), higher);  // highest on top
   std::make_heap(low_.begin(), low_.end(), lower);     // lowest on top
+  std::size_t high_left = k;
+  std::size_t low_left = k;
   const auto pop = [](std::vector<Candidate>& heap, auto order) {
     std::pop_heap(heap.begin(), heap.end(), order);
     heap.pop_back();
@@ -199,14 +198,16 @@ void OptimizationStrategy::iterate(const IterationInput& input, IterationOutput&
   // Apply: refine in descending priority while there is room; make room by
   // coarsening the lowest parents, but only for a gain above the threshold.
   const auto coarsen_next = [&](float must_beat, bool forced) {
-    while (!low_.empty()) {
+    while (!low_.empty() && low_left > 0) {
       const auto [p, parent] = low_.front();
       if (!cut.can_coarsen(h, parent)) {  // a child was refined meanwhile
         pop(low_, lower);
+        --low_left;
         continue;
       }
       if (!forced && !(p + threshold < must_beat)) return false;
       pop(low_, lower);
+      --low_left;
       cut.coarsen(h, parent);
       last_op_[parent] = coarsened_mark;
       ++r.coarsened;
@@ -217,9 +218,10 @@ void OptimizationStrategy::iterate(const IterationInput& input, IterationOutput&
   // A lowered budget: shrink first, whatever the gain.
   while (cut.size() > max_nodes && coarsen_next(0.0f, true)) {
   }
-  while (!high_.empty()) {
+  while (!high_.empty() && high_left > 0) {
     const auto [p, n] = high_.front();
     pop(high_, higher);
+    --high_left;
     if (!cut.contains(n)) continue;  // its parent was coarsened above
     const std::size_t grow = a.child_count[n] - 1u;
     bool room = true;

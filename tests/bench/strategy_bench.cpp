@@ -44,12 +44,23 @@ struct Timing {
   double ns = 0;
   double nodes = 0;
   double cut = 0;
+  double ops = 0;
   std::uint64_t iterations = 0;
+
+  void add(double iteration_ns, const IterationResult& r) {
+    ns += iteration_ns;
+    nodes += static_cast<double>(r.visited);
+    cut += static_cast<double>(r.cut_size);
+    ops += static_cast<double>(r.refined + r.coarsened);
+    ++iterations;
+  }
 };
 
 void report(benchmark::State& state, const Timing& t) {
+  const auto n = static_cast<double>(t.iterations);
   state.counters["ns_per_node"] = t.ns / t.nodes;
-  state.counters["cut_size"] = t.cut / static_cast<double>(t.iterations);
+  state.counters["cut_size"] = t.cut / n;
+  state.counters["ops_per_iter"] = t.ops / n;
 }
 
 double thread_cpu_ns() {
@@ -90,10 +101,7 @@ void BM_Optimization(benchmark::State& state) {
     out.queries = &queries;
     const double ns = timed([&] { s.iterate(IterationInput{*h, v}, out); });
     state.SetIterationTime(ns * 1e-9);
-    t.ns += ns;
-    t.nodes += static_cast<double>(out.result.visited);
-    t.cut += static_cast<double>(out.result.cut_size);
-    ++t.iterations;
+    t.add(ns, out.result);
   }
   report(state, t);
 }
@@ -128,10 +136,7 @@ void BM_Bucket(benchmark::State& state) {
     out.queries = &queries;
     const double ns = timed([&] { s.iterate(IterationInput{*h, v}, out); });
     state.SetIterationTime(ns * 1e-9);
-    t.ns += ns;
-    t.nodes += static_cast<double>(out.result.visited);
-    t.cut += static_cast<double>(out.result.cut_size);
-    ++t.iterations;
+    t.add(ns, out.result);
   }
   report(state, t);
 }
@@ -170,10 +175,7 @@ void BM_Recursive(benchmark::State& state) {
     IterationResult r;
     const double ns = timed([&] { r = run(v); });
     state.SetIterationTime(ns * 1e-9);
-    t.ns += ns;
-    t.nodes += static_cast<double>(r.visited);
-    t.cut += static_cast<double>(r.cut_size);
-    ++t.iterations;
+    t.add(ns, r);
   }
   report(state, t);
 }
