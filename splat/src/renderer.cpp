@@ -14,6 +14,7 @@
 #include <glm/mat3x3.hpp>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "shaders.hpp"
@@ -40,28 +41,71 @@ SplatMode parse_splat_mode(std::string_view name) {
   throw InputError("unknown splat mode '" + std::string(name) + "' (expected fast, hq or fixed)");
 }
 
+namespace {
+
+// LSD radix sort of node ids below `id_end` into `out` (11-bit digits, one
+// O(n) pass per digit; `scratch` is the ping-pong buffer). Both vectors keep
+// their capacity, so a CutBuffer allocates only while the cut grows.
+void sort_ids(std::span<const NodeId> in, NodeId id_end, std::vector<NodeId>& out,
+              std::vector<NodeId>& scratch) {
+  constexpr unsigned kBits = 11;
+  constexpr std::size_t kBuckets = std::size_t{1} << kBits;
+  const unsigned bits =
+      std::max(1u, static_cast<unsigned>(std::bit_width(std::max<NodeId>(id_end, 1) - 1)));
+  const unsigned passes = (bits + kBits - 1) / kBits;
+  out.resize(in.size());
+  scratch.resize(in.size());
+  // Ping-pong so that the last pass writes `out`.
+  std::span<const NodeId> from = in;
+  std::array<std::uint32_t, kBuckets> offset{};
+  for (unsigned pass = 0; pass < passes; ++pass) {
+    std::vector<NodeId>& to = (passes - pass) % 2 == 1 ? out : scratch;
+    const unsigned shift = pass * kBits;
+    offset.fill(0);
+    for (const NodeId n : from) ++offset[(n >> shift) & (kBuckets - 1)];
+    std::uint32_t sum = 0;
+    for (std::uint32_t& o : offset) sum += std::exchange(o, sum);
+    for (const NodeId n : from) to[offset[(n >> shift) & (kBuckets - 1)]++] = n;
+    from = to;
+  }
+}
+
+}  // namespace
+
 void CutBuffer::upload(const Hierarchy& h, std::span<const NodeId> nodes) {
   std::uint64_t points = 0;
   const auto counts = h.arrays().point_count;
   for (const NodeId n : nodes) points += counts[n];
-  const std::size_t bytes = nodes.size_bytes();
+  // Draw in node-id order. Ids are breadth-first over a spatial tree, so this
+  // order is spatially coherent; llvmpipe's rasterizer threads read each
+  // triangle's setup data in submission order, and a strategy's cut order
+  // (scattered by refines and coarsens) made them miss the cache on almost
+  // every splat (docs/rendering.md, "Submission order").
+  std::span<const NodeId> ordered = nodes;
+  if (!std::is_sorted(nodes.begin(), nodes.end())) {
+    sort_ids(nodes, h.node_count(), sorted_, scratch_);
+    ordered = sorted_;
+  }
+  const std::size_t bytes = ordered.size_bytes();
   if (!buffer_ || buffer_.size() < bytes) {
     const std::size_t capacity = std::bit_ceil(std::max<std::size_t>(bytes, 4096));
     buffer_ = gl::Buffer::create(capacity, nullptr, GL_DYNAMIC_STORAGE_BIT);
   }
-  buffer_.sub_data(0, std::as_bytes(nodes));
+  buffer_.sub_data(0, std::as_bytes(ordered));
   count_ = nodes.size();
   points_ = points;
 }
 
 namespace {
 
+// `defines` ("#define NAME 1\n" lines) go between kCommon and each body.
 gl::Program make_program(std::initializer_list<std::pair<GLenum, const char*>> stages,
-                         std::string_view label) {
+                         std::string_view label, std::string_view defines = {}) {
   std::vector<gl::Shader> shaders;
   shaders.reserve(stages.size());
   for (const auto& [stage, body] : stages) {
-    shaders.push_back(gl::Shader::compile(stage, std::string(shaders::kCommon) + body, label));
+    shaders.push_back(gl::Shader::compile(
+        stage, std::string(shaders::kCommon) + std::string(defines) + body, label));
   }
   std::vector<const gl::Shader*> pointers;
   for (const auto& s : shaders) pointers.push_back(&s);
@@ -112,7 +156,7 @@ Renderer::Renderer(const Hierarchy& h, glm::ivec2 size) : node_count_(h.node_cou
   fast_ = make_program({{GL_VERTEX_SHADER, shaders::kSplatVertex},
                         {GL_GEOMETRY_SHADER, shaders::kSplatGeometry},
                         {GL_FRAGMENT_SHADER, shaders::kFastFragment}},
-                       "splat fast");
+                       "splat fast", "#define SPLAT_LIT 1\n");
   hq_visibility_ = make_program({{GL_VERTEX_SHADER, shaders::kSplatVertex},
                                  {GL_GEOMETRY_SHADER, shaders::kSplatGeometry},
                                  {GL_FRAGMENT_SHADER, shaders::kVisibilityFragment}},

@@ -78,8 +78,10 @@ struct FrameStats {
 class CutBuffer {
  public:
   CutBuffer() = default;
-  /// Copies the node ids of a cut of `h` and counts the input points they
-  /// stand for (the sum of their point_count). O(nodes).
+  /// Copies the node ids of a cut of `h`, in ascending id order (a radix sort
+  /// unless already sorted: a spatially coherent draw order), and counts the
+  /// input points they stand for (the sum of their point_count). O(nodes);
+  /// allocates only when the cut is larger than any before.
   void upload(const Hierarchy& h, std::span<const NodeId> nodes);
   [[nodiscard]] std::size_t size() const { return count_; }
   [[nodiscard]] std::uint64_t points() const { return points_; }
@@ -89,6 +91,8 @@ class CutBuffer {
   gl::Buffer buffer_;
   std::size_t count_ = 0;
   std::uint64_t points_ = 0;
+  std::vector<NodeId> sorted_;   // the uploaded order (reused)
+  std::vector<NodeId> scratch_;  // radix sort ping-pong (reused)
 };
 
 /// The frame's matrices, handed to a QueryHook.
