@@ -327,22 +327,35 @@ Hierarchy build_hierarchy(PointSet&& points, const BuildOptions& options) {
         if (nlen > 1e-6f) {
           nrm = nsum / nlen;
           const glm::i16vec4 qn = pack_normal_cone(nrm, 1.0f);
-          const glm::vec3 qv = glm::vec3(qn) * (1.0f / 32767.0f);
-          float half_angle = 0.0f;
+          const glm::vec3 u = glm::normalize(glm::vec3(qn));
+          // Work with versines v = 1 - cos and sines: v(a + b) = va + vb - va vb
+          // + sa sb. No inverse trigonometry per child, and small angles keep
+          // their precision (1 - dot rounds them to zero in float).
+          float widest = 0.0f;  // versine of the cone's half-angle
           for (std::size_t c = c0; c < c0 + cc; ++c) {
             const glm::i16vec4 k = a.normal_cone[c];
-            const glm::vec3 kv = glm::vec3(k) * (1.0f / 32767.0f);
-            const float kc = static_cast<float>(k.w) * (1.0f / 32767.0f);
-            if (glm::dot(kv, kv) < 0.25f || kc <= -1.0f + 1e-6f) {
-              half_angle = 3.2f;  // a child facing anywhere: full cone
+            const glm::vec3 kv = glm::vec3(k);
+            const float cb = static_cast<float>(k.w) * (1.0f / 32767.0f);
+            if (glm::dot(kv, kv) < 0.25f * 32767.0f * 32767.0f || cb <= -1.0f + 1e-6f) {
+              widest = 2.0f;  // a child facing anywhere: full cone
               break;
             }
-            const float between = angle_between(qv, kv);
-            half_angle = std::max(half_angle, between + std::acos(std::clamp(kc, -1.0f, 1.0f)));
+            const glm::vec3 w = glm::normalize(kv);
+            const glm::vec3 uw = u - w;
+            const float va = 0.5f * glm::dot(uw, uw), sa = glm::length(glm::cross(u, w));
+            const float vb = 1.0f - cb, sb = std::sqrt(std::max(0.0f, vb * (2.0f - vb)));
+            const float ca = 1.0f - va;
+            if (sa * cb + ca * sb < 0.0f) {  // the angles add up beyond pi
+              widest = 2.0f;
+              break;
+            }
+            widest = std::max(widest, va + vb - va * vb + sa * sb);
           }
-          // Margin for snorm16 rounding of the normals (about 1e-4 rad).
-          half_angle += 2e-4f;
-          cone_cos = half_angle >= 3.14159f ? -1.0f : std::cos(half_angle);
+          // Widen by 2e-4 rad for the snorm16 rounding of the normals:
+          // v(t + e) ~ v(t) + e sin(t) + e^2 / 2.
+          if (widest < 2.0f)
+            widest += 2e-4f * std::sqrt(std::max(0.0f, widest * (2.0f - widest))) + 2e-8f;
+          cone_cos = std::max(-1.0f, 1.0f - widest);
         }
         a.normal_cone[i] = pack_normal_cone(nrm, cone_cos);
         const glm::vec4 avg = csum / static_cast<float>(count);
