@@ -85,10 +85,20 @@ int child_ranges(Range r, Range out[4]) {
 // Moves the points of [b, e) so that [b, m) lies below m along the longest
 // axis of the range. One thread owns a range and nth_element is
 // deterministic, so the result is a pure function of the input.
-void split_at(Item* items, std::uint32_t b, std::uint32_t m, std::uint32_t e) {
-  const int axis = longest_axis(items + b, items + e);
+template <int Axis>
+void select(Item* items, std::uint32_t b, std::uint32_t m, std::uint32_t e) {
+  // A compile-time axis: glm's operator[] is a switch, too slow for the comparator.
+  auto key = [](const Item& it) { return Axis == 0 ? it.p.x : Axis == 1 ? it.p.y : it.p.z; };
   std::nth_element(items + b, items + m, items + e,
-                   [axis](const Item& l, const Item& r) { return l.p[axis] < r.p[axis]; });
+                   [key](const Item& l, const Item& r) { return key(l) < key(r); });
+}
+
+void split_at(Item* items, std::uint32_t b, std::uint32_t m, std::uint32_t e) {
+  switch (longest_axis(items + b, items + e)) {
+    case 0: return select<0>(items, b, m, e);
+    case 1: return select<1>(items, b, m, e);
+    default: return select<2>(items, b, m, e);
+  }
 }
 
 void partition(Item* items, Range r) {
