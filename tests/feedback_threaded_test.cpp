@@ -74,6 +74,32 @@ TEST(FeedbackThread, ShutdownWhileProcessRunsReturns) {
   EXPECT_EQ(entered.load(), 1);
 }
 
+// A cancel asked for right after a request, before the stage thread has woken
+// up, must reach that iteration: the gate returns only when cancelled, so a
+// lost cancel hangs (tests/model/exchange_broken_cancel_cleared_by_stage.pml).
+TEST(FeedbackThread, ShutdownRightAfterARequestCancelsTheIteration) {
+  for (int i = 0; i < 100; ++i) {
+    std::atomic<int> entered{0};
+    FeedbackStage stage(model(), std::make_unique<GateStrategy>(&entered));
+    ASSERT_TRUE(stage.poll().requested);
+  }  // the destructor cancels the gate, whether or not it has entered it
+}
+
+TEST(FeedbackThread, SwitchingStrategyRightAfterARequestCancelsTheIteration) {
+  for (int i = 0; i < 100; ++i) {
+    std::atomic<int> entered{0};
+    FeedbackStage stage(model(), std::make_unique<GateStrategy>(&entered));
+    ASSERT_TRUE(stage.poll().requested);
+    stage.set_strategy(std::make_unique<strategies::OptimizationStrategy>());
+    while (stage.counters().iterations < 2) {
+      stage.poll();
+      std::this_thread::yield();
+    }
+    EXPECT_EQ(entered.load(), 1);
+    EXPECT_EQ(stage.strategy_name(), "optimization");
+  }
+}
+
 TEST(FeedbackThread, CountersTrackIterationsAndExchanges) {
   FeedbackStage stage(model(), std::make_unique<test::RandomWalkStrategy>());
   while (stage.counters().exchanges < 200) {

@@ -1,16 +1,49 @@
 // The wait/process exchange of "Parallel TreeCut Manipulation" (Marton,
 // Schiffner et al.), section 3, figure 2. See feedback_stage.hpp and
 // docs/threading.md for the ownership rules this file relies on.
+// Model-checked: tests/model/exchange.pml is this protocol in Promela, with the
+// same names (states, buffer uses, poll/exchange/request/retire/release,
+// run/process with Extract, Iterate, Publish, the destructor); change both.
 #include "treecut/feedback_stage.hpp"
 
+#include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <stdexcept>
 #include <utility>
+
+#if defined(__linux__)
+#include <pthread.h>
+#include <sched.h>
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+#endif
 
 #include "treecut/error.hpp"
 
 namespace treecut {
 namespace {
+
+// Called by the stage thread on itself. Best effort: on failure the thread
+// keeps its inherited priority.
+void lower_own_priority(StagePriority priority) {
+#if defined(__linux__)
+  if (priority == StagePriority::Low) {
+    // Linux keeps a nice value per thread: PRIO_PROCESS with a thread id
+    // changes this thread only.
+    const auto tid = static_cast<id_t>(syscall(SYS_gettid));
+    errno = 0;
+    const int nice = getpriority(PRIO_PROCESS, tid);
+    if (errno == 0) (void)setpriority(PRIO_PROCESS, tid, std::min(nice + 10, 19));
+  } else if (priority == StagePriority::Idle) {
+    const sched_param param{};
+    (void)pthread_setschedparam(pthread_self(), SCHED_IDLE, &param);
+  }
+#else
+  (void)priority;
+#endif
+}
 
 std::uint64_t ns_between(std::chrono::steady_clock::time_point a,
                          std::chrono::steady_clock::time_point b) {
@@ -63,6 +96,7 @@ FeedbackStage::~FeedbackStage() {
 }
 
 void FeedbackStage::run() {
+  lower_own_priority(options_.priority);
   for (;;) {
     state_.wait(State::Wait, std::memory_order_acquire);
     const State s = state_.load(std::memory_order_acquire);
@@ -82,7 +116,6 @@ bool FeedbackStage::step() {
 // buffer and the stage-only members is ours; the front list is read-only.
 void FeedbackStage::process() {
   using Clock = std::chrono::steady_clock;
-  cancel_.store(false, std::memory_order_relaxed);
   Outbox out;
   try {
     const Clock::time_point t0 = Clock::now();
@@ -211,6 +244,10 @@ bool FeedbackStage::request() {
   frames_at_request_ = counters_.frames;
   in_flight_ = true;
   ++counters_.requests;
+  // A cancel stored before this point was for an earlier iteration. Cleared
+  // here, not by the stage: set_strategy(), set_model() or the destructor may
+  // cancel this iteration before the stage thread has even woken up.
+  cancel_.store(false, std::memory_order_relaxed);
   state_.store(State::Process, std::memory_order_release);
   state_.notify_one();
   return true;

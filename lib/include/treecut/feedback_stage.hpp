@@ -24,6 +24,9 @@
 // Threads: every public member except step() is for the render thread (the
 // thread that constructed the stage). step() is for the thread that acts as
 // the Feedback Stage when launched with Launch::Manual (tests).
+//
+// tests/model/exchange.pml models this protocol (State, BufferUse and the
+// steps by their names here) and spin checks it: keep the two in step.
 #pragma once
 
 #include <atomic>
@@ -52,8 +55,20 @@ enum class Launch {
   Manual,  ///< no thread: the owner calls step() (synchronous tests)
 };
 
+/// Scheduling of the stage thread (Launch::Thread). The stage only prepares
+/// the next cut, so it should give way to the render thread and the GL
+/// driver's threads (llvmpipe rasterizes on one thread per core). Linux only,
+/// best effort (elsewhere, or if the call fails, the thread keeps the
+/// priority it inherited). See docs/threading.md, "Thread priority".
+enum class StagePriority {
+  Normal,  ///< the priority of the thread that created the stage
+  Low,     ///< nice +10 for the stage thread only
+  Idle,    ///< SCHED_IDLE: runs only on a core no other thread wants
+};
+
 struct StageOptions {
   unsigned list_buffers = 3;  ///< >= 2 (front + back); more absorb late releases and blending
+  StagePriority priority = StagePriority::Low;
   ReleaseMode release = ReleaseMode::OnExchange;
   /// Frames over which an exchanged list fades in over the previous one; 0 = swap at once.
   unsigned blend_frames = 0;
