@@ -15,6 +15,8 @@
 #include <fstream>
 #include <stdexcept>
 
+#include "cache_checksum.hpp"
+
 namespace treecut {
 
 namespace {
@@ -318,6 +320,10 @@ std::optional<CacheKey> read_cache_key(const std::filesystem::path& cache, std::
   Header h;
   if (!map_and_verify(cache, &h, why)) return std::nullopt;
   return CacheKey{h.source_size, h.source_mtime_ns, h.options_bits};
+}
+
+std::uint64_t detail::cache_checksum(const unsigned char* data, std::size_t size) {
+  return checksum(data, size);
 }
 
 }  // namespace treecut
