@@ -127,7 +127,8 @@ bool links_ok(const HierarchyArrays& a, std::span<const NodeId> levels, std::str
   for (std::size_t d = 0; d + 1 < levels.size(); ++d)
     if (levels[d] >= levels[d + 1]) return fail(why, "level table not increasing");
   if (a.parent[0] != kNoNode || a.depth[0] != 0) return fail(why, "bad root");
-  for (std::size_t d = 0; d + 1 < levels.size(); ++d)
+  for (std::size_t d = 0; d + 1 < levels.size(); ++d) {
+    std::uint64_t children = 0;  // of this level: must be the whole next level
     for (NodeId i = levels[d]; i < levels[d + 1]; ++i) {
       if (a.depth[i] != d) return fail(why, "node depth disagrees with the level table");
       const unsigned cc = a.child_count[i];
@@ -139,9 +140,21 @@ bool links_ok(const HierarchyArrays& a, std::span<const NodeId> levels, std::str
       if (cc > 4 || c0 < levels[d + 1] || c0 > n || cc > n - c0 ||
           (d + 2 < levels.size() && c0 + cc > levels[d + 2]))
         return fail(why, "child range out of bounds");
-      for (NodeId c = c0; c < c0 + cc; ++c)
+      std::uint64_t points = 0;
+      for (NodeId c = c0; c < c0 + cc; ++c) {
         if (a.parent[c] != i) return fail(why, "parent link broken");
+        points += a.point_count[c];
+      }
+      // leaf_count() is the root's count and sizes allocations: every count
+      // must be the sum of the children's, down to the leaves' 1.
+      if (a.point_count[i] != points) return fail(why, "point count is not the children's sum");
+      children += cc;
     }
+    // The parent links make the child ranges disjoint; covering the next
+    // level as well leaves no node unreachable from the root.
+    const std::uint64_t next = d + 2 < levels.size() ? levels[d + 2] - levels[d + 1] : 0;
+    if (children != next) return fail(why, "a node is nobody's child");
+  }
   return true;
 }
 
