@@ -357,13 +357,23 @@ std::string plural(std::size_t n, const std::string& word) {
   return std::to_string(n) + " " + word + (n == 1 ? "" : "s");
 }
 
-// Drops points with a non-finite coordinate from every array, and the faces
-// that use them; remaps the remaining indices. Returns {points, faces} dropped.
+// Beyond this magnitude the float arithmetic of attributes and build (squared
+// distances, covariances) overflows: such points are as unusable as NaNs.
+constexpr float kMaxCoordinate = 1e18f;
+
+bool out_of_range(const glm::vec3& p) {
+  return !(std::fabs(p.x) <= kMaxCoordinate && std::fabs(p.y) <= kMaxCoordinate &&
+           std::fabs(p.z) <= kMaxCoordinate);
+}
+
+// Drops points with a non-finite or out-of-range coordinate from every array,
+// and the faces that use them; remaps the remaining indices. Returns {points,
+// faces} dropped.
 std::pair<std::size_t, std::size_t> drop_nonfinite(PointSet& points) {
   const std::size_t n = points.size();
   std::size_t bad = 0;
   for (const glm::vec3& p : points.positions) {
-    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) ++bad;
+    if (out_of_range(p)) ++bad;
   }
   if (bad == 0) return {0, 0};
 
@@ -371,8 +381,7 @@ std::pair<std::size_t, std::size_t> drop_nonfinite(PointSet& points) {
   std::vector<std::uint32_t> remap(n, kDropped);
   std::size_t kept = 0;
   for (std::size_t i = 0; i < n; ++i) {
-    const glm::vec3& p = points.positions[i];
-    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) continue;
+    if (out_of_range(points.positions[i])) continue;
     remap[i] = static_cast<std::uint32_t>(kept);
     points.positions[kept] = points.positions[i];
     if (points.has_normals()) points.normals[kept] = points.normals[i];
@@ -597,10 +606,15 @@ PointSet read_plan(Plan& plan, const Warnings& warn, PlyLoadReport& report) {
 // Makes the PointSet contract hold: finite positions, unit (or zero)
 // normals, radii all positive or none.
 void tidy(PointSet& points, const Warnings& warn, PlyLoadReport& report) {
+  const bool huge =
+      std::any_of(points.positions.begin(), points.positions.end(), [](const glm::vec3& p) {
+        return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z) && out_of_range(p);
+      });
   const auto [dropped_points, dropped_faces] = drop_nonfinite(points);
   report.dropped_nonfinite = dropped_points;
   if (dropped_points > 0) {
-    warn("dropped " + plural(dropped_points, "point") + " with non-finite coordinates" +
+    warn("dropped " + plural(dropped_points, "point") + " with non-finite" +
+         (huge ? " or out-of-range (beyond 1e18)" : "") + " coordinates" +
          (dropped_faces > 0 ? " and " + plural(dropped_faces, "face") + " using them" : ""));
   }
   if (points.size() == 0) throw ply::Error("no point has finite coordinates");

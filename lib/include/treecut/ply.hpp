@@ -16,7 +16,7 @@ namespace treecut {
 
 struct PlyLoadReport {
   std::size_t vertices_in_file = 0;   ///< as the header declares
-  std::size_t dropped_nonfinite = 0;  ///< points with NaN/inf coordinates, dropped
+  std::size_t dropped_nonfinite = 0;  ///< points with NaN/inf or |x| > 1e18 coordinates, dropped
   std::size_t faces_in_file = 0;      ///< face (or tristrip triangle) count read
   bool had_normals = false;
   bool had_colors = false;
@@ -33,7 +33,9 @@ using WarningSink = std::function<void(const std::string&)>;
 /// OpenMesh's reader, which is a process-wide singleton with per-file state.
 ///
 /// What it normalizes, each with a warning through WARN: points with
-/// non-finite coordinates are dropped (with the faces that use them); faces
+/// non-finite coordinates, or beyond 1e18 in magnitude (where the float
+/// arithmetic of attributes and build overflows), are dropped (with the faces
+/// that use them); faces
 /// with out-of-range indices or fewer than 3 vertices are dropped; polygons
 /// become triangle fans and tristrips become triangles; normals are scaled to
 /// unit length (non-finite or zero ones become zero); radii are kept only if
