@@ -225,6 +225,8 @@ void run_render(const RenderArgs& a) {
     splat::Camera cam = camera_at(0.0);
     StageOptions stage_options;
     stage_options.launch = a.sync ? Launch::Manual : Launch::Thread;
+    // llvmpipe keeps both cores busy while it draws: the stage takes what is left.
+    stage_options.priority = StagePriority::Idle;
     Controller controller(make_model(h), make_strategy(registry, name, a.scene.params),
                           snapshot_of(cam, size, world_light_dir(settings.light, cam)),
                           stage_options);

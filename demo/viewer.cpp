@@ -117,10 +117,13 @@ class Viewer {
     fit();
     auto strategy = make_strategy(registry_, strategy_, args.scene.params);
     read_params(*strategy);
-    controller_ =
-        std::make_unique<Controller>(make_model(*scene_.hierarchy), std::move(strategy),
-                                     snapshot_of(camera_, window_.framebuffer_size(),
-                                                 world_light_dir(settings_.light, camera_)));
+    StageOptions stage_options;
+    // The stage takes the cycles the render thread and the GL driver leave.
+    stage_options.priority = StagePriority::Idle;
+    controller_ = std::make_unique<Controller>(
+        make_model(*scene_.hierarchy), std::move(strategy),
+        snapshot_of(camera_, window_.framebuffer_size(), world_light_dir(settings_.light, camera_)),
+        stage_options);
     driver_ = FrameDriver{controller_.get(), &cut_};
 
     glfwSetWindowUserPointer(window_.handle(), &input_);

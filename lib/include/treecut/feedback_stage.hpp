@@ -68,7 +68,7 @@ enum class StagePriority {
 
 struct StageOptions {
   unsigned list_buffers = 3;  ///< >= 2 (front + back); more absorb late releases and blending
-  StagePriority priority = StagePriority::Low;
+  StagePriority priority = StagePriority::Normal;
   ReleaseMode release = ReleaseMode::OnExchange;
   /// Frames over which an exchanged list fades in over the previous one; 0 = swap at once.
   unsigned blend_frames = 0;
