@@ -1,0 +1,207 @@
+// `treecut render` as a user runs it: headless (OSMesa) on a generated model,
+// N PNG frames, stats.csv with the columns docs/rendering.md documents, a
+// finite PSNR with --psnr, summary.json and plot.svg; bad input exits with 2
+// and leaves no output folder behind.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "test_support.hpp"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct CliRun {
+  int code = -1;
+  std::string out;
+};
+
+// Runs the treecut program with the given arguments (shell-quoted by the caller).
+CliRun run_treecut(const std::string& args) {
+  const fs::path bin = fs::path(TREECUT_BINARY_DIR) / "demo" / "treecut";
+  const std::string cmd = "'" + bin.string() + "' " + args + " 2>&1";
+  CliRun r;
+  FILE* p = popen(cmd.c_str(), "r");
+  if (!p) return r;
+  std::array<char, 4096> buf;
+  while (std::fgets(buf.data(), buf.size(), p)) r.out += buf.data();
+  const int status = pclose(p);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+std::string quote(const fs::path& p) {
+  return "'" + p.string() + "'";
+}
+
+std::string read_text(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+std::vector<std::string> split(const std::string& line, char sep) {
+  std::vector<std::string> fields;
+  std::string field;
+  std::istringstream in(line);
+  while (std::getline(in, field, sep)) fields.push_back(field);
+  if (!line.empty() && line.back() == sep) fields.emplace_back();
+  return fields;
+}
+
+// The stats.csv header as docs/rendering.md documents it: the backquoted list
+// after "`stats.csv`: ", spaces and line breaks removed.
+std::string documented_stats_header() {
+  const std::string doc = read_text(fs::path(TREECUT_SOURCE_DIR) / "docs" / "rendering.md");
+  const std::string key = "`stats.csv`: `";
+  const auto at = doc.find(key);
+  if (at == std::string::npos) return {};
+  const auto end = doc.find('`', at + key.size());
+  std::string header;
+  for (char c : doc.substr(at + key.size(), end - at - key.size())) {
+    if (c != ' ' && c != '\n') header += c;
+  }
+  return header;
+}
+
+// Width and height from a PNG's IHDR chunk; {0, 0} if it is not a PNG.
+std::pair<unsigned, unsigned> png_size(const fs::path& p) {
+  const std::string b = read_text(p);
+  if (b.size() < 24 || b.compare(0, 8, "\x89PNG\r\n\x1a\n") != 0 || b.compare(12, 4, "IHDR") != 0) {
+    return {0, 0};
+  }
+  auto be32 = [&](std::size_t i) {
+    return unsigned(static_cast<unsigned char>(b[i])) << 24 |
+           unsigned(static_cast<unsigned char>(b[i + 1])) << 16 |
+           unsigned(static_cast<unsigned char>(b[i + 2])) << 8 |
+           unsigned(static_cast<unsigned char>(b[i + 3]));
+  };
+  return {be32(16), be32(20)};
+}
+
+double number(const std::string& s) {
+  char* end = nullptr;
+  const double v = std::strtod(s.c_str(), &end);
+  return !s.empty() && end == s.c_str() + s.size() ? v : std::nan("");
+}
+
+// A small generated model, a small frame, a budget well below the leaves (so
+// the LOD frame differs from full detail and the PSNR is finite), the stage
+// run synchronously.
+const std::string kSmallRun =
+    "render --default-kind sphere --default-points 6000 --width 160 --height 96 --warmup 3 "
+    "--sync -p max_nodes=600 ";
+
+}  // namespace
+
+TEST(RenderCommand, WritesFramesStatsSummaryAndAFinitePsnr) {
+  const fs::path dir = treecut::test::scratch_dir("render_command") / "out";
+  constexpr int kFrames = 5;
+  const CliRun r =
+      run_treecut(kSmallRun + "--frames " + std::to_string(kFrames) + " --psnr -o " + quote(dir));
+  ASSERT_EQ(r.code, 0) << r.out;
+
+  // N PNG frames of the requested size, and nothing else named frame_*.
+  int pngs = 0;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    if (e.path().filename().string().rfind("frame_", 0) == 0) ++pngs;
+  }
+  EXPECT_EQ(pngs, kFrames);
+  for (int f = 0; f < kFrames; ++f) {
+    char name[32];
+    std::snprintf(name, sizeof name, "frame_%05d.png", f);
+    const auto [w, h] = png_size(dir / name);
+    EXPECT_EQ(w, 160u) << name;
+    EXPECT_EQ(h, 96u) << name;
+  }
+
+  // stats.csv: the documented header, then one row per frame.
+  const std::string expected_header = documented_stats_header();
+  ASSERT_FALSE(expected_header.empty()) << "docs/rendering.md lost the stats.csv columns";
+  std::ifstream csv(dir / "stats.csv");
+  std::string line;
+  ASSERT_TRUE(std::getline(csv, line));
+  EXPECT_EQ(line, expected_header);
+  const std::size_t columns = split(expected_header, ',').size();
+  const std::vector<std::string> names = split(expected_header, ',');
+  auto column = [&](const char* name) {
+    return std::size_t(std::find(names.begin(), names.end(), name) - names.begin());
+  };
+  int rows = 0;
+  while (std::getline(csv, line)) {
+    const std::vector<std::string> f = split(line, ',');
+    ASSERT_EQ(f.size(), columns) << line;
+    EXPECT_EQ(number(f[column("frame")]), double(rows)) << line;
+    EXPECT_GT(number(f[column("frame_ms")]), 0.0) << line;
+    const double cut = number(f[column("cut_size")]);
+    EXPECT_GT(cut, 0.0) << line;
+    EXPECT_LE(cut, 600.0) << line;
+    EXPECT_GE(number(f[column("points_drawn")]), cut) << line;
+    const double psnr = number(f[column("psnr_db")]);
+    EXPECT_TRUE(std::isfinite(psnr)) << "psnr_db '" << f[column("psnr_db")] << "'";
+    EXPECT_GT(psnr, 5.0) << line;
+    ++rows;
+  }
+  EXPECT_EQ(rows, kFrames);
+
+  // The summary and the printed line carry the PSNR too.
+  const std::string summary = read_text(dir / "summary.json");
+  EXPECT_NE(summary.find("\"frames\": " + std::to_string(kFrames)), std::string::npos) << summary;
+  EXPECT_EQ(summary.find("\"mean_psnr_db\": null"), std::string::npos) << summary;
+  EXPECT_NE(summary.find("\"mean_psnr_db\": "), std::string::npos) << summary;
+  EXPECT_NE(r.out.find(" dB"), std::string::npos) << r.out;
+  EXPECT_TRUE(fs::is_regular_file(dir / "plot.svg"));
+}
+
+TEST(RenderCommand, NoPngWritesStatisticsOnly) {
+  const fs::path dir = treecut::test::scratch_dir("render_command_nopng") / "out";
+  const CliRun r = run_treecut(kSmallRun + "--frames 3 --no-png -o " + quote(dir));
+  ASSERT_EQ(r.code, 0) << r.out;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    EXPECT_NE(e.path().extension(), ".png") << e.path();
+  }
+  std::ifstream csv(dir / "stats.csv");
+  std::string line;
+  int lines = 0;
+  while (std::getline(csv, line)) ++lines;
+  EXPECT_EQ(lines, 1 + 3);
+}
+
+TEST(RenderCommand, BadInputExitsWithTwoAndWritesNothing) {
+  const fs::path scratch = treecut::test::scratch_dir("render_command_bad");
+  const fs::path bad_ply = scratch / "bad.ply";
+  std::ofstream(bad_ply)
+      << "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nend_header\n"
+         "1\n";  // two rows missing
+  const fs::path bad_path = scratch / "bad.path";
+  std::ofstream(bad_path) << "not a camera path\n";
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"unknown strategy", "-s no-such-strategy"},
+      {"unknown parameter", "-p no_such_param=1"},
+      {"parameter out of range", "-p max_nodes=0"},
+      {"unknown splat mode", "--mode glossy"},
+      {"zero frames", "--frames 0"},
+      {"missing model", quote(scratch / "missing.ply")},
+      {"malformed model", quote(bad_ply)},
+      {"malformed camera path", "--path " + quote(bad_path)},
+  };
+  for (const auto& [what, args] : cases) {
+    const fs::path out = scratch / "out";
+    const CliRun r =
+        run_treecut("render --default-points 2000 --width 64 --height 48 --frames 2 --warmup 0 " +
+                    args + " -o " + quote(out));
+    EXPECT_EQ(r.code, 2) << what << "\n" << r.out;
+    EXPECT_FALSE(fs::exists(out)) << what << ": wrote " << out;
+  }
+}
