@@ -42,7 +42,9 @@ KnnGrid::KnnGrid(std::span<const glm::vec3> points, float points_per_cell) : poi
   origin_ = lo;
   const glm::vec3 ext = hi - lo;
   const float longest = std::max({ext.x, ext.y, ext.z});
-  if (!(longest > 0.0f)) {  // every point at one place: one cell
+  // Every point at one place, or so close (denormal extents) that the
+  // smallest cell size underflows to 0: one cell.
+  if (!(longest / static_cast<float>(kMaxDim) > 0.0f)) {
     bucket(1.0f);
     return;
   }
