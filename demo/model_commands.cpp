@@ -78,6 +78,7 @@ void add_model_commands(CLI::App& app) {
     ProgressBar bar("read");
     o.progress = bar.callback();
     const OpenedModel m = open_model(build_args->model, o);
+    bar.finish();
     print_summary(build_args->model, m);
   });
 
@@ -90,6 +91,7 @@ void add_model_commands(CLI::App& app) {
     ProgressBar bar("read");
     o.progress = bar.callback();
     const OpenedModel m = open_model(info_args->model, o);
+    bar.finish();
     print_summary(info_args->model, m);
   });
 

@@ -1,55 +1,82 @@
 // A terminal progress bar for long builds: drawn on stderr only when it is a
-// terminal and only once the work has taken longer than a second.
+// terminal and only once the work has taken longer than a second. A ticker
+// thread redraws it five times a second, so stages that report no progress of
+// their own (reading, attributes) still show that they are alive.
 #pragma once
 
 #include <unistd.h>
 
 #include <chrono>
+#include <condition_variable>
 #include <cstdio>
 #include <functional>
+#include <mutex>
+#include <stop_token>
 #include <string>
 #include <string_view>
+#include <thread>
 
 namespace treecut::cli {
 
 class ProgressBar {
  public:
   explicit ProgressBar(std::string label)
-      : label_(std::move(label)), start_(std::chrono::steady_clock::now()),
-        enabled_(isatty(STDERR_FILENO) != 0) {}
+      : label_(std::move(label)), start_(std::chrono::steady_clock::now()) {
+    if (isatty(STDERR_FILENO) != 0)
+      ticker_ = std::jthread([this](std::stop_token stop) { tick(stop); });
+  }
   ProgressBar(const ProgressBar&) = delete;
   ProgressBar& operator=(const ProgressBar&) = delete;
-  ~ProgressBar() {
-    if (drawn_) std::fputc('\n', stderr);
+  ~ProgressBar() { finish(); }
+
+  /// Stops drawing and clears the bar's line (before printing a summary).
+  void finish() {
+    if (!ticker_.joinable()) return;
+    ticker_.request_stop();
+    wake_.notify_all();
+    ticker_.join();
+    if (drawn_) std::fputs("\r\033[K", stderr);  // leave the line to the summary
   }
 
-  /// Switches to another named stage of the same job.
+  /// Any thread: the current stage and its progress (total 0 or 1: unknown).
   void update(std::string_view label, std::size_t done, std::size_t total) {
+    std::lock_guard lock(mutex_);
     label_ = label;
-    update(done, total);
-  }
-
-  void update(std::size_t done, std::size_t total) {
-    if (!enabled_ || total == 0) return;
-    const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-    if (elapsed < 1.0) return;
-    const int width = 40;
-    const int filled = static_cast<int>(static_cast<double>(width) * static_cast<double>(done) / static_cast<double>(total));
-    std::fprintf(stderr, "\r%-10s [%.*s%*s] %3d%% %5.1fs", label_.c_str(), filled,
-                 "########################################", width - filled, "",
-                 static_cast<int>(100.0 * static_cast<double>(done) / static_cast<double>(total)), elapsed);
-    std::fflush(stderr);
-    drawn_ = true;
+    done_ = done;
+    total_ = total;
   }
   std::function<void(std::string_view, std::size_t, std::size_t)> callback() {
     return [this](std::string_view stage, std::size_t d, std::size_t t) { update(stage, d, t); };
   }
 
  private:
+  void tick(std::stop_token stop) {
+    std::unique_lock lock(mutex_);
+    while (!stop.stop_requested()) {
+      wake_.wait_for(lock, stop, std::chrono::milliseconds(200), [] { return false; });
+      if (stop.stop_requested()) break;
+      const double elapsed =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+      if (elapsed < 1.0) continue;
+      constexpr int kWidth = 40;
+      const bool known = total_ > 1;
+      const int filled =
+          known ? static_cast<int>(kWidth * static_cast<double>(done_) / static_cast<double>(total_)) : 0;
+      std::fprintf(stderr, "\r%-10s [%.*s%*s] %s %6.1fs", label_.c_str(), filled,
+                   "########################################", kWidth - filled, "",
+                   known ? (std::to_string(100 * done_ / total_) + "%").c_str() : "...", elapsed);
+      std::fflush(stderr);
+      drawn_ = true;
+    }
+  }
+
+  std::mutex mutex_;
+  std::condition_variable_any wake_;
   std::string label_;
+  std::size_t done_ = 0, total_ = 0;
   std::chrono::steady_clock::time_point start_;
-  bool enabled_;
   bool drawn_ = false;
+  std::jthread ticker_;  // last: started after the members it reads
 };
 
 }  // namespace treecut::cli
