@@ -73,9 +73,6 @@ void sort_ids(std::span<const NodeId> in, NodeId id_end, std::vector<NodeId>& ou
 }  // namespace
 
 void CutBuffer::upload(const Hierarchy& h, std::span<const NodeId> nodes) {
-  std::uint64_t points = 0;
-  const auto counts = h.arrays().point_count;
-  for (const NodeId n : nodes) points += counts[n];
   // Draw in node-id order. Ids are breadth-first over a spatial tree, so this
   // order is spatially coherent; llvmpipe's rasterizer threads read each
   // triangle's setup data in submission order, and a strategy's cut order
@@ -86,12 +83,21 @@ void CutBuffer::upload(const Hierarchy& h, std::span<const NodeId> nodes) {
     sort_ids(nodes, h.node_count(), sorted_, scratch_);
     ordered = sorted_;
   }
+  // Counted in id order: ascending addresses, which the prefetcher follows.
+  std::uint64_t points = 0;
+  const auto counts = h.arrays().point_count;
+  for (const NodeId n : ordered) points += counts[n];
+  // Write the buffer the last draws did not read: a driver with frames in
+  // flight need not wait for them (or copy the buffer) before the write.
+  const std::size_t next = buffers_[current_] ? 1 - current_ : current_;
+  gl::Buffer& target = buffers_[next];
   const std::size_t bytes = ordered.size_bytes();
-  if (!buffer_ || buffer_.size() < bytes) {
+  if (!target || target.size() < bytes) {
     const std::size_t capacity = std::bit_ceil(std::max<std::size_t>(bytes, 4096));
-    buffer_ = gl::Buffer::create(capacity, nullptr, GL_DYNAMIC_STORAGE_BIT);
+    target = gl::Buffer::create(capacity, nullptr, GL_DYNAMIC_STORAGE_BIT);
   }
-  buffer_.sub_data(0, std::as_bytes(ordered));
+  target.sub_data(0, std::as_bytes(ordered));
+  current_ = next;
   count_ = nodes.size();
   points_ = points;
 }

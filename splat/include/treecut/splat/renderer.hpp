@@ -18,6 +18,7 @@
 // All methods: render thread only, with the renderer's context current.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <glm/mat4x4.hpp>
 #include <glm/vec2.hpp>
@@ -73,8 +74,10 @@ struct FrameStats {
   bool finished = false;     ///< cpu_ms includes glFinish (the GPU work is done)
 };
 
-/// One index list on the GPU. upload() replaces the content; the buffer grows
-/// (to the next power of two) when needed and is never shrunk.
+/// One index list on the GPU. upload() replaces the content, writing into the
+/// other of two GL buffers than the one drawn since the last upload (so the
+/// write never touches a buffer a frame in flight reads); each grows (to the
+/// next power of two) when needed and is never shrunk.
 class CutBuffer {
  public:
   CutBuffer() = default;
@@ -85,10 +88,12 @@ class CutBuffer {
   void upload(const Hierarchy& h, std::span<const NodeId> nodes);
   [[nodiscard]] std::size_t size() const { return count_; }
   [[nodiscard]] std::uint64_t points() const { return points_; }
-  [[nodiscard]] const gl::Buffer& buffer() const { return buffer_; }
+  /// The buffer holding the current list.
+  [[nodiscard]] const gl::Buffer& buffer() const { return buffers_[current_]; }
 
  private:
-  gl::Buffer buffer_;
+  std::array<gl::Buffer, 2> buffers_;
+  std::size_t current_ = 0;
   std::size_t count_ = 0;
   std::uint64_t points_ = 0;
   std::vector<NodeId> sorted_;   // the uploaded order (reused)
