@@ -139,7 +139,7 @@ void from_faces(PointSet& ps, bool want_normals, bool want_radii, bool want_curv
       }
       if (want_radii) ps.radii[v] = sum.w;
       if (want_curvature && ring.count >= 3)
-        ps.curvature[v] = detail::surface_variation(detail::eigen_symmetric(ring.covariance()));
+        ps.curvature[v] = detail::surface_variation(ring.covariance());
     }
   }, 0, 1024);
   if (want_radii) fill_missing_radii(ps.radii);  // vertices outside every face: the typical radius
@@ -164,9 +164,13 @@ void from_neighbours(PointSet& ps, int k, bool want_normals, bool want_radii, bo
     if ((!want_normals && !want_curvature) || found < 2) return;
     Moments m;
     for (int j = 0; j < found; ++j) m.add(ps.positions[idx[j]] - p);
+    if (!want_normals) {  // the eigenvalue alone is much cheaper than the full solve
+      ps.curvature[i] = detail::surface_variation(m.covariance());
+      return;
+    }
     const detail::Eigen3 eig = detail::eigen_symmetric(m.covariance());
     if (want_curvature) ps.curvature[i] = detail::surface_variation(eig);
-    if (want_normals) {
+    {
       glm::vec3 nrm = eig.smallest;
       if (glm::dot(nrm, p - c) < 0.0f) nrm = -nrm;  // outward from the centroid
       ps.normals[i] = nrm;

@@ -74,4 +74,28 @@ inline float surface_variation(const Eigen3& e) {
   return static_cast<float>(std::clamp(e.values[0] / sum, 0.0, 1.0 / 3.0));
 }
 
+/// The same from the matrix alone: l0 / trace, with one acos and one cos
+/// (the sum of the eigenvalues is the trace, so l1 and l2 are not needed).
+inline float surface_variation(const Sym3& a) {
+  const double trace = static_cast<double>(a.xx) + a.yy + a.zz;
+  if (!(trace > 0.0)) return 0.0f;
+  const double q = trace / 3.0;
+  const double p1 = static_cast<double>(a.xy) * a.xy + static_cast<double>(a.xz) * a.xz +
+                    static_cast<double>(a.yz) * a.yz;
+  double l0;
+  if (p1 <= 1e-30 * q * q) {
+    l0 = std::min({static_cast<double>(a.xx), static_cast<double>(a.yy), static_cast<double>(a.zz)});
+  } else {
+    const double dx = a.xx - q, dy = a.yy - q, dz = a.zz - q;
+    const double p = std::sqrt((dx * dx + dy * dy + dz * dz + 2.0 * p1) / 6.0);
+    const double bxx = dx / p, byy = dy / p, bzz = dz / p;
+    const double bxy = a.xy / p, bxz = a.xz / p, byz = a.yz / p;
+    const double det = bxx * (byy * bzz - byz * byz) - bxy * (bxy * bzz - byz * bxz) +
+                       bxz * (bxy * byz - byy * bxz);
+    const double phi = std::acos(std::clamp(det / 2.0, -1.0, 1.0)) / 3.0;
+    l0 = q + 2.0 * p * std::cos(phi + 2.0 * M_PI / 3.0);
+  }
+  return static_cast<float>(std::clamp(l0 / trace, 0.0, 1.0 / 3.0));
+}
+
 }  // namespace treecut::detail
