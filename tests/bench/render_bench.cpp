@@ -11,9 +11,9 @@
 //  - FeedbackOverhead/{static,moving}: frame time (poll + sort/upload after an
 //    exchange + draw + glFinish) of the dragon at the same cut size (budget a
 //    quarter of the leaves) with and without the Feedback Stage. Blocks of 16
-//    frames alternate: "off" draws a fixed converged cut and leaves the stage
-//    alone (its thread sleeps: the block starts only once no iteration runs),
-//    "on" drives the Controller and draws its lists. static: the camera stands
+//    frames alternate: "off" draws the stage's latest list, frozen, and leaves
+//    the stage alone (its thread sleeps: the block starts only once no
+//    iteration runs), "on" drives the Controller and draws its lists. static: the camera stands
 //    still (the stage has converged and must not iterate); moving: the camera
 //    swings about the model every frame in both blocks, so the stage iterates
 //    all the time. overhead_pct is the median over neighbouring off/on block
@@ -179,9 +179,8 @@ void FeedbackOverhead(benchmark::State& state, bool moving, StagePriority priori
     return c;
   };
 
-  CutBuffer fixed;  // "off": a converged cut of the same budget, uploaded once
-  fixed.upload(*h, converged_cut(*h, cam, budget));
-  CutBuffer cut;  // "on": the stage's lists
+  CutBuffer cut;     // "on": the stage's lists
+  CutBuffer frozen;  // "off": the stage's last list before the block, uploaded untimed
   StageOptions options;
   options.priority = priority;
   Controller ctl(make_model(*h), optimization(budget), snapshot(cam, {0, 0, 1}), options);
@@ -213,12 +212,15 @@ void FeedbackOverhead(benchmark::State& state, bool moving, StagePriority priori
     // Off: wait (untimed) until the last requested iteration has finished, so
     // the stage thread sleeps through the whole block.
     while (ctl.stage().processing()) std::this_thread::sleep_for(std::chrono::microseconds(200));
+    // The same nodes as the on frames draw, not only as many: which nodes a
+    // view's cut holds (how many face the eye) changes the frame's cost.
+    frozen.upload(*h, ctl.stage().front().nodes);
     double seconds = 0.0;
     const std::size_t off_first = off.wall_ms.size(), on_first = on.wall_ms.size();
     for (int i = 0; i < kBlock; ++i) {
       const Camera c = camera_at(frame_index++);
-      seconds += off.measure([&] { renderer.draw(fixed, c, settings, true); }) * 1e-3;
-      off_cut += fixed.size();
+      seconds += off.measure([&] { renderer.draw(frozen, c, settings, true); }) * 1e-3;
+      off_cut += frozen.size();
     }
     for (int i = 0; i < kBlock; ++i) {
       const Camera c = camera_at(frame_index++);
