@@ -1,12 +1,16 @@
 // Hierarchy cache: round trip, determinism, and detection of every truncation,
 // flipped byte and stale source.
 #include <gtest/gtest.h>
+#include <sys/resource.h>
 
+#include <csignal>
+#include <cstdlib>
 #include <fstream>
 #include <iterator>
 
 #include "test_support.hpp"
 #include "treecut/cache.hpp"
+#include "treecut/error.hpp"
 #include "treecut/generate.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/ply.hpp"
@@ -128,4 +132,113 @@ TEST(Cache, OpenModelUsesTheCacheAndRebuildsACorruptOne) {
   const OpenedModel direct = open_model(dir / "m.tch", o);
   EXPECT_TRUE(direct.from_cache);
   EXPECT_EQ(direct.hierarchy.node_count(), first.hierarchy.node_count());
+}
+
+// End to end: whatever prefix of its cache survives, open_model() notices,
+// says why, rebuilds from the PLY and writes the complete cache back.
+TEST(Cache, OpenModelRebuildsFromThePlyAfterEveryTruncationOfItsCache) {
+  const fs::path dir = test::scratch_dir("cache_open_truncate");
+  save_ply(dir / "m.ply", generate_model(ModelKind::Sphere, 24, 5));
+  OpenOptions o;
+  o.cache_path = dir / "m.tch";
+  std::size_t rebuild_warnings = 0;
+  o.warn = [&](const std::string& w) {
+    rebuild_warnings += w.find("rebuilding") != std::string::npos;
+  };
+  const OpenedModel built = open_model(dir / "m.ply", o);
+  ASSERT_FALSE(built.from_cache);
+  const auto bytes = read_all(dir / "m.tch");
+  ASSERT_FALSE(bytes.empty());
+  for (std::size_t len = 0; len < bytes.size(); ++len) {
+    write_all(dir / "m.tch", bytes, len);
+    const OpenedModel m = open_model(dir / "m.ply", o);
+    ASSERT_FALSE(m.from_cache) << "length " << len;
+    ASSERT_FALSE(m.cache_note.empty()) << "length " << len;
+    ASSERT_EQ(m.hierarchy.node_count(), built.hierarchy.node_count());
+    ASSERT_EQ(read_all(dir / "m.tch"), bytes) << "length " << len << ": not rewritten";
+  }
+  EXPECT_EQ(rebuild_warnings, bytes.size());
+  EXPECT_TRUE(open_model(dir / "m.ply", o).from_cache);
+}
+
+TEST(Cache, OpenModelRebuildsFromThePlyAfterAnyFlippedByteInItsCache) {
+  const fs::path dir = test::scratch_dir("cache_open_flip");
+  save_ply(dir / "m.ply", generate_model(ModelKind::Terrain, 24, 5));
+  OpenOptions o;
+  o.cache_path = dir / "m.tch";
+  const OpenedModel built = open_model(dir / "m.ply", o);
+  auto bytes = read_all(dir / "m.tch");
+  for (std::size_t i = 0; i < bytes.size(); ++i) {
+    bytes[i] = static_cast<char>(bytes[i] ^ 0x04);
+    write_all(dir / "m.tch", bytes, bytes.size());
+    bytes[i] = static_cast<char>(bytes[i] ^ 0x04);
+    const OpenedModel m = open_model(dir / "m.ply", o);
+    ASSERT_FALSE(m.from_cache) << "byte " << i;
+    ASSERT_EQ(m.hierarchy.node_count(), built.hierarchy.node_count());
+    ASSERT_EQ(read_all(dir / "m.tch"), bytes) << "byte " << i << ": not rewritten";
+  }
+}
+
+// A cache file opened directly has no PLY to fall back on: every damaged
+// version is an InputError naming the file, never a crash or a hierarchy.
+TEST(Cache, OpeningADamagedCacheDirectlyIsAnInputError) {
+  const fs::path dir = test::scratch_dir("cache_open_direct");
+  save_cache(small(40), {1, 2, 3}, dir / "full.tch");
+  const auto bytes = read_all(dir / "full.tch");
+  for (std::size_t len = 0; len < bytes.size(); len += 7) {
+    write_all(dir / "cut.tch", bytes, len);
+    try {
+      open_model(dir / "cut.tch");
+      FAIL() << "length " << len << " opened";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("cut.tch"), std::string::npos) << e.what();
+    }
+  }
+}
+
+namespace {
+
+// The child of the death test below: save_cache() under a file size limit,
+// which kills the process with SIGXFSZ once the limit is reached.
+[[noreturn]] void save_cache_under_size_limit(const Hierarchy& h, const CacheKey& key,
+                                              const fs::path& cache, rlim_t limit) {
+  const rlimit no_core{0, 0};
+  setrlimit(RLIMIT_CORE, &no_core);
+  const rlimit size{limit, limit};
+  setrlimit(RLIMIT_FSIZE, &size);
+  save_cache(h, key, cache);
+  std::_Exit(0);
+}
+
+}  // namespace
+
+// A writer that dies mid-write (here: killed by the file size limit, SIGXFSZ,
+// after part of the file went to disk) leaves the previous cache untouched and
+// at most a partial temporary, which never loads and which open_model never
+// reads.
+TEST(CacheDeathTest, AWriterKilledMidWriteLeavesNoCacheThatLoads) {
+  const fs::path dir = test::scratch_dir("cache_killed_writer");
+  const Hierarchy before = small(300);
+  const Hierarchy after = small(5000);
+  save_cache(before, {1, 2, 3}, dir / "a.tch");
+  const auto old_bytes = read_all(dir / "a.tch");
+  constexpr rlim_t kLimit = 20000;  // bytes: a few arrays of the new file
+  const CacheKey new_key{4, 5, 6};
+  EXPECT_EXIT(save_cache_under_size_limit(after, new_key, dir / "a.tch", kLimit),
+              testing::KilledBySignal(SIGXFSZ), "");
+
+  EXPECT_EQ(read_all(dir / "a.tch"), old_bytes) << "the previous cache was touched";
+  EXPECT_TRUE(load_cache(dir / "a.tch", CacheKey{1, 2, 3}, nullptr));
+  std::string why;
+  EXPECT_FALSE(load_cache(dir / "a.tch", CacheKey{4, 5, 6}, &why)) << "the new key";
+  EXPECT_NE(why.find("stale"), std::string::npos) << why;
+  std::vector<fs::path> temporaries;
+  for (const auto& e : fs::directory_iterator(dir))
+    if (e.path().filename() != "a.tch") temporaries.push_back(e.path());
+  ASSERT_EQ(temporaries.size(), 1u) << "the dead writer's temporary";
+  EXPECT_EQ(temporaries[0].filename().string().rfind("a.tch.tmp-", 0), 0u) << temporaries[0];
+  EXPECT_GT(fs::file_size(temporaries[0]), 0u);
+  EXPECT_LE(fs::file_size(temporaries[0]), kLimit);
+  EXPECT_FALSE(load_cache(temporaries[0], std::nullopt, &why));
+  EXPECT_THROW(open_model(temporaries[0]), InputError);
 }
