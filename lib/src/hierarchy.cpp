@@ -18,6 +18,7 @@
 #include <glm/geometric.hpp>
 #include <numeric>
 #include <stdexcept>
+#include <thread>
 
 #include "treecut/hierarchy.hpp"
 #include "treecut/parallel.hpp"
@@ -105,6 +106,13 @@ void partition(Item* items, Range r) {
   Range c[4];
   if (child_ranges(r, c) != 4) return;  // single points need no order
   split_at(items, r.begin, c[2].begin, r.end);
+  // The halves are disjoint: at the top of the tree, where a level has fewer
+  // nodes than threads, split them at the same time.
+  if (r.end - r.begin >= (1u << 17) && worker_count() > 1) {
+    std::jthread other([&] { split_at(items, r.begin, c[1].begin, c[2].begin); });
+    split_at(items, c[2].begin, c[3].begin, r.end);
+    return;
+  }
   split_at(items, r.begin, c[1].begin, c[2].begin);
   split_at(items, c[2].begin, c[3].begin, r.end);
 }
