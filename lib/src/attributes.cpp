@@ -75,73 +75,63 @@ struct Moments {
 };
 
 void fill_missing_radii(std::vector<float>& radii) {
+  const bool complete = std::all_of(radii.begin(), radii.end(), [](float r) { return r > 0.0f && std::isfinite(r); });
+  if (complete) return;
   const float fallback = median_positive(radii);
   for (float& r : radii)
     if (!(r > 0.0f) || !std::isfinite(r)) r = fallback > 0.0f ? fallback : 1.0f;
 }
 
-// Vertex -> incident faces, as compressed rows (faces ascending per vertex).
-struct Incidence {
-  std::vector<std::uint32_t> begin;  // size n + 1
-  std::vector<std::uint32_t> faces;
-};
-
-Incidence incidence(std::size_t n, const std::vector<glm::uvec3>& triangles) {
-  Incidence inc;
-  inc.begin.assign(n + 1, 0);
-  for (const glm::uvec3& t : triangles) ++inc.begin[t.x + 1], ++inc.begin[t.y + 1], ++inc.begin[t.z + 1];
-  for (std::size_t i = 0; i < n; ++i) inc.begin[i + 1] += inc.begin[i];
-  inc.faces.resize(inc.begin[n]);
-  std::vector<std::uint32_t> fill(inc.begin.begin(), inc.begin.end() - 1);
-  for (std::size_t f = 0; f < triangles.size(); ++f) {
-    const glm::uvec3 t = triangles[f];
-    inc.faces[fill[t.x]++] = static_cast<std::uint32_t>(f);
-    inc.faces[fill[t.y]++] = static_cast<std::uint32_t>(f);
-    inc.faces[fill[t.z]++] = static_cast<std::uint32_t>(f);
-  }
-  return inc;
-}
-
-// Per-face quantities first (parallel over faces), then each vertex gathers
-// from its own faces: no write conflicts, and the summation order (ascending
-// face index) does not depend on the thread count.
+// Every thread owns a contiguous range of vertices and scans all faces,
+// accumulating only into its own vertices: no write conflicts, no incidence
+// table, and each vertex sums its faces in ascending order whatever the
+// thread count, so the result is deterministic.
 void from_faces(PointSet& ps, bool want_normals, bool want_radii, bool want_curvature) {
-  const std::size_t n = ps.size(), nf = ps.triangles.size();
-  const Incidence inc = incidence(n, ps.triangles);
-  std::vector<glm::vec4> face(nf);  // xyz: normal * 2 * area, w: covering radius
-  parallel_for(nf, [&](std::size_t b, std::size_t e) {
-    for (std::size_t f = b; f < e; ++f) {
-      const glm::uvec3 t = ps.triangles[f];
-      const glm::vec3 a = ps.positions[t.x], bb = ps.positions[t.y], c = ps.positions[t.z];
-      face[f] = glm::vec4(glm::cross(bb - a, c - a), want_radii ? covering_radius(a, bb, c) : 0.0f);
+  const std::size_t n = ps.size();
+  struct Accumulator {
+    glm::vec3 normal{0.0f};  // sum of face normals * 2 * area: area weighting
+    float radius = 0.0f;
+    Moments ring;  // the other corners of the incident faces
+  };
+  std::vector<Accumulator> acc(n);
+  const unsigned threads = worker_count();
+  parallel_for(threads, [&](std::size_t tb, std::size_t te) {
+    for (std::size_t t = tb; t < te; ++t) {
+      const std::uint32_t lo = static_cast<std::uint32_t>(n * t / threads);
+      const std::uint32_t hi = static_cast<std::uint32_t>(n * (t + 1) / threads);
+      auto own = [lo, hi](std::uint32_t v) { return v >= lo && v < hi; };
+      for (const glm::uvec3& tri : ps.triangles) {
+        if (!own(tri.x) && !own(tri.y) && !own(tri.z)) continue;
+        const glm::vec3 p[3] = {ps.positions[tri.x], ps.positions[tri.y], ps.positions[tri.z]};
+        const glm::vec3 fn = glm::cross(p[1] - p[0], p[2] - p[0]);
+        const float r = want_radii ? covering_radius(p[0], p[1], p[2]) : 0.0f;
+        const std::uint32_t corner[3] = {tri.x, tri.y, tri.z};
+        for (int c = 0; c < 3; ++c) {
+          if (!own(corner[c])) continue;
+          Accumulator& va = acc[corner[c]];
+          va.normal += fn;
+          va.radius = std::max(va.radius, r);
+          if (want_curvature)  // relative to the vertex itself: no cancellation
+            for (int o = 1; o < 3; ++o)
+              if (corner[(c + o) % 3] != corner[c]) va.ring.add(p[(c + o) % 3] - p[c]);
+        }
+      }
     }
-  });
-  if (want_normals) ps.normals.assign(n, glm::vec3(0.0f));
-  if (want_radii) ps.radii.assign(n, 0.0f);
+  }, threads, 1);
+  if (want_normals) ps.normals.resize(n);
+  if (want_radii) ps.radii.resize(n);
   if (want_curvature) ps.curvature.assign(n, 0.0f);
   parallel_for(n, [&](std::size_t b, std::size_t e) {
     for (std::size_t v = b; v < e; ++v) {
-      glm::vec4 sum(0.0f);
-      Moments ring;
-      const glm::vec3 p = ps.positions[v];
-      for (std::uint32_t j = inc.begin[v]; j < inc.begin[v + 1]; ++j) {
-        const glm::vec4 fq = face[inc.faces[j]];
-        sum = glm::vec4(glm::vec3(sum) + glm::vec3(fq), std::max(sum.w, fq.w));
-        if (want_curvature) {  // the two other corners, relative to the vertex itself
-          const glm::uvec3 t = ps.triangles[inc.faces[j]];
-          for (std::uint32_t q : {t.x, t.y, t.z})
-            if (q != v) ring.add(ps.positions[q] - p);
-        }
-      }
+      const Accumulator& va = acc[v];
       if (want_normals) {
-        const float len = glm::length(glm::vec3(sum));
-        ps.normals[v] = len > 1e-30f && std::isfinite(len) ? glm::vec3(sum) / len : glm::vec3(0.0f);
+        const float len = glm::length(va.normal);
+        ps.normals[v] = len > 1e-30f && std::isfinite(len) ? va.normal / len : glm::vec3(0.0f);
       }
-      if (want_radii) ps.radii[v] = sum.w;
-      if (want_curvature && ring.count >= 3)
-        ps.curvature[v] = detail::surface_variation(ring.covariance());
+      if (want_radii) ps.radii[v] = va.radius;
+      if (want_curvature && va.ring.count >= 3) ps.curvature[v] = detail::surface_variation(va.ring.covariance());
     }
-  }, 0, 1024);
+  });
   if (want_radii) fill_missing_radii(ps.radii);  // vertices outside every face: the typical radius
 }
 
