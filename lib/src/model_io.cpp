@@ -46,10 +46,15 @@ std::filesystem::path default_cache_path(const std::filesystem::path& model) {
   return dir / "treecut" / (model.filename().string() + "-" + hex + ".tch");
 }
 
+// Revision of what the pipeline computes (attributes and build). Bump it when
+// their output changes, so that caches written by an older build are stale.
+constexpr std::uint32_t kPipelineRevision = 2;
+
 std::uint32_t options_bits(const AttributeOptions& attributes, const BuildOptions& build) {
   return (build.parent_at_real_point ? 1u : 0u) | (attributes.recompute_normals ? 2u : 0u) |
          (attributes.recompute_radii ? 4u : 0u) |
-         (static_cast<std::uint32_t>(std::clamp(attributes.k, 0, 255)) << 8);
+         (static_cast<std::uint32_t>(std::clamp(attributes.k, 0, 255)) << 8) |
+         (kPipelineRevision << 16);
 }
 
 Hierarchy build_from_points(PointSet points, const AttributeOptions& attributes,
