@@ -2,7 +2,6 @@
 // validator catches every kind of broken list.
 #include <gtest/gtest.h>
 
-#include <algorithm>
 #include <random>
 
 #include "treecut/generate.hpp"
@@ -99,28 +98,4 @@ TEST(TreeCut, ValidateRejectsBrokenLists) {
   EXPECT_NE(TreeCut::validate(h, std::vector<NodeId>{h.node_count()}), "") << "an id out of range";
   EXPECT_THROW(TreeCut::from_nodes(h, missing), std::invalid_argument);
   EXPECT_EQ(TreeCut::from_nodes(h, children).size(), children.size());
-}
-
-TEST(TreeCut, SortOrdersTheListAndKeepsRefineCoarsenWorking) {
-  const Hierarchy& h = small_hierarchy();
-  std::mt19937 rng(7);
-  TreeCut cut = TreeCut::root_cut(h);
-  for (int step = 0; step < 3000; ++step) cut.refine(h, cut.nodes()[rng() % cut.size()]);
-  ASSERT_FALSE(cut.sorted()) << "random refinement leaves the list unordered";
-  std::vector<NodeId> before(cut.nodes().begin(), cut.nodes().end());
-  cut.sort();
-  EXPECT_TRUE(cut.sorted());
-  std::sort(before.begin(), before.end());
-  EXPECT_TRUE(std::equal(before.begin(), before.end(), cut.nodes().begin(), cut.nodes().end()));
-  EXPECT_EQ(cut.validate(h), "");
-  // The slot map follows the new order: coarsening and refining still work.
-  for (int step = 0; step < 3000; ++step) {
-    const NodeId n = cut.nodes()[rng() % cut.size()];
-    if (h.parent(n) != kNoNode && rng() % 2) {
-      cut.coarsen(h, h.parent(n));
-    } else {
-      cut.refine(h, n);
-    }
-  }
-  EXPECT_EQ(cut.validate(h), "");
 }

@@ -2,7 +2,6 @@
 // coarsen cost O(children) and the list stays dense for drawing.
 #include "treecut/tree_cut.hpp"
 
-#include <algorithm>
 #include <stdexcept>
 
 namespace treecut {
@@ -78,28 +77,6 @@ bool TreeCut::coarsen(const Hierarchy& h, NodeId parent) {
   for (NodeId c = c0 + 1; c < c0 + h.child_count(parent); ++c) erase(c);
   ++coarsenings_;
   return true;
-}
-
-bool TreeCut::sorted() const { return std::is_sorted(nodes_.begin(), nodes_.end()); }
-
-void TreeCut::sort() {
-  if (sorted()) return;
-  // LSD radix sort on 11-bit digits: three passes cover 32-bit ids; passes
-  // whose digit is the same for every id are skipped.
-  const std::size_t n = nodes_.size();
-  scratch_.resize(n);
-  NodeId max_id = 0;
-  for (NodeId id : nodes_) max_id = std::max(max_id, id);
-  constexpr int kBits = 11;
-  constexpr std::uint32_t kMask = (1u << kBits) - 1;
-  for (int shift = 0; shift < 32 && (max_id >> shift) != 0; shift += kBits) {
-    std::uint32_t count[kMask + 2] = {};
-    for (NodeId id : nodes_) ++count[((id >> shift) & kMask) + 1];
-    for (std::uint32_t d = 0; d <= kMask; ++d) count[d + 1] += count[d];
-    for (NodeId id : nodes_) scratch_[count[(id >> shift) & kMask]++] = id;
-    nodes_.swap(scratch_);
-  }
-  for (std::size_t i = 0; i < n; ++i) slot_[nodes_[i]] = static_cast<std::uint32_t>(i);
 }
 
 std::string TreeCut::validate(const Hierarchy& h, std::span<const NodeId> nodes) {

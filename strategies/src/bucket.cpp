@@ -80,9 +80,6 @@ void BucketStrategy::iterate(const IterationInput& input, IterationOutput& outpu
   // the default function (inlined) and for a custom one.
   refine_.clear();
   coarsen_.clear();
-  // In node order the pass below reads the hierarchy arrays nearly
-  // sequentially; on an unordered cut every node is a cache miss.
-  cut.sort();
   const std::span<const NodeId> nodes = cut.nodes();
   const bool cull = function_ || param_at(kCull) != 0.0;
   const auto pass = [&](const auto& bucket) {

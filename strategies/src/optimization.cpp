@@ -143,9 +143,6 @@ void OptimizationStrategy::iterate(const IterationInput& input, IterationOutput&
   const auto lower = [](const Candidate& x, const Candidate& y) { return ByPriority{}(y, x); };
   Selection highs(high_, k, lower);  // `lower` orders by descending priority
   Selection lows(low_, k, higher);
-  // In node order the pass below reads the hierarchy arrays nearly
-  // sequentially; on an unordered cut every node is a cache miss.
-  cut.sort();
   const std::span<const NodeId> nodes = cut.nodes();
   for (std::size_t i = 0; i < nodes.size(); ++i) {
     const NodeId n = nodes[i];

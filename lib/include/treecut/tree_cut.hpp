@@ -40,13 +40,6 @@ class TreeCut {
   /// True when every child of `parent` is in the cut, so coarsen() would succeed.
   [[nodiscard]] bool can_coarsen(const Hierarchy& h, NodeId parent) const;
 
-  /// Puts the index list in ascending node order (O(n) radix sort, slot map
-  /// rebuilt). A pass over a sorted cut reads the hierarchy arrays nearly
-  /// sequentially instead of missing the cache on every node; refine and
-  /// coarsen keep working on any order.
-  void sort();
-  [[nodiscard]] bool sorted() const;
-
   /// Refinements and coarsenings applied since construction or reset_counters().
   [[nodiscard]] std::uint64_t refinements() const { return refinements_; }
   [[nodiscard]] std::uint64_t coarsenings() const { return coarsenings_; }
@@ -65,7 +58,6 @@ class TreeCut {
 
   std::vector<NodeId> nodes_;
   std::vector<std::uint32_t> slot_;  // node id -> index in nodes_, or kNotInCut
-  std::vector<NodeId> scratch_;      // sort() buffer, kept between calls
   std::uint64_t refinements_ = 0;
   std::uint64_t coarsenings_ = 0;
 };
