@@ -6,10 +6,12 @@
  *
  * The names are the code's: the states Wait, Process, Exit (State), the
  * buffer uses Free, Back, Front, Blending, Retired (BufferUse); the render
- * thread's poll(), exchange(), request(), retire(), free_buffer(), release(),
+ * thread's poll() (with completed(), its in_flight_ branch, and due(), its
+ * `due` test), exchange(), request(), retire(), free_buffer(), release(),
  * set_strategy() (set_model() hands over and cancels the same way) and the
- * destructor; the stage's run() and process() with its steps Extract,
- * Iterate and Publish. Variables carry the names of the members they stand
+ * destructor; the stage's run() and process() with its steps extract(),
+ * iterate() and publish() (extract_ns, iteration_ns, publish_ns in the code).
+ * draw() is the renderer using FrameLists between two polls. Variables carry the names of the members they stand
  * for (state_ -> state, cancel_ -> cancel, buffers_[i].use -> use[i], ...).
  *
  * What is abstracted: list contents (a list is its buffer index), counters,
@@ -153,7 +155,6 @@ inline exchange(old) {
 }
 
 /* FeedbackStage::request: hand the inputs over, Wait -> Process. */
-#ifndef BROKEN_REQUEST
 inline request(idx, found) {
   free_buffer(idx, found);
   if
@@ -172,7 +173,6 @@ inline request(idx, found) {
      state = Process /* store(release) + notify_one */
   fi
 }
-#endif
 
 /* poll(), in Wait: the requested iteration completed; read the outbox and
    exchange. THROWN: the strategy's exception is rethrown to the caller. */
