@@ -11,56 +11,33 @@
 
 namespace fs = std::filesystem;
 
-namespace {
-
-struct CliRun {
-  int code = -1;
-  std::string out;
-};
-
-// Runs the treecut program with the given arguments (shell-quoted by the caller).
-CliRun run_treecut(const std::string& args) {
-  const fs::path bin = fs::path(TREECUT_BINARY_DIR) / "demo" / "treecut";
-  const std::string cmd = "'" + bin.string() + "' " + args + " 2>&1";
-  CliRun r;
-  FILE* p = popen(cmd.c_str(), "r");
-  if (!p) return r;
-  std::array<char, 4096> buf;
-  while (std::fgets(buf.data(), buf.size(), p)) r.out += buf.data();
-  const int status = pclose(p);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
-
-std::string quote(const fs::path& p) { return "'" + p.string() + "'"; }
-
-}  // namespace
-
 TEST(Cli, HelpWorksForEveryCommand) {
   for (const char* c : {"", "build", "info", "gen", "bench build"}) {
-    const CliRun r = run_treecut(std::string(c) + " --help");
+    const treecut::test::CommandResult r = treecut::test::run_treecut(std::string(c) + " --help");
     EXPECT_EQ(r.code, 0) << c << "\n" << r.out;
     EXPECT_NE(r.out.find("Usage"), std::string::npos) << c;
   }
 }
 
 TEST(Cli, UsageErrorsExitWithTwo) {
-  EXPECT_EQ(run_treecut("").code, 2);
-  EXPECT_EQ(run_treecut("no-such-command").code, 2);
-  EXPECT_EQ(run_treecut("build").code, 2) << "missing MODEL";
-  EXPECT_EQ(run_treecut("gen pyramid -o /tmp/x.ply").code, 2) << "unknown kind";
+  EXPECT_EQ(treecut::test::run_treecut("").code, 2);
+  EXPECT_EQ(treecut::test::run_treecut("no-such-command").code, 2);
+  EXPECT_EQ(treecut::test::run_treecut("build").code, 2) << "missing MODEL";
+  EXPECT_EQ(treecut::test::run_treecut("gen pyramid -o /tmp/x.ply").code, 2) << "unknown kind";
 }
 
 TEST(Cli, GenBuildInfoRoundTrip) {
   const fs::path dir = treecut::test::scratch_dir("cli_gen");
-  CliRun r = run_treecut("gen terrain -n 20000 -o " + quote(dir / "t.ply"));
+  treecut::test::CommandResult r =
+      treecut::test::run_treecut("gen terrain -n 20000 -o " + treecut::test::quote(dir / "t.ply"));
   ASSERT_EQ(r.code, 0) << r.out;
   ASSERT_TRUE(fs::exists(dir / "t.ply"));
-  r = run_treecut("build " + quote(dir / "t.ply") + " -o " + quote(dir / "t.tch"));
+  r = treecut::test::run_treecut("build " + treecut::test::quote(dir / "t.ply") + " -o " +
+                                 treecut::test::quote(dir / "t.tch"));
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("points      20000"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("build time"), std::string::npos) << r.out;
-  r = run_treecut("info " + quote(dir / "t.tch"));
+  r = treecut::test::run_treecut("info " + treecut::test::quote(dir / "t.tch"));
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("points      20000"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("from cache"), std::string::npos) << r.out;
@@ -78,7 +55,9 @@ TEST(Cli, MalformedPlyExitsWithTwoAndWritesNothing) {
     if (tab == std::string::npos || line.find("\terror\t") == std::string::npos) continue;
     const std::string file = line.substr(0, tab);
     const fs::path out = dir / (file + ".tch");
-    const CliRun r = run_treecut("build " + quote(*shared / "ply-corpus" / file) + " -o " + quote(out));
+    const treecut::test::CommandResult r =
+        treecut::test::run_treecut("build " + treecut::test::quote(*shared / "ply-corpus" / file) +
+                                   " -o " + treecut::test::quote(out));
     EXPECT_EQ(r.code, 2) << file << "\n" << r.out;
     EXPECT_NE(r.out.find(file), std::string::npos) << "the message names the file: " << r.out;
     EXPECT_FALSE(fs::exists(out)) << file;

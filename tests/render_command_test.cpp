@@ -21,29 +21,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct CliRun {
-  int code = -1;
-  std::string out;
-};
-
-// Runs the treecut program with the given arguments (shell-quoted by the caller).
-CliRun run_treecut(const std::string& args) {
-  const fs::path bin = fs::path(TREECUT_BINARY_DIR) / "demo" / "treecut";
-  const std::string cmd = "'" + bin.string() + "' " + args + " 2>&1";
-  CliRun r;
-  FILE* p = popen(cmd.c_str(), "r");
-  if (!p) return r;
-  std::array<char, 4096> buf;
-  while (std::fgets(buf.data(), buf.size(), p)) r.out += buf.data();
-  const int status = pclose(p);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
-
-std::string quote(const fs::path& p) {
-  return "'" + p.string() + "'";
-}
-
 std::string read_text(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);
   std::ostringstream s;
@@ -108,8 +85,9 @@ const std::string kSmallRun =
 TEST(RenderCommand, WritesFramesStatsSummaryAndAFinitePsnr) {
   const fs::path dir = treecut::test::scratch_dir("render_command") / "out";
   constexpr int kFrames = 5;
-  const CliRun r =
-      run_treecut(kSmallRun + "--frames " + std::to_string(kFrames) + " --psnr -o " + quote(dir));
+  const treecut::test::CommandResult r =
+      treecut::test::run_treecut(kSmallRun + "--frames " + std::to_string(kFrames) + " --psnr -o " +
+                                 treecut::test::quote(dir));
   ASSERT_EQ(r.code, 0) << r.out;
 
   // N PNG frames of the requested size, and nothing else named frame_*.
@@ -166,7 +144,8 @@ TEST(RenderCommand, WritesFramesStatsSummaryAndAFinitePsnr) {
 
 TEST(RenderCommand, NoPngWritesStatisticsOnly) {
   const fs::path dir = treecut::test::scratch_dir("render_command_nopng") / "out";
-  const CliRun r = run_treecut(kSmallRun + "--frames 3 --no-png -o " + quote(dir));
+  const treecut::test::CommandResult r =
+      treecut::test::run_treecut(kSmallRun + "--frames 3 --no-png -o " + treecut::test::quote(dir));
   ASSERT_EQ(r.code, 0) << r.out;
   for (const auto& e : fs::directory_iterator(dir)) {
     EXPECT_NE(e.path().extension(), ".png") << e.path();
@@ -192,15 +171,15 @@ TEST(RenderCommand, BadInputExitsWithTwoAndWritesNothing) {
       {"parameter out of range", "-p max_nodes=0"},
       {"unknown splat mode", "--mode glossy"},
       {"zero frames", "--frames 0"},
-      {"missing model", quote(scratch / "missing.ply")},
-      {"malformed model", quote(bad_ply)},
-      {"malformed camera path", "--path " + quote(bad_path)},
+      {"missing model", treecut::test::quote(scratch / "missing.ply")},
+      {"malformed model", treecut::test::quote(bad_ply)},
+      {"malformed camera path", "--path " + treecut::test::quote(bad_path)},
   };
   for (const auto& [what, args] : cases) {
     const fs::path out = scratch / "out";
-    const CliRun r =
-        run_treecut("render --default-points 2000 --width 64 --height 48 --frames 2 --warmup 0 " +
-                    args + " -o " + quote(out));
+    const treecut::test::CommandResult r = treecut::test::run_treecut(
+        "render --default-points 2000 --width 64 --height 48 --frames 2 --warmup 0 " + args +
+        " -o " + treecut::test::quote(out));
     EXPECT_EQ(r.code, 2) << what << "\n" << r.out;
     EXPECT_FALSE(fs::exists(out)) << what << ": wrote " << out;
   }

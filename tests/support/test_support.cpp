@@ -1,6 +1,10 @@
 #include "test_support.hpp"
 
 #include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
 
 namespace treecut::test {
 
@@ -26,6 +30,23 @@ std::filesystem::path scratch_dir(const std::string& name) {
   std::filesystem::remove_all(p);
   std::filesystem::create_directories(p);
   return p;
+}
+
+CommandResult run_treecut(const std::string& args) {
+  const auto bin = std::filesystem::path(TREECUT_BINARY_DIR) / "demo" / "treecut";
+  const std::string cmd = quote(bin) + " " + args + " 2>&1";
+  CommandResult r;
+  FILE* p = popen(cmd.c_str(), "r");
+  if (!p) return r;
+  std::array<char, 4096> buf;
+  while (std::fgets(buf.data(), static_cast<int>(buf.size()), p)) r.out += buf.data();
+  const int status = pclose(p);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+std::string quote(const std::filesystem::path& p) {
+  return "'" + p.string() + "'";
 }
 
 }  // namespace treecut::test
