@@ -87,7 +87,7 @@ Sample run_in_child(const std::string& spec, unsigned threads) {
   const ssize_t r = read(fds[0], &s, sizeof s);
   close(fds[0]);
   int status = 0;
-  struct rusage ru{};
+  struct rusage ru {};
   wait4(pid, &status, 0, &ru);
   if (r != static_cast<ssize_t>(sizeof s) || !WIFEXITED(status) || WEXITSTATUS(status) != 0)
     throw std::runtime_error(spec + ": benchmark run failed");
@@ -113,15 +113,21 @@ void add_bench_commands(CLI::App& app) {
     unsigned threads = 0;
   };
   auto args = std::make_shared<BuildArgs>();
-  auto* build = bench->add_subcommand(
-      "build", "PLY -> ready hierarchy (read, normals/radii/curvature, build): median wall time and peak memory");
-  build->add_option("MODELS", args->models, "PLY files, or gen:KIND:POINTS for an in-memory generated model")
+  auto* build = bench->add_subcommand("build",
+                                      "PLY -> ready hierarchy (read, normals/radii/curvature, "
+                                      "build): median wall time and peak memory");
+  build
+      ->add_option("MODELS", args->models,
+                   "PLY files, or gen:KIND:POINTS for an in-memory generated model")
       ->required();
-  build->add_option("-r,--repeat", args->repeat, "Repetitions per model (median reported)")->check(CLI::Range(1, 100));
+  build->add_option("-r,--repeat", args->repeat, "Repetitions per model (median reported)")
+      ->check(CLI::Range(1, 100));
   build->add_option("-t,--threads", args->threads, "Worker threads (0 = all)");
   build->callback([args] {
-    std::printf("| model | points | nodes | read s | attributes s | hierarchy s | total s (median of %d) | peak MiB | peak B/point |\n",
-                args->repeat);
+    std::printf(
+        "| model | points | nodes | read s | attributes s | hierarchy s | total s (median of %d) | "
+        "peak MiB | peak B/point |\n",
+        args->repeat);
     std::printf("|---|---:|---:|---:|---:|---:|---:|---:|---:|\n");
     for (const auto& model : args->models) {
       std::vector<double> read, attr, hier, total, peak;
@@ -134,8 +140,9 @@ void add_bench_commands(CLI::App& app) {
       const double pk = median(peak);
       std::printf("| %s | %llu | %llu | %.3f | %.3f | %.3f | %.3f | %.0f | %.1f |\n",
                   std::filesystem::path(model).filename().string().c_str(),
-                  static_cast<unsigned long long>(last.points), static_cast<unsigned long long>(last.nodes),
-                  median(read), median(attr), median(hier), median(total), pk / (1024.0 * 1024.0),
+                  static_cast<unsigned long long>(last.points),
+                  static_cast<unsigned long long>(last.nodes), median(read), median(attr),
+                  median(hier), median(total), pk / (1024.0 * 1024.0),
                   pk / static_cast<double>(std::max<std::uint64_t>(last.points, 1)));
       std::fflush(stdout);
     }

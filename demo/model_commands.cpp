@@ -21,13 +21,17 @@ struct ModelArgs {
   int k = 12;
 };
 
-void print_warning(const std::string& w) { std::fprintf(stderr, "warning: %s\n", w.c_str()); }
+void print_warning(const std::string& w) {
+  std::fprintf(stderr, "warning: %s\n", w.c_str());
+}
 
 void add_build_options(CLI::App& cmd, ModelArgs& args) {
-  cmd.add_option("-k,--neighbours", args.k, "Neighbours for normals, radii and curvature of point clouds")
+  cmd.add_option("-k,--neighbours", args.k,
+                 "Neighbours for normals, radii and curvature of point clouds")
       ->check(CLI::Range(3, 64));
-  cmd.add_flag("--real-points", args.real_points,
-               "Place every parent splat on one of its real points (no splat motion on LOD changes)");
+  cmd.add_flag(
+      "--real-points", args.real_points,
+      "Place every parent splat on one of its real points (no splat motion on LOD changes)");
 }
 
 OpenOptions open_options(const ModelArgs& args) {
@@ -56,8 +60,9 @@ void print_summary(const std::filesystem::path& model, const OpenedModel& m) {
   } else {
     if (m.ply.dropped_nonfinite)
       std::printf("dropped     %zu non-finite points\n", m.ply.dropped_nonfinite);
-    std::printf("build time  %.3f s (read %.3f, attributes %.3f, hierarchy %.3f, cache write %.3f)\n",
-                m.total_seconds(), m.read_seconds, m.attribute_seconds, m.build_seconds, m.cache_seconds);
+    std::printf(
+        "build time  %.3f s (read %.3f, attributes %.3f, hierarchy %.3f, cache write %.3f)\n",
+        m.total_seconds(), m.read_seconds, m.attribute_seconds, m.build_seconds, m.cache_seconds);
   }
 }
 
@@ -65,15 +70,18 @@ void print_summary(const std::filesystem::path& model, const OpenedModel& m) {
 
 void add_model_commands(CLI::App& app) {
   auto build_args = std::make_shared<ModelArgs>();
-  auto* build = app.add_subcommand("build", "Build (or refresh) the hierarchy cache of a PLY model");
+  auto* build =
+      app.add_subcommand("build", "Build (or refresh) the hierarchy cache of a PLY model");
   build->add_option("MODEL", build_args->model, "PLY file")->required()->check(CLI::ExistingFile);
-  build->add_option("-o,--output", build_args->out, "Cache file to write (default: the user cache folder)");
+  build->add_option("-o,--output", build_args->out,
+                    "Cache file to write (default: the user cache folder)");
   build->add_flag("-f,--force", build_args->force, "Rebuild even when a valid cache exists");
   add_build_options(*build, *build_args);
   build->callback([build_args] {
     OpenOptions o = open_options(*build_args);
     o.use_cache = true;
-    if (build_args->force && o.cache_path == std::nullopt) o.cache_path = default_cache_path(build_args->model);
+    if (build_args->force && o.cache_path == std::nullopt)
+      o.cache_path = default_cache_path(build_args->model);
     if (build_args->force) std::filesystem::remove(*o.cache_path);
     ProgressBar bar("read");
     o.progress = bar.callback();
@@ -83,8 +91,11 @@ void add_model_commands(CLI::App& app) {
   });
 
   auto info_args = std::make_shared<ModelArgs>();
-  auto* info = app.add_subcommand("info", "Summarize a model (PLY, through its cache) or a cache file");
-  info->add_option("MODEL", info_args->model, "PLY or .tch cache file")->required()->check(CLI::ExistingFile);
+  auto* info =
+      app.add_subcommand("info", "Summarize a model (PLY, through its cache) or a cache file");
+  info->add_option("MODEL", info_args->model, "PLY or .tch cache file")
+      ->required()
+      ->check(CLI::ExistingFile);
   add_build_options(*info, *info_args);
   info->callback([info_args] {
     OpenOptions o = open_options(*info_args);
@@ -104,7 +115,8 @@ void add_model_commands(CLI::App& app) {
   auto gen_args = std::make_shared<GenArgs>();
   auto* gen = app.add_subcommand("gen", "Write a procedural model (sphere, terrain, city) as PLY");
   gen->add_option("KIND", gen_args->kind, "sphere | terrain | city")->required();
-  gen->add_option("-n,--points", gen_args->points, "Number of points")->check(CLI::Range(1ull, 1ull << 31));
+  gen->add_option("-n,--points", gen_args->points, "Number of points")
+      ->check(CLI::Range(1ull, 1ull << 31));
   gen->add_option("-o,--output", gen_args->out, "Output PLY (default: assets/KIND.ply)");
   gen->add_option("--seed", gen_args->seed, "Random seed");
   gen->callback([gen_args] {

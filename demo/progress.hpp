@@ -61,7 +61,9 @@ class ProgressBar {
       constexpr int kWidth = 40;
       const bool known = total_ > 1;
       const int filled =
-          known ? static_cast<int>(kWidth * static_cast<double>(done_) / static_cast<double>(total_)) : 0;
+          known
+              ? static_cast<int>(kWidth * static_cast<double>(done_) / static_cast<double>(total_))
+              : 0;
       std::fprintf(stderr, "\r%-10s [%.*s%*s] %s %6.1fs", label_.c_str(), filled,
                    "########################################", kWidth - filled, "",
                    known ? (std::to_string(100 * done_ / total_) + "%").c_str() : "...", elapsed);

@@ -1,9 +1,10 @@
 // Attributes: normals, radii and curvature from faces and from neighbours.
+#include "treecut/attributes.hpp"
+
 #include <gtest/gtest.h>
 
 #include <glm/geometric.hpp>
 
-#include "treecut/attributes.hpp"
 #include "treecut/generate.hpp"
 
 using namespace treecut;
@@ -50,7 +51,8 @@ TEST(Attributes, SplatRadiiFromNeighboursCloseThePlane) {
   PointSet ps;
   const float h = 0.01f;
   for (int y = 0; y < 100; ++y)
-    for (int x = 0; x < 100; ++x) ps.positions.emplace_back(h * static_cast<float>(x), h * static_cast<float>(y), 0.0f);
+    for (int x = 0; x < 100; ++x)
+      ps.positions.emplace_back(h * static_cast<float>(x), h * static_cast<float>(y), 0.0f);
   complete_attributes(ps);
   for (std::size_t i = 0; i < ps.size(); ++i) {
     ASSERT_GE(ps.radii[i], 0.70f * h) << i;
@@ -69,7 +71,8 @@ TEST(Attributes, MeshNormalsAreAreaWeightedAndRadiiCoverTriangles) {
   for (int i = 0; i < 4; ++i) EXPECT_NEAR(ps.normals[static_cast<std::size_t>(i)].z, 1.0f, 1e-6f);
   EXPECT_EQ(ps.normals[4], glm::vec3(0.0f)) << "an isolated vertex has no normal";
   // Right triangles: the covering radius is half the hypotenuse.
-  for (int i = 0; i < 4; ++i) EXPECT_NEAR(ps.radii[static_cast<std::size_t>(i)], std::sqrt(2.0f) / 2.0f, 1e-5f);
+  for (int i = 0; i < 4; ++i)
+    EXPECT_NEAR(ps.radii[static_cast<std::size_t>(i)], std::sqrt(2.0f) / 2.0f, 1e-5f);
   EXPECT_GT(ps.radii[4], 0.0f);
   for (float c : ps.curvature) EXPECT_NEAR(c, 0.0f, 1e-6f);
 }
@@ -79,7 +82,8 @@ TEST(Attributes, FileNormalsAndRadiiAreKeptUnlessRecomputeIsAsked) {
   ps.radii.assign(ps.size(), 0.5f);
   const auto normals = ps.normals;
   complete_attributes(ps);
-  for (std::size_t i = 0; i < ps.size(); ++i) ASSERT_GT(glm::dot(ps.normals[i], normals[i]), 0.99999f);
+  for (std::size_t i = 0; i < ps.size(); ++i)
+    ASSERT_GT(glm::dot(ps.normals[i], normals[i]), 0.99999f);
   EXPECT_EQ(ps.radii[10], 0.5f);
   AttributeOptions o;
   o.recompute_radii = true;

@@ -1,5 +1,7 @@
 // Hierarchy cache: round trip, determinism, and detection of every truncation,
 // flipped byte and stale source.
+#include "treecut/cache.hpp"
+
 #include <gtest/gtest.h>
 #include <sys/resource.h>
 
@@ -9,7 +11,6 @@
 #include <iterator>
 
 #include "test_support.hpp"
-#include "treecut/cache.hpp"
 #include "treecut/error.hpp"
 #include "treecut/generate.hpp"
 #include "treecut/model_io.hpp"
@@ -30,7 +31,9 @@ void write_all(const fs::path& p, const std::vector<char>& bytes, std::size_t n)
   out.write(bytes.data(), static_cast<std::streamsize>(n));
 }
 
-Hierarchy small(std::size_t n = 300) { return build_from_points(generate_model(ModelKind::Sphere, n, 4)); }
+Hierarchy small(std::size_t n = 300) {
+  return build_from_points(generate_model(ModelKind::Sphere, n, 4));
+}
 
 }  // namespace
 
@@ -58,8 +61,10 @@ TEST(Cache, SameInputGivesAByteIdenticalFile) {
   BuildOptions one, two;
   one.threads = 1;
   two.threads = 3;
-  save_cache(build_from_points(generate_model(ModelKind::Terrain, 20000, 2), {}, one), {1, 2, 3}, dir / "a.tch");
-  save_cache(build_from_points(generate_model(ModelKind::Terrain, 20000, 2), {}, two), {1, 2, 3}, dir / "b.tch");
+  save_cache(build_from_points(generate_model(ModelKind::Terrain, 20000, 2), {}, one), {1, 2, 3},
+             dir / "a.tch");
+  save_cache(build_from_points(generate_model(ModelKind::Terrain, 20000, 2), {}, two), {1, 2, 3},
+             dir / "b.tch");
   EXPECT_EQ(read_all(dir / "a.tch"), read_all(dir / "b.tch"));
 }
 

@@ -1,5 +1,7 @@
 // Hierarchy build: structural invariants on generated and real models,
 // determinism, degenerate inputs.
+#include "treecut/hierarchy.hpp"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -7,7 +9,6 @@
 #include "test_support.hpp"
 #include "treecut/attributes.hpp"
 #include "treecut/generate.hpp"
-#include "treecut/hierarchy.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/ply.hpp"
 
@@ -38,9 +39,10 @@ bool same_bytes(const Hierarchy& a, const Hierarchy& b) {
                                               reinterpret_cast<const char*>(y.data()));
   };
   const auto &x = a.arrays(), &y = b.arrays();
-  return eq(x.center_radius, y.center_radius) && eq(x.normal_cone, y.normal_cone) && eq(x.color, y.color) &&
-         eq(x.priority, y.priority) && eq(x.point_count, y.point_count) && eq(x.parent, y.parent) &&
-         eq(x.first_child, y.first_child) && eq(x.child_count, y.child_count) && eq(x.depth, y.depth);
+  return eq(x.center_radius, y.center_radius) && eq(x.normal_cone, y.normal_cone) &&
+         eq(x.color, y.color) && eq(x.priority, y.priority) && eq(x.point_count, y.point_count) &&
+         eq(x.parent, y.parent) && eq(x.first_child, y.first_child) &&
+         eq(x.child_count, y.child_count) && eq(x.depth, y.depth);
 }
 
 }  // namespace
@@ -64,10 +66,13 @@ TEST_P(GeneratedModels, InvariantsHoldWithParentsOnRealPoints) {
   EXPECT_EQ(check_invariants(h), "");
   // Every node, not only the leaves, sits on an input point.
   std::vector<glm::vec3> sorted = inputs;
-  auto less = [](glm::vec3 a, glm::vec3 c) { return std::tie(a.x, a.y, a.z) < std::tie(c.x, c.y, c.z); };
+  auto less = [](glm::vec3 a, glm::vec3 c) {
+    return std::tie(a.x, a.y, a.z) < std::tie(c.x, c.y, c.z);
+  };
   std::sort(sorted.begin(), sorted.end(), less);
   for (NodeId n = 0; n < h.node_count(); n += 97)
-    EXPECT_TRUE(std::binary_search(sorted.begin(), sorted.end(), h.center(n), less)) << "node " << n;
+    EXPECT_TRUE(std::binary_search(sorted.begin(), sorted.end(), h.center(n), less))
+        << "node " << n;
 }
 
 INSTANTIATE_TEST_SUITE_P(Kinds, GeneratedModels, ::testing::Values("sphere", "terrain", "city"));
@@ -76,7 +81,9 @@ TEST(Hierarchy, LeavesAreExactlyTheInputPoints) {
   PointSet ps = generate_model(ModelKind::Terrain, 3001, 11);
   std::vector<glm::vec3> inputs = ps.positions;
   const Hierarchy h = build(std::move(ps));
-  auto less = [](glm::vec3 a, glm::vec3 b) { return std::tie(a.x, a.y, a.z) < std::tie(b.x, b.y, b.z); };
+  auto less = [](glm::vec3 a, glm::vec3 b) {
+    return std::tie(a.x, a.y, a.z) < std::tie(b.x, b.y, b.z);
+  };
   std::sort(inputs.begin(), inputs.end(), less);
   EXPECT_EQ(sorted_leaf_centers(h), inputs);
 }
@@ -100,7 +107,8 @@ TEST(Hierarchy, DuplicatePointsTerminateWithBoundedDepth) {
 
 TEST(Hierarchy, ColinearPointsHaveFullConesAndValidStructure) {
   PointSet ps;
-  for (int i = 0; i < 1000; ++i) ps.positions.emplace_back(0.01f * static_cast<float>(i), 0.0f, 0.0f);
+  for (int i = 0; i < 1000; ++i)
+    ps.positions.emplace_back(0.01f * static_cast<float>(i), 0.0f, 0.0f);
   const Hierarchy h = build(std::move(ps));
   EXPECT_EQ(check_invariants(h), "");
   EXPECT_LT(h.cone_cos(h.root()), -0.99f);
@@ -128,7 +136,8 @@ TEST(Hierarchy, CheckInvariantsDetectsABrokenSphere) {
   arrays.center_radius = *keep;
   std::vector<NodeId> levels;
   for (int d = 0; d <= ok.level_count(); ++d) levels.push_back(ok.level_begin(d));
-  const Hierarchy bad = Hierarchy::from_arrays(keep, arrays, levels, ok.bounds_min(), ok.bounds_max());
+  const Hierarchy bad =
+      Hierarchy::from_arrays(keep, arrays, levels, ok.bounds_min(), ok.bounds_max());
   EXPECT_NE(check_invariants(bad).find("sphere"), std::string::npos);
 }
 
@@ -149,10 +158,11 @@ TEST_P(RealModels, InvariantsHoldAndLeavesMatchThePly) {
 }
 
 INSTANTIATE_TEST_SUITE_P(SharedAssets, RealModels,
-                         ::testing::Values("bun_zipper.ply", "dragon_vrip_normals.ply", "dragon_vrip.ply",
-                                           "lion_takanawa.ply"),
+                         ::testing::Values("bun_zipper.ply", "dragon_vrip_normals.ply",
+                                           "dragon_vrip.ply", "lion_takanawa.ply"),
                          [](const auto& param_info) {
                            std::string s = param_info.param;
-                           std::replace_if(s.begin(), s.end(), [](char c) { return !std::isalnum(c); }, '_');
+                           std::replace_if(
+                               s.begin(), s.end(), [](char c) { return !std::isalnum(c); }, '_');
                            return s;
                          });

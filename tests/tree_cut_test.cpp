@@ -1,12 +1,13 @@
 // TreeCut: refine/coarsen keep the cut valid under random sequences; the
 // validator catches every kind of broken list.
+#include "treecut/tree_cut.hpp"
+
 #include <gtest/gtest.h>
 
 #include <random>
 
 #include "treecut/generate.hpp"
 #include "treecut/model_io.hpp"
-#include "treecut/tree_cut.hpp"
 
 using namespace treecut;
 

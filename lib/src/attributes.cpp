@@ -75,7 +75,8 @@ struct Moments {
 };
 
 void fill_missing_radii(std::vector<float>& radii) {
-  const bool complete = std::all_of(radii.begin(), radii.end(), [](float r) { return r > 0.0f && std::isfinite(r); });
+  const bool complete =
+      std::all_of(radii.begin(), radii.end(), [](float r) { return r > 0.0f && std::isfinite(r); });
   if (complete) return;
   const float fallback = median_positive(radii);
   for (float& r : radii)
@@ -95,29 +96,32 @@ void from_faces(PointSet& ps, bool want_normals, bool want_radii, bool want_curv
   };
   std::vector<Accumulator> acc(n);
   const unsigned threads = worker_count();
-  parallel_for(threads, [&](std::size_t tb, std::size_t te) {
-    for (std::size_t t = tb; t < te; ++t) {
-      const std::uint32_t lo = static_cast<std::uint32_t>(n * t / threads);
-      const std::uint32_t hi = static_cast<std::uint32_t>(n * (t + 1) / threads);
-      auto own = [lo, hi](std::uint32_t v) { return v >= lo && v < hi; };
-      for (const glm::uvec3& tri : ps.triangles) {
-        if (!own(tri.x) && !own(tri.y) && !own(tri.z)) continue;
-        const glm::vec3 p[3] = {ps.positions[tri.x], ps.positions[tri.y], ps.positions[tri.z]};
-        const glm::vec3 fn = glm::cross(p[1] - p[0], p[2] - p[0]);
-        const float r = want_radii ? covering_radius(p[0], p[1], p[2]) : 0.0f;
-        const std::uint32_t corner[3] = {tri.x, tri.y, tri.z};
-        for (int c = 0; c < 3; ++c) {
-          if (!own(corner[c])) continue;
-          Accumulator& va = acc[corner[c]];
-          va.normal += fn;
-          va.radius = std::max(va.radius, r);
-          if (want_curvature)  // relative to the vertex itself: no cancellation
-            for (int o = 1; o < 3; ++o)
-              if (corner[(c + o) % 3] != corner[c]) va.ring.add(p[(c + o) % 3] - p[c]);
+  parallel_for(
+      threads,
+      [&](std::size_t tb, std::size_t te) {
+        for (std::size_t t = tb; t < te; ++t) {
+          const std::uint32_t lo = static_cast<std::uint32_t>(n * t / threads);
+          const std::uint32_t hi = static_cast<std::uint32_t>(n * (t + 1) / threads);
+          auto own = [lo, hi](std::uint32_t v) { return v >= lo && v < hi; };
+          for (const glm::uvec3& tri : ps.triangles) {
+            if (!own(tri.x) && !own(tri.y) && !own(tri.z)) continue;
+            const glm::vec3 p[3] = {ps.positions[tri.x], ps.positions[tri.y], ps.positions[tri.z]};
+            const glm::vec3 fn = glm::cross(p[1] - p[0], p[2] - p[0]);
+            const float r = want_radii ? covering_radius(p[0], p[1], p[2]) : 0.0f;
+            const std::uint32_t corner[3] = {tri.x, tri.y, tri.z};
+            for (int c = 0; c < 3; ++c) {
+              if (!own(corner[c])) continue;
+              Accumulator& va = acc[corner[c]];
+              va.normal += fn;
+              va.radius = std::max(va.radius, r);
+              if (want_curvature)  // relative to the vertex itself: no cancellation
+                for (int o = 1; o < 3; ++o)
+                  if (corner[(c + o) % 3] != corner[c]) va.ring.add(p[(c + o) % 3] - p[c]);
+            }
+          }
         }
-      }
-    }
-  }, threads, 1);
+      },
+      threads, 1);
   if (want_normals) ps.normals.resize(n);
   if (want_radii) ps.radii.resize(n);
   if (want_curvature) ps.curvature.assign(n, 0.0f);
@@ -129,7 +133,8 @@ void from_faces(PointSet& ps, bool want_normals, bool want_radii, bool want_curv
         ps.normals[v] = len > 1e-30f && std::isfinite(len) ? va.normal / len : glm::vec3(0.0f);
       }
       if (want_radii) ps.radii[v] = va.radius;
-      if (want_curvature && va.ring.count >= 3) ps.curvature[v] = detail::surface_variation(va.ring.covariance());
+      if (want_curvature && va.ring.count >= 3)
+        ps.curvature[v] = detail::surface_variation(va.ring.covariance());
     }
   });
   if (want_radii) fill_missing_radii(ps.radii);  // vertices outside every face: the typical radius

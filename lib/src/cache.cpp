@@ -39,17 +39,20 @@ struct Header {
   std::uint64_t source_size;
   std::int64_t source_mtime_ns;
   float bounds[6];
-  std::uint64_t level_table;           // offset of level_count + 1 NodeIds
-  std::uint64_t offsets[kArrays];      // in HierarchyArrays member order
-  std::uint64_t payload_end;           // checksum follows, file size = payload_end + 8
+  std::uint64_t level_table;       // offset of level_count + 1 NodeIds
+  std::uint64_t offsets[kArrays];  // in HierarchyArrays member order
+  std::uint64_t payload_end;       // checksum follows, file size = payload_end + 8
 };
 static_assert(std::is_trivially_copyable_v<Header>);
 
 constexpr std::array<std::size_t, kArrays> kElementSize = {
-    sizeof(glm::vec4), sizeof(glm::i16vec4), sizeof(glm::u8vec4), sizeof(float), sizeof(std::uint32_t),
-    sizeof(NodeId),    sizeof(NodeId),       sizeof(std::uint8_t), sizeof(std::uint8_t)};
+    sizeof(glm::vec4), sizeof(glm::i16vec4),  sizeof(glm::u8vec4),
+    sizeof(float),     sizeof(std::uint32_t), sizeof(NodeId),
+    sizeof(NodeId),    sizeof(std::uint8_t),  sizeof(std::uint8_t)};
 
-std::uint64_t align_up(std::uint64_t x) { return (x + kAlign - 1) / kAlign * kAlign; }
+std::uint64_t align_up(std::uint64_t x) {
+  return (x + kAlign - 1) / kAlign * kAlign;
+}
 
 // Four independent multiply-rotate lanes over 8-byte words (bandwidth-bound,
 // several GB/s), folded together with the length. Streaming, so the writer
@@ -162,7 +165,7 @@ std::optional<Hierarchy> map_and_verify(const std::filesystem::path& path, Heade
                                         std::string* why) {
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) return fail(why, "cannot open"), std::nullopt;
-  struct stat st{};
+  struct stat st {};
   if (fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
     ::close(fd);
     return fail(why, "not a regular file"), std::nullopt;
@@ -181,21 +184,27 @@ std::optional<Hierarchy> map_and_verify(const std::filesystem::path& path, Heade
 
   Header h;
   std::memcpy(&h, bytes, sizeof h);
-  if (std::memcmp(h.magic, kMagic, sizeof kMagic) != 0) return fail(why, "not a treecut cache"), std::nullopt;
+  if (std::memcmp(h.magic, kMagic, sizeof kMagic) != 0)
+    return fail(why, "not a treecut cache"), std::nullopt;
   if (h.version != kVersion)
     return fail(why, "cache format version " + std::to_string(h.version) + ", expected " +
-                         std::to_string(kVersion)), std::nullopt;
-  if (h.endian_tag != kEndianTag) return fail(why, "written on a machine of other endianness"), std::nullopt;
+                         std::to_string(kVersion)),
+           std::nullopt;
+  if (h.endian_tag != kEndianTag)
+    return fail(why, "written on a machine of other endianness"), std::nullopt;
   if (h.header_size != sizeof(Header)) return fail(why, "header size mismatch"), std::nullopt;
-  if (h.payload_end != size - 8) return fail(why, "truncated or extended (size mismatch)"), std::nullopt;
+  if (h.payload_end != size - 8)
+    return fail(why, "truncated or extended (size mismatch)"), std::nullopt;
   std::uint64_t stored;
   std::memcpy(&stored, bytes + size - 8, 8);
-  if (checksum(bytes, size - 8) != stored) return fail(why, "checksum mismatch (corrupted)"), std::nullopt;
+  if (checksum(bytes, size - 8) != stored)
+    return fail(why, "checksum mismatch (corrupted)"), std::nullopt;
 
   // The checksum only proves the file is what some writer wrote; still check
   // every offset before building spans.
   const std::uint64_t n = h.node_count;
-  if (n == 0 || h.level_count == 0 || h.level_count > 256) return fail(why, "bad counts"), std::nullopt;
+  if (n == 0 || h.level_count == 0 || h.level_count > 256)
+    return fail(why, "bad counts"), std::nullopt;
   auto in_bounds = [&](std::uint64_t off, std::uint64_t bytes_needed) {
     return off % kAlign == 0 && off >= sizeof(Header) && off <= h.payload_end &&
            bytes_needed <= h.payload_end - off;
@@ -207,29 +216,27 @@ std::optional<Hierarchy> map_and_verify(const std::filesystem::path& path, Heade
       return fail(why, "array out of bounds"), std::nullopt;
   auto at = [&](int i) { return bytes + h.offsets[i]; };
   const std::size_t nn = static_cast<std::size_t>(n);
-  HierarchyArrays a{
-      {reinterpret_cast<const glm::vec4*>(at(0)), nn},
-      {reinterpret_cast<const glm::i16vec4*>(at(1)), nn},
-      {reinterpret_cast<const glm::u8vec4*>(at(2)), nn},
-      {reinterpret_cast<const float*>(at(3)), nn},
-      {reinterpret_cast<const std::uint32_t*>(at(4)), nn},
-      {reinterpret_cast<const NodeId*>(at(5)), nn},
-      {reinterpret_cast<const NodeId*>(at(6)), nn},
-      {reinterpret_cast<const std::uint8_t*>(at(7)), nn},
-      {reinterpret_cast<const std::uint8_t*>(at(8)), nn}};
+  HierarchyArrays a{{reinterpret_cast<const glm::vec4*>(at(0)), nn},
+                    {reinterpret_cast<const glm::i16vec4*>(at(1)), nn},
+                    {reinterpret_cast<const glm::u8vec4*>(at(2)), nn},
+                    {reinterpret_cast<const float*>(at(3)), nn},
+                    {reinterpret_cast<const std::uint32_t*>(at(4)), nn},
+                    {reinterpret_cast<const NodeId*>(at(5)), nn},
+                    {reinterpret_cast<const NodeId*>(at(6)), nn},
+                    {reinterpret_cast<const std::uint8_t*>(at(7)), nn},
+                    {reinterpret_cast<const std::uint8_t*>(at(8)), nn}};
   std::vector<NodeId> levels(h.level_count + 1);
   std::memcpy(levels.data(), bytes + h.level_table, levels.size() * sizeof(NodeId));
   if (!links_ok(a, levels, why)) return std::nullopt;
   if (out_header) *out_header = h;
-  return Hierarchy::from_arrays(map, a, std::move(levels),
-                                {h.bounds[0], h.bounds[1], h.bounds[2]},
+  return Hierarchy::from_arrays(map, a, std::move(levels), {h.bounds[0], h.bounds[1], h.bounds[2]},
                                 {h.bounds[3], h.bounds[4], h.bounds[5]});
 }
 
 }  // namespace
 
 CacheKey cache_key_for(const std::filesystem::path& source, std::uint32_t options_bits) {
-  struct stat st{};
+  struct stat st {};
   if (::stat(source.c_str(), &st) != 0) throw std::runtime_error(source.string() + ": cannot stat");
   return CacheKey{static_cast<std::uint64_t>(st.st_size),
                   static_cast<std::int64_t>(st.st_mtim.tv_sec) * 1000000000 + st.st_mtim.tv_nsec,
@@ -299,7 +306,8 @@ void save_cache(const Hierarchy& hier, const CacheKey& key, const std::filesyste
     put(&h, sizeof h, 0);
     put(levels.data(), levels.size() * sizeof(NodeId), h.level_table);
     for (int i = 0; i < kArrays; ++i)
-      put(arrays[static_cast<std::size_t>(i)].first, arrays[static_cast<std::size_t>(i)].second, h.offsets[i]);
+      put(arrays[static_cast<std::size_t>(i)].first, arrays[static_cast<std::size_t>(i)].second,
+          h.offsets[i]);
     put(nullptr, 0, h.payload_end);
     const std::uint64_t digest = sum.finish();
     out.write(reinterpret_cast<const char*>(&digest), sizeof digest);
@@ -322,9 +330,9 @@ std::optional<Hierarchy> load_cache(const std::filesystem::path& cache,
   Header h;
   auto hier = map_and_verify(cache, &h, why);
   if (!hier) return std::nullopt;
-  if (expected && (h.source_size != expected->source_size ||
-                   h.source_mtime_ns != expected->source_mtime_ns ||
-                   h.options_bits != expected->options_bits))
+  if (expected &&
+      (h.source_size != expected->source_size || h.source_mtime_ns != expected->source_mtime_ns ||
+       h.options_bits != expected->options_bits))
     return fail(why, "stale (the model or the build options changed)"), std::nullopt;
   return hier;
 }

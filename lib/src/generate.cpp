@@ -27,7 +27,9 @@ float unit(std::uint64_t seed, std::uint64_t i, std::uint64_t stream) {
 }
 
 glm::u8vec4 rgb(float r, float g, float b) {
-  auto c = [](float v) { return static_cast<std::uint8_t>(std::lround(std::clamp(v, 0.0f, 1.0f) * 255.0f)); };
+  auto c = [](float v) {
+    return static_cast<std::uint8_t>(std::lround(std::clamp(v, 0.0f, 1.0f) * 255.0f));
+  };
   return {c(r), c(g), c(b), 255};
 }
 
@@ -93,13 +95,16 @@ PointSet terrain(std::size_t n, std::uint64_t seed) {
       const float y = -1.0f + step * (static_cast<float>(i / side) + unit(seed, i, 1));
       const float h = terrain_height(seed, x, y);
       const float eps = 0.5f * step;
-      const float dx = (terrain_height(seed, x + eps, y) - terrain_height(seed, x - eps, y)) / (2 * eps);
-      const float dy = (terrain_height(seed, x, y + eps) - terrain_height(seed, x, y - eps)) / (2 * eps);
+      const float dx =
+          (terrain_height(seed, x + eps, y) - terrain_height(seed, x - eps, y)) / (2 * eps);
+      const float dy =
+          (terrain_height(seed, x, y + eps) - terrain_height(seed, x, y - eps)) / (2 * eps);
       ps.positions[i] = {x, y, h};
       ps.normals[i] = glm::normalize(glm::vec3(-dx, -dy, 1.0f));
       const float t = std::clamp((h + 0.4f) / 0.8f, 0.0f, 1.0f);
-      ps.colors[i] = t < 0.5f ? rgb(0.2f + 0.4f * t, 0.45f + 0.2f * t, 0.15f)
-                              : t < 0.8f ? rgb(0.45f, 0.35f, 0.25f) : rgb(0.95f, 0.95f, 0.97f);
+      ps.colors[i] = t < 0.5f   ? rgb(0.2f + 0.4f * t, 0.45f + 0.2f * t, 0.15f)
+                     : t < 0.8f ? rgb(0.45f, 0.35f, 0.25f)
+                                : rgb(0.95f, 0.95f, 0.97f);
     }
   });
   return ps;
@@ -119,10 +124,12 @@ PointSet city(std::size_t n, std::uint64_t seed) {
   for (int j = 0; j < G; ++j)
     for (int i = 0; i < G; ++i) {
       const auto id = static_cast<std::uint64_t>(j * G + i);
-      const glm::vec2 c(-1.0f + cell * (static_cast<float>(i) + 0.5f), -1.0f + cell * (static_cast<float>(j) + 0.5f));
+      const glm::vec2 c(-1.0f + cell * (static_cast<float>(i) + 0.5f),
+                        -1.0f + cell * (static_cast<float>(j) + 0.5f));
       const float h = 0.08f + 0.5f * std::pow(unit(seed, id, 2), 2.0f);
-      boxes.push_back({c - 0.5f * footprint, c + 0.5f * footprint, h,
-                       rgb(0.5f + 0.4f * unit(seed, id, 0), 0.5f + 0.3f * unit(seed, id, 1), 0.55f)});
+      boxes.push_back(
+          {c - 0.5f * footprint, c + 0.5f * footprint, h,
+           rgb(0.5f + 0.4f * unit(seed, id, 0), 0.5f + 0.3f * unit(seed, id, 1), 0.55f)});
     }
   // Surfaces: ground (minus footprints), then per box a roof and four walls.
   struct Surface {
@@ -131,15 +138,18 @@ PointSet city(std::size_t n, std::uint64_t seed) {
     float area;
   };
   std::vector<Surface> surfaces;
-  surfaces.push_back({{-1, -1, 0}, {2, 0, 0}, {0, 2, 0}, {0, 0, 1}, rgb(0.45f, 0.47f, 0.45f), 4.0f});
+  surfaces.push_back(
+      {{-1, -1, 0}, {2, 0, 0}, {0, 2, 0}, {0, 0, 1}, rgb(0.45f, 0.47f, 0.45f), 4.0f});
   for (const Box& bx : boxes) {
     const glm::vec2 s = bx.hi - bx.lo;
     const float h = bx.height;
     surfaces.push_back({{bx.lo, h}, {s.x, 0, 0}, {0, s.y, 0}, {0, 0, 1}, bx.color, s.x * s.y});
     surfaces.push_back({{bx.lo, 0}, {s.x, 0, 0}, {0, 0, h}, {0, -1, 0}, bx.color, s.x * h});
-    surfaces.push_back({{bx.hi.x, bx.lo.y, 0}, {0, s.y, 0}, {0, 0, h}, {1, 0, 0}, bx.color, s.y * h});
+    surfaces.push_back(
+        {{bx.hi.x, bx.lo.y, 0}, {0, s.y, 0}, {0, 0, h}, {1, 0, 0}, bx.color, s.y * h});
     surfaces.push_back({{bx.hi, 0}, {-s.x, 0, 0}, {0, 0, h}, {0, 1, 0}, bx.color, s.x * h});
-    surfaces.push_back({{bx.lo.x, bx.hi.y, 0}, {0, -s.y, 0}, {0, 0, h}, {-1, 0, 0}, bx.color, s.y * h});
+    surfaces.push_back(
+        {{bx.lo.x, bx.hi.y, 0}, {0, -s.y, 0}, {0, 0, h}, {-1, 0, 0}, bx.color, s.y * h});
   }
   std::vector<double> cumulative;
   double total = 0.0;
@@ -156,7 +166,8 @@ PointSet city(std::size_t n, std::uint64_t seed) {
       // Stratified choice of the surface, then a uniform point on it; ground
       // points under a building are re-drawn on that building's roof.
       const double t = (static_cast<double>(i) + 0.5) / static_cast<double>(n) * total;
-      const auto k = static_cast<std::size_t>(std::lower_bound(cumulative.begin(), cumulative.end(), t) - cumulative.begin());
+      const auto k = static_cast<std::size_t>(
+          std::lower_bound(cumulative.begin(), cumulative.end(), t) - cumulative.begin());
       const Surface* s = &surfaces[std::min(k, surfaces.size() - 1)];
       glm::vec3 p = s->origin + unit(seed, i, 0) * s->u + unit(seed, i, 1) * s->v;
       if (s == &surfaces[0] && inside_footprint(p)) {
@@ -182,14 +193,19 @@ ModelKind parse_model_kind(std::string_view name) {
   throw InputError("unknown model kind '" + std::string(name) + "' (sphere, terrain or city)");
 }
 
-std::vector<std::string> model_kind_names() { return {"sphere", "terrain", "city"}; }
+std::vector<std::string> model_kind_names() {
+  return {"sphere", "terrain", "city"};
+}
 
 PointSet generate_model(ModelKind kind, std::size_t points, std::uint64_t seed) {
   if (points == 0) throw InputError("generate_model: zero points requested");
   switch (kind) {
-    case ModelKind::Sphere: return sphere(points, seed);
-    case ModelKind::Terrain: return terrain(points, seed);
-    case ModelKind::City: return city(points, seed);
+    case ModelKind::Sphere:
+      return sphere(points, seed);
+    case ModelKind::Terrain:
+      return terrain(points, seed);
+    case ModelKind::City:
+      return city(points, seed);
   }
   throw InputError("generate_model: unknown kind");
 }

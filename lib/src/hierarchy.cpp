@@ -12,6 +12,8 @@
 //      spheres, normal cone, average color, monotone priority.
 // Nothing depends on the thread count, so the output is byte-identical for
 // any number of workers.
+#include "treecut/hierarchy.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -20,7 +22,6 @@
 #include <stdexcept>
 #include <thread>
 
-#include "treecut/hierarchy.hpp"
 #include "treecut/parallel.hpp"
 
 namespace treecut {
@@ -96,9 +97,12 @@ void select(Item* items, std::uint32_t b, std::uint32_t m, std::uint32_t e) {
 
 void split_at(Item* items, std::uint32_t b, std::uint32_t m, std::uint32_t e) {
   switch (longest_axis(items + b, items + e)) {
-    case 0: return select<0>(items, b, m, e);
-    case 1: return select<1>(items, b, m, e);
-    default: return select<2>(items, b, m, e);
+    case 0:
+      return select<0>(items, b, m, e);
+    case 1:
+      return select<1>(items, b, m, e);
+    default:
+      return select<2>(items, b, m, e);
   }
 }
 
@@ -129,10 +133,14 @@ float angle_between(glm::vec3 a, glm::vec3 b) {
   return std::atan2(glm::length(glm::cross(a, b)), glm::dot(a, b));
 }
 
-float clamp01(float x) { return std::min(1.0f, std::max(0.0f, x)); }
+float clamp01(float x) {
+  return std::min(1.0f, std::max(0.0f, x));
+}
 
 // A node's own geometric error: how far its normals spread, (1 - cos)/2 in [0,1].
-float cone_priority(float cone_cos) { return clamp01(0.5f * (1.0f - cone_cos)); }
+float cone_priority(float cone_cos) {
+  return clamp01(0.5f * (1.0f - cone_cos));
+}
 
 }  // namespace
 
@@ -142,8 +150,8 @@ glm::i16vec4 pack_normal_cone(glm::vec3 normal, float cone_cos) {
     return static_cast<std::int16_t>(x + (x >= 0.0f ? 0.5f : -0.5f));
   };
   // The cone is rounded towards wider (smaller cosine) so it stays conservative.
-  const auto c = static_cast<std::int16_t>(
-      std::floor(std::clamp(cone_cos, -1.0f, 1.0f) * 32767.0f));
+  const auto c =
+      static_cast<std::int16_t>(std::floor(std::clamp(cone_cos, -1.0f, 1.0f) * 32767.0f));
   return {q(normal.x), q(normal.y), q(normal.z), std::max<std::int16_t>(c, -32767)};
 }
 
@@ -232,7 +240,8 @@ Hierarchy build_hierarchy(PointSet&& points, const BuildOptions& options) {
       }
     }
     progress_done += N;
-    if (options.progress) options.progress(std::min(progress_done, progress_total / 2), progress_total);
+    if (options.progress)
+      options.progress(std::min(progress_done, progress_total / 2), progress_total);
   }
   const std::size_t M = ranges.size();
 
@@ -244,13 +253,16 @@ Hierarchy build_hierarchy(PointSet&& points, const BuildOptions& options) {
   release(ranges);
 
   a.center_radius.resize(M);
-  parallel_for(M, [&](std::size_t b, std::size_t e) {
-    for (std::size_t i = b; i < e; ++i)
-      if (a.child_count[i] == 0) {
-        const Item& it = items[leaf_point[i]];
-        a.center_radius[i] = glm::vec4(it.p, points.radii[it.index]);
-      }
-  }, threads);
+  parallel_for(
+      M,
+      [&](std::size_t b, std::size_t e) {
+        for (std::size_t i = b; i < e; ++i)
+          if (a.child_count[i] == 0) {
+            const Item& it = items[leaf_point[i]];
+            a.center_radius[i] = glm::vec4(it.p, points.radii[it.index]);
+          }
+      },
+      threads);
   // From here on a leaf refers to its PointSet index directly.
   for (std::size_t i = 0; i < M; ++i)
     if (a.child_count[i] == 0) leaf_point[i] = items[leaf_point[i]].index;
@@ -258,38 +270,48 @@ Hierarchy build_hierarchy(PointSet&& points, const BuildOptions& options) {
   release(points.radii);
 
   a.normal_cone.resize(M);
-  parallel_for(M, [&](std::size_t b, std::size_t e) {
-    for (std::size_t i = b; i < e; ++i)
-      if (a.child_count[i] == 0) {
-        const glm::vec3 nrm = points.normals[leaf_point[i]];
-        const float len = glm::length(nrm);
-        // A point without a defined normal can face anywhere: full cone.
-        a.normal_cone[i] = len > 0.5f ? pack_normal_cone(nrm / len, 1.0f)
-                                      : pack_normal_cone(glm::vec3(0.0f), -1.0f);
-      }
-  }, threads);
+  parallel_for(
+      M,
+      [&](std::size_t b, std::size_t e) {
+        for (std::size_t i = b; i < e; ++i)
+          if (a.child_count[i] == 0) {
+            const glm::vec3 nrm = points.normals[leaf_point[i]];
+            const float len = glm::length(nrm);
+            // A point without a defined normal can face anywhere: full cone.
+            a.normal_cone[i] = len > 0.5f ? pack_normal_cone(nrm / len, 1.0f)
+                                          : pack_normal_cone(glm::vec3(0.0f), -1.0f);
+          }
+      },
+      threads);
   release(points.normals);
 
   a.color.resize(M);
   const bool has_colors = points.has_colors();
-  parallel_for(M, [&](std::size_t b, std::size_t e) {
-    for (std::size_t i = b; i < e; ++i)
-      if (a.child_count[i] == 0)
-        a.color[i] = has_colors ? points.colors[leaf_point[i]] : glm::u8vec4(200, 200, 200, 255);
-  }, threads);
+  parallel_for(
+      M,
+      [&](std::size_t b, std::size_t e) {
+        for (std::size_t i = b; i < e; ++i)
+          if (a.child_count[i] == 0)
+            a.color[i] =
+                has_colors ? points.colors[leaf_point[i]] : glm::u8vec4(200, 200, 200, 255);
+      },
+      threads);
   release(points.colors);
 
   a.priority.resize(M);
   a.point_count.resize(M);
-  parallel_for(M, [&](std::size_t b, std::size_t e) {
-    for (std::size_t i = b; i < e; ++i)
-      if (a.child_count[i] == 0) {
-        // Surface variation lies in [0, 1/3]; scale it to [0, 1].
-        a.priority[i] = clamp01(3.0f * points.curvature[leaf_point[i]]);
-        a.point_count[i] = 1;
-        leaf_point[i] = kNoNode;
-      }
-  }, threads);
+  parallel_for(
+      M,
+      [&](std::size_t b, std::size_t e) {
+        for (std::size_t i = b; i < e; ++i)
+          if (a.child_count[i] == 0) {
+            // Surface variation lies in [0, 1/3]; scale it to [0, 1].
+            a.priority[i] = clamp01(3.0f * points.curvature[leaf_point[i]]);
+            a.point_count[i] = 1;
+            leaf_point[i] = kNoNode;
+          }
+      },
+      threads);
   release(points.curvature);
 
   // Stage 3: interior nodes, deepest level first.
@@ -298,91 +320,94 @@ Hierarchy build_hierarchy(PointSet&& points, const BuildOptions& options) {
   for (int d = levels - 1; d >= 0; --d) {
     const std::size_t lb = level_begin[static_cast<std::size_t>(d)];
     const std::size_t le = level_begin[static_cast<std::size_t>(d) + 1];
-    parallel_for(le - lb, [&](std::size_t b, std::size_t e) {
-      for (std::size_t i = lb + b; i < lb + e; ++i) {
-        const unsigned cc = a.child_count[i];
-        if (cc == 0) continue;
-        const std::size_t c0 = a.first_child[i];
-        // Center: midpoint of the box around the children's spheres (or the
-        // real point nearest to it), radius: the smallest that bounds them.
-        glm::vec3 lo(INFINITY), hi(-INFINITY), nsum(0.0f);
-        glm::vec4 csum(0.0f);
-        std::uint32_t count = 0;
-        float prio = 0.0f;
-        for (std::size_t c = c0; c < c0 + cc; ++c) {
-          const glm::vec4 s = a.center_radius[c];
-          lo = glm::min(lo, glm::vec3(s) - s.w);
-          hi = glm::max(hi, glm::vec3(s) + s.w);
-          const float w = static_cast<float>(a.point_count[c]);
-          nsum += w * glm::vec3(a.normal_cone[c]) * (1.0f / 32767.0f);
-          csum += w * glm::vec4(a.color[c]);
-          count += a.point_count[c];
-          prio = std::max(prio, a.priority[c]);
-        }
-        glm::vec3 center = 0.5f * (lo + hi);
-        if (at_real_point) {
-          std::size_t best = c0;
-          float best_d = INFINITY;
-          for (std::size_t c = c0; c < c0 + cc; ++c) {
-            const float dd = glm::distance(glm::vec3(a.center_radius[c]), center);
-            if (dd < best_d) best_d = dd, best = c;
-          }
-          center = glm::vec3(a.center_radius[best]);
-        }
-        float radius = 0.0f;
-        for (std::size_t c = c0; c < c0 + cc; ++c)
-          radius = std::max(radius, glm::distance(center, glm::vec3(a.center_radius[c])) +
-                                        a.center_radius[c].w);
-        // Guard the containment invariant against float rounding.
-        radius = radius * (1.0f + 4e-6f) + 1e-30f;
-        a.center_radius[i] = glm::vec4(center, radius);
+    parallel_for(
+        le - lb,
+        [&](std::size_t b, std::size_t e) {
+          for (std::size_t i = lb + b; i < lb + e; ++i) {
+            const unsigned cc = a.child_count[i];
+            if (cc == 0) continue;
+            const std::size_t c0 = a.first_child[i];
+            // Center: midpoint of the box around the children's spheres (or the
+            // real point nearest to it), radius: the smallest that bounds them.
+            glm::vec3 lo(INFINITY), hi(-INFINITY), nsum(0.0f);
+            glm::vec4 csum(0.0f);
+            std::uint32_t count = 0;
+            float prio = 0.0f;
+            for (std::size_t c = c0; c < c0 + cc; ++c) {
+              const glm::vec4 s = a.center_radius[c];
+              lo = glm::min(lo, glm::vec3(s) - s.w);
+              hi = glm::max(hi, glm::vec3(s) + s.w);
+              const float w = static_cast<float>(a.point_count[c]);
+              nsum += w * glm::vec3(a.normal_cone[c]) * (1.0f / 32767.0f);
+              csum += w * glm::vec4(a.color[c]);
+              count += a.point_count[c];
+              prio = std::max(prio, a.priority[c]);
+            }
+            glm::vec3 center = 0.5f * (lo + hi);
+            if (at_real_point) {
+              std::size_t best = c0;
+              float best_d = INFINITY;
+              for (std::size_t c = c0; c < c0 + cc; ++c) {
+                const float dd = glm::distance(glm::vec3(a.center_radius[c]), center);
+                if (dd < best_d) best_d = dd, best = c;
+              }
+              center = glm::vec3(a.center_radius[best]);
+            }
+            float radius = 0.0f;
+            for (std::size_t c = c0; c < c0 + cc; ++c)
+              radius = std::max(radius, glm::distance(center, glm::vec3(a.center_radius[c])) +
+                                            a.center_radius[c].w);
+            // Guard the containment invariant against float rounding.
+            radius = radius * (1.0f + 4e-6f) + 1e-30f;
+            a.center_radius[i] = glm::vec4(center, radius);
 
-        // Normal cone: average normal, half-angle covering every child's cone
-        // measured with the quantized values that are stored.
-        const float nlen = glm::length(nsum);
-        float cone_cos = -1.0f;
-        glm::vec3 nrm(0.0f);
-        if (nlen > 1e-6f) {
-          nrm = nsum / nlen;
-          const glm::i16vec4 qn = pack_normal_cone(nrm, 1.0f);
-          const glm::vec3 u = glm::normalize(glm::vec3(qn));
-          // Work with versines v = 1 - cos and sines: v(a + b) = va + vb - va vb
-          // + sa sb. No inverse trigonometry per child, and small angles keep
-          // their precision (1 - dot rounds them to zero in float).
-          float widest = 0.0f;  // versine of the cone's half-angle
-          for (std::size_t c = c0; c < c0 + cc; ++c) {
-            const glm::i16vec4 k = a.normal_cone[c];
-            const glm::vec3 kv = glm::vec3(k);
-            const float cb = static_cast<float>(k.w) * (1.0f / 32767.0f);
-            if (glm::dot(kv, kv) < 0.25f * 32767.0f * 32767.0f || cb <= -1.0f + 1e-6f) {
-              widest = 2.0f;  // a child facing anywhere: full cone
-              break;
+            // Normal cone: average normal, half-angle covering every child's cone
+            // measured with the quantized values that are stored.
+            const float nlen = glm::length(nsum);
+            float cone_cos = -1.0f;
+            glm::vec3 nrm(0.0f);
+            if (nlen > 1e-6f) {
+              nrm = nsum / nlen;
+              const glm::i16vec4 qn = pack_normal_cone(nrm, 1.0f);
+              const glm::vec3 u = glm::normalize(glm::vec3(qn));
+              // Work with versines v = 1 - cos and sines: v(a + b) = va + vb - va vb
+              // + sa sb. No inverse trigonometry per child, and small angles keep
+              // their precision (1 - dot rounds them to zero in float).
+              float widest = 0.0f;  // versine of the cone's half-angle
+              for (std::size_t c = c0; c < c0 + cc; ++c) {
+                const glm::i16vec4 k = a.normal_cone[c];
+                const glm::vec3 kv = glm::vec3(k);
+                const float cb = static_cast<float>(k.w) * (1.0f / 32767.0f);
+                if (glm::dot(kv, kv) < 0.25f * 32767.0f * 32767.0f || cb <= -1.0f + 1e-6f) {
+                  widest = 2.0f;  // a child facing anywhere: full cone
+                  break;
+                }
+                const glm::vec3 w = glm::normalize(kv);
+                const glm::vec3 uw = u - w;
+                const float va = 0.5f * glm::dot(uw, uw), sa = glm::length(glm::cross(u, w));
+                const float vb = 1.0f - cb, sb = std::sqrt(std::max(0.0f, vb * (2.0f - vb)));
+                const float ca = 1.0f - va;
+                if (sa * cb + ca * sb < 0.0f) {  // the angles add up beyond pi
+                  widest = 2.0f;
+                  break;
+                }
+                widest = std::max(widest, va + vb - va * vb + sa * sb);
+              }
+              // Widen by 2e-4 rad for the snorm16 rounding of the normals:
+              // v(t + e) ~ v(t) + e sin(t) + e^2 / 2.
+              if (widest < 2.0f)
+                widest += 2e-4f * std::sqrt(std::max(0.0f, widest * (2.0f - widest))) + 2e-8f;
+              cone_cos = std::max(-1.0f, 1.0f - widest);
             }
-            const glm::vec3 w = glm::normalize(kv);
-            const glm::vec3 uw = u - w;
-            const float va = 0.5f * glm::dot(uw, uw), sa = glm::length(glm::cross(u, w));
-            const float vb = 1.0f - cb, sb = std::sqrt(std::max(0.0f, vb * (2.0f - vb)));
-            const float ca = 1.0f - va;
-            if (sa * cb + ca * sb < 0.0f) {  // the angles add up beyond pi
-              widest = 2.0f;
-              break;
-            }
-            widest = std::max(widest, va + vb - va * vb + sa * sb);
+            a.normal_cone[i] = pack_normal_cone(nrm, cone_cos);
+            const glm::vec4 avg = csum / static_cast<float>(count);
+            a.color[i] = glm::u8vec4(glm::round(glm::clamp(avg, 0.0f, 255.0f)));
+            // Monotone by construction: never below a child (parallel-treecut, sec. 4.1).
+            a.priority[i] = std::max(prio, cone_priority(cone_cos));
+            a.point_count[i] = count;
           }
-          // Widen by 2e-4 rad for the snorm16 rounding of the normals:
-          // v(t + e) ~ v(t) + e sin(t) + e^2 / 2.
-          if (widest < 2.0f)
-            widest += 2e-4f * std::sqrt(std::max(0.0f, widest * (2.0f - widest))) + 2e-8f;
-          cone_cos = std::max(-1.0f, 1.0f - widest);
-        }
-        a.normal_cone[i] = pack_normal_cone(nrm, cone_cos);
-        const glm::vec4 avg = csum / static_cast<float>(count);
-        a.color[i] = glm::u8vec4(glm::round(glm::clamp(avg, 0.0f, 255.0f)));
-        // Monotone by construction: never below a child (parallel-treecut, sec. 4.1).
-        a.priority[i] = std::max(prio, cone_priority(cone_cos));
-        a.point_count[i] = count;
-      }
-    }, threads, 256);
+        },
+        threads, 256);
     progress_done += N / static_cast<std::size_t>(std::max(levels, 1));
     if (options.progress) options.progress(std::min(progress_done, progress_total), progress_total);
   }
@@ -440,15 +465,18 @@ std::string check_invariants(const Hierarchy& h) {
         if (glm::dot(cn, cn) < 0.25f) return fail(c, "normal undefined inside a bounded cone");
         const float between = angle_between(pn, cn);
         const float c_half = std::acos(std::clamp(h.cone_cos(c), -1.0f, 1.0f));
-        if (between + c_half > p_half + 5e-4f) return fail(c, "normal cone not inside the parent's");
+        if (between + c_half > p_half + 5e-4f)
+          return fail(c, "normal cone not inside the parent's");
       }
     }
     if (count != a.point_count[n]) return fail(n, "point count is not the children's sum");
   }
   if (leaves != h.leaf_count()) return "leaf count differs from the root's point count";
   // Median splits halve the points at every binary level: depth <= ceil(log4 n) + 1.
-  const double bound = std::ceil(std::log2(std::max<double>(2.0, static_cast<double>(leaves))) / 2.0) + 1.0;
-  if (h.level_count() - 1 > bound) return "depth " + std::to_string(h.level_count() - 1) + " exceeds the bound";
+  const double bound =
+      std::ceil(std::log2(std::max<double>(2.0, static_cast<double>(leaves))) / 2.0) + 1.0;
+  if (h.level_count() - 1 > bound)
+    return "depth " + std::to_string(h.level_count() - 1) + " exceeds the bound";
   return {};
 }
 

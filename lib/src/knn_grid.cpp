@@ -55,8 +55,10 @@ KnnGrid::KnnGrid(std::span<const glm::vec3> points, float points_per_cell) : poi
   const float min_cell = longest / static_cast<float>(kMaxDim);
   cell = std::max(cell, min_cell);
   bucket(cell);
-  const float per_cell = static_cast<float>(n) / static_cast<float>(std::max<std::size_t>(occupied_, 1));
-  if (per_cell > 2.0f * points_per_cell) bucket(std::max(min_cell, cell * std::sqrt(points_per_cell / per_cell)));
+  const float per_cell =
+      static_cast<float>(n) / static_cast<float>(std::max<std::size_t>(occupied_, 1));
+  if (per_cell > 2.0f * points_per_cell)
+    bucket(std::max(min_cell, cell * std::sqrt(points_per_cell / per_cell)));
 }
 
 glm::ivec3 KnnGrid::cell_of(glm::vec3 p) const {
@@ -75,7 +77,8 @@ void KnnGrid::bucket(float cell_size) {
   glm::vec3 hi(-INFINITY);
   for (const auto& p : points_) hi = glm::max(hi, p);
   if (n == 0) hi = origin_;
-  dims_ = glm::clamp(glm::ivec3(glm::floor((hi - origin_) / cell_)) + 1, glm::ivec3(1), glm::ivec3(kMaxDim));
+  dims_ = glm::clamp(glm::ivec3(glm::floor((hi - origin_) / cell_)) + 1, glm::ivec3(1),
+                     glm::ivec3(kMaxDim));
 
   // (key, index) pairs sorted together: direct comparisons, and the index
   // breaks ties so the order is deterministic.
@@ -129,7 +132,8 @@ constexpr std::array<std::array<int, 3>, 27> kNeighbourhood = [] {
     for (int dz = -1; dz <= 1; ++dz)
       for (int dy = -1; dy <= 1; ++dy)
         for (int dx = -1; dx <= 1; ++dx)
-          if ((dx != 0) + (dy != 0) + (dz != 0) == ring) out[static_cast<std::size_t>(n++)] = {dx, dy, dz};
+          if ((dx != 0) + (dy != 0) + (dz != 0) == ring)
+            out[static_cast<std::size_t>(n++)] = {dx, dy, dz};
   return out;
 }();
 
@@ -137,7 +141,8 @@ void KnnGrid::gather(glm::ivec3 c, Candidates& out) const {
   out.x.clear(), out.y.clear(), out.z.clear(), out.index.clear();
   for (const auto& o : kNeighbourhood) {
     const glm::ivec3 cc = c + glm::ivec3(o[0], o[1], o[2]);
-    if (glm::any(glm::lessThan(cc, glm::ivec3(0))) || glm::any(glm::greaterThanEqual(cc, dims_))) continue;
+    if (glm::any(glm::lessThan(cc, glm::ivec3(0))) || glm::any(glm::greaterThanEqual(cc, dims_)))
+      continue;
     const Cell* cell = find(key_of(cc));
     if (!cell) continue;
     const std::uint32_t end = std::min(cell->end, cell->begin + kMaxScanPerCell);
@@ -214,7 +219,8 @@ int KnnGrid::query(std::uint32_t self, int k, std::uint32_t* index, float* dist2
     index[pos] = i;
   };
   auto scan = [&](glm::ivec3 cc) {
-    if (glm::any(glm::lessThan(cc, glm::ivec3(0))) || glm::any(glm::greaterThanEqual(cc, dims_))) return;
+    if (glm::any(glm::lessThan(cc, glm::ivec3(0))) || glm::any(glm::greaterThanEqual(cc, dims_)))
+      return;
     const Cell* cell = find(key_of(cc));
     if (!cell) return;
     const std::uint32_t end = std::min(cell->end, cell->begin + kMaxScanPerCell);

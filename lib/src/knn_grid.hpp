@@ -60,8 +60,8 @@ class KnnGrid {
   glm::ivec3 dims_{1};
   std::vector<std::uint32_t> order_;
   std::vector<glm::vec3> sorted_;  // points_ in order_ order
-  std::vector<Cell> table_;  // open addressing, capacity a power of two
-  std::vector<Cell> runs_;   // the occupied cells in key order
+  std::vector<Cell> table_;        // open addressing, capacity a power of two
+  std::vector<Cell> runs_;         // the occupied cells in key order
   std::uint64_t mask_ = 0;
   std::size_t occupied_ = 0;
 };
@@ -69,23 +69,27 @@ class KnnGrid {
 template <class Fn>
 void KnnGrid::for_each_knn(int k, Fn&& fn) const {
   const auto kk = static_cast<std::size_t>(std::max(k, 1));
-  parallel_for(runs_.size(), [&](std::size_t b, std::size_t e) {
-    Candidates cand;
-    std::vector<std::uint32_t> index(kk);
-    std::vector<float> dist2(kk);
-    for (std::size_t c = b; c < e; ++c) {
-      const Cell& run = runs_[c];
-      const glm::ivec3 cell = cell_of(points_[order_[run.begin]]);
-      gather(cell, cand);
-      for (std::uint32_t j = run.begin; j < run.end; ++j) {
-        const std::uint32_t i = order_[j];
-        int found = top_k(points_[i], i, k, cand, index.data(), dist2.data());
-        const float r = reach(points_[i], cell, 1);
-        if (found < k || dist2[kk - 1] > r * r) found = query(i, k, index.data(), dist2.data());
-        fn(i, found, static_cast<const std::uint32_t*>(index.data()), static_cast<const float*>(dist2.data()));
-      }
-    }
-  }, 0, 64);
+  parallel_for(
+      runs_.size(),
+      [&](std::size_t b, std::size_t e) {
+        Candidates cand;
+        std::vector<std::uint32_t> index(kk);
+        std::vector<float> dist2(kk);
+        for (std::size_t c = b; c < e; ++c) {
+          const Cell& run = runs_[c];
+          const glm::ivec3 cell = cell_of(points_[order_[run.begin]]);
+          gather(cell, cand);
+          for (std::uint32_t j = run.begin; j < run.end; ++j) {
+            const std::uint32_t i = order_[j];
+            int found = top_k(points_[i], i, k, cand, index.data(), dist2.data());
+            const float r = reach(points_[i], cell, 1);
+            if (found < k || dist2[kk - 1] > r * r) found = query(i, k, index.data(), dist2.data());
+            fn(i, found, static_cast<const std::uint32_t*>(index.data()),
+               static_cast<const float*>(dist2.data()));
+          }
+        }
+      },
+      0, 64);
 }
 
 }  // namespace treecut::detail

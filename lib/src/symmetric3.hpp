@@ -22,8 +22,8 @@ struct Sym3 {
 };
 
 struct Eigen3 {
-  double values[3];   ///< ascending
-  glm::vec3 smallest; ///< unit eigenvector of values[0], or zero when undefined
+  double values[3];    ///< ascending
+  glm::vec3 smallest;  ///< unit eigenvector of values[0], or zero when undefined
 };
 
 /// Closed-form eigenvalues (trigonometric method) and the eigenvector of the
@@ -37,7 +37,8 @@ inline Eigen3 eigen_symmetric(const Sym3& a) {
     std::sort(v, v + 3);
     std::copy(v, v + 3, r.values);
   } else {
-    const double p2 = (a.xx - q) * (a.xx - q) + (a.yy - q) * (a.yy - q) + (a.zz - q) * (a.zz - q) + 2.0 * p1;
+    const double p2 =
+        (a.xx - q) * (a.xx - q) + (a.yy - q) * (a.yy - q) + (a.zz - q) * (a.zz - q) + 2.0 * p1;
     const double p = std::sqrt(p2 / 6.0);
     const double bxx = (a.xx - q) / p, byy = (a.yy - q) / p, bzz = (a.zz - q) / p;
     const double bxy = a.xy / p, bxz = a.xz / p, byz = a.yz / p;
@@ -84,7 +85,8 @@ inline float surface_variation(const Sym3& a) {
                     static_cast<double>(a.yz) * a.yz;
   double l0;
   if (p1 <= 1e-30 * q * q) {
-    l0 = std::min({static_cast<double>(a.xx), static_cast<double>(a.yy), static_cast<double>(a.zz)});
+    l0 =
+        std::min({static_cast<double>(a.xx), static_cast<double>(a.yy), static_cast<double>(a.zz)});
   } else {
     const double dx = a.xx - q, dy = a.yy - q, dz = a.zz - q;
     const double p = std::sqrt((dx * dx + dy * dy + dz * dz + 2.0 * p1) / 6.0);

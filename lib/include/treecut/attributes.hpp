@@ -9,9 +9,9 @@
 namespace treecut {
 
 struct AttributeOptions {
-  int k = 12;                   ///< neighbours for PCA normals, spacing and curvature
-  bool recompute_normals = false; ///< ignore normals from the file
-  bool recompute_radii = false;   ///< ignore a radius property from the file
+  int k = 12;                      ///< neighbours for PCA normals, spacing and curvature
+  bool recompute_normals = false;  ///< ignore normals from the file
+  bool recompute_radii = false;    ///< ignore a radius property from the file
 };
 
 /// Fills what is missing: normals (area-weighted from faces, else k-NN PCA

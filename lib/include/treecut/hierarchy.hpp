@@ -14,13 +14,13 @@
 
 #include <cstdint>
 #include <functional>
-#include <string>
 #include <glm/gtc/type_precision.hpp>
 #include <glm/vec3.hpp>
 #include <glm/vec4.hpp>
 #include <limits>
 #include <memory>
 #include <span>
+#include <string>
 #include <vector>
 
 #include "treecut/point_set.hpp"
@@ -38,7 +38,7 @@ struct HierarchyArrays {
   /// xyz: unit normal, w: cosine of the half-angle of the cone that contains the
   /// normals of the whole subtree (1 for a leaf), all snorm16 (divide by 32767).
   std::span<const glm::i16vec4> normal_cone;
-  std::span<const glm::u8vec4> color;     ///< sRGB, alpha 255
+  std::span<const glm::u8vec4> color;  ///< sRGB, alpha 255
   /// Static refinement priority: surface variation of the subtree, monotone
   /// (a parent's priority is >= each child's). In [0, 1].
   std::span<const float> priority;
@@ -60,7 +60,9 @@ class Hierarchy {
   /// Number of levels (max depth + 1).
   [[nodiscard]] int level_count() const { return static_cast<int>(level_begin_.size()) - 1; }
   /// First node id of depth d; level_begin(level_count()) == node_count().
-  [[nodiscard]] NodeId level_begin(int d) const { return level_begin_[static_cast<std::size_t>(d)]; }
+  [[nodiscard]] NodeId level_begin(int d) const {
+    return level_begin_[static_cast<std::size_t>(d)];
+  }
   [[nodiscard]] glm::vec3 bounds_min() const { return bounds_min_; }
   [[nodiscard]] glm::vec3 bounds_max() const { return bounds_max_; }
   [[nodiscard]] const HierarchyArrays& arrays() const { return a_; }

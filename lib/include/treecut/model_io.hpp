@@ -5,9 +5,9 @@
 
 #include <filesystem>
 #include <functional>
-#include <string_view>
 #include <optional>
 #include <string>
+#include <string_view>
 
 #include "treecut/attributes.hpp"
 #include "treecut/cache.hpp"
@@ -19,9 +19,9 @@ namespace treecut {
 struct OpenOptions {
   AttributeOptions attributes;
   BuildOptions build;
-  bool use_cache = true;         ///< read a valid cache, write one after a build
+  bool use_cache = true;                            ///< read a valid cache, write one after a build
   std::optional<std::filesystem::path> cache_path;  ///< default: default_cache_path(model)
-  WarningSink warn;              ///< PLY warnings and cache notes (may be empty)
+  WarningSink warn;                                 ///< PLY warnings and cache notes (may be empty)
   /// Called on the calling thread with the stage ("read", "attributes",
   /// "hierarchy", "cache") and (done, total) work units within it; may be empty.
   std::function<void(std::string_view stage, std::size_t done, std::size_t total)> progress;
@@ -29,7 +29,7 @@ struct OpenOptions {
 
 struct OpenedModel {
   Hierarchy hierarchy;
-  std::filesystem::path cache;   ///< where the cache is (or would be)
+  std::filesystem::path cache;  ///< where the cache is (or would be)
   bool from_cache = false;
   std::string cache_note;        ///< why a cache was not used, if one existed
   PlyLoadReport ply;             ///< when built

@@ -23,8 +23,8 @@ inline unsigned worker_count(unsigned requested = 0) {
 /// `grain` run inline. The first exception thrown by any body is rethrown.
 template <class Body>
 void parallel_for(std::size_t n, Body&& body, unsigned threads = 0, std::size_t grain = 4096) {
-  const unsigned workers =
-      static_cast<unsigned>(std::min<std::size_t>(worker_count(threads), (n + grain - 1) / std::max<std::size_t>(grain, 1)));
+  const unsigned workers = static_cast<unsigned>(std::min<std::size_t>(
+      worker_count(threads), (n + grain - 1) / std::max<std::size_t>(grain, 1)));
   if (workers <= 1) {
     if (n) body(std::size_t{0}, n);
     return;

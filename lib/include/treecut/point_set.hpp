@@ -5,20 +5,20 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <glm/gtc/type_precision.hpp>
 #include <glm/vec3.hpp>
 #include <glm/vec4.hpp>
-#include <glm/gtc/type_precision.hpp>
 #include <vector>
 
 namespace treecut {
 
 struct PointSet {
-  std::vector<glm::vec3> positions;  ///< model units, always size()
-  std::vector<glm::vec3> normals;    ///< unit length (zero when undefined) or empty
-  std::vector<float> radii;          ///< splat radius, model units, > 0, or empty
-  std::vector<glm::u8vec4> colors;   ///< sRGB + alpha 255, or empty (the hierarchy uses grey)
-  std::vector<float> curvature;      ///< surface variation in [0, 1/3], or empty
-  std::vector<glm::uvec3> triangles; ///< optional faces (indices into positions)
+  std::vector<glm::vec3> positions;   ///< model units, always size()
+  std::vector<glm::vec3> normals;     ///< unit length (zero when undefined) or empty
+  std::vector<float> radii;           ///< splat radius, model units, > 0, or empty
+  std::vector<glm::u8vec4> colors;    ///< sRGB + alpha 255, or empty (the hierarchy uses grey)
+  std::vector<float> curvature;       ///< surface variation in [0, 1/3], or empty
+  std::vector<glm::uvec3> triangles;  ///< optional faces (indices into positions)
 
   [[nodiscard]] std::size_t size() const { return positions.size(); }
   [[nodiscard]] bool has_normals() const { return !normals.empty(); }

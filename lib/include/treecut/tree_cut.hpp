@@ -27,9 +27,7 @@ class TreeCut {
 
   [[nodiscard]] std::span<const NodeId> nodes() const { return nodes_; }
   [[nodiscard]] std::size_t size() const { return nodes_.size(); }
-  [[nodiscard]] bool contains(NodeId n) const {
-    return n < slot_.size() && slot_[n] != kNotInCut;
-  }
+  [[nodiscard]] bool contains(NodeId n) const { return n < slot_.size() && slot_[n] != kNotInCut; }
 
   /// Replaces `node` (which must be in the cut and not a leaf) by its children.
   /// Returns false and changes nothing otherwise.
