@@ -92,7 +92,10 @@ void replay_ply(const Regression& r, const std::string& bytes) {
 // structural checks.
 void replay_cache(const Regression& r, std::string bytes) {
   ASSERT_GT(bytes.size(), 8u);
-  const fs::path file = treecut::test::scratch_dir("fuzz_regression") / "input.tch";
+  // A directory per input: CTest runs the inputs in parallel processes.
+  const fs::path file =
+      treecut::test::scratch_dir("fuzz_regression_" + fs::path(r.file).stem().string()) /
+      "input.tch";
   for (bool sealed : {false, true}) {
     SCOPED_TRACE(sealed ? "resealed" : "as found");
     if (sealed) {
