@@ -4,7 +4,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <random>
+#include <vector>
 
 #include "treecut/generate.hpp"
 #include "treecut/model_io.hpp"
@@ -77,6 +79,87 @@ TEST(TreeCut, RandomRefineCoarsenSequencesStayValid) {
   EXPECT_EQ(cut.validate(h), "");
   EXPECT_GT(cut.refinements(), 0u);
   EXPECT_GT(cut.coarsenings(), 0u);
+}
+
+// sort() through both of its paths: few positions written since the last
+// sort (pull out, sort, merge) and many (radix sort). Afterwards the list is
+// ascending, holds the same nodes, and the slot map still drives refine and
+// coarsen correctly.
+TEST(TreeCut, SortOrdersTheListAndKeepsItUsable) {
+  const Hierarchy& h = small_hierarchy();
+  std::mt19937 rng(99);
+  TreeCut cut = TreeCut::root_cut(h);
+  std::vector<NodeId> scratch;
+  int merges = 0;
+  int full = 0;
+  for (int round = 0; round < 400; ++round) {
+    const int steps = static_cast<int>(rng() % (round % 2 == 0 ? 8 : 400)) + 1;
+    for (int step = 0; step < steps; ++step) {
+      const NodeId n = cut.nodes()[rng() % cut.size()];
+      if (rng() % 5 < 3) {
+        cut.refine(h, n);
+      } else if (h.parent(n) != kNoNode) {
+        cut.coarsen(h, h.parent(n));
+      }
+    }
+    std::vector<NodeId> expected(cut.nodes().begin(), cut.nodes().end());
+    std::sort(expected.begin(), expected.end());
+    const bool merge_path = cut.disorder() * 4 <= cut.size();
+    (merge_path ? merges : full) += 1;
+    cut.sort(scratch);
+    ASSERT_TRUE(
+        std::equal(cut.nodes().begin(), cut.nodes().end(), expected.begin(), expected.end()))
+        << "round " << round;
+    ASSERT_EQ(cut.disorder(), 0u);
+    for (const NodeId n : expected) ASSERT_TRUE(cut.contains(n));
+    ASSERT_EQ(cut.validate(h), "") << "round " << round;
+  }
+  EXPECT_GT(merges, 20) << "the merge path was not exercised";
+  EXPECT_GT(full, 20) << "the radix path was not exercised";
+  EXPECT_GT(cut.size(), 100u);
+}
+
+TEST(TreeCut, DisorderCountsWrittenPositions) {
+  const Hierarchy& h = small_hierarchy();
+  EXPECT_EQ(TreeCut::root_cut(h).disorder(), 0u);
+  EXPECT_EQ(TreeCut::leaf_cut(h).disorder(), 0u);
+  TreeCut cut = TreeCut::root_cut(h);
+  std::vector<NodeId> scratch;
+  ASSERT_TRUE(cut.refine(h, h.root()));
+  EXPECT_EQ(cut.disorder(), h.child_count(h.root()));
+  EXPECT_TRUE(cut.keep_sorted(scratch));
+  EXPECT_EQ(cut.disorder(), 0u);
+  EXPECT_TRUE(std::is_sorted(cut.nodes().begin(), cut.nodes().end()));
+
+  // A large sorted cut tolerates a few writes before keep_sorted() sorts.
+  TreeCut leaves = TreeCut::leaf_cut(h);
+  const NodeId parent = h.parent(leaves.nodes()[0]);
+  ASSERT_TRUE(leaves.coarsen(h, parent));
+  EXPECT_GT(leaves.disorder(), 0u);
+  EXPECT_FALSE(leaves.keep_sorted(scratch));
+  EXPECT_FALSE(std::is_sorted(leaves.nodes().begin(), leaves.nodes().end()));
+  leaves.sort(scratch);
+  EXPECT_TRUE(std::is_sorted(leaves.nodes().begin(), leaves.nodes().end()));
+  EXPECT_EQ(leaves.validate(h), "");
+
+  // A list given out of order counts as scattered.
+  std::vector<NodeId> reversed(cut.nodes().rbegin(), cut.nodes().rend());
+  EXPECT_EQ(TreeCut::from_nodes(h, reversed).disorder(), reversed.size());
+}
+
+TEST(TreeCut, SortNodeIdsMatchesStdSort) {
+  std::mt19937 rng(5);
+  std::vector<NodeId> scratch;
+  for (const NodeId id_end : {1u, 2u, 2048u, 2049u, 1u << 22, 1u << 25, 0xffffffffu}) {
+    for (const std::size_t count : {0u, 1u, 7u, 5000u}) {
+      std::vector<NodeId> ids(count);
+      for (NodeId& id : ids) id = static_cast<NodeId>(rng() % id_end);
+      std::vector<NodeId> expected = ids;
+      std::sort(expected.begin(), expected.end());
+      sort_node_ids(ids, id_end, scratch);
+      ASSERT_EQ(ids, expected) << "id_end " << id_end << ", " << count << " ids";
+    }
+  }
 }
 
 TEST(TreeCut, ValidateRejectsBrokenLists) {

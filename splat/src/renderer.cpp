@@ -19,6 +19,7 @@
 
 #include "shaders.hpp"
 #include "treecut/error.hpp"
+#include "treecut/tree_cut.hpp"
 
 namespace treecut::splat {
 
@@ -41,37 +42,6 @@ SplatMode parse_splat_mode(std::string_view name) {
   throw InputError("unknown splat mode '" + std::string(name) + "' (expected fast, hq or fixed)");
 }
 
-namespace {
-
-// LSD radix sort of node ids below `id_end` into `out` (11-bit digits, one
-// O(n) pass per digit; `scratch` is the ping-pong buffer). Both vectors keep
-// their capacity, so a CutBuffer allocates only while the cut grows.
-void sort_ids(std::span<const NodeId> in, NodeId id_end, std::vector<NodeId>& out,
-              std::vector<NodeId>& scratch) {
-  constexpr unsigned kBits = 11;
-  constexpr std::size_t kBuckets = std::size_t{1} << kBits;
-  const unsigned bits =
-      std::max(1u, static_cast<unsigned>(std::bit_width(std::max<NodeId>(id_end, 1) - 1)));
-  const unsigned passes = (bits + kBits - 1) / kBits;
-  out.resize(in.size());
-  scratch.resize(in.size());
-  // Ping-pong so that the last pass writes `out`.
-  std::span<const NodeId> from = in;
-  std::array<std::uint32_t, kBuckets> offset{};
-  for (unsigned pass = 0; pass < passes; ++pass) {
-    std::vector<NodeId>& to = (passes - pass) % 2 == 1 ? out : scratch;
-    const unsigned shift = pass * kBits;
-    offset.fill(0);
-    for (const NodeId n : from) ++offset[(n >> shift) & (kBuckets - 1)];
-    std::uint32_t sum = 0;
-    for (std::uint32_t& o : offset) sum += std::exchange(o, sum);
-    for (const NodeId n : from) to[offset[(n >> shift) & (kBuckets - 1)]++] = n;
-    from = to;
-  }
-}
-
-}  // namespace
-
 void CutBuffer::upload(const Hierarchy& h, std::span<const NodeId> nodes) {
   // Draw in node-id order. Ids are breadth-first over a spatial tree, so this
   // order is spatially coherent; llvmpipe's rasterizer threads read each
@@ -80,7 +50,8 @@ void CutBuffer::upload(const Hierarchy& h, std::span<const NodeId> nodes) {
   // every splat (docs/rendering.md, "Submission order").
   std::span<const NodeId> ordered = nodes;
   if (!std::is_sorted(nodes.begin(), nodes.end())) {
-    sort_ids(nodes, h.node_count(), sorted_, scratch_);
+    sorted_.assign(nodes.begin(), nodes.end());
+    sort_node_ids(sorted_, h.node_count(), scratch_);
     ordered = sorted_;
   }
   // Counted in id order: ascending addresses, which the prefetcher follows.
