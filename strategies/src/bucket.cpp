@@ -80,6 +80,7 @@ void BucketStrategy::iterate(const IterationInput& input, IterationOutput& outpu
   // the default function (inlined) and for a custom one.
   refine_.clear();
   coarsen_.clear();
+  cut.keep_sorted(sort_scratch_);  // the pass then reads the arrays in address order
   const std::span<const NodeId> nodes = cut.nodes();
   const bool cull = function_ || param_at(kCull) != 0.0;
   const auto pass = [&](const auto& bucket) {
@@ -89,12 +90,14 @@ void BucketStrategy::iterate(const IterationInput& input, IterationOutput& outpu
         break;
       }
       const NodeId n = nodes[i];
-      // The cut is unordered, so every node is a cache miss: fetch ahead.
+      // Sorted or not, neighbouring cut nodes can be far apart: fetch ahead.
       if (i + kPrefetch < nodes.size()) {
         const NodeId ahead = nodes[i + kPrefetch];
         if (cull) __builtin_prefetch(&a.center_radius[ahead]);
         __builtin_prefetch(&a.normal_cone[ahead]);
         __builtin_prefetch(&a.depth[ahead]);
+        __builtin_prefetch(&a.child_count[ahead]);
+        __builtin_prefetch(&a.parent[ahead]);
       }
       const int depth = a.depth[n];
       const int delta = bucket(n) - depth;

@@ -5,8 +5,10 @@
 #include "treecut/strategies/optimization.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cassert>
 #include <cmath>
+#include <functional>
 
 namespace treecut::strategies {
 namespace {
@@ -15,13 +17,19 @@ constexpr std::uint32_t kRefinedBit = 1;
 constexpr std::uint32_t kMaxIteration = 0x7fffffffu;
 constexpr std::size_t kPrefetch = 16;  // nodes ahead, enough to cover a DRAM miss
 
-using Candidate = std::pair<float, NodeId>;  // (priority, node)
+// A candidate packs (priority, node) into one integer; see the header.
+using Candidate = std::uint64_t;
 
-struct ByPriority {
-  bool operator()(const Candidate& a, const Candidate& b) const {
-    return a.first != b.first ? a.first < b.first : a.second < b.second;
-  }
-};
+[[gnu::always_inline]] inline Candidate candidate(float priority, NodeId n) {
+  // + 0.0f turns a -0.0f (whose sign bit would rank it highest) into +0.0f.
+  return std::uint64_t{std::bit_cast<std::uint32_t>(priority + 0.0f)} << 32 | n;
+}
+inline float priority_of(Candidate c) {
+  return std::bit_cast<float>(static_cast<std::uint32_t>(c >> 32));
+}
+inline NodeId node_of(Candidate c) {
+  return static_cast<NodeId>(c);
+}
 
 // Keeps the k best candidates of a stream (Carr et al. keep a partial sort of
 // size k): candidates better than the current bound are appended; when 2k
@@ -134,15 +142,17 @@ void OptimizationStrategy::iterate(const IterationInput& input, IterationOutput&
   const std::uint32_t refined_mark = iteration_ << 1 | kRefinedBit;
   const std::uint32_t coarsened_mark = iteration_ << 1;
 
+  // The pass reads the node arrays at every cut node: in id order they are
+  // read with ascending addresses instead of at random.
+  cut.keep_sorted(sort_scratch_);
+
   // Evaluate: one pass over the cut, keeping the k highest refinable nodes and
   // the k lowest coarsenable parents (a parent is seen once, at its first child).
   const HierarchyArrays& a = h.arrays();
   high_.clear();
   low_.clear();
-  const auto higher = ByPriority{};
-  const auto lower = [](const Candidate& x, const Candidate& y) { return ByPriority{}(y, x); };
-  Selection highs(high_, k, lower);  // `lower` orders by descending priority
-  Selection lows(low_, k, higher);
+  Selection highs(high_, k, std::greater<Candidate>{});  // keeps the highest
+  Selection lows(low_, k, std::less<Candidate>{});       // keeps the lowest
   const std::span<const NodeId> nodes = cut.nodes();
   for (std::size_t i = 0; i < nodes.size(); ++i) {
     const NodeId n = nodes[i];
@@ -160,21 +170,22 @@ void OptimizationStrategy::iterate(const IterationInput& input, IterationOutput&
     }
     float size = 0.0f;
     const float p = view_priority(a, view, n, weight, size);
-    if (a.child_count[n] != 0 && size >= min_size && highs.admits({p, n})) {
+    const Candidate self = candidate(p, n);
+    if (a.child_count[n] != 0 && size >= min_size && highs.admits(self)) {
       if (refine_blocked(n)) {
         ++r.blocked;
       } else {
-        highs.add({p, n});
+        highs.add(self);
       }
     }
     // Parents are ranked at their first child. p(parent) >= p(n) (monotone
     // priorities), so a node above the k-th lowest rejects its parent unseen.
-    if (!lows.admits({p, 0})) continue;
+    if (!lows.admits(candidate(p, 0))) continue;
     const NodeId parent = a.parent[n];
     if (parent == kNoNode || a.first_child[parent] != n) continue;
     // Rank before the coarsenability test, which touches the cut's slot map.
     float parent_size = 0.0f;
-    const Candidate c{view_priority(a, view, parent, weight, parent_size), parent};
+    const Candidate c = candidate(view_priority(a, view, parent, weight, parent_size), parent);
     if (!lows.admits(c) || !cut.can_coarsen(h, parent)) continue;
     if (coarsen_blocked(parent)) {
       ++r.blocked;
@@ -186,8 +197,10 @@ void OptimizationStrategy::iterate(const IterationInput& input, IterationOutput&
   // Heaps over the selection buffers (O(k)), popped lazily and at most k
   // times: an iteration that stops early pays O(log k) per candidate used,
   // not a sort of k.
-  std::make_heap(high_.begin(), high_.end(), higher);  // highest on top
-  std::make_heap(low_.begin(), low_.end(), lower);     // lowest on top
+  const auto higher = std::less<Candidate>{};    // max-heap order: highest on top
+  const auto lower = std::greater<Candidate>{};  // min-heap order: lowest on top
+  std::make_heap(high_.begin(), high_.end(), higher);
+  std::make_heap(low_.begin(), low_.end(), lower);
   std::size_t high_left = k;
   std::size_t low_left = k;
   const auto pop = [](std::vector<Candidate>& heap, auto order) {
@@ -199,7 +212,8 @@ void OptimizationStrategy::iterate(const IterationInput& input, IterationOutput&
   // coarsening the lowest parents, but only for a gain above the threshold.
   const auto coarsen_next = [&](float must_beat, bool forced) {
     while (!low_.empty() && low_left > 0) {
-      const auto [p, parent] = low_.front();
+      const float p = priority_of(low_.front());
+      const NodeId parent = node_of(low_.front());
       if (!cut.can_coarsen(h, parent)) {  // a child was refined meanwhile
         pop(low_, lower);
         --low_left;
@@ -219,7 +233,8 @@ void OptimizationStrategy::iterate(const IterationInput& input, IterationOutput&
   while (cut.size() > max_nodes && coarsen_next(0.0f, true)) {
   }
   while (!high_.empty() && high_left > 0) {
-    const auto [p, n] = high_.front();
+    const float p = priority_of(high_.front());
+    const NodeId n = node_of(high_.front());
     pop(high_, higher);
     --high_left;
     if (!cut.contains(n)) continue;  // its parent was coarsened above

@@ -14,6 +14,7 @@ namespace {
 // strategy has converged.
 constexpr std::uint64_t kFnvOffset = 0xcbf29ce484222325ull;
 constexpr std::uint64_t kFnvPrime = 0x100000001b3ull;
+constexpr std::size_t kPrefetch = 16;  // nodes ahead, enough to cover a DRAM miss
 
 // ViewSnapshot::backfacing with the distance to the eye already known: the
 // cone (axis, half-angle a) faces away from the whole sphere, seen under the
@@ -41,8 +42,10 @@ RecursiveStrategy::RecursiveStrategy()
       }) {}
 
 void RecursiveStrategy::reset(const Hierarchy& hierarchy) {
-  stack_.clear();
-  stack_.reserve(static_cast<std::size_t>(hierarchy.level_count()) * 4 + 4);
+  level_.clear();
+  next_.clear();
+  level_.reserve(hierarchy.node_count() < 4096 ? hierarchy.node_count() : 4096);
+  next_.reserve(level_.capacity());
   last_hash_ = 0;
   last_size_ = 0;
 }
@@ -67,67 +70,78 @@ void RecursiveStrategy::iterate(const IterationInput& input, IterationOutput& ou
   constexpr std::uint32_t kAllPlanes = 0x3f;
   const float pixel_scale = view.derived.pixel_scale;
   const glm::vec3 eye = view.derived.eye;
-  stack_.clear();
-  stack_.push_back({h.root(), kAllPlanes});
-  while (!stack_.empty()) {
-    const auto [n, planes_in] = stack_.back();
-    stack_.pop_back();
-    ++r.visited;
-    if ((r.visited & 4095) == 0 && input.cancelled()) {
-      // Every node still on the stack roots an untraversed subtree: emitting
-      // them all keeps the cut complete.
-      r.cancelled = true;
-      emit(n);
-      for (const Pending& p : stack_) emit(p.node);
-      break;
-    }
-    const glm::vec4 cr = a.center_radius[n];
-    const glm::vec3 c(cr);
-    std::uint32_t planes = planes_in;
-    bool outside = false;
-    for (std::uint32_t i = 0; i < 6 && planes != 0; ++i) {
-      if ((planes & (1u << i)) == 0) continue;
-      const Plane& pl = view.derived.frustum[i];
-      const float d = pl.x * c.x + pl.y * c.y + pl.z * c.z + pl.w;
-      if (d < -cr.w) {
-        outside = true;
+  // Level by level: children of ascending parents are ascending ranges, so
+  // every level is visited in ascending id order and the emitted cut is sorted
+  // (what TreeCut::sort and the renderer's upload prefer).
+  level_.clear();
+  level_.push_back({h.root(), kAllPlanes});
+  while (!level_.empty() && !r.cancelled) {
+    next_.clear();
+    const std::size_t count = level_.size();
+    for (std::size_t i = 0; i < count; ++i) {
+      const auto [n, planes_in] = level_[i];
+      ++r.visited;
+      if ((r.visited & 4095) == 0 && input.cancelled()) {
+        // Every node not yet decided roots an untraversed subtree: emitting
+        // them all keeps the cut complete (and sorted).
+        r.cancelled = true;
+        for (std::size_t j = i; j < count; ++j) emit(level_[j].node);
+        for (const Pending& p : next_) emit(p.node);
         break;
       }
-      if (d > cr.w) planes &= ~(1u << i);
+      if (i + kPrefetch < count) {
+        const NodeId ahead = level_[i + kPrefetch].node;
+        __builtin_prefetch(&a.center_radius[ahead]);
+        __builtin_prefetch(&a.normal_cone[ahead]);
+        __builtin_prefetch(&a.first_child[ahead]);
+        __builtin_prefetch(&a.child_count[ahead]);
+      }
+      const glm::vec4 cr = a.center_radius[n];
+      const glm::vec3 c(cr);
+      std::uint32_t planes = planes_in;
+      bool outside = false;
+      for (std::uint32_t p = 0; p < 6 && planes != 0; ++p) {
+        if ((planes & (1u << p)) == 0) continue;
+        const Plane& pl = view.derived.frustum[p];
+        const float d = pl.x * c.x + pl.y * c.y + pl.z * c.z + pl.w;
+        if (d < -cr.w) {
+          outside = true;
+          break;
+        }
+        if (d > cr.w) planes &= ~(1u << p);
+      }
+      if (outside) {
+        ++r.culled;
+        emit(n);
+        continue;
+      }
+      const unsigned children = a.child_count[n];
+      if (children == 0) {
+        emit(n);
+        continue;
+      }
+      // Projected radius as in ViewSnapshot::projected_radius_px, with the
+      // division turned into a multiplication; the distance serves the cone
+      // test too.
+      const glm::vec3 to_eye = eye - c;
+      const float dist = std::sqrt(glm::dot(to_eye, to_eye));
+      const bool small = view.derived.perspective ? cr.w * pixel_scale < min_size * (dist - cr.w)
+                                                  : cr.w * pixel_scale < min_size;
+      if (small) {
+        ++r.too_small;
+        emit(n);
+        continue;
+      }
+      if (backface && view.derived.perspective &&
+          backfacing(a.normal_cone[n], to_eye, dist, cr.w)) {
+        ++r.backfacing;
+        emit(n);
+        continue;
+      }
+      const NodeId first = a.first_child[n];
+      for (unsigned j = 0; j < children; ++j) next_.push_back({first + j, planes});
     }
-    if (outside) {
-      ++r.culled;
-      emit(n);
-      continue;
-    }
-    const unsigned children = a.child_count[n];
-    if (children == 0) {
-      emit(n);
-      continue;
-    }
-    // Projected radius as in ViewSnapshot::projected_radius_px, with the
-    // division turned into a multiplication; the distance serves the cone
-    // test too.
-    const glm::vec3 to_eye = eye - c;
-    const float dist = std::sqrt(glm::dot(to_eye, to_eye));
-    const bool small = view.derived.perspective ? cr.w * pixel_scale < min_size * (dist - cr.w)
-                                                : cr.w * pixel_scale < min_size;
-    if (small) {
-      ++r.too_small;
-      emit(n);
-      continue;
-    }
-    if (backface && view.derived.perspective && backfacing(a.normal_cone[n], to_eye, dist, cr.w)) {
-      ++r.backfacing;
-      emit(n);
-      continue;
-    }
-    // Reverse order so the first child is traversed first (deterministic order).
-    const NodeId first = a.first_child[n];
-    __builtin_prefetch(&a.center_radius[first]);  // siblings share one or two lines
-    __builtin_prefetch(&a.normal_cone[first]);
-    __builtin_prefetch(&a.first_child[first]);
-    for (unsigned i = children; i-- > 0;) stack_.push_back({first + i, planes});
+    level_.swap(next_);
   }
   r.cut_size = out.size();
   r.converged = !r.cancelled && hash == last_hash_ && out.size() == last_size_;

@@ -44,8 +44,9 @@ class BucketStrategy final : public Strategy {
 
  private:
   BucketFunction function_;
-  std::vector<NodeId> refine_;   // scratch
-  std::vector<NodeId> coarsen_;  // scratch
+  std::vector<NodeId> refine_;        // scratch
+  std::vector<NodeId> coarsen_;       // scratch
+  std::vector<NodeId> sort_scratch_;  // TreeCut::keep_sorted
 };
 
 }  // namespace treecut::strategies

@@ -9,7 +9,6 @@
 #pragma once
 
 #include <cstdint>
-#include <utility>
 #include <vector>
 
 #include "treecut/strategy.hpp"
@@ -41,7 +40,9 @@ class OptimizationStrategy final : public Strategy {
                                       float curvature_weight, float* size_px = nullptr);
 
  private:
-  using Candidate = std::pair<float, NodeId>;  // (priority, node)
+  // (priority bits << 32 | node): priorities are >= 0, so their IEEE bits
+  // order like the values, and one integer compare ranks by priority, then id.
+  using Candidate = std::uint64_t;
 
   // Per-node hysteresis against "a node refined in an iteration while it is
   // coarsened in the next" (the paper's threshold discussion): the iteration
@@ -53,8 +54,9 @@ class OptimizationStrategy final : public Strategy {
   std::uint32_t iteration_ = 0;         // iterations since reset(), from 1
   std::uint32_t view_start_ = 0;        // first iteration of the current view
   std::uint64_t last_version_ = ~std::uint64_t{0};
-  std::vector<Candidate> high_;  // selection buffer, then a max-heap
-  std::vector<Candidate> low_;   // selection buffer, then a min-heap
+  std::vector<Candidate> high_;       // selection buffer, then a max-heap
+  std::vector<Candidate> low_;        // selection buffer, then a min-heap
+  std::vector<NodeId> sort_scratch_;  // TreeCut::keep_sorted
 };
 
 }  // namespace treecut::strategies
