@@ -9,6 +9,7 @@
 // timeout fails the test.
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cstdlib>
 #include <deque>
 #include <memory>
@@ -54,6 +55,13 @@ std::uint64_t run_session(std::mt19937_64& rng, std::uint64_t budget,
   options.list_buffers = 3 + static_cast<unsigned>(rng() % 3);
   options.release = ReleaseMode::Manual;
   options.blend_frames = static_cast<unsigned>(rng() % 3);
+  // How the idle stage notices requests: the defaults (spin, then poll), or
+  // parked at once, so that every request wakes it.
+  if (rng() % 2 == 0) {
+    options.idle_spin = std::chrono::microseconds{0};
+    options.idle_park_after = std::chrono::microseconds{rng() % 2 == 0 ? 0 : 300};
+    options.idle_poll_interval = std::chrono::microseconds{10};
+  }
   auto walk = std::make_unique<test::RandomWalkStrategy>(rng());
   walk->set_param("spin", static_cast<double>(rng() % 2000));
   FeedbackStage stage(Model{h0, TreeCut::root_cut(*h0)}, std::move(walk), options);
@@ -147,7 +155,9 @@ TEST(ExchangeStress, ShutdownAtAnyMomentNeverDeadlocks) {
   for (int i = 0; i < lives; ++i) {
     auto walk = std::make_unique<test::RandomWalkStrategy>(rng());
     walk->set_param("spin", static_cast<double>(rng() % 100000));
-    FeedbackStage stage(Model{h, TreeCut::root_cut(*h)}, std::move(walk));
+    StageOptions options;
+    if (rng() % 2 == 0) options.idle_park_after = std::chrono::microseconds{0};  // parked when idle
+    FeedbackStage stage(Model{h, TreeCut::root_cut(*h)}, std::move(walk), options);
     const std::uint64_t polls = rng() % 5;
     for (std::uint64_t p = 0; p < polls; ++p) stage.poll();
     if (rng() % 2 == 0) stage.set_strategy(std::make_unique<test::RandomWalkStrategy>(rng()));

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <chrono>
 #include <memory>
 #include <thread>
 
@@ -114,6 +115,33 @@ TEST(FeedbackThread, CountersTrackIterationsAndExchanges) {
   EXPECT_GE(c.iteration_ns_total, c.iteration_ns_last);
   EXPECT_FALSE(c.converged);
   EXPECT_EQ(TreeCut::validate(*stage.front().hierarchy, stage.front().nodes), "");
+}
+
+// Each way an idle stage thread notices a request: spinning, polling at an
+// interval, parked until woken (StageOptions::idle_*). A lost wake-up would
+// hang here until the CTest timeout.
+TEST(FeedbackThread, EveryIdlePolicyPicksUpRequests) {
+  using std::chrono::microseconds;
+  struct Policy {
+    const char* name;
+    microseconds spin, poll, park_after;
+  };
+  for (const Policy& p :
+       {Policy{"spin", microseconds{10'000'000}, microseconds{1}, microseconds{20'000'000}},
+        Policy{"poll", microseconds{0}, microseconds{20}, microseconds{20'000'000}},
+        Policy{"park", microseconds{0}, microseconds{1}, microseconds{0}}}) {
+    StageOptions o;
+    o.idle_spin = p.spin;
+    o.idle_poll_interval = p.poll;
+    o.idle_park_after = p.park_after;
+    FeedbackStage stage(model(), std::make_unique<test::RandomWalkStrategy>(), o);
+    while (stage.counters().exchanges < 300) {
+      stage.poll();
+      std::this_thread::yield();
+    }
+    EXPECT_EQ(stage.counters().iterations, stage.counters().exchanges) << p.name;
+    EXPECT_EQ(TreeCut::validate(*stage.front().hierarchy, stage.front().nodes), "") << p.name;
+  }
 }
 
 }  // namespace

@@ -98,10 +98,33 @@ FeedbackStage::~FeedbackStage() {
 void FeedbackStage::run() {
   lower_own_priority(options_.priority);
   for (;;) {
-    state_.wait(State::Wait, std::memory_order_acquire);
+    if (await_request() == State::Exit) return;
+    process();
+  }
+}
+
+// Stage thread, state == Wait: returns once the render thread has moved the
+// state to Process or Exit. Spin, then poll, then park (StageOptions).
+FeedbackStage::State FeedbackStage::await_request() {
+  using Clock = std::chrono::steady_clock;
+  const Clock::time_point idle_since = Clock::now();
+  for (;;) {
     const State s = state_.load(std::memory_order_acquire);
-    if (s == State::Exit) return;
-    if (s == State::Process) process();
+    if (s != State::Wait) return s;
+    const auto idle = Clock::now() - idle_since;
+    if (idle < options_.idle_spin) {
+      std::this_thread::yield();
+    } else if (idle < options_.idle_park_after) {
+      std::this_thread::sleep_for(options_.idle_poll_interval);
+    } else {
+      // Park. Dekker-style with request(): it stores Process, then reads
+      // parked_; we store parked_, then read the state (in wait()). Both
+      // sequentially consistent, so either it sees parked_ and notifies, or
+      // wait() sees Process and returns: no lost wake-up.
+      parked_.store(true, std::memory_order_seq_cst);
+      state_.wait(State::Wait, std::memory_order_seq_cst);
+      parked_.store(false, std::memory_order_relaxed);
+    }
   }
 }
 
@@ -248,8 +271,11 @@ bool FeedbackStage::request() {
   // here, not by the stage: set_strategy(), set_model() or the destructor may
   // cancel this iteration before the stage thread has even woken up.
   cancel_.store(false, std::memory_order_relaxed);
-  state_.store(State::Process, std::memory_order_release);
-  state_.notify_one();
+  // seq_cst, paired with await_request(): a stage that is not parked sees the
+  // new state by itself, so the wake-up (a system call) is only paid after a
+  // long idle period.
+  state_.store(State::Process, std::memory_order_seq_cst);
+  if (parked_.load(std::memory_order_seq_cst)) state_.notify_one();
   return true;
 }
 

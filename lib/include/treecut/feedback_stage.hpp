@@ -30,6 +30,7 @@
 #pragma once
 
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <exception>
 #include <memory>
@@ -73,6 +74,16 @@ struct StageOptions {
   /// Frames over which an exchanged list fades in over the previous one; 0 = swap at once.
   unsigned blend_frames = 0;
   Launch launch = Launch::Thread;
+  /// How an idle stage thread (Launch::Thread) notices the next request.
+  /// Waking a sleeping thread is a system call on the render thread (about
+  /// 10 us on a virtual machine), so after an iteration the stage first spins
+  /// (yielding its core), then checks every `idle_poll_interval`, and goes to
+  /// sleep until woken only after `idle_park_after` without a request: a
+  /// viewer that renders continuously never pays for a wake-up, an idle one
+  /// costs nothing. docs/threading.md, "Waking the stage".
+  std::chrono::microseconds idle_spin{50};
+  std::chrono::microseconds idle_poll_interval{200};
+  std::chrono::microseconds idle_park_after{100'000};
 };
 
 /// A list the renderer may draw. `nodes` and `hierarchy` stay valid until the
@@ -198,6 +209,7 @@ class FeedbackStage {
   };
 
   void run();
+  [[nodiscard]] State await_request();
   void process();
   void exchange();
   void retire(std::uint32_t index);
@@ -208,6 +220,10 @@ class FeedbackStage {
   StageOptions options_;
   std::atomic<State> state_{State::Wait};
   std::atomic<bool> cancel_{false};
+  // The stage thread sleeps in state_.wait(): a request must notify it. While
+  // false the stage checks the state by itself and request() skips the
+  // notification (a system call).
+  std::atomic<bool> parked_{false};
   std::vector<ListBuffer> buffers_;
   Inbox inbox_;
   Outbox outbox_;
