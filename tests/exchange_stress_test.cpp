@@ -9,6 +9,7 @@
 // timeout fails the test.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdlib>
 #include <deque>
@@ -96,7 +97,10 @@ std::uint64_t run_session(std::mt19937_64& rng, std::uint64_t budget,
 
     const FrameLists f = stage.poll();
     if (f.exchanged) {
-      const std::string why = TreeCut::validate(*f.current.hierarchy, f.current.nodes);
+      std::string why = TreeCut::validate(*f.current.hierarchy, f.current.nodes);
+      if (why.empty() && !std::is_sorted(f.current.nodes.begin(), f.current.nodes.end())) {
+        why = "the list is not in ascending id order";
+      }
       if (!why.empty()) {
         ADD_FAILURE() << "generation " << f.current.generation << ": " << why;
         return stage.counters().exchanges;

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <memory>
 #include <set>
 #include <stdexcept>
@@ -263,6 +264,8 @@ TEST(FeedbackStage, SwitchingToARecursiveStrategyAndBackKeepsTheCutValid) {
     for (int i = 0; i < 5; ++i) {
       const FrameLists f = stage.poll();
       ASSERT_EQ(TreeCut::validate(*h, f.current.nodes), "");
+      ASSERT_TRUE(std::is_sorted(f.current.nodes.begin(), f.current.nodes.end()))
+          << "published lists are in ascending id order";
       stage.step();
     }
     stage.set_strategy(std::make_unique<strategies::RecursiveStrategy>());

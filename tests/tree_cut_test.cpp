@@ -119,6 +119,27 @@ TEST(TreeCut, SortOrdersTheListAndKeepsItUsable) {
   EXPECT_GT(cut.size(), 100u);
 }
 
+// Many moved nodes in a large cut: the merge path sorts them with the radix sort.
+TEST(TreeCut, SortMergesManyMovedNodes) {
+  const Hierarchy h = build_from_points(generate_model(ModelKind::Terrain, 60000, 3));
+  TreeCut cut = TreeCut::leaf_cut(h);
+  std::mt19937 rng(3);
+  std::vector<NodeId> scratch;
+  for (int step = 0; step < 3000; ++step) {
+    const NodeId n = cut.nodes()[rng() % cut.size()];
+    if (h.parent(n) != kNoNode) cut.coarsen(h, h.parent(n));
+  }
+  ASSERT_GT(cut.disorder(), 4096u);
+  ASSERT_LE(cut.disorder() * 4, cut.size()) << "meant for the merge path";
+  std::vector<NodeId> expected(cut.nodes().begin(), cut.nodes().end());
+  std::sort(expected.begin(), expected.end());
+  cut.sort(scratch);
+  EXPECT_TRUE(std::equal(cut.nodes().begin(), cut.nodes().end(), expected.begin(), expected.end()));
+  EXPECT_EQ(cut.validate(h), "");
+  for (int step = 0; step < 1000; ++step) cut.refine(h, cut.nodes()[rng() % cut.size()]);
+  EXPECT_EQ(cut.validate(h), "") << "the slot map still drives refine";
+}
+
 TEST(TreeCut, DisorderCountsWrittenPositions) {
   const Hierarchy& h = small_hierarchy();
   EXPECT_EQ(TreeCut::root_cut(h).disorder(), 0u);

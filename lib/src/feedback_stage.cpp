@@ -66,6 +66,7 @@ FeedbackStage::FeedbackStage(Model model, std::unique_ptr<Strategy> strategy, St
   buffers_.resize(options_.list_buffers);
   ListBuffer& first = buffers_[0];
   first.nodes.assign(model.cut.nodes().begin(), model.cut.nodes().end());
+  std::sort(first.nodes.begin(), first.nodes.end());  // once; every list is ascending
   first.hierarchy = model.hierarchy;
   first.generation = 1;
   first.use = BufferUse::Front;
@@ -178,9 +179,17 @@ void FeedbackStage::process() {
     strategy_->iterate(input, output);
     const Clock::time_point t2 = Clock::now();
 
+    // Publish in ascending id order, sorted here rather than on the render
+    // thread (a renderer draws in id order, see CutBuffer::upload). The
+    // evolving cut is nearly sorted, so its sort is a merge of the few moved
+    // nodes; it also enters the next iteration sorted (TreeCut::sort).
     if (strategy_->mode() == Strategy::Mode::Evolve) {
+      if (cut_.disorder() > 0) cut_.sort(sort_scratch_);
       back.nodes.assign(cut_.nodes().begin(), cut_.nodes().end());
     } else {
+      if (!std::is_sorted(back.nodes.begin(), back.nodes.end())) {
+        sort_node_ids(back.nodes, hierarchy_->node_count(), sort_scratch_);
+      }
       cut_stale_ = true;
     }
     if (back.hierarchy != hierarchy_) back.hierarchy = hierarchy_;

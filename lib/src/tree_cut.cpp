@@ -56,7 +56,13 @@ void TreeCut::sort(std::vector<NodeId>& scratch) {
       }
     }
     std::erase(nodes_, kNotInCut);
-    std::sort(scratch.begin(), scratch.end());
+    // The positions are spent: their buffer is the radix sort's ping-pong.
+    moved_.clear();
+    if (scratch.size() > 4096) {
+      sort_node_ids(scratch, static_cast<NodeId>(slot_.size()), moved_);
+    } else {
+      std::sort(scratch.begin(), scratch.end());
+    }
     // Merge from the back, in place.
     std::size_t i = nodes_.size();
     std::size_t j = scratch.size();
@@ -141,14 +147,6 @@ bool TreeCut::refine(const Hierarchy& h, NodeId node) {
   moved(s);
   for (NodeId c = c0 + 1; c < c0 + cc; ++c) insert(c);
   ++refinements_;
-  return true;
-}
-
-bool TreeCut::can_coarsen(const Hierarchy& h, NodeId parent) const {
-  if (parent >= h.node_count() || h.is_leaf(parent) || contains(parent)) return false;
-  const NodeId c0 = h.first_child(parent);
-  for (NodeId c = c0; c < c0 + h.child_count(parent); ++c)
-    if (!contains(c)) return false;
   return true;
 }
 

@@ -8,7 +8,7 @@
 namespace treecut::strategies {
 namespace {
 
-constexpr std::size_t kPrefetch = 16;  // nodes ahead, enough to cover a DRAM miss
+constexpr std::size_t kPrefetch = 64;  // nodes ahead, enough to cover a DRAM miss
 
 }  // namespace
 

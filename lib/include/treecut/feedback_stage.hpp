@@ -90,6 +90,7 @@ struct StageOptions {
 /// list is released (at the next exchange with ReleaseMode::OnExchange,
 /// otherwise until release(generation)).
 struct FrontList {
+  /// Ascending node ids: the stage sorts every list it publishes.
   std::span<const NodeId> nodes;
   std::uint64_t generation = 0;  ///< increases with every exchange; 1 for the initial cut
   const Hierarchy* hierarchy = nullptr;
@@ -246,6 +247,7 @@ class FeedbackStage {
   std::shared_ptr<const Hierarchy> hierarchy_;
   TreeCut cut_;
   bool cut_stale_ = false;
+  std::vector<NodeId> sort_scratch_;
   std::unique_ptr<Strategy> strategy_;
   ViewSnapshot view_;
 

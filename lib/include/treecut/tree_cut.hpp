@@ -36,7 +36,15 @@ class TreeCut {
   /// `parent`. Returns false and changes nothing otherwise.
   bool coarsen(const Hierarchy& h, NodeId parent);
   /// True when every child of `parent` is in the cut, so coarsen() would succeed.
-  [[nodiscard]] bool can_coarsen(const Hierarchy& h, NodeId parent) const;
+  /// Inline: the strategies ask it in their per-node pass.
+  [[nodiscard]] bool can_coarsen(const Hierarchy& h, NodeId parent) const {
+    if (parent >= h.node_count() || h.is_leaf(parent) || contains(parent)) return false;
+    const NodeId c0 = h.first_child(parent);
+    for (NodeId c = c0; c < c0 + h.child_count(parent); ++c) {
+      if (!contains(c)) return false;
+    }
+    return true;
+  }
 
   /// List positions written since the list was last sorted (refine and
   /// coarsen write one per child), or size() when too many to track.
