@@ -42,8 +42,11 @@ TreeCut TreeCut::from_nodes(const Hierarchy& h, std::span<const NodeId> nodes) {
 
 void TreeCut::sort(std::vector<NodeId>& scratch) {
   const std::size_t size = nodes_.size();
+  const auto id_end = static_cast<NodeId>(slot_.size());
   if (scattered_ || moved_.size() * 4 > size) {
-    sort_node_ids(nodes_, static_cast<NodeId>(slot_.size()), scratch);
+    sort_node_ids(nodes_, id_end, scratch);
+    // Ascending ids: the slot map is written with ascending addresses.
+    for (std::uint32_t s = 0; s < size; ++s) slot_[nodes_[s]] = s;
   } else {
     // Positions not written since the last sort still hold their nodes in
     // ascending order: pull the written ones out (kNotInCut marks them, and
@@ -55,24 +58,31 @@ void TreeCut::sort(std::vector<NodeId>& scratch) {
         nodes_[p] = kNotInCut;
       }
     }
-    std::erase(nodes_, kNotInCut);
-    // The positions are spent: their buffer is the radix sort's ping-pong.
+    // The positions are spent: their buffer is the radix sort's ping-pong,
+    // then the merged list.
     moved_.clear();
     if (scratch.size() > 4096) {
-      sort_node_ids(scratch, static_cast<NodeId>(slot_.size()), moved_);
+      sort_node_ids(scratch, id_end, moved_);
     } else {
       std::sort(scratch.begin(), scratch.end());
     }
-    // Merge from the back, in place.
-    std::size_t i = nodes_.size();
-    std::size_t j = scratch.size();
-    nodes_.resize(size);
-    for (std::size_t k = size; j > 0;) {
-      nodes_[--k] = (i > 0 && nodes_[i - 1] > scratch[j - 1]) ? nodes_[--i] : scratch[--j];
+    // One forward pass merges and writes the slot map.
+    std::vector<NodeId>& merged = moved_;
+    merged.clear();
+    merged.reserve(nodes_.capacity());
+    const auto put = [&](NodeId n) {
+      slot_[n] = static_cast<std::uint32_t>(merged.size());
+      merged.push_back(n);
+    };
+    std::size_t j = 0;
+    for (const NodeId n : nodes_) {
+      if (n == kNotInCut) continue;
+      while (j < scratch.size() && scratch[j] < n) put(scratch[j++]);
+      put(n);
     }
+    while (j < scratch.size()) put(scratch[j++]);
+    nodes_.swap(merged);
   }
-  // Ascending ids: the slot map is written with ascending addresses.
-  for (std::uint32_t s = 0; s < size; ++s) slot_[nodes_[s]] = s;
   moved_.clear();
   scattered_ = false;
 }

@@ -23,6 +23,14 @@ void ViewSnapshot::finalize() {
     const float len = glm::length(glm::vec3(p));
     if (len > 0.0f) p /= len;
   }
+  for (std::size_t i = 0; i < 8; ++i) {
+    // Lanes 6 and 7: 0 x + 1e30 >= -radius, a plane nothing is outside of.
+    const Plane p = i < 6 ? derived.frustum[i] : Plane(0.0f, 0.0f, 0.0f, 1e30f);
+    derived.lanes.x[i] = p.x;
+    derived.lanes.y[i] = p.y;
+    derived.lanes.z[i] = p.z;
+    derived.lanes.w[i] = p.w;
+  }
   // A perspective projection has w_clip = -z_eye, so its last row is (0,0,-1,0).
   derived.perspective = projection[3][3] == 0.0f;
   derived.pixel_scale = 0.5f * static_cast<float>(viewport.y) * projection[1][1];

@@ -107,10 +107,9 @@ void BucketStrategy::iterate(const IterationInput& input, IterationOutput& outpu
       // must ask for a coarse ('-'), and the parent's own delta must not be
       // positive ('?' in figure 4), else the parent would be refined again.
       if (delta + threshold >= 0) continue;  // this node does not ask for a coarse
+      if (!h.is_first_child(n)) continue;
       const NodeId parent = a.parent[n];
-      if (parent == kNoNode || a.first_child[parent] != n || !cut.can_coarsen(h, parent)) {
-        continue;
-      }
+      if (!cut.can_coarsen(h, parent)) continue;
       bool all_negative = true;
       for (NodeId c = n + 1; c < n + a.child_count[parent]; ++c) {
         if (bucket(c) - depth + threshold >= 0) {

@@ -15,7 +15,7 @@ namespace {
 
 constexpr std::uint32_t kRefinedBit = 1;
 constexpr std::uint32_t kMaxIteration = 0x7fffffffu;
-constexpr std::size_t kPrefetch = 16;  // nodes ahead, enough to cover a DRAM miss
+constexpr std::size_t kPrefetch = 32;  // nodes ahead, enough to cover a DRAM miss
 
 // A candidate packs (priority, node) into one integer; see the header.
 using Candidate = std::uint64_t;
@@ -181,8 +181,8 @@ void OptimizationStrategy::iterate(const IterationInput& input, IterationOutput&
     // Parents are ranked at their first child. p(parent) >= p(n) (monotone
     // priorities), so a node above the k-th lowest rejects its parent unseen.
     if (!lows.admits(candidate(p, 0))) continue;
+    if (!h.is_first_child(n)) continue;
     const NodeId parent = a.parent[n];
-    if (parent == kNoNode || a.first_child[parent] != n) continue;
     // Rank before the coarsenability test, which touches the cut's slot map.
     float parent_size = 0.0f;
     const Candidate c = candidate(view_priority(a, view, parent, weight, parent_size), parent);

@@ -79,6 +79,12 @@ class Hierarchy {
   [[nodiscard]] NodeId first_child(NodeId n) const { return a_.first_child[n]; }
   [[nodiscard]] unsigned child_count(NodeId n) const { return a_.child_count[n]; }
   [[nodiscard]] NodeId parent(NodeId n) const { return a_.parent[n]; }
+  /// True when `n` is the first of its siblings. Siblings are contiguous, so
+  /// that is when its predecessor has another parent: two neighbouring loads
+  /// instead of the dependent first_child[parent[n]].
+  [[nodiscard]] bool is_first_child(NodeId n) const {
+    return n != 0 && a_.parent[n - 1] != a_.parent[n];
+  }
 
   /// Assembles a hierarchy from arrays whose lifetime `storage` guarantees.
   /// Used by the builder and the cache loader; checks only the sizes.

@@ -23,6 +23,10 @@
 #include <glm/vec4.hpp>
 #include <vector>
 
+#if defined(__SSE2__)
+#include <xmmintrin.h>
+#endif
+
 #include "treecut/hierarchy.hpp"
 
 namespace treecut {
@@ -62,6 +66,11 @@ struct ViewSnapshot {
   struct Derived {
     glm::vec3 eye{0.0f};             ///< camera position in model space
     std::array<Plane, 6> frustum{};  ///< normalized, inward-facing
+    /// The same planes by component, in 8 lanes (the last two never cull),
+    /// so outside_frustum() tests all six with vector instructions.
+    struct alignas(32) PlaneLanes {
+      std::array<float, 8> x{}, y{}, z{}, w{};
+    } lanes;
     float pixel_scale = 1.0f;  ///< pixels per unit of (radius / distance), or per unit for ortho
     bool perspective = true;
   } derived;
@@ -77,10 +86,28 @@ struct ViewSnapshot {
 
   /// True when the sphere lies completely outside one frustum plane.
   [[nodiscard]] bool outside_frustum(glm::vec3 center, float radius) const {
-    for (const Plane& p : derived.frustum) {
-      if (p.x * center.x + p.y * center.y + p.z * center.z + p.w < -radius) return true;
+    // Branch-free over the lanes: the strategies call this for every cut
+    // node, and most nodes pass all six planes anyway.
+    const Derived::PlaneLanes& p = derived.lanes;
+#if defined(__SSE2__)
+    const __m128 cx = _mm_set1_ps(center.x);
+    const __m128 cy = _mm_set1_ps(center.y);
+    const __m128 cz = _mm_set1_ps(center.z);
+    const __m128 limit = _mm_set1_ps(-radius);
+    int outside = 0;
+    for (std::size_t i = 0; i < 8; i += 4) {
+      const __m128 d = _mm_add_ps(
+          _mm_add_ps(_mm_mul_ps(_mm_load_ps(&p.x[i]), cx), _mm_mul_ps(_mm_load_ps(&p.y[i]), cy)),
+          _mm_add_ps(_mm_mul_ps(_mm_load_ps(&p.z[i]), cz), _mm_load_ps(&p.w[i])));
+      outside |= _mm_movemask_ps(_mm_cmplt_ps(d, limit));
+    }
+    return outside != 0;
+#else
+    for (std::size_t i = 0; i < 6; ++i) {
+      if (p.x[i] * center.x + p.y[i] * center.y + p.z[i] * center.z + p.w[i] < -radius) return true;
     }
     return false;
+#endif
   }
 
   /// Upper bound of the projected radius in pixels of a sphere. Uses the
