@@ -14,7 +14,7 @@ namespace {
 // strategy has converged.
 constexpr std::uint64_t kFnvOffset = 0xcbf29ce484222325ull;
 constexpr std::uint64_t kFnvPrime = 0x100000001b3ull;
-constexpr std::size_t kPrefetch = 16;  // nodes ahead, enough to cover a DRAM miss
+constexpr std::size_t kPrefetch = 64;  // nodes ahead, enough to cover a DRAM miss
 
 // ViewSnapshot::backfacing with the distance to the eye already known: the
 // cone (axis, half-angle a) faces away from the whole sphere, seen under the
