@@ -10,8 +10,9 @@
 //   `output.result` with counters. It must leave a valid cut (every leaf under
 //   exactly one cut node) even when it stops early on cancellation.
 // - Evolve strategies modify `*output.cut` in place with TreeCut::refine and
-//   TreeCut::coarsen; on entry it is the cut of the previous iteration (what
-//   the render thread draws). Rebuild strategies ignore the cut and fill
+//   TreeCut::coarsen (and may reorder it, TreeCut::sort); on entry it is the
+//   cut of the previous iteration (what the render thread draws), in
+//   ascending id order when the stage calls. Rebuild strategies ignore the cut and fill
 //   `*output.nodes` (empty on entry, capacity kept) with a new cut.
 // - What may be read: only `input` and the strategy's members. The references
 //   in `input` and `output` are valid for the duration of the call only; the
