@@ -146,27 +146,14 @@ void BM_EmptyTimedRegion(benchmark::State& state) {
   report(state, s, 0);
 }
 
-BENCHMARK(BM_EmptyTimedRegion)
-    ->Arg(0)
-    ->Arg(100)
-    ->ArgName("work")
-    ->UseManualTime()
-    ->Iterations(20000)
-    ->Unit(benchmark::kNanosecond);
-BENCHMARK(BM_PollExchangeProtocol)
-    ->Arg(10'000)
-    ->Arg(1'000'000)
-    ->ArgName("cut")
-    ->UseManualTime()
-    ->Iterations(20000)
-    ->Unit(benchmark::kNanosecond);
-BENCHMARK(BM_PollExchange)
-    ->Arg(10'000)
-    ->Arg(1'000'000)
-    ->ArgName("cut")
-    ->UseManualTime()
-    ->Iterations(20000)
-    ->Unit(benchmark::kNanosecond);
+// 20,000 frames per run, each timed by hand.
+void frames(benchmark::internal::Benchmark* b) {
+  b->UseManualTime()->Iterations(20000)->Unit(benchmark::kNanosecond);
+}
+
+BENCHMARK(BM_EmptyTimedRegion)->Arg(0)->Arg(100)->ArgName("work")->Apply(frames);
+BENCHMARK(BM_PollExchangeProtocol)->Arg(10'000)->Arg(1'000'000)->ArgName("cut")->Apply(frames);
+BENCHMARK(BM_PollExchange)->Arg(10'000)->Arg(1'000'000)->ArgName("cut")->Apply(frames);
 
 }  // namespace
 }  // namespace treecut::bench

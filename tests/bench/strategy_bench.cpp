@@ -105,6 +105,33 @@ double timed(F&& f) {
   return thread_cpu_ns() - t0;
 }
 
+// Times an evolving strategy on `cut`: warm_up(), then one iterate() per
+// benchmark iteration under view_at(i), the i-th view of the motion.
+template <typename ViewAt>
+void time_evolving(benchmark::State& state, const Hierarchy& h, Strategy& s, TreeCut& cut,
+                   ViewAt&& view_at) {
+  std::vector<NodeId> unused;
+  std::vector<QueryRequest> queries;
+  double ns = 0;
+  const auto step = [&](std::uint64_t iteration) {
+    const ViewSnapshot v = view_at(iteration);
+    IterationOutput out;
+    out.cut = &cut;
+    out.nodes = &unused;
+    out.queries = &queries;
+    ns = timed([&] { s.iterate(IterationInput{h, v}, out); });
+    return out.result;
+  };
+  const std::uint64_t first = warm_up(step);
+  Timing t;
+  for (auto _ : state) {
+    const IterationResult r = step(first + t.iterations);
+    state.SetIterationTime(ns * 1e-9);
+    t.add(ns, r);
+  }
+  report(state, t);
+}
+
 // Arguments: model (0 dragon, 1 terrain), cut size.
 void BM_Optimization(benchmark::State& state) {
   const auto h = model(static_cast<int>(state.range(0)));
@@ -117,26 +144,9 @@ void BM_Optimization(benchmark::State& state) {
   s.set_param("min_size", 0.0);
   s.reset(*h);
   TreeCut cut = scrambled_cut(*h, n);
-  std::vector<NodeId> unused;
-  std::vector<QueryRequest> queries;
-  const auto step = [&](std::uint64_t iteration) {
-    const ViewSnapshot v = orbit(*h, 0.01f * static_cast<float>(iteration), iteration);
-    IterationOutput out;
-    out.cut = &cut;
-    out.nodes = &unused;
-    out.queries = &queries;
-    s.iterate(IterationInput{*h, v}, out);
-    return out.result;
-  };
-  const std::uint64_t first = warm_up(step);
-  Timing t;
-  for (auto _ : state) {
-    IterationResult r;
-    const double ns = timed([&] { r = step(first + t.iterations); });
-    state.SetIterationTime(ns * 1e-9);
-    t.add(ns, r);
-  }
-  report(state, t);
+  time_evolving(state, *h, s, cut, [&](std::uint64_t i) {
+    return orbit(*h, 0.01f * static_cast<float>(i), i);  // the camera turns
+  });
 }
 
 void BM_Bucket(benchmark::State& state) {
@@ -156,28 +166,12 @@ void BM_Bucket(benchmark::State& state) {
   s.set_param("max_depth", std::min(1.0, (depth + 0.5) / deepest));
   s.set_param("ambient", 0.0);
   s.reset(*h);
-  std::vector<NodeId> unused;
-  std::vector<QueryRequest> queries;
-  const auto step = [&](std::uint64_t iteration) {
-    ViewSnapshot v = orbit(*h, 0.0f, iteration);
-    const float a = 0.05f * static_cast<float>(iteration);
+  time_evolving(state, *h, s, cut, [&](std::uint64_t i) {
+    ViewSnapshot v = orbit(*h, 0.0f, i);  // the light turns
+    const float a = 0.05f * static_cast<float>(i);
     v.light_dir = glm::normalize(glm::vec3(std::cos(a), 0.5f, std::sin(a)));
-    IterationOutput out;
-    out.cut = &cut;
-    out.nodes = &unused;
-    out.queries = &queries;
-    s.iterate(IterationInput{*h, v}, out);
-    return out.result;
-  };
-  const std::uint64_t first = warm_up(step);
-  Timing t;
-  for (auto _ : state) {
-    IterationResult r;
-    const double ns = timed([&] { r = step(first + t.iterations); });
-    state.SetIterationTime(ns * 1e-9);
-    t.add(ns, r);
-  }
-  report(state, t);
+    return v;
+  });
 }
 
 void BM_Recursive(benchmark::State& state) {
