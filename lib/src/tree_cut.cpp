@@ -14,7 +14,7 @@ TreeCut TreeCut::root_cut(const Hierarchy& h) {
   TreeCut cut;
   cut.slot_.assign(h.node_count(), kNotInCut);
   if (!h.empty()) cut.insert(h.root());
-  cut.moved_.clear();
+  cut.forget_moves(true);
   return cut;
 }
 
@@ -24,8 +24,7 @@ TreeCut TreeCut::leaf_cut(const Hierarchy& h) {
   cut.nodes_.reserve(h.leaf_count());
   for (NodeId n = 0; n < h.node_count(); ++n)
     if (h.is_leaf(n)) cut.insert(n);
-  cut.moved_.clear();  // inserted in id order
-  cut.scattered_ = false;
+  cut.forget_moves(true);  // inserted in id order
   return cut;
 }
 
@@ -35,8 +34,7 @@ TreeCut TreeCut::from_nodes(const Hierarchy& h, std::span<const NodeId> nodes) {
   cut.slot_.assign(h.node_count(), kNotInCut);
   cut.nodes_.reserve(nodes.size());
   for (NodeId n : nodes) cut.insert(n);
-  cut.moved_.clear();
-  cut.scattered_ = !std::is_sorted(nodes.begin(), nodes.end());
+  cut.forget_moves(std::is_sorted(nodes.begin(), nodes.end()));
   return cut;
 }
 
@@ -83,8 +81,14 @@ void TreeCut::sort(std::vector<NodeId>& scratch) {
     while (j < scratch.size()) put(scratch[j++]);
     nodes_.swap(merged);
   }
+  forget_moves(true);
+}
+
+// insert() records every position it writes; a freshly built or sorted list
+// starts with no moves, and is either sorted or of unknown order.
+void TreeCut::forget_moves(bool sorted) {
   moved_.clear();
-  scattered_ = false;
+  scattered_ = !sorted;
 }
 
 bool TreeCut::keep_sorted(std::vector<NodeId>& scratch) {

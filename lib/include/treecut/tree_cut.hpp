@@ -79,6 +79,7 @@ class TreeCut {
   void insert(NodeId n);
   void erase(NodeId n);
   void moved(std::uint32_t position);
+  void forget_moves(bool sorted);
 
   std::vector<NodeId> nodes_;
   std::vector<std::uint32_t> slot_;   // node id -> index in nodes_, or kNotInCut
