@@ -1,6 +1,7 @@
 #include "test_support.hpp"
 
 #include <gtest/gtest.h>
+#include <sys/mount.h>
 #include <sys/wait.h>
 
 #include <array>
@@ -32,9 +33,10 @@ std::filesystem::path scratch_dir(const std::string& name) {
   return p;
 }
 
-CommandResult run_treecut(const std::string& args) {
+CommandResult run_treecut(const std::string& args, int timeout_seconds) {
   const auto bin = std::filesystem::path(TREECUT_BINARY_DIR) / "demo" / "treecut";
-  const std::string cmd = quote(bin) + " " + args + " 2>&1";
+  const std::string cmd =
+      "timeout -k 5 " + std::to_string(timeout_seconds) + " " + quote(bin) + " " + args + " 2>&1";
   CommandResult r;
   FILE* p = popen(cmd.c_str(), "r");
   if (!p) return r;
@@ -47,6 +49,17 @@ CommandResult run_treecut(const std::string& args) {
 
 std::string quote(const std::filesystem::path& p) {
   return "'" + p.string() + "'";
+}
+
+std::optional<SmallDisk> SmallDisk::mount(const std::string& name, std::size_t bytes) {
+  const std::filesystem::path p = scratch_dir(name);
+  const std::string options = "size=" + std::to_string(bytes) + ",mode=0755";
+  if (::mount("tmpfs", p.c_str(), "tmpfs", 0, options.c_str()) != 0) return std::nullopt;
+  return SmallDisk(p);
+}
+
+SmallDisk::~SmallDisk() {
+  if (!path_.empty()) ::umount2(path_.c_str(), MNT_DETACH);
 }
 
 }  // namespace treecut::test

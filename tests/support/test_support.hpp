@@ -19,10 +19,31 @@ struct CommandResult {
   int code = -1;
   std::string out;
 };
-/// Runs the built `treecut` program with `args` (already shell-quoted).
-CommandResult run_treecut(const std::string& args);
+/// Runs the built `treecut` program with `args` (already shell-quoted), under
+/// `timeout`: a command that hangs fails the test with code 124 instead of
+/// stalling the suite.
+CommandResult run_treecut(const std::string& args, int timeout_seconds = 300);
 /// 'path', single-quoted for the shell.
 std::string quote(const std::filesystem::path& p);
+
+/// A small tmpfs mounted at a scratch folder, for tests of a full disk:
+/// writes past `bytes` fail with ENOSPC. Unmounted on destruction.
+class SmallDisk {
+ public:
+  /// nullopt when this process may not mount (not root, no CAP_SYS_ADMIN);
+  /// the caller GTEST_SKIPs with a message.
+  static std::optional<SmallDisk> mount(const std::string& name, std::size_t bytes);
+  SmallDisk(SmallDisk&& other) noexcept : path_(std::move(other.path_)) { other.path_.clear(); }
+  SmallDisk(const SmallDisk&) = delete;
+  SmallDisk& operator=(const SmallDisk&) = delete;
+  SmallDisk& operator=(SmallDisk&&) = delete;
+  ~SmallDisk();
+  [[nodiscard]] const std::filesystem::path& path() const { return path_; }
+
+ private:
+  explicit SmallDisk(std::filesystem::path p) : path_(std::move(p)) {}
+  std::filesystem::path path_;
+};
 
 }  // namespace treecut::test
 
