@@ -151,6 +151,53 @@ TEST(FeedbackStage, ParametersApplyAtTheNextIterationAndBadOnesThrowAtOnce) {
   }
 }
 
+// A parameter change is an event the strategy sees (IterationInput::
+// params_version): under a static view the optimization strategy's hysteresis
+// (a node coarsened under this view is not refined again) must not block the
+// refinement a raised budget asks for.
+TEST(FeedbackStage, RaisingMaxNodesUnderAStaticViewRefinesAgain) {
+  Model m = sphere_model();
+  const auto h = m.hierarchy;
+  FeedbackStage stage(std::move(m), std::make_unique<strategies::OptimizationStrategy>(), manual());
+  ViewSnapshot v = orbit_view(*h, 0.5f);
+  v.version = 1;
+  stage.set_view(v);
+  const auto converge = [&] {
+    for (int i = 0; i < 400; ++i) {
+      const FrameLists f = stage.poll();
+      if (!f.requested) break;
+      stage.step();
+    }
+    EXPECT_TRUE(stage.counters().converged);
+    return stage.front().nodes.size();
+  };
+  stage.set_param("max_nodes", 2000);
+  const std::size_t full = converge();
+  ASSERT_GT(full, 1500u) << "the view must want more nodes than the lowered budget";
+  stage.set_param("max_nodes", 300);
+  EXPECT_LE(converge(), 300u);
+  const std::uint64_t iterations = stage.counters().iterations;
+  stage.set_param("max_nodes", 2000);
+  EXPECT_EQ(converge(), full) << "the same view and budget give the same cut again";
+  EXPECT_GT(stage.counters().iterations, iterations + 1);
+  // Setting the value a parameter already has is no event: one iteration
+  // confirms convergence and changes nothing.
+  stage.set_param("max_nodes", 2000);
+  EXPECT_EQ(converge(), full);
+  EXPECT_EQ(stage.counters().last.refined + stage.counters().last.coarsened, 0u);
+}
+
+TEST(Strategy, ParamsVersionCountsValueChangesOnly) {
+  strategies::OptimizationStrategy s;
+  const std::uint64_t v0 = s.params_version();
+  s.set_param("max_nodes", s.param("max_nodes"));
+  EXPECT_EQ(s.params_version(), v0);
+  s.set_param("max_nodes", 123);
+  EXPECT_EQ(s.params_version(), v0 + 1);
+  EXPECT_THROW(s.set_param("max_nodes", -1), InputError);
+  EXPECT_EQ(s.params_version(), v0 + 1) << "a refused value changes nothing";
+}
+
 TEST(FeedbackStage, QueriesReachTheRenderThreadAndResultsComeBack) {
   auto probe = std::make_unique<ProbeStrategy>();
   ProbeStrategy* p = probe.get();

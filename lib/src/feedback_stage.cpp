@@ -171,7 +171,7 @@ void FeedbackStage::process() {
     ListBuffer& back = buffers_[inbox_.back];
     back.nodes.clear();
     back.queries.clear();
-    const IterationInput input{*hierarchy_, view_, 0, &cancel_};
+    const IterationInput input{*hierarchy_, view_, 0, &cancel_, strategy_->params_version()};
     IterationOutput output;
     output.cut = &cut_;
     output.nodes = &back.nodes;

@@ -36,7 +36,10 @@ void Strategy::set_param(std::string_view name, double value) {
     if (std::string why = check_param(specs_[i], value); !why.empty()) {
       throw InputError(std::string(this->name()) + ": " + why);
     }
-    values_[i] = value;
+    if (values_[i] != value) {
+      values_[i] = value;
+      ++params_version_;
+    }
     return;
   }
   throw InputError(std::string(this->name()) + ": unknown parameter '" + std::string(name) + "'");

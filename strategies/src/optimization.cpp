@@ -100,6 +100,7 @@ void OptimizationStrategy::reset(const Hierarchy& hierarchy) {
   iteration_ = 0;
   view_start_ = 0;
   last_version_ = ~std::uint64_t{0};
+  last_params_ = ~std::uint64_t{0};
 }
 
 float OptimizationStrategy::priority(const Hierarchy& h, const ViewSnapshot& view, NodeId n,
@@ -126,10 +127,14 @@ void OptimizationStrategy::iterate(const IterationInput& input, IterationOutput&
     std::fill(last_op_.begin(), last_op_.end(), 0u);
     iteration_ = 0;
     last_version_ = ~std::uint64_t{0};
+    last_params_ = ~std::uint64_t{0};
   }
   ++iteration_;
-  if (view.version != last_version_) {
-    last_version_ = view.version;  // a new view: earlier coarsens may be undone
+  if (view.version != last_version_ || input.params_version != last_params_) {
+    // A new view or new parameters (strategy.hpp, "Events"): earlier
+    // coarsens may be undone.
+    last_version_ = view.version;
+    last_params_ = input.params_version;
     view_start_ = iteration_;
   }
   const auto refine_blocked = [&](NodeId n) {

@@ -26,7 +26,13 @@
 //   render thread executes them after it exchanges the list and reports the
 //   answers in `input.view.visibility` of a later iteration, frames later.
 // - State: a strategy may keep per-node state across iterations (hysteresis,
-//   event queues); reset() drops it when the hierarchy changes. Scratch
+//   event queues); reset() drops it when the hierarchy changes.
+// - Events: `input.view.version` changes when the view changed and
+//   `input.params_version` when a parameter value changed (set_param with a
+//   new value) since an earlier iteration. Both are events: state keyed on
+//   the view (a hysteresis that blocks undoing an operation under the same
+//   view, a converged flag) must also be dropped on a parameter change, or a
+//   raised budget under a static camera never gets the work it asks for. Scratch
 //   buffers live in the strategy and are reused: no allocation per iteration
 //   once the buffers have grown.
 #pragma once
@@ -79,6 +85,9 @@ struct IterationInput {
   /// Set by the owner to ask a long iteration to end early (strategy switch,
   /// shutdown). May be null. Strategies test it every few thousand nodes.
   const std::atomic<bool>* cancel = nullptr;
+  /// Strategy::params_version() when the iteration started: compare it with the
+  /// value seen last to notice a parameter change (see "Events" above).
+  std::uint64_t params_version = 0;
 
   [[nodiscard]] bool cancelled() const {
     return cancel != nullptr && cancel->load(std::memory_order_relaxed);
@@ -120,6 +129,10 @@ class Strategy {
   /// Checks range and integrality; throws InputError ("NAME: PARAM = V is out
   /// of range [a, b]") and changes nothing on a bad value.
   void set_param(std::string_view name, double value);
+  /// Increases whenever set_param() changes a value (setting the value a
+  /// parameter already has is no event). The stage passes it in
+  /// IterationInput::params_version.
+  [[nodiscard]] std::uint64_t params_version() const { return params_version_; }
 
  protected:
   explicit Strategy(std::vector<ParamSpec> specs);
@@ -129,6 +142,7 @@ class Strategy {
  private:
   std::vector<ParamSpec> specs_;
   std::vector<double> values_;
+  std::uint64_t params_version_ = 0;
 };
 
 /// Checks `value` against `spec`; returns an empty string or the problem.

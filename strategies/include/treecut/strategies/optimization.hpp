@@ -48,12 +48,15 @@ class OptimizationStrategy final : public Strategy {
   // coarsened in the next" (the paper's threshold discussion): the iteration
   // and kind of each node's last operation. A node coarsened under the current
   // view is not refined again under it; a node refined in the previous
-  // iteration is not coarsened. Each node changes at most twice per view, so a
-  // static view converges.
+  // iteration is not coarsened. Each node changes at most twice per view (and
+  // parameter set), so a static view converges.
   std::vector<std::uint32_t> last_op_;  // iteration << 1 | refined
   std::uint32_t iteration_ = 0;         // iterations since reset(), from 1
   std::uint32_t view_start_ = 0;        // first iteration of the current view
   std::uint64_t last_version_ = ~std::uint64_t{0};
+  // A parameter change opens a new hysteresis period like a new view: a raised
+  // max_nodes may refine what a lower one coarsened under the same view.
+  std::uint64_t last_params_ = ~std::uint64_t{0};
   std::vector<Candidate> high_;       // selection buffer, then a max-heap
   std::vector<Candidate> low_;        // selection buffer, then a min-heap
   std::vector<NodeId> sort_scratch_;  // TreeCut::keep_sorted
