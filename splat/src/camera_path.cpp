@@ -3,19 +3,25 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
-#include <fstream>
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
+#include <limits>
 #include <numbers>
 #include <sstream>
 #include <stdexcept>
 
 #include "treecut/error.hpp"
+#include "treecut/file_io.hpp"
 
 namespace treecut::splat {
 
 namespace {
 constexpr std::string_view kHeader = "treecut-camera-path 1";
+constexpr const char* kFields[11] = {"time",     "eye.x", "eye.y", "eye.z", "target.x", "target.y",
+                                     "target.z", "up.x",  "up.y",  "up.z",  "fov_y_deg"};
+// sin(0.1 degree): an up vector closer than this to the view direction leaves
+// the camera's roll undefined (lookAt's cross product vanishes: blank frames).
+constexpr float kMinUpAngleSin = 1.7453e-3f;
 
 std::string_view trim(std::string_view s) {
   const auto first = s.find_first_not_of(" \t\r");
@@ -24,8 +30,10 @@ std::string_view trim(std::string_view s) {
   return s.substr(first, last - first + 1);
 }
 
-// Splits on blanks and parses each token as a finite double.
-bool parse_numbers(std::string_view line, std::vector<double>& out) {
+// Splits on blanks and parses each token as a finite double. Returns the
+// problem ("" when every token is a finite number); a token that is not a
+// number, that overflows a double, or is inf/nan is named in the message.
+std::string parse_numbers(std::string_view line, std::vector<double>& out) {
   out.clear();
   std::size_t i = 0;
   while (i < line.size()) {
@@ -33,13 +41,23 @@ bool parse_numbers(std::string_view line, std::vector<double>& out) {
     if (i >= line.size()) break;
     std::size_t j = i;
     while (j < line.size() && line[j] != ' ' && line[j] != '\t') ++j;
+    const std::string_view token = line.substr(i, j - i);
     double v = 0.0;
-    const auto [ptr, ec] = std::from_chars(line.data() + i, line.data() + j, v);
-    if (ec != std::errc() || ptr != line.data() + j || !std::isfinite(v)) return false;
+    const auto [ptr, ec] = std::from_chars(token.data(), token.data() + token.size(), v);
+    const std::string what = out.size() < 11 ? std::string(kFields[out.size()]) + " " : "";
+    const std::string shown = printable_excerpt(token);
+    if (ec == std::errc::result_out_of_range) return what + "'" + shown + "' is out of range";
+    if (ec != std::errc() || ptr != token.data() + token.size())
+      return what + "'" + shown + "' is not a number";
+    if (!std::isfinite(v)) return what + "'" + shown + "' is not a finite number";
+    // Everything but the time is stored as a float: a double past FLT_MAX
+    // would become infinity without a word.
+    if (out.size() >= 1 && std::abs(v) > double(std::numeric_limits<float>::max()))
+      return what + "'" + shown + "' is out of range (single precision)";
     out.push_back(v);
     i = j;
   }
-  return true;
+  return {};
 }
 }  // namespace
 
@@ -56,8 +74,22 @@ Camera CameraPath::at(double t) const {
   Camera c = a.camera;
   c.eye = glm::mix(a.camera.eye, b.camera.eye, f);
   c.target = glm::mix(a.camera.target, b.camera.target, f);
-  const glm::vec3 up = glm::mix(a.camera.up, b.camera.up, f);
-  c.up = glm::length(up) > 1e-6f ? glm::normalize(up) : a.camera.up;
+  // Each key's up is checked against its own view direction on load, but a
+  // blend of two keys can still be parallel to the blended direction (or
+  // vanish): then the key's up that is furthest from parallel keeps the roll.
+  const glm::vec3 dir = c.target - c.eye;
+  const float dir_len = glm::length(dir);
+  auto off_axis = [&](glm::vec3 u) {
+    const float len = glm::length(u);
+    if (!(len > 1e-6f) || !(dir_len > 0.0f)) return 0.0f;
+    return glm::length(glm::cross(dir / dir_len, u / len));
+  };
+  const glm::vec3 mixed = glm::mix(a.camera.up, b.camera.up, f);
+  if (off_axis(mixed) >= kMinUpAngleSin) {
+    c.up = glm::normalize(mixed);
+  } else {
+    c.up = off_axis(a.camera.up) >= off_axis(b.camera.up) ? a.camera.up : b.camera.up;
+  }
   c.fov_y_deg = glm::mix(a.camera.fov_y_deg, b.camera.fov_y_deg, f);
   return c;
 }
@@ -80,7 +112,8 @@ CameraPath parse_camera_path(std::string_view text, const std::string& name) {
       header = true;
       continue;
     }
-    if (!parse_numbers(line, v)) throw InputError(where + "not a list of finite numbers");
+    if (const std::string problem = parse_numbers(line, v); !problem.empty())
+      throw InputError(where + problem);
     if (v.size() != 11) {
       throw InputError(where + "expected 11 numbers (time, eye, target, up, fov), got " +
                        std::to_string(v.size()));
@@ -95,14 +128,23 @@ CameraPath parse_camera_path(std::string_view text, const std::string& name) {
     if (!path.keys.empty() && k.time < path.keys.back().time) {
       throw InputError(where + "time goes backwards");
     }
-    if (glm::length(k.camera.eye - k.camera.target) <= 0.0f) {
+    const glm::vec3 view = k.camera.target - k.camera.eye;
+    const float dist = glm::length(view);
+    // Within a few float steps of each other the direction is noise.
+    const float scale = std::max(glm::length(k.camera.eye), glm::length(k.camera.target));
+    if (!std::isfinite(dist) || !(dist > 4.0f * std::numeric_limits<float>::epsilon() * scale) ||
+        dist < std::numeric_limits<float>::min()) {
       throw InputError(where + "eye and target coincide");
     }
-    if (glm::length(k.camera.up) <= 0.0f) throw InputError(where + "zero up vector");
+    const float up_len = glm::length(k.camera.up);
+    if (!std::isfinite(up_len) || !(up_len >= std::numeric_limits<float>::min()))
+      throw InputError(where + "zero up vector");
+    if (glm::length(glm::cross(view / dist, k.camera.up / up_len)) < kMinUpAngleSin)
+      throw InputError(where + "up vector is parallel to the view direction (target - eye)");
     if (!(k.camera.fov_y_deg > 1.0f && k.camera.fov_y_deg < 170.0f)) {
       throw InputError(where + "fov_y_deg outside (1, 170)");
     }
-    k.camera.up = glm::normalize(k.camera.up);
+    k.camera.up = k.camera.up / up_len;
     path.keys.push_back(k);
   }
   if (!header) throw InputError(name + ": empty camera path (no '" + std::string(kHeader) + "')");
@@ -125,20 +167,14 @@ std::string format_camera_path(const CameraPath& path) {
 }
 
 CameraPath load_camera_path(const std::filesystem::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw InputError(file.string() + ": cannot open camera path");
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  const std::string text = ss.str();
-  if (text.size() > (64u << 20))
-    throw InputError(file.string() + ": camera path larger than 64 MiB");
-  return parse_camera_path(text, file.string());
+  // Refuses a FIFO, a device or a directory without opening it, and reads at
+  // most kTextInputLimit bytes (a path of /dev/zero would otherwise grow forever).
+  return parse_camera_path(read_text_file(file, kTextInputLimit), file.string());
 }
 
 void save_camera_path(const std::filesystem::path& file, const CameraPath& path) {
-  std::ofstream out(file, std::ios::binary | std::ios::trunc);
-  out << format_camera_path(path);
-  if (!out) throw std::runtime_error(file.string() + ": could not write camera path");
+  // Temporary + rename: a full disk leaves no truncated path that looks complete.
+  write_file_atomically(file, format_camera_path(path));
 }
 
 CameraPath orbit_path(glm::vec3 bmin, glm::vec3 bmax, float aspect, double seconds, int keys,

@@ -87,4 +87,9 @@ class AtomicFile {
 /// Writes `bytes` to `target` through an AtomicFile.
 void write_file_atomically(const std::filesystem::path& target, std::string_view bytes);
 
+/// A token of a user's text as it may appear in a one-line message: control
+/// and non-ASCII bytes become '?' (a binary file must not garble the
+/// terminal), and anything past `max_chars` is cut to "...".
+std::string printable_excerpt(std::string_view text, std::size_t max_chars = 32);
+
 }  // namespace treecut
