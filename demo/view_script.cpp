@@ -1,0 +1,152 @@
+#include "view_script.hpp"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <system_error>
+
+#include "treecut/error.hpp"
+#include "treecut/file_io.hpp"
+#include "treecut/splat/camera_path.hpp"
+#include "treecut/splat/renderer.hpp"
+#include "treecut/strategy.hpp"
+
+namespace treecut::cli {
+
+namespace {
+
+std::vector<std::string_view> split_blanks(std::string_view line) {
+  std::vector<std::string_view> out;
+  std::size_t i = 0;
+  while (i < line.size()) {
+    while (i < line.size() && (line[i] == ' ' || line[i] == '\t' || line[i] == '\r')) ++i;
+    std::size_t j = i;
+    while (j < line.size() && line[j] != ' ' && line[j] != '\t' && line[j] != '\r') ++j;
+    if (j > i) out.push_back(line.substr(i, j - i));
+    i = j;
+  }
+  return out;
+}
+
+std::string shown(std::string_view token) {
+  return "'" + printable_excerpt(token) + "'";
+}
+
+// A count of frames: a whole number that fits the viewer's int counter. No
+// wrap, no silent zero: "99999999999", "1e30", "-1" and "3.5" are errors.
+int parse_count(std::string_view token, const std::string& where) {
+  int v = 0;
+  const auto [ptr, ec] = std::from_chars(token.data(), token.data() + token.size(), v);
+  const bool whole = ptr == token.data() + token.size();
+  if (ec == std::errc::result_out_of_range ||
+      (ec == std::errc() && whole && (v < 0 || v > kMaxScriptFrames))) {
+    throw InputError(where + shown(token) + " is out of range (a count from 0 to " +
+                     std::to_string(kMaxScriptFrames) + ")");
+  }
+  if (ec != std::errc() || !whole)
+    throw InputError(where + shown(token) + " is not a whole number");
+  return v;
+}
+
+double parse_real(std::string_view token, const std::string& where) {
+  double v = 0.0;
+  const auto [ptr, ec] = std::from_chars(token.data(), token.data() + token.size(), v);
+  if (ec == std::errc::result_out_of_range)
+    throw InputError(where + shown(token) + " is out of range");
+  if (ec != std::errc() || ptr != token.data() + token.size())
+    throw InputError(where + shown(token) + " is not a number");
+  if (!std::isfinite(v)) throw InputError(where + shown(token) + " is not a finite number");
+  return v;
+}
+
+}  // namespace
+
+std::vector<ScriptCommand> parse_view_script(std::string_view text,
+                                             const std::filesystem::path& file,
+                                             const ScriptChecks& checks) {
+  const std::string name = file.string();
+  std::vector<ScriptCommand> out;
+  std::string strategy = checks.strategy;
+  bool header = false;
+  int n = 0;
+  while (!text.empty()) {
+    const auto nl = text.find('\n');
+    std::string_view line = text.substr(0, nl);
+    text = nl == std::string_view::npos ? std::string_view{} : text.substr(nl + 1);
+    ++n;
+    if (const auto hash = line.find('#'); hash != std::string_view::npos)
+      line = line.substr(0, hash);
+    const std::vector<std::string_view> words = split_blanks(line);
+    if (words.empty()) continue;
+    const std::string where = name + ":" + std::to_string(n) + ": ";
+    if (!header) {
+      if (words.size() != 2 || words[0] != "treecut-view-script" || words[1] != "1")
+        throw InputError(where + "expected 'treecut-view-script 1'");
+      header = true;
+      continue;
+    }
+    ScriptCommand c;
+    c.verb = std::string(words[0]);
+    c.line = n;
+    const std::string at = where + c.verb + ": ";
+    auto want = [&](std::size_t args, const char* what) {
+      if (words.size() - 1 < args) throw InputError(where + c.verb + " needs " + what);
+      if (words.size() - 1 > args)
+        throw InputError(where + c.verb + " takes " + what + ", not " + shown(words[args + 1]));
+    };
+    if (c.verb == "frames" || c.verb == "converge") {
+      want(1, "a count");
+      c.number = parse_count(words[1], at);
+    } else if (c.verb == "play" || c.verb == "screenshot" || c.verb == "strategy" ||
+               c.verb == "mode") {
+      want(1, c.verb == "play" ? "a camera path" : "an argument");
+      c.arg = std::string(words[1]);
+      try {
+        if (c.verb == "play") {
+          c.arg = (file.parent_path() / c.arg).string();
+          (void)splat::load_camera_path(c.arg);  // fail before the window opens
+        } else if (c.verb == "mode") {
+          (void)splat::parse_splat_mode(c.arg);
+        } else if (c.verb == "strategy" && checks.registry != nullptr) {
+          (void)checks.registry->create(c.arg);
+          strategy = c.arg;
+        }
+      } catch (const InputError& e) {
+        // The path's own FILE:LINE (or the registry's reason) after ours.
+        throw InputError(where + c.verb + ": " + e.what());
+      }
+    } else if (c.verb == "param") {
+      want(2, "NAME VALUE");
+      c.arg = std::string(words[1]);
+      c.number = parse_real(words[2], at);
+      if (checks.registry != nullptr) {
+        const auto specs = checks.registry->create(strategy)->param_specs();
+        const auto spec = std::find_if(specs.begin(), specs.end(),
+                                       [&](const ParamSpec& s) { return s.name == c.arg; });
+        if (spec == specs.end())
+          throw InputError(at + "strategy '" + strategy + "' has no parameter " + shown(c.arg));
+        if (const std::string why = check_param(*spec, c.number); !why.empty())
+          throw InputError(at + why);
+      }
+    } else if (c.verb == "orbit") {
+      want(1, "degrees");
+      c.number = parse_real(words[1], at);
+      if (std::abs(c.number) > kMaxOrbitDegrees)
+        throw InputError(at + shown(words[1]) + " is out of range (-360 to 360 degrees)");
+    } else if (c.verb == "exit" || c.verb == "fit") {
+      want(0, "no argument");
+    } else {
+      throw InputError(where + "unknown command " + shown(c.verb));
+    }
+    out.push_back(std::move(c));
+  }
+  if (!header) throw InputError(name + ": empty script (no 'treecut-view-script 1' line)");
+  return out;
+}
+
+std::vector<ScriptCommand> load_view_script(const std::filesystem::path& file,
+                                            const ScriptChecks& checks) {
+  return parse_view_script(read_text_file(file, kTextInputLimit), file, checks);
+}
+
+}  // namespace treecut::cli
