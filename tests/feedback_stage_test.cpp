@@ -8,6 +8,8 @@
 #include <memory>
 #include <set>
 #include <stdexcept>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include "strategy_fixtures.hpp"
@@ -298,6 +300,150 @@ TEST(FeedbackStage, AStrategyExceptionReachesTheRenderThreadAndTheStageGoesOn) {
   EXPECT_TRUE(stage.poll().requested);
   stage.step();
   EXPECT_TRUE(stage.poll().exchanged);
+}
+
+// Misbehaving strategies (points 2 and 3 of issue 9): what they hand back is
+// checked, and whatever they throw becomes a StrategyError naming them.
+class MisbehavingStrategy final : public Strategy {
+ public:
+  enum class Fault {
+    None,
+    ThrowInt,
+    ThrowString,
+    MissingNode,
+    EmptyEvolveCut,
+    Duplicate,
+  };
+  MisbehavingStrategy(Fault fault, Mode mode) : Strategy({}), fault_(fault), mode_(mode) {}
+  [[nodiscard]] std::string_view name() const override { return "misbehaving"; }
+  [[nodiscard]] Mode mode() const override { return mode_; }
+  void reset(const Hierarchy&) override {}
+  void iterate(const IterationInput& in, IterationOutput& out) override {
+    const Hierarchy& h = in.hierarchy;
+    const Fault f = std::exchange(fault_, Fault::None);  // misbehaves once
+    if (f == Fault::ThrowInt) throw 42;
+    if (f == Fault::ThrowString) throw std::string("not an exception class");
+    if (f == Fault::EmptyEvolveCut) {
+      *out.cut = TreeCut();
+      return;
+    }
+    // Otherwise: the cut at depth 2 (evolving or rebuilt), maybe spoilt.
+    std::vector<NodeId> level;
+    for (NodeId n = h.level_begin(2); n < h.level_begin(3); ++n) level.push_back(n);
+    if (f == Fault::MissingNode) level.pop_back();
+    if (f == Fault::Duplicate) {
+      // Same point total, but one node twice and another missing: only the
+      // full check (TreeCut::validate) sees it.
+      const auto& pc = h.arrays().point_count;
+      for (std::size_t i = 0; i < level.size(); ++i) {
+        for (std::size_t j = i + 1; j < level.size(); ++j) {
+          if (pc[level[i]] == pc[level[j]]) {
+            level[j] = level[i];
+            i = j = level.size();
+          }
+        }
+      }
+    }
+    if (mode_ == Mode::Rebuild) {
+      *out.nodes = level;
+    } else {
+      *out.cut = TreeCut::from_nodes(h, level);
+    }
+    out.result.converged = true;
+  }
+
+ private:
+  Fault fault_;
+  Mode mode_;
+};
+
+std::string poll_error(FeedbackStage& stage) {
+  try {
+    stage.poll();
+  } catch (const StrategyError& e) {
+    return e.what();
+  }
+  return "no StrategyError";
+}
+
+TEST(FeedbackStage, AnExceptionOfAnyTypeBecomesAStrategyErrorNamingTheStrategy) {
+  using F = MisbehavingStrategy::Fault;
+  for (const F fault : {F::ThrowInt, F::ThrowString}) {
+    auto bad = std::make_unique<MisbehavingStrategy>(fault, Strategy::Mode::Rebuild);
+    bad->set_origin("/plugins/libbad.so");
+    FeedbackStage stage(sphere_model(), std::move(bad), manual());
+    stage.poll();
+    stage.step();
+    const std::string m = poll_error(stage);
+    EXPECT_EQ(m.rfind("strategy 'misbehaving' (plugin /plugins/libbad.so): threw", 0), 0u) << m;
+    EXPECT_NE(m.find(fault == F::ThrowInt ? "of type int" : "std::"), std::string::npos) << m;
+    EXPECT_EQ(stage.counters().errors, 1u);
+    EXPECT_EQ(stage.counters().last_error, m);
+    EXPECT_EQ(stage.front().generation, 1u) << "the previous list stays";
+    // The stage goes on: the next iteration behaves and is exchanged.
+    EXPECT_TRUE(stage.poll().requested);
+    stage.step();
+    const FrameLists f = stage.poll();
+    EXPECT_TRUE(f.exchanged);
+    EXPECT_EQ(TreeCut::validate(*f.current.hierarchy, f.current.nodes), "");
+  }
+}
+
+TEST(FeedbackStage, ARebuildListMissingANodeIsRejectedAndThePreviousListStays) {
+  auto bad = std::make_unique<MisbehavingStrategy>(MisbehavingStrategy::Fault::MissingNode,
+                                                   Strategy::Mode::Rebuild);
+  bad->set_origin("built-in");
+  FeedbackStage stage(sphere_model(), std::move(bad), manual());
+  const std::vector<NodeId> before(stage.front().nodes.begin(), stage.front().nodes.end());
+  stage.poll();
+  stage.step();
+  const std::string m = poll_error(stage);
+  EXPECT_EQ(
+      m.rfind("strategy 'misbehaving' (built-in): returned an invalid cut: its nodes hold", 0), 0u)
+      << m;
+  EXPECT_EQ(stage.counters().invalid_cuts, 1u);
+  EXPECT_EQ(stage.counters().exchanges, 0u);
+  EXPECT_EQ(std::vector<NodeId>(stage.front().nodes.begin(), stage.front().nodes.end()), before);
+  // The strategy behaves from now on: the next poll requests, the cut after it is shown.
+  ASSERT_TRUE(stage.poll().requested);
+  stage.step();
+  const FrameLists f = stage.poll();
+  EXPECT_TRUE(f.exchanged);
+  EXPECT_EQ(TreeCut::validate(*f.current.hierarchy, f.current.nodes), "");
+}
+
+TEST(FeedbackStage, AnEmptyCutFromAnEvolveStrategyIsRejectedAndTheNextStartsFromTheFront) {
+  FeedbackStage stage(sphere_model(),
+                      std::make_unique<MisbehavingStrategy>(
+                          MisbehavingStrategy::Fault::EmptyEvolveCut, Strategy::Mode::Evolve),
+                      manual());
+  stage.poll();
+  stage.step();
+  const std::string m = poll_error(stage);
+  EXPECT_NE(m.find("strategy 'misbehaving': returned an invalid cut: the cut is empty"),
+            std::string::npos)
+      << m;
+  EXPECT_EQ(stage.front().nodes.size(), 1u) << "the root, the initial cut";
+  EXPECT_EQ(stage.counters().invalid_cuts, 1u);
+  ASSERT_TRUE(stage.poll().requested);
+  stage.step();
+  const FrameLists f = stage.poll();
+  EXPECT_TRUE(f.exchanged);
+  EXPECT_EQ(TreeCut::validate(*f.current.hierarchy, f.current.nodes), "");
+}
+
+TEST(FeedbackStage, TheFullCheckCatchesADuplicateWithTheRightPointTotal) {
+  StageOptions o = manual();
+  o.validate = true;
+  FeedbackStage stage(sphere_model(),
+                      std::make_unique<MisbehavingStrategy>(MisbehavingStrategy::Fault::Duplicate,
+                                                            Strategy::Mode::Rebuild),
+                      o);
+  stage.poll();
+  stage.step();
+  const std::string m = poll_error(stage);
+  EXPECT_NE(m.find("returned an invalid cut: node "), std::string::npos) << m;
+  EXPECT_NE(m.find("listed twice"), std::string::npos) << m;
 }
 
 TEST(FeedbackStage, SwitchingToARecursiveStrategyAndBackKeepsTheCutValid) {

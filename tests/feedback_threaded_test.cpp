@@ -6,7 +6,13 @@
 #include <atomic>
 #include <chrono>
 #include <memory>
+#include <string>
 #include <thread>
+
+#if defined(__linux__)
+#include <sched.h>
+#include <time.h>
+#endif
 
 #include "strategy_fixtures.hpp"
 #include "treecut/feedback_stage.hpp"
@@ -143,6 +149,155 @@ TEST(FeedbackThread, EveryIdlePolicyPicksUpRequests) {
     EXPECT_EQ(TreeCut::validate(*stage.front().hierarchy, stage.front().nodes), "") << p.name;
   }
 }
+
+// Ignores cancellation until the test lets it go (a plugin that checks
+// in.cancelled() too rarely, or never).
+class StubbornStrategy final : public Strategy {
+ public:
+  StubbornStrategy(std::atomic<int>* entered, std::atomic<bool>* release)
+      : Strategy({}), entered_(entered), release_(release) {}
+  [[nodiscard]] std::string_view name() const override { return "stubborn"; }
+  [[nodiscard]] Mode mode() const override { return Mode::Evolve; }
+  void reset(const Hierarchy&) override {}
+  void iterate(const IterationInput&, IterationOutput& out) override {
+    entered_->fetch_add(1);
+    entered_->notify_all();
+    for (bool r = release_->load(); !r; r = release_->load()) release_->wait(r);
+    out.result.cancelled = true;
+  }
+
+ private:
+  std::atomic<int>* entered_;
+  std::atomic<bool>* release_;
+};
+
+TEST(FeedbackThread, AStrategyIgnoringCancellationIsReportedByTheDestructor) {
+  std::atomic<int> entered{0};
+  std::atomic<bool> release{false};
+  std::string report;
+  {
+    StageOptions o;
+    o.cancel_timeout = std::chrono::milliseconds(20);
+    o.on_slow_cancel = [&](const std::string& what) {
+      report = what;  // the destructor's thread; read after it returned
+      release.store(true);
+      release.notify_all();
+    };
+    auto s = std::make_unique<StubbornStrategy>(&entered, &release);
+    s->set_origin("/plugins/libstubborn.so");
+    FeedbackStage stage(model(), std::move(s), o);
+    ASSERT_TRUE(stage.poll().requested);
+    wait_until_entered(entered, 1);
+  }  // cancels; the strategy ignores it; reported, then it is let go and joined
+  EXPECT_EQ(report.rfind("strategy 'stubborn' (plugin /plugins/libstubborn.so) ignored "
+                         "cancellation for ",
+                         0),
+            0u)
+      << report;
+}
+
+class ThrowIntStrategy final : public Strategy {
+ public:
+  ThrowIntStrategy() : Strategy({}) {}
+  [[nodiscard]] std::string_view name() const override { return "throws_int"; }
+  [[nodiscard]] Mode mode() const override { return Mode::Evolve; }
+  void reset(const Hierarchy&) override {}
+  void iterate(const IterationInput&, IterationOutput&) override { throw 42; }
+};
+
+TEST(FeedbackThread, AnIntThrownOnTheStageThreadReachesPollAsAStrategyError) {
+  FeedbackStage stage(model(), std::make_unique<ThrowIntStrategy>());
+  std::string what;
+  while (what.empty()) {
+    try {
+      stage.poll();
+    } catch (const StrategyError& e) {
+      what = e.what();
+    }
+    std::this_thread::yield();
+  }
+  EXPECT_EQ(what, "strategy 'throws_int': threw an exception of type int");
+  EXPECT_EQ(stage.counters().errors, 1u);
+  EXPECT_EQ(stage.front().generation, 1u);
+}
+
+#if defined(__linux__)
+// Burns `work` of its own thread's CPU time per iteration: a stage thread
+// that gets no CPU makes no progress.
+class BurnStrategy final : public Strategy {
+ public:
+  explicit BurnStrategy(std::chrono::nanoseconds work) : Strategy({}), work_(work) {}
+  [[nodiscard]] std::string_view name() const override { return "burn"; }
+  [[nodiscard]] Mode mode() const override { return Mode::Evolve; }
+  void reset(const Hierarchy&) override {}
+  void iterate(const IterationInput& in, IterationOutput&) override {
+    const auto start = thread_cpu();
+    while (thread_cpu() - start < work_ && !in.cancelled()) {
+    }
+    // The policy the work finished under (SCHED_OTHER once raised).
+    if (sched_getscheduler(0) == SCHED_OTHER) raised.fetch_add(1);
+  }
+  std::atomic<int> raised{0};
+
+ private:
+  static std::chrono::nanoseconds thread_cpu() {
+    timespec t{};
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+    return std::chrono::seconds(t.tv_sec) + std::chrono::nanoseconds(t.tv_nsec);
+  }
+  std::chrono::nanoseconds work_;
+};
+
+// The starvation: an Idle stage beside a CPU hog on the same core.
+// Both this thread and the hog run at normal priority on one CPU, so the
+// SCHED_IDLE stage gets (nearly) nothing unless poll() raises it once a
+// request has waited past the bound. Without the raise each 20 ms iteration
+// takes about 7 s of wall time here (SCHED_IDLE weighs 3 against 1024).
+TEST(FeedbackThread, AStarvedIdleStageIsRaisedUntilItsIterationIsDone) {
+  cpu_set_t before;
+  ASSERT_EQ(sched_getaffinity(0, sizeof before, &before), 0);
+  cpu_set_t one;
+  CPU_ZERO(&one);
+  for (int c = 0; c < CPU_SETSIZE; ++c) {
+    if (CPU_ISSET(c, &before)) {
+      CPU_SET(c, &one);
+      break;
+    }
+  }
+  ASSERT_EQ(sched_setaffinity(0, sizeof one, &one), 0);  // this thread; new ones inherit it
+  std::atomic<bool> stop{false};
+  std::thread hog([&] {
+    while (!stop.load(std::memory_order_relaxed)) {
+    }
+  });
+  {
+    StageOptions o;
+    o.priority = StagePriority::Idle;
+    o.starvation_bound = std::chrono::milliseconds(5);
+    auto burn = std::make_unique<BurnStrategy>(std::chrono::milliseconds(20));
+    const BurnStrategy* b = burn.get();
+    FeedbackStage stage(model(), std::move(burn), o);
+    while (stage.counters().iterations < 3) {
+      stage.poll();
+      if (stage.counters().iterations == 0 && stage.counters().frames > 1000 &&
+          !stage.can_boost()) {
+        break;  // unprivileged: no raise possible (checked below)
+      }
+      std::this_thread::yield();
+    }
+    if (stage.can_boost()) {
+      EXPECT_GE(stage.counters().iterations, 3u);
+      EXPECT_GE(stage.counters().boosts, 1u);
+      EXPECT_GE(stage.counters().starved, stage.counters().boosts);
+      EXPECT_GE(b->raised.load(), 1) << "no iteration ran at the raised priority";
+    }
+    stop.store(true);
+    hog.join();
+    ASSERT_EQ(sched_setaffinity(0, sizeof before, &before), 0);
+    if (!stage.can_boost()) GTEST_SKIP() << "this process may not raise a thread's priority";
+  }
+}
+#endif
 
 }  // namespace
 }  // namespace treecut

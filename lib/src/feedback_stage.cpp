@@ -6,10 +6,15 @@
 // run/process with Extract, Iterate, Publish, the destructor); change both.
 #include "treecut/feedback_stage.hpp"
 
+#include <cxxabi.h>
+
 #include <algorithm>
 #include <cerrno>
 #include <chrono>
+#include <cstdio>
+#include <cstdlib>
 #include <stdexcept>
+#include <typeinfo>
 #include <utility>
 
 #if defined(__linux__)
@@ -25,25 +30,52 @@
 namespace treecut {
 namespace {
 
-// Called by the stage thread on itself. Best effort: on failure the thread
-// keeps its inherited priority.
-void lower_own_priority(StagePriority priority) {
 #if defined(__linux__)
+// Lowers a stage thread (`self`: the calling thread, else by its handle and
+// tid; Linux keeps a nice value per thread, so PRIO_PROCESS with a thread id
+// changes that thread only). `idle` chooses SCHED_IDLE over nice +19 for
+// Idle: only a process that may raise the thread again uses SCHED_IDLE,
+// since an unprivileged thread can never leave it (sched(7), RLIMIT_NICE).
+void apply_low_priority(pthread_t thread, int tid, int base_nice, StagePriority priority,
+                        bool idle) {
   if (priority == StagePriority::Low) {
-    // Linux keeps a nice value per thread: PRIO_PROCESS with a thread id
-    // changes this thread only.
-    const auto tid = static_cast<id_t>(syscall(SYS_gettid));
-    errno = 0;
-    const int nice = getpriority(PRIO_PROCESS, tid);
-    if (errno == 0) (void)setpriority(PRIO_PROCESS, tid, std::min(nice + 10, 19));
+    (void)setpriority(PRIO_PROCESS, static_cast<id_t>(tid), std::min(base_nice + 10, 19));
   } else if (priority == StagePriority::Idle) {
-    const sched_param param{};
-    (void)pthread_setschedparam(pthread_self(), SCHED_IDLE, &param);
+    if (idle) {
+      const sched_param param{};
+      (void)pthread_setschedparam(thread, SCHED_IDLE, &param);
+    } else {
+      (void)setpriority(PRIO_PROCESS, static_cast<id_t>(tid), 19);
+    }
   }
-#else
-  (void)priority;
-#endif
 }
+#endif
+
+// The name of the type of the exception being handled ("int", "std::string").
+std::string current_exception_type() {
+  const std::type_info* t = abi::__cxa_current_exception_type();
+  if (t == nullptr) return "unknown";
+  int status = 0;
+  char* demangled = abi::__cxa_demangle(t->name(), nullptr, nullptr, &status);
+  std::string name = status == 0 && demangled != nullptr ? demangled : t->name();
+  std::free(demangled);
+  return name;
+}
+
+#if !defined(NDEBUG)
+constexpr bool kCheckedBuild = true;
+#elif defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+constexpr bool kCheckedBuild = true;
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer) || \
+    __has_feature(undefined_behavior_sanitizer)
+constexpr bool kCheckedBuild = true;
+#else
+constexpr bool kCheckedBuild = false;
+#endif
+#else
+constexpr bool kCheckedBuild = false;
+#endif
 
 std::uint64_t ns_between(std::chrono::steady_clock::time_point a,
                          std::chrono::steady_clock::time_point b) {
@@ -52,6 +84,25 @@ std::uint64_t ns_between(std::chrono::steady_clock::time_point a,
 }
 
 }  // namespace
+
+bool validate_cuts_by_default() {
+  return kCheckedBuild;
+}
+
+std::string describe_strategy(std::string_view name, std::string_view origin) {
+  std::string d = "strategy '" + std::string(name) + "'";
+  if (origin == "built-in") {
+    d += " (built-in)";
+  } else if (!origin.empty()) {
+    d += " (plugin " + std::string(origin) + ")";
+  }
+  return d;
+}
+
+StrategyError::StrategyError(std::string strategy, std::string origin, const std::string& problem)
+    : std::runtime_error(describe_strategy(strategy, origin) + ": " + problem),
+      strategy_(std::move(strategy)),
+      origin_(std::move(origin)) {}
 
 FeedbackStage::FeedbackStage(Model model, std::unique_ptr<Strategy> strategy, StageOptions options)
     : options_(options) {
@@ -78,6 +129,7 @@ FeedbackStage::FeedbackStage(Model model, std::unique_ptr<Strategy> strategy, St
   hierarchy_ = std::move(model.hierarchy);
   cut_ = std::move(model.cut);
   strategy_ = std::move(strategy);
+  running_ = strategy_.get();
   strategy_->reset(*hierarchy_);
   if (options_.launch == Launch::Thread) thread_ = std::thread([this] { run(); });
 }
@@ -87,9 +139,34 @@ FeedbackStage::~FeedbackStage() {
   if (!thread_.joinable()) return;
   // Shutdown while Process runs: let the (cancelled) iteration return to Wait,
   // then tell the thread to exit. Only this thread moves Wait -> anything, so
-  // no request can slip in between.
-  while (state_.load(std::memory_order_acquire) == State::Process) {
-    state_.wait(State::Process, std::memory_order_acquire);
+  // no request can slip in between. A starved low-priority stage would reach
+  // the cancel check late: raise it first. The iteration reads the stage's
+  // lists, cut and hierarchy, so there is no safe way to leave without it:
+  // past cancel_timeout the wait is reported, then goes on.
+  using Clock = std::chrono::steady_clock;
+  if (state_.load(std::memory_order_acquire) == State::Process) {
+    set_boost(true);
+    const Clock::time_point since = Clock::now();
+    while (state_.load(std::memory_order_acquire) == State::Process &&
+           Clock::now() - since < options_.cancel_timeout) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    if (state_.load(std::memory_order_acquire) == State::Process) {
+      char seconds[32];
+      std::snprintf(seconds, sizeof seconds, "%.1f",
+                    std::chrono::duration<double>(Clock::now() - since).count());
+      const std::string what = describe_strategy(running_->name(), running_->origin()) +
+                               " ignored cancellation for " + seconds +
+                               " s; waiting for it to return";
+      if (options_.on_slow_cancel) {
+        options_.on_slow_cancel(what);
+      } else {
+        std::fprintf(stderr, "warning: %s\n", what.c_str());
+      }
+    }
+    while (state_.load(std::memory_order_acquire) == State::Process) {
+      state_.wait(State::Process, std::memory_order_acquire);
+    }
   }
   state_.store(State::Exit, std::memory_order_release);
   state_.notify_all();
@@ -97,7 +174,24 @@ FeedbackStage::~FeedbackStage() {
 }
 
 void FeedbackStage::run() {
-  lower_own_priority(options_.priority);
+#if defined(__linux__)
+  if (options_.priority != StagePriority::Normal) {
+    const int tid = static_cast<int>(syscall(SYS_gettid));
+    errno = 0;
+    const int nice = getpriority(PRIO_PROCESS, static_cast<id_t>(tid));
+    // May this thread be raised back once lowered? Try it on a small step:
+    // one nice level down, then back up (needs CAP_SYS_NICE or RLIMIT_NICE).
+    bool raisable = false;
+    if (errno == 0 && nice < 19 &&
+        setpriority(PRIO_PROCESS, static_cast<id_t>(tid), nice + 1) == 0) {
+      raisable = setpriority(PRIO_PROCESS, static_cast<id_t>(tid), nice) == 0;
+    }
+    stage_tid_ = tid;
+    base_nice_ = errno == 0 ? nice : 0;
+    apply_low_priority(pthread_self(), tid, base_nice_, options_.priority, raisable);
+    boostable_.store(raisable, std::memory_order_release);
+  }
+#endif
   for (;;) {
     if (await_request() == State::Exit) return;
     process();
@@ -141,8 +235,9 @@ bool FeedbackStage::step() {
 void FeedbackStage::process() {
   using Clock = std::chrono::steady_clock;
   Outbox out;
+  out.started = Clock::now();
   try {
-    const Clock::time_point t0 = Clock::now();
+    const Clock::time_point t0 = out.started;
     // Extract (figure 2): take the inputs the render thread handed over.
     bool reset = false;
     if (inbox_.strategy) {
@@ -161,9 +256,12 @@ void FeedbackStage::process() {
     inbox_.params.clear();
     std::swap(view_, inbox_.view);
     if (strategy_->mode() == Strategy::Mode::Evolve && cut_stale_) {
-      // The last iteration rebuilt the cut as a plain list: the front list
-      // (the render thread only reads it) is the cut to evolve.
-      cut_ = TreeCut::from_nodes(*hierarchy_, buffers_[inbox_.front].nodes);
+      // The last iteration rebuilt the cut as a plain list, or failed: the
+      // front list (the render thread only reads it) is the cut to evolve,
+      // unless it belongs to the hierarchy a failed model switch replaced.
+      const ListBuffer& front = buffers_[inbox_.front];
+      cut_ = front.hierarchy == hierarchy_ ? TreeCut::from_nodes(*hierarchy_, front.nodes)
+                                           : TreeCut::root_cut(*hierarchy_);
       cut_stale_ = false;
     }
     const Clock::time_point t1 = Clock::now();
@@ -178,6 +276,14 @@ void FeedbackStage::process() {
     output.queries = &back.queries;
     strategy_->iterate(input, output);
     const Clock::time_point t2 = Clock::now();
+
+    // The host checks what the strategy hands back before anybody draws it.
+    const bool evolve = strategy_->mode() == Strategy::Mode::Evolve;
+    if (std::string why = check_cut(evolve ? cut_.nodes() : std::span<const NodeId>(back.nodes));
+        !why.empty()) {
+      out.invalid_cut = true;
+      throw std::runtime_error("returned an invalid cut: " + why);
+    }
 
     // Publish in ascending id order, sorted here rather than on the render
     // thread (a renderer draws in id order, see CutBuffer::upload). The
@@ -203,13 +309,73 @@ void FeedbackStage::process() {
     out.iteration_ns = ns_between(t1, t2);
     out.publish_ns = ns_between(t2, t3);
   } catch (...) {
-    out.error = std::current_exception();
+    // Whatever the strategy threw (also `throw 42`) becomes one StrategyError
+    // naming it and its plugin; nothing escapes this thread (no terminate).
+    std::string problem;
+    try {
+      throw;
+    } catch (const std::exception& e) {
+      problem = out.invalid_cut ? e.what() : "threw " + current_exception_type() + ": " + e.what();
+    } catch (...) {
+      problem = "threw an exception of type " + current_exception_type();
+    }
+    const std::string_view name = strategy_ ? strategy_->name() : std::string_view("?");
+    const std::string origin = strategy_ ? strategy_->origin() : std::string();
+    try {
+      out.error = std::make_exception_ptr(StrategyError(std::string(name), origin, problem));
+    } catch (...) {
+      out.error = std::current_exception();  // bad_alloc while describing it
+    }
+    out.ready = false;
+    // An Evolve strategy may have left its cut half-changed: the next
+    // iteration starts again from the front list.
+    cut_stale_ = true;
   }
   outbox_ = std::move(out);
   // Back to Wait with release: the render thread that sees Wait sees the
   // back list and the outbox complete.
   state_.store(State::Wait, std::memory_order_release);
   state_.notify_all();
+}
+
+// Stage thread. Always: ids in range and the cut's points add up to the
+// leaf count (O(cut): catches an empty cut and a missing node). With
+// options_.validate: every leaf exactly once (TreeCut::validate).
+std::string FeedbackStage::check_cut(std::span<const NodeId> nodes) const {
+  const Hierarchy& h = *hierarchy_;
+  if (nodes.empty()) return "the cut is empty";
+  const std::uint32_t m = h.node_count();
+  const auto counts = h.arrays().point_count;
+  std::uint64_t points = 0;
+  for (const NodeId n : nodes) {
+    if (n >= m) return "node id " + std::to_string(n) + " out of range";
+    points += counts[n];
+  }
+  if (points != h.leaf_count()) {
+    return "its nodes hold " + std::to_string(points) + " points, the model has " +
+           std::to_string(h.leaf_count());
+  }
+  if (options_.validate) return TreeCut::validate(h, nodes);
+  return {};
+}
+
+// Render thread: raises the stage thread to the priority it started with
+// (starved request, shutdown), or lowers it again.
+void FeedbackStage::set_boost(bool on) {
+#if defined(__linux__)
+  if (on == boosted_ || !boostable_.load(std::memory_order_acquire)) return;
+  boosted_ = on;
+  if (on) {
+    ++counters_.boosts;
+    const sched_param param{};
+    (void)pthread_setschedparam(thread_.native_handle(), SCHED_OTHER, &param);
+    (void)setpriority(PRIO_PROCESS, static_cast<id_t>(stage_tid_), base_nice_);
+  } else {
+    apply_low_priority(thread_.native_handle(), stage_tid_, base_nice_, options_.priority, true);
+  }
+#else
+  (void)on;
+#endif
 }
 
 FrontList FeedbackStage::list_of(std::uint32_t index) const {
@@ -264,6 +430,7 @@ bool FeedbackStage::request() {
   inbox_.view.frame = counters_.frames;
   pending_.view.visibility.clear();
   pending_.view_changed = false;
+  if (pending_.strategy) running_ = pending_.strategy.get();
   inbox_.strategy = std::move(pending_.strategy);
   inbox_.params.swap(pending_.params);
   if (pending_.model) {
@@ -274,6 +441,8 @@ bool FeedbackStage::request() {
   inbox_.front = front_;
   inbox_.generation = next_generation_++;
   frames_at_request_ = counters_.frames;
+  requested_at_ = std::chrono::steady_clock::now();
+  starved_ = false;
   in_flight_ = true;
   ++counters_.requests;
   // A cancel stored before this point was for an earlier iteration. Cleared
@@ -296,12 +465,35 @@ FrameLists FeedbackStage::poll() {
     blending_.reset();
   }
   // The lock-free query of figure 2.
-  if (state_.load(std::memory_order_acquire) == State::Wait) {
+  const State state = state_.load(std::memory_order_acquire);
+  if (state == State::Process && in_flight_ && !starved_ &&
+      std::chrono::steady_clock::now() - requested_at_ >= options_.starvation_bound) {
+    // Bounded wait: a Low/Idle stage that has not delivered within the bound
+    // runs at the creator's priority until this iteration is done.
+    starved_ = true;
+    ++counters_.starved;
+    set_boost(true);
+  }
+  if (state == State::Wait) {
     if (in_flight_) {
       in_flight_ = false;
+      set_boost(false);
       counters_.frames_last_iteration = counters_.frames - frames_at_request_;
+      const auto wait = outbox_.started - requested_at_;
+      counters_.wait_ns_last =
+          wait.count() > 0 ? static_cast<std::uint64_t>(
+                                 std::chrono::duration_cast<std::chrono::nanoseconds>(wait).count())
+                           : 0;
+      counters_.wait_ns_max = std::max(counters_.wait_ns_max, counters_.wait_ns_last);
       if (outbox_.error) {
         buffers_[back_].use = BufferUse::Free;
+        ++counters_.errors;
+        if (outbox_.invalid_cut) ++counters_.invalid_cuts;
+        try {
+          std::rethrow_exception(outbox_.error);
+        } catch (const std::exception& e) {
+          counters_.last_error = e.what();
+        }
         std::rethrow_exception(std::exchange(outbox_.error, nullptr));
       }
       ++counters_.iterations;

@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "treecut/error.hpp"
+#include "treecut/file_io.hpp"
 #include "treecut/plugin.hpp"
 
 namespace treecut {
@@ -36,7 +37,14 @@ bool StrategyRegistry::contains(std::string_view name) const {
 }
 
 std::unique_ptr<Strategy> StrategyRegistry::create(std::string_view name) const {
-  if (const Entry* e = find(name)) return e->factory();
+  if (const Entry* e = find(name)) {
+    std::unique_ptr<Strategy> s = e->factory();
+    if (!s)
+      throw std::runtime_error("strategy '" + e->info.name + "' (" + e->info.origin +
+                               "): the factory returned no strategy");
+    s->set_origin(e->info.origin);
+    return s;
+  }
   std::string known;
   for (const std::string& n : names()) known += (known.empty() ? "" : ", ") + n;
   throw InputError("unknown strategy '" + std::string(name) + "' (known: " + known + ")");
@@ -60,6 +68,11 @@ std::vector<std::string> StrategyRegistry::names() const {
 
 void StrategyRegistry::load_plugin(const std::filesystem::path& path) {
   const std::string where = path.string();
+  // dlopen() of a FIFO blocks in open() and of a device reads from it: a path
+  // (a bare name is searched on the library path instead) must be a regular
+  // file. A missing one is left to dlopen's own message.
+  if (where.find('/') != std::string::npos && file_kind(path) != FileKind::Missing)
+    require_regular_file(path);
   // RTLD_LOCAL: two plugins may define the same internal symbols. The handle is
   // never closed (see the header), so it is deliberately not kept.
   void* handle = dlopen(where.c_str(), RTLD_NOW | RTLD_LOCAL);

@@ -33,9 +33,11 @@
 #include <chrono>
 #include <cstdint>
 #include <exception>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <span>
+#include <stdexcept>
 #include <string>
 #include <thread>
 #include <vector>
@@ -67,6 +69,32 @@ enum class StagePriority {
   Idle,    ///< SCHED_IDLE: runs only on a core no other thread wants
 };
 
+/// Whether the stage checks every cut a strategy hands back with
+/// TreeCut::validate (every leaf covered exactly once; O(hierarchy) per
+/// iteration): true in Debug and sanitizer builds of the library, false in
+/// Release. A cheaper check (ids in range, the cut's point count equals the
+/// leaf count: O(cut)) always runs. See docs/plugin-guide.md, "Checked cuts".
+[[nodiscard]] bool validate_cuts_by_default();
+
+/// A strategy failed: it threw (anything, not only a std::exception) or
+/// handed back a cut that does not cover every leaf exactly once. what() is
+/// one line: "strategy 'NAME' (plugin PATH): PROBLEM" ("(built-in)" for the
+/// library's own). The front list stays what it was; the stage goes on.
+class StrategyError : public std::runtime_error {
+ public:
+  StrategyError(std::string strategy, std::string origin, const std::string& problem);
+  [[nodiscard]] const std::string& strategy() const { return strategy_; }
+  [[nodiscard]] const std::string& origin() const { return origin_; }
+
+ private:
+  std::string strategy_;
+  std::string origin_;
+};
+
+/// "strategy 'NAME' (plugin PATH)", "strategy 'NAME' (built-in)" or
+/// "strategy 'NAME'" for an empty origin.
+[[nodiscard]] std::string describe_strategy(std::string_view name, std::string_view origin);
+
 struct StageOptions {
   unsigned list_buffers = 3;  ///< >= 2 (front + back); more absorb late releases and blending
   StagePriority priority = StagePriority::Normal;
@@ -84,6 +112,24 @@ struct StageOptions {
   std::chrono::microseconds idle_spin{50};
   std::chrono::microseconds idle_poll_interval{200};
   std::chrono::microseconds idle_park_after{100'000};
+  /// Low or Idle priority must not become starvation: when a request has
+  /// waited this long for its result, poll() raises the stage thread to the
+  /// creator's priority until that iteration is done (one system call each
+  /// way). Where the process may not raise a thread's priority again
+  /// (unprivileged, RLIMIT_NICE 0), Idle becomes nice +19 instead of
+  /// SCHED_IDLE, which the scheduler never starves entirely.
+  /// docs/threading.md, "Thread priority".
+  std::chrono::milliseconds starvation_bound{100};
+  /// Check every cut a strategy returns with TreeCut::validate (see above).
+  bool validate = validate_cuts_by_default();
+  /// The destructor cancels a running iteration and waits for it. A strategy
+  /// that is still running after `cancel_timeout` is reported through
+  /// `on_slow_cancel` (one line naming strategy and plugin; default: stderr);
+  /// the destructor then goes on waiting, since the iteration holds references
+  /// into the stage's lists, cut and hierarchy. A program about to exit may
+  /// end the process in the callback (treecut does).
+  std::chrono::milliseconds cancel_timeout{2000};
+  std::function<void(const std::string&)> on_slow_cancel;
 };
 
 /// A list the renderer may draw. `nodes` and `hierarchy` stay valid until the
@@ -121,6 +167,17 @@ struct StageCounters {
   std::uint64_t extract_ns_total = 0;
   std::uint64_t publish_ns_last = 0;        ///< copying the cut into the back list
   std::uint64_t frames_last_iteration = 0;  ///< frames rendered while the last iteration ran
+  /// Wait from a request to the start of its iteration: the last, the worst.
+  std::uint64_t wait_ns_last = 0;
+  std::uint64_t wait_ns_max = 0;
+  /// Requests whose result took longer than StageOptions::starvation_bound.
+  std::uint64_t starved = 0;
+  /// Times poll() raised the stage's priority for a starved request.
+  std::uint64_t boosts = 0;
+  /// Iterations that failed (StrategyError), of them with an invalid cut.
+  std::uint64_t errors = 0;
+  std::uint64_t invalid_cuts = 0;
+  std::string last_error;  ///< what() of the last StrategyError
   bool converged = false;
   IterationResult last;  ///< counters of the last completed iteration
 };
@@ -137,7 +194,9 @@ class FeedbackStage {
   FeedbackStage& operator=(const FeedbackStage&) = delete;
 
   /// Once per frame, render thread; never blocks. Exchanges and requests as
-  /// described above. Rethrows an exception that escaped the strategy.
+  /// described above. Throws StrategyError when the last iteration failed
+  /// (the strategy threw, or its cut was invalid): the counters record it,
+  /// the front list stays, and the next poll() requests again.
   FrameLists poll();
 
   /// The view of the next request. Its `version` decides whether the view
@@ -169,6 +228,10 @@ class FeedbackStage {
   /// iteration if one was requested. Returns whether it ran.
   bool step();
 
+  /// Whether poll() can raise a starved Low/Idle stage thread (known once the
+  /// thread has started; false for Normal, Launch::Manual and elsewhere).
+  [[nodiscard]] bool can_boost() const { return boostable_.load(std::memory_order_acquire); }
+
  private:
   enum class State : std::uint32_t { Wait, Process, Exit };
   enum class BufferUse : std::uint8_t { Free, Back, Front, Blending, Retired };
@@ -193,6 +256,8 @@ class FeedbackStage {
   // Written by the stage in Process, read by the render thread in Wait.
   struct Outbox {
     bool ready = false;
+    std::chrono::steady_clock::time_point started;  // the iteration's start
+    bool invalid_cut = false;
     IterationResult result;
     std::uint64_t iteration_ns = 0;
     std::uint64_t extract_ns = 0;
@@ -217,6 +282,8 @@ class FeedbackStage {
   bool request();
   [[nodiscard]] std::optional<std::uint32_t> free_buffer() const;
   [[nodiscard]] FrontList list_of(std::uint32_t index) const;
+  void set_boost(bool on);
+  [[nodiscard]] std::string check_cut(std::span<const NodeId> nodes) const;
 
   StageOptions options_;
   std::atomic<State> state_{State::Wait};
@@ -225,6 +292,11 @@ class FeedbackStage {
   // false the stage checks the state by itself and request() skips the
   // notification (a system call).
   std::atomic<bool> parked_{false};
+  // Set by the stage thread once it has applied its priority: its thread id,
+  // the nice value it started with, whether that can be restored later.
+  std::atomic<bool> boostable_{false};
+  int stage_tid_ = 0;
+  int base_nice_ = 0;
   std::vector<ListBuffer> buffers_;
   Inbox inbox_;
   Outbox outbox_;
@@ -242,6 +314,10 @@ class FeedbackStage {
   std::uint64_t next_generation_ = 2;
   std::uint64_t frames_at_request_ = 0;
   bool converged_ = false;
+  std::chrono::steady_clock::time_point requested_at_;
+  bool boosted_ = false;
+  bool starved_ = false;               // the in-flight request passed the bound
+  const Strategy* running_ = nullptr;  // the strategy of the in-flight iteration
 
   // Stage thread only (in Process).
   std::shared_ptr<const Hierarchy> hierarchy_;

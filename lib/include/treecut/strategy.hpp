@@ -43,6 +43,7 @@
 #include <memory>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "treecut/hierarchy.hpp"
@@ -134,6 +135,12 @@ class Strategy {
   /// IterationInput::params_version.
   [[nodiscard]] std::uint64_t params_version() const { return params_version_; }
 
+  /// Where the strategy's code comes from: "built-in", a plugin's path, or
+  /// empty for an instance made directly. StrategyRegistry::create sets it;
+  /// the stage names it in every error of the strategy.
+  [[nodiscard]] const std::string& origin() const { return origin_; }
+  void set_origin(std::string origin) { origin_ = std::move(origin); }
+
  protected:
   explicit Strategy(std::vector<ParamSpec> specs);
   /// The value of param_specs()[index]; the hot path reads parameters this way.
@@ -143,6 +150,7 @@ class Strategy {
   std::vector<ParamSpec> specs_;
   std::vector<double> values_;
   std::uint64_t params_version_ = 0;
+  std::string origin_;
 };
 
 /// Checks `value` against `spec`; returns an empty string or the problem.
