@@ -16,6 +16,7 @@
 #include "treecut/splat/camera_path.hpp"
 #include "treecut/splat/context.hpp"
 #include "treecut/splat/image.hpp"
+#include "view_script.hpp"
 #include "viewer.hpp"
 
 namespace treecut::cli {
@@ -332,8 +333,9 @@ void add_render_commands(CLI::App& app) {
   auto* render = app.add_subcommand(
       "render", "Render frames headless (OSMesa) along a camera path; write PNGs and statistics");
   add_scene_options(*render, ra->scene);
-  render->add_option("--path", ra->path, "Camera path file (default: one orbit around the model)")
-      ->check(CLI::ExistingFile);
+  // No CLI::ExistingFile on --path/--script: load_camera_path and
+  // load_view_script say what a bad path is ("is a FIFO", "is a directory").
+  render->add_option("--path", ra->path, "Camera path file (default: one orbit around the model)");
   render->add_option("-n,--frames", ra->frames, "Frames along the path")
       ->check(CLI::Range(1, 1000000))
       ->capture_default_str();
@@ -370,16 +372,24 @@ void add_render_commands(CLI::App& app) {
   view->add_option("--height", va->height, "Window height")
       ->check(CLI::Range(16, 8192))
       ->capture_default_str();
-  view->add_option("--path", va->path, "Replay this camera path")->check(CLI::ExistingFile);
+  view->add_option("--path", va->path, "Replay this camera path");
   view->add_option("--script", va->script,
-                   "Scripted run (see docs/camera-paths.md): replay, screenshot, exit")
-      ->check(CLI::ExistingFile);
+                   "Scripted run (see docs/camera-paths.md): replay, screenshot, exit");
   view->add_option("--screenshot-dir", va->screenshot_dir, "Where F12 / scripts save PNGs")
       ->capture_default_str();
   view->add_option("--target-fps", va->target_fps,
                    "Adapt the strategy's budget to hold this frame rate (0 = off)")
       ->check(CLI::Range(0.0, 1000.0));
   view->callback([va] {
+    // The text inputs are checked before a window opens (and where there is
+    // no display): a bad path or script is exit 2 with FILE:LINE.
+    if (!va->path.empty()) (void)splat::load_camera_path(va->path);
+    if (!va->script.empty()) {
+      const StrategyRegistry registry = make_registry(va->scene);
+      ScriptChecks checks{&registry, va->scene.strategies.empty() ? std::string("optimization")
+                                                                  : va->scene.strategies.front()};
+      (void)load_view_script(va->script, checks);
+    }
     const int code = run_viewer(*va);
     if (code != 0) throw std::runtime_error("viewer failed");
   });

@@ -30,64 +30,12 @@
 #include "treecut/splat/frame_rate.hpp"
 #include "treecut/splat/gl.hpp"
 #include "treecut/splat/image.hpp"
+#include "view_script.hpp"
 #include "viewer.hpp"
 
 namespace treecut::cli {
 
 namespace {
-
-// ---------------------------------------------------------------------------
-// Scripted runs (docs/camera-paths.md): one command per line.
-struct ScriptCommand {
-  std::string verb;
-  std::string arg;
-  double number = 0.0;
-};
-
-std::vector<ScriptCommand> load_script(const std::filesystem::path& file) {
-  std::ifstream in(file);
-  if (!in) throw InputError(file.string() + ": cannot open script");
-  std::vector<ScriptCommand> out;
-  std::string line;
-  int n = 0;
-  bool header = false;
-  while (std::getline(in, line)) {
-    ++n;
-    const auto hash = line.find('#');
-    if (hash != std::string::npos) line.resize(hash);
-    std::istringstream ls(line);
-    ScriptCommand c;
-    if (!(ls >> c.verb)) continue;
-    const std::string where = file.string() + ":" + std::to_string(n) + ": ";
-    if (!header) {
-      std::string version;
-      ls >> version;
-      if (c.verb != "treecut-view-script" || version != "1") {
-        throw InputError(where + "expected 'treecut-view-script 1'");
-      }
-      header = true;
-      continue;
-    }
-    if (c.verb == "frames" || c.verb == "converge") {
-      if (!(ls >> c.number) || c.number < 0) throw InputError(where + c.verb + " needs a count");
-    } else if (c.verb == "play" || c.verb == "screenshot" || c.verb == "strategy" ||
-               c.verb == "mode") {
-      if (!(ls >> c.arg)) throw InputError(where + c.verb + " needs an argument");
-      if (c.verb == "play") c.arg = (file.parent_path() / c.arg).string();
-      if (c.verb == "play") (void)splat::load_camera_path(c.arg);  // fail early
-      if (c.verb == "mode") (void)splat::parse_splat_mode(c.arg);
-    } else if (c.verb == "param") {
-      if (!(ls >> c.arg >> c.number)) throw InputError(where + "param needs NAME VALUE");
-    } else if (c.verb == "orbit") {
-      if (!(ls >> c.number)) throw InputError(where + "orbit needs degrees");
-    } else if (c.verb != "exit" && c.verb != "fit") {
-      throw InputError(where + "unknown command '" + c.verb + "'");
-    }
-    out.push_back(c);
-  }
-  if (!header) throw InputError(file.string() + ": empty script");
-  return out;
-}
 
 // ---------------------------------------------------------------------------
 struct Input {
@@ -106,7 +54,7 @@ class Viewer {
         registry_(make_registry(args.scene)),
         settings_(render_settings(args.scene)),
         window_(splat::WindowOptions{args.width, args.height, "treecut", false}) {
-    if (!args.script.empty()) script_ = load_script(args.script);
+    if (!args.script.empty()) script_ = load_view_script(args.script);
     if (!args.path.empty()) path_ = splat::load_camera_path(args.path);
     scene_ = load_scene(args.scene);
     glfwSetWindowTitle(window_.handle(), ("treecut - " + scene_.label).c_str());

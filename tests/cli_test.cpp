@@ -1,8 +1,10 @@
 // The `treecut` program: exit codes (0 ok, 1 runtime failure, 2 bad input),
 // --help on every command, no output written on failure.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <array>
 #include <cstdio>
 #include <fstream>
@@ -65,4 +67,147 @@ TEST(Cli, MalformedPlyExitsWithTwoAndWritesNothing) {
   }
   EXPECT_GE(checked, 10);
   EXPECT_TRUE(fs::is_empty(dir)) << "no partial output of any kind";
+}
+
+// -- text inputs and usage messages (issue 9: nothing hangs, nothing reads
+// without bound; messages that name the real problem) ------------------------
+
+namespace {
+
+constexpr const char* kFastRender =
+    "render --default-points 2000 --width 64 --height 48 --frames 2 --warmup 0 --no-png";
+
+std::size_t lines_of(const std::string& out) {
+  return static_cast<std::size_t>(std::count(out.begin(), out.end(), '\n'));
+}
+
+void write_file(const fs::path& file, const std::string& text) {
+  std::ofstream out(file, std::ios::binary);
+  out << text;
+  ASSERT_TRUE(out.good()) << file;
+}
+
+}  // namespace
+
+TEST(Cli, TextInputsAndPluginsThatAreNotRegularFilesAreNamedAtOnce) {
+  const fs::path dir = treecut::test::scratch_dir("cli_special_inputs");
+  ASSERT_EQ(::mkfifo((dir / "fifo").c_str(), 0600), 0);
+  fs::create_directories(dir / "folder");
+  const std::pair<fs::path, const char*> specials[] = {{dir / "fifo", "is a FIFO"},
+                                                       {dir / "folder", "is a directory"},
+                                                       {"/dev/zero", "is a character device"}};
+  const std::string out = " --out " + treecut::test::quote(dir / "out");
+  for (const auto& [path, named] : specials) {
+    const std::string p = treecut::test::quote(path);
+    for (const std::string& args :
+         {std::string(kFastRender) + out + " --path " + p, "view --path " + p, "view --script " + p,
+          "strategies --plugin " + p, std::string(kFastRender) + out + " --plugin " + p}) {
+      // 60 s: a command that blocks in open() or reads /dev/zero is killed (124).
+      const treecut::test::CommandResult r = treecut::test::run_treecut(args, 60);
+      EXPECT_EQ(r.code, 2) << args << "\n" << r.out;
+      EXPECT_NE(r.out.find(path.string() + ": " + named), std::string::npos) << args << "\n"
+                                                                             << r.out;
+      EXPECT_EQ(r.out.find("no such file"), std::string::npos) << r.out;
+      EXPECT_EQ(lines_of(r.out), 1u) << args << "\n" << r.out;
+    }
+  }
+  EXPECT_FALSE(fs::exists(dir / "out")) << "nothing written before the inputs were checked";
+}
+
+TEST(Cli, TextInputsOverTheLimitAreRefused) {
+  const fs::path dir = treecut::test::scratch_dir("cli_big_inputs");
+  const std::string filler = "# " + std::string(1000, 'x') + "\n";
+  std::string path = "treecut-camera-path 1\n0 0 0 5 0 0 0 0 1 0 45\n";
+  std::string script = "treecut-view-script 1\nexit\n";
+  while (path.size() < (std::size_t{17} << 20)) path += filler, script += filler;
+  write_file(dir / "big.campath", path);
+  write_file(dir / "big.script", script);
+  for (const std::string& args :
+       {std::string(kFastRender) + " --out " + treecut::test::quote(dir / "out") + " --path " +
+            treecut::test::quote(dir / "big.campath"),
+        "view --path " + treecut::test::quote(dir / "big.campath"),
+        "view --script " + treecut::test::quote(dir / "big.script")}) {
+    const treecut::test::CommandResult r = treecut::test::run_treecut(args, 60);
+    EXPECT_EQ(r.code, 2) << args << "\n" << r.out;
+    EXPECT_NE(r.out.find(": larger than 16777216 bytes"), std::string::npos) << r.out;
+    EXPECT_EQ(lines_of(r.out), 1u) << r.out;
+  }
+}
+
+TEST(Cli, NumbersThatDoNotFitAndBadKeysNameFileAndLine) {
+  const fs::path dir = treecut::test::scratch_dir("cli_bad_numbers");
+  const std::string head = "treecut-camera-path 1\n0 0 0 5 0 0 0 0 1 0 45\n";
+  const std::pair<std::string, std::string> paths[] = {
+      {"1e400 0 0 5 0 0 0 0 1 0 45", "time.campath:3: time '1e400' is out of range"},
+      {"1 0 0 5 0 0 0 0 0 1 45", "up.campath:3: up vector is parallel to the view direction"},
+      {"1 0 0 5 0 0 0 0 1 0 200", "fov.campath:3: fov_y_deg outside (1, 170)"},
+  };
+  for (const auto& [key, says] : paths) {
+    const fs::path file = dir / says.substr(0, says.find(':'));
+    write_file(file, head + key + "\n");
+    const treecut::test::CommandResult r = treecut::test::run_treecut(
+        std::string(kFastRender) + " --out " + treecut::test::quote(dir / "out") + " --path " +
+        treecut::test::quote(file));
+    EXPECT_EQ(r.code, 2) << r.out;
+    EXPECT_NE(r.out.find(file.string() + says.substr(says.find(':'))), std::string::npos) << r.out;
+    EXPECT_EQ(lines_of(r.out), 1u) << r.out;
+  }
+  const std::pair<std::string, std::string> scripts[] = {
+      {"frames 99999999999", "frames: '99999999999' is out of range"},
+      {"converge 1e30", "converge: '1e30' is not a whole number"},
+      {"frames -5", "frames: '-5' is out of range"},
+      {"param max_nodes 1e30", "param: max_nodes"},
+  };
+  for (const auto& [line, says] : scripts) {
+    const fs::path file = dir / "run.script";
+    write_file(file, "treecut-view-script 1\nframes 1\n" + line + "\nexit\n");
+    // Checked before a window opens: no display is needed for this.
+    const treecut::test::CommandResult r =
+        treecut::test::run_treecut("view --script " + treecut::test::quote(file), 60);
+    EXPECT_EQ(r.code, 2) << line << "\n" << r.out;
+    EXPECT_NE(r.out.find(file.string() + ":3: " + says), std::string::npos) << r.out;
+    EXPECT_EQ(lines_of(r.out), 1u) << r.out;
+  }
+  // A valid path still renders.
+  write_file(dir / "ok.campath", head + "1 0 5 0 0 0 0 0 0 1 45\n");
+  const treecut::test::CommandResult ok = treecut::test::run_treecut(
+      std::string(kFastRender) + " --out " + treecut::test::quote(dir / "out") + " --path " +
+      treecut::test::quote(dir / "ok.campath"));
+  EXPECT_EQ(ok.code, 0) << ok.out;
+}
+
+TEST(Cli, UnknownCommandsAndOptionsAreNamedOnOneLine) {
+  const std::pair<std::string, std::string> cases[] = {
+      {"frobnicate", "treecut: unknown command 'frobnicate' (see treecut --help)"},
+      {"--frobnicate", "treecut: unknown option '--frobnicate' (see treecut --help)"},
+      {"render --frobnicate=3", "treecut render: unknown option '--frobnicate'"},
+      {"info a.ply b.ply", "treecut info: unexpected argument 'b.ply'"},
+      {"bench frob", "treecut bench: unknown command 'frob' (see treecut bench --help)"},
+      {"", "treecut: no command given; one of build, info, gen"},
+  };
+  for (const auto& [args, says] : cases) {
+    const treecut::test::CommandResult r = treecut::test::run_treecut(args);
+    EXPECT_EQ(r.code, 2) << args << "\n" << r.out;
+    EXPECT_EQ(r.out.rfind(says, 0), 0u) << args << "\n" << r.out;
+    EXPECT_EQ(lines_of(r.out), 1u) << args << "\n" << r.out;
+  }
+}
+
+TEST(Cli, BenchBuildOnAMalformedPlyExitsWithTwoAndOneLine) {
+  const auto shared = treecut::test::shared_dir();
+  if (!shared) GTEST_SKIP() << "../shared is absent";
+  const fs::path bad = *shared / "ply-corpus" / "bad_format.ply";
+  if (!fs::exists(bad)) GTEST_SKIP() << bad << " is absent";
+  treecut::test::CommandResult r =
+      treecut::test::run_treecut("bench build -r 2 " + treecut::test::quote(bad));
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_EQ(r.out.rfind("treecut: " + bad.string() + ": ", 0), 0u) << r.out;
+  EXPECT_EQ(lines_of(r.out), 1u) << "no table header, no second message:\n" << r.out;
+  // A FIFO is refused before any run (a child would block on it).
+  const fs::path dir = treecut::test::scratch_dir("cli_bench_fifo");
+  ASSERT_EQ(::mkfifo((dir / "model.ply").c_str(), 0600), 0);
+  r = treecut::test::run_treecut("bench build " + treecut::test::quote(dir / "model.ply"), 60);
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_NE(r.out.find("model.ply: is a FIFO"), std::string::npos) << r.out;
+  EXPECT_EQ(lines_of(r.out), 1u) << r.out;
 }

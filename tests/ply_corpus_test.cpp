@@ -1,6 +1,7 @@
 // PLY import against the shared files: every entry of ply-corpus/MANIFEST.tsv
 // is one test named after its file, and the four real models in assets/ load
-// with their published counts.
+// with their published counts. The project's own corpus (tests/ply-corpus)
+// runs the same way, through load_ply and through `treecut build`.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -115,6 +116,153 @@ TEST(PlyCorpusManifest, ListsEveryCorpusFile) {
         << name << " is not in MANIFEST.tsv";
   }
   EXPECT_EQ(files, entries.size());
+}
+
+// ---- the project's own corpus: tests/ply-corpus ----------------------------
+//
+// Files written for this project (real-world ways a PLY fails to match its
+// header). MANIFEST.tsv has the shared corpus's columns plus `message`: the
+// one warning an `ok` file gives (empty: none), or the text of an error.
+
+struct ProjectEntry {
+  std::string file;
+  std::string expect;  // ok | error
+  std::size_t points = 0;
+  std::string what;
+  std::string message;
+};
+
+std::filesystem::path project_corpus() {
+  return std::filesystem::path(TREECUT_SOURCE_DIR) / "tests" / "ply-corpus";
+}
+
+std::vector<ProjectEntry> read_project_manifest() {
+  std::vector<ProjectEntry> entries;
+  std::ifstream in(project_corpus() / "MANIFEST.tsv");
+  std::string line;
+  std::getline(in, line);  // column names
+  while (std::getline(in, line)) {
+    if (line.empty()) continue;
+    std::istringstream fields(line);
+    ProjectEntry entry;
+    std::string points;
+    std::getline(fields, entry.file, '\t');
+    std::getline(fields, entry.expect, '\t');
+    std::getline(fields, points, '\t');
+    std::getline(fields, entry.what, '\t');
+    std::getline(fields, entry.message);
+    if (entry.expect == "ok") entry.points = std::stoul(points);
+    entries.push_back(entry);
+  }
+  return entries;
+}
+
+std::string project_test_name(const testing::TestParamInfo<ProjectEntry>& info) {
+  std::string name;
+  for (char c : info.param.file) name += std::isalnum(static_cast<unsigned char>(c)) ? c : '_';
+  return name;
+}
+
+std::vector<std::string> lines_of(const std::string& text) {
+  std::vector<std::string> lines;
+  std::istringstream in(text);
+  std::string line;
+  while (std::getline(in, line)) lines.push_back(line);
+  return lines;
+}
+
+class ProjectPlyCorpus : public testing::TestWithParam<ProjectEntry> {};
+
+TEST_P(ProjectPlyCorpus, LoadsAsTheManifestSays) {
+  const ProjectEntry& entry = GetParam();
+  const auto path = project_corpus() / entry.file;
+  SCOPED_TRACE(entry.file + ": " + entry.what);
+  std::vector<std::string> warnings;
+  auto warn = [&](const std::string& w) { warnings.push_back(w); };
+  if (entry.expect == "ok") {
+    PlyLoadReport report;
+    const PointSet points = load_ply(path, &report, warn);
+    EXPECT_EQ(points.size(), entry.points);
+    if (entry.message.empty()) {
+      EXPECT_TRUE(warnings.empty()) << warnings.front();
+    } else {
+      ASSERT_EQ(warnings.size(), 1u);
+      EXPECT_EQ(warnings[0].rfind(path.string() + ": ", 0), 0u) << warnings[0];
+      EXPECT_NE(warnings[0].find(entry.message), std::string::npos) << warnings[0];
+    }
+    // "without faces" in the warning is what the report and the points say.
+    const bool lost = entry.message.find("without faces") != std::string::npos;
+    EXPECT_EQ(report.faces_lost, lost);
+    if (lost) {
+      EXPECT_TRUE(points.triangles.empty());
+    }
+  } else {
+    ASSERT_EQ(entry.expect, "error");
+    try {
+      load_ply(path, nullptr, warn);
+      ADD_FAILURE() << "loaded without an error";
+    } catch (const InputError& e) {
+      const std::string message = e.what();
+      EXPECT_EQ(message.rfind(path.string() + ": ", 0), 0u) << message;
+      EXPECT_NE(message.find(entry.message), std::string::npos) << message;
+      EXPECT_EQ(message.find('\n'), std::string::npos) << message;
+    }
+    EXPECT_TRUE(warnings.empty()) << warnings.front();
+  }
+}
+
+// The same files through `treecut build`: exit 0 with exactly one warning line,
+// or exit 2 with exactly one line and no cache written.
+TEST_P(ProjectPlyCorpus, BuildCommandReportsItOnOneLine) {
+  const ProjectEntry& entry = GetParam();
+  const auto path = project_corpus() / entry.file;
+  const auto cache = treecut::test::scratch_dir("ply_corpus_cli_" + entry.file) / "out.tch";
+  const auto r = treecut::test::run_treecut("build " + treecut::test::quote(path) + " -o " +
+                                            treecut::test::quote(cache));
+  const std::vector<std::string> lines = lines_of(r.out);
+  if (entry.expect == "ok") {
+    EXPECT_EQ(r.code, 0) << r.out;
+    std::size_t warning_lines = 0;
+    for (const std::string& line : lines) {
+      if (line.rfind("warning: ", 0) != 0) continue;
+      ++warning_lines;
+      EXPECT_NE(line.find(entry.message), std::string::npos) << line;
+    }
+    EXPECT_EQ(warning_lines, entry.message.empty() ? 0u : 1u) << r.out;
+    EXPECT_NE(r.out.find("points      " + std::to_string(entry.points) + "\n"), std::string::npos)
+        << r.out;
+    EXPECT_TRUE(std::filesystem::exists(cache));
+  } else {
+    EXPECT_EQ(r.code, 2) << r.out;
+    ASSERT_EQ(lines.size(), 1u) << r.out;
+    EXPECT_EQ(lines[0].rfind("treecut: " + path.string() + ": ", 0), 0u) << lines[0];
+    EXPECT_NE(lines[0].find(entry.message), std::string::npos) << lines[0];
+    EXPECT_FALSE(std::filesystem::exists(cache));
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Manifest, ProjectPlyCorpus, testing::ValuesIn(read_project_manifest()),
+                         project_test_name);
+
+TEST(ProjectPlyCorpusManifest, ListsEveryCorpusFile) {
+  const auto entries = read_project_manifest();
+  ASSERT_FALSE(entries.empty()) << "tests/ply-corpus/MANIFEST.tsv is missing or empty";
+  std::size_t files = 0;
+  for (const auto& f : std::filesystem::directory_iterator(project_corpus())) {
+    if (f.path().extension() != ".ply") continue;
+    ++files;
+    const auto name = f.path().filename().string();
+    EXPECT_TRUE(std::any_of(entries.begin(), entries.end(),
+                            [&](const ProjectEntry& e) { return e.file == name; }))
+        << name << " is not in MANIFEST.tsv";
+  }
+  EXPECT_EQ(files, entries.size());
+  for (const ProjectEntry& e : entries) {
+    EXPECT_TRUE(e.expect == "ok" || e.expect == "error") << e.file << ": " << e.expect;
+    if (e.expect == "error") {
+      EXPECT_FALSE(e.message.empty()) << e.file;
+    }
+  }
 }
 
 TEST(PlySharedAssets, BunnyLoadsWithExactCounts) {

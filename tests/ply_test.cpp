@@ -543,11 +543,53 @@ TEST(PlyLoad, NonFinitePointsAreDroppedAndFacesRemapped) {
       << warnings[0];
 }
 
-TEST(PlyLoad, AllPointsNonFiniteIsAnError) {
-  const std::string file =
-      "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
-      "property float z\nend_header\nnan 0 0\n";
-  EXPECT_NE(error_of(file).find("mem.ply: no point has finite coordinates"), std::string::npos);
+TEST(PlyLoad, AllPointsNonFiniteIsOneErrorAndNoWarning) {
+  const std::string head =
+      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+      "property float z\nend_header\n";
+  const std::vector<std::pair<std::string, std::string>> cases{
+      {head + "nan 0 0\n0 inf 0\n-inf nan nan\n",
+       "mem.ply: no finite points (all 3 vertices are NaN or infinite)"},
+      {head + "nan 0 0\n1e30 0 0\n0 0 -inf\n",
+       "mem.ply: no finite points (all 3 vertices are NaN or infinite or beyond 1e18)"},
+      {"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+       "property float z\nend_header\nnan 0 0\n",
+       "mem.ply: no finite points (the only vertex is NaN or infinite)"},
+  };
+  for (const auto& [file, expected] : cases) {
+    std::vector<std::string> warnings;
+    try {
+      load(file, nullptr, &warnings);
+      ADD_FAILURE() << "loaded";
+    } catch (const InputError& e) {
+      EXPECT_EQ(std::string(e.what()), expected);
+    }
+    EXPECT_TRUE(warnings.empty()) << warnings.front();
+  }
+}
+
+TEST(PlyLoad, ByteOrderMarkAndCrOnlyLineEndingsAreNamed) {
+  const std::string lf = kAsciiTriangle;
+  std::string cr = lf;
+  std::replace(cr.begin(), cr.end(), '\n', '\r');
+  std::string crlf;
+  for (char c : lf) crlf += c == '\n' ? std::string("\r\n") : std::string(1, c);
+  EXPECT_EQ(error_of("\xEF\xBB\xBF" + lf),
+            "mem.ply: starts with a UTF-8 byte-order mark (3 bytes before 'ply'); save it without "
+            "one");
+  EXPECT_EQ(error_of(cr),
+            "mem.ply: uses CR-only line endings (classic Mac); convert them to LF or CRLF");
+  // A BOM wins over the line endings it precedes; CRLF stays accepted.
+  EXPECT_NE(error_of("\xEF\xBB\xBF" + cr).find("byte-order mark"), std::string::npos);
+  EXPECT_EQ(load(crlf).size(), 3u);
+  // Binary bodies may hold any byte, CR included: only the magic line counts.
+  Body body;
+  body.put(float(0.0f)).put(std::bit_cast<float>(0x0d0d0d0du)).put(1.0f);
+  EXPECT_EQ(load("ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\n"
+                 "property float y\nproperty float z\nend_header\n" +
+                 body.bytes)
+                .size(),
+            1u);
 }
 
 TEST(PlyLoad, TristripsBecomeTriangles) {
@@ -627,8 +669,6 @@ TEST(PlyLoad, MalformedFilesFailWithOneLineNamingTheProblem) {
       {h + xyz + "end_header\n1 2 1e39\n", "'1e39' is not a valid float"},
       {h + "property uchar x\nproperty float y\nproperty float z\nend_header\n256 0 0\n",
        "'256' is not a valid uchar"},
-      {h + xyz + "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n   \n",
-       "ascii body ends before element 'face' row 1 of 1"},
       {h + xyz + "end_header\n",
        "ascii body of 0 bytes is too short for element 'vertex' (1 rows)"},
   };
@@ -647,15 +687,171 @@ TEST(PlyLoad, AcceptsLeadingPlusAndUnderflowInAscii) {
   EXPECT_EQ(load(file).positions[0], glm::vec3(1.5f, 0.0f, 7.0f));
 }
 
-TEST(PlyLoad, NegativeListLengthInBinaryIsAnError) {
-  Body body;
-  body.put(0.0f).put(0.0f).put(0.0f).put(std::int8_t{-3});
-  const std::string file =
+TEST(PlyLoad, NegativeListLengthInBinaryIsAnErrorInVerticesAndAWarningInFaces) {
+  Body face;
+  face.put(0.0f).put(0.0f).put(0.0f).put(std::int8_t{-3});
+  const std::string faces =
       "ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\n"
       "property float y\nproperty float z\nelement face 1\n"
       "property list char int vertex_indices\nend_header\n" +
-      body.bytes;
-  EXPECT_NE(error_of(file).find("negative list length"), std::string::npos) << error_of(file);
+      face.bytes;
+  std::vector<std::string> warnings;
+  PlyLoadReport report;
+  EXPECT_EQ(load(faces, &report, &warnings).size(), 1u);
+  EXPECT_TRUE(report.faces_lost);
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_EQ(warnings[0],
+            "mem.ply: negative list length in element 'face' row 1 of 1; ignoring element 'face'; "
+            "the points load without faces, as a point cloud");
+
+  Body vertex;
+  vertex.put(0.0f).put(0.0f).put(0.0f).put(std::int8_t{-3});
+  const std::string in_vertex =
+      "ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\n"
+      "property float y\nproperty float z\nproperty list char int extra\nend_header\n" +
+      vertex.bytes;
+  EXPECT_EQ(error_of(in_vertex), "mem.ply: negative list length in element 'vertex' row 1 of 1");
+}
+
+// ---- later elements that do not match their header ------------------------
+
+// Five vertices, then whatever ELEMENTS declares; BODY follows the vertex rows.
+std::string five_points(const std::string& elements, const std::string& body) {
+  return "ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nproperty float y\n"
+         "property float z\n" +
+         elements + "end_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n2 2 1\n" + body;
+}
+
+const std::string kFaces = "element face 2\nproperty list uchar int vertex_indices\n";
+
+TEST(PlyLoad, AsciiFacesThatDoNotMatchTheHeaderAreDroppedWithOneWarning) {
+  // Line 15 is the first face row.
+  const std::vector<std::pair<std::string, std::string>> cases{
+      {"3 0 1 2 255 0 0\n3 0 2 3 255 0 0\n",
+       "line 15 (element 'face' row 1 of 2): more values than the header declares ('255')"},
+      {"3 0 1 2\n3 0 2\n",
+       "line 16 (element 'face' row 2 of 2): too few values, property 'vertex_indices' is "
+       "missing"},
+      {"3 0 1 2\n", "ascii body ends before element 'face' row 2 of 2"},
+      {"3 0 1 2\n200 0 2 3\n",
+       "line 16 (element 'face' row 2 of 2): list 'vertex_indices' is longer than its line"},
+      {"3 0 1 2\n-3 0 2 3\n",
+       "line 16 (element 'face' row 2 of 2): '-3' is not a valid uchar for property "
+       "'vertex_indices'"},
+      {"3 0 1 2\n3 0 x 3\n",
+       "line 16 (element 'face' row 2 of 2): 'x' is not a valid int for property "
+       "'vertex_indices'"},
+      {"3 0 1 2\n256 0 1 2\n",
+       "line 16 (element 'face' row 2 of 2): '256' is not a valid uchar for property "
+       "'vertex_indices'"},
+  };
+  for (const auto& [rows, problem] : cases) {
+    SCOPED_TRACE(rows);
+    std::vector<std::string> warnings;
+    PlyLoadReport report;
+    const PointSet p = load(five_points(kFaces, rows), &report, &warnings);
+    EXPECT_EQ(p.size(), 5u);
+    EXPECT_EQ(p.positions[4], glm::vec3(2, 2, 1));
+    EXPECT_TRUE(p.triangles.empty());
+    EXPECT_TRUE(report.faces_lost);
+    EXPECT_EQ(report.faces_in_file, 0u);
+    ASSERT_EQ(warnings.size(), 1u);
+    EXPECT_EQ(warnings[0], "mem.ply: " + problem +
+                               "; ignoring element 'face'; the points load without faces, as a "
+                               "point cloud");
+  }
+}
+
+TEST(PlyLoad, OtherLaterElementsThatDoNotMatchAreIgnoredAndTheMeshKept) {
+  const std::string camera = "element camera 1\nproperty float px\nproperty float py\n";
+  for (const std::string& row : {std::string("1\n"), std::string("1 2 3\n"), std::string("")}) {
+    SCOPED_TRACE(row);
+    std::vector<std::string> warnings;
+    PlyLoadReport report;
+    const PointSet p =
+        load(five_points(kFaces + camera, "3 0 1 2\n3 0 2 3\n" + row), &report, &warnings);
+    EXPECT_EQ(p.size(), 5u);
+    EXPECT_EQ(p.triangles, (std::vector<glm::uvec3>{{0, 1, 2}, {0, 2, 3}}));
+    EXPECT_FALSE(report.faces_lost);
+    // One warning: the element is not also listed as "ignoring element 'camera' (1 row)".
+    ASSERT_EQ(warnings.size(), 1u);
+    EXPECT_NE(warnings[0].find("element 'camera' row 1 of 1"), std::string::npos) << warnings[0];
+    EXPECT_NE(warnings[0].find("; ignoring element 'camera'"), std::string::npos) << warnings[0];
+    EXPECT_EQ(warnings[0].find("without faces"), std::string::npos) << warnings[0];
+  }
+}
+
+TEST(PlyLoad, AnAsciiElementBeforeTheVerticesMayBeBrokenLineByLine) {
+  const std::string file =
+      "ply\nformat ascii 1.0\nelement edge 2\nproperty int a\nproperty int b\n"
+      "element vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+      "element face 1\nproperty list uchar int vertex_indices\nend_header\n"
+      "0 1 7\n1 2\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+  std::vector<std::string> warnings;
+  const PointSet p = load(file, nullptr, &warnings);
+  EXPECT_EQ(p.positions, (std::vector<glm::vec3>{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}}));
+  EXPECT_EQ(p.triangles, (std::vector<glm::uvec3>{{0, 1, 2}}));
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_EQ(warnings[0],
+            "mem.ply: line 13 (element 'edge' row 1 of 2): more values than the header declares "
+            "('7'); ignoring element 'edge'");
+  // But an element before the vertices that is short leaves no room for them.
+  EXPECT_EQ(error_of("ply\nformat ascii 1.0\nelement edge 2\nproperty int a\n"
+                     "element vertex 1\nproperty float x\nproperty float y\nproperty float z\n"
+                     "end_header\n0\n        \n"),
+            "mem.ply: ascii body ends before element 'vertex' row 1 of 1");
+}
+
+TEST(PlyLoad, BinaryLaterElementsThatDoNotMatchAreWarnings) {
+  Body vertices;
+  for (int i = 0; i < 4; ++i) vertices.put(float(i)).put(float(i % 2)).put(0.0f);
+  Body faces;
+  for (int f = 0; f < 2; ++f) faces.put(std::uint8_t{3}).put(0).put(f + 1).put(f + 2);
+  const std::string head =
+      "ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\n"
+      "property float y\nproperty float z\nelement face 2\n"
+      "property list uchar int vertex_indices\n";
+  const std::string camera = "element camera 1\nproperty float px\nproperty float py\n";
+  {
+    // Cut inside the second face, with a camera element after it.
+    std::vector<std::string> warnings;
+    PlyLoadReport report;
+    const PointSet p =
+        load(head + camera + "end_header\n" + vertices.bytes + faces.bytes.substr(0, 20), &report,
+             &warnings);
+    EXPECT_EQ(p.size(), 4u);
+    EXPECT_TRUE(p.triangles.empty());
+    EXPECT_TRUE(report.faces_lost);
+    ASSERT_EQ(warnings.size(), 1u);
+    EXPECT_EQ(warnings[0],
+              "mem.ply: binary body is truncated inside element 'face' row 2 of 2; ignoring "
+              "element 'face' and the 1 element after it; the points load without faces, as a "
+              "point cloud");
+  }
+  {
+    // Faces complete, the camera element truncated: the mesh stays a mesh.
+    std::vector<std::string> warnings;
+    PlyLoadReport report;
+    const PointSet p = load(head + camera + "end_header\n" + vertices.bytes + faces.bytes + "ab",
+                            &report, &warnings);
+    EXPECT_EQ(p.triangles, (std::vector<glm::uvec3>{{0, 1, 2}, {0, 2, 3}}));
+    EXPECT_FALSE(report.faces_lost);
+    ASSERT_EQ(warnings.size(), 1u);
+    EXPECT_EQ(warnings[0],
+              "mem.ply: binary body is truncated: element 'camera' needs 1 rows of 8 bytes, only 2 "
+              "bytes are left; ignoring element 'camera'");
+  }
+  {
+    // A face element before the vertices that is truncated hides them: an error.
+    const std::string file =
+        "ply\nformat binary_little_endian 1.0\nelement face 2\n"
+        "property list uchar int vertex_indices\nelement vertex 4\nproperty float x\n"
+        "property float y\nproperty float z\nend_header\n" +
+        faces.bytes.substr(0, 20);
+    EXPECT_EQ(error_of(file),
+              "mem.ply: binary body is truncated inside element 'face' row 2 of 2, so the vertex "
+              "element after it cannot be found");
+  }
 }
 
 TEST(PlyLoad, TrailingBytesAreIgnoredWithAWarning) {
@@ -678,13 +874,6 @@ TEST(PlyLoad, AbsurdCountsFailWithoutLargeAllocations) {
           std::string(64, '\0'),
       "ply\nformat ascii 1.0\nelement vertex 2000000000\n" + xyz + "end_header\n0 0 0\n",
       "ply\nformat ascii 1.0\nelement vertex 18446744073709551615\n" + xyz + "end_header\n0 0 0\n",
-      "ply\nformat ascii 1.0\nelement vertex 1\n" + xyz +
-          "element face 999999999999\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n",
-      "ply\nformat binary_little_endian 1.0\nelement vertex 1\n" + xyz +
-          "element face 1\nproperty list uint int vertex_indices\nend_header\n" + face.bytes,
-      "ply\nformat ascii 1.0\nelement vertex 1\n" + xyz +
-          "element face 1\nproperty list uint int vertex_indices\nend_header\n0 0 0\n"
-          "4000000000 1 2 3\n",
   };
   for (const std::string& file : files) {
     g_largest_allocation = 0;
@@ -694,18 +883,60 @@ TEST(PlyLoad, AbsurdCountsFailWithoutLargeAllocations) {
     EXPECT_NE(message, "(no error)");
     EXPECT_LT(g_largest_allocation.load(), std::size_t{1} << 16) << message;
   }
+  // Absurd counts after the vertex element: the points load (one warning), and
+  // nothing is sized from those counts either.
+  const std::vector<std::string> later{
+      "ply\nformat ascii 1.0\nelement vertex 1\n" + xyz +
+          "element face 999999999999\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n",
+      "ply\nformat binary_little_endian 1.0\nelement vertex 1\n" + xyz +
+          "element face 1\nproperty list uint int vertex_indices\nend_header\n" + face.bytes,
+      "ply\nformat ascii 1.0\nelement vertex 1\n" + xyz +
+          "element face 1\nproperty list uint int vertex_indices\nend_header\n0 0 0\n"
+          "4000000000 1 2 3\n",
+      "ply\nformat binary_little_endian 1.0\nelement vertex 1\n" + xyz +
+          "element camera 4000000000\nproperty double a\nend_header\n" + face.bytes,
+  };
+  for (const std::string& file : later) {
+    std::vector<std::string> warnings;
+    g_largest_allocation = 0;
+    g_track_allocations = true;
+    const PointSet p = load(file, nullptr, &warnings);
+    g_track_allocations = false;
+    EXPECT_EQ(p.size(), 1u);
+    ASSERT_EQ(warnings.size(), 1u);
+    EXPECT_NE(warnings[0].find("; ignoring element '"), std::string::npos) << warnings[0];
+    EXPECT_LT(g_largest_allocation.load(), std::size_t{1} << 16) << warnings[0];
+  }
 }
 
 // ---- adversarial ----------------------------------------------------------
 
-TEST(PlyLoad, EveryTruncationOfABinaryFileFailsCleanly) {
+TEST(PlyLoad, EveryTruncationOfABinaryFileFailsInVerticesAndLosesOnlyFacesAfter) {
   const auto dir = treecut::test::scratch_dir("ply_truncation");
-  save_ply(dir / "full.ply", sample_points(true, true, true, true));
+  const PointSet points = sample_points(true, true, true, true);
+  save_ply(dir / "full.ply", points);
   const std::string full = read_file(dir / "full.ply");
   ASSERT_NO_THROW(load(full));
+  // x y z nx ny nz radius as float, red green blue as uchar.
+  const std::size_t vertex_end =
+      full.find("end_header\n") + 11 + points.size() * (7 * sizeof(float) + 3);
+  ASSERT_LT(vertex_end, full.size());
   for (std::size_t length = 0; length < full.size(); ++length) {
     SCOPED_TRACE(length);
-    EXPECT_FALSE(loads_or_fails_cleanly(full.substr(0, length)));
+    const std::string cut = full.substr(0, length);
+    if (length < vertex_end) {
+      EXPECT_FALSE(loads_or_fails_cleanly(cut));
+      continue;
+    }
+    std::vector<std::string> warnings;
+    PlyLoadReport report;
+    const PointSet p = load(cut, &report, &warnings);
+    EXPECT_EQ(p.positions, points.positions);
+    EXPECT_TRUE(p.triangles.empty());
+    EXPECT_TRUE(report.faces_lost);
+    ASSERT_EQ(warnings.size(), 1u);
+    EXPECT_NE(warnings[0].find("element 'face' row"), std::string::npos) << warnings[0];
+    EXPECT_NE(warnings[0].find("without faces"), std::string::npos) << warnings[0];
   }
 }
 

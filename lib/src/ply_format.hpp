@@ -74,19 +74,31 @@ struct Range {
 };
 
 struct BinaryLayout {
-  std::vector<Range> elements;  ///< one per header element, in header order
-  std::size_t trailing_bytes = 0;
+  /// One per header element before `broken` (all of them when nothing broke),
+  /// in header order.
+  std::vector<Range> elements;
+  std::size_t trailing_bytes = 0;  ///< 0 when an element broke
+  /// Index of the first element after the vertex element that does not match
+  /// its header (truncated, a list length out of range), or -1. It and every
+  /// element after it cannot be located; the vertex rows are intact.
+  int broken = -1;
+  std::string problem;  ///< what is wrong with element `broken`, one line
 };
 
 /// Walks a binary body: fixed-size elements are sized by arithmetic, elements
-/// with lists row by row, every read bounds-checked. Throws Error when the body
-/// is shorter than the header promises or a list length is negative.
+/// with lists row by row, every read bounds-checked. Throws Error when the
+/// vertex element (or one before it) is shorter than the header promises or a
+/// list length there is out of range; the same problem in a later element
+/// only ends the walk (see BinaryLayout::broken): only the vertex element
+/// decides whether a file loads.
 BinaryLayout binary_layout(const Header& header, std::string_view file);
 
 /// Cheap upper bound for an ascii body: every value needs at least one
 /// character and one separator, so a body of B bytes holds at most (B + 1) / 2
-/// values. Throws Error when the declared rows cannot possibly fit, so absurd
-/// counts fail before anything is reserved.
+/// values. Throws Error when the rows up to and including the vertex element
+/// cannot possibly fit, so absurd counts fail before anything is reserved.
+/// Later elements are not sized from their counts (they are read row by row,
+/// and a short one is a warning), so their counts are not checked here.
 void check_ascii_capacity(const Header& header, std::string_view file);
 
 /// One decoded row: the values of every property in declaration order, list
@@ -124,6 +136,9 @@ class AsciiRows {
   void next(const Element& element, std::uint64_t row_index, Row& row);
   /// Skips a row of ELEMENT, still checking every token.
   void skip(const Element& element, std::uint64_t row_index);
+  /// Skips the next non-blank line without looking at it (the rest of an
+  /// element that no longer matches its header). False at the end of the body.
+  bool skip_line();
   /// Number of non-blank lines after the last row.
   std::size_t trailing_lines();
 

@@ -242,8 +242,29 @@ std::string printable(std::string_view text) {
   return out;
 }
 
+namespace {
+
+// The two ways a text editor commonly spoils a PLY header, named as such
+// rather than as a missing magic line.
+void check_magic_line(std::string_view file) {
+  if (file.starts_with("\xEF\xBB\xBF")) {
+    throw Error("starts with a UTF-8 byte-order mark (3 bytes before 'ply'); save it without one");
+  }
+  const std::size_t newline = file.find('\n');
+  const std::string_view first = file.substr(0, newline);
+  const std::size_t cr = first.find('\r');
+  // A CR that ends the first line is a CRLF file; one followed by more text
+  // means the lines end in CR alone.
+  if (cr != std::string_view::npos && cr + 1 < first.size()) {
+    throw Error("uses CR-only line endings (classic Mac); convert them to LF or CRLF");
+  }
+}
+
+}  // namespace
+
 Header parse_header(std::string_view file) {
   if (file.empty()) throw Error("empty file");
+  check_magic_line(file);
   Header header;
   bool have_format = false;
   SeenNames seen;

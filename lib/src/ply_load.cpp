@@ -274,6 +274,16 @@ struct Elements {
   int face = -1;    ///< "face" with an index list, or -1
   int strips = -1;  ///< "tristrips" with an index list, or -1
   VertexRoles roles;
+  std::vector<std::size_t> ignored;  ///< elements read past, in header order
+  /// A face or tristrips element sits at or after a binary element that does
+  /// not match its header: no faces are read, the points load as a cloud.
+  bool faces_lost = false;
+};
+
+// An element after the vertex element that does not match its header.
+struct BrokenElement {
+  std::size_t index = 0;
+  std::string problem;
 };
 
 // Everything the read needs: OpenMesh's input, the transcoded body it may
@@ -285,6 +295,9 @@ struct Plan {
   std::vector<float> radii;
   std::vector<glm::u8vec4> colors;  ///< colours OpenMesh does not read, or empty
   StripSink strips;
+  std::vector<BrokenElement> broken;  ///< ascii elements whose rows do not match
+  bool faces_lost = false;            ///< a face element is among them
+  std::size_t trailing_lines = 0;     ///< ascii: non-blank lines after the last row
 };
 
 // The canonical body for OpenMesh when it cannot read the file's own:
@@ -416,7 +429,9 @@ ply::BinaryLayout validate_body(const Header& header, std::string_view file) {
   return ply::binary_layout(header, file);
 }
 
-Elements classify(const Header& header, const Warnings& warn) {
+// Elements from LOST_FROM on could not be located (a binary element that does
+// not match its header); they are neither read nor listed as ignored.
+Elements classify(const Header& header, const Warnings& warn, std::size_t lost_from) {
   Elements elements;
   elements.vertex = static_cast<std::size_t>(header.find("vertex"));
   const Element& vertex = header.elements[elements.vertex];
@@ -426,33 +441,63 @@ Elements classify(const Header& header, const Warnings& warn) {
   }
   elements.roles = find_roles(vertex, warn);
 
-  // One warning for all ignored elements, naming the first few: a header may
-  // declare thousands.
-  constexpr std::size_t kNamed = 4;
-  std::string ignored;
-  std::size_t ignored_count = 0;
   for (std::size_t e = 0; e < header.elements.size(); ++e) {
     const Element& element = header.elements[e];
     if (e == elements.vertex) continue;
     const bool has_indices = index_property(element) >= 0;
-    if (element.name == "face" && has_indices) {
-      elements.face = static_cast<int>(e);
-    } else if (element.name == "tristrips" && has_indices) {
-      elements.strips = static_cast<int>(e);
-    } else if (++ignored_count <= kNamed) {
-      if (!ignored.empty()) ignored += ", ";
-      ignored +=
-          "'" + ply::printable(element.name) + "' (" +
-          plural(static_cast<std::size_t>(element.count), "row") +
-          (element.name == "face" || element.name == "tristrips" ? ", no vertex_indices" : "") +
-          ")";
+    const bool triangles = (element.name == "face" || element.name == "tristrips") && has_indices;
+    if (e >= lost_from) {
+      elements.faces_lost |= triangles;
+    } else if (triangles) {
+      (element.name == "face" ? elements.face : elements.strips) = static_cast<int>(e);
+    } else {
+      elements.ignored.push_back(e);
     }
+  }
+  // Faces from only some of the elements would make a partial mesh; the
+  // points are better served as a point cloud (attributes from neighbours).
+  if (elements.faces_lost) elements.face = elements.strips = -1;
+  return elements;
+}
+
+// One warning for all ignored elements, naming the first few: a header may
+// declare thousands. Elements that did not match their header have a warning
+// of their own and are not listed again.
+void warn_ignored(const Header& header, const Elements& elements,
+                  const std::vector<BrokenElement>& broken, const Warnings& warn) {
+  constexpr std::size_t kNamed = 4;
+  std::string ignored;
+  std::size_t ignored_count = 0;
+  for (std::size_t e : elements.ignored) {
+    if (std::any_of(broken.begin(), broken.end(),
+                    [e](const BrokenElement& b) { return b.index == e; })) {
+      continue;
+    }
+    const Element& element = header.elements[e];
+    if (++ignored_count > kNamed) continue;
+    if (!ignored.empty()) ignored += ", ";
+    ignored +=
+        "'" + ply::printable(element.name) + "' (" +
+        plural(static_cast<std::size_t>(element.count), "row") +
+        (element.name == "face" || element.name == "tristrips" ? ", no vertex_indices" : "") + ")";
   }
   if (ignored_count > kNamed) ignored += " and " + std::to_string(ignored_count - kNamed) + " more";
   if (ignored_count > 0) {
     warn(std::string(ignored_count > 1 ? "ignoring elements " : "ignoring element ") + ignored);
   }
-  return elements;
+}
+
+// What a later element that does not match its header costs, appended to its
+// problem: the element (and, binary, every element after it, which can no
+// longer be located) and, when it held faces, the faces.
+std::string broken_consequence(const Header& header, std::size_t index, bool binary,
+                               bool faces_lost) {
+  const std::size_t after = binary ? header.elements.size() - index - 1 : 0;
+  std::string text =
+      "; ignoring element '" + ply::printable(header.elements[index].name) + "'" +
+      (after > 0 ? " and the " + plural(after, "element") + " after it" : std::string());
+  if (faces_lost) text += "; the points load without faces, as a point cloud";
+  return text;
 }
 
 std::string_view element_bytes(std::string_view file, const ply::BinaryLayout& layout,
@@ -514,7 +559,7 @@ void plan_direct(const Header& header, const ply::BinaryLayout& layout, std::str
 // Decodes every row we need (ascii: every row, each token checked) and
 // writes the canonical body OpenMesh then reads.
 void plan_transcoded(const Header& header, const ply::BinaryLayout& layout, std::string_view file,
-                     const Elements& elements, const Warnings& warn, Plan& plan) {
+                     const Elements& elements, Plan& plan) {
   const bool binary = header.format != Format::ascii;
   const bool big_endian = header.format == Format::binary_big_endian;
   const Element& vertex = header.elements[elements.vertex];
@@ -541,29 +586,45 @@ void plan_transcoded(const Header& header, const ply::BinaryLayout& layout, std:
     if (binary && !wanted) continue;
     std::optional<ply::BinaryRows> rows;
     if (binary) rows.emplace(element, element_bytes(file, layout, e), big_endian);
-    for (std::uint64_t r = 0; r < element.count; ++r) {
-      if (!wanted) {
-        ascii.skip(element, r);
-        continue;
+    std::uint64_t r = 0;
+    try {
+      for (; r < element.count; ++r) {
+        if (!wanted) {
+          ascii.skip(element, r);
+          continue;
+        }
+        if (rows) {
+          rows->next(row);
+        } else {
+          ascii.next(element, r, row);
+        }
+        if (is_face) {
+          transcoder.face_row(row);
+        } else if (is_strips) {
+          plan.strips.row(row, index_property(element));
+        } else {
+          transcoder.vertex_row(row);
+        }
       }
-      if (rows) {
-        rows->next(row);
-      } else {
-        ascii.next(element, r, row);
-      }
-      if (is_face) {
-        transcoder.face_row(row);
-      } else if (is_strips) {
-        plan.strips.row(row, index_property(element));
-      } else {
-        transcoder.vertex_row(row);
+    } catch (const ply::Error& error) {
+      // Only the vertex element decides whether a file loads (binary rows
+      // were validated by the layout walk, so only ascii gets here).
+      if (binary || e == elements.vertex) throw;
+      plan.broken.push_back({e, error.what()});
+      plan.faces_lost |= is_face || is_strips;
+      // The rest of the element line by line (ascii holds one row per line),
+      // so that the next element, perhaps the vertex element, starts in step.
+      for (++r; r < element.count && ascii.skip_line(); ++r) {
       }
     }
   }
-  if (!binary) {
-    if (std::size_t lines = ascii.trailing_lines(); lines > 0) {
-      warn("ignoring " + plural(lines, "line") + " after the last element");
-    }
+  if (!binary) plan.trailing_lines = ascii.trailing_lines();
+  if (plan.faces_lost) {
+    transcoder.face_indices = -1;
+    transcoder.face_rows = 0;
+    plan.face_bytes.clear();
+    plan.strips.triangles.clear();
+    plan.strips.out_of_range = 0;
   }
 
   ply::OpenMeshInput& input = plan.input;
@@ -610,6 +671,15 @@ void tidy(PointSet& points, const Warnings& warn, PlyLoadReport& report) {
       std::any_of(points.positions.begin(), points.positions.end(), [](const glm::vec3& p) {
         return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z) && out_of_range(p);
       });
+  const std::size_t read = points.size();
+  if (std::all_of(points.positions.begin(), points.positions.end(), out_of_range)) {
+    // One line that names the real problem, not a warning about dropping
+    // every point followed by an error about having none.
+    throw ply::Error("no finite points (" +
+                     (read == 1 ? std::string("the only vertex is")
+                                : "all " + std::to_string(read) + " vertices are") +
+                     " NaN or infinite" + (huge ? " or beyond 1e18" : "") + ")");
+  }
   const auto [dropped_points, dropped_faces] = drop_nonfinite(points);
   report.dropped_nonfinite = dropped_points;
   if (dropped_points > 0) {
@@ -617,7 +687,6 @@ void tidy(PointSet& points, const Warnings& warn, PlyLoadReport& report) {
          (huge ? " or out-of-range (beyond 1e18)" : "") + " coordinates" +
          (dropped_faces > 0 ? " and " + plural(dropped_faces, "face") + " using them" : ""));
   }
-  if (points.size() == 0) throw ply::Error("no point has finite coordinates");
 
   if (points.has_normals()) {
     std::size_t undefined = 0;
@@ -652,22 +721,42 @@ void tidy(PointSet& points, const Warnings& warn, PlyLoadReport& report) {
 PointSet load(std::string_view file, const Warnings& warn, PlyLoadReport& report) {
   const Header header = ply::parse_header(file);
   const ply::BinaryLayout layout = validate_body(header, file);
-  const Elements elements = classify(header, warn);
+  const std::size_t lost_from =
+      layout.broken >= 0 ? static_cast<std::size_t>(layout.broken) : header.elements.size();
+  const Elements elements = classify(header, warn, lost_from);
   const VertexRoles& roles = elements.roles;
   report.vertices_in_file = static_cast<std::size_t>(header.elements[elements.vertex].count);
   report.had_normals = roles.normals();
   report.had_colors = roles.colors();
   report.had_radius = roles.radius >= 0;
-  if (layout.trailing_bytes > 0) {
-    warn("ignoring " + plural(layout.trailing_bytes, "byte") + " after the last element");
-  }
 
   Plan plan;
   plan.strips.vertices = report.vertices_in_file;
   if (openmesh_reads_directly(header, roles, elements.face)) {
     plan_direct(header, layout, file, elements, plan);
   } else {
-    plan_transcoded(header, layout, file, elements, warn, plan);
+    plan_transcoded(header, layout, file, elements, plan);
+  }
+  warn_ignored(header, elements, plan.broken, warn);
+  const bool binary = header.format != Format::ascii;
+  if (layout.broken >= 0) {
+    warn(layout.problem + broken_consequence(header, lost_from, binary, elements.faces_lost));
+  }
+  for (const BrokenElement& b : plan.broken) {
+    const int index = static_cast<int>(b.index);
+    const bool faces = index == elements.face || index == elements.strips;
+    warn(b.problem + broken_consequence(header, b.index, binary, faces && plan.faces_lost));
+  }
+  report.faces_lost = elements.faces_lost || plan.faces_lost;
+  // After an element that does not match its header, what follows the last
+  // row is part of the same problem, not news.
+  if (layout.broken < 0 && plan.broken.empty()) {
+    if (layout.trailing_bytes > 0) {
+      warn("ignoring " + plural(layout.trailing_bytes, "byte") + " after the last element");
+    }
+    if (plan.trailing_lines > 0) {
+      warn("ignoring " + plural(plan.trailing_lines, "line") + " after the last element");
+    }
   }
   PointSet points = read_plan(plan, warn, report);
   tidy(points, warn, report);

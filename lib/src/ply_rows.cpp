@@ -167,63 +167,88 @@ std::uint8_t color_channel(double value, Type type) {
   return static_cast<std::uint8_t>(scaled);
 }
 
-BinaryLayout binary_layout(const Header& header, std::string_view file) {
-  const bool big_endian = header.format == Format::binary_big_endian;
-  BinaryLayout layout;
-  std::size_t pos = header.body_offset;
+namespace {
+
+// The walk of one element from POS; throws Error when it does not match its header.
+std::size_t walk_element(const Element& element, std::string_view file, std::size_t pos,
+                         bool big_endian) {
   const std::size_t end = file.size();
-  for (const Element& element : header.elements) {
-    Range range{pos, pos};
-    if (!element.has_lists()) {
-      const std::size_t stride = element.fixed_stride();
-      const std::size_t left = end - pos;
-      if (element.count > left / stride) {
-        throw Error("binary body is truncated: element '" + printable(element.name) + "' needs " +
-                    std::to_string(element.count) + " rows of " + std::to_string(stride) +
-                    " bytes, only " + std::to_string(left) + " bytes are left");
-      }
-      pos += static_cast<std::size_t>(element.count) * stride;
-    } else {
-      // Per-property sizes hoisted out of the row loop: this walk visits every
-      // face of a mesh before OpenMesh reads it.
-      struct Step {
-        bool is_list;
-        Type count_type;
-        std::size_t count_size;
-        std::size_t size;
-      };
-      std::vector<Step> steps;
-      for (const Property& p : element.properties) {
-        steps.push_back({p.is_list, p.count_type, type_size(p.count_type), type_size(p.type)});
-      }
-      for (std::uint64_t row = 0; row < element.count; ++row) {
-        for (const Step& step : steps) {
-          std::size_t n = 1;
-          if (step.is_list) {
-            if (end - pos < step.count_size) {
-              throw Error("binary body is truncated inside " + row_context(element, row));
-            }
-            const std::int64_t length = load_length(file.data() + pos, step.count_type, big_endian);
-            pos += step.count_size;
-            if (length < 0) {
-              throw Error("negative list length in " + row_context(element, row));
-            }
-            if (length > kMaxListLength) {
-              throw Error("list too long in " + row_context(element, row));
-            }
-            n = static_cast<std::size_t>(length);
-          }
-          if (n > (end - pos) / step.size) {
+  if (!element.has_lists()) {
+    const std::size_t stride = element.fixed_stride();
+    const std::size_t left = end - pos;
+    if (element.count > left / stride) {
+      throw Error("binary body is truncated: element '" + printable(element.name) + "' needs " +
+                  std::to_string(element.count) + " rows of " + std::to_string(stride) +
+                  " bytes, only " + std::to_string(left) + " bytes are left");
+    }
+    pos += static_cast<std::size_t>(element.count) * stride;
+  } else {
+    // Per-property sizes hoisted out of the row loop: this walk visits every
+    // face of a mesh before OpenMesh reads it.
+    struct Step {
+      bool is_list;
+      Type count_type;
+      std::size_t count_size;
+      std::size_t size;
+    };
+    std::vector<Step> steps;
+    for (const Property& p : element.properties) {
+      steps.push_back({p.is_list, p.count_type, type_size(p.count_type), type_size(p.type)});
+    }
+    for (std::uint64_t row = 0; row < element.count; ++row) {
+      for (const Step& step : steps) {
+        std::size_t n = 1;
+        if (step.is_list) {
+          if (end - pos < step.count_size) {
             throw Error("binary body is truncated inside " + row_context(element, row));
           }
-          pos += n * step.size;
+          const std::int64_t length = load_length(file.data() + pos, step.count_type, big_endian);
+          pos += step.count_size;
+          if (length < 0) {
+            throw Error("negative list length in " + row_context(element, row));
+          }
+          if (length > kMaxListLength) {
+            throw Error("list too long in " + row_context(element, row));
+          }
+          n = static_cast<std::size_t>(length);
         }
+        if (n > (end - pos) / step.size) {
+          throw Error("binary body is truncated inside " + row_context(element, row));
+        }
+        pos += n * step.size;
       }
+    }
+  }
+  return pos;
+}
+
+}  // namespace
+
+BinaryLayout binary_layout(const Header& header, std::string_view file) {
+  const bool big_endian = header.format == Format::binary_big_endian;
+  const int vertex = header.find("vertex");
+  BinaryLayout layout;
+  std::size_t pos = header.body_offset;
+  for (std::size_t e = 0; e < header.elements.size(); ++e) {
+    Range range{pos, pos};
+    try {
+      pos = walk_element(header.elements[e], file, pos, big_endian);
+    } catch (const Error& error) {
+      // Up to the vertex element a problem hides the vertex rows: an error.
+      // After it, the points are intact and only this element and the ones
+      // after it are lost.
+      if (static_cast<int>(e) == vertex) throw;
+      if (static_cast<int>(e) < vertex) {
+        throw Error(std::string(error.what()) + ", so the vertex element after it cannot be found");
+      }
+      layout.broken = static_cast<int>(e);
+      layout.problem = error.what();
+      return layout;
     }
     range.end = pos;
     layout.elements.push_back(range);
   }
-  layout.trailing_bytes = end - pos;
+  layout.trailing_bytes = file.size() - pos;
   return layout;
 }
 
@@ -231,7 +256,9 @@ void check_ascii_capacity(const Header& header, std::string_view file) {
   const std::size_t body = file.size() - header.body_offset;
   const std::uint64_t capacity = (static_cast<std::uint64_t>(body) + 1) / 2;
   std::uint64_t needed = 0;
-  for (const Element& element : header.elements) {
+  const int vertex = header.find("vertex");
+  for (int e = 0; e <= vertex; ++e) {
+    const Element& element = header.elements[static_cast<std::size_t>(e)];
     // A list needs at least its length token, a scalar its value.
     const std::uint64_t per_row = element.properties.size();
     if (element.count > (capacity - needed) / per_row) {
@@ -355,6 +382,11 @@ void AsciiRows::next(const Element& element, std::uint64_t row_index, Row& row) 
 
 void AsciiRows::skip(const Element& element, std::uint64_t row_index) {
   next(element, row_index, scratch_);
+}
+
+bool AsciiRows::skip_line() {
+  std::string_view line;
+  return next_line(line);
 }
 
 std::size_t AsciiRows::trailing_lines() {

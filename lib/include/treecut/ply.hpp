@@ -21,6 +21,10 @@ struct PlyLoadReport {
   bool had_normals = false;
   bool had_colors = false;
   bool had_radius = false;
+  /// A face or tristrips element did not match its header (rows with more or
+  /// fewer values than declared, truncated, a list length out of range): it was
+  /// ignored with a warning and the points loaded without faces.
+  bool faces_lost = false;
 };
 
 /// Called with one line per warning (dropped points, ignored elements...).
@@ -52,10 +56,13 @@ PointSet load_ply_from_memory(std::string_view bytes, const std::string& name,
 
 /// Writes binary little-endian PLY: x y z float, then nx ny nz float, red green
 /// blue uchar and radius float when present (curvature is not written), and a
-/// face element (list uchar int) when triangles are present. Writes
-/// "PATH.tmp-<pid>" and renames it over PATH, so readers never see a partial
-/// file. Throws std::invalid_argument if an attribute array has the wrong size
-/// or a triangle index is out of range, std::runtime_error on I/O errors.
+/// face element (list uchar int) when triangles are present. Writes through an
+/// AtomicFile (a temporary beside PATH, renamed over it when complete), so
+/// readers never see a partial file and a failed write (full disk) leaves
+/// PATH as it was and no temporary. Throws std::invalid_argument if an
+/// attribute array has the wrong size or a triangle index is out of range,
+/// std::runtime_error "PATH: REASON" on I/O errors (and when PATH is a
+/// directory or a FIFO).
 void save_ply(const std::filesystem::path& path, const PointSet& points);
 
 }  // namespace treecut
