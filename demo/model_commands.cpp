@@ -1,11 +1,17 @@
 // treecut build | info | gen
+#include <unistd.h>
+
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <stdexcept>
+#include <string_view>
 
 #include "commands.hpp"
 #include "progress.hpp"
+#include "treecut/cache.hpp"
 #include "treecut/error.hpp"
+#include "treecut/file_io.hpp"
 #include "treecut/generate.hpp"
 #include "treecut/model_io.hpp"
 
@@ -56,14 +62,55 @@ void print_summary(const std::filesystem::path& model, const OpenedModel& m) {
               static_cast<double>(h.memory_bytes()) / std::max(1u, h.leaf_count()));
   std::printf("cache       %s\n", m.cache.string().c_str());
   if (m.from_cache) {
-    std::printf("loaded      from cache in %.3f s\n", m.cache_seconds);
+    std::printf("loaded      from cache in %.3f s (content hash %.3f s)\n",
+                m.cache_seconds + m.hash_seconds, m.hash_seconds);
   } else {
     if (m.ply.dropped_nonfinite)
       std::printf("dropped     %zu non-finite points\n", m.ply.dropped_nonfinite);
     std::printf(
-        "build time  %.3f s (read %.3f, attributes %.3f, hierarchy %.3f, cache write %.3f)\n",
-        m.total_seconds(), m.read_seconds, m.attribute_seconds, m.build_seconds, m.cache_seconds);
+        "build time  %.3f s (content hash %.3f, read %.3f, attributes %.3f, hierarchy %.3f, cache "
+        "write %.3f)\n",
+        m.total_seconds(), m.hash_seconds, m.read_seconds, m.attribute_seconds, m.build_seconds,
+        m.cache_seconds);
   }
+}
+
+// `build -o PATH` replaces PATH only when it is an earlier cache: never the
+// model itself (under any name), another model or any other file of the
+// user's, never a directory or a FIFO. Checked before any work, so nothing is
+// touched when it is refused.
+void check_cache_output(const std::filesystem::path& out, const std::filesystem::path& model) {
+  const FileKind kind = file_kind(out);
+  if (kind == FileKind::Missing) return;
+  if (same_file(out, model))
+    throw InputError(out.string() + ": is the model itself; refusing to overwrite it with a cache");
+  if (kind != FileKind::Regular)
+    throw InputError(out.string() + ": is " + std::string(describe(kind)) +
+                     "; refusing to write a cache there");
+  if (!looks_like_cache(out))
+    throw InputError(out.string() +
+                     ": exists and is not a treecut cache; refusing to overwrite it");
+}
+
+// `gen -o PATH` replaces PATH only when it is a PLY (regenerating a model is
+// what gen is for); a directory, a FIFO or any other file is refused.
+void check_ply_output(const std::filesystem::path& out) {
+  const FileKind kind = file_kind(out);
+  if (kind == FileKind::Missing) return;
+  if (kind != FileKind::Regular)
+    throw InputError(out.string() + ": is " + std::string(describe(kind)) +
+                     "; refusing to write a model there");
+  bool ply = false;
+  try {
+    const int fd = open_regular_file(out);
+    char magic[4] = {};
+    ply = ::read(fd, magic, sizeof magic) == 4 && std::string_view(magic, 4) == "ply\n";
+    ::close(fd);
+  } catch (const std::exception&) {
+    ply = false;
+  }
+  if (!ply)
+    throw InputError(out.string() + ": exists and is not a PLY file; refusing to overwrite it");
 }
 
 }  // namespace
@@ -72,7 +119,8 @@ void add_model_commands(CLI::App& app) {
   auto build_args = std::make_shared<ModelArgs>();
   auto* build =
       app.add_subcommand("build", "Build (or refresh) the hierarchy cache of a PLY model");
-  build->add_option("MODEL", build_args->model, "PLY file")->required()->check(CLI::ExistingFile);
+  // No CLI::ExistingFile: open_model names what MODEL is ("is a FIFO", "is a directory").
+  build->add_option("MODEL", build_args->model, "PLY file")->required();
   build->add_option("-o,--output", build_args->out,
                     "Cache file to write (default: the user cache folder)");
   build->add_flag("-f,--force", build_args->force, "Rebuild even when a valid cache exists");
@@ -80,9 +128,12 @@ void add_model_commands(CLI::App& app) {
   build->callback([build_args] {
     OpenOptions o = open_options(*build_args);
     o.use_cache = true;
-    if (build_args->force && o.cache_path == std::nullopt)
-      o.cache_path = default_cache_path(build_args->model);
-    if (build_args->force) std::filesystem::remove(*o.cache_path);
+    // build exists to write the cache: failing to is an error, not a warning.
+    o.require_cache = true;
+    // -f removes nothing up front: the old cache stays until the new one replaces it.
+    o.rebuild = build_args->force;
+    require_regular_file(build_args->model);
+    if (o.cache_path) check_cache_output(*o.cache_path, build_args->model);
     ProgressBar bar("read");
     o.progress = bar.callback();
     const OpenedModel m = open_model(build_args->model, o);
@@ -93,9 +144,7 @@ void add_model_commands(CLI::App& app) {
   auto info_args = std::make_shared<ModelArgs>();
   auto* info =
       app.add_subcommand("info", "Summarize a model (PLY, through its cache) or a cache file");
-  info->add_option("MODEL", info_args->model, "PLY or .tch cache file")
-      ->required()
-      ->check(CLI::ExistingFile);
+  info->add_option("MODEL", info_args->model, "PLY or .tch cache file")->required();
   add_build_options(*info, *info_args);
   info->callback([info_args] {
     OpenOptions o = open_options(*info_args);
@@ -124,8 +173,13 @@ void add_model_commands(CLI::App& app) {
     const std::filesystem::path out =
         gen_args->out.empty() ? std::filesystem::path("assets") / (gen_args->kind + ".ply")
                               : std::filesystem::path(gen_args->out);
+    check_ply_output(out);
+    if (out.has_parent_path()) {
+      std::error_code ec;
+      std::filesystem::create_directories(out.parent_path(), ec);
+      if (ec) throw std::runtime_error(system_error_text(out.parent_path(), ec.value()));
+    }
     PointSet ps = generate_model(kind, gen_args->points, gen_args->seed);
-    if (out.has_parent_path()) std::filesystem::create_directories(out.parent_path());
     save_ply(out, ps);
     std::printf("wrote %s (%zu points)\n", out.string().c_str(), ps.size());
   });

@@ -7,11 +7,15 @@
 #include <fstream>
 #include <limits>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <numeric>
+#include <optional>
+#include <set>
 #include <sstream>
 
 #include "commands.hpp"
 #include "treecut/error.hpp"
+#include "treecut/file_io.hpp"
 #include "treecut/model.hpp"
 #include "treecut/splat/camera_path.hpp"
 #include "treecut/splat/context.hpp"
@@ -42,8 +46,8 @@ struct FrameRow {
   int frame = 0;
   double time_s = 0.0;
   double frame_ms = 0.0;
-  std::size_t cut_size = 0;
-  std::uint64_t points = 0;
+  std::size_t cut_size = 0;  // splats drawn: the nodes of the cut
+  std::uint64_t points = 0;  // points represented: the leaves under them
   double iteration_ms = 0.0;
   std::uint64_t exchanges = 0;
   std::uint64_t iterations = 0;
@@ -89,21 +93,63 @@ std::string json_number(double v) {
   return buf;
 }
 
+// PSNR of identical images is +infinity: "inf" in stdout, stats.csv and
+// summary.json (a JSON string there; float("inf") reads all three back), an
+// empty field / null when it was not measured.
+std::string psnr_text(double v) {
+  if (std::isinf(v) && v > 0) return "inf";
+  return std::isfinite(v) ? json_number(v) : std::string();
+}
+
+nlohmann::ordered_json psnr_json(double v) {
+  if (std::isinf(v) && v > 0) return "inf";
+  if (!std::isfinite(v)) return nullptr;
+  return std::strtod(json_number(v).c_str(), nullptr);
+}
+
+// Six significant digits as before; null for a NaN (not measured).
+nlohmann::ordered_json number_json(double v) {
+  if (!std::isfinite(v)) return nullptr;
+  return std::strtod(json_number(v).c_str(), nullptr);
+}
+
+// The mean over the frames that differ from full detail; +infinity when every
+// measured frame was identical to it, NaN when none was measured.
+double mean_psnr(const std::vector<FrameRow>& rows) {
+  double sum = 0.0;
+  std::size_t finite = 0, identical = 0;
+  for (const FrameRow& r : rows) {
+    if (std::isfinite(r.psnr_db)) {
+      sum += r.psnr_db;
+      ++finite;
+    } else if (std::isinf(r.psnr_db)) {
+      ++identical;
+    }
+  }
+  if (finite > 0) return sum / double(finite);
+  return identical > 0 ? std::numeric_limits<double>::infinity()
+                       : std::numeric_limits<double>::quiet_NaN();
+}
+
+std::size_t identical_frames(const std::vector<FrameRow>& rows) {
+  return static_cast<std::size_t>(std::count_if(rows.begin(), rows.end(), [](const FrameRow& r) {
+    return std::isinf(r.psnr_db) && r.psnr_db > 0;
+  }));
+}
+
 void write_csv(const std::filesystem::path& file, const std::vector<FrameRow>& rows) {
-  std::ofstream out(file);
-  out << "frame,time_s,frame_ms,cut_size,points_drawn,iteration_ms,exchanges,iterations,converged,"
-         "psnr_db\n";
+  std::ostringstream out;
+  out << "frame,time_s,frame_ms,splats_drawn,points_represented,iteration_ms,exchanges,iterations,"
+         "converged,psnr_db\n";
   for (const FrameRow& r : rows) {
     out << r.frame << ',' << r.time_s << ',' << r.frame_ms << ',' << r.cut_size << ',' << r.points
         << ',' << r.iteration_ms << ',' << r.exchanges << ',' << r.iterations << ','
-        << (r.converged ? 1 : 0) << ',' << (std::isfinite(r.psnr_db) ? json_number(r.psnr_db) : "")
-        << '\n';
+        << (r.converged ? 1 : 0) << ',' << psnr_text(r.psnr_db) << '\n';
   }
-  if (!out) throw std::runtime_error(file.string() + ": could not write");
+  write_file_atomically(file, out.str());
 }
 
 std::string summary_json(const RunSummary& s) {
-  std::ostringstream o;
   std::size_t cut_sum = 0;
   std::uint64_t points_sum = 0;
   for (const FrameRow& r : s.rows) {
@@ -111,21 +157,93 @@ std::string summary_json(const RunSummary& s) {
     points_sum += r.points;
   }
   const double n = std::max<double>(1.0, double(s.rows.size()));
-  o << "{\"strategy\": \"" << s.strategy << "\", \"frames\": " << s.rows.size()
-    << ", \"mean_frame_ms\": " << json_number(mean_of(s.rows, &FrameRow::frame_ms))
-    << ", \"median_frame_ms\": " << json_number(median_frame_ms(s.rows))
-    << ", \"mean_cut_size\": " << json_number(double(cut_sum) / n)
-    << ", \"mean_points_drawn\": " << json_number(double(points_sum) / n)
-    << ", \"mean_iteration_ms\": " << json_number(mean_of(s.rows, &FrameRow::iteration_ms))
-    << ", \"exchanges\": " << (s.rows.empty() ? 0 : s.rows.back().exchanges)
-    << ", \"mean_psnr_db\": " << json_number(mean_of(s.rows, &FrameRow::psnr_db))
-    << ", \"stability\": {\"frames\": " << s.stability_frames
-    << ", \"converged\": " << (s.stability_converged ? "true" : "false")
-    << ", \"mean_changed_fraction\": " << json_number(s.stability_changed)
-    << ", \"max_changed_fraction\": " << json_number(s.stability_max)
-    << ", \"cut_size\": " << s.converged_cut << ", \"psnr_db\": " << json_number(s.converged_psnr)
-    << "}}";
-  return o.str();
+  nlohmann::ordered_json j;
+  j["written_by"] = "treecut render";
+  j["strategy"] = s.strategy;
+  j["frames"] = s.rows.size();
+  j["mean_frame_ms"] = number_json(mean_of(s.rows, &FrameRow::frame_ms));
+  j["median_frame_ms"] = number_json(median_frame_ms(s.rows));
+  j["mean_splats_drawn"] = number_json(double(cut_sum) / n);
+  j["mean_points_represented"] = number_json(double(points_sum) / n);
+  j["mean_iteration_ms"] = number_json(mean_of(s.rows, &FrameRow::iteration_ms));
+  j["exchanges"] = s.rows.empty() ? 0 : s.rows.back().exchanges;
+  j["mean_psnr_db"] = psnr_json(mean_psnr(s.rows));
+  j["psnr_identical_frames"] = identical_frames(s.rows);
+  j["stability"] = {{"frames", s.stability_frames},
+                    {"converged", s.stability_converged},
+                    {"mean_changed_fraction", number_json(s.stability_changed)},
+                    {"max_changed_fraction", number_json(s.stability_max)},
+                    {"splats_drawn", s.converged_cut},
+                    {"psnr_db", psnr_json(s.converged_psnr)}};
+  return j.dump(2) + "\n";
+}
+
+// What `render --out DIR` may write into: a missing or empty folder, or one an
+// earlier render wrote (its marker, or the stats.csv an older treecut wrote).
+// Anything else is the user's and is refused before any work.
+constexpr const char* kRenderMarker = ".treecut-render";
+
+bool starts_with_stats_header(const std::filesystem::path& file) {
+  if (file_kind(file) != FileKind::Regular) return false;
+  try {
+    return read_text_file(file, kTextInputLimit).rfind("frame,time_s,frame_ms,", 0) == 0;
+  } catch (const std::exception&) {
+    return false;
+  }
+}
+
+bool is_earlier_render_output(const std::filesystem::path& dir) {
+  if (file_kind(dir / kRenderMarker) == FileKind::Regular) return true;
+  if (starts_with_stats_header(dir / "stats.csv")) return true;
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(dir, ec))
+    if (e.is_directory(ec) && starts_with_stats_header(e.path() / "stats.csv")) return true;
+  return false;
+}
+
+void check_output_target(const std::filesystem::path& file) {
+  const FileKind kind = file_kind(file);
+  if (kind != FileKind::Missing && kind != FileKind::Regular)
+    throw InputError(file.string() + ": is " + std::string(describe(kind)) +
+                     "; refusing to write render output there");
+}
+
+void check_output_folder(const std::filesystem::path& out,
+                         const std::vector<std::string>& strategies) {
+  std::set<std::string> seen;
+  for (const std::string& name : strategies)
+    if (!seen.insert(name).second)
+      throw InputError("--strategy " + name +
+                       " given twice: each strategy runs once (a second run would overwrite the "
+                       "first one's output)");
+  const FileKind kind = file_kind(out);
+  if (kind == FileKind::Missing) return;
+  if (kind != FileKind::Directory)
+    throw InputError(out.string() + ": is " + std::string(describe(kind)) +
+                     ", not a folder; refusing to write render output there");
+  std::error_code ec;
+  const bool empty = std::filesystem::is_empty(out, ec);
+  if (ec) throw InputError(system_error_text(out, ec.value()));
+  if (!empty && !is_earlier_render_output(out))
+    throw InputError(out.string() +
+                     ": folder is not empty and not an earlier treecut render output; refusing to "
+                     "write into it");
+  check_output_target(out / "plot.svg");
+  for (const std::string& name : strategies) {
+    const std::filesystem::path dir = strategies.size() > 1 ? out / name : out;
+    const FileKind dir_kind = file_kind(dir);
+    if (dir_kind != FileKind::Missing && dir_kind != FileKind::Directory)
+      throw InputError(dir.string() + ": is " + std::string(describe(dir_kind)) +
+                       ", not a folder; refusing to write render output there");
+    check_output_target(dir / "stats.csv");
+    check_output_target(dir / "summary.json");
+  }
+}
+
+void make_output_folder(const std::filesystem::path& dir) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) throw std::runtime_error(system_error_text(dir, ec.value()));
 }
 
 // Two stacked charts (frame time, cut size) over the frame index, one line per
@@ -182,9 +300,7 @@ void write_plot_svg(const std::filesystem::path& file, const std::vector<RunSumm
       << runs[ri].strategy << "</text>\n";
   }
   o << "</svg>\n";
-  std::ofstream out(file);
-  out << o.str();
-  if (!out) throw std::runtime_error(file.string() + ": could not write");
+  write_file_atomically(file, o.str());
 }
 
 void run_render(const RenderArgs& a) {
@@ -192,6 +308,7 @@ void run_render(const RenderArgs& a) {
   const splat::RenderSettings settings = render_settings(a.scene);  // validates --mode early
   const StrategyRegistry registry = make_registry(a.scene);
   check_params(registry, a.scene.strategies, a.scene.params);  // exit 2 before any work
+  check_output_folder(a.out, a.scene.strategies);
   const float aspect = float(a.width) / float(a.height);
   splat::CameraPath path;
   if (!a.path.empty()) path = splat::load_camera_path(a.path);
@@ -213,11 +330,14 @@ void run_render(const RenderArgs& a) {
   auto grab = [&] { return splat::Image{a.width, a.height, renderer.read_pixels()}; };
 
   const std::filesystem::path out(a.out);
-  std::filesystem::create_directories(out);
+  make_output_folder(out);
+  // The marker makes the folder recognizably ours for the next run.
+  if (file_kind(out / kRenderMarker) != FileKind::Regular)
+    write_file_atomically(out / kRenderMarker, "written by treecut render\n");
   std::vector<RunSummary> runs;
   for (const std::string& name : a.scene.strategies) {
     const std::filesystem::path dir = a.scene.strategies.size() > 1 ? out / name : out;
-    std::filesystem::create_directories(dir);
+    make_output_folder(dir);
     auto camera_at = [&](double t) {
       splat::Camera c = path.at(t);
       splat::fit_clip_planes(c, scene.center, scene.radius);
@@ -300,10 +420,7 @@ void run_render(const RenderArgs& a) {
     }
 
     write_csv(dir / "stats.csv", run.rows);
-    {
-      std::ofstream js(dir / "summary.json");
-      js << summary_json(run) << "\n";
-    }
+    write_file_atomically(dir / "summary.json", summary_json(run));
     std::printf(
         "%-13s %d frames: frame %.2f ms (median %.2f), cut %.0f nodes, iteration %.2f ms, "
         "%llu exchanges",
@@ -313,7 +430,13 @@ void run_render(const RenderArgs& a) {
             double(run.rows.size()),
         mean_of(run.rows, &FrameRow::iteration_ms),
         static_cast<unsigned long long>(run.rows.back().exchanges));
-    if (a.psnr) std::printf(", PSNR %.2f dB", mean_of(run.rows, &FrameRow::psnr_db));
+    if (a.psnr) {
+      const double mean = mean_psnr(run.rows);
+      if (std::isfinite(mean))
+        std::printf(", PSNR %.2f dB", mean);
+      else
+        std::printf(", PSNR %s dB (identical to full detail)", psnr_text(mean).c_str());
+    }
     if (a.stability > 0) {
       std::printf(", stability %.5f changed (max %.5f)%s", run.stability_changed, run.stability_max,
                   run.stability_converged ? "" : " [not converged]");

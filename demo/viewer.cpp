@@ -24,6 +24,7 @@
 #include <imgui.h>
 
 #include "treecut/error.hpp"
+#include "treecut/file_io.hpp"
 #include "treecut/model.hpp"
 #include "treecut/splat/camera_path.hpp"
 #include "treecut/splat/context.hpp"
@@ -376,11 +377,40 @@ class Viewer {
       std::copy_n(&bottom_up[(h - 1 - y) * w * 4], w * 4, &img.rgba[y * w * 4]);
     }
     for (std::size_t i = 3; i < img.rgba.size(); i += 4) img.rgba[i] = 255;
-    const std::filesystem::path p(file);
-    if (p.has_parent_path()) std::filesystem::create_directories(p.parent_path());
-    splat::write_png(p, img);
-    status_ = "saved " + file;
-    std::printf("screenshot %s\n", file.c_str());
+    // Never over a file the viewer did not write this session: the next free name.
+    const std::filesystem::path p = free_screenshot_name(file);
+    try {
+      if (p.has_parent_path()) {
+        std::error_code ec;
+        std::filesystem::create_directories(p.parent_path(), ec);
+        if (ec) throw std::runtime_error(system_error_text(p.parent_path(), ec.value()));
+      }
+      splat::write_png(p, img);  // atomic and checked: a failure leaves no partial PNG
+    } catch (const std::exception& e) {
+      status_ = std::string("screenshot failed: ") + e.what();
+      // A scripted run is automation: its failure is the run's (exit code 1,
+      // one line); an interactive one reports on the HUD and stderr and goes on.
+      if (!script_.empty()) throw std::runtime_error(e.what());
+      std::fprintf(stderr, "treecut: error: screenshot %s\n", e.what());
+      return;
+    }
+    written_screenshots_.push_back(p);
+    status_ = "saved " + p.string();
+    std::printf("screenshot %s\n", p.string().c_str());
+  }
+
+  std::filesystem::path free_screenshot_name(const std::filesystem::path& wanted) const {
+    auto ours = [&](const std::filesystem::path& p) {
+      return std::find(written_screenshots_.begin(), written_screenshots_.end(), p) !=
+             written_screenshots_.end();
+    };
+    if (file_kind(wanted) == FileKind::Missing || ours(wanted)) return wanted;
+    for (int i = 1;; ++i) {
+      std::filesystem::path p = wanted;
+      p.replace_filename(wanted.stem().string() + "-" + std::to_string(i) +
+                         wanted.extension().string());
+      if (file_kind(p) == FileKind::Missing) return p;
+    }
   }
 
   void hud(const splat::FrameStats& stats) {
@@ -394,7 +424,7 @@ class Viewer {
     std::vector<float> times(frame_times_.begin(), frame_times_.end());
     ImGui::PlotLines("##frametimes", times.data(), static_cast<int>(times.size()), 0,
                      "frame time (ms)", 0.0f, 100.0f, ImVec2(300, 60));
-    ImGui::Text("cut %zu nodes, %llu points drawn", stats.splats,
+    ImGui::Text("%zu splats drawn, %llu points represented", stats.splats,
                 static_cast<unsigned long long>(stats.points));
     ImGui::Text("iteration %.2f ms, %llu iterations, %llu exchanges", c.iteration_ns_last * 1e-6,
                 static_cast<unsigned long long>(c.iterations),
@@ -510,6 +540,7 @@ class Viewer {
   double frame_ms_ = 0.0;
   double draw_ms_ = 0.0;
   std::uint64_t frame_ = 0;
+  std::vector<std::filesystem::path> written_screenshots_;  // may be replaced by a script
   std::string pending_screenshot_;
   std::string status_;
   bool recording_ = false;

@@ -104,6 +104,64 @@ TEST(Cache, StaleKeyIsRejected) {
   EXPECT_TRUE(load_cache(dir / "a.tch", CacheKey{10, 20, 0}, &why));
 }
 
+TEST(Cache, StaleWhenTheContentHashDiffers) {
+  const fs::path dir = test::scratch_dir("cache_stale_hash");
+  save_cache(small(), {10, 20, 0, 0x1234}, dir / "a.tch");
+  std::string why;
+  EXPECT_FALSE(load_cache(dir / "a.tch", CacheKey{10, 20, 0, 0x1235}, &why));
+  EXPECT_NE(why.find("stale"), std::string::npos) << why;
+  EXPECT_TRUE(load_cache(dir / "a.tch", CacheKey{10, 99, 0, 0x1234}, &why))
+      << "another mtime, the same content: " << why;
+  const auto key = read_cache_key(dir / "a.tch", &why);
+  ASSERT_TRUE(key) << why;
+  EXPECT_EQ(key->content_hash, 0x1234u);
+  EXPECT_EQ(key->source_mtime_ns, 20);
+}
+
+// A model edited in place (same size) with its modification time restored, as
+// `touch -d` or a careful editor does: the content hash notices.
+TEST(Cache, AModelEditedInPlaceWithItsMtimeRestoredIsRebuilt) {
+  const fs::path dir = test::scratch_dir("cache_edit_in_place");
+  save_ply(dir / "m.ply", generate_model(ModelKind::Terrain, 4000, 3));
+  OpenOptions o;
+  o.cache_path = dir / "m.tch";
+  const OpenedModel first = open_model(dir / "m.ply", o);
+  ASSERT_FALSE(first.from_cache);
+  ASSERT_TRUE(open_model(dir / "m.ply", o).from_cache);
+  const auto size = fs::file_size(dir / "m.ply");
+  const auto mtime = fs::last_write_time(dir / "m.ply");
+  {
+    // The first point's x, one byte of it: the same size, other content.
+    std::fstream f(dir / "m.ply", std::ios::in | std::ios::out | std::ios::binary);
+    std::string text(4096, '\0');
+    f.read(text.data(), static_cast<std::streamsize>(text.size()));
+    const auto body = text.find("end_header\n");
+    ASSERT_NE(body, std::string::npos);
+    f.seekp(static_cast<std::streamoff>(body + 11 + 1));
+    f.put(static_cast<char>(text[body + 11 + 1] ^ 0x40));
+  }
+  fs::last_write_time(dir / "m.ply", mtime);
+  ASSERT_EQ(fs::file_size(dir / "m.ply"), size);
+  ASSERT_EQ(fs::last_write_time(dir / "m.ply"), mtime);
+  const OpenedModel edited = open_model(dir / "m.ply", o);
+  EXPECT_FALSE(edited.from_cache) << "served a cache built from other content";
+  EXPECT_NE(edited.cache_note.find("stale"), std::string::npos) << edited.cache_note;
+  EXPECT_TRUE(open_model(dir / "m.ply", o).from_cache) << "the rebuilt cache was written back";
+}
+
+TEST(Cache, ContentHashIsOfTheBytes) {
+  const fs::path dir = test::scratch_dir("cache_content_hash");
+  std::ofstream(dir / "a") << "same bytes";
+  std::ofstream(dir / "b") << "same bytes";
+  std::ofstream(dir / "c") << "same bytez";
+  EXPECT_EQ(content_hash_of(dir / "a"), content_hash_of(dir / "b"));
+  EXPECT_NE(content_hash_of(dir / "a"), content_hash_of(dir / "c"));
+  std::ofstream(dir / "empty");
+  EXPECT_NO_THROW(content_hash_of(dir / "empty"));
+  EXPECT_THROW(content_hash_of(dir / "missing"), InputError);
+  EXPECT_THROW(content_hash_of(dir), InputError) << "a directory";
+}
+
 TEST(Cache, OpenModelUsesTheCacheAndRebuildsACorruptOne) {
   const fs::path dir = test::scratch_dir("cache_open");
   save_ply(dir / "m.ply", generate_model(ModelKind::City, 3000, 1));
@@ -127,8 +185,11 @@ TEST(Cache, OpenModelUsesTheCacheAndRebuildsACorruptOne) {
   ASSERT_FALSE(warnings.empty());
   EXPECT_TRUE(open_model(dir / "m.ply", o).from_cache) << "the rebuilt cache was written back";
 
-  // Touching the model makes the cache stale.
+  // The content decides, not the modification time: a touch keeps the cache...
   fs::last_write_time(dir / "m.ply", fs::last_write_time(dir / "m.ply") + std::chrono::seconds(5));
+  EXPECT_TRUE(open_model(dir / "m.ply", o).from_cache) << "only the mtime changed";
+  // ...and other content of the same size makes it stale.
+  save_ply(dir / "m.ply", generate_model(ModelKind::City, 3000, 2));
   const OpenedModel fourth = open_model(dir / "m.ply", o);
   EXPECT_FALSE(fourth.from_cache);
   EXPECT_NE(fourth.cache_note.find("stale"), std::string::npos);

@@ -8,14 +8,17 @@
 #include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
+#include <xxhash.h>
 
 #include <array>
 #include <bit>
+#include <cerrno>
 #include <cstring>
-#include <fstream>
 #include <stdexcept>
 
 #include "cache_checksum.hpp"
+#include "treecut/error.hpp"
+#include "treecut/file_io.hpp"
 
 namespace treecut {
 
@@ -23,7 +26,8 @@ namespace {
 
 constexpr char kMagic[8] = {'T', 'C', 'U', 'T', 'H', 'I', 'E', 'R'};
 // Bump whenever the layout or the meaning of any array changes.
-constexpr std::uint32_t kVersion = 1;
+// 2: the header carries the source's content hash.
+constexpr std::uint32_t kVersion = 2;
 constexpr std::uint32_t kEndianTag = 0x01020304u;
 constexpr std::size_t kAlign = 64;
 constexpr int kArrays = 9;
@@ -38,6 +42,7 @@ struct Header {
   std::uint32_t options_bits;
   std::uint64_t source_size;
   std::int64_t source_mtime_ns;
+  std::uint64_t source_hash;  // XXH3-64 of the source file's bytes
   float bounds[6];
   std::uint64_t level_table;       // offset of level_count + 1 NodeIds
   std::uint64_t offsets[kArrays];  // in HierarchyArrays member order
@@ -161,14 +166,32 @@ bool links_ok(const HierarchyArrays& a, std::span<const NodeId> levels, std::str
   return true;
 }
 
+// open_regular_file() without the exception: the reason as *why, without the
+// path (the callers name it). Never blocks on a FIFO.
+int open_for_reading(const std::filesystem::path& path, std::string* why) {
+  const FileKind kind = file_kind(path);
+  if (kind != FileKind::Regular && kind != FileKind::Missing)
+    return fail(why, "is " + std::string(describe(kind)) + ", not a regular file"), -1;
+  try {
+    return open_regular_file(path);
+  } catch (const InputError& e) {
+    // "PATH: reason" -> "reason"
+    const std::string text = e.what();
+    const std::string prefix = path.string() + ": ";
+    fail(why, text.rfind(prefix, 0) == 0 ? text.substr(prefix.size()) : text);
+    return -1;
+  }
+}
+
 std::optional<Hierarchy> map_and_verify(const std::filesystem::path& path, Header* out_header,
                                         std::string* why) {
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) return fail(why, "cannot open"), std::nullopt;
+  const int fd = open_for_reading(path, why);
+  if (fd < 0) return std::nullopt;
   struct stat st {};
-  if (fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+  if (fstat(fd, &st) != 0) {
+    const int error = errno;
     ::close(fd);
-    return fail(why, "not a regular file"), std::nullopt;
+    return fail(why, std::strerror(error)), std::nullopt;
   }
   const auto size = static_cast<std::uint64_t>(st.st_size);
   if (size < sizeof(Header) + 8) {
@@ -177,9 +200,11 @@ std::optional<Hierarchy> map_and_verify(const std::filesystem::path& path, Heade
   }
   auto map = std::make_shared<Mapping>();
   map->base = mmap(nullptr, size, PROT_READ, MAP_PRIVATE, fd, 0);
+  const int map_error = errno;
   map->size = size;
   ::close(fd);
-  if (map->base == MAP_FAILED) return fail(why, "cannot map"), std::nullopt;
+  if (map->base == MAP_FAILED)
+    return fail(why, std::string("cannot map: ") + std::strerror(map_error)), std::nullopt;
   const auto* bytes = static_cast<const unsigned char*>(map->base);
 
   Header h;
@@ -235,12 +260,67 @@ std::optional<Hierarchy> map_and_verify(const std::filesystem::path& path, Heade
 
 }  // namespace
 
-CacheKey cache_key_for(const std::filesystem::path& source, std::uint32_t options_bits) {
+namespace {
+
+// Size, mtime and XXH3-64 of the bytes behind FD. Through a read-only mapping
+// (no copy into a buffer; the model was usually just read, so its pages are
+// in the page cache and hashing runs at memory bandwidth).
+CacheKey key_of_descriptor(const std::filesystem::path& source, int fd,
+                           std::uint32_t options_bits) {
   struct stat st {};
-  if (::stat(source.c_str(), &st) != 0) throw std::runtime_error(source.string() + ": cannot stat");
-  return CacheKey{static_cast<std::uint64_t>(st.st_size),
-                  static_cast<std::int64_t>(st.st_mtim.tv_sec) * 1000000000 + st.st_mtim.tv_nsec,
-                  options_bits};
+  if (::fstat(fd, &st) != 0) throw std::runtime_error(system_error_text(source, errno));
+  CacheKey key{static_cast<std::uint64_t>(st.st_size),
+               static_cast<std::int64_t>(st.st_mtim.tv_sec) * 1000000000 + st.st_mtim.tv_nsec,
+               options_bits, 0};
+  const auto size = static_cast<std::size_t>(st.st_size);
+  if (size == 0) {
+    key.content_hash = XXH3_64bits(nullptr, 0);
+    return key;
+  }
+  void* base = ::mmap(nullptr, size, PROT_READ, MAP_PRIVATE, fd, 0);
+  if (base == MAP_FAILED) throw std::runtime_error(system_error_text(source, errno));
+  ::madvise(base, size, MADV_SEQUENTIAL);
+  key.content_hash = XXH3_64bits(base, size);
+  ::munmap(base, size);
+  return key;
+}
+
+}  // namespace
+
+CacheKey cache_key_for(const std::filesystem::path& source, std::uint32_t options_bits) {
+  const int fd = open_regular_file(source);  // InputError: missing, a FIFO, a directory...
+  try {
+    const CacheKey key = key_of_descriptor(source, fd, options_bits);
+    ::close(fd);
+    return key;
+  } catch (...) {
+    ::close(fd);
+    throw;
+  }
+}
+
+std::uint64_t content_hash_of(const std::filesystem::path& source) {
+  return cache_key_for(source, 0).content_hash;
+}
+
+bool looks_like_cache(const std::filesystem::path& path) {
+  if (file_kind(path) != FileKind::Regular) return false;
+  int fd = -1;
+  try {
+    fd = open_regular_file(path);
+  } catch (const std::exception&) {
+    return false;
+  }
+  char magic[sizeof kMagic] = {};
+  std::size_t got = 0;
+  while (got < sizeof magic) {
+    const ssize_t n = ::read(fd, magic + got, sizeof magic - got);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) break;
+    got += static_cast<std::size_t>(n);
+  }
+  ::close(fd);
+  return got == sizeof magic && std::memcmp(magic, kMagic, sizeof kMagic) == 0;
 }
 
 void save_cache(const Hierarchy& hier, const CacheKey& key, const std::filesystem::path& cache) {
@@ -255,6 +335,7 @@ void save_cache(const Hierarchy& hier, const CacheKey& key, const std::filesyste
   h.options_bits = key.options_bits;
   h.source_size = key.source_size;
   h.source_mtime_ns = key.source_mtime_ns;
+  h.source_hash = key.content_hash;
   const glm::vec3 lo = hier.bounds_min(), hi = hier.bounds_max();
   const float b[6] = {lo.x, lo.y, lo.z, hi.x, hi.y, hi.z};
   std::memcpy(h.bounds, b, sizeof b);
@@ -281,48 +362,38 @@ void save_cache(const Hierarchy& hier, const CacheKey& key, const std::filesyste
   }
   h.payload_end = off;
 
-  // Temporary + rename: readers see the old file or the complete new one.
-  if (cache.has_parent_path()) std::filesystem::create_directories(cache.parent_path());
-  auto tmp = cache;
-  tmp += ".tmp-" + std::to_string(::getpid());
-  try {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    out.exceptions(std::ios::failbit | std::ios::badbit);
-    Checksum sum;
-    std::uint64_t at = 0;
-    const unsigned char zeros[kAlign] = {};
-    auto put = [&](const void* data, std::size_t size, std::uint64_t offset) {
-      while (at < offset) {  // alignment padding
-        const auto pad = static_cast<std::size_t>(std::min<std::uint64_t>(offset - at, kAlign));
-        out.write(reinterpret_cast<const char*>(zeros), static_cast<std::streamsize>(pad));
-        sum.update(zeros, pad);
-        at += pad;
-      }
-      if (size == 0) return;
-      out.write(static_cast<const char*>(data), static_cast<std::streamsize>(size));
-      sum.update(static_cast<const unsigned char*>(data), size);
-      at += size;
-    };
-    put(&h, sizeof h, 0);
-    put(levels.data(), levels.size() * sizeof(NodeId), h.level_table);
-    for (int i = 0; i < kArrays; ++i)
-      put(arrays[static_cast<std::size_t>(i)].first, arrays[static_cast<std::size_t>(i)].second,
-          h.offsets[i]);
-    put(nullptr, 0, h.payload_end);
-    const std::uint64_t digest = sum.finish();
-    out.write(reinterpret_cast<const char*>(&digest), sizeof digest);
-    out.close();
-  } catch (const std::exception&) {
+  // Temporary + rename (AtomicFile): readers see the old file or the complete
+  // new one, and a failed write (full disk, read-only folder) leaves no file.
+  if (cache.has_parent_path()) {
     std::error_code ec;
-    std::filesystem::remove(tmp, ec);
-    throw std::runtime_error(cache.string() + ": cannot write cache");
+    std::filesystem::create_directories(cache.parent_path(), ec);
+    if (ec) throw std::runtime_error(system_error_text(cache.parent_path(), ec.value()));
   }
-  std::error_code ec;
-  std::filesystem::rename(tmp, cache, ec);
-  if (ec) {
-    std::filesystem::remove(tmp, ec);
-    throw std::runtime_error(cache.string() + ": cannot rename cache into place");
-  }
+  AtomicFile out(cache);
+  Checksum sum;
+  std::uint64_t at = 0;
+  const unsigned char zeros[kAlign] = {};
+  auto put = [&](const void* data, std::size_t size, std::uint64_t offset) {
+    while (at < offset) {  // alignment padding
+      const auto pad = static_cast<std::size_t>(std::min<std::uint64_t>(offset - at, kAlign));
+      out.write(zeros, pad);
+      sum.update(zeros, pad);
+      at += pad;
+    }
+    if (size == 0) return;
+    out.write(data, size);
+    sum.update(static_cast<const unsigned char*>(data), size);
+    at += size;
+  };
+  put(&h, sizeof h, 0);
+  put(levels.data(), levels.size() * sizeof(NodeId), h.level_table);
+  for (int i = 0; i < kArrays; ++i)
+    put(arrays[static_cast<std::size_t>(i)].first, arrays[static_cast<std::size_t>(i)].second,
+        h.offsets[i]);
+  put(nullptr, 0, h.payload_end);
+  const std::uint64_t digest = sum.finish();
+  out.write(&digest, sizeof digest);
+  out.commit();
 }
 
 std::optional<Hierarchy> load_cache(const std::filesystem::path& cache,
@@ -330,8 +401,10 @@ std::optional<Hierarchy> load_cache(const std::filesystem::path& cache,
   Header h;
   auto hier = map_and_verify(cache, &h, why);
   if (!hier) return std::nullopt;
+  // The modification time does not decide: an edit with the mtime restored
+  // changes the hash, and a touch (or a copy) that changes nothing keeps the cache.
   if (expected &&
-      (h.source_size != expected->source_size || h.source_mtime_ns != expected->source_mtime_ns ||
+      (h.source_size != expected->source_size || h.source_hash != expected->content_hash ||
        h.options_bits != expected->options_bits))
     return fail(why, "stale (the model or the build options changed)"), std::nullopt;
   return hier;
@@ -340,7 +413,7 @@ std::optional<Hierarchy> load_cache(const std::filesystem::path& cache,
 std::optional<CacheKey> read_cache_key(const std::filesystem::path& cache, std::string* why) {
   Header h;
   if (!map_and_verify(cache, &h, why)) return std::nullopt;
-  return CacheKey{h.source_size, h.source_mtime_ns, h.options_bits};
+  return CacheKey{h.source_size, h.source_mtime_ns, h.options_bits, h.source_hash};
 }
 
 std::uint64_t detail::cache_checksum(const unsigned char* data, std::size_t size) {

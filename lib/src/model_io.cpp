@@ -3,9 +3,10 @@
 #include <chrono>
 #include <cstdlib>
 #include <cstring>
-#include <fstream>
+#include <stdexcept>
 
 #include "treecut/error.hpp"
+#include "treecut/file_io.hpp"
 
 namespace treecut {
 
@@ -13,13 +14,6 @@ namespace {
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
-
-bool is_cache_file(const std::filesystem::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  char magic[8] = {};
-  in.read(magic, sizeof magic);
-  return in && std::memcmp(magic, "TCUTHIER", 8) == 0;
 }
 
 std::uint64_t fnv1a(const std::string& s) {
@@ -32,7 +26,10 @@ std::uint64_t fnv1a(const std::string& s) {
 
 std::filesystem::path default_cache_path(const std::filesystem::path& model) {
   std::filesystem::path dir;
-  if (const char* xdg = std::getenv("XDG_CACHE_HOME"); xdg && *xdg)
+  // The XDG base-directory rules: a relative path in XDG_CACHE_HOME is invalid
+  // and is ignored (it would put caches wherever the program was started).
+  if (const char* xdg = std::getenv("XDG_CACHE_HOME");
+      xdg && *xdg && std::filesystem::path(xdg).is_absolute())
     dir = xdg;
   else if (const char* home = std::getenv("HOME"); home && *home)
     dir = std::filesystem::path(home) / ".cache";
@@ -48,7 +45,8 @@ std::filesystem::path default_cache_path(const std::filesystem::path& model) {
 
 // Revision of what the pipeline computes (attributes and build). Bump it when
 // their output changes, so that caches written by an older build are stale.
-constexpr std::uint32_t kPipelineRevision = 2;
+// 3: caches are keyed on the model's content hash.
+constexpr std::uint32_t kPipelineRevision = 3;
 
 std::uint32_t options_bits(const AttributeOptions& attributes, const BuildOptions& build) {
   return (build.parent_at_real_point ? 1u : 0u) | (attributes.recompute_normals ? 2u : 0u) |
@@ -63,12 +61,27 @@ Hierarchy build_from_points(PointSet points, const AttributeOptions& attributes,
   return build_hierarchy(std::move(points), build);
 }
 
+namespace {
+
+// Fails before a long build when the cache could not be written anyway: the
+// folder is created and a temporary made and removed in it (a read-only
+// folder, XDG_CACHE_HOME naming a file, a directory or FIFO at the path).
+void probe_cache_destination(const std::filesystem::path& cache) {
+  if (cache.has_parent_path()) {
+    std::error_code ec;
+    std::filesystem::create_directories(cache.parent_path(), ec);
+    if (ec) throw std::runtime_error(system_error_text(cache.parent_path(), ec.value()));
+  }
+  AtomicFile probe(cache);  // never committed: the destructor removes it
+}
+
+}  // namespace
+
 OpenedModel open_model(const std::filesystem::path& model, const OpenOptions& options) {
   OpenedModel out;
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(model, ec))
-    throw InputError(model.string() + ": no such file");
-  if (is_cache_file(model)) {
+  // Checked without opening: a FIFO would block, a directory is "no such file" to ifstream.
+  require_regular_file(model);
+  if (looks_like_cache(model)) {
     std::string why;
     auto t0 = std::chrono::steady_clock::now();
     auto h = load_cache(model, std::nullopt, &why);
@@ -81,17 +94,34 @@ OpenedModel open_model(const std::filesystem::path& model, const OpenOptions& op
   }
   const std::uint32_t bits = options_bits(options.attributes, options.build);
   out.cache = options.cache_path ? *options.cache_path : default_cache_path(model);
+  if (same_file(out.cache, model))
+    throw InputError(out.cache.string() + ": is the model itself (" + model.string() +
+                     "); refusing to write a cache over it");
+  auto t_key = std::chrono::steady_clock::now();
   const CacheKey key = cache_key_for(model, bits);
-  if (options.use_cache && std::filesystem::exists(out.cache, ec)) {
-    auto t0 = std::chrono::steady_clock::now();
-    auto h = load_cache(out.cache, key, &out.cache_note);
-    out.cache_seconds = seconds_since(t0);
-    if (h) {
-      out.hierarchy = std::move(*h);
-      out.from_cache = true;
-      return out;
+  out.hash_seconds = seconds_since(t_key);
+  bool write_cache = options.use_cache;
+  if (options.use_cache) {
+    const FileKind kind = file_kind(out.cache);
+    if (kind != FileKind::Missing && kind != FileKind::Regular) {
+      const std::string what =
+          out.cache.string() + ": is " + std::string(describe(kind)) + ", not a cache file";
+      if (options.require_cache) throw std::runtime_error(what);
+      out.cache_note = what;
+      if (options.warn) options.warn(what + " (continuing without a cache)");
+      write_cache = false;
+    } else if (kind == FileKind::Regular && !options.rebuild) {
+      auto t0 = std::chrono::steady_clock::now();
+      auto h = load_cache(out.cache, key, &out.cache_note);
+      out.cache_seconds += seconds_since(t0);
+      if (h) {
+        out.hierarchy = std::move(*h);
+        out.from_cache = true;
+        return out;
+      }
+      if (options.warn) options.warn(out.cache.string() + ": " + out.cache_note + "; rebuilding");
     }
-    if (options.warn) options.warn(out.cache.string() + ": " + out.cache_note + "; rebuilding");
+    if (write_cache && options.require_cache) probe_cache_destination(out.cache);
   }
   auto stage = [&](std::string_view name) {
     if (options.progress) options.progress(name, 0, 1);
@@ -115,13 +145,15 @@ OpenedModel open_model(const std::filesystem::path& model, const OpenOptions& op
   t0 = std::chrono::steady_clock::now();
   out.hierarchy = build_hierarchy(std::move(points), build);
   out.build_seconds = seconds_since(t0);
-  if (options.use_cache) {
+  if (write_cache) {
     stage("cache");
     t0 = std::chrono::steady_clock::now();
     try {
       save_cache(out.hierarchy, key, out.cache);
     } catch (const std::exception& e) {
+      if (options.require_cache) throw;
       // A read-only cache folder must not stop anyone from viewing a model.
+      out.cache_note = e.what();
       if (options.warn) options.warn(std::string(e.what()) + " (continuing without a cache)");
     }
     out.cache_seconds += seconds_since(t0);

@@ -1,17 +1,15 @@
-// PLY export: binary little-endian, written to a temporary file and renamed
-// into place so a concurrent reader sees either the old file or the new one.
-#include <unistd.h>
-
+// PLY export: binary little-endian, written through an AtomicFile (temporary
+// beside the target, every write checked, renamed into place when complete),
+// so a concurrent reader sees either the old file or the new one and a full
+// disk leaves no truncated model behind.
 #include <algorithm>
 #include <bit>
-#include <cerrno>
-#include <cstdio>
 #include <cstring>
 #include <limits>
-#include <memory>
 #include <stdexcept>
 #include <string>
 
+#include "treecut/file_io.hpp"
 #include "treecut/ply.hpp"
 
 namespace treecut {
@@ -63,33 +61,18 @@ std::string header(const PointSet& points) {
   return out;
 }
 
-struct FileCloser {
-  void operator()(std::FILE* f) const { std::fclose(f); }
-};
-
 }  // namespace
 
 void save_ply(const std::filesystem::path& path, const PointSet& points) {
   check_sizes(points);
-  const std::filesystem::path temporary =
-      path.string() + ".tmp-" + std::to_string(static_cast<long>(::getpid()));
-  auto fail = [&](const std::string& what, int error) {
-    std::error_code ignored;
-    std::filesystem::remove(temporary, ignored);
-    throw std::runtime_error(path.string() + ": " + what + ": " + std::strerror(error));
-  };
-
-  std::unique_ptr<std::FILE, FileCloser> file(std::fopen(temporary.c_str(), "wb"));
-  if (!file) fail("cannot create " + temporary.string(), errno);
+  AtomicFile file(path);  // throws "PATH: REASON" (a directory or FIFO at PATH, a read-only folder)
 
   // Rows are encoded into a chunk and written in large blocks.
   constexpr std::size_t kChunk = std::size_t{1} << 20;
   std::string chunk = header(points);
   auto flush = [&](bool force) {
     if (chunk.size() < kChunk && !force) return;
-    if (std::fwrite(chunk.data(), 1, chunk.size(), file.get()) != chunk.size()) {
-      fail("cannot write", errno);
-    }
+    file.write(chunk);
     chunk.clear();
   };
   for (std::size_t i = 0; i < points.size(); ++i) {
@@ -120,12 +103,7 @@ void save_ply(const std::filesystem::path& path, const PointSet& points) {
     flush(false);
   }
   flush(true);
-  std::FILE* raw = file.release();
-  if (std::fclose(raw) != 0) fail("cannot write", errno);
-
-  std::error_code ec;
-  std::filesystem::rename(temporary, path, ec);
-  if (ec) fail("cannot rename " + temporary.string() + " into place", ec.value());
+  file.commit();
 }
 
 }  // namespace treecut

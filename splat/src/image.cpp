@@ -4,8 +4,11 @@
 #include <cmath>
 #include <cstdlib>
 #include <limits>
+#include <new>
 #include <stdexcept>
 #include <string>
+
+#include "treecut/file_io.hpp"
 
 // The implementation is in libstb (libstb-dev); only the declarations here.
 #include <stb_image_write.h>
@@ -22,15 +25,49 @@ void require_same_size(const Image& a, const Image& b) {
 }
 }  // namespace
 
-void write_png(const std::filesystem::path& path, const Image& image) {
+namespace {
+struct PngSink {
+  std::string bytes;
+  bool failed = false;
+};
+
+// Called from stb's C code: no exception may cross it, so a failed
+// allocation is recorded and reported after stb returns.
+void append_png(void* context, void* data, int size) {
+  auto* sink = static_cast<PngSink*>(context);
+  if (sink->failed || size <= 0) return;
+  try {
+    sink->bytes.append(static_cast<const char*>(data), static_cast<std::size_t>(size));
+  } catch (const std::bad_alloc&) {
+    sink->failed = true;
+  }
+}
+}  // namespace
+
+std::string encode_png(const Image& image) {
   if (image.empty() || image.rgba.size() != static_cast<std::size_t>(image.width) *
                                                 static_cast<std::size_t>(image.height) * 4) {
-    throw std::runtime_error(path.string() + ": cannot write a malformed image");
+    throw std::invalid_argument("cannot encode a malformed image as PNG");
   }
-  if (stbi_write_png(path.c_str(), image.width, image.height, 4, image.rgba.data(),
-                     image.width * 4) == 0) {
-    throw std::runtime_error(path.string() + ": could not write PNG");
+  PngSink sink;
+  if (stbi_write_png_to_func(append_png, &sink, image.width, image.height, 4, image.rgba.data(),
+                             image.width * 4) == 0 ||
+      sink.failed) {
+    throw std::runtime_error("PNG encoding failed (out of memory)");
   }
+  return std::move(sink.bytes);
+}
+
+void write_png(const std::filesystem::path& path, const Image& image) {
+  std::string bytes;
+  try {
+    bytes = encode_png(image);
+  } catch (const std::exception& e) {
+    throw std::runtime_error(path.string() + ": " + e.what());
+  }
+  // Encoded in memory first, then one checked atomic write: a full disk
+  // leaves no truncated PNG that looks like a frame.
+  write_file_atomically(path, bytes);
 }
 
 double psnr(const Image& a, const Image& b) {

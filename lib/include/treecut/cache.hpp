@@ -1,10 +1,11 @@
 // On-disk hierarchy cache: versioned, checksummed, memory-mapped on load.
 //
 // Layout: a fixed header (magic, format version, endianness tag, counts, the
-// source file's size and modification time, the build options, per-array
-// offsets) followed by the node arrays, each 64-byte aligned, and a 64-bit
-// checksum over header and payload. Written to a temporary file and renamed,
-// so a crash mid-write never leaves a cache that loads.
+// source file's size, modification time and content hash, the build options,
+// per-array offsets) followed by the node arrays, each 64-byte aligned, and a
+// 64-bit checksum over header and payload. Written through an AtomicFile
+// (temporary + rename, every write checked), so a crash or a full disk never
+// leaves a cache that loads.
 #pragma once
 
 #include <cstdint>
@@ -16,16 +17,31 @@
 
 namespace treecut {
 
-/// What a cache was built from; a cache is stale when this differs.
+/// What a cache was built from. A cache is stale when the size, the options
+/// or the content hash differ; the modification time is recorded (for `info`)
+/// but does not decide: a file edited in place with its mtime restored has
+/// another hash, and a file only touched keeps its cache.
 struct CacheKey {
   std::uint64_t source_size = 0;
   std::int64_t source_mtime_ns = 0;
   std::uint32_t options_bits = 0;  ///< BuildOptions/AttributeOptions that change the output
+  std::uint64_t content_hash = 0;  ///< XXH3-64 of the source file's bytes
 };
 
+/// Size, mtime and content hash of SOURCE (read through a mapping, never
+/// blocking: a FIFO or directory is an InputError naming what it is).
 CacheKey cache_key_for(const std::filesystem::path& source, std::uint32_t options_bits);
 
-/// Writes atomically (temporary + rename). Throws std::runtime_error on I/O failure.
+/// XXH3-64 of a whole regular file (what CacheKey::content_hash holds).
+std::uint64_t content_hash_of(const std::filesystem::path& source);
+
+/// Whether PATH is a regular file that starts like a treecut cache (magic
+/// bytes only; load_cache verifies the rest). Never blocks.
+bool looks_like_cache(const std::filesystem::path& path);
+
+/// Writes atomically (AtomicFile: temporary + rename). Creates the folder.
+/// Throws std::runtime_error "PATH: REASON" (the system's reason) on failure;
+/// the previous file at CACHE, if any, is left as it was.
 void save_cache(const Hierarchy& h, const CacheKey& key, const std::filesystem::path& cache);
 
 /// Maps and verifies a cache. Returns nullopt and sets *why when the file is

@@ -19,7 +19,14 @@ namespace treecut {
 struct OpenOptions {
   AttributeOptions attributes;
   BuildOptions build;
-  bool use_cache = true;                            ///< read a valid cache, write one after a build
+  bool use_cache = true;  ///< read a valid cache, write one after a build
+  /// Ignore a valid cache and rebuild (`build -f`); the old cache stays in
+  /// place until the new one replaces it atomically.
+  bool rebuild = false;
+  /// The cache must be written (`build`): a cache that cannot be written is a
+  /// std::runtime_error "PATH: REASON", checked before the build where it can
+  /// be. Otherwise the model opens without it, with one warning.
+  bool require_cache = false;
   std::optional<std::filesystem::path> cache_path;  ///< default: default_cache_path(model)
   WarningSink warn;                                 ///< PLY warnings and cache notes (may be empty)
   /// Called on the calling thread with the stage ("read", "attributes",
@@ -35,12 +42,14 @@ struct OpenedModel {
   PlyLoadReport ply;             ///< when built
   std::size_t input_points = 0;  ///< points after dropping non-finite ones
   double read_seconds = 0, attribute_seconds = 0, build_seconds = 0, cache_seconds = 0;
+  double hash_seconds = 0;  ///< the model's content hash (the cache key)
   [[nodiscard]] double total_seconds() const {
-    return read_seconds + attribute_seconds + build_seconds + cache_seconds;
+    return hash_seconds + read_seconds + attribute_seconds + build_seconds + cache_seconds;
   }
 };
 
 /// `${XDG_CACHE_HOME:-$HOME/.cache}/treecut/<file name>-<hash of the absolute path>.tch`.
+/// A relative XDG_CACHE_HOME is ignored, as the XDG base-directory rules say.
 std::filesystem::path default_cache_path(const std::filesystem::path& model);
 
 /// The bits of the options that change a built hierarchy (part of the cache key).
@@ -48,7 +57,10 @@ std::uint32_t options_bits(const AttributeOptions& attributes, const BuildOption
 
 /// Opens a model: a cache file (.tch) directly, or a PLY through its cache,
 /// rebuilding (and rewriting the cache) when it is missing, stale or corrupt.
-/// Throws InputError for a malformed model file.
+/// A cache is served only for the content it was built from (size and an
+/// XXH3 hash of the model's bytes). Throws InputError for a malformed model
+/// file, a model that is not a regular file ("is a FIFO", never blocking) and
+/// a cache path that names the model itself.
 OpenedModel open_model(const std::filesystem::path& model, const OpenOptions& options = {});
 
 /// Builds from points already in memory (generated models, benchmarks).

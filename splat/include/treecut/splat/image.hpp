@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <string>
 #include <vector>
 
 namespace treecut::splat {
@@ -17,7 +18,13 @@ struct Image {
   [[nodiscard]] bool empty() const { return width <= 0 || height <= 0; }
 };
 
-/// Writes a PNG; throws std::runtime_error on failure.
+/// The PNG file's bytes (encoded in memory). Throws std::invalid_argument for
+/// a malformed image.
+std::string encode_png(const Image& image);
+
+/// Writes a PNG atomically (AtomicFile: temporary + rename, every write
+/// checked): a failure leaves PATH as it was. Throws std::runtime_error
+/// "PATH: REASON" on failure, a directory or FIFO at PATH included.
 void write_png(const std::filesystem::path& path, const Image& image);
 
 /// Peak signal-to-noise ratio in dB over the RGB channels of two images of the
