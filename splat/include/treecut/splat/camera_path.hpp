@@ -36,11 +36,16 @@ struct CameraPath {
 };
 
 /// Parses the text format; throws InputError "NAME:LINE: problem" on any
-/// malformed line, non-finite number, decreasing time, or a missing header.
+/// malformed line, a number that is not finite or does not fit its type
+/// (time: double, the rest: float), decreasing time, eye == target, an up
+/// vector parallel to the view direction, fov outside (1, 170), or a missing
+/// header.
 CameraPath parse_camera_path(std::string_view text, const std::string& name);
 std::string format_camera_path(const CameraPath& path);
-/// File versions of the two above; I/O failures throw InputError (load) or
-/// std::runtime_error (save).
+/// File versions of the two above. load reads a regular file of at most
+/// kTextInputLimit bytes (file_io.hpp: a FIFO, device or directory is refused
+/// unopened) and throws InputError; save writes a temporary and renames it
+/// (std::runtime_error naming the file on failure, nothing left behind).
 CameraPath load_camera_path(const std::filesystem::path& file);
 void save_camera_path(const std::filesystem::path& file, const CameraPath& path);
 
