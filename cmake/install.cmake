@@ -9,6 +9,14 @@ include(CMakePackageConfigHelpers)
 
 set(TREECUT_INSTALL_CMAKEDIR ${CMAKE_INSTALL_LIBDIR}/cmake/treecut)
 
+# A plugin (a module or shared library) linking the installed static core gets
+# its own private copy: --exclude-libs keeps the archives' symbols out of its
+# dynamic symbol table, so it exports only its two entry points, whatever
+# visibility the core was compiled with, and never interposes on the host's
+# copy. Only for the installed targets and only for shared consumers.
+set_property(TARGET treecut_core treecut_strategies APPEND PROPERTY INTERFACE_LINK_OPTIONS
+  "$<INSTALL_INTERFACE:$<$<IN_LIST:$<TARGET_PROPERTY:TYPE>,MODULE_LIBRARY;SHARED_LIBRARY>:LINKER:--exclude-libs,ALL>>")
+
 install(TARGETS treecut_core treecut_strategies EXPORT treecutTargets
   ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT treecut_development
   LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT treecut_development

@@ -26,6 +26,22 @@ set(plugin "${WORK_DIR}/build/libtreecut_example_plugin.so")
 if(NOT EXISTS "${plugin}")
   message(FATAL_ERROR "plugin_roundtrip: ${plugin} was not built")
 endif()
+# Built as the guide says, the plugin exports its two entry points and nothing
+# of the static core (docs/plugin-guide.md, section 2).
+find_program(NM nm REQUIRED)
+run("nm" ${NM} -D --defined-only "${plugin}")
+string(REGEX MATCHALL "[^\n]+" symbol_lines "${run_output}")
+set(exported "")
+foreach(l IN LISTS symbol_lines)
+  string(REGEX REPLACE "^[0-9a-fA-F]* *[A-Za-z] " "" name "${l}")
+  list(APPEND exported "${name}")
+endforeach()
+list(SORT exported)
+if(NOT exported STREQUAL "treecut_plugin_api_version;treecut_plugin_register")
+  list(LENGTH exported count)
+  message(FATAL_ERROR "plugin_roundtrip: ${plugin} exports ${count} symbols, expected the two "
+                      "entry points only:\n${run_output}")
+endif()
 run("plugin load" ${CMAKE_COMMAND} -E env "TREECUT_EXAMPLE_PLUGIN=${plugin}"
     "${PLUGIN_TEST}" --gtest_filter=ExamplePlugin.*)
 if(run_output MATCHES "SKIPPED" OR NOT run_output MATCHES "PASSED")

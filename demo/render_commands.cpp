@@ -348,6 +348,7 @@ void run_render(const RenderArgs& a) {
     stage_options.launch = a.sync ? Launch::Manual : Launch::Thread;
     // llvmpipe keeps both cores busy while it draws: the stage takes what is left.
     stage_options.priority = StagePriority::Idle;
+    configure_stage(stage_options, a.scene);
     Controller controller(make_model(h), make_strategy(registry, name, a.scene.params),
                           snapshot_of(cam, size, world_light_dir(settings.light, cam)),
                           stage_options);
@@ -442,6 +443,14 @@ void run_render(const RenderArgs& a) {
                   run.stability_converged ? "" : " [not converged]");
     }
     std::printf("\n");
+    // Fewer iterations than the path needed: say so (the frames lag or show the root).
+    if (const std::string late =
+            stage_shortfall(name, controller.stage().counters(), stage_options,
+                            static_cast<int>(controller.stage().counters().frames));
+        !late.empty()) {
+      std::fflush(stdout);
+      std::fprintf(stderr, "warning: %s\n", late.c_str());
+    }
     runs.push_back(std::move(run));
   }
   write_plot_svg(out / "plot.svg", runs, scene.label + ": frame time and cut size per strategy");

@@ -69,6 +69,7 @@ class Viewer {
     StageOptions stage_options;
     // The stage takes the cycles the render thread and the GL driver leave.
     stage_options.priority = StagePriority::Idle;
+    configure_stage(stage_options, args.scene);
     controller_ = std::make_unique<Controller>(
         make_model(*scene_.hierarchy), std::move(strategy),
         snapshot_of(camera_, window_.framebuffer_size(), world_light_dir(settings_.light, camera_)),

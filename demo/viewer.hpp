@@ -33,6 +33,7 @@ struct SceneArgs {
   int k = 12;
   bool fixed_light = false;
   std::string up = "auto";  ///< x | y | z | auto (z for generated models, y for files)
+  bool validate = false;     ///< --validate: check every cut a strategy returns in full
 };
 
 void add_scene_options(CLI::App& cmd, SceneArgs& args);
@@ -81,6 +82,15 @@ struct FrameDriver {
 
   bool begin(const splat::Camera& camera, glm::ivec2 size, glm::vec3 light_dir);
 };
+
+/// The stage options `render` and `view` share: --validate, and a bounded exit
+/// when a strategy ignores cancellation at shutdown (one error line, exit 1).
+void configure_stage(StageOptions& options, const SceneArgs& args);
+
+/// One warning line when the stage fell behind during a run (no iteration at
+/// all, or requests that waited past the starvation bound); else empty.
+std::string stage_shortfall(const std::string& strategy, const StageCounters& counters,
+                            const StageOptions& options, int frames);
 
 /// The ViewSnapshot of a camera (initial view of a Controller).
 ViewSnapshot snapshot_of(const splat::Camera& camera, glm::ivec2 size, glm::vec3 light_dir);

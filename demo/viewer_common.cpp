@@ -1,7 +1,9 @@
 // Model, strategy and frame set-up shared by `treecut render` and `treecut view`.
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <glm/geometric.hpp>
 #include <glm/mat3x3.hpp>
 #include <glm/matrix.hpp>
@@ -45,6 +47,45 @@ void add_scene_options(CLI::App& cmd, SceneArgs& args) {
       ->capture_default_str();
   cmd.add_flag("--fixed-light", args.fixed_light,
                "Keep the light fixed in the world instead of following the camera");
+  cmd.add_flag("--validate", args.validate,
+               "Check every cut a strategy returns with TreeCut::validate (always on in Debug "
+               "and sanitizer builds; see docs/plugin-guide.md)");
+}
+
+void configure_stage(StageOptions& options, const SceneArgs& args) {
+  if (args.validate) options.validate = true;
+  // The stage cannot leave while the iteration runs (it reads the stage's
+  // lists and the model); the program is done with both, so it ends here.
+  options.on_slow_cancel = [](const std::string& what) {
+    std::fflush(stdout);
+    std::fprintf(stderr, "treecut: error: %s; exiting\n", what.c_str());
+    std::_Exit(1);
+  };
+}
+
+std::string stage_shortfall(const std::string& strategy, const StageCounters& c,
+                            const StageOptions& options, int frames) {
+  char line[320];
+  if (c.iterations == 0) {
+    std::snprintf(line, sizeof line,
+                  "%s: no strategy iteration completed in %d frames; they show the initial cut",
+                  strategy.c_str(), frames);
+    return line;
+  }
+  const auto bound_ns = static_cast<std::uint64_t>(
+      std::chrono::duration_cast<std::chrono::nanoseconds>(options.starvation_bound).count());
+  if (c.wait_ns_max > bound_ns) {
+    std::snprintf(line, sizeof line,
+                  "%s: the Feedback Stage fell behind: an update waited up to %.0f ms for CPU "
+                  "time (bound %lld ms; %llu of %llu updates late, priority raised %llu times)",
+                  strategy.c_str(), double(c.wait_ns_max) * 1e-6,
+                  static_cast<long long>(options.starvation_bound.count()),
+                  static_cast<unsigned long long>(c.starved),
+                  static_cast<unsigned long long>(c.requests),
+                  static_cast<unsigned long long>(c.boosts));
+    return line;
+  }
+  return {};
 }
 
 Scene load_scene(const SceneArgs& args) {

@@ -19,3 +19,17 @@ add_test(NAME example_plugin_roundtrip
     -DEXTRA_FLAGS=${_treecut_plugin_flags}
     -P ${PROJECT_SOURCE_DIR}/cmake/plugin_roundtrip.cmake)
 set_tests_properties(example_plugin_roundtrip PROPERTIES LABELS unit TIMEOUT 600)
+
+# A plugin whose strategies misbehave (tests/misbehaving_plugin.cpp): plugin_test
+# loads it to check that errors name the strategy and the plugin file, and that
+# `treecut render` reports them. Built like a plugin author would (hidden
+# visibility, the static core kept out of the dynamic symbol table).
+add_library(treecut_misbehaving_plugin MODULE ${CMAKE_CURRENT_SOURCE_DIR}/misbehaving_plugin.cpp)
+target_link_libraries(treecut_misbehaving_plugin PRIVATE treecut::core)
+set_target_properties(treecut_misbehaving_plugin PROPERTIES
+  CXX_VISIBILITY_PRESET hidden VISIBILITY_INLINES_HIDDEN ON PREFIX "lib")
+target_link_options(treecut_misbehaving_plugin PRIVATE "LINKER:--exclude-libs,ALL")
+treecut_warnings(treecut_misbehaving_plugin)
+add_dependencies(plugin_test treecut_misbehaving_plugin treecut)
+target_compile_definitions(plugin_test PRIVATE
+  TREECUT_MISBEHAVING_PLUGIN="$<TARGET_FILE:treecut_misbehaving_plugin>")

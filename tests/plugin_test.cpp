@@ -10,6 +10,7 @@
 #include <string>
 
 #include "strategy_fixtures.hpp"
+#include "test_support.hpp"
 #include "treecut/error.hpp"
 #include "treecut/feedback_stage.hpp"
 #include "treecut/model.hpp"
@@ -66,6 +67,86 @@ TEST(ExamplePlugin, RegistersAndRunsItsStrategyInAFeedbackStage) {
   ASSERT_TRUE(stage.counters().converged);
   EXPECT_EQ(stage.front().nodes.size(), h->leaf_count()) << "depth 1.0: every leaf";
 }
+
+#ifdef TREECUT_MISBEHAVING_PLUGIN
+// tests/misbehaving_plugin.cpp: each strategy breaks one rule of the guide.
+const std::string kBadPlugin = TREECUT_MISBEHAVING_PLUGIN;
+
+std::string first_error(FeedbackStage& stage) {
+  for (int i = 0; i < 4; ++i) {
+    try {
+      stage.poll();
+    } catch (const StrategyError& e) {
+      return e.what();
+    }
+    stage.step();
+  }
+  return "no StrategyError";
+}
+
+TEST(MisbehavingPlugin, EveryErrorNamesTheStrategyAndThePluginFile) {
+  StrategyRegistry registry;
+  registry.load_plugin(kBadPlugin);
+  const auto h = test::small_hierarchy(ModelKind::Sphere, 3000);
+  StageOptions o;
+  o.launch = Launch::Manual;
+  o.validate = false;  // the checks that run in every build
+  struct Case {
+    const char* strategy;
+    const char* problem;
+  };
+  for (const Case& c : {Case{"drops_node", "returned an invalid cut: its nodes hold "},
+                        Case{"empty_cut", "returned an invalid cut: the cut is empty"},
+                        Case{"throws_int", "threw an exception of type int"}}) {
+    FeedbackStage stage(Model{h, TreeCut::root_cut(*h)}, registry.create(c.strategy), o);
+    const std::string m = first_error(stage);
+    const std::string prefix =
+        "strategy '" + std::string(c.strategy) + "' (plugin " + kBadPlugin + "): ";
+    EXPECT_EQ(m.rfind(prefix, 0), 0u) << m;
+    EXPECT_NE(m.find(c.problem), std::string::npos) << m;
+    EXPECT_EQ(stage.front().nodes.size(), 1u) << c.strategy << ": the root stays on screen";
+    EXPECT_EQ(stage.counters().errors, 1u);
+  }
+}
+
+// `treecut render` with a failing strategy: exit 1 and one line naming the
+// strategy and the plugin (--sync: the iteration runs in the frame, so the
+// error arrives at the next one).
+TEST(MisbehavingPlugin, RenderExitsOneWithOneLineNamingStrategyAndPlugin) {
+  const auto dir = test::scratch_dir("misbehaving_render");
+  for (const char* s : {"drops_node", "throws_int"}) {
+    const test::CommandResult r =
+        test::run_treecut("render --plugin " + test::quote(kBadPlugin) + " -s " + s +
+                          " --sync --frames 3 --warmup 0 --no-png --width 64 "
+                          "--height 48 --default-points 3000 --out " +
+                          test::quote(dir / s));
+    EXPECT_EQ(r.code, 1) << r.out;
+    const std::string line =
+        "treecut: error: strategy '" + std::string(s) + "' (plugin " + kBadPlugin + "): ";
+    EXPECT_NE(r.out.find(line), std::string::npos) << r.out;
+  }
+}
+
+// A strategy that ignores cancellation does not hold the program: the stage
+// reports it after StageOptions::cancel_timeout and treecut exits 1.
+TEST(MisbehavingPlugin, RenderWithAStrategyIgnoringCancellationEndsAndSaysSo) {
+  const auto dir = test::scratch_dir("misbehaving_cancel");
+  const test::CommandResult r =
+      test::run_treecut("render --plugin " + test::quote(kBadPlugin) +
+                            " -s ignores_cancel --frames 2 --warmup 0 --no-png "
+                            "--width 64 --height 48 --default-points 3000 --out " +
+                            test::quote(dir),
+                        50);  // the strategy itself would take 60 s
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("warning: ignores_cancel: no strategy iteration completed in "),
+            std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("treecut: error: strategy 'ignores_cancel' (plugin " + kBadPlugin +
+                       ") ignored cancellation for "),
+            std::string::npos)
+      << r.out;
+}
+#endif
 
 }  // namespace
 }  // namespace treecut

@@ -156,12 +156,11 @@ FeedbackStage::~FeedbackStage() {
       std::snprintf(seconds, sizeof seconds, "%.1f",
                     std::chrono::duration<double>(Clock::now() - since).count());
       const std::string what = describe_strategy(running_->name(), running_->origin()) +
-                               " ignored cancellation for " + seconds +
-                               " s; waiting for it to return";
+                               " ignored cancellation for " + seconds + " s";
       if (options_.on_slow_cancel) {
         options_.on_slow_cancel(what);
       } else {
-        std::fprintf(stderr, "warning: %s\n", what.c_str());
+        std::fprintf(stderr, "warning: %s; waiting for it to return\n", what.c_str());
       }
     }
     while (state_.load(std::memory_order_acquire) == State::Process) {

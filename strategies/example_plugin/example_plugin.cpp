@@ -3,7 +3,9 @@
 // and coarsening what is below. A minimal, complete Evolve strategy for the
 // plugin guide (docs/plugin-guide.md).
 #include <cmath>
+#include <cstddef>
 #include <memory>
+#include <span>
 #include <vector>
 
 #include "treecut/plugin.hpp"
@@ -28,7 +30,16 @@ class UniformDepthStrategy final : public treecut::Strategy {
     treecut::TreeCut& cut = *out.cut;
     // Collect first, apply after: the pass sees one consistent cut.
     ops_.clear();
-    for (const treecut::NodeId n : cut.nodes()) {
+    const std::span<const treecut::NodeId> nodes = cut.nodes();
+    for (std::size_t i = 0; i < nodes.size(); ++i) {
+      // The guide's rule: test for cancellation every few thousand nodes and
+      // return with a valid cut (nothing applied yet: the cut is unchanged).
+      if ((i & 4095) == 0 && in.cancelled()) {
+        out.result.cancelled = true;
+        out.result.cut_size = cut.size();
+        return;
+      }
+      const treecut::NodeId n = nodes[i];
       ++out.result.visited;
       if (a.depth[n] < target && a.child_count[n] != 0) {
         ops_.push_back(n);
