@@ -1,0 +1,208 @@
+// The up axis of a model from its points and normals (the rule is in up_axis.hpp).
+#include "treecut/up_axis.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <vector>
+
+namespace treecut {
+
+namespace {
+
+// The rule's constants, named as in the header comment.
+constexpr float kQuantile = 0.002f;       // robust extent: 0.2% .. 99.8%
+constexpr float kLayer = 0.02f;           // a ground layer: the lowest 2% of the extent
+constexpr double kMinLayerShare = 0.035;  // ... holding at least 3.5% of the points
+constexpr double kMinFootprint = 0.25;    // ... over a quarter of the cross-section
+constexpr double kFacing = 0.1;           // mean n.d of normals that face one way
+constexpr float kFlat = 0.5f;             // extent / next smallest extent of a flat model
+constexpr double kLeaning = 0.015;        // mean n.d of normals that lean one way
+constexpr double kLeaningMargin = 1.5;    // ... over the next direction
+
+constexpr std::size_t kMaxSample = std::size_t{1} << 20;
+
+std::string axis_name(int axis, bool negative) {
+  return std::string(negative ? "-" : "") + "xyz"[axis];
+}
+
+std::string format(const char* pattern, double value) {
+  char buffer[64];
+  std::snprintf(buffer, sizeof buffer, pattern, value);
+  return buffer;
+}
+
+UpAxis make(int axis, bool negative, std::string reason) {
+  UpAxis up;
+  up.axis = axis;
+  up.negative = negative;
+  up.reason = std::move(reason);
+  return up;
+}
+
+// The value at quantile Q of one coordinate of the points.
+float quantile(std::span<const glm::vec3> positions, int axis, float q) {
+  std::vector<float> values(positions.size());
+  for (std::size_t i = 0; i < positions.size(); ++i) values[i] = positions[i][axis];
+  const auto k = static_cast<std::size_t>(q * static_cast<float>(values.size() - 1));
+  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(k), values.end());
+  return values[k];
+}
+
+}  // namespace
+
+glm::vec3 UpAxis::vector() const {
+  glm::vec3 v(0.0f);
+  v[axis] = negative ? -1.0f : 1.0f;
+  return v;
+}
+
+std::string UpAxis::name() const {
+  return axis_name(axis, negative);
+}
+
+std::optional<UpAxis> parse_up_axis(std::string_view text) {
+  bool negative = false;
+  if (!text.empty() && (text.front() == '-' || text.front() == '+')) {
+    negative = text.front() == '-';
+    text.remove_prefix(1);
+  }
+  if (text.size() != 1 || text[0] < 'x' || text[0] > 'z') return std::nullopt;
+  return make(text[0] - 'x', negative, "");
+}
+
+UpAxis next_up_axis(const UpAxis& current) {
+  return make((current.axis + 1) % 3, false, "");
+}
+
+UpAxis detect_up_axis(std::span<const glm::vec3> positions, std::span<const glm::vec3> normals) {
+  const std::size_t n = positions.size();
+  if (n == 0) return make(2, false, "no points; default z");
+  const bool with_normals = normals.size() == n;
+
+  glm::vec3 lo, hi, extent;
+  for (int k = 0; k < 3; ++k) {
+    lo[k] = quantile(positions, k, kQuantile);
+    hi[k] = quantile(positions, k, 1.0f - kQuantile);
+    extent[k] = hi[k] - lo[k];
+  }
+
+  // 1. A ground or a base. Per direction (axis, sign): the points in the layer
+  // and the bounding rectangle of the layer across the other two axes.
+  struct Layer {
+    std::size_t count = 0;
+    glm::vec2 min{INFINITY}, max{-INFINITY};
+  };
+  std::array<Layer, 6> layers;  // index 2 * axis + (negative ? 1 : 0)
+  glm::dvec3 flux(0.0);
+  std::size_t defined = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const glm::vec3& p = positions[i];
+    for (int k = 0; k < 3; ++k) {
+      if (!(extent[k] > 0.0f)) continue;
+      const float band = kLayer * extent[k];
+      const glm::vec2 across(p[(k + 1) % 3], p[(k + 2) % 3]);
+      for (int side = 0; side < 2; ++side) {
+        const bool in = side == 0 ? p[k] <= lo[k] + band : p[k] >= hi[k] - band;
+        if (!in) continue;
+        Layer& layer = layers[static_cast<std::size_t>(2 * k + side)];
+        ++layer.count;
+        layer.min = glm::min(layer.min, across);
+        layer.max = glm::max(layer.max, across);
+      }
+    }
+    if (with_normals && normals[i] != glm::vec3(0.0f)) {
+      flux += glm::dvec3(normals[i]);
+      ++defined;
+    }
+  }
+  int best_layer = -1;
+  double best_share = 0.0;
+  for (int d = 0; d < 6; ++d) {
+    const int k = d / 2, u = (k + 1) % 3, v = (k + 2) % 3;
+    const Layer& layer = layers[static_cast<std::size_t>(d)];
+    if (layer.count == 0 || !(extent[u] > 0.0f) || !(extent[v] > 0.0f)) continue;
+    // Clamped to the robust extent: an outlier does not widen the layer.
+    const glm::vec2 cross_lo(lo[u], lo[v]), cross_hi(hi[u], hi[v]);
+    const glm::vec2 size =
+        glm::clamp(layer.max, cross_lo, cross_hi) - glm::clamp(layer.min, cross_lo, cross_hi);
+    const double footprint =
+        static_cast<double>(size.x) * size.y / (static_cast<double>(extent[u]) * extent[v]);
+    const double share = static_cast<double>(layer.count) / static_cast<double>(n);
+    if (share >= kMinLayerShare && footprint >= kMinFootprint && share > best_share) {
+      best_share = share;
+      best_layer = d;
+    }
+  }
+  if (best_layer >= 0) {
+    const int k = best_layer / 2;
+    const bool negative = best_layer % 2 == 1;
+    return make(k, negative,
+                "a ground or base: " + format("%.1f", 100.0 * best_share) +
+                    "% of the points lie in the lowest 2% along " + axis_name(k, negative));
+  }
+
+  // 2. and 4. need the mean normal; the strongest direction and the runner-up.
+  const glm::dvec3 mean = defined > 0 ? flux / static_cast<double>(defined) : glm::dvec3(0.0);
+  int strongest = 0;
+  for (int k = 1; k < 3; ++k) {
+    if (std::fabs(mean[k]) > std::fabs(mean[strongest])) strongest = k;
+  }
+  double runner_up = 0.0;
+  for (int k = 0; k < 3; ++k) {
+    if (k != strongest) runner_up = std::max(runner_up, std::fabs(mean[k]));
+  }
+  const double facing = std::fabs(mean[strongest]);
+  const bool facing_negative = mean[strongest] < 0.0;
+  auto normal_reason = [&](const char* what) {
+    return std::string(what) + (facing_negative ? "" : "+") + axis_name(strongest, facing_negative) + ": mean n." +
+           "xyz"[strongest] + " = " + format("%.3f", mean[strongest]);
+  };
+  if (facing >= kFacing) {
+    return make(strongest, facing_negative, normal_reason("normals face "));
+  }
+
+  // 3. A flat model.
+  std::array<int, 3> order{0, 1, 2};
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return extent[a] < extent[b]; });
+  if (extent[order[1]] > 0.0f && extent[order[0]] <= kFlat * extent[order[1]]) {
+    return make(order[0], false,
+                "flat along " + axis_name(order[0], false) + ": extent " +
+                    format("%.2f", extent[order[0]] / extent[order[1]]) + " of the next smallest");
+  }
+
+  // 4. Normals that lean one way.
+  if (facing >= kLeaning && facing >= kLeaningMargin * runner_up) {
+    return make(strongest, facing_negative, normal_reason("normals lean to "));
+  }
+  return make(2, false, "no ground, base, flat extent or normal direction stands out; default z");
+}
+
+UpAxis detect_up_axis(const Hierarchy& hierarchy) {
+  if (hierarchy.empty()) return make(2, false, "no points; default z");
+  const std::uint32_t nodes = hierarchy.node_count();
+  // Leaves make up most nodes, so a stride over node ids samples them evenly
+  // (ids are breadth-first; the leaves of a level are spatially ordered).
+  const std::size_t stride = std::max<std::size_t>(1, nodes / kMaxSample);
+  std::vector<glm::vec3> positions, normals;
+  positions.reserve(std::min<std::size_t>(hierarchy.leaf_count(), kMaxSample) + 1);
+  normals.reserve(positions.capacity());
+  for (std::size_t id = 0; id < nodes; id += stride) {
+    const auto node = static_cast<NodeId>(id);
+    if (!hierarchy.is_leaf(node)) continue;
+    positions.push_back(hierarchy.center(node));
+    normals.push_back(hierarchy.normal(node));
+  }
+  if (positions.empty()) {
+    // Only possible with a stride that skipped every leaf: read them all.
+    for (NodeId node = 0; node < nodes; ++node) {
+      if (!hierarchy.is_leaf(node)) continue;
+      positions.push_back(hierarchy.center(node));
+      normals.push_back(hierarchy.normal(node));
+    }
+  }
+  return detect_up_axis(positions, normals);
+}
+
+}  // namespace treecut
