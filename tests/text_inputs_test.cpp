@@ -96,7 +96,9 @@ TEST(CameraPathText, NumbersThatDoNotFitNameFileLineAndToken) {
       {"0 0 0 5 0 0 0 0 1 0 1e-400", "fov_y_deg '1e-400' is out of range"},
       {"0 0 0 5 0 0 0 0 inf 0 45", "up.y 'inf' is not a finite number"},
       {"0 0 0 5 0 0 0 0 1 0 4x5", "fov_y_deg '4x5' is not a number"},
-      {"0 0 0 5 0 0 0 0 1 0 45 \x01\x02", "'?" "?' is not a number"},
+      {"0 0 0 5 0 0 0 0 1 0 45 \x01\x02",
+       "'?"
+       "?' is not a number"},
       {"-1 0 0 5 0 0 0 0 1 0 45", "negative time"},
       {"0 0 0 5 0 0 0 0 1 0 0", "fov_y_deg outside (1, 170)"},
       {"0 0 0 5 0 0 0 0 1 0 180", "fov_y_deg outside (1, 170)"},
@@ -276,6 +278,19 @@ TEST(PluginPath, AFifoOrADirectoryIsRefusedBeforeDlopen) {
     const std::string m = input_error_of([&] { registry.load_plugin(s.path); });
     EXPECT_NE(m.find(s.path.string() + ": " + s.named), std::string::npos) << m;
   }
+  // A bare name that is a file in the current folder is that file (dlopen
+  // alone would search the library path and say "No such file").
+  const fs::path previous = fs::current_path();
+  fs::current_path(dir);
+  StrategyRegistry registry;
+  const std::string bare = input_error_of([&] { registry.load_plugin("fifo"); });
+  const std::string text = input_error_of([&] {
+    write_text("notes.txt", "not a library\n");
+    registry.load_plugin("notes.txt");
+  });
+  fs::current_path(previous);
+  EXPECT_EQ(bare.rfind("fifo: is a FIFO", 0), 0u) << bare;
+  EXPECT_NE(text.find("notes.txt: cannot load plugin: ./notes.txt:"), std::string::npos) << text;
 }
 
 }  // namespace

@@ -68,14 +68,20 @@ std::vector<std::string> StrategyRegistry::names() const {
 
 void StrategyRegistry::load_plugin(const std::filesystem::path& path) {
   const std::string where = path.string();
-  // dlopen() of a FIFO blocks in open() and of a device reads from it: a path
-  // (a bare name is searched on the library path instead) must be a regular
-  // file. A missing one is left to dlopen's own message.
-  if (where.find('/') != std::string::npos && file_kind(path) != FileKind::Missing)
+  // dlopen() of a FIFO blocks in open() and of a device reads from it: a file
+  // that exists must be a regular file. A bare name that names no file here
+  // is searched on the library path (dlopen's rule); one that does is this
+  // file, so "--plugin libx.so" in its folder loads it (dlopen alone would
+  // search elsewhere and report "No such file"). A missing path is left to
+  // dlopen's own message.
+  std::string open_as = where;
+  if (file_kind(path) != FileKind::Missing) {
     require_regular_file(path);
+    if (where.find('/') == std::string::npos) open_as = "./" + where;
+  }
   // RTLD_LOCAL: two plugins may define the same internal symbols. The handle is
   // never closed (see the header), so it is deliberately not kept.
-  void* handle = dlopen(where.c_str(), RTLD_NOW | RTLD_LOCAL);
+  void* handle = dlopen(open_as.c_str(), RTLD_NOW | RTLD_LOCAL);
   if (handle == nullptr) {
     const char* why = dlerror();
     throw InputError(where + ": cannot load plugin: " + (why != nullptr ? why : "unknown error"));
