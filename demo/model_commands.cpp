@@ -14,6 +14,7 @@
 #include "treecut/file_io.hpp"
 #include "treecut/generate.hpp"
 #include "treecut/model_io.hpp"
+#include "treecut/up_axis.hpp"
 
 namespace treecut::cli {
 
@@ -57,6 +58,8 @@ void print_summary(const std::filesystem::path& model, const OpenedModel& m) {
   std::printf("nodes       %u\n", h.node_count());
   std::printf("depth       %d\n", h.level_count() - 1);
   std::printf("bounds      [%g %g %g] .. [%g %g %g]\n", lo.x, lo.y, lo.z, hi.x, hi.y, hi.z);
+  const UpAxis up = detect_up_axis(h);  // what `render` and `view` use with --up auto
+  std::printf("up          %s (auto: %s)\n", up.name().c_str(), up.reason.c_str());
   std::printf("memory      %.1f MiB (%.1f bytes/point)\n",
               static_cast<double>(h.memory_bytes()) / (1024.0 * 1024.0),
               static_cast<double>(h.memory_bytes()) / std::max(1u, h.leaf_count()));

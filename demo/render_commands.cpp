@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 #include <numeric>
 #include <optional>
+#include <optional>
 #include <set>
 #include <sstream>
 
@@ -19,6 +20,7 @@
 #include "treecut/model.hpp"
 #include "treecut/splat/camera_path.hpp"
 #include "treecut/splat/context.hpp"
+#include "treecut/splat/frame_rate.hpp"
 #include "treecut/splat/image.hpp"
 #include "view_script.hpp"
 #include "viewer.hpp"
@@ -40,6 +42,7 @@ struct RenderArgs {
   bool psnr = false;
   int stability = 0;
   bool no_png = false;
+  double target_fps = 0.0;  // > 0: the viewer's governor adapts the strategy's knob
 };
 
 struct FrameRow {
@@ -349,7 +352,15 @@ void run_render(const RenderArgs& a) {
     // llvmpipe keeps both cores busy while it draws: the stage takes what is left.
     stage_options.priority = StagePriority::Idle;
     configure_stage(stage_options, a.scene);
-    Controller controller(make_model(h), make_strategy(registry, name, a.scene.params),
+    std::unique_ptr<Strategy> strategy = make_strategy(registry, name, a.scene.params);
+    // The viewer's governor (--target-fps), fed the same way: frame time and
+    // the splats that frame drew.
+    std::optional<splat::FrameRateGovernor> governor;
+    if (a.target_fps > 0.0) {
+      governor = splat::FrameRateGovernor::for_strategy(*strategy, h.node_count());
+      if (!governor) throw InputError(name + ": --target-fps needs a max_nodes or min_size knob");
+    }
+    Controller controller(make_model(h), std::move(strategy),
                           snapshot_of(cam, size, world_light_dir(settings.light, cam)),
                           stage_options);
     splat::CutBuffer cut;
@@ -360,6 +371,11 @@ void run_render(const RenderArgs& a) {
       renderer.draw(cut, c, settings, true);
       const double ms =
           std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      if (governor) {
+        if (auto v = governor->update(ms, cut.size(), a.target_fps)) {
+          controller.set_param(governor->param(), *v);
+        }
+      }
       // Synchronous mode: the stage's iteration runs here, outside the frame time.
       if (a.sync) controller.stage().step();
       return ms;
@@ -451,6 +467,11 @@ void run_render(const RenderArgs& a) {
       std::fflush(stdout);
       std::fprintf(stderr, "warning: %s\n", late.c_str());
     }
+    if (governor) {
+      std::printf("governor  %s = %.6g at the end, model %.2f ms + %.4g us/splat\n",
+                  governor->param().c_str(), governor->value(), governor->fixed_ms(),
+                  governor->per_splat_ms() * 1e3);
+    }
     runs.push_back(std::move(run));
   }
   write_plot_svg(out / "plot.svg", runs, scene.label + ": frame time and cut size per strategy");
@@ -493,6 +514,10 @@ void add_render_commands(CLI::App& app) {
                    "of temporal stability")
       ->check(CLI::Range(0, 100000));
   render->add_flag("--no-png", ra->no_png, "Write statistics only");
+  render
+      ->add_option("--target-fps", ra->target_fps,
+                   "Adapt the strategy's budget to hold this frame rate, as the viewer (0 = off)")
+      ->check(CLI::Range(0.0, 1000.0));
   render->callback([ra] { run_render(*ra); });
 
   auto va = std::make_shared<ViewArgs>();

@@ -2,9 +2,10 @@
 //
 // Controls: left drag orbits (fly mode: looks around), right or middle drag
 // pans, wheel zooms, Tab toggles orbit/fly, WASD/QE fly (Shift = faster),
-// F fits the model, L toggles the headlight, H hides the HUD, F12 or P saves a
-// screenshot, R starts/stops recording a camera path, Space replays the last
-// recorded (or --path) path, Esc quits.
+// F fits the model, U turns another axis up (x -> y -> z), L toggles the
+// headlight, H hides the HUD, F12 or P saves a screenshot, R starts/stops
+// recording a camera path, Space replays the last recorded (or --path) path,
+// Esc quits.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -116,12 +117,15 @@ class Viewer {
       driver_.begin(camera_, size, world_light_dir(settings_.light, camera_));
       const splat::FrameStats stats = renderer_->draw(cut_, camera_, settings_);
       draw_ms_ = stats.cpu_ms;
-      if (governor_ && target_fps_ > 0.0) {
-        if (auto v = governor_->update(frame_ms_, target_fps_)) {
+      // frame_ms_ is the time of the previous frame: it pairs with the splats
+      // that frame drew. The model keeps learning while the control is off.
+      if (governor_) {
+        if (auto v = governor_->update(frame_ms_, last_splats_, target_fps_)) {
           controller_->set_param(governor_->param(), *v);
           set_param_value(governor_->param(), *v);
         }
       }
+      last_splats_ = stats.splats;
 
       treecut::gl::BindFramebuffer(GL_FRAMEBUFFER, 0);
       treecut::gl::Viewport(0, 0, size.x, size.y);
@@ -152,15 +156,7 @@ class Viewer {
   void read_params(const Strategy& s) {
     params_.clear();
     for (const ParamSpec& spec : s.param_specs()) params_.push_back({spec, s.param(spec.name)});
-    const double knob = [&] {
-      for (const auto& p : params_) {
-        if (p.spec.name == "max_nodes" || p.spec.name == "min_size") return p.value;
-      }
-      return 0.0;
-    }();
-    std::vector<ParamSpec> specs;
-    for (const auto& p : params_) specs.push_back(p.spec);
-    governor_ = splat::FrameRateGovernor::for_params(specs, knob);
+    governor_ = splat::FrameRateGovernor::for_strategy(s, scene_.hierarchy->node_count());
   }
 
   void set_param_value(const std::string& name, double v) {
@@ -245,6 +241,12 @@ class Viewer {
     if (pressed_once(GLFW_KEY_ESCAPE)) quit_ = true;
     if (pressed_once(GLFW_KEY_TAB)) fly_ = !fly_;
     if (pressed_once(GLFW_KEY_F)) fit();
+    if (pressed_once(GLFW_KEY_U)) {
+      // When --up auto guessed wrong: the next axis, and the view fitted to it.
+      scene_.up_axis = next_up_axis(scene_.up_axis);
+      scene_.up = scene_.up_axis.vector();
+      fit();
+    }
     if (pressed_once(GLFW_KEY_L)) settings_.light.follow_camera = !settings_.light.follow_camera;
     if (pressed_once(GLFW_KEY_H)) show_hud_ = !show_hud_;
     if (pressed_once(GLFW_KEY_F12) || pressed_once(GLFW_KEY_P))
@@ -420,6 +422,12 @@ class Viewer {
     ImGui::Begin("treecut", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
     const StageCounters& c = controller_->stage().counters();
     ImGui::Text("%s", scene_.label.c_str());
+    if (scene_.up_axis.reason.empty()) {
+      ImGui::Text("up %s  (U: next axis)", scene_.up_axis.name().c_str());
+    } else {
+      ImGui::Text("up %s (auto: %s)  (U: next axis)", scene_.up_axis.name().c_str(),
+                  scene_.up_axis.reason.c_str());
+    }
     ImGui::Text("%.1f fps  %.2f ms/frame  (draw %.2f ms)", frame_ms_ > 0 ? 1000.0 / frame_ms_ : 0.0,
                 frame_ms_, draw_ms_);
     std::vector<float> times(frame_times_.begin(), frame_times_.end());
@@ -473,6 +481,8 @@ class Viewer {
         if (ImGui::SliderFloat("target fps", &f, 1.0f, 120.0f)) target_fps_ = chosen_fps_ = f;
         ImGui::Text("adapting %s = %.4g (smoothed %.1f ms)", governor_->param().c_str(),
                     governor_->value(), governor_->smoothed_ms());
+        ImGui::Text("model %.2f ms + %.3g us/splat: %.0f splats", governor_->fixed_ms(),
+                    governor_->per_splat_ms() * 1e3, governor_->wanted_splats());
       }
     } else {
       ImGui::TextDisabled("hold frame rate: strategy has no budget/threshold");
@@ -539,6 +549,7 @@ class Viewer {
   bool quit_ = false;
   std::deque<float> frame_times_;
   double frame_ms_ = 0.0;
+  std::size_t last_splats_ = 0;
   double draw_ms_ = 0.0;
   std::uint64_t frame_ = 0;
   std::vector<std::filesystem::path> written_screenshots_;  // may be replaced by a script

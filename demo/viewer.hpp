@@ -14,6 +14,7 @@
 #include "treecut/controller.hpp"
 #include "treecut/hierarchy.hpp"
 #include "treecut/registry.hpp"
+#include "treecut/up_axis.hpp"
 #include "treecut/splat/camera.hpp"
 #include "treecut/splat/renderer.hpp"
 
@@ -32,7 +33,7 @@ struct SceneArgs {
   float point_size = 2.0f;
   int k = 12;
   bool fixed_light = false;
-  std::string up = "auto";  ///< x | y | z | auto (z for generated models, y for files)
+  std::string up = "auto";  ///< x | y | z | auto (from the data: treecut/up_axis.hpp)
   bool validate = false;     ///< --validate: check every cut a strategy returns in full
 };
 
@@ -45,6 +46,7 @@ struct Scene {
   float radius = 1.0f;
   glm::vec3 up{0.0f, 1.0f, 0.0f};  ///< the model's up axis (orbits turn about it)
 };
+  UpAxis up_axis;                  ///< the same, named; reason set when --up auto chose it
 
 /// Opens the model (through its cache) or generates the default one.
 /// Throws InputError for a bad model file.

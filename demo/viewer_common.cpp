@@ -42,7 +42,8 @@ void add_scene_options(CLI::App& cmd, SceneArgs& args) {
       ->check(CLI::Range(3, 64))
       ->capture_default_str();
   cmd.add_option("--up", args.up,
-                 "Up axis of the model: x | y | z | auto (z for generated, y for files)")
+                 "Up axis of the model: x | y | z | auto (from the data: a ground or base, the "
+                 "way the normals face, a flat extent; see docs/rendering.md)")
       ->check(CLI::IsMember({"auto", "x", "y", "z"}))
       ->capture_default_str();
   cmd.add_flag("--fixed-light", args.fixed_light,
@@ -103,8 +104,6 @@ Scene load_scene(const SceneArgs& args) {
     s.hierarchy = std::make_shared<const Hierarchy>(open_model(args.model, o).hierarchy);
     s.label = std::filesystem::path(args.model).filename().string();
   }
-  const std::string up = args.up == "auto" ? (args.model.empty() ? "z" : "y") : args.up;
-  s.up = up == "x" ? glm::vec3(1, 0, 0) : up == "z" ? glm::vec3(0, 0, 1) : glm::vec3(0, 1, 0);
   const Hierarchy& h = *s.hierarchy;
   s.center = 0.5f * (h.bounds_min() + h.bounds_max());
   s.radius = std::max(0.5f * glm::length(h.bounds_max() - h.bounds_min()), 1e-6f);
@@ -115,6 +114,10 @@ StrategyRegistry make_registry(const SceneArgs& args) {
   StrategyRegistry registry;
   strategies::register_builtin(registry);
   for (const std::string& p : args.plugins) registry.load_plugin(p);
+  // The same rule for files and generated models: the data decides.
+  const std::optional<UpAxis> chosen = parse_up_axis(args.up);
+  s.up_axis = chosen ? *chosen : detect_up_axis(h);
+  s.up = s.up_axis.vector();
   return registry;
 }
 

@@ -1,16 +1,16 @@
-// Tests of the renderer's non-GL parts: cameras, camera paths, image metrics
-// and the target-frame-rate governor.
+// Tests of the renderer's non-GL parts: cameras, camera paths and image
+// metrics (the target-frame-rate governor: frame_rate_test.cpp).
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <glm/geometric.hpp>
+#include <glm/trigonometric.hpp>
 #include <limits>
 
 #include "test_support.hpp"
 #include "treecut/error.hpp"
 #include "treecut/splat/camera.hpp"
 #include "treecut/splat/camera_path.hpp"
-#include "treecut/splat/frame_rate.hpp"
 #include "treecut/splat/image.hpp"
 
 namespace treecut::splat {
@@ -164,60 +164,6 @@ TEST(ImageMetrics, WritesAPngAndRejectsMalformedImages) {
   Image bad = flat(3, 2, 0);
   bad.rgba.pop_back();
   EXPECT_THROW(write_png(dir / "b.png", bad), std::runtime_error);
-}
-
-std::vector<ParamSpec> specs(const char* name, double lo, double hi) {
-  ParamSpec s;
-  s.name = name;
-  s.min_value = lo;
-  s.max_value = hi;
-  return {s};
-}
-
-TEST(FrameRateGovernor, PicksTheKnobByName) {
-  EXPECT_EQ(FrameRateGovernor::for_params(specs("max_nodes", 1, 1e9), 1000)->knob(),
-            FrameRateGovernor::Knob::Budget);
-  EXPECT_EQ(FrameRateGovernor::for_params(specs("min_size", 0, 100), 1)->knob(),
-            FrameRateGovernor::Knob::Threshold);
-  EXPECT_FALSE(FrameRateGovernor::for_params(specs("ambient", 0, 1), 0.1).has_value());
-}
-
-TEST(FrameRateGovernor, BudgetShrinksWhenSlowAndGrowsWhenFast) {
-  FrameRateGovernor g("max_nodes", FrameRateGovernor::Knob::Budget, 100000, 1, 1e9);
-  // 50 ms frames against a 30 fps target (33 ms): the budget goes down, in
-  // steps of at most 10 %.
-  double last = 100000;
-  for (int i = 0; i < 20; ++i) {
-    if (auto v = g.update(50.0, 30.0)) {
-      EXPECT_LT(*v, last);
-      EXPECT_GE(*v, last * 0.9 - 1.0);
-      last = *v;
-    }
-  }
-  EXPECT_LT(g.value(), 50000);
-  // Fast frames: it grows again, and never past the maximum.
-  FrameRateGovernor h("max_nodes", FrameRateGovernor::Knob::Budget, 1000, 1, 2000);
-  for (int i = 0; i < 100; ++i) (void)h.update(5.0, 30.0);
-  EXPECT_EQ(h.value(), 2000);
-  // Disabled: no change.
-  FrameRateGovernor off("max_nodes", FrameRateGovernor::Knob::Budget, 1000, 1, 2000);
-  EXPECT_FALSE(off.update(500.0, 0.0).has_value());
-  EXPECT_EQ(off.value(), 1000);
-}
-
-TEST(FrameRateGovernor, ThresholdGrowsWhenSlow) {
-  FrameRateGovernor g("min_size", FrameRateGovernor::Knob::Threshold, 1.0, 0.0, 100.0);
-  for (int i = 0; i < 10; ++i) (void)g.update(100.0, 30.0);
-  EXPECT_GT(g.value(), 1.5);
-  // A threshold at 0 can still move up.
-  FrameRateGovernor z("min_size", FrameRateGovernor::Knob::Threshold, 0.0, 0.0, 100.0);
-  for (int i = 0; i < 10; ++i) (void)z.update(100.0, 30.0);
-  EXPECT_GT(z.value(), 0.0);
-  // Non-finite or non-positive frame times are ignored.
-  FrameRateGovernor n("min_size", FrameRateGovernor::Knob::Threshold, 1.0, 0.0, 100.0);
-  EXPECT_FALSE(n.update(std::nan(""), 30.0).has_value());
-  EXPECT_FALSE(n.update(-1.0, 30.0).has_value());
-  EXPECT_EQ(n.value(), 1.0);
 }
 
 }  // namespace

@@ -4,44 +4,186 @@
 #include <cmath>
 
 namespace treecut::splat {
+namespace {
+
+// Forgetting factor of the fit: about the last 10 frames count, so a change
+// of the machine's load or of the view is learnt within a fraction of a second.
+constexpr double kForget = 0.9;
+// The splat counts must spread by 5 % (standard deviation over the mean)
+// before a slope is fitted; below that the last fitted slope is kept.
+constexpr double kMinSpread = 0.05;
+// A frame slower than 1.5 times the model's prediction counts as 1.5 times:
+// one hiccup (a page fault, another process) moves the model by a bounded
+// amount, a lasting slowdown still shows within a few frames.
+constexpr double kMaxResidual = 1.5;
+// Anti-windup: a budget is at most the drawn cut times kGrowth, or the cut
+// plus a sixteenth of the hierarchy (so a small cut can grow quickly), and at
+// most the node count.
+constexpr double kGrowth = 1.25;
+constexpr double kGrowthNodes = 1.0 / 16.0;
+// Changes below 3 % are not sent: frame-time noise must not keep the stage busy.
+constexpr double kDeadband = 0.03;
+// A threshold moves by at most this factor per change (the 1/size^2 law is
+// only a rough guide).
+constexpr double kMaxThresholdStep = 1.4;
+// A threshold moves again the same way without an answer from the cut after
+// kPatience frames (or twice the frames the cut took to answer before), at most kMaxBlind times in
+// a row (1.4^16: a factor 218, enough to cross from a default to where a close view's cut responds;
+// a reversal undoes blind steps at once, so they cost no wind-up).
+constexpr int kPatience = 6;
+constexpr int kMaxBlind = 16;
+// A threshold of 0 could never grow multiplicatively: keep it off zero.
+constexpr double kMinThreshold = 1e-3;
+
+}  // namespace
 
 std::optional<FrameRateGovernor> FrameRateGovernor::for_params(std::span<const ParamSpec> specs,
-                                                               double current_value) {
+                                                               double current_value,
+                                                               std::size_t node_count) {
   for (const auto& [name, knob] :
        {std::pair{"max_nodes", Knob::Budget}, std::pair{"min_size", Knob::Threshold}}) {
     for (const ParamSpec& s : specs) {
       if (s.name == name) {
-        return FrameRateGovernor(s.name, knob, current_value, s.min_value, s.max_value);
+        return FrameRateGovernor(s.name, knob, current_value, s.min_value, s.max_value, node_count);
       }
     }
   }
   return std::nullopt;
 }
 
+std::optional<FrameRateGovernor> FrameRateGovernor::for_strategy(const Strategy& strategy,
+                                                                 std::size_t node_count) {
+  auto g = for_params(strategy.param_specs(), 0.0, node_count);
+  if (g) g->value_ = g->sent_ = g->anchor_ = strategy.param(g->param_);
+  return g;
+}
+
 FrameRateGovernor::FrameRateGovernor(std::string param, Knob knob, double value, double min_value,
-                                     double max_value)
+                                     double max_value, std::size_t node_count)
     : param_(std::move(param)),
       knob_(knob),
       value_(value),
       min_value_(min_value),
       max_value_(max_value),
-      sent_(value) {}
+      node_count_(std::max<double>(1.0, static_cast<double>(node_count))),
+      sent_(value),
+      anchor_(value) {}
 
-std::optional<double> FrameRateGovernor::update(double frame_ms, double target_fps) {
+void FrameRateGovernor::fit(double frame_ms, double splats) {
+  if (slope_fitted_) {
+    frame_ms = std::min(frame_ms, kMaxResidual * (fixed_ms_ + per_splat_ms_ * splats));
+  }
+  // Weighted incremental means and co-moments (West 1979) with exponential
+  // forgetting: the old weights shrink by kForget, the new sample weighs 1.
+  weight_ = kForget * weight_ + 1.0;
+  const double dx = splats - mean_x_;
+  mean_x_ += dx / weight_;
+  mean_y_ += (frame_ms - mean_y_) / weight_;
+  cxx_ = kForget * cxx_ + dx * (splats - mean_x_);
+  cxy_ = kForget * cxy_ + dx * (frame_ms - mean_y_);
+
+  const double spread = kMinSpread * mean_x_;
+  if (weight_ > 2.0 && cxx_ / weight_ > spread * spread) {
+    const double slope = cxy_ / cxx_;
+    if (slope > 0.0) {
+      // A negative intercept is noise: the line through the origin (the ratio
+      // rule) is then the best fit with a fixed cost >= 0.
+      per_splat_ms_ = mean_y_ - slope * mean_x_ >= 0.0 ? slope : mean_y_ / mean_x_;
+      slope_fitted_ = true;
+    }
+    // slope <= 0 (the frame time rose while the cut shrank: the load changed,
+    // not the cost per splat): keep the last slope, the intercept follows below.
+  }
+  if (!slope_fitted_) per_splat_ms_ = mean_y_ / mean_x_;  // no spread yet: the ratio rule
+  // The intercept is re-anchored at the recent mean every frame, so a change of
+  // the fixed cost (or of the load) shows at once even without a new slope.
+  fixed_ms_ = std::max(0.0, mean_y_ - per_splat_ms_ * mean_x_);
+}
+
+std::optional<double> FrameRateGovernor::update(double frame_ms, std::size_t splats,
+                                                double target_fps) {
   if (!(frame_ms > 0.0) || !std::isfinite(frame_ms)) return std::nullopt;
-  smoothed_ms_ = smoothed_ms_ > 0.0 ? 0.8 * smoothed_ms_ + 0.2 * frame_ms : frame_ms;
-  if (target_fps <= 0.0) return std::nullopt;
+  const double x = std::max<double>(1.0, static_cast<double>(splats));
+  // The first frame compiles shaders and uploads buffers: it says nothing
+  // about the cost of the next ones (275 ms for one splat on llvmpipe).
+  const bool learnt = frames_++ > 0;
+  if (learnt) {
+    smoothed_ms_ = smoothed_ms_ > 0.0 ? 0.8 * smoothed_ms_ + 0.2 * frame_ms : frame_ms;
+    fit(frame_ms, x);
+  }
+  if (!(target_fps > 0.0) || !std::isfinite(target_fps)) {
+    wanted_ = 0.0;
+    return std::nullopt;
+  }
   const double target_ms = 1000.0 / target_fps;
-  // Clamped so a single frame never moves the knob by more than 10 %.
-  const double ratio = std::clamp(target_ms / smoothed_ms_, 0.9, 1.1);
-  value_ *= knob_ == Knob::Budget ? ratio : 1.0 / ratio;
-  // A threshold of 0 could never grow multiplicatively: keep it off zero.
-  value_ =
-      std::clamp(value_, std::max(min_value_, knob_ == Knob::Threshold ? 1e-3 : 1.0), max_value_);
-  if (knob_ == Knob::Budget) value_ = std::round(value_);
-  if (std::abs(value_ - sent_) <= 0.02 * std::max(std::abs(sent_), 1e-9)) return std::nullopt;
-  sent_ = value_;
-  return value_;
+  // The budget never exceeds what the strategy can use: the cut it drew,
+  // grown, and at most the node count (also before the model knows anything).
+  const double cap = std::min(node_count_, std::max(x * kGrowth, x + kGrowthNodes * node_count_));
+  double v = value_;
+  if (!learnt) {
+    if (knob_ == Knob::Threshold) return std::nullopt;
+    v = std::min(v, cap);
+  } else {
+    // The model's answer; a fixed cost alone above the target asks for the
+    // coarsest cut.
+    wanted_ = target_ms > fixed_ms_ ? (target_ms - fixed_ms_) / per_splat_ms_ : 1.0;
+    const bool fast = wanted_ > x;  // before the clamp: at full detail fast frames stay fast
+    wanted_ = std::clamp(wanted_, 1.0, node_count_);
+    if (knob_ == Knob::Budget) {
+      // Fast frames never lower the budget and slow ones never raise it (a
+      // budget the cut has not reached yet is not taken away while frames are
+      // fast), within the cap.
+      v = std::min(fast ? std::max(wanted_, value_) : std::min(wanted_, value_), cap);
+    } else {
+      v = threshold_for(x);
+    }
+  }
+  if (knob_ == Knob::Budget) {
+    v = std::round(std::clamp(v, std::max(min_value_, 1.0), max_value_));
+  }
+  if (std::abs(v - sent_) <= kDeadband * std::max(std::abs(sent_), 1e-9)) return std::nullopt;
+  if (knob_ == Knob::Threshold) {
+    const int move = v > sent_ ? 1 : -1;
+    blind_ = move == last_move_ && !answered_ ? blind_ + 1 : 0;
+    last_move_ = move;
+    answered_ = false;
+    splats_at_move_ = x;
+    frames_since_move_ = 0;
+  }
+  value_ = sent_ = v;
+  return v;
+}
+
+double FrameRateGovernor::threshold_for(double x) {
+  ++frames_since_move_;
+  // Did the cut answer the last move (by 2 % the expected way)? Then the value
+  // in effect is one the strategy responds to: the anchor of anti-windup.
+  if (last_move_ != 0 && !answered_ &&
+      (last_move_ > 0 ? x <= 0.98 * splats_at_move_ : x >= 1.02 * splats_at_move_)) {
+    answered_ = true;
+    anchor_ = value_;
+    // How long the stage takes to answer: blind steps wait twice as long.
+    lag_ = std::max(0.9 * lag_, static_cast<double>(frames_since_move_));
+  }
+  // splats ~ 1 / threshold^2: the factor that turns x into wanted_.
+  const double ratio =
+      std::clamp(std::sqrt(x / wanted_), 1.0 / kMaxThresholdStep, kMaxThresholdStep);
+  const int move = ratio > 1.0 ? 1 : (ratio < 1.0 ? -1 : 0);
+  double from = std::max(value_, kMinThreshold);
+  if (move != 0 && move == last_move_ && !answered_) {
+    // The cut follows a threshold frames later: a second move the same way
+    // waits for the answer to the first. Without one for kPatience frames the
+    // knob is in a range that changes nothing (full detail, the coarsest
+    // cut) or the stage is slow; a few more blind steps find out, no more.
+    const double patience = std::max<double>(kPatience, 2.0 * lag_);
+    if (frames_since_move_ < patience || blind_ >= kMaxBlind) return value_;
+  } else if (move != 0 && move == -last_move_ && blind_ > 0) {
+    // Reversing after blind steps: they changed nothing, so start from the
+    // last value the cut answered to (back-calculation: no wound-up distance
+    // to travel back first).
+    from = std::max(anchor_, kMinThreshold);
+  }
+  return std::clamp(from * ratio, std::max(min_value_, kMinThreshold), max_value_);
 }
 
 }  // namespace treecut::splat
