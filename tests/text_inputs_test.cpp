@@ -9,6 +9,7 @@
 #include <cmath>
 #include <fstream>
 #include <glm/geometric.hpp>
+#include <random>
 #include <string>
 
 #include "test_support.hpp"
@@ -163,6 +164,55 @@ TEST(CameraPathFile, SaveOnAFullDiskLeavesNothing) {
   EXPECT_TRUE(fs::is_directory(disk->path() / "taken"));
 }
 
+TEST(CameraPathText, MutatedPathsEitherLoadValidOrFailWithInputError) {
+  const std::string good = kHeader +
+                           "0    0 -3.6 1.4   0 0 0   0 0 1   45\n"
+                           "0.75 2.5 -2.5 1.4 0 0 0   0 0 1   45\n"
+                           "1.5  3.6 0 1.4    0 0 0   0 0 1   45\n";
+  std::string alphabet = "0123456789.-+eE \t\n#xinfa";
+  alphabet += '\0';  // binary bytes too
+  alphabet += '\xff';
+  std::mt19937 random(9);  // fixed: the same mutations on every run
+  int loaded = 0;
+  for (int i = 0; i < 3000; ++i) {
+    std::string text = good;
+    for (int edits = 1 + int(random() % 4); edits > 0; --edits) {
+      const std::size_t at = random() % (text.size() + 1);
+      const char c = alphabet[random() % alphabet.size()];
+      switch (random() % 3) {
+        case 0:
+          if (at < text.size()) text[at] = c;
+          break;
+        case 1:
+          text.insert(text.begin() + std::ptrdiff_t(at), c);
+          break;
+        default:
+          if (at < text.size()) text.erase(at, 1);
+      }
+    }
+    splat::CameraPath path;
+    try {
+      path = splat::parse_camera_path(text, "m");
+    } catch (const InputError& e) {
+      EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos) << e.what();
+      continue;
+    }
+    ++loaded;
+    for (const splat::CameraKey& k : path.keys) {
+      const glm::vec3 dir = k.camera.target - k.camera.eye;
+      ASSERT_TRUE(std::isfinite(glm::length(dir)) && glm::length(dir) > 0.0f) << text;
+      EXPECT_NEAR(glm::length(k.camera.up), 1.0f, 1e-5f) << text;
+      EXPECT_GE(glm::length(glm::cross(glm::normalize(dir), k.camera.up)), 1.7e-3f) << text;
+      EXPECT_TRUE(k.camera.fov_y_deg > 1.0f && k.camera.fov_y_deg < 170.0f) << text;
+    }
+    for (double t = 0.0; t <= path.duration(); t += path.duration() / 7.0 + 1e-3) {
+      const splat::Camera c = path.at(t);
+      EXPECT_TRUE(std::isfinite(glm::length(c.eye)) && std::isfinite(glm::length(c.up))) << text;
+    }
+  }
+  EXPECT_GT(loaded, 100) << "the mutations also produce valid paths";
+}
+
 // -- viewer scripts ------------------------------------------------------------
 
 const std::string kScript = "treecut-view-script 1\n";
@@ -223,6 +273,50 @@ TEST(ViewScript, CountsAndNumbersThatDoNotFitAreErrorsNamingFileLine) {
   EXPECT_EQ(ok[1].number, 2147483647.0);
   EXPECT_EQ(ok[1].line, 3);
   EXPECT_EQ(ok[2].number, -360.0);
+}
+
+TEST(ViewScript, MutatedScriptsEitherParseInRangeOrFailWithInputError) {
+  const StrategyRegistry registry = strategies::builtin_registry();
+  const std::string good = kScript +
+                           "frames 3\nconverge 300 # comment\nparam max_nodes 20000\n"
+                           "orbit 45\nstrategy recursive\nparam min_size 2\nmode hq\nfit\nexit\n";
+  std::string alphabet = "0123456789.-+eE \t\n#xinfa";
+  alphabet += '\0';
+  alphabet += '\xff';
+  std::mt19937 random(10);
+  int parsed = 0;
+  for (int i = 0; i < 3000; ++i) {
+    std::string text = good;
+    for (int edits = 1 + int(random() % 3); edits > 0; --edits) {
+      const std::size_t at = random() % (text.size() + 1);
+      const char c = alphabet[random() % alphabet.size()];
+      if (random() % 2 == 0 && at < text.size()) {
+        text[at] = c;
+      } else {
+        text.insert(text.begin() + std::ptrdiff_t(at), c);
+      }
+    }
+    std::vector<cli::ScriptCommand> commands;
+    try {
+      commands = cli::parse_view_script(text, "m.script", {&registry, "optimization"});
+    } catch (const InputError& e) {
+      EXPECT_EQ(std::string(e.what()).rfind("m.script", 0), 0u) << e.what();
+      continue;
+    }
+    ++parsed;
+    for (const cli::ScriptCommand& c : commands) {
+      ASSERT_TRUE(std::isfinite(c.number)) << text;
+      if (c.verb == "frames" || c.verb == "converge") {
+        EXPECT_TRUE(c.number >= 0 && c.number <= cli::kMaxScriptFrames &&
+                    c.number == std::floor(c.number))
+            << text;
+      }
+      if (c.verb == "orbit") {
+        EXPECT_LE(std::abs(c.number), cli::kMaxOrbitDegrees) << text;
+      }
+    }
+  }
+  EXPECT_GT(parsed, 100) << "the mutations also produce valid scripts";
 }
 
 TEST(ViewScript, HeaderIsRequired) {
