@@ -105,6 +105,10 @@ Scene load_scene(const SceneArgs& args) {
     s.label = std::filesystem::path(args.model).filename().string();
   }
   const Hierarchy& h = *s.hierarchy;
+  // The same rule for files and generated models: the data decides.
+  const std::optional<UpAxis> chosen = parse_up_axis(args.up);
+  s.up_axis = chosen ? *chosen : detect_up_axis(h);
+  s.up = s.up_axis.vector();
   s.center = 0.5f * (h.bounds_min() + h.bounds_max());
   s.radius = std::max(0.5f * glm::length(h.bounds_max() - h.bounds_min()), 1e-6f);
   return s;
@@ -114,10 +118,6 @@ StrategyRegistry make_registry(const SceneArgs& args) {
   StrategyRegistry registry;
   strategies::register_builtin(registry);
   for (const std::string& p : args.plugins) registry.load_plugin(p);
-  // The same rule for files and generated models: the data decides.
-  const std::optional<UpAxis> chosen = parse_up_axis(args.up);
-  s.up_axis = chosen ? *chosen : detect_up_axis(h);
-  s.up = s.up_axis.vector();
   return registry;
 }
 
