@@ -838,8 +838,9 @@ TEST(PlyLoad, BinaryLaterElementsThatDoNotMatchAreWarnings) {
     EXPECT_FALSE(report.faces_lost);
     ASSERT_EQ(warnings.size(), 1u);
     EXPECT_EQ(warnings[0],
-              "mem.ply: binary body is truncated: element 'camera' needs 1 rows of 8 bytes, only 2 "
-              "bytes are left; ignoring element 'camera'");
+              "mem.ply: binary body is truncated inside element 'camera' row 1 of 1 (1 rows of 8 "
+              "bytes, only 2 "
+              "bytes are left); ignoring element 'camera'");
   }
   {
     // A face element before the vertices that is truncated hides them: an error.

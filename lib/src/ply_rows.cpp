@@ -177,9 +177,11 @@ std::size_t walk_element(const Element& element, std::string_view file, std::siz
     const std::size_t stride = element.fixed_stride();
     const std::size_t left = end - pos;
     if (element.count > left / stride) {
-      throw Error("binary body is truncated: element '" + printable(element.name) + "' needs " +
-                  std::to_string(element.count) + " rows of " + std::to_string(stride) +
-                  " bytes, only " + std::to_string(left) + " bytes are left");
+      // The row it ends in, so the message names the row as for list elements.
+      throw Error("binary body is truncated inside " + row_context(element, left / stride) + " (" +
+                  std::to_string(element.count) + (element.count == 1 ? " row of " : " rows of ") +
+                  std::to_string(stride) + " bytes, only " + std::to_string(left) +
+                  " bytes are left)");
     }
     pos += static_cast<std::size_t>(element.count) * stride;
   } else {
