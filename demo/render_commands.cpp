@@ -10,7 +10,6 @@
 #include <nlohmann/json.hpp>
 #include <numeric>
 #include <optional>
-#include <optional>
 #include <set>
 #include <sstream>
 
@@ -311,6 +310,12 @@ void run_render(const RenderArgs& a) {
   const splat::RenderSettings settings = render_settings(a.scene);  // validates --mode early
   const StrategyRegistry registry = make_registry(a.scene);
   check_params(registry, a.scene.strategies, a.scene.params);  // exit 2 before any work
+  for (const std::string& name : a.scene.strategies) {
+    if (a.target_fps > 0.0 &&
+        !splat::FrameRateGovernor::for_strategy(*make_strategy(registry, name, {}), 1)) {
+      throw InputError(name + ": --target-fps needs a max_nodes or min_size parameter");
+    }
+  }
   check_output_folder(a.out, a.scene.strategies);
   const float aspect = float(a.width) / float(a.height);
   splat::CameraPath path;
@@ -358,7 +363,6 @@ void run_render(const RenderArgs& a) {
     std::optional<splat::FrameRateGovernor> governor;
     if (a.target_fps > 0.0) {
       governor = splat::FrameRateGovernor::for_strategy(*strategy, h.node_count());
-      if (!governor) throw InputError(name + ": --target-fps needs a max_nodes or min_size knob");
     }
     Controller controller(make_model(h), std::move(strategy),
                           snapshot_of(cam, size, world_light_dir(settings.light, cam)),

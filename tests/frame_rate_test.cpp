@@ -10,13 +10,18 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
 #include <functional>
 #include <memory>
 #include <optional>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "strategy_fixtures.hpp"
+#include "test_support.hpp"
 #include "treecut/controller.hpp"
 #include "treecut/generate.hpp"
 #include "treecut/model_io.hpp"
@@ -335,6 +340,45 @@ TEST(FrameRateLoop, CoarsestCutWhenTheFixedCostAloneMissesTheTarget) {
   Loop loop(optimization(100000), 40.0, 1e-4, 30.0);
   loop.run(200);
   EXPECT_LE(loop.log().back().splats, 64u);
+}
+
+// ---------------------------------------------------------------------------
+// `treecut render --target-fps`: the viewer's governor, headless.
+
+TEST(FrameRateCli, RenderKeepsTheBudgetWithinTheHierarchy) {
+  const auto dir = test::scratch_dir("frame_rate_render");
+  // A budget of 4 million on a hierarchy of about 10,000 nodes, as in the
+  // issue: whatever the machine's speed, the governor never leaves it there.
+  const test::CommandResult r = test::run_treecut(
+      "render --default-kind sphere --default-points 6000 --width 160 --height 96 --warmup 3 "
+      "--frames 30 --no-png -p max_nodes=4000000 --target-fps 30 -o " +
+      test::quote(dir / "out"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  unsigned points = 0, nodes = 0;
+  const auto model = r.out.find("points, ");
+  ASSERT_NE(model, std::string::npos) << r.out;
+  ASSERT_EQ(std::sscanf(r.out.c_str() + r.out.rfind(':', model) + 1, " %u points, %u nodes",
+                        &points, &nodes),
+            2)
+      << r.out;
+  const auto line = r.out.find("governor  max_nodes = ");
+  ASSERT_NE(line, std::string::npos) << r.out;
+  const double budget = std::strtod(r.out.c_str() + line + 22, nullptr);
+  EXPECT_GE(budget, 1.0);
+  EXPECT_LE(budget, double(nodes)) << r.out;
+}
+
+TEST(FrameRateCli, RenderRefusesATargetForAStrategyWithoutAKnob) {
+  const auto dir = test::scratch_dir("frame_rate_bucket");
+  const test::CommandResult r = test::run_treecut(
+      "render --default-kind sphere --default-points 2000 --frames 2 --no-png -s bucket "
+      "--target-fps 30 -o " +
+      test::quote(dir / "out"));
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_EQ(r.out.substr(0, r.out.find('\n')),
+            "treecut: bucket: --target-fps needs a max_nodes or min_size parameter")
+      << r.out;
+  EXPECT_FALSE(std::filesystem::exists(dir / "out")) << "refused before any work";
 }
 
 }  // namespace
