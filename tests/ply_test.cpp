@@ -838,7 +838,7 @@ TEST(PlyLoad, BinaryLaterElementsThatDoNotMatchAreWarnings) {
     EXPECT_FALSE(report.faces_lost);
     ASSERT_EQ(warnings.size(), 1u);
     EXPECT_EQ(warnings[0],
-              "mem.ply: binary body is truncated inside element 'camera' row 1 of 1 (1 rows of 8 "
+              "mem.ply: binary body is truncated inside element 'camera' row 1 of 1 (1 row of 8 "
               "bytes, only 2 "
               "bytes are left); ignoring element 'camera'");
   }
