@@ -63,6 +63,18 @@ TEST(FrameRateGovernor, BudgetShrinksWhenSlowAndNeverWindsUpPastTheCut) {
     ASSERT_LE(w.value(), 700527);
     ASSERT_LE(w.value(), std::max(51345 * 1.25, 51345 + 700527 / 16.0) + 1);
   }
+  // A burst of load (three times slower for 20 frames) before the cut follows:
+  // at most half of the drawn cut goes, never a collapse to the root.
+  FrameRateGovernor b("max_nodes", FrameRateGovernor::Knob::Budget, 40000, 1, 4e9, 700000);
+  for (int i = 0; i < 40; ++i) {
+    const double splats = 30000.0 + 5000.0 * std::sin(i * 0.9);
+    (void)b.update(5.0 + 9e-4 * splats, static_cast<std::size_t>(splats), 30.0);
+  }
+  for (int i = 0; i < 20; ++i) {
+    (void)b.update(3.0 * (5.0 + 9e-4 * 30000.0), 30000, 30.0);
+    ASSERT_GE(b.value(), 15000.0);
+  }
+  EXPECT_LT(b.value(), 30000.0 * 0.9);
   // Fast frames at full detail: the budget ends at the node count, no higher.
   FrameRateGovernor h("max_nodes", FrameRateGovernor::Knob::Budget, 1000, 1, 4e9, 2000);
   for (int i = 0; i < 100; ++i) (void)h.update(5.0, 2000, 30.0);

@@ -21,6 +21,8 @@ constexpr double kMaxResidual = 1.5;
 // most the node count.
 constexpr double kGrowth = 1.25;
 constexpr double kGrowthNodes = 1.0 / 16.0;
+// A budget is at least this fraction of the drawn cut.
+constexpr double kMaxDrop = 0.5;
 // Changes below 3 % are not sent: frame-time noise must not keep the stage busy.
 constexpr double kDeadband = 0.03;
 // A threshold moves by at most this factor per change (the 1/size^2 law is
@@ -83,21 +85,36 @@ void FrameRateGovernor::fit(double frame_ms, double splats) {
   cxy_ = kForget * cxy_ + dx * (frame_ms - mean_y_);
 
   const double spread = kMinSpread * mean_x_;
+  bool fitted_now = false;
   if (weight_ > 2.0 && cxx_ / weight_ > spread * spread) {
     const double slope = cxy_ / cxx_;
     if (slope > 0.0) {
       // A negative intercept is noise: the line through the origin (the ratio
       // rule) is then the best fit with a fixed cost >= 0.
-      per_splat_ms_ = mean_y_ - slope * mean_x_ >= 0.0 ? slope : mean_y_ / mean_x_;
-      slope_fitted_ = true;
+      const double fixed = mean_y_ - slope * mean_x_;
+      per_splat_ms_ = fixed >= 0.0 ? slope : mean_y_ / mean_x_;
+      fixed_ms_ = std::max(0.0, fixed);
+      slope_fitted_ = fitted_now = true;
     }
     // slope <= 0 (the frame time rose while the cut shrank: the load changed,
-    // not the cost per splat): keep the last slope, the intercept follows below.
+    // not the cost per splat): keep the last line, scaled below.
   }
-  if (!slope_fitted_) per_splat_ms_ = mean_y_ / mean_x_;  // no spread yet: the ratio rule
-  // The intercept is re-anchored at the recent mean every frame, so a change of
-  // the fixed cost (or of the load) shows at once even without a new slope.
-  fixed_ms_ = std::max(0.0, mean_y_ - per_splat_ms_ * mean_x_);
+  if (!slope_fitted_) {  // no spread yet: the ratio rule
+    per_splat_ms_ = mean_y_ / mean_x_;
+    fixed_ms_ = 0.0;
+  } else if (!fitted_now) {
+    // No new slope: the last line, scaled through the recent mean, so a change
+    // of speed shows at once. Scaled, not shifted: a loaded machine is slower
+    // at everything, and a fixed cost shifted up by a slow burst could pass
+    // the target and ask for the coarsest cut (measured on the dragon at a
+    // load average of 8).
+    const double predicted = fixed_ms_ + per_splat_ms_ * mean_x_;
+    if (predicted > 0.0) {
+      const double scale = mean_y_ / predicted;
+      fixed_ms_ *= scale;
+      per_splat_ms_ *= scale;
+    }
+  }
 }
 
 std::optional<double> FrameRateGovernor::update(double frame_ms, std::size_t splats,
@@ -133,7 +150,11 @@ std::optional<double> FrameRateGovernor::update(double frame_ms, std::size_t spl
       // Fast frames never lower the budget and slow ones never raise it (a
       // budget the cut has not reached yet is not taken away while frames are
       // fast), within the cap.
-      v = std::min(fast ? std::max(wanted_, value_) : std::min(wanted_, value_), cap);
+      // Slow frames take at most half of the drawn cut away per answer of the
+      // stage: a burst of load passes without a collapse to the root.
+      v = std::min(
+          fast ? std::max(wanted_, value_) : std::min(value_, std::max(wanted_, kMaxDrop * x)),
+          cap);
     } else {
       v = threshold_for(x);
     }
