@@ -418,7 +418,7 @@ class Viewer {
       std::filesystem::path p = wanted;
       p.replace_filename(wanted.stem().string() + "-" + std::to_string(i) +
                          wanted.extension().string());
-      if (file_kind(p) == FileKind::Missing) return p;
+      if (file_kind(p) == FileKind::Missing || ours(p)) return p;
     }
   }
 
@@ -558,8 +558,8 @@ class Viewer {
   std::size_t last_splats_ = 0;
   double draw_ms_ = 0.0;
   std::uint64_t frame_ = 0;
-  std::vector<std::filesystem::path> written_screenshots_;  // may be replaced by a script
   std::string pending_screenshot_;
+  std::vector<std::filesystem::path> written_screenshots_;  // may be replaced by a script
   std::string status_;
   bool recording_ = false;
   splat::CameraPath recorded_;

@@ -401,13 +401,27 @@ std::optional<Hierarchy> load_cache(const std::filesystem::path& cache,
   Header h;
   auto hier = map_and_verify(cache, &h, why);
   if (!hier) return std::nullopt;
-  // The modification time does not decide: an edit with the mtime restored
-  // changes the hash, and a touch (or a copy) that changes nothing keeps the cache.
-  if (expected &&
-      (h.source_size != expected->source_size || h.source_hash != expected->content_hash ||
-       h.options_bits != expected->options_bits))
+  if (expected && !cache_key_matches(
+                      {h.source_size, h.source_mtime_ns, h.options_bits, h.source_hash}, *expected))
     return fail(why, "stale (the model or the build options changed)"), std::nullopt;
   return hier;
+}
+
+std::optional<Hierarchy> load_cache_and_key(const std::filesystem::path& cache, CacheKey* stored,
+                                            std::string* why) {
+  Header h;
+  auto hier = map_and_verify(cache, &h, why);
+  if (hier && stored)
+    *stored = CacheKey{h.source_size, h.source_mtime_ns, h.options_bits, h.source_hash};
+  return hier;
+}
+
+bool cache_key_matches(const CacheKey& stored, const CacheKey& expected) {
+  // The modification time does not decide: an edit with the mtime restored
+  // changes the hash, and a touch (or a copy) that changes nothing keeps the cache.
+  return stored.source_size == expected.source_size &&
+         stored.content_hash == expected.content_hash &&
+         stored.options_bits == expected.options_bits;
 }
 
 std::optional<CacheKey> read_cache_key(const std::filesystem::path& cache, std::string* why) {

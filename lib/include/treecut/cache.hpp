@@ -50,6 +50,16 @@ void save_cache(const Hierarchy& h, const CacheKey& key, const std::filesystem::
 std::optional<Hierarchy> load_cache(const std::filesystem::path& cache,
                                     const std::optional<CacheKey>& expected, std::string* why);
 
+/// load_cache() without the staleness check, with the key the cache was
+/// written for in *STORED: a caller may compute the expected key (the content
+/// hash) concurrently and compare with cache_key_matches().
+std::optional<Hierarchy> load_cache_and_key(const std::filesystem::path& cache, CacheKey* stored,
+                                            std::string* why);
+
+/// Whether a cache written for STORED serves EXPECTED: the same size, options
+/// and content hash (the modification time does not decide).
+bool cache_key_matches(const CacheKey& stored, const CacheKey& expected);
+
 /// Reads the key stored in a cache header (for `treecut info CACHE`), after full verification.
 std::optional<CacheKey> read_cache_key(const std::filesystem::path& cache, std::string* why);
 
