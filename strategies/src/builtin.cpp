@@ -3,8 +3,10 @@
 #include <memory>
 
 #include "treecut/strategies/bucket.hpp"
+#include "treecut/strategies/event_queue.hpp"
 #include "treecut/strategies/optimization.hpp"
 #include "treecut/strategies/recursive.hpp"
+#include "treecut/strategies/topdown.hpp"
 
 namespace treecut::strategies {
 
@@ -21,6 +23,14 @@ void register_builtin(StrategyRegistry& registry) {
                "QSplat traversal from the root: stops at culled, back-facing, small nodes and "
                "leaves; new cut every iteration",
                [] { return std::make_unique<RecursiveStrategy>(); });
+  registry.add("topdown",
+               "fold/unfold criterion (inside, or visible and projected radius >= theta) "
+               "applied top-down to the active nodes every iteration [Zach & Karner 2003, fig. 3]",
+               [] { return std::make_unique<TopDownStrategy>(); });
+  registry.add("event_queue",
+               "the same cut as topdown, testing only the nodes whose earliest possible change "
+               "(from rho, omega) is due [Zach & Karner 2003, fig. 7]",
+               [] { return std::make_unique<EventQueueStrategy>(); });
 }
 
 StrategyRegistry builtin_registry() {

@@ -5,7 +5,7 @@
 
 namespace treecut::strategies {
 
-/// Adds "optimization", "bucket" and "recursive".
+/// Adds "optimization", "bucket", "recursive", "topdown" and "event_queue".
 void register_builtin(StrategyRegistry& registry);
 
 /// A registry holding the built-in strategies.

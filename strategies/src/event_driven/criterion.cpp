@@ -1,0 +1,164 @@
+// Event times of the fold/unfold criterion (Zach & Karner 2003, section 3):
+// lower bounds, never later than the first frame in which unfold_test can
+// change, when the eye moves at most rho and the view direction turns at most
+// omega per frame. Each bound is derived below from the geometry; the
+// velocities carry a relative margin of 1e-6 and every result is floored, so
+// rounding errors (of the order of 1e-15 in double) can only make an event
+// earlier, never later. The event_queue strategy's exactness against topdown
+// (tests/event_queue_test.cpp) rests on these bounds.
+#include <algorithm>
+#include <cmath>
+#include <glm/mat4x4.hpp>
+
+#include "treecut/strategies/refinement_criterion.hpp"
+
+namespace treecut::strategies {
+namespace {
+
+constexpr double kVelocityMargin = 1.0 + 1e-6;
+constexpr double kPi = 3.14159265358979323846;
+
+// Frames from a real lower bound: floored, 0 for negative or NaN, at most cap.
+std::uint32_t frames(double x, std::uint32_t cap) {
+  if (!(x > 0.0)) return 0;
+  if (x >= double(cap)) return cap;
+  return static_cast<std::uint32_t>(x);
+}
+
+struct Geometry {
+  double dx, dy, dz;  // c - e
+  double r, d2, d;
+};
+
+Geometry geometry(const CriterionCamera& cam, const glm::vec4& cr) {
+  Geometry g{};
+  g.dx = double(cr.x) - cam.ex;
+  g.dy = double(cr.y) - cam.ey;
+  g.dz = double(cr.z) - cam.ez;
+  g.r = cr.w;
+  g.d2 = g.dx * g.dx + g.dy * g.dy + g.dz * g.dz;
+  g.d = std::sqrt(g.d2);
+  return g;
+}
+
+// alpha - phi, the angle between the view direction and the nearest point of
+// the sphere's silhouette (negative when the direction points into it), with
+// one atan2: sin and cos of the difference from d sin(alpha) = |u x D|,
+// d cos(alpha) = <u, D>, d sin(phi) = r, d cos(phi) = sqrt(d^2 - r^2).
+double angle_to_sphere(const CriterionCamera& cam, const Geometry& g) {
+  const double along = g.dx * cam.ux + g.dy * cam.uy + g.dz * cam.uz;
+  const double cx = cam.uy * g.dz - cam.uz * g.dy;
+  const double cy = cam.uz * g.dx - cam.ux * g.dz;
+  const double cz = cam.ux * g.dy - cam.uy * g.dx;
+  const double across = std::sqrt(cx * cx + cy * cy + cz * cz);
+  const double tangent = std::sqrt(std::max(0.0, g.d2 - g.r * g.r));
+  return std::atan2(across * tangent - along * g.r, along * tangent + across * g.r);
+}
+
+}  // namespace
+
+CriterionCamera CriterionCamera::from_view(const ViewSnapshot& view, double theta) {
+  CriterionCamera c;
+  c.ex = view.derived.eye.x;
+  c.ey = view.derived.eye.y;
+  c.ez = view.derived.eye.z;
+  // The camera looks along -z of eye space: the model-space direction is
+  // minus the third row of the view matrix (glm is column-major).
+  const double fx = -double(view.view[0][2]);
+  const double fy = -double(view.view[1][2]);
+  const double fz = -double(view.view[2][2]);
+  const double len = std::sqrt(fx * fx + fy * fy + fz * fz);
+  if (len > 0.0) {
+    c.ux = fx / len;
+    c.uy = fy / len;
+    c.uz = fz / len;
+  }
+  c.perspective = view.derived.perspective;
+  const double px = view.projection[0][0];
+  const double py = view.projection[1][1];
+  // The cone around a symmetric frustum: its half-diagonal at distance 1 is
+  // sqrt(tan(fov_x/2)^2 + tan(fov_y/2)^2).
+  const double tx = px != 0.0 ? 1.0 / px : 0.0;
+  const double ty = py != 0.0 ? 1.0 / py : 0.0;
+  c.beta = std::atan(std::sqrt(tx * tx + ty * ty));
+  c.cos_beta = std::cos(c.beta);
+  c.sin_beta = std::sin(c.beta);
+  c.pixel_scale = 0.5 * double(view.viewport.y) * py;
+  c.theta = theta;
+  return c;
+}
+
+bool unfold_test(const CriterionCamera& cam, const ViewSnapshot& view, const glm::vec4& cr) {
+  if (cam.perspective) return unfold_test(cam, cr);
+  return double(cr.w) * cam.pixel_scale >= cam.theta && !view.outside_frustum(glm::vec3(cr), cr.w);
+}
+
+// A folded node (unfold_test false, so the eye is outside the sphere).
+// Let s <= k rho be how far the eye has moved after k frames.
+// - t_i: inside needs |c - e_k| < r, and |c - e_k| >= d - s, so k > (d - r) / rho.
+// - t_m: the threshold needs |c - e_k| <= R = r S / theta, so k >= (d - R) / rho
+//   (moving straight at the center is the fastest way, figure 5).
+// - t_r: seen from e_k the sphere looks like the sphere (c - (e_k - e), r)
+//   seen from e, which lies inside the sphere (c, r + s); so visible needs
+//   angle(u_k, D) <= beta + asin((r + s) / d), and angle(u_k, D) >=
+//   alpha - k omega. For k <= K with x1 = (r + K rho) / d < 1, asin is convex,
+//   so asin((r + k rho) / d) <= phi + k rho / (d sqrt(1 - x1^2)): visible
+//   needs k >= (alpha - phi - beta) / (omega + rho / (d sqrt(1 - x1^2))), and
+//   if that exceeds K, k > K. (The paper's t_r = (alpha - phi - sqrt(2) fov/2)
+//   / omega leaves out that translation turns the direction to the sphere too.)
+// Unfold needs inside, or visible and the threshold: k >= min(t_i, max(t_r, t_m)).
+std::uint32_t potential_unfold_time(const CriterionCamera& cam, const glm::vec4& cr, double rho,
+                                    double omega, std::uint32_t cap) {
+  const double rho_m = rho * kVelocityMargin;
+  const double omega_m = omega * kVelocityMargin;
+  const Geometry g = geometry(cam, cr);
+  if (g.d2 < g.r * g.r || !cam.perspective) return 0;
+  const double t_i = (g.d - g.r) / rho_m;
+  const double t_m = (g.d - g.r * cam.pixel_scale / cam.theta) / rho_m;
+  if (t_m >= t_i) return frames(t_i, cap);  // max(t_r, t_m) >= t_i already
+  double t_r = 0.0;
+  const double gap = angle_to_sphere(cam, g) - cam.beta;
+  if (gap > 0.0) {
+    const double k_max = std::min(double(cap), std::floor(0.5 * (g.d - g.r) / rho_m));
+    if (k_max >= 1.0) {
+      const double x1 = (g.r + k_max * rho_m) / g.d;
+      const double slope = omega_m + rho_m / (g.d * std::sqrt(1.0 - x1 * x1));
+      t_r = std::min(k_max, gap / slope);
+    }
+  }
+  return frames(std::min(t_i, std::max(t_r, t_m)), cap);
+}
+
+// An unfolded node (unfold_test true).
+// - Inside: the test stays true until the eye leaves the sphere: k >= (r - d) / rho.
+// - Outside (visible and above the threshold), the dual of the above:
+//   t_m: the threshold fails only when |c - e_k| > R, k > (R - d) / rho;
+//   t_r: from e_k the direction to c is within asin(s / d) of D (s < d) and
+//   the sphere's angular radius is at least asin(r / (d + s)), so it can leave
+//   the view only if alpha + k omega + asin(s / d) > beta + asin(r / (d + s)).
+//   For k <= K with K rho <= d / 2: asin(k rho / d) <= (pi / 3) k rho / d (the
+//   chord of the convex asin up to 1/2) and asin(r / (d + s)) >= phi -
+//   s r / (d sqrt(d^2 - r^2)) (its tangent at s = 0, it is convex in s); so
+//   k >= (beta - (alpha - phi)) / (omega + (pi/3) rho / d + rho r / (d sqrt(d^2 - r^2))).
+//   Fold needs either: k >= min(t_r, t_m).
+std::uint32_t potential_fold_time(const CriterionCamera& cam, const glm::vec4& cr, double rho,
+                                  double omega, std::uint32_t cap) {
+  const double rho_m = rho * kVelocityMargin;
+  const double omega_m = omega * kVelocityMargin;
+  const Geometry g = geometry(cam, cr);
+  if (!cam.perspective) return 0;
+  if (g.d2 < g.r * g.r) return frames((g.r - g.d) / rho_m, cap);
+  const double t_m = (g.r * cam.pixel_scale / cam.theta - g.d) / rho_m;
+  if (!(t_m >= 1.0)) return 0;
+  double t_r = 0.0;
+  const double k_max = std::min(double(cap), std::floor(0.5 * g.d / rho_m));
+  const double tangent = std::sqrt(std::max(0.0, g.d2 - g.r * g.r));
+  if (k_max >= 1.0 && tangent > 0.0) {
+    const double gap = cam.beta - angle_to_sphere(cam, g);
+    const double slope = omega_m + (kPi / 3.0) * rho_m / g.d + rho_m * g.r / (g.d * tangent);
+    t_r = std::min(k_max, gap / slope);
+  }
+  return frames(std::min(t_m, t_r), cap);
+}
+
+}  // namespace treecut::strategies

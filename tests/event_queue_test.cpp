@@ -1,0 +1,352 @@
+// Event-driven refinement (Zach & Karner 2003) against its top-down baseline:
+// after every iteration along camera paths (slow, fast, rotating, flying
+// through the model, teleports) the cut of `event_queue` equals the cut of
+// `topdown` under the same view, node for node, and is valid; also after a
+// cancelled iteration, a parameter change and a static camera. The CLI
+// renders both with --sync to the same cut sizes and the same frames.
+#include "treecut/strategies/event_queue.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <glm/geometric.hpp>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "strategy_fixtures.hpp"
+#include "test_support.hpp"
+#include "treecut/strategies/refinement_criterion.hpp"
+#include "treecut/strategies/topdown.hpp"
+
+namespace treecut::test {
+namespace {
+
+using strategies::EventQueueStrategy;
+using strategies::TopDownStrategy;
+
+// One strategy with its own cut, driven like the stage drives it.
+template <class S>
+struct Runner {
+  explicit Runner(const Hierarchy& hierarchy) : h(hierarchy), cut(TreeCut::root_cut(hierarchy)) {
+    s.reset(hierarchy);
+  }
+  IterationResult step(const ViewSnapshot& view, const std::atomic<bool>* cancel = nullptr) {
+    std::vector<NodeId> nodes;
+    std::vector<QueryRequest> queries;
+    IterationInput in{h, view, 0, cancel, s.params_version()};
+    IterationOutput out;
+    out.cut = &cut;
+    out.nodes = &nodes;
+    out.queries = &queries;
+    s.iterate(in, out);
+    return out.result;
+  }
+  [[nodiscard]] std::vector<NodeId> sorted() const {
+    std::vector<NodeId> v(cut.nodes().begin(), cut.nodes().end());
+    std::sort(v.begin(), v.end());
+    return v;
+  }
+  const Hierarchy& h;
+  S s;
+  TreeCut cut;
+};
+
+struct Scene {
+  glm::vec3 center;
+  float extent;
+};
+
+Scene scene_of(const Hierarchy& h) {
+  return {0.5f * (h.bounds_min() + h.bounds_max()), glm::length(h.bounds_max() - h.bounds_min())};
+}
+
+ViewSnapshot camera(const Scene& s, glm::vec3 eye, glm::vec3 target, std::uint64_t version) {
+  ViewSnapshot v =
+      ViewSnapshot::look_at(eye, target, {640, 480}, 0.8f, 0.001f * s.extent, 20.0f * s.extent);
+  v.version = version;
+  v.frame = version;
+  return v;
+}
+
+// The camera paths; rho is 0.002 diameters and omega 0.02 rad per frame.
+std::vector<ViewSnapshot> make_path(const std::string& kind, const Scene& s) {
+  std::vector<ViewSnapshot> path;
+  const auto orbit_eye = [&](float angle, float dist) {
+    return s.center + dist * s.extent * glm::vec3(std::cos(angle), 0.3f, std::sin(angle));
+  };
+  if (kind == "slow") {
+    // Within rho and omega: one frame per iteration, closing in a little.
+    for (int f = 0; f < 120; ++f) {
+      const float dist = 0.9f - 0.0005f * float(f);
+      path.push_back(camera(s, orbit_eye(0.0015f * float(f), dist), s.center, path.size() + 1));
+    }
+  } else if (kind == "fast") {
+    // Up to ten times faster than rho and omega allow: several frames per iteration.
+    for (int f = 0; f < 80; ++f) {
+      const float dist = 0.8f + 0.3f * std::sin(0.1f * float(f));
+      path.push_back(camera(s, orbit_eye(0.09f * float(f), dist), s.center, path.size() + 1));
+    }
+  } else if (kind == "rotating") {
+    // A fixed eye near the model turning its head: nodes enter and leave the view.
+    const glm::vec3 eye = orbit_eye(0.5f, 0.45f);
+    for (int f = 0; f < 120; ++f) {
+      const float a = 0.035f * float(f);
+      const glm::vec3 dir(std::cos(a), 0.25f * std::sin(0.7f * a), std::sin(a));
+      path.push_back(camera(s, eye, eye + dir, path.size() + 1));
+    }
+  } else if (kind == "flythrough") {
+    // Straight through the model, looking ahead: the eye enters node spheres.
+    const glm::vec3 dir = glm::normalize(glm::vec3(1.0f, -0.15f, 0.35f));
+    for (int f = 0; f < 150; ++f) {
+      const glm::vec3 eye = s.center + (-0.8f + 0.0107f * float(f)) * s.extent * dir;
+      path.push_back(camera(s, eye, eye + dir, path.size() + 1));
+    }
+  } else if (kind == "teleport") {
+    // Slow stretches between jumps across the model.
+    for (int leg = 0; leg < 5; ++leg) {
+      const float base = 2.5f * float(leg);  // 1.3 extents apart: > kSlots / 2 frames
+      for (int f = 0; f < 12; ++f) {
+        path.push_back(camera(s, orbit_eye(base + 0.003f * float(f), 0.7f + 0.2f * float(leg % 2)),
+                              s.center, path.size() + 1));
+      }
+    }
+  }
+  return path;
+}
+
+class EventQueuePath : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(EventQueuePath, event_queue_exact_vs_topdown) {
+  const auto h = small_hierarchy(ModelKind::Terrain, 40000);
+  const Scene s = scene_of(*h);
+  Runner<TopDownStrategy> top(*h);
+  Runner<EventQueueStrategy> ev(*h);
+  const auto path = make_path(GetParam(), s);
+  ASSERT_FALSE(path.empty());
+  std::uint64_t top_tests = 0, event_tests = 0, multi_frame = 0, rebuilds = 0, advances = 0;
+  std::size_t largest = 0;
+  for (std::size_t i = 0; i < path.size(); ++i) {
+    const IterationResult rt = top.step(path[i]);
+    const IterationResult re = ev.step(path[i]);
+    ASSERT_FALSE(re.cancelled);
+    ASSERT_TRUE(re.converged);
+    ASSERT_EQ(TreeCut::validate(*h, ev.cut.nodes()), "") << "frame " << i;
+    ASSERT_EQ(ev.sorted(), top.sorted()) << GetParam() << " frame " << i << ": event_queue "
+                                         << ev.cut.size() << " nodes, topdown " << top.cut.size();
+    top_tests += rt.visited;
+    if (i > 0) event_tests += re.visited;
+    const auto& st = ev.s.stats();
+    rebuilds += st.rebuilt ? 1 : 0;
+    advances += st.rebuilt ? 0 : 1;
+    multi_frame += (!st.rebuilt && st.frames_advanced > 1) ? 1 : 0;
+    largest = std::max(largest, ev.cut.size());
+  }
+  // The path really exercised the queue (not a rebuild per frame) and the cut
+  // is not trivial.
+  EXPECT_GT(largest, 2000u);
+  EXPECT_GT(advances, path.size() / 2);
+  if (GetParam() == "slow") {
+    EXPECT_EQ(rebuilds, 1u);  // only the first iteration
+    EXPECT_EQ(multi_frame, 0u);
+    EXPECT_LT(event_tests * 5, top_tests) << "event tests " << event_tests << " top " << top_tests;
+  }
+  if (GetParam() == "fast" || GetParam() == "rotating") {
+    EXPECT_GT(multi_frame, path.size() / 2);
+  }
+  if (GetParam() == "teleport") {
+    EXPECT_GE(rebuilds, 3u);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Paths, EventQueuePath,
+                         ::testing::Values("slow", "fast", "rotating", "flythrough", "teleport"),
+                         [](const ::testing::TestParamInfo<std::string>& p) { return p.param; });
+
+// A random walk with every speed, a second model and parameter changes: still
+// equal after every iteration.
+TEST(EventQueue, event_queue_exact_vs_topdown_random_walk_and_params) {
+  const auto h = small_hierarchy(ModelKind::City, 30000);
+  const Scene s = scene_of(*h);
+  Runner<TopDownStrategy> top(*h);
+  Runner<EventQueueStrategy> ev(*h);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  glm::vec3 eye = s.center + glm::vec3(0.6f * s.extent, 0.2f * s.extent, 0.1f * s.extent);
+  glm::vec3 dir = glm::normalize(s.center - eye);
+  for (int i = 0; i < 200; ++i) {
+    const float speed = (i % 37 == 0) ? 0.4f : (i % 5 == 0 ? 0.02f : 0.001f);
+    eye += speed * s.extent * glm::vec3(u(rng), u(rng), u(rng));
+    dir = glm::normalize(dir + ((i % 3 == 0) ? 0.3f : 0.01f) * glm::vec3(u(rng), u(rng), u(rng)));
+    if (i == 80 || i == 140) {
+      const double theta = i == 80 ? 3.0 : 0.8;
+      top.s.set_param("theta", theta);
+      ev.s.set_param("theta", theta);
+    }
+    if (i == 110) ev.s.set_param("omega", 0.05);
+    const ViewSnapshot v = camera(s, eye, eye + dir, std::uint64_t(i) + 1);
+    top.step(v);
+    ev.step(v);
+    ASSERT_EQ(ev.sorted(), top.sorted()) << "iteration " << i;
+  }
+}
+
+TEST(EventQueue, static_camera_costs_nothing) {
+  const auto h = small_hierarchy(ModelKind::Terrain, 40000);
+  const Scene s = scene_of(*h);
+  Runner<EventQueueStrategy> ev(*h);
+  const glm::vec3 eye = s.center + glm::vec3(0.7f, 0.3f, 0.2f) * s.extent;
+  ev.step(camera(s, eye, s.center, 1));
+  ASSERT_GT(ev.cut.size(), 1000u);
+  const std::vector<NodeId> before = ev.sorted();
+  // Same view version: nothing at all is tested.
+  IterationResult r = ev.step(camera(s, eye, s.center, 1));
+  EXPECT_EQ(r.visited, 0u);
+  EXPECT_TRUE(r.converged);
+  // A new version with the same camera (the light moved): no frame passes.
+  r = ev.step(camera(s, eye, s.center, 2));
+  EXPECT_EQ(r.visited, 0u);
+  EXPECT_EQ(ev.s.stats().frames_advanced, 0u);
+  EXPECT_FALSE(ev.s.stats().rebuilt);
+  EXPECT_EQ(ev.sorted(), before);
+  // The per-node state: two links per node plus the slot heads.
+  EXPECT_EQ(ev.s.state_bytes(), 8u * h->node_count() + 4u * EventQueueStrategy::kSlots);
+}
+
+TEST(EventQueue, cancelled_iteration_leaves_a_valid_cut_and_recovers) {
+  const auto h = small_hierarchy(ModelKind::Terrain, 40000);
+  const Scene s = scene_of(*h);
+  Runner<TopDownStrategy> top(*h);
+  Runner<EventQueueStrategy> ev(*h);
+  std::atomic<bool> cancel{true};
+  bool cancelled_once = false;
+  for (int i = 0; i < 40; ++i) {
+    // Fast steps so that an iteration has thousands of events.
+    const glm::vec3 eye =
+        s.center + (0.5f + 0.01f * float(i)) * s.extent *
+                       glm::vec3(std::cos(0.15f * float(i)), 0.25f, std::sin(0.15f * float(i)));
+    const ViewSnapshot v = camera(s, eye, s.center, std::uint64_t(i) + 1);
+    const bool cancel_now = i % 4 == 1;
+    const IterationResult r = ev.step(v, cancel_now ? &cancel : nullptr);
+    top.step(v);
+    ASSERT_EQ(TreeCut::validate(*h, ev.cut.nodes()), "") << "iteration " << i;
+    if (r.cancelled) {
+      cancelled_once = true;
+      EXPECT_FALSE(r.converged);
+    } else {
+      ASSERT_EQ(ev.sorted(), top.sorted()) << "iteration " << i;
+    }
+  }
+  EXPECT_TRUE(cancelled_once);
+}
+
+// Each event time is a lower bound: brute force over random nodes and random
+// camera moves within k frames of rho and omega, the test never differs
+// before the frame the event names.
+TEST(EventQueue, event_times_are_lower_bounds) {
+  const auto h = small_hierarchy(ModelKind::Sphere, 20000);
+  const Scene s = scene_of(*h);
+  const auto& cr = h->arrays().center_radius;
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const double rho = 0.002 * 2.0 * double(h->radius(0));
+  const double omega = 0.02;
+  std::size_t checked = 0;
+  for (int trial = 0; trial < 300; ++trial) {
+    const glm::vec3 eye = s.center + float(0.3 + 0.5 * (u(rng) + 1.0)) * s.extent *
+                                         glm::normalize(glm::vec3(u(rng), u(rng), u(rng)));
+    const glm::vec3 target = s.center + 0.2f * s.extent * glm::vec3(u(rng), u(rng), u(rng));
+    const ViewSnapshot v0 = camera(s, eye, target, 1);
+    const auto c0 = strategies::CriterionCamera::from_view(v0, 1.5);
+    for (int k = 0; k < 200; ++k) {
+      const NodeId n =
+          NodeId(std::uniform_int_distribution<std::uint32_t>(0, h->node_count() - 1)(rng));
+      const bool now = strategies::unfold_test(c0, cr[n]);
+      const std::uint32_t t = now ? strategies::potential_fold_time(c0, cr[n], rho, omega, 511)
+                                  : strategies::potential_unfold_time(c0, cr[n], rho, omega, 511);
+      if (t < 2) continue;
+      // A camera t - 1 frames away at full speed, straight at the node or
+      // anywhere, turned by (t - 1) omega towards or away from it.
+      const double frames = double(t - 1);
+      const glm::dvec3 d = glm::dvec3(glm::vec3(cr[n])) - glm::dvec3(eye);
+      for (int m = 0; m < 8; ++m) {
+        glm::dvec3 move = m < 2 ? (m == 0 ? glm::normalize(d) : -glm::normalize(d))
+                                : glm::normalize(glm::dvec3(u(rng), u(rng), u(rng)));
+        const glm::vec3 e1 = glm::vec3(glm::dvec3(eye) + 0.999 * frames * rho * move);
+        const glm::dvec3 fwd = glm::normalize(glm::dvec3(target - eye));
+        glm::dvec3 axis =
+            glm::normalize(glm::cross(fwd, m % 2 == 0 ? d : glm::dvec3(u(rng), u(rng), u(rng))));
+        const double a = 0.999 * frames * omega * (m % 3 == 0 ? 1.0 : -1.0);
+        const glm::dvec3 f1 = fwd * std::cos(a) + glm::cross(axis, fwd) * std::sin(a);
+        const ViewSnapshot v1 = camera(s, e1, e1 + glm::vec3(f1), 2);
+        const auto c1 = strategies::CriterionCamera::from_view(v1, 1.5);
+        ASSERT_EQ(strategies::unfold_test(c1, cr[n]), now)
+            << "node " << n << " event in " << t << " frames changed within " << frames;
+        ++checked;
+      }
+    }
+  }
+  EXPECT_GT(checked, 10000u);
+}
+
+// The CLI: both strategies along the same path with --sync draw the same
+// number of splats in every row of stats.csv and the same frames.
+std::vector<std::string> column(const std::filesystem::path& csv, const std::string& name) {
+  std::ifstream in(csv);
+  std::string line;
+  std::getline(in, line);
+  std::vector<std::string> header;
+  std::stringstream hs(line);
+  for (std::string f; std::getline(hs, f, ',');) header.push_back(f);
+  const auto it = std::find(header.begin(), header.end(), name);
+  if (it == header.end()) return {};
+  const auto index = std::size_t(it - header.begin());
+  std::vector<std::string> values;
+  while (std::getline(in, line)) {
+    std::stringstream ls(line);
+    std::string f;
+    for (std::size_t i = 0; i <= index && std::getline(ls, f, ','); ++i) {
+    }
+    values.push_back(f);
+  }
+  return values;
+}
+
+std::string slurp(const std::filesystem::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+TEST(EventQueueCli, render_sync_event_queue_equals_topdown) {
+  const auto dir = scratch_dir("event_queue_render");
+  const auto r = run_treecut(
+      "render --default-kind terrain --default-points 20000 --width 160 "
+      "--height 96 --frames 24 --warmup 0 --sync -s event_queue -s topdown "
+      "-p theta=1 --out " +
+      quote(dir / "out"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  const auto a = column(dir / "out" / "event_queue" / "stats.csv", "splats_drawn");
+  const auto b = column(dir / "out" / "topdown" / "stats.csv", "splats_drawn");
+  ASSERT_EQ(a.size(), 24u) << r.out;
+  EXPECT_EQ(a, b);
+  std::set<std::string> sizes(a.begin(), a.end());
+  EXPECT_GT(sizes.size(), 1u);  // the cut changed along the path
+  int frames = 0;
+  for (const auto& e : std::filesystem::directory_iterator(dir / "out" / "event_queue")) {
+    if (e.path().extension() != ".png") continue;
+    const auto other = dir / "out" / "topdown" / e.path().filename();
+    ASSERT_TRUE(std::filesystem::exists(other)) << other;
+    EXPECT_EQ(slurp(e.path()), slurp(other)) << e.path().filename();
+    ++frames;
+  }
+  EXPECT_EQ(frames, 24);
+}
+
+}  // namespace
+}  // namespace treecut::test
