@@ -10,7 +10,7 @@ namespace {
 // of the machine's load or of the view is learnt within a fraction of a second.
 constexpr double kForget = 0.9;
 // The splat counts must spread by 5 % (standard deviation over the mean)
-// before a slope is fitted; below that the last fitted slope is kept.
+// before a slope is fitted; below that the last fitted line is kept (scaled).
 constexpr double kMinSpread = 0.05;
 // A frame slower than 1.5 times the model's prediction counts as 1.5 times:
 // one hiccup (a page fault, another process) moves the model by a bounded
@@ -21,7 +21,7 @@ constexpr double kMaxResidual = 1.5;
 // most the node count.
 constexpr double kGrowth = 1.25;
 constexpr double kGrowthNodes = 1.0 / 16.0;
-// A budget is at least this fraction of the drawn cut.
+// Slow frames set a budget of at least this fraction of the drawn cut.
 constexpr double kMaxDrop = 0.5;
 // Changes below 3 % are not sent: frame-time noise must not keep the stage busy.
 constexpr double kDeadband = 0.03;
@@ -29,9 +29,10 @@ constexpr double kDeadband = 0.03;
 // only a rough guide).
 constexpr double kMaxThresholdStep = 1.4;
 // A threshold moves again the same way without an answer from the cut after
-// kPatience frames (or twice the frames the cut took to answer before), at most kMaxBlind times in
-// a row (1.4^16: a factor 218, enough to cross from a default to where a close view's cut responds;
-// a reversal undoes blind steps at once, so they cost no wind-up).
+// kPatience frames (or twice the frames the cut took to answer before), at
+// most kMaxBlind times in a row (1.4^16: a factor 218, enough to cross from a
+// default to where a close view's cut responds; a reversal undoes blind steps
+// at once, so they cost no wind-up).
 constexpr int kPatience = 6;
 constexpr int kMaxBlind = 16;
 // A threshold of 0 could never grow multiplicatively: keep it off zero.
