@@ -33,8 +33,9 @@ struct SceneArgs {
   float point_size = 2.0f;
   int k = 12;
   bool fixed_light = false;
-  std::string up = "auto";  ///< x | y | z | auto (from the data: treecut/up_axis.hpp)
-  bool validate = false;     ///< --validate: check every cut a strategy returns in full
+  std::string up = "auto";        ///< x | y | z | auto (from the data: treecut/up_axis.hpp)
+  bool validate = false;          ///< --validate: check every cut a strategy returns in full
+  int stage_wait_bound_ms = 100;  ///< raise a starved stage after this wait; 0 = never
 };
 
 void add_scene_options(CLI::App& cmd, SceneArgs& args);
@@ -45,8 +46,8 @@ struct Scene {
   glm::vec3 center{0.0f};
   float radius = 1.0f;
   glm::vec3 up{0.0f, 1.0f, 0.0f};  ///< the model's up axis (orbits turn about it)
-};
   UpAxis up_axis;                  ///< the same, named; reason set when --up auto chose it
+};
 
 /// Opens the model (through its cache) or generates the default one.
 /// Throws InputError for a bad model file.

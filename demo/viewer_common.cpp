@@ -51,10 +51,16 @@ void add_scene_options(CLI::App& cmd, SceneArgs& args) {
   cmd.add_flag("--validate", args.validate,
                "Check every cut a strategy returns with TreeCut::validate (always on in Debug "
                "and sanitizer builds; see docs/plugin-guide.md)");
+  cmd.add_option("--stage-wait-bound", args.stage_wait_bound_ms,
+                 "Milliseconds an update may wait for the low-priority Feedback Stage before it "
+                 "runs at normal priority until done (0 = never; docs/threading.md)")
+      ->check(CLI::Range(0, 3600000))
+      ->capture_default_str();
 }
 
 void configure_stage(StageOptions& options, const SceneArgs& args) {
   if (args.validate) options.validate = true;
+  options.starvation_bound = std::chrono::milliseconds(args.stage_wait_bound_ms);
   // The stage cannot leave while the iteration runs (it reads the stage's
   // lists and the model); the program is done with both, so it ends here.
   options.on_slow_cancel = [](const std::string& what) {
@@ -73,16 +79,19 @@ std::string stage_shortfall(const std::string& strategy, const StageCounters& c,
                   strategy.c_str(), frames);
     return line;
   }
+  // With the raise off (bound 0) a wait is still late past the default bound.
+  const std::chrono::milliseconds bound = options.starvation_bound.count() > 0
+                                              ? options.starvation_bound
+                                              : StageOptions{}.starvation_bound;
   const auto bound_ns = static_cast<std::uint64_t>(
-      std::chrono::duration_cast<std::chrono::nanoseconds>(options.starvation_bound).count());
+      std::chrono::duration_cast<std::chrono::nanoseconds>(bound).count());
   if (c.wait_ns_max > bound_ns) {
     std::snprintf(line, sizeof line,
-                  "%s: the Feedback Stage fell behind: an update waited up to %.0f ms for CPU "
-                  "time (bound %lld ms; %llu of %llu updates late, priority raised %llu times)",
+                  "%s: the Feedback Stage fell behind: an update waited up to %.0f ms to start "
+                  "(bound %lld ms; %llu iterations in %d frames, priority raised %llu times)",
                   strategy.c_str(), double(c.wait_ns_max) * 1e-6,
-                  static_cast<long long>(options.starvation_bound.count()),
-                  static_cast<unsigned long long>(c.starved),
-                  static_cast<unsigned long long>(c.requests),
+                  static_cast<long long>(bound.count()),
+                  static_cast<unsigned long long>(c.iterations), frames,
                   static_cast<unsigned long long>(c.boosts));
     return line;
   }

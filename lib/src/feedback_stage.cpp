@@ -465,7 +465,7 @@ FrameLists FeedbackStage::poll() {
   }
   // The lock-free query of figure 2.
   const State state = state_.load(std::memory_order_acquire);
-  if (state == State::Process && in_flight_ && !starved_ &&
+  if (state == State::Process && in_flight_ && !starved_ && options_.starvation_bound.count() > 0 &&
       std::chrono::steady_clock::now() - requested_at_ >= options_.starvation_bound) {
     // Bounded wait: a Low/Idle stage that has not delivered within the bound
     // runs at the creator's priority until this iteration is done.

@@ -117,8 +117,8 @@ struct StageOptions {
   /// creator's priority until that iteration is done (one system call each
   /// way). Where the process may not raise a thread's priority again
   /// (unprivileged, RLIMIT_NICE 0), Idle becomes nice +19 instead of
-  /// SCHED_IDLE, which the scheduler never starves entirely.
-  /// docs/threading.md, "Thread priority".
+  /// SCHED_IDLE, which the scheduler never starves entirely. 0: never raise
+  /// (the counters still record the waits). docs/threading.md, "Thread priority".
   std::chrono::milliseconds starvation_bound{100};
   /// Check every cut a strategy returns with TreeCut::validate (see above).
   bool validate = validate_cuts_by_default();

@@ -13,7 +13,14 @@
 //   TreeCut::coarsen (and may reorder it, TreeCut::sort); on entry it is the
 //   cut of the previous iteration (what the render thread draws), in
 //   ascending id order when the stage calls. Rebuild strategies ignore the cut and fill
-//   `*output.nodes` (empty on entry, capacity kept) with a new cut.
+//   `*output.nodes` (empty on entry, capacity kept) with a new cut. The first
+//   cut is the model's (the root in treecut render/view).
+// - Checked: the stage rejects a cut that does not cover every leaf once
+//   (always: empty, ids out of range, wrong point total; in checked builds or
+//   with StageOptions::validate: TreeCut::validate) and turns anything the
+//   strategy throws, of any type, into a StrategyError naming it and its
+//   origin; the previous list stays on screen. The stage fills
+//   `result.cut_size` itself.
 // - What may be read: only `input` and the strategy's members. The references
 //   in `input` and `output` are valid for the duration of the call only; the
 //   hierarchy stays the same until reset() is called with another.
