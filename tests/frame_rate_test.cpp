@@ -98,27 +98,67 @@ TEST(FrameRateGovernor, FitsFixedAndPerSplatCost) {
   EXPECT_NEAR(g.wanted_splats(), 360000.0, 2000.0);
 }
 
-TEST(FrameRateGovernor, ThresholdGrowsWhenSlowAndIgnoresBadFrames) {
-  FrameRateGovernor g("min_size", FrameRateGovernor::Knob::Threshold, 1.0, 0.0, 100.0, 100000);
-  // The cut answers every move (it shrinks as the threshold grows).
-  double splats = 50000;
-  for (int i = 0; i < 10; ++i) {
-    if (auto v = g.update(100.0, static_cast<std::size_t>(splats), 30.0)) splats /= (*v * *v);
+// A cut that answers a threshold at once: splats = 50000 / size^2, at most
+// `full` (every leaf drawn); frame time 2 ms + 2 us per splat.
+struct ThresholdScene {
+  double full = 100000;
+  [[nodiscard]] double splats(double size) const {
+    return std::clamp(50000.0 / std::max(size * size, 1e-12), 1.0, full);
   }
-  EXPECT_GT(g.value(), 1.5);
+  static double frame_ms(double splats) { return 2.0 + 0.002 * splats; }
+};
+
+TEST(FrameRateGovernor, ThresholdSettlesAndIgnoresBadFrames) {
+  const ThresholdScene scene;
+  FrameRateGovernor g("min_size", FrameRateGovernor::Knob::Threshold, 1.0, 0.0, 100.0, 100000);
+  for (int i = 0; i < 60; ++i) {
+    const double n = scene.splats(g.value());
+    (void)g.update(ThresholdScene::frame_ms(n), static_cast<std::size_t>(n), 30.0);
+  }
+  // 102 ms at the start; the target is 33.3 ms.
+  EXPECT_NEAR(ThresholdScene::frame_ms(scene.splats(g.value())), 1000.0 / 30.0, 3.33);
   // A threshold at 0 can still move up.
   FrameRateGovernor z("min_size", FrameRateGovernor::Knob::Threshold, 0.0, 0.0, 100.0, 100000);
   for (int i = 0; i < 10; ++i) (void)z.update(100.0, 50000, 30.0);
   EXPECT_GT(z.value(), 0.0);
-  // A cut that does not answer (full detail): one step down, then it holds.
-  FrameRateGovernor f("min_size", FrameRateGovernor::Knob::Threshold, 1.0, 0.0, 100.0, 100000);
-  for (int i = 0; i < 200; ++i) (void)f.update(5.0, 100000, 30.0);
-  EXPECT_GE(f.value(), 1.0 / 1.4 - 1e-9);
   // Non-finite or non-positive frame times are ignored.
   FrameRateGovernor n("min_size", FrameRateGovernor::Knob::Threshold, 1.0, 0.0, 100.0, 100000);
   EXPECT_FALSE(n.update(std::nan(""), 1000, 30.0).has_value());
   EXPECT_FALSE(n.update(-1.0, 1000, 30.0).has_value());
   EXPECT_EQ(n.value(), 1.0);
+}
+
+TEST(FrameRateGovernor, ThresholdAtFullDetailDoesNotWindDown) {
+  // Every leaf is drawn from a threshold of 2.2 down: fast frames (22 ms of a
+  // 40 ms target) ask for more detail the cut cannot give.
+  ThresholdScene scene;
+  scene.full = 10000;
+  FrameRateGovernor g("min_size", FrameRateGovernor::Knob::Threshold, 1.0, 0.0, 100.0, 100000);
+  for (int i = 0; i < 1000; ++i) {
+    const double n = scene.splats(g.value());
+    (void)g.update(ThresholdScene::frame_ms(n), static_cast<std::size_t>(n), 25.0);
+  }
+  // A few blind steps (the stage may just be slow), then it holds, far above
+  // the floor of 0.001 it would reach by running down.
+  const double held = g.value();
+  for (int i = 0; i < 1000; ++i) {
+    const double n = scene.splats(g.value());
+    (void)g.update(ThresholdScene::frame_ms(n), static_cast<std::size_t>(n), 25.0);
+  }
+  EXPECT_EQ(g.value(), held);
+  EXPECT_GT(held, 0.01);
+  // The frames turn slow (the target rises to 60 fps, 16.7 ms): the first
+  // move up starts from the last value the cut answered to, not from the
+  // bottom of the blind steps.
+  const double n = scene.splats(g.value());
+  auto v = g.update(ThresholdScene::frame_ms(n), static_cast<std::size_t>(n), 60.0);
+  ASSERT_TRUE(v.has_value());
+  EXPECT_GT(*v, 1.0);
+  for (int i = 0; i < 60; ++i) {
+    const double m = scene.splats(g.value());
+    (void)g.update(ThresholdScene::frame_ms(m), static_cast<std::size_t>(m), 60.0);
+  }
+  EXPECT_NEAR(ThresholdScene::frame_ms(scene.splats(g.value())), 1000.0 / 60.0, 1.67);
 }
 
 // ---------------------------------------------------------------------------

@@ -26,15 +26,16 @@ constexpr double kMaxDrop = 0.5;
 // Changes below 3 % are not sent: frame-time noise must not keep the stage busy.
 constexpr double kDeadband = 0.03;
 // A threshold moves by at most this factor per change (the 1/size^2 law is
-// only a rough guide).
-constexpr double kMaxThresholdStep = 1.4;
+// only a rough guide; 1.4 took 50 frames at 200 ms from the recursive
+// strategy's default on the dragon).
+constexpr double kMaxThresholdStep = 2.0;
 // A threshold moves again the same way without an answer from the cut after
 // kPatience frames (or twice the frames the cut took to answer before), at
-// most kMaxBlind times in a row (1.4^16: a factor 218, enough to cross from a
+// most kMaxBlind times in a row (2^8: a factor 256, enough to cross from a
 // default to where a close view's cut responds; a reversal undoes blind steps
 // at once, so they cost no wind-up).
 constexpr int kPatience = 6;
-constexpr int kMaxBlind = 16;
+constexpr int kMaxBlind = 8;
 // A threshold of 0 could never grow multiplicatively: keep it off zero.
 constexpr double kMinThreshold = 1e-3;
 
