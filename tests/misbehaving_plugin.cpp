@@ -12,14 +12,14 @@
 
 namespace {
 
-enum class Fault { DropsNode, EmptyCut, ThrowsInt, IgnoresCancel };
+enum class Fault { DropsNode, Duplicate, EmptyCut, ThrowsInt, IgnoresCancel };
 
 class Misbehaving final : public treecut::Strategy {
  public:
   Misbehaving(const char* name, Fault fault) : Strategy({}), name_(name), fault_(fault) {}
   [[nodiscard]] std::string_view name() const override { return name_; }
   [[nodiscard]] Mode mode() const override {
-    return fault_ == Fault::DropsNode ? Mode::Rebuild : Mode::Evolve;
+    return fault_ == Fault::DropsNode || fault_ == Fault::Duplicate ? Mode::Rebuild : Mode::Evolve;
   }
   void reset(const treecut::Hierarchy&) override {}
   void iterate(const treecut::IterationInput& in, treecut::IterationOutput& out) override {
@@ -30,6 +30,15 @@ class Misbehaving final : public treecut::Strategy {
              ++c) {
           out.nodes->push_back(c);
         }
+        break;
+      case Fault::Duplicate:
+        // Every leaf, the first one twice in place of the second: the point
+        // total is right, so only TreeCut::validate (--validate, checked
+        // builds) sees it.
+        for (treecut::NodeId n = 0; n < h.node_count(); ++n) {
+          if (h.is_leaf(n)) out.nodes->push_back(n);
+        }
+        (*out.nodes)[1] = (*out.nodes)[0];
         break;
       case Fault::EmptyCut:
         *out.cut = treecut::TreeCut();
@@ -56,6 +65,7 @@ TREECUT_PLUGIN(registry) {
     registry.add(name, what, [name, fault] { return std::make_unique<Misbehaving>(name, fault); });
   };
   add("drops_node", Fault::DropsNode, "test plugin: a Rebuild cut missing a node");
+  add("duplicate", Fault::Duplicate, "test plugin: a Rebuild cut listing a node twice");
   add("empty_cut", Fault::EmptyCut, "test plugin: an Evolve strategy that empties its cut");
   add("throws_int", Fault::ThrowsInt, "test plugin: throws an int");
   add("ignores_cancel", Fault::IgnoresCancel, "test plugin: ignores cancellation for a minute");

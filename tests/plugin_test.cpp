@@ -127,6 +127,23 @@ TEST(MisbehavingPlugin, RenderExitsOneWithOneLineNamingStrategyAndPlugin) {
   }
 }
 
+// The full check behind --validate (always on in checked builds) rejects a cut
+// the cheap one lets through: a node listed twice, the point total right.
+TEST(MisbehavingPlugin, RenderValidateRejectsADuplicateNode) {
+  const auto dir = test::scratch_dir("misbehaving_validate");
+  const test::CommandResult r =
+      test::run_treecut("render --validate --plugin " + test::quote(kBadPlugin) +
+                        " -s duplicate --sync --frames 3 --warmup 0 --no-png --width 64 "
+                        "--height 48 --default-points 3000 --out " +
+                        test::quote(dir));
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("treecut: error: strategy 'duplicate' (plugin " + kBadPlugin +
+                       "): returned an invalid cut: node "),
+            std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find(" listed twice"), std::string::npos) << r.out;
+}
+
 // A strategy that ignores cancellation does not hold the program: the stage
 // reports it after StageOptions::cancel_timeout and treecut exits 1.
 TEST(MisbehavingPlugin, RenderWithAStrategyIgnoringCancellationEndsAndSaysSo) {
