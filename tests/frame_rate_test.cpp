@@ -350,8 +350,9 @@ void settles_and_recovers(std::unique_ptr<Strategy> strategy, std::size_t full, 
   EXPECT_LE(loop.reversals(recovered, 410), 2);
   std::printf(
       "[ figures  ] step every %d: settled after %d frames, recovered %d frames after "
-      "the dip, cut %zu of %zu\n",
-      step_every, settled, recovered - 210, log.back().splats, full);
+      "the dip, cut %zu of %zu, %d + %d reversals\n",
+      step_every, settled, recovered - 210, log.back().splats, full, loop.reversals(settled, 200),
+      loop.reversals(recovered, 410));
 }
 
 TEST(FrameRateLoop, BudgetSettlesWithinTenPercentAndDetailReturnsAfterADip) {

@@ -9,6 +9,11 @@ namespace {
 // Forgetting factor of the fit: about the last 10 frames count, so a change
 // of the machine's load or of the view is learnt within a fraction of a second.
 constexpr double kForget = 0.9;
+// The slope is fitted over a longer window (about 20 frames): the cost per
+// splat is the renderer's, it changes slowly, and noise averages out.
+constexpr double kForgetSlope = 0.95;
+// The fixed cost is taken to be at most this share of the recent frame time.
+constexpr double kMaxFixedShare = 0.75;
 // The splat counts must spread by 5 % (standard deviation over the mean)
 // before a slope is fitted; below that the last fitted line is kept (scaled).
 constexpr double kMinSpread = 0.05;
@@ -73,50 +78,56 @@ FrameRateGovernor::FrameRateGovernor(std::string param, Knob knob, double value,
       sent_(value),
       anchor_(value) {}
 
+void FrameRateGovernor::Moments::add(double x, double y, double forget) {
+  // Weighted incremental means and co-moments (West 1979) with exponential
+  // forgetting: the old weights shrink by `forget`, the new sample weighs 1.
+  weight = forget * weight + 1.0;
+  const double dx = x - mean_x;
+  mean_x += dx / weight;
+  mean_y += (y - mean_y) / weight;
+  cxx = forget * cxx + dx * (x - mean_x);
+  cxy = forget * cxy + dx * (y - mean_y);
+}
+
 void FrameRateGovernor::fit(double frame_ms, double splats) {
   if (slope_fitted_) {
     frame_ms = std::min(frame_ms, kMaxResidual * (fixed_ms_ + per_splat_ms_ * splats));
   }
-  // Weighted incremental means and co-moments (West 1979) with exponential
-  // forgetting: the old weights shrink by kForget, the new sample weighs 1.
-  weight_ = kForget * weight_ + 1.0;
-  const double dx = splats - mean_x_;
-  mean_x_ += dx / weight_;
-  mean_y_ += (frame_ms - mean_y_) / weight_;
-  cxx_ = kForget * cxx_ + dx * (splats - mean_x_);
-  cxy_ = kForget * cxy_ + dx * (frame_ms - mean_y_);
-
-  const double spread = kMinSpread * mean_x_;
+  recent_.add(splats, frame_ms, kForget);
+  slope_window_.add(splats, frame_ms, kForgetSlope);
+  // The line through the origin (QSplat's ratio rule) as a reference.
+  const double ratio = recent_.mean_y / recent_.mean_x;
+  const double spread = kMinSpread * slope_window_.mean_x;
   bool fitted_now = false;
-  if (weight_ > 2.0 && cxx_ / weight_ > spread * spread) {
-    const double slope = cxy_ / cxx_;
-    if (slope > 0.0) {
-      // A negative intercept is noise: the line through the origin (the ratio
-      // rule) is then the best fit with a fixed cost >= 0.
-      const double fixed = mean_y_ - slope * mean_x_;
-      per_splat_ms_ = fixed >= 0.0 ? slope : mean_y_ / mean_x_;
-      fixed_ms_ = std::max(0.0, fixed);
-      slope_fitted_ = fitted_now = true;
-    }
+  if (slope_window_.weight > 2.0 && slope_window_.cxx / slope_window_.weight > spread * spread) {
+    const double slope = slope_window_.cxy / slope_window_.cxx;
     // slope <= 0 (the frame time rose while the cut shrank: the load changed,
     // not the cost per splat): keep the last line, scaled below.
+    if (slope > 0.0) {
+      per_splat_ms_ = slope;
+      slope_fitted_ = fitted_now = true;
+    }
   }
   if (!slope_fitted_) {  // no spread yet: the ratio rule
-    per_splat_ms_ = mean_y_ / mean_x_;
+    per_splat_ms_ = ratio;
     fixed_ms_ = 0.0;
-  } else if (!fitted_now) {
+    return;
+  }
+  if (!fitted_now) {
     // No new slope: the last line, scaled through the recent mean, so a change
     // of speed shows at once. Scaled, not shifted: a loaded machine is slower
     // at everything, and a fixed cost shifted up by a slow burst could pass
     // the target and ask for the coarsest cut (measured on the dragon at a
     // load average of 8).
-    const double predicted = fixed_ms_ + per_splat_ms_ * mean_x_;
-    if (predicted > 0.0) {
-      const double scale = mean_y_ / predicted;
-      fixed_ms_ *= scale;
-      per_splat_ms_ *= scale;
-    }
+    const double predicted = fixed_ms_ + per_splat_ms_ * recent_.mean_x;
+    if (predicted > 0.0) per_splat_ms_ *= recent_.mean_y / predicted;
   }
+  // The fixed cost between 0 and kMaxFixedShare of the recent frame time: a
+  // slope fitted from noise (0.045 us/splat against 0.3 measured alone, at a
+  // load average of 7) would otherwise promise a splat count far off.
+  per_splat_ms_ = std::clamp(per_splat_ms_, (1.0 - kMaxFixedShare) * ratio, ratio);
+  // The line passes through the recent mean.
+  fixed_ms_ = recent_.mean_y - per_splat_ms_ * recent_.mean_x;
 }
 
 std::optional<double> FrameRateGovernor::update(double frame_ms, std::size_t splats,

@@ -85,11 +85,16 @@ class FrameRateGovernor {
   double smoothed_ms_ = 0.0;
   std::uint64_t frames_ = 0;
   // Exponentially weighted means and co-moments of (splats, frame time).
-  double weight_ = 0.0;
-  double mean_x_ = 0.0;
-  double mean_y_ = 0.0;
-  double cxx_ = 0.0;
-  double cxy_ = 0.0;
+  struct Moments {
+    double weight = 0.0;
+    double mean_x = 0.0;
+    double mean_y = 0.0;
+    double cxx = 0.0;
+    double cxy = 0.0;
+    void add(double x, double y, double forget);
+  };
+  Moments recent_;             // about 10 frames: where the line passes
+  Moments slope_window_;       // about 20 frames: its slope
   bool slope_fitted_ = false;  // per_splat_ms_ comes from a fit, not the ratio guess
   double fixed_ms_ = 0.0;
   double per_splat_ms_ = 0.0;
