@@ -114,8 +114,8 @@ struct StageOptions {
   std::chrono::microseconds idle_park_after{100'000};
   /// Low or Idle priority must not become starvation: when a request has
   /// waited this long for its result, poll() raises the stage thread to the
-  /// creator's priority until that iteration is done (one system call each
-  /// way). Where the process may not raise a thread's priority again
+  /// creator's priority until that iteration is done (a few system calls,
+  /// only for a late request). Where the process may not raise a thread's priority again
   /// (unprivileged, RLIMIT_NICE 0), Idle becomes nice +19 instead of
   /// SCHED_IDLE, which the scheduler never starves entirely. 0: never raise
   /// (the counters still record the waits). docs/threading.md, "Thread priority".
