@@ -63,7 +63,11 @@ void print_summary(const std::filesystem::path& model, const OpenedModel& m) {
   std::printf("memory      %.1f MiB (%.1f bytes/point)\n",
               static_cast<double>(h.memory_bytes()) / (1024.0 * 1024.0),
               static_cast<double>(h.memory_bytes()) / std::max(1u, h.leaf_count()));
-  std::printf("cache       %s\n", m.cache.string().c_str());
+  // Only a cache that exists is printed as the cache (build fails otherwise).
+  if (m.from_cache || m.cache_written)
+    std::printf("cache       %s\n", m.cache.string().c_str());
+  else
+    std::printf("cache       none (not written: %s)\n", m.cache_note.c_str());
   if (m.from_cache) {
     // The model's content hash runs beside the cache's verification.
     std::printf("loaded      from cache in %.3f s (content hash %.3f s of it, concurrently)\n",

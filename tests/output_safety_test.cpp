@@ -261,6 +261,8 @@ TEST(OutputSafety, BuildFailsWhenTheCacheCannotBeWrittenAndInfoGoesOn) {
   EXPECT_EQ(r.code, 0) << r.out;
   EXPECT_EQ(count_lines_with(r.out, "warning:"), 1u) << r.out;
   EXPECT_NE(r.out.find("Not a directory"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("cache       none (not written: "), std::string::npos)
+      << "a cache that was not written is not printed as the cache: " << r.out;
   EXPECT_EQ(read_all(dir / "a-file"), "not a folder\n");
 }
 

@@ -168,6 +168,7 @@ OpenedModel open_model(const std::filesystem::path& model, const OpenOptions& op
     t0 = std::chrono::steady_clock::now();
     try {
       save_cache(out.hierarchy, *key, out.cache);
+      out.cache_written = true;
     } catch (const std::exception& e) {
       if (options.require_cache) throw;
       // A read-only cache folder must not stop anyone from viewing a model.

@@ -38,6 +38,7 @@ struct OpenedModel {
   Hierarchy hierarchy;
   std::filesystem::path cache;  ///< where the cache is (or would be)
   bool from_cache = false;
+  bool cache_written = false;    ///< a cache was written after the build
   std::string cache_note;        ///< why a cache was not used, if one existed
   PlyLoadReport ply;             ///< when built
   std::size_t input_points = 0;  ///< points after dropping non-finite ones
