@@ -18,7 +18,10 @@ namespace {
 constexpr double kVelocityMargin = 1.0 + 1e-6;
 constexpr double kPi = 3.14159265358979323846;
 
-// Frames from a real lower bound: floored, 0 for negative or NaN, at most cap.
+// Frames from a real lower bound x: floored, 0 for negative or NaN, at most
+// cap. The true first frame k* of a change is an integer >= x, so any
+// computed x' < x + 1 still gives floor(x') <= k*: errors below one frame
+// are harmless.
 std::uint32_t frames(double x, std::uint32_t cap) {
   if (!(x > 0.0)) return 0;
   if (x >= double(cap)) return cap;
@@ -52,7 +55,11 @@ double angle_to_sphere(const CriterionCamera& cam, const Geometry& g) {
   const double cz = cam.ux * g.dy - cam.uy * g.dx;
   const double across = std::sqrt(cx * cx + cy * cy + cz * cz);
   const double tangent = std::sqrt(std::max(0.0, g.d2 - g.r * g.r));
-  return std::atan2(across * tangent - along * g.r, along * tangent + across * g.r);
+  // In float: an error of 1e-6 rad moves an event by 1e-6 / omega frames,
+  // far below the one frame the floored result allows for (see frames()),
+  // and float atan2 is twice as fast.
+  return std::atan2(static_cast<float>(across * tangent - along * g.r),
+                    static_cast<float>(along * tangent + across * g.r));
 }
 
 }  // namespace
@@ -117,7 +124,10 @@ std::uint32_t potential_unfold_time(const CriterionCamera& cam, const glm::vec4&
   const double t_m = (g.d - g.r * cam.pixel_scale / cam.theta) / rho_m;
   if (t_m >= t_i) return frames(t_i, cap);  // max(t_r, t_m) >= t_i already
   double t_r = 0.0;
-  const double gap = angle_to_sphere(cam, g) - cam.beta;
+  // Visible now (the test's own inequality, no trigonometry): t_r = 0.
+  const double along = g.dx * cam.ux + g.dy * cam.uy + g.dz * cam.uz;
+  const bool visible = along >= cam.cos_beta * std::sqrt(g.d2 - g.r * g.r) - cam.sin_beta * g.r;
+  const double gap = visible ? 0.0 : angle_to_sphere(cam, g) - cam.beta;
   if (gap > 0.0) {
     const double k_max = std::min(double(cap), std::floor(0.5 * (g.d - g.r) / rho_m));
     if (k_max >= 1.0) {

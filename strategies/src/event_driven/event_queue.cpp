@@ -30,48 +30,47 @@ EventQueueStrategy::EventQueueStrategy()
       }) {}
 
 void EventQueueStrategy::reset(const Hierarchy& hierarchy) {
-  next_.assign(hierarchy.node_count(), kNil);
-  prev_.assign(hierarchy.node_count(), kNotQueued);
-  heads_.assign(kSlots, kNil);
+  state_.assign(hierarchy.node_count(), NodeState{});
+  slots_.assign(kSlots, {});
+  work_.clear();
   queued_ = 0;
   frame_ = 0;
   valid_ = false;
   stats_ = {};
 }
 
-void EventQueueStrategy::insert(NodeId n, std::uint32_t t) {
-  const std::uint32_t slot = static_cast<std::uint32_t>(frame_ + t) & kMask;
-  const std::uint32_t head = heads_[slot];
-  next_[n] = head;
-  prev_[n] = kHead | slot;
-  if (head != kNil) prev_[head] = n;
-  heads_[slot] = n;
+void EventQueueStrategy::insert(NodeId n, std::uint32_t t, bool boundary) {
+  const auto slot = static_cast<std::uint16_t>((frame_ + t) & kMask);
+  std::vector<NodeId>& list = slots_[slot];
+  state_[n] = {static_cast<std::uint32_t>(list.size()), slot, std::uint16_t(boundary ? 1 : 0)};
+  list.push_back(n);
   ++queued_;
 }
 
 void EventQueueStrategy::erase(NodeId n) {
-  const std::uint32_t p = prev_[n];
-  if (p == kNotQueued) return;
-  const std::uint32_t nx = next_[n];
-  if (p >= kHead) {
-    heads_[p & ~kHead] = nx;
+  NodeState& e = state_[n];
+  if (e.slot == kNone) return;
+  if (e.slot == processing_ && e.index < work_.size() && work_[e.index] == n) {
+    // Still to come in the list being processed: marked, not moved, so the
+    // reader's position stays right. (Entries already read are kErased, so
+    // an equal id here is the node's current entry.)
+    work_[e.index] = kErased;
   } else {
-    next_[p] = nx;
+    std::vector<NodeId>& list = slots_[e.slot];
+    const NodeId last = list.back();
+    list[e.index] = last;
+    state_[last].index = e.index;
+    list.pop_back();
   }
-  if (nx != kNil) prev_[nx] = p;
-  prev_[n] = kNotQueued;
+  e.slot = kNone;
   --queued_;
 }
 
 void EventQueueStrategy::clear_queue() {
-  // Walk the lists rather than the node arrays: O(events), not O(nodes).
-  for (std::uint32_t& head : heads_) {
-    for (std::uint32_t n = head; n != kNil;) {
-      const std::uint32_t nx = next_[n];
-      prev_[n] = kNotQueued;
-      n = nx;
-    }
-    head = kNil;
+  // Through the lists rather than the node array: O(events), not O(nodes).
+  for (std::vector<NodeId>& list : slots_) {
+    for (const NodeId n : list) state_[n].slot = kNone;
+    list.clear();
   }
   queued_ = 0;
 }
@@ -88,7 +87,7 @@ void EventQueueStrategy::rebuild(const IterationInput& input, TreeCut& cut, Iter
   auto decided = [&](NodeId n, bool active) {
     const std::uint32_t t = active ? potential_fold_time(camera_, cr[n], rho_, omega_, kCap)
                                    : potential_unfold_time(camera_, cr[n], rho_, omega_, kCap);
-    insert(n, std::max<std::uint32_t>(1, t));
+    insert(n, std::max<std::uint32_t>(1, t), !active);
   };
   auto drop = [&](NodeId n) { erase(n); };
   detail::TopDown pass(h, cut, r, input, test, decided, drop);
@@ -102,64 +101,98 @@ void EventQueueStrategy::rebuild(const IterationInput& input, TreeCut& cut, Iter
 // Insertions are relative to the current frame, at most kCap ahead, so they
 // never land in a slot of this advance that is still to be processed
 // (steps + kCap < kSlots); t = 0 lands in the current frame's slot, which is
-// processed last.
+// processed last, until no insertion is left in it.
 void EventQueueStrategy::advance(const IterationInput& input, TreeCut& cut, IterationResult& r,
                                  std::uint64_t steps) {
-  const Hierarchy& h = input.hierarchy;
-  const HierarchyArrays& a = h.arrays();
   const std::uint64_t from = frame_ + 1;
   frame_ += steps;
-  auto drop = [&](NodeId n) { erase(n); };
   for (std::uint64_t f = from; f <= frame_; ++f) {
-    std::uint32_t& head = heads_[static_cast<std::uint32_t>(f) & kMask];
-    while (head != kNil) {
-      const NodeId n = head;
-      erase(n);
-      if ((++r.visited & 4095) == 0 && input.cancelled()) {
+    const auto slot = static_cast<std::uint32_t>(f & kMask);
+    do {
+      if (!process(slot, input, cut, r)) {
         // The cut is valid (every change was one refine or coarsen); the
         // events are not complete any more: the next iteration rebuilds.
         r.cancelled = true;
         valid_ = false;
         return;
       }
-      const glm::vec4 c = a.center_radius[n];
-      const bool pass = unfold_test(camera_, c);
-      if (cut.contains(n)) {
-        if (!pass) {
-          insert(n,
-                 std::max<std::uint32_t>(1, potential_unfold_time(camera_, c, rho_, omega_, kCap)));
-          continue;
-        }
-        // Unfold: the node is active now (its fold event), and its non-leaf
-        // children become boundary nodes with their own unfold events, maybe
-        // due in this very frame.
-        cut.refine(h, n);
-        ++r.refined;
-        insert(n, std::max<std::uint32_t>(1, potential_fold_time(camera_, c, rho_, omega_, kCap)));
-        const NodeId first = a.first_child[n];
-        const NodeId end = first + a.child_count[n];
-        for (NodeId ch = first; ch < end; ++ch) {
-          if (a.child_count[ch] == 0) continue;
-          insert(ch, potential_unfold_time(camera_, a.center_radius[ch], rho_, omega_, kCap));
-        }
-      } else if (pass) {
-        insert(n, std::max<std::uint32_t>(1, potential_fold_time(camera_, c, rho_, omega_, kCap)));
-      } else {
-        // Fold: the subtree collapses into n and its events go; n becomes a
-        // boundary node waiting to unfold.
-        detail::fold_subtree(h, cut, n, r, drop);
-        insert(n,
-               std::max<std::uint32_t>(1, potential_unfold_time(camera_, c, rho_, omega_, kCap)));
+    } while (f == frame_ && !slots_[slot].empty());
+  }
+}
+
+bool EventQueueStrategy::process(std::uint32_t slot, const IterationInput& input, TreeCut& cut,
+                                 IterationResult& r) {
+  constexpr std::size_t kAhead = 16;  // entries prefetched ahead, enough to cover a DRAM miss
+  const Hierarchy& h = input.hierarchy;
+  const HierarchyArrays& a = h.arrays();
+  // Take the list out of its slot (the slot gets work_'s empty buffer), so a
+  // fold that erases an entry still to come marks it instead of moving it.
+  work_.swap(slots_[slot]);
+  processing_ = static_cast<std::uint16_t>(slot);
+  auto drop = [&](NodeId n) { erase(n); };
+  const std::size_t count = work_.size();
+  for (std::size_t i = 0; i < count; ++i) {
+    if (i + kAhead < count && work_[i + kAhead] != kErased) {
+      __builtin_prefetch(&state_[work_[i + kAhead]]);
+      __builtin_prefetch(&a.center_radius[work_[i + kAhead]]);
+    }
+    const NodeId n = work_[i];
+    if (n == kErased) continue;
+    work_[i] = kErased;
+    --queued_;
+    const bool boundary = state_[n].boundary != 0;
+    if ((++r.visited & 4095) == 0 && input.cancelled()) {
+      for (std::size_t j = i + 1; j < count; ++j) {
+        if (work_[j] != kErased) state_[work_[j]].slot = kNone;
       }
+      state_[n].slot = kNone;
+      work_.clear();
+      processing_ = kNone;
+      return false;
+    }
+    // No state_[n].slot = kNone here: every branch below queues n again.
+    const glm::vec4 c = a.center_radius[n];
+    const bool pass = unfold_test(camera_, c);
+    if (boundary) {
+      if (!pass) {
+        insert(n, std::max<std::uint32_t>(1, potential_unfold_time(camera_, c, rho_, omega_, kCap)),
+               true);
+        continue;
+      }
+      // Unfold: the node is active now (its fold event), and its non-leaf
+      // children become boundary nodes with their own unfold events, maybe
+      // due in this very frame.
+      cut.refine(h, n);
+      ++r.refined;
+      insert(n, std::max<std::uint32_t>(1, potential_fold_time(camera_, c, rho_, omega_, kCap)),
+             false);
+      const NodeId first = a.first_child[n];
+      const NodeId end = first + a.child_count[n];
+      for (NodeId ch = first; ch < end; ++ch) {
+        if (a.child_count[ch] == 0) continue;
+        insert(ch, potential_unfold_time(camera_, a.center_radius[ch], rho_, omega_, kCap), true);
+      }
+    } else if (pass) {
+      insert(n, std::max<std::uint32_t>(1, potential_fold_time(camera_, c, rho_, omega_, kCap)),
+             false);
+    } else {
+      // Fold: the subtree collapses into n and its events go; n becomes a
+      // boundary node waiting to unfold.
+      detail::fold_subtree(h, cut, n, r, drop);
+      insert(n, std::max<std::uint32_t>(1, potential_unfold_time(camera_, c, rho_, omega_, kCap)),
+             true);
     }
   }
+  work_.clear();
+  processing_ = kNone;
+  return true;
 }
 
 void EventQueueStrategy::iterate(const IterationInput& input, IterationOutput& output) {
   const Hierarchy& h = input.hierarchy;
   TreeCut& cut = *output.cut;
   IterationResult& r = output.result;
-  if (next_.size() != h.node_count()) reset(h);
+  if (state_.size() != h.node_count()) reset(h);
   stats_ = {};
   camera_ = CriterionCamera::from_view(input.view, param_at(kTheta));
   rho_ = param_at(kRho) * 2.0 * double(h.radius(h.root()));

@@ -7,9 +7,14 @@
 // under the same view, node for node (tests/event_queue_test.cpp).
 //
 // The queue is the paper's faster form: a circular buffer of per-frame lists
-// (kSlots frames ahead), intrusive doubly-linked lists over node ids, so an
-// insert or erase is O(1) through the position stored per node; an insertion
-// for the current frame (t = 0) is handled within the same iteration.
+// (kSlots frames ahead). Each list is an array of node ids and every node
+// stores its list and index, so insert (append) and erase (the last entry
+// moves into the gap) are O(1), and a due list is read front to back with its
+// nodes' data prefetched ahead. (Measured on the dragon orbit of
+// selection_bench: intrusive doubly-linked lists over node ids took 2x the
+// time, a dependent cache miss per event; events carrying their node's
+// sphere, 24 bytes, 1.4x, from the writes into the lists.) An insertion for
+// the current frame (t = 0) is handled within the same iteration.
 //
 // Which nodes are queued: every boundary node (a cut node that is not a leaf:
 // its unfold event) and every active node (its fold event). The paper queues
@@ -34,7 +39,7 @@
 // the events are redone). Orthographic views: a top-down pass every
 // iteration.
 //
-// Memory: 8 bytes per hierarchy node (the two links) plus kSlots list heads.
+// Memory: 8 bytes per hierarchy node plus 4 bytes per queued event.
 #pragma once
 
 #include <cstdint>
@@ -69,26 +74,41 @@ class EventQueueStrategy final : public Strategy {
     std::size_t queued = 0;             ///< events in the queue afterwards
   };
   [[nodiscard]] const Stats& stats() const { return stats_; }
-  /// Bytes of the per-node event state and the queue heads.
+  /// Bytes of the event state: per node, and the lists' storage.
   [[nodiscard]] std::size_t state_bytes() const {
-    return (next_.capacity() + prev_.capacity() + heads_.capacity()) * sizeof(std::uint32_t);
+    std::size_t bytes = state_.capacity() * sizeof(NodeState) + work_.capacity() * sizeof(NodeId);
+    for (const auto& s : slots_) bytes += s.capacity() * sizeof(NodeId);
+    return bytes;
   }
+  /// Bytes per node of the state array, and per queued event.
+  static constexpr std::size_t kBytesPerNode = 8;
+  static constexpr std::size_t kBytesPerEvent = 4;
 
  private:
-  static constexpr std::uint32_t kNil = 0xffffffffu;        // no node
-  static constexpr std::uint32_t kNotQueued = 0xfffffffeu;  // prev_ of a node not queued
-  static constexpr std::uint32_t kHead = 0x80000000u;       // prev_ = kHead | slot of a head
+  // Per node: which frame's list holds its event and where, and whether it is
+  // a boundary node (in the cut) or an active one, so a due event needs no
+  // look-up in the cut. 8 bytes.
+  struct NodeState {
+    std::uint32_t index = 0;
+    std::uint16_t slot = kNone;
+    std::uint16_t boundary = 0;
+  };
+  static constexpr std::uint16_t kNone = 0xffff;  // not queued
+  static constexpr NodeId kErased = 0xffffffffu;  // an erased or read entry of work_
 
-  void insert(NodeId n, std::uint32_t t);
+  void insert(NodeId n, std::uint32_t t, bool boundary);
   void erase(NodeId n);
   void clear_queue();
   void rebuild(const IterationInput& input, TreeCut& cut, IterationResult& r);
   void advance(const IterationInput& input, TreeCut& cut, IterationResult& r, std::uint64_t steps);
+  // Processes the events of one frame's list; false when cancelled.
+  bool process(std::uint32_t slot, const IterationInput& input, TreeCut& cut, IterationResult& r);
 
-  std::vector<std::uint32_t> next_;   // per node: next in its frame's list, or kNil
-  std::vector<std::uint32_t> prev_;   // per node: previous, kHead | slot, or kNotQueued
-  std::vector<std::uint32_t> heads_;  // per slot: first node, or kNil
-  std::uint64_t frame_ = 0;           // the strategy's frame counter
+  std::vector<NodeState> state_;            // per hierarchy node
+  std::vector<std::vector<NodeId>> slots_;  // the circular buffer: kSlots frames' lists
+  std::vector<NodeId> work_;                // a list taken out of its slot for processing
+  std::uint16_t processing_ = kNone;        // the slot work_ was taken from, while it is read
+  std::uint64_t frame_ = 0;                 // the strategy's frame counter
   std::size_t queued_ = 0;
   bool valid_ = false;           // the queue describes the cut and last_camera_
   CriterionCamera camera_;       // the camera of this iteration
