@@ -1,4 +1,6 @@
 // treecut render (headless, OSMesa) | treecut view (GLFW window).
+#include <unistd.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -187,11 +189,19 @@ constexpr const char* kRenderMarker = ".treecut-render";
 
 bool starts_with_stats_header(const std::filesystem::path& file) {
   if (file_kind(file) != FileKind::Regular) return false;
+  // Only the header line matters (a long run's table may be large); opened
+  // without blocking, as every input.
+  int fd = -1;
   try {
-    return read_text_file(file, kTextInputLimit).rfind("frame,time_s,frame_ms,", 0) == 0;
+    fd = open_regular_file(file);
   } catch (const std::exception&) {
     return false;
   }
+  constexpr std::string_view kHeader = "frame,time_s,frame_ms,";
+  char head[kHeader.size()] = {};
+  const ssize_t n = ::read(fd, head, sizeof head);
+  ::close(fd);
+  return n == static_cast<ssize_t>(sizeof head) && std::string_view(head, sizeof head) == kHeader;
 }
 
 bool is_earlier_render_output(const std::filesystem::path& dir) {
