@@ -114,29 +114,40 @@ bool unfold_test(const CriterionCamera& cam, const ViewSnapshot& view, const glm
 //   if that exceeds K, k > K. (The paper's t_r = (alpha - phi - sqrt(2) fov/2)
 //   / omega leaves out that translation turns the direction to the sphere too.)
 // Unfold needs inside, or visible and the threshold: k >= min(t_i, max(t_r, t_m)).
+EventRates::EventRates(const CriterionCamera& cam, double rho_, double omega_, std::uint32_t cap_)
+    : rho(rho_ * kVelocityMargin),
+      inv_rho(1.0 / (rho_ * kVelocityMargin)),
+      omega(omega_ * kVelocityMargin),
+      size_scale(cam.pixel_scale / cam.theta),
+      cap(double(cap_)),
+      cap_frames(cap_) {}
+
 std::uint32_t potential_unfold_time(const CriterionCamera& cam, const glm::vec4& cr, double rho,
                                     double omega, std::uint32_t cap) {
-  const double rho_m = rho * kVelocityMargin;
-  const double omega_m = omega * kVelocityMargin;
+  return potential_unfold_time(cam, cr, EventRates(cam, rho, omega, cap));
+}
+
+std::uint32_t potential_unfold_time(const CriterionCamera& cam, const glm::vec4& cr,
+                                    const EventRates& q) {
   const Geometry g = geometry(cam, cr);
   if (g.d2 < g.r * g.r || !cam.perspective) return 0;
-  const double t_i = (g.d - g.r) / rho_m;
-  const double t_m = (g.d - g.r * cam.pixel_scale / cam.theta) / rho_m;
-  if (t_m >= t_i) return frames(t_i, cap);  // max(t_r, t_m) >= t_i already
+  const double t_i = (g.d - g.r) * q.inv_rho;
+  const double t_m = (g.d - g.r * q.size_scale) * q.inv_rho;
+  if (t_m >= t_i) return frames(t_i, q.cap_frames);  // max(t_r, t_m) >= t_i already
   double t_r = 0.0;
   // Visible now (the test's own inequality, no trigonometry): t_r = 0.
   const double along = g.dx * cam.ux + g.dy * cam.uy + g.dz * cam.uz;
   const bool visible = along >= cam.cos_beta * std::sqrt(g.d2 - g.r * g.r) - cam.sin_beta * g.r;
   const double gap = visible ? 0.0 : angle_to_sphere(cam, g) - cam.beta;
   if (gap > 0.0) {
-    const double k_max = std::min(double(cap), std::floor(0.5 * (g.d - g.r) / rho_m));
+    const double k_max = std::min(q.cap, std::floor(0.5 * (g.d - g.r) * q.inv_rho));
     if (k_max >= 1.0) {
-      const double x1 = (g.r + k_max * rho_m) / g.d;
-      const double slope = omega_m + rho_m / (g.d * std::sqrt(1.0 - x1 * x1));
+      const double x1 = (g.r + k_max * q.rho) / g.d;
+      const double slope = q.omega + q.rho / (g.d * std::sqrt(1.0 - x1 * x1));
       t_r = std::min(k_max, gap / slope);
     }
   }
-  return frames(std::min(t_i, std::max(t_r, t_m)), cap);
+  return frames(std::min(t_i, std::max(t_r, t_m)), q.cap_frames);
 }
 
 // An unfolded node (unfold_test true).
@@ -153,22 +164,25 @@ std::uint32_t potential_unfold_time(const CriterionCamera& cam, const glm::vec4&
 //   Fold needs either: k >= min(t_r, t_m).
 std::uint32_t potential_fold_time(const CriterionCamera& cam, const glm::vec4& cr, double rho,
                                   double omega, std::uint32_t cap) {
-  const double rho_m = rho * kVelocityMargin;
-  const double omega_m = omega * kVelocityMargin;
+  return potential_fold_time(cam, cr, EventRates(cam, rho, omega, cap));
+}
+
+std::uint32_t potential_fold_time(const CriterionCamera& cam, const glm::vec4& cr,
+                                  const EventRates& q) {
   const Geometry g = geometry(cam, cr);
   if (!cam.perspective) return 0;
-  if (g.d2 < g.r * g.r) return frames((g.r - g.d) / rho_m, cap);
-  const double t_m = (g.r * cam.pixel_scale / cam.theta - g.d) / rho_m;
+  if (g.d2 < g.r * g.r) return frames((g.r - g.d) * q.inv_rho, q.cap_frames);
+  const double t_m = (g.r * q.size_scale - g.d) * q.inv_rho;
   if (!(t_m >= 1.0)) return 0;
   double t_r = 0.0;
-  const double k_max = std::min(double(cap), std::floor(0.5 * g.d / rho_m));
+  const double k_max = std::min(q.cap, std::floor(0.5 * g.d * q.inv_rho));
   const double tangent = std::sqrt(std::max(0.0, g.d2 - g.r * g.r));
   if (k_max >= 1.0 && tangent > 0.0) {
     const double gap = cam.beta - angle_to_sphere(cam, g);
-    const double slope = omega_m + (kPi / 3.0) * rho_m / g.d + rho_m * g.r / (g.d * tangent);
+    const double slope = q.omega + (kPi / 3.0) * q.rho / g.d + q.rho * g.r / (g.d * tangent);
     t_r = std::min(k_max, gap / slope);
   }
-  return frames(std::min(t_m, t_r), cap);
+  return frames(std::min(t_m, t_r), q.cap_frames);
 }
 
 }  // namespace treecut::strategies

@@ -42,15 +42,15 @@ void EventQueueStrategy::reset(const Hierarchy& hierarchy) {
 void EventQueueStrategy::insert(NodeId n, std::uint32_t t, bool boundary) {
   const auto slot = static_cast<std::uint16_t>((frame_ + t) & kMask);
   std::vector<NodeId>& list = slots_[slot];
-  state_[n] = {static_cast<std::uint32_t>(list.size()), slot, std::uint16_t(boundary ? 1 : 0)};
-  list.push_back(n);
+  state_[n] = {static_cast<std::uint32_t>(list.size()), slot};
+  list.push_back(boundary ? n | kBoundary : n);
   ++queued_;
 }
 
 void EventQueueStrategy::erase(NodeId n) {
   NodeState& e = state_[n];
   if (e.slot == kNone) return;
-  if (e.slot == processing_ && e.index < work_.size() && work_[e.index] == n) {
+  if (e.slot == processing_ && e.index < work_.size() && (work_[e.index] & ~kBoundary) == n) {
     // Still to come in the list being processed: marked, not moved, so the
     // reader's position stays right. (Entries already read are kErased, so
     // an equal id here is the node's current entry.)
@@ -59,7 +59,7 @@ void EventQueueStrategy::erase(NodeId n) {
     std::vector<NodeId>& list = slots_[e.slot];
     const NodeId last = list.back();
     list[e.index] = last;
-    state_[last].index = e.index;
+    state_[last & ~kBoundary].index = e.index;
     list.pop_back();
   }
   e.slot = kNone;
@@ -69,7 +69,7 @@ void EventQueueStrategy::erase(NodeId n) {
 void EventQueueStrategy::clear_queue() {
   // Through the lists rather than the node array: O(events), not O(nodes).
   for (std::vector<NodeId>& list : slots_) {
-    for (const NodeId n : list) state_[n].slot = kNone;
+    for (const NodeId n : list) state_[n & ~kBoundary].slot = kNone;
     list.clear();
   }
   queued_ = 0;
@@ -83,10 +83,11 @@ void EventQueueStrategy::rebuild(const IterationInput& input, TreeCut& cut, Iter
   const auto& cr = h.arrays().center_radius;
   clear_queue();
   ++frame_;
+  const EventRates rates(camera_, rho_, omega_, kCap);
   auto test = [&](NodeId n) { return unfold_test(camera_, cr[n]); };
   auto decided = [&](NodeId n, bool active) {
-    const std::uint32_t t = active ? potential_fold_time(camera_, cr[n], rho_, omega_, kCap)
-                                   : potential_unfold_time(camera_, cr[n], rho_, omega_, kCap);
+    const std::uint32_t t = active ? potential_fold_time(camera_, cr[n], rates)
+                                   : potential_unfold_time(camera_, cr[n], rates);
     insert(n, std::max<std::uint32_t>(1, t), !active);
   };
   auto drop = [&](NodeId n) { erase(n); };
@@ -130,20 +131,22 @@ bool EventQueueStrategy::process(std::uint32_t slot, const IterationInput& input
   work_.swap(slots_[slot]);
   processing_ = static_cast<std::uint16_t>(slot);
   auto drop = [&](NodeId n) { erase(n); };
+  const EventRates rates(camera_, rho_, omega_, kCap);
   const std::size_t count = work_.size();
   for (std::size_t i = 0; i < count; ++i) {
     if (i + kAhead < count && work_[i + kAhead] != kErased) {
-      __builtin_prefetch(&state_[work_[i + kAhead]]);
-      __builtin_prefetch(&a.center_radius[work_[i + kAhead]]);
+      __builtin_prefetch(&a.center_radius[work_[i + kAhead] & ~kBoundary]);
+      __builtin_prefetch(&state_[work_[i + kAhead] & ~kBoundary], 1);
     }
-    const NodeId n = work_[i];
-    if (n == kErased) continue;
+    const NodeId entry = work_[i];
+    if (entry == kErased) continue;
     work_[i] = kErased;
     --queued_;
-    const bool boundary = state_[n].boundary != 0;
+    const NodeId n = entry & ~kBoundary;
+    const bool boundary = (entry & kBoundary) != 0;
     if ((++r.visited & 4095) == 0 && input.cancelled()) {
       for (std::size_t j = i + 1; j < count; ++j) {
-        if (work_[j] != kErased) state_[work_[j]].slot = kNone;
+        if (work_[j] != kErased) state_[work_[j] & ~kBoundary].slot = kNone;
       }
       state_[n].slot = kNone;
       work_.clear();
@@ -155,8 +158,7 @@ bool EventQueueStrategy::process(std::uint32_t slot, const IterationInput& input
     const bool pass = unfold_test(camera_, c);
     if (boundary) {
       if (!pass) {
-        insert(n, std::max<std::uint32_t>(1, potential_unfold_time(camera_, c, rho_, omega_, kCap)),
-               true);
+        insert(n, std::max<std::uint32_t>(1, potential_unfold_time(camera_, c, rates)), true);
         continue;
       }
       // Unfold: the node is active now (its fold event), and its non-leaf
@@ -164,23 +166,20 @@ bool EventQueueStrategy::process(std::uint32_t slot, const IterationInput& input
       // due in this very frame.
       cut.refine(h, n);
       ++r.refined;
-      insert(n, std::max<std::uint32_t>(1, potential_fold_time(camera_, c, rho_, omega_, kCap)),
-             false);
+      insert(n, std::max<std::uint32_t>(1, potential_fold_time(camera_, c, rates)), false);
       const NodeId first = a.first_child[n];
       const NodeId end = first + a.child_count[n];
       for (NodeId ch = first; ch < end; ++ch) {
         if (a.child_count[ch] == 0) continue;
-        insert(ch, potential_unfold_time(camera_, a.center_radius[ch], rho_, omega_, kCap), true);
+        insert(ch, potential_unfold_time(camera_, a.center_radius[ch], rates), true);
       }
     } else if (pass) {
-      insert(n, std::max<std::uint32_t>(1, potential_fold_time(camera_, c, rho_, omega_, kCap)),
-             false);
+      insert(n, std::max<std::uint32_t>(1, potential_fold_time(camera_, c, rates)), false);
     } else {
       // Fold: the subtree collapses into n and its events go; n becomes a
       // boundary node waiting to unfold.
       detail::fold_subtree(h, cut, n, r, drop);
-      insert(n, std::max<std::uint32_t>(1, potential_unfold_time(camera_, c, rho_, omega_, kCap)),
-             true);
+      insert(n, std::max<std::uint32_t>(1, potential_unfold_time(camera_, c, rates)), true);
     }
   }
   work_.clear();

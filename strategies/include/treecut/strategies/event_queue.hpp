@@ -85,15 +85,15 @@ class EventQueueStrategy final : public Strategy {
   static constexpr std::size_t kBytesPerEvent = 4;
 
  private:
-  // Per node: which frame's list holds its event and where, and whether it is
-  // a boundary node (in the cut) or an active one, so a due event needs no
-  // look-up in the cut. 8 bytes.
+  // Per node: which frame's list holds its event and where. 8 bytes.
   struct NodeState {
     std::uint32_t index = 0;
     std::uint16_t slot = kNone;
-    std::uint16_t boundary = 0;
   };
   static constexpr std::uint16_t kNone = 0xffff;  // not queued
+  // A list entry is a node id with this bit set for a boundary node (in the
+  // cut; else active), so a due event reads only its node's sphere.
+  static constexpr NodeId kBoundary = 0x80000000u;
   static constexpr NodeId kErased = 0xffffffffu;  // an erased or read entry of work_
 
   void insert(NodeId n, std::uint32_t t, bool boundary);

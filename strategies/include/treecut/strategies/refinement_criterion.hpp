@@ -75,6 +75,17 @@ struct CriterionCamera {
 /// The same for any projection (orthographic views fall back to the frustum).
 bool unfold_test(const CriterionCamera& cam, const ViewSnapshot& view, const glm::vec4& cr);
 
+/// rho and omega with their safety margin, and the reciprocals the event
+/// times divide by, computed once per iteration.
+struct EventRates {
+  EventRates(const CriterionCamera& cam, double rho, double omega, std::uint32_t cap);
+  double rho, inv_rho, omega;
+  double
+      size_scale;  ///< pixel_scale / theta: the distance at which r reaches theta is r * size_scale
+  double cap;
+  std::uint32_t cap_frames;
+};
+
 /// Frames (>= 0, at most `cap`) before which unfold_test cannot become true
 /// for a node for which it is false now, with the eye moving at most `rho`
 /// and the direction turning at most `omega` radians per frame:
@@ -86,5 +97,10 @@ std::uint32_t potential_unfold_time(const CriterionCamera& cam, const glm::vec4&
 /// min(t_r, t_m) for turning it out of view or moving away from it).
 std::uint32_t potential_fold_time(const CriterionCamera& cam, const glm::vec4& cr, double rho,
                                   double omega, std::uint32_t cap);
+/// The same with the rates precomputed (the event queue's hot path).
+std::uint32_t potential_unfold_time(const CriterionCamera& cam, const glm::vec4& cr,
+                                    const EventRates& rates);
+std::uint32_t potential_fold_time(const CriterionCamera& cam, const glm::vec4& cr,
+                                  const EventRates& rates);
 
 }  // namespace treecut::strategies
