@@ -159,16 +159,20 @@ std::optional<double> FrameRateGovernor::update(double frame_ms, std::size_t spl
     wanted_ = target_ms > fixed_ms_ ? (target_ms - fixed_ms_) / per_splat_ms_ : 1.0;
     const bool fast = wanted_ > x;  // before the clamp: at full detail fast frames stay fast
     wanted_ = std::clamp(wanted_, 1.0, node_count_);
+    // Detail is taken away once a slope was fitted, or by the ratio rule from
+    // a cut of a sixteenth of the hierarchy up. A slow frame of a smaller cut
+    // says nothing about the cost of a splat: the viewer's first frames draw
+    // 16 splats in 30 ms, and the ratio rule set the budget to 1.
+    const bool may_coarsen = slope_fitted_ || x >= kGrowthNodes * node_count_;
     if (knob_ == Knob::Budget) {
       // Fast frames never lower the budget and slow ones never raise it (a
       // budget the cut has not reached yet is not taken away while frames are
-      // fast), within the cap.
-      // Slow frames take at most half of the drawn cut away per answer of the
-      // stage: a burst of load passes without a collapse to the root.
-      v = std::min(
-          fast ? std::max(wanted_, value_) : std::min(value_, std::max(wanted_, kMaxDrop * x)),
-          cap);
-    } else {
+      // fast), within the cap. Slow frames take at most half of the drawn cut
+      // away per answer of the stage: a burst of load passes without a
+      // collapse to the root.
+      const double slow = may_coarsen ? std::min(value_, std::max(wanted_, kMaxDrop * x)) : value_;
+      v = std::min(fast ? std::max(wanted_, value_) : slow, cap);
+    } else if (fast || may_coarsen) {
       v = threshold_for(x);
     }
   }
