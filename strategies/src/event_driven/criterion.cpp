@@ -45,21 +45,33 @@ Geometry geometry(const CriterionCamera& cam, const glm::vec4& cr) {
 }
 
 // alpha - phi, the angle between the view direction and the nearest point of
-// the sphere's silhouette (negative when the direction points into it), with
-// one atan2: sin and cos of the difference from d sin(alpha) = |u x D|,
-// d cos(alpha) = <u, D>, d sin(phi) = r, d cos(phi) = sqrt(d^2 - r^2).
-double angle_to_sphere(const CriterionCamera& cam, const Geometry& g) {
+// the sphere's silhouette (negative when the direction points into it), as
+// d^2 (cos, sin) of it: from d sin(alpha) = |u x D|, d cos(alpha) = <u, D>,
+// d sin(phi) = r, d cos(phi) = sqrt(d^2 - r^2).
+struct SilhouetteAngle {
+  double x, y;  // d^2 cos(alpha - phi), d^2 sin(alpha - phi)
+};
+
+SilhouetteAngle silhouette_angle(const CriterionCamera& cam, const Geometry& g) {
   const double along = g.dx * cam.ux + g.dy * cam.uy + g.dz * cam.uz;
   const double cx = cam.uy * g.dz - cam.uz * g.dy;
   const double cy = cam.uz * g.dx - cam.ux * g.dz;
   const double cz = cam.ux * g.dy - cam.uy * g.dx;
   const double across = std::sqrt(cx * cx + cy * cy + cz * cz);
   const double tangent = std::sqrt(std::max(0.0, g.d2 - g.r * g.r));
-  // In float: an error of 1e-6 rad moves an event by 1e-6 / omega frames,
-  // far below the one frame the floored result allows for (see frames()),
-  // and float atan2 is twice as fast.
-  return std::atan2(static_cast<float>(across * tangent - along * g.r),
-                    static_cast<float>(along * tangent + across * g.r));
+  return {along * tangent + across * g.r, across * tangent - along * g.r};
+}
+
+// Lower bounds of the angular gaps without trigonometry: sin(x) <= x for
+// x in [0, pi], and both gaps lie in [-pi/2, pi) (alpha in [0, pi], phi and
+// beta in [0, pi/2)); a negative result gives a negative bound, t = 0.
+// beta - (alpha - phi) >= sin(beta - (alpha - phi)):
+double gap_into_view(const CriterionCamera& cam, const SilhouetteAngle& a, double d2) {
+  return (cam.sin_beta * a.x - cam.cos_beta * a.y) / d2;
+}
+// (alpha - phi) - beta >= sin((alpha - phi) - beta):
+double gap_out_of_view(const CriterionCamera& cam, const SilhouetteAngle& a, double d2) {
+  return (cam.cos_beta * a.y - cam.sin_beta * a.x) / d2;
 }
 
 }  // namespace
@@ -138,7 +150,7 @@ std::uint32_t potential_unfold_time(const CriterionCamera& cam, const glm::vec4&
   // Visible now (the test's own inequality, no trigonometry): t_r = 0.
   const double along = g.dx * cam.ux + g.dy * cam.uy + g.dz * cam.uz;
   const bool visible = along >= cam.cos_beta * std::sqrt(g.d2 - g.r * g.r) - cam.sin_beta * g.r;
-  const double gap = visible ? 0.0 : angle_to_sphere(cam, g) - cam.beta;
+  const double gap = visible ? 0.0 : gap_out_of_view(cam, silhouette_angle(cam, g), g.d2);
   if (gap > 0.0) {
     const double k_max = std::min(q.cap, std::floor(0.5 * (g.d - g.r) * q.inv_rho));
     if (k_max >= 1.0) {
@@ -174,14 +186,12 @@ std::uint32_t potential_fold_time(const CriterionCamera& cam, const glm::vec4& c
   if (g.d2 < g.r * g.r) return frames((g.r - g.d) * q.inv_rho, q.cap_frames);
   const double t_m = (g.r * q.size_scale - g.d) * q.inv_rho;
   if (!(t_m >= 1.0)) return 0;
-  double t_r = 0.0;
   const double k_max = std::min(q.cap, std::floor(0.5 * g.d * q.inv_rho));
   const double tangent = std::sqrt(std::max(0.0, g.d2 - g.r * g.r));
-  if (k_max >= 1.0 && tangent > 0.0) {
-    const double gap = cam.beta - angle_to_sphere(cam, g);
-    const double slope = q.omega + (kPi / 3.0) * q.rho / g.d + q.rho * g.r / (g.d * tangent);
-    t_r = std::min(k_max, gap / slope);
-  }
+  if (k_max < 1.0 || !(tangent > 0.0)) return 0;
+  const double slope = q.omega + (kPi / 3.0) * q.rho / g.d + q.rho * g.r / (g.d * tangent);
+  const double gap = gap_into_view(cam, silhouette_angle(cam, g), g.d2);
+  const double t_r = std::min(k_max, gap / slope);
   return frames(std::min(t_m, t_r), q.cap_frames);
 }
 
