@@ -125,7 +125,10 @@ bool unfold_test(const CriterionCamera& cam, const ViewSnapshot& view, const glm
 //   needs k >= (alpha - phi - beta) / (omega + rho / (d sqrt(1 - x1^2))), and
 //   if that exceeds K, k > K. (The paper's t_r = (alpha - phi - sqrt(2) fov/2)
 //   / omega leaves out that translation turns the direction to the sphere too.)
+//   The angle alpha - phi - beta itself is replaced by its sine, a lower
+//   bound (gap_out_of_view).
 // Unfold needs inside, or visible and the threshold: k >= min(t_i, max(t_r, t_m)).
+
 EventRates::EventRates(const CriterionCamera& cam, double rho_, double omega_, std::uint32_t cap_)
     : rho(rho_ * kVelocityMargin),
       inv_rho(1.0 / (rho_ * kVelocityMargin)),
@@ -173,6 +176,7 @@ std::uint32_t potential_unfold_time(const CriterionCamera& cam, const glm::vec4&
 //   chord of the convex asin up to 1/2) and asin(r / (d + s)) >= phi -
 //   s r / (d sqrt(d^2 - r^2)) (its tangent at s = 0, it is convex in s); so
 //   k >= (beta - (alpha - phi)) / (omega + (pi/3) rho / d + rho r / (d sqrt(d^2 - r^2))).
+//   (beta - (alpha - phi) replaced by its sine, gap_into_view.)
 //   Fold needs either: k >= min(t_r, t_m).
 std::uint32_t potential_fold_time(const CriterionCamera& cam, const glm::vec4& cr, double rho,
                                   double omega, std::uint32_t cap) {
