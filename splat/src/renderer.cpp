@@ -7,6 +7,7 @@
 #include <array>
 #include <bit>
 #include <chrono>
+#include <cstdint>
 #include <cstring>
 #include <glm/geometric.hpp>
 #include <glm/gtc/matrix_inverse.hpp>
@@ -19,6 +20,7 @@
 
 #include "shaders.hpp"
 #include "treecut/error.hpp"
+#include "treecut/splat/frame.hpp"
 #include "treecut/tree_cut.hpp"
 
 namespace treecut::splat {
@@ -42,34 +44,89 @@ SplatMode parse_splat_mode(std::string_view name) {
   throw InputError("unknown splat mode '" + std::string(name) + "' (expected fast, hq or fixed)");
 }
 
+void CutBuffer::write(std::span<const NodeId> ids) {
+  // Write the buffer the last draws did not read: a driver with frames in
+  // flight need not wait for them (or copy the buffer) before the write.
+  const std::size_t next = buffers_[current_] ? 1 - current_ : current_;
+  gl::Buffer& target = buffers_[next];
+  const std::size_t bytes = ids.size_bytes();
+  if (!target || target.size() < bytes) {
+    const std::size_t capacity = std::bit_ceil(std::max<std::size_t>(bytes, 4096));
+    target = gl::Buffer::create(capacity, nullptr, GL_DYNAMIC_STORAGE_BIT);
+  }
+  target.sub_data(0, std::as_bytes(ids));
+  current_ = next;
+}
+
 void CutBuffer::upload(const Hierarchy& h, std::span<const NodeId> nodes) {
   // Draw in node-id order. Ids are breadth-first over a spatial tree, so this
   // order is spatially coherent; llvmpipe's rasterizer threads read each
   // triangle's setup data in submission order, and a strategy's cut order
   // (scattered by refines and coarsens) made them miss the cache on almost
-  // every splat (docs/rendering.md, "Submission order").
-  std::span<const NodeId> ordered = nodes;
-  if (!std::is_sorted(nodes.begin(), nodes.end())) {
-    sorted_.assign(nodes.begin(), nodes.end());
+  // every splat (docs/rendering.md, "Submission order"). The CPU copy is kept
+  // so a caller of draw_ranges() knows which node sits at which position.
+  sorted_.assign(nodes.begin(), nodes.end());
+  if (!std::is_sorted(sorted_.begin(), sorted_.end())) {
     sort_node_ids(sorted_, h.node_count(), scratch_);
-    ordered = sorted_;
   }
   // Counted in id order: ascending addresses, which the prefetcher follows.
   std::uint64_t points = 0;
   const auto counts = h.arrays().point_count;
-  for (const NodeId n : ordered) points += counts[n];
-  // Write the buffer the last draws did not read: a driver with frames in
-  // flight need not wait for them (or copy the buffer) before the write.
-  const std::size_t next = buffers_[current_] ? 1 - current_ : current_;
-  gl::Buffer& target = buffers_[next];
-  const std::size_t bytes = ordered.size_bytes();
-  if (!target || target.size() < bytes) {
-    const std::size_t capacity = std::bit_ceil(std::max<std::size_t>(bytes, 4096));
-    target = gl::Buffer::create(capacity, nullptr, GL_DYNAMIC_STORAGE_BIT);
-  }
-  target.sub_data(0, std::as_bytes(ordered));
-  current_ = next;
+  for (const NodeId n : sorted_) points += counts[n];
+  write(sorted_);
   count_ = nodes.size();
+  entering_ = 0;
+  leaving_ = 0;
+  fade_ = 1.0f;
+  points_ = points;
+}
+
+void CutBuffer::upload(const Hierarchy& h, std::span<const NodeId> nodes,
+                       std::span<const NodeId> previous) {
+  if (previous.empty()) {
+    upload(h, nodes);
+    return;
+  }
+  // The stage publishes sorted lists, so these are only checks.
+  auto sorted_view = [&](std::span<const NodeId> in, std::vector<NodeId>& copy) {
+    if (std::is_sorted(in.begin(), in.end())) return in;
+    copy.assign(in.begin(), in.end());
+    sort_node_ids(copy, h.node_count(), scratch_);
+    return std::span<const NodeId>(copy);
+  };
+  const std::span<const NodeId> cur = sorted_view(nodes, current_sorted_);
+  const std::span<const NodeId> prev = sorted_view(previous, previous_sorted_);
+  // One merge: each run stays ascending (the coherent submission order).
+  sorted_.clear();
+  entering_ids_.clear();
+  leaving_ids_.clear();
+  std::size_t i = 0;
+  std::size_t j = 0;
+  while (i < cur.size() && j < prev.size()) {
+    if (cur[i] == prev[j]) {
+      sorted_.push_back(cur[i]);
+      ++i;
+      ++j;
+    } else if (cur[i] < prev[j]) {
+      entering_ids_.push_back(cur[i++]);
+    } else {
+      leaving_ids_.push_back(prev[j++]);
+    }
+  }
+  entering_ids_.insert(entering_ids_.end(), cur.begin() + static_cast<std::ptrdiff_t>(i),
+                       cur.end());
+  leaving_ids_.insert(leaving_ids_.end(), prev.begin() + static_cast<std::ptrdiff_t>(j),
+                      prev.end());
+  sorted_.insert(sorted_.end(), entering_ids_.begin(), entering_ids_.end());
+  sorted_.insert(sorted_.end(), leaving_ids_.begin(), leaving_ids_.end());
+  std::uint64_t points = 0;
+  const auto counts = h.arrays().point_count;
+  for (const NodeId n : cur) points += counts[n];
+  write(sorted_);
+  count_ = cur.size();
+  entering_ = entering_ids_.size();
+  leaving_ = leaving_ids_.size();
+  fade_ = 0.0f;
   points_ = points;
 }
 
@@ -81,8 +138,10 @@ gl::Program make_program(std::initializer_list<std::pair<GLenum, const char*>> s
   std::vector<gl::Shader> shaders;
   shaders.reserve(stages.size());
   for (const auto& [stage, body] : stages) {
+    // Fragment stages also get the fade's dither (it reads gl_FragCoord).
+    const char* fragment = stage == GL_FRAGMENT_SHADER ? shaders::kFragmentCommon : "";
     shaders.push_back(gl::Shader::compile(
-        stage, std::string(shaders::kCommon) + std::string(defines) + body, label));
+        stage, std::string(shaders::kCommon) + std::string(defines) + fragment + body, label));
   }
   std::vector<const gl::Shader*> pointers;
   for (const auto& s : shaders) pointers.push_back(&s);
@@ -99,6 +158,26 @@ void clear_depth(const gl::Framebuffer& fbo) {
 }
 
 }  // namespace
+
+Renderer::Uniforms Renderer::lookup_uniforms(const gl::Program& p) {
+  auto at = [&](const char* name) { return gl::GetUniformLocation(p.id(), name); };
+  Uniforms u;
+  u.view = at("u_view");
+  u.proj = at("u_proj");
+  u.eye = at("u_eye");
+  u.radius_scale = at("u_radius_scale");
+  u.cull = at("u_cull");
+  u.min_radius_px = at("u_min_radius_px");
+  u.viewport_h = at("u_viewport_h");
+  u.light_dir = at("u_light_dir");
+  u.light = at("u_light");
+  u.depth_offset = at("u_depth_offset");
+  u.point_size = at("u_point_size");
+  u.inv_view_proj = at("u_inv_view_proj");
+  u.fade_mode = at("u_fade_mode");
+  u.fade = at("u_fade");
+  return u;
+}
 
 Renderer::Renderer(const Hierarchy& h, glm::ivec2 size) : node_count_(h.node_count()) {
   if (h.empty()) throw std::invalid_argument("Renderer: empty hierarchy");
@@ -148,6 +227,11 @@ Renderer::Renderer(const Hierarchy& h, glm::ivec2 size) : node_count_(h.node_cou
   fixed_ = make_program(
       {{GL_VERTEX_SHADER, shaders::kFixedVertex}, {GL_FRAGMENT_SHADER, shaders::kFixedFragment}},
       "splat fixed");
+  fast_u_ = lookup_uniforms(fast_);
+  hq_visibility_u_ = lookup_uniforms(hq_visibility_);
+  hq_attributes_u_ = lookup_uniforms(hq_attributes_);
+  hq_normalize_u_ = lookup_uniforms(hq_normalize_);
+  fixed_u_ = lookup_uniforms(fixed_);
   resize(size);
   gl::check("Renderer setup");
 }
@@ -185,16 +269,96 @@ void Renderer::create_targets() {
   accum_fbo_.set_draw_buffers(two, "accumulation framebuffer");
 }
 
-void Renderer::draw_splats(const CutBuffer& cut) const {
-  if (cut.size() == 0) return;
+void Renderer::plan_runs(const CutBuffer& cut, std::span<const CutRange> ranges, bool sorted) {
+  runs_.clear();
+  run_hook_.clear();
+  const auto count = static_cast<std::uint32_t>(cut.size());
+  const bool fading = cut.fading();
+  const auto stable = static_cast<std::uint32_t>(cut.stable());
+  std::span<const CutRange> order = ranges;
+  if (sorted) {
+    sorted_ranges_.assign(ranges.begin(), ranges.end());
+    std::sort(sorted_ranges_.begin(), sorted_ranges_.end(),
+              [](const CutRange& x, const CutRange& y) { return x.first < y.first; });
+    order = sorted_ranges_;
+  }
+  auto add = [&](std::uint32_t first, std::uint32_t n, int fade) {
+    if (n == 0) return;
+    // Adjacent runs of one kind are one draw call (the buffer-order pass of
+    // a partition becomes the one-call draw again).
+    if (sorted && !runs_.empty() && run_hook_.back() == SIZE_MAX && runs_.back().fade == fade &&
+        runs_.back().first + runs_.back().count == first) {
+      runs_.back().count += n;
+      return;
+    }
+    runs_.push_back(Run{first, n, fade});
+    run_hook_.push_back(SIZE_MAX);
+  };
+  for (std::size_t i = 0; i < order.size(); ++i) {
+    const std::uint32_t first = std::min(order[i].first, count);
+    const std::uint32_t end = first + std::min(order[i].count, count - first);
+    if (fading && first < stable && end > stable) {
+      add(first, stable - first, 0);
+      add(stable, end - stable, 1);
+    } else {
+      add(first, end - first, fading && first >= stable ? 1 : 0);
+    }
+    if (!sorted) {
+      // The hook runs after this range even when it drew nothing.
+      if (runs_.empty() || run_hook_.back() != SIZE_MAX) runs_.push_back(Run{first, 0, 0});
+      if (run_hook_.size() < runs_.size()) run_hook_.push_back(SIZE_MAX);
+      run_hook_.back() = i;
+    }
+  }
+  if (fading) add(count, static_cast<std::uint32_t>(cut.leaving()), 2);
+}
+
+void Renderer::draw_runs(const CutBuffer& cut, const gl::Program& program, const Uniforms& u,
+                         RangeHook* hook, const FrameView& frame, GLuint fbo, bool depth_writes) {
   // The exchange point: the cut is just the element buffer of the node VAO.
   gl::VertexArrayElementBuffer(vao_.id(), cut.buffer().id());
   gl::BindVertexArray(vao_.id());
-  gl::DrawElements(GL_POINTS, static_cast<GLsizei>(cut.size()), GL_UNSIGNED_INT, nullptr);
+  gl::UseProgram(program.id());
+  int fade = 0;
+  gl::ProgramUniform1i(program.id(), u.fade_mode, 0);
+  for (std::size_t r = 0; r < runs_.size(); ++r) {
+    const Run& run = runs_[r];
+    if (run.count > 0) {
+      if (run.fade != fade) {
+        fade = run.fade;
+        gl::ProgramUniform1i(program.id(), u.fade_mode, fade);
+      }
+      gl::DrawElements(GL_POINTS, static_cast<GLsizei>(run.count), GL_UNSIGNED_INT,
+                       reinterpret_cast<const void*>(std::uintptr_t{run.first} * sizeof(NodeId)));
+    }
+    if (hook != nullptr && run_hook_[r] != SIZE_MAX) {
+      gl::ColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+      gl::DepthMask(GL_FALSE);
+      hook->after_range(run_hook_[r], frame);
+      gl::ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+      gl::DepthMask(depth_writes ? GL_TRUE : GL_FALSE);
+      gl::BindFramebuffer(GL_FRAMEBUFFER, fbo);
+      gl::BindVertexArray(vao_.id());
+      gl::UseProgram(program.id());
+    }
+  }
 }
 
 FrameStats Renderer::draw(const CutBuffer& cut, const Camera& camera,
                           const RenderSettings& settings, bool finish) {
+  const CutRange all{0, static_cast<std::uint32_t>(cut.size())};
+  return render(cut, std::span<const CutRange>(&all, 1), true, camera, settings, nullptr, finish);
+}
+
+FrameStats Renderer::draw_ranges(const CutBuffer& cut, std::span<const CutRange> ranges,
+                                 const Camera& camera, const RenderSettings& settings,
+                                 RangeHook* hook, bool finish) {
+  return render(cut, ranges, false, camera, settings, hook, finish);
+}
+
+FrameStats Renderer::render(const CutBuffer& cut, std::span<const CutRange> ranges, bool whole,
+                            const Camera& camera, const RenderSettings& settings, RangeHook* hook,
+                            bool finish) {
   const auto start = std::chrono::steady_clock::now();
   const float aspect = static_cast<float>(size_.x) / static_cast<float>(size_.y);
   FrameView frame;
@@ -204,21 +368,22 @@ FrameStats Renderer::draw(const CutBuffer& cut, const Camera& camera,
   frame.size = size_;
 
   const Light& light = settings.light;
-  glm::vec3 light_dir = light.direction;
-  if (light.follow_camera) light_dir = glm::mat3(glm::inverse(frame.view)) * light_dir;
-  const float light_len = glm::length(light_dir);
-  light_dir = light_len > 0.0f ? light_dir / light_len : glm::vec3(0.0f, 0.0f, 1.0f);
+  // The same direction the strategies are handed (frame.hpp): one function.
+  const glm::vec3 light_dir = world_light_dir(light, frame.view);
 
-  auto set_common = [&](const gl::Program& p) {
-    p.set_mat4("u_view", glm::value_ptr(frame.view));
-    p.set_mat4("u_proj", glm::value_ptr(frame.projection));
-    p.set("u_eye", frame.eye.x, frame.eye.y, frame.eye.z);
-    p.set("u_radius_scale", settings.radius_scale);
-    p.set("u_cull", settings.backface_culling ? 1 : 0);
-    p.set("u_min_radius_px", 0.75f);
-    p.set("u_viewport_h", static_cast<float>(size_.y));
-    p.set("u_light_dir", light_dir.x, light_dir.y, light_dir.z);
-    p.set("u_light", light.ambient, light.diffuse, light.specular, light.shininess);
+  // Locations were looked up at link time (lookup_uniforms).
+  auto set_common = [&](const gl::Program& program, const Uniforms& u) {
+    const GLuint p = program.id();
+    gl::ProgramUniformMatrix4fv(p, u.view, 1, GL_FALSE, glm::value_ptr(frame.view));
+    gl::ProgramUniformMatrix4fv(p, u.proj, 1, GL_FALSE, glm::value_ptr(frame.projection));
+    gl::ProgramUniform3f(p, u.eye, frame.eye.x, frame.eye.y, frame.eye.z);
+    gl::ProgramUniform1f(p, u.radius_scale, settings.radius_scale);
+    gl::ProgramUniform1i(p, u.cull, settings.backface_culling ? 1 : 0);
+    gl::ProgramUniform1f(p, u.min_radius_px, 0.75f);
+    gl::ProgramUniform1f(p, u.viewport_h, static_cast<float>(size_.y));
+    gl::ProgramUniform3f(p, u.light_dir, light_dir.x, light_dir.y, light_dir.z);
+    gl::ProgramUniform4f(p, u.light, light.ambient, light.diffuse, light.specular, light.shininess);
+    gl::ProgramUniform1f(p, u.fade, cut.fade());
   };
 
   gl::Viewport(0, 0, size_.x, size_.y);
@@ -238,31 +403,39 @@ FrameStats Renderer::draw(const CutBuffer& cut, const Camera& camera,
     gl::DepthMask(GL_TRUE);
   };
 
+  // The whole cut is one run (one call), unless it fades (three).
+  plan_runs(cut, ranges, whole);
+  std::size_t splats = 0;
+  for (const Run& r : runs_) splats += r.fade == 2 ? 0 : r.count;
+
   switch (settings.mode) {
     case SplatMode::Fast: {
       clear_color(scene_fbo_, 0, background);
       clear_depth(scene_fbo_);
       gl::BindFramebuffer(GL_FRAMEBUFFER, scene_fbo_.id());
       gl::DepthFunc(GL_LESS);
-      set_common(fast_);
-      fast_.set("u_depth_offset", 0.0f);
-      gl::UseProgram(fast_.id());
-      draw_splats(cut);
+      set_common(fast_, fast_u_);
+      gl::ProgramUniform1f(fast_.id(), fast_u_.depth_offset, 0.0f);
+      draw_runs(cut, fast_, fast_u_, hook, frame, scene_fbo_.id(), true);
       run_hook(scene_fbo_.id());
       break;
     }
     case SplatMode::HighQuality: {
-      // Pass 1: visibility, pushed back by depth_offset radii.
+      // Pass 1: visibility, pushed back by depth_offset radii; the ranges in
+      // their order, with the hook between them.
       clear_depth(visibility_fbo_);
       gl::BindFramebuffer(GL_FRAMEBUFFER, visibility_fbo_.id());
       gl::DepthFunc(GL_LESS);
-      set_common(hq_visibility_);
-      hq_visibility_.set("u_depth_offset", settings.depth_offset);
-      gl::UseProgram(hq_visibility_.id());
-      draw_splats(cut);
+      set_common(hq_visibility_, hq_visibility_u_);
+      gl::ProgramUniform1f(hq_visibility_.id(), hq_visibility_u_.depth_offset,
+                           settings.depth_offset);
+      draw_runs(cut, hq_visibility_, hq_visibility_u_, hook, frame, visibility_fbo_.id(), true);
       run_hook(visibility_fbo_.id());
 
       // Pass 2: attributes of every splat in front of the offset surface.
+      // Additive blending in half floats depends on the order, so the ranges
+      // go in buffer order: the primitive order of the one-call draw.
+      if (!whole) plan_runs(cut, ranges, true);
       clear_color(accum_fbo_, 0, glm::vec4(0.0f));
       clear_color(accum_fbo_, 1, glm::vec4(0.0f));
       gl::BindFramebuffer(GL_FRAMEBUFFER, accum_fbo_.id());
@@ -271,10 +444,9 @@ FrameStats Renderer::draw(const CutBuffer& cut, const Camera& camera,
       gl::Enable(GL_BLEND);
       gl::BlendEquation(GL_FUNC_ADD);
       gl::BlendFunc(GL_ONE, GL_ONE);
-      set_common(hq_attributes_);
-      hq_attributes_.set("u_depth_offset", 0.0f);
-      gl::UseProgram(hq_attributes_.id());
-      draw_splats(cut);
+      set_common(hq_attributes_, hq_attributes_u_);
+      gl::ProgramUniform1f(hq_attributes_.id(), hq_attributes_u_.depth_offset, 0.0f);
+      draw_runs(cut, hq_attributes_, hq_attributes_u_, nullptr, frame, accum_fbo_.id(), false);
       gl::Disable(GL_BLEND);
       gl::DepthMask(GL_TRUE);
 
@@ -282,9 +454,10 @@ FrameStats Renderer::draw(const CutBuffer& cut, const Camera& camera,
       clear_color(scene_fbo_, 0, background);
       gl::BindFramebuffer(GL_FRAMEBUFFER, scene_fbo_.id());
       gl::Disable(GL_DEPTH_TEST);
-      set_common(hq_normalize_);
+      set_common(hq_normalize_, hq_normalize_u_);
       const glm::mat4 inv_view_proj = glm::inverse(frame.projection * frame.view);
-      hq_normalize_.set_mat4("u_inv_view_proj", glm::value_ptr(inv_view_proj));
+      gl::ProgramUniformMatrix4fv(hq_normalize_.id(), hq_normalize_u_.inv_view_proj, 1, GL_FALSE,
+                                  glm::value_ptr(inv_view_proj));
       gl::UseProgram(hq_normalize_.id());
       gl::BindTextureUnit(0, accum_color_.id());
       gl::BindTextureUnit(1, accum_normal_.id());
@@ -303,10 +476,10 @@ FrameStats Renderer::draw(const CutBuffer& cut, const Camera& camera,
       gl::BindFramebuffer(GL_FRAMEBUFFER, scene_fbo_.id());
       gl::DepthFunc(GL_LESS);
       gl::Enable(GL_PROGRAM_POINT_SIZE);
-      set_common(fixed_);
-      fixed_.set("u_point_size", std::max(settings.point_size_px, 1.0f));
-      gl::UseProgram(fixed_.id());
-      draw_splats(cut);
+      set_common(fixed_, fixed_u_);
+      gl::ProgramUniform1f(fixed_.id(), fixed_u_.point_size,
+                           std::max(settings.point_size_px, 1.0f));
+      draw_runs(cut, fixed_, fixed_u_, hook, frame, scene_fbo_.id(), true);
       gl::Disable(GL_PROGRAM_POINT_SIZE);
       run_hook(scene_fbo_.id());
       break;
@@ -318,8 +491,8 @@ FrameStats Renderer::draw(const CutBuffer& cut, const Camera& camera,
   if (finish) gl::Finish();
 
   FrameStats stats;
-  stats.splats = cut.size();
-  stats.points = cut.points();
+  stats.splats = splats;
+  stats.points = whole ? cut.points() : 0;
   stats.finished = finish;
   stats.cpu_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
@@ -332,19 +505,7 @@ void Renderer::present(glm::ivec2 window_size) const {
 }
 
 std::vector<std::uint8_t> Renderer::read_pixels() const {
-  const auto w = static_cast<std::size_t>(size_.x);
-  const auto h = static_cast<std::size_t>(size_.y);
-  std::vector<std::uint8_t> bottom_up(w * h * 4);
-  gl::BindFramebuffer(GL_READ_FRAMEBUFFER, scene_fbo_.id());
-  gl::PixelStorei(GL_PACK_ALIGNMENT, 1);
-  gl::ReadPixels(0, 0, size_.x, size_.y, GL_RGBA, GL_UNSIGNED_BYTE, bottom_up.data());
-  gl::BindFramebuffer(GL_READ_FRAMEBUFFER, 0);
-  gl::check("Renderer::read_pixels");
-  std::vector<std::uint8_t> top_down(bottom_up.size());
-  for (std::size_t y = 0; y < h; ++y) {
-    std::memcpy(&top_down[y * w * 4], &bottom_up[(h - 1 - y) * w * 4], w * 4);
-  }
-  return top_down;
+  return read_back_rgba(scene_fbo_.id(), GL_COLOR_ATTACHMENT0, size_);
 }
 
 }  // namespace treecut::splat

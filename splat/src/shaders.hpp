@@ -43,6 +43,28 @@ bool cone_faces_away(vec3 n, float cc, vec3 e) {
 }
 )";
 
+// Fragment stages only (after kCommon and the defines): the screen-door fade
+// of an exchange (CutBuffer::set_fade). An 8x8 ordered-dither (Bayer)
+// threshold per pixel; a pixel shows the new list once the fade weight passes
+// its threshold, the old one before. The depth-tested opaque pipeline stays,
+// and the result does not depend on the drawing order: every pixel is either
+// the old or the new image, and the share of new pixels grows with the weight.
+inline constexpr const char* kFragmentCommon = R"(
+uniform int u_fade_mode;  // 0: always drawn, 1: entering splat, 2: leaving splat
+uniform float u_fade;     // weight of the new list in [0, 1]
+bool faded_out() {
+  if (u_fade_mode == 0) return false;
+  int x = int(gl_FragCoord.x) & 7;
+  int y = int(gl_FragCoord.y) & 7;
+  int v = x ^ y;
+  // Bit-reversed interleave of (x ^ y, y): the 64 thresholds of an 8x8 Bayer matrix.
+  int b = ((v & 1) << 5) | ((y & 1) << 4) | ((v & 2) << 2) | ((y & 2) << 1) | ((v & 4) >> 1) |
+          ((y & 4) >> 2);
+  bool new_here = (float(b) + 0.5) / 64.0 < u_fade;
+  return u_fade_mode == 1 ? !new_here : new_here;
+}
+)";
+
 // Vertex stage of the disc modes: passes the node through.
 inline constexpr const char* kSplatVertex = R"(
 layout(location = 0) in vec4 a_center_radius;
@@ -152,7 +174,7 @@ in vec2 f_uv;
 flat in vec3 f_color;
 layout(location = 0) out vec4 o_color;
 void main() {
-  if (dot(f_uv, f_uv) > 1.0) discard;
+  if (dot(f_uv, f_uv) > 1.0 || faded_out()) discard;
   o_color = vec4(f_color, 1.0);
 }
 )";
@@ -161,7 +183,7 @@ void main() {
 inline constexpr const char* kVisibilityFragment = R"(
 in vec2 f_uv;
 void main() {
-  if (dot(f_uv, f_uv) > 1.0) discard;
+  if (dot(f_uv, f_uv) > 1.0 || faded_out()) discard;
 }
 )";
 
@@ -177,7 +199,7 @@ layout(location = 0) out vec4 o_color;
 layout(location = 1) out vec4 o_normal;
 void main() {
   float q = dot(f_uv, f_uv);
-  if (q > 1.0) discard;
+  if (q > 1.0 || faded_out()) discard;
   float w = exp(-3.0 * q);
   vec3 n = dot(f_normal, u_eye - f_pos) < 0.0 ? -f_normal : f_normal;
   o_color = vec4(f_color * w, w);
@@ -250,6 +272,7 @@ flat in vec3 f_color;
 layout(location = 0) out vec4 o_color;
 void main() {
   if (u_point_size >= 3.0 && length(gl_PointCoord - vec2(0.5)) > 0.5) discard;
+  if (faded_out()) discard;
   o_color = vec4(linear_to_srgb(shade(f_color, f_normal, f_pos)), 1.0);
 }
 )";

@@ -19,6 +19,7 @@
 #pragma once
 
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <glm/mat4x4.hpp>
 #include <glm/vec2.hpp>
@@ -78,26 +79,66 @@ struct FrameStats {
 /// other of two GL buffers than the one drawn since the last upload (so the
 /// write never touches a buffer a frame in flight reads); each grows (to the
 /// next power of two) when needed and is never shrunk.
+///
+/// A fading exchange (upload with the previous list) stores three sorted runs
+/// back to back: [stable | entering | leaving], the nodes in both lists, in the
+/// new one only, in the old one only. size() is stable + entering (the new
+/// list); the leaving run lies beyond it and is drawn only while fade() < 1.
 class CutBuffer {
  public:
   CutBuffer() = default;
   /// Copies the node ids of a cut of `h`, in ascending id order (a radix sort
   /// unless already sorted: a spatially coherent draw order), and counts the
   /// input points they stand for (the sum of their point_count). O(nodes);
-  /// allocates only when the cut is larger than any before.
+  /// allocates only when the cut is larger than any before. Ends a fade.
   void upload(const Hierarchy& h, std::span<const NodeId> nodes);
+  /// An exchange that fades from `previous` (the list drawn so far) to `nodes`
+  /// (FrameLists::previous and ::current while the stage blends): O(both),
+  /// one merge of the two sorted lists; fade() starts at 0.
+  void upload(const Hierarchy& h, std::span<const NodeId> nodes, std::span<const NodeId> previous);
+  /// Weight of the new list in [0, 1] (FrameLists::blend): a pixel shows the
+  /// entering splats where its dither threshold is below it and the leaving
+  /// ones elsewhere; 1 (and every plain upload) draws the new list alone.
+  void set_fade(float weight) { fade_ = weight; }
+  [[nodiscard]] float fade() const { return fade_; }
+  /// Whether a draw now shows a mix of the two lists.
+  [[nodiscard]] bool fading() const { return fade_ < 1.0f && (entering_ > 0 || leaving_ > 0); }
   [[nodiscard]] std::size_t size() const { return count_; }
   [[nodiscard]] std::uint64_t points() const { return points_; }
+  /// The uploaded list in buffer order (what CutRange positions index):
+  /// ascending ids, or stable then entering after a fading upload.
+  [[nodiscard]] std::span<const NodeId> ids() const {
+    return std::span<const NodeId>(sorted_).first(count_);
+  }
+  /// The runs of a fading upload (0, size(), 0 after a plain one).
+  [[nodiscard]] std::size_t stable() const { return count_ - entering_; }
+  [[nodiscard]] std::size_t entering() const { return entering_; }
+  [[nodiscard]] std::size_t leaving() const { return leaving_; }
   /// The buffer holding the current list.
   [[nodiscard]] const gl::Buffer& buffer() const { return buffers_[current_]; }
 
  private:
+  void write(std::span<const NodeId> ids);
+
   std::array<gl::Buffer, 2> buffers_;
   std::size_t current_ = 0;
   std::size_t count_ = 0;
+  std::size_t entering_ = 0;
+  std::size_t leaving_ = 0;
+  float fade_ = 1.0f;
   std::uint64_t points_ = 0;
-  std::vector<NodeId> sorted_;   // the uploaded order (reused)
-  std::vector<NodeId> scratch_;  // radix sort ping-pong (reused)
+  std::vector<NodeId> sorted_;           // the uploaded order (reused)
+  std::vector<NodeId> scratch_;          // radix sort ping-pong (reused)
+  std::vector<NodeId> current_sorted_;   // an unsorted input, sorted (reused)
+  std::vector<NodeId> previous_sorted_;  // the same for the previous list
+  std::vector<NodeId> entering_ids_;     // merge output (reused)
+  std::vector<NodeId> leaving_ids_;
+};
+
+/// Positions [first, first + count) of a CutBuffer's list (CutBuffer::ids()).
+struct CutRange {
+  std::uint32_t first = 0;
+  std::uint32_t count = 0;
 };
 
 /// The frame's matrices, handed to a QueryHook.
@@ -121,6 +162,18 @@ class QueryHook {
   virtual void run(const FrameView& view) = 0;
 };
 
+/// Called between the ranges of Renderer::draw_ranges(), after range `index`
+/// (the last one too), in the depth pass (fast and fixed: the only pass; hq:
+/// the visibility pass), under the same state as QueryHook::run: the depth of
+/// the ranges drawn so far, depth test on, color and depth writes off. It may
+/// bind its own program, vertex array and buffers (the renderer binds its own
+/// again before the next range) and must restore anything else it changes.
+class RangeHook {
+ public:
+  virtual ~RangeHook() = default;
+  virtual void after_range(std::size_t index, const FrameView& view) = 0;
+};
+
 class Renderer {
  public:
   /// Uploads all nodes of `h` into the static vertex buffer and creates the
@@ -140,6 +193,20 @@ class Renderer {
   FrameStats draw(const CutBuffer& cut, const Camera& camera, const RenderSettings& settings,
                   bool finish = false);
 
+  /// Draws only `ranges` of `cut`, in the given order (CHC: front to back),
+  /// calling `hook` (if any) after each range. The image of ranges that
+  /// partition the cut, in any order, equals draw()'s: the depth of every
+  /// pass is a minimum (order-free), hq's additive attribute pass draws the
+  /// ranges in buffer order (the one-call primitive order), and fast/fixed
+  /// color can differ only where two splats have exactly the same depth at
+  /// a pixel (the first drawn wins; tests/render_ranges_test.cpp). A range
+  /// past the list is clipped. A fading cut fades each range's entering part
+  /// and draws the leaving run after the last range. FrameStats::splats
+  /// counts the splats of the ranges.
+  FrameStats draw_ranges(const CutBuffer& cut, std::span<const CutRange> ranges,
+                         const Camera& camera, const RenderSettings& settings,
+                         RangeHook* hook = nullptr, bool finish = false);
+
   /// Copies the last frame to the bound draw framebuffer 0 (a window), scaled
   /// to `window_size`.
   void present(glm::ivec2 window_size) const;
@@ -151,8 +218,30 @@ class Renderer {
   void set_query_hook(QueryHook* hook) { query_hook_ = hook; }
 
  private:
+  // A run of the element buffer and how it fades (0 none, 1 in, 2 out).
+  struct Run {
+    std::uint32_t first = 0;
+    std::uint32_t count = 0;
+    int fade = 0;
+  };
+  // Uniform locations of one program, looked up once after linking (-1: the
+  // linker dropped it; glProgramUniform ignores -1).
+  struct Uniforms {
+    GLint view = -1, proj = -1, eye = -1, radius_scale = -1, cull = -1, min_radius_px = -1,
+          viewport_h = -1, light_dir = -1, light = -1, depth_offset = -1, point_size = -1,
+          inv_view_proj = -1, fade_mode = -1, fade = -1;
+  };
+  static Uniforms lookup_uniforms(const gl::Program& p);
+
   void create_targets();
-  void draw_splats(const CutBuffer& cut) const;
+  FrameStats render(const CutBuffer& cut, std::span<const CutRange> ranges, bool whole,
+                    const Camera& camera, const RenderSettings& settings, RangeHook* hook,
+                    bool finish);
+  // Splits `ranges` at the cut's stable/entering boundary (fading) and adds
+  // the leaving run; `sorted`: in buffer order (hq's additive pass).
+  void plan_runs(const CutBuffer& cut, std::span<const CutRange> ranges, bool sorted);
+  void draw_runs(const CutBuffer& cut, const gl::Program& program, const Uniforms& u,
+                 RangeHook* hook, const FrameView& frame, GLuint fbo, bool depth_writes);
 
   glm::ivec2 size_{0};
   std::uint32_t node_count_ = 0;
@@ -164,6 +253,10 @@ class Renderer {
   gl::Program hq_attributes_;
   gl::Program hq_normalize_;
   gl::Program fixed_;
+  Uniforms fast_u_, hq_visibility_u_, hq_attributes_u_, hq_normalize_u_, fixed_u_;
+  std::vector<Run> runs_;              // reused by every draw
+  std::vector<std::size_t> run_hook_;  // per run: the range it ends (SIZE_MAX: none)
+  std::vector<CutRange> sorted_ranges_;
   gl::Texture color_;               // RGBA8, the frame
   gl::Texture depth_;               // DEPTH24, shared by every pass
   gl::Texture accum_color_;         // RGBA16F: sum w*rgb (linear), sum w
