@@ -130,6 +130,24 @@ void CutBuffer::upload(const Hierarchy& h, std::span<const NodeId> nodes,
   points_ = points;
 }
 
+bool CutBuffer::follow(const FrameLists& lists) {
+  const FrontList& cur = lists.current;
+  bool uploaded = false;
+  if (cur.hierarchy != nullptr && cur.generation != generation_) {
+    const bool fades = !lists.previous.nodes.empty() && lists.previous.hierarchy == cur.hierarchy;
+    if (fades) {
+      upload(*cur.hierarchy, cur.nodes, lists.previous.nodes);
+    } else {
+      upload(*cur.hierarchy, cur.nodes);
+    }
+    generation_ = cur.generation;
+    uploaded = true;
+  }
+  // The stage ends a blend by handing no previous list: the new one alone.
+  set_fade(lists.previous.nodes.empty() ? 1.0f : lists.blend);
+  return uploaded;
+}
+
 namespace {
 
 // `defines` ("#define NAME 1\n" lines) go between kCommon and each body.

@@ -28,6 +28,7 @@
 #include <string_view>
 #include <vector>
 
+#include "treecut/feedback_stage.hpp"
 #include "treecut/hierarchy.hpp"
 #include "treecut/splat/camera.hpp"
 #include "treecut/splat/gl_objects.hpp"
@@ -96,6 +97,12 @@ class CutBuffer {
   /// (FrameLists::previous and ::current while the stage blends): O(both),
   /// one merge of the two sorted lists; fade() starts at 0.
   void upload(const Hierarchy& h, std::span<const NodeId> nodes, std::span<const NodeId> previous);
+  /// Once per frame after FeedbackStage::poll() / Controller::begin_frame():
+  /// uploads a list of a new generation (fading from FrameLists::previous
+  /// while the stage blends, StageOptions::blend_frames; plainly otherwise or
+  /// across a model change) and sets the frame's fade weight. Returns whether
+  /// it uploaded. The lists are copied here, so ReleaseMode::OnExchange suits.
+  bool follow(const FrameLists& lists);
   /// Weight of the new list in [0, 1] (FrameLists::blend): a pixel shows the
   /// entering splats where its dither threshold is below it and the leaving
   /// ones elsewhere; 1 (and every plain upload) draws the new list alone.
@@ -127,6 +134,7 @@ class CutBuffer {
   std::size_t leaving_ = 0;
   float fade_ = 1.0f;
   std::uint64_t points_ = 0;
+  std::uint64_t generation_ = 0;         // of the list follow() uploaded last
   std::vector<NodeId> sorted_;           // the uploaded order (reused)
   std::vector<NodeId> scratch_;          // radix sort ping-pong (reused)
   std::vector<NodeId> current_sorted_;   // an unsorted input, sorted (reused)
