@@ -68,10 +68,17 @@ void print_summary(const std::filesystem::path& model, const OpenedModel& m) {
     std::printf("cache       %s\n", m.cache.string().c_str());
   else
     std::printf("cache       none (not written: %s)\n", m.cache_note.c_str());
-  if (m.from_cache) {
+  if (m.from_cache && m.cache == model) {
+    std::printf("loaded      from cache in %.3f s\n", m.cache_seconds);
+  } else if (m.from_cache && !m.hashed) {
+    // The settled rule (cache.hpp): the model's identity decided, nothing of it was read.
+    std::printf("loaded      from cache in %.3f s (model unchanged since the build: not hashed)\n",
+                m.cache_seconds);
+  } else if (m.from_cache) {
     // The model's content hash runs beside the cache's verification.
-    std::printf("loaded      from cache in %.3f s (content hash %.3f s of it, concurrently)\n",
-                m.cache_seconds, m.hash_seconds);
+    std::printf("loaded      from cache in %.3f s (content hash %.3f s, concurrently%s)\n",
+                m.cache_seconds, m.hash_seconds,
+                m.cache_refreshed ? "; cache rewritten with the model's identity" : "");
   } else {
     if (m.ply.dropped_nonfinite)
       std::printf("dropped     %zu non-finite points\n", m.ply.dropped_nonfinite);

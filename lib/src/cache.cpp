@@ -13,7 +13,10 @@
 #include <array>
 #include <bit>
 #include <cerrno>
+#include <chrono>
 #include <cstring>
+#include <ctime>
+#include <future>
 #include <stdexcept>
 
 #include "cache_checksum.hpp"
@@ -27,7 +30,8 @@ namespace {
 constexpr char kMagic[8] = {'T', 'C', 'U', 'T', 'H', 'I', 'E', 'R'};
 // Bump whenever the layout or the meaning of any array changes.
 // 2: the header carries the source's content hash.
-constexpr std::uint32_t kVersion = 2;
+// 3: and the source's identity (device, inode, ctime) and when it was taken.
+constexpr std::uint32_t kVersion = 3;
 constexpr std::uint32_t kEndianTag = 0x01020304u;
 constexpr std::size_t kAlign = 64;
 constexpr int kArrays = 9;
@@ -43,12 +47,21 @@ struct Header {
   std::uint64_t source_size;
   std::int64_t source_mtime_ns;
   std::uint64_t source_hash;  // XXH3-64 of the source file's bytes
+  std::uint64_t source_device;
+  std::uint64_t source_inode;
+  std::int64_t source_ctime_ns;
+  std::int64_t identity_ns;  // CLOCK_REALTIME when the identity was taken
   float bounds[6];
   std::uint64_t level_table;       // offset of level_count + 1 NodeIds
   std::uint64_t offsets[kArrays];  // in HierarchyArrays member order
   std::uint64_t payload_end;       // checksum follows, file size = payload_end + 8
 };
 static_assert(std::is_trivially_copyable_v<Header>);
+
+CacheKey key_of(const Header& h) {
+  return {h.source_size,   h.source_mtime_ns, h.options_bits,    h.source_hash,
+          h.source_device, h.source_inode,    h.source_ctime_ns, h.identity_ns};
+}
 
 constexpr std::array<std::size_t, kArrays> kElementSize = {
     sizeof(glm::vec4), sizeof(glm::i16vec4),  sizeof(glm::u8vec4),
@@ -262,41 +275,160 @@ std::optional<Hierarchy> map_and_verify(const std::filesystem::path& path, Heade
 
 namespace {
 
-// Size, mtime and XXH3-64 of the bytes behind FD. Through a read-only mapping
-// (no copy into a buffer; the model was usually just read, so its pages are
-// in the page cache and hashing runs at memory bandwidth).
-CacheKey key_of_descriptor(const std::filesystem::path& source, int fd,
-                           std::uint32_t options_bits) {
+std::int64_t ns_of(const timespec& t) {
+  return static_cast<std::int64_t>(t.tv_sec) * 1000000000 + t.tv_nsec;
+}
+
+// The identity of the file behind FD and the wall-clock time just before it
+// was taken (so before any of the content is read).
+CacheKey identity_of_descriptor(const std::filesystem::path& source, int fd,
+                                std::uint32_t options_bits) {
+  timespec now{};
+  ::clock_gettime(CLOCK_REALTIME, &now);
   struct stat st {};
   if (::fstat(fd, &st) != 0) throw std::runtime_error(system_error_text(source, errno));
-  CacheKey key{static_cast<std::uint64_t>(st.st_size),
-               static_cast<std::int64_t>(st.st_mtim.tv_sec) * 1000000000 + st.st_mtim.tv_nsec,
-               options_bits, 0};
-  const auto size = static_cast<std::size_t>(st.st_size);
-  if (size == 0) {
-    key.content_hash = XXH3_64bits(nullptr, 0);
-    return key;
-  }
-  void* base = ::mmap(nullptr, size, PROT_READ, MAP_PRIVATE, fd, 0);
-  if (base == MAP_FAILED) throw std::runtime_error(system_error_text(source, errno));
-  ::madvise(base, size, MADV_SEQUENTIAL);
-  key.content_hash = XXH3_64bits(base, size);
-  ::munmap(base, size);
+  CacheKey key;
+  key.source_size = static_cast<std::uint64_t>(st.st_size);
+  key.source_mtime_ns = ns_of(st.st_mtim);
+  key.options_bits = options_bits;
+  key.source_device = static_cast<std::uint64_t>(st.st_dev);
+  key.source_inode = static_cast<std::uint64_t>(st.st_ino);
+  key.source_ctime_ns = ns_of(st.st_ctim);
+  key.identity_ns = ns_of(now);
   return key;
+}
+
+// XXH3-64 of the SIZE bytes behind FD. Through a read-only mapping (no copy
+// into a buffer; the model was usually just read, so its pages are in the
+// page cache and hashing runs at memory bandwidth).
+std::uint64_t hash_descriptor(const std::filesystem::path& source, int fd, std::uint64_t size) {
+  if (size == 0) return XXH3_64bits(nullptr, 0);
+  const auto length = static_cast<std::size_t>(size);
+  void* base = ::mmap(nullptr, length, PROT_READ, MAP_PRIVATE, fd, 0);
+  if (base == MAP_FAILED) throw std::runtime_error(system_error_text(source, errno));
+  ::madvise(base, length, MADV_SEQUENTIAL);
+  const std::uint64_t hash = XXH3_64bits(base, length);
+  ::munmap(base, length);
+  return hash;
+}
+
+CacheKey key_of_descriptor(const std::filesystem::path& source, int fd,
+                           std::uint32_t options_bits) {
+  CacheKey key = identity_of_descriptor(source, fd, options_bits);
+  key.content_hash = hash_descriptor(source, fd, key.source_size);
+  return key;
+}
+
+struct Descriptor {
+  int fd;
+  explicit Descriptor(int f) : fd(f) {}
+  Descriptor(const Descriptor&) = delete;
+  Descriptor& operator=(const Descriptor&) = delete;
+  ~Descriptor() { ::close(fd); }
+};
+
+bool settled(const CacheKey& k) {
+  return k.identity_ns != 0 && k.source_ctime_ns <= k.identity_ns - kSettledNs;
+}
+
+// The header of CACHE as it is on disk, unverified (the checksum is checked
+// by map_and_verify before anything is served): only to decide whether the
+// content hash can be skipped. Never blocks.
+bool peek_header(const std::filesystem::path& cache, Header* h) {
+  const int fd = open_for_reading(cache, nullptr);
+  if (fd < 0) return false;
+  std::size_t got = 0;
+  auto* bytes = reinterpret_cast<unsigned char*>(h);
+  while (got < sizeof *h) {
+    const ssize_t n = ::read(fd, bytes + got, sizeof *h - got);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) break;
+    got += static_cast<std::size_t>(n);
+  }
+  ::close(fd);
+  return got == sizeof *h && std::memcmp(h->magic, kMagic, sizeof kMagic) == 0 &&
+         h->version == kVersion && h->endian_tag == kEndianTag && h->header_size == sizeof *h;
+}
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
 }  // namespace
 
 CacheKey cache_key_for(const std::filesystem::path& source, std::uint32_t options_bits) {
-  const int fd = open_regular_file(source);  // InputError: missing, a FIFO, a directory...
-  try {
-    const CacheKey key = key_of_descriptor(source, fd, options_bits);
-    ::close(fd);
-    return key;
-  } catch (...) {
-    ::close(fd);
-    throw;
+  const Descriptor file(open_regular_file(source));  // InputError: missing, a FIFO, a directory...
+  return key_of_descriptor(source, file.fd, options_bits);
+}
+
+CacheKey cache_identity_of(const std::filesystem::path& source, std::uint32_t options_bits) {
+  const Descriptor file(open_regular_file(source));
+  return identity_of_descriptor(source, file.fd, options_bits);
+}
+
+bool cache_identity_serves(const CacheKey& stored, const CacheKey& now) {
+  return settled(stored) && stored.options_bits == now.options_bits &&
+         stored.source_device == now.source_device && stored.source_inode == now.source_inode &&
+         stored.source_size == now.source_size && stored.source_mtime_ns == now.source_mtime_ns &&
+         stored.source_ctime_ns == now.source_ctime_ns;
+}
+
+CacheLookup lookup_cache(const std::filesystem::path& source, const std::filesystem::path& cache,
+                         std::uint32_t options_bits, bool refresh) {
+  CacheLookup out;
+  const Descriptor file(open_regular_file(source));  // InputError: missing, a FIFO, a directory...
+  out.key = identity_of_descriptor(source, file.fd, options_bits);
+  auto hash = [&] {
+    const auto t0 = std::chrono::steady_clock::now();
+    const std::uint64_t h = hash_descriptor(source, file.fd, out.key.source_size);
+    out.hash_seconds = seconds_since(t0);
+    return h;
+  };
+  Header peeked{};
+  const bool identity_decides =
+      peek_header(cache, &peeked) && cache_identity_serves(key_of(peeked), out.key);
+  // Otherwise the content hash (memory bandwidth over the whole model) runs
+  // beside the cache's own verification (its checksum over the whole cache):
+  // a cached open costs the longer of the two, not their sum. (A thread only
+  // pays for itself on a large model.)
+  const bool large = out.key.source_size >= (std::uint64_t{64} << 20);
+  std::future<std::uint64_t> pending;
+  if (!identity_decides)
+    pending = std::async(large ? std::launch::async : std::launch::deferred, hash);
+  const auto t0 = std::chrono::steady_clock::now();
+  Header h{};
+  auto hier = map_and_verify(cache, &h, &out.why);
+  out.cache_seconds = seconds_since(t0);
+  const CacheKey stored = key_of(h);
+  if (hier && identity_decides && cache_identity_serves(stored, out.key)) {
+    out.key.content_hash = stored.content_hash;
+    out.hierarchy = std::move(hier);
+    return out;
   }
+  // Not decided by the identity (or the cache changed between the two reads):
+  // the content decides.
+  out.key.content_hash = pending.valid() ? pending.get() : hash();
+  out.hashed = true;
+  if (!hier) return out;
+  if (!cache_key_matches(stored, out.key)) {
+    out.why = "stale (the model or the build options changed)";
+    return out;
+  }
+  out.hierarchy = std::move(hier);
+  // The same content under another identity (touched, copied) or a build that
+  // was not settled yet: once settled, rewrite the cache with the identity of
+  // now so the next open skips the hash. Only an optimization: a failure
+  // (read-only folder, full disk) leaves the cache as it was.
+  if (refresh && settled(out.key) && !cache_identity_serves(stored, out.key)) {
+    try {
+      const auto t1 = std::chrono::steady_clock::now();
+      save_cache(*out.hierarchy, out.key, cache);
+      out.cache_seconds += seconds_since(t1);
+      out.refreshed = true;
+    } catch (const std::exception&) {
+    }
+  }
+  return out;
 }
 
 std::uint64_t content_hash_of(const std::filesystem::path& source) {
@@ -336,6 +468,10 @@ void save_cache(const Hierarchy& hier, const CacheKey& key, const std::filesyste
   h.source_size = key.source_size;
   h.source_mtime_ns = key.source_mtime_ns;
   h.source_hash = key.content_hash;
+  h.source_device = key.source_device;
+  h.source_inode = key.source_inode;
+  h.source_ctime_ns = key.source_ctime_ns;
+  h.identity_ns = key.identity_ns;
   const glm::vec3 lo = hier.bounds_min(), hi = hier.bounds_max();
   const float b[6] = {lo.x, lo.y, lo.z, hi.x, hi.y, hi.z};
   std::memcpy(h.bounds, b, sizeof b);
@@ -401,8 +537,7 @@ std::optional<Hierarchy> load_cache(const std::filesystem::path& cache,
   Header h;
   auto hier = map_and_verify(cache, &h, why);
   if (!hier) return std::nullopt;
-  if (expected && !cache_key_matches(
-                      {h.source_size, h.source_mtime_ns, h.options_bits, h.source_hash}, *expected))
+  if (expected && !cache_key_matches(key_of(h), *expected))
     return fail(why, "stale (the model or the build options changed)"), std::nullopt;
   return hier;
 }
@@ -411,8 +546,7 @@ std::optional<Hierarchy> load_cache_and_key(const std::filesystem::path& cache, 
                                             std::string* why) {
   Header h;
   auto hier = map_and_verify(cache, &h, why);
-  if (hier && stored)
-    *stored = CacheKey{h.source_size, h.source_mtime_ns, h.options_bits, h.source_hash};
+  if (hier && stored) *stored = key_of(h);
   return hier;
 }
 
@@ -427,7 +561,7 @@ bool cache_key_matches(const CacheKey& stored, const CacheKey& expected) {
 std::optional<CacheKey> read_cache_key(const std::filesystem::path& cache, std::string* why) {
   Header h;
   if (!map_and_verify(cache, &h, why)) return std::nullopt;
-  return CacheKey{h.source_size, h.source_mtime_ns, h.options_bits, h.source_hash};
+  return key_of(h);
 }
 
 std::uint64_t detail::cache_checksum(const unsigned char* data, std::size_t size) {

@@ -3,7 +3,6 @@
 #include <chrono>
 #include <cstdlib>
 #include <cstring>
-#include <future>
 #include <optional>
 #include <stdexcept>
 
@@ -103,6 +102,7 @@ OpenedModel open_model(const std::filesystem::path& model, const OpenOptions& op
     const auto t0 = std::chrono::steady_clock::now();
     CacheKey k = cache_key_for(model, bits);
     out.hash_seconds = seconds_since(t0);
+    out.hashed = true;
     return k;
   };
   const FileKind kind = options.use_cache ? file_kind(out.cache) : FileKind::Missing;
@@ -117,26 +117,21 @@ OpenedModel open_model(const std::filesystem::path& model, const OpenOptions& op
     write_cache = false;
   }
   if (options.use_cache && kind == FileKind::Regular && !options.rebuild) {
-    // The model's content hash (memory bandwidth over the whole file) runs
-    // beside the cache's own verification (its checksum over the whole
-    // cache): a cached open costs the longer of the two, not their sum.
-    // (A thread only pays for itself on a large model.)
-    std::error_code size_error;
-    const bool large = std::filesystem::file_size(model, size_error) >= (std::uintmax_t{64} << 20);
-    std::future<CacheKey> pending =
-        std::async(large && !size_error ? std::launch::async : std::launch::deferred, hash_model);
-    auto t0 = std::chrono::steady_clock::now();
-    CacheKey stored;
-    auto h = load_cache_and_key(out.cache, &stored, &out.cache_note);
-    key = pending.get();
-    out.cache_seconds += seconds_since(t0);
-    if (h && cache_key_matches(stored, *key)) {
-      out.hierarchy = std::move(*h);
+    // The cache module decides (cache.hpp): the model's identity when it is
+    // unchanged and settled, its content hash otherwise.
+    CacheLookup found = lookup_cache(model, out.cache, bits, write_cache);
+    out.hashed = found.hashed;
+    out.hash_seconds = found.hash_seconds;
+    out.cache_seconds += found.cache_seconds;
+    out.cache_refreshed = found.refreshed;
+    if (found.hierarchy) {
+      out.hierarchy = std::move(*found.hierarchy);
       out.from_cache = true;
       return out;
     }
-    if (h) out.cache_note = "stale (the model or the build options changed)";
+    out.cache_note = found.why;
     if (options.warn) options.warn(out.cache.string() + ": " + out.cache_note + "; rebuilding");
+    key = found.key;
   } else {
     key = hash_model();
   }

@@ -1,11 +1,28 @@
 // On-disk hierarchy cache: versioned, checksummed, memory-mapped on load.
 //
 // Layout: a fixed header (magic, format version, endianness tag, counts, the
-// source file's size, modification time and content hash, the build options,
-// per-array offsets) followed by the node arrays, each 64-byte aligned, and a
-// 64-bit checksum over header and payload. Written through an AtomicFile
-// (temporary + rename, every write checked), so a crash or a full disk never
-// leaves a cache that loads.
+// source file's size, modification time and content hash, its identity
+// (device, inode, change time) and when that identity was taken, the build
+// options, per-array offsets) followed by the node arrays, each 64-byte
+// aligned, and a 64-bit checksum over header and payload. Written through an
+// AtomicFile (temporary + rename, every write checked), so a crash or a full
+// disk never leaves a cache that loads.
+//
+// When a cache serves a model (lookup_cache): the content decides, the
+// identity saves reading it. A cache is served for the content it was built
+// from: the same size, build options and XXH3-64 of the model's bytes. The
+// hash is skipped, as git skips a "racily clean" check, only when the model's
+// identity is exactly the one recorded (st_dev, st_ino, size, mtime ns,
+// ctime ns) AND the recorded ctime was at least kSettledNs older than the
+// moment the identity was taken (just before the content was read). ctime
+// cannot be set by users: an edit in place with its mtime restored still
+// moves it. The margin covers file systems with coarse timestamps: an edit
+// made after the content was read, in the same timestamp tick as the change
+// before it, would leave ctime as recorded; once the recorded ctime is 2 s
+// older than the read, any later edit lands in a later tick. Otherwise (a
+// touched, copied or just-written model) the content is hashed and decides,
+// and a served cache whose identity is now settled is rewritten with it, so
+// the next open skips the hash.
 #pragma once
 
 #include <cstdint>
@@ -18,19 +35,39 @@
 namespace treecut {
 
 /// What a cache was built from. A cache is stale when the size, the options
-/// or the content hash differ; the modification time is recorded (for `info`)
-/// but does not decide: a file edited in place with its mtime restored has
-/// another hash, and a file only touched keeps its cache.
+/// or the content hash differ; the modification time does not decide: a file
+/// edited in place with its mtime restored has another hash, and a file only
+/// touched keeps its cache. The identity fields only let lookup_cache() skip
+/// the hash (see the top of this file); 0 in identity_ns means "unknown".
 struct CacheKey {
   std::uint64_t source_size = 0;
   std::int64_t source_mtime_ns = 0;
-  std::uint32_t options_bits = 0;  ///< BuildOptions/AttributeOptions that change the output
-  std::uint64_t content_hash = 0;  ///< XXH3-64 of the source file's bytes
+  std::uint32_t options_bits = 0;   ///< BuildOptions/AttributeOptions that change the output
+  std::uint64_t content_hash = 0;   ///< XXH3-64 of the source file's bytes
+  std::uint64_t source_device = 0;  ///< st_dev
+  std::uint64_t source_inode = 0;   ///< st_ino
+  std::int64_t source_ctime_ns = 0;
+  /// Wall clock (CLOCK_REALTIME, ns) when the identity was taken, before the
+  /// content was read: no later than the cache's write, and the stricter
+  /// reference for the settled rule when the build in between is long.
+  std::int64_t identity_ns = 0;
 };
 
-/// Size, mtime and content hash of SOURCE (read through a mapping, never
-/// blocking: a FIFO or directory is an InputError naming what it is).
+/// How much older than identity_ns the recorded ctime must be for the
+/// identity alone to serve a cache (coarse file-system timestamps: FAT's 2 s).
+inline constexpr std::int64_t kSettledNs = 2'000'000'000;
+
+/// Size, mtime, identity and content hash of SOURCE (read through a mapping,
+/// never blocking: a FIFO or directory is an InputError naming what it is).
 CacheKey cache_key_for(const std::filesystem::path& source, std::uint32_t options_bits);
+
+/// cache_key_for() without reading the content (content_hash 0): one fstat.
+CacheKey cache_identity_of(const std::filesystem::path& source, std::uint32_t options_bits);
+
+/// Whether a cache written for STORED serves a source whose identity is NOW
+/// without hashing it: the same options, device, inode, size, mtime and ctime,
+/// and STORED's ctime at least kSettledNs older than STORED's identity_ns.
+bool cache_identity_serves(const CacheKey& stored, const CacheKey& now);
 
 /// XXH3-64 of a whole regular file (what CacheKey::content_hash holds).
 std::uint64_t content_hash_of(const std::filesystem::path& source);
@@ -59,6 +96,25 @@ std::optional<Hierarchy> load_cache_and_key(const std::filesystem::path& cache, 
 /// Whether a cache written for STORED serves EXPECTED: the same size, options
 /// and content hash (the modification time does not decide).
 bool cache_key_matches(const CacheKey& stored, const CacheKey& expected);
+
+/// What lookup_cache() found.
+struct CacheLookup {
+  std::optional<Hierarchy> hierarchy;  ///< the cache's, when it serves the source
+  CacheKey key;                        ///< the source's key now (content_hash valid when hashed)
+  bool hashed = false;     ///< the content was read and hashed (the identity did not decide)
+  bool refreshed = false;  ///< served after hashing, and rewritten with the settled identity
+  std::string why;         ///< why the cache did not serve (missing, corrupt, stale)
+  double hash_seconds = 0, cache_seconds = 0;
+};
+
+/// The cached open of SOURCE through CACHE (the rule at the top of this
+/// file). When the identity does not decide, the content hash runs beside the
+/// cache's own verification (for a large model). With REFRESH, a cache served
+/// after hashing whose source is now settled is rewritten with the current
+/// key (atomically; a failure only means the next open hashes again).
+/// Throws InputError when SOURCE is not a readable regular file.
+CacheLookup lookup_cache(const std::filesystem::path& source, const std::filesystem::path& cache,
+                         std::uint32_t options_bits, bool refresh);
 
 /// Reads the key stored in a cache header (for `treecut info CACHE`), after full verification.
 std::optional<CacheKey> read_cache_key(const std::filesystem::path& cache, std::string* why);

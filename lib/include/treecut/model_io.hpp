@@ -44,6 +44,12 @@ struct OpenedModel {
   std::size_t input_points = 0;  ///< points after dropping non-finite ones
   double read_seconds = 0, attribute_seconds = 0, build_seconds = 0, cache_seconds = 0;
   double hash_seconds = 0;  ///< the model's content hash (the cache key)
+  /// The model's content was read and hashed: always when built, and on a
+  /// cached open unless its identity decided (cache.hpp, the settled rule).
+  bool hashed = false;
+  /// A cache served after hashing was rewritten with the model's settled
+  /// identity (so the next open skips the hash).
+  bool cache_refreshed = false;
   [[nodiscard]] double total_seconds() const {
     return hash_seconds + read_seconds + attribute_seconds + build_seconds + cache_seconds;
   }
@@ -59,9 +65,10 @@ std::uint32_t options_bits(const AttributeOptions& attributes, const BuildOption
 /// Opens a model: a cache file (.tch) directly, or a PLY through its cache,
 /// rebuilding (and rewriting the cache) when it is missing, stale or corrupt.
 /// A cache is served only for the content it was built from (size and an
-/// XXH3 hash of the model's bytes). Throws InputError for a malformed model
-/// file, a model that is not a regular file ("is a FIFO", never blocking) and
-/// a cache path that names the model itself.
+/// XXH3 hash of the model's bytes); the hash is skipped when the model's
+/// identity is unchanged and settled (lookup_cache, cache.hpp). Throws InputError for a malformed
+/// model file, a model that is not a regular file ("is a FIFO", never blocking) and a cache path
+/// that names the model itself.
 OpenedModel open_model(const std::filesystem::path& model, const OpenOptions& options = {});
 
 /// Builds from points already in memory (generated models, benchmarks).
