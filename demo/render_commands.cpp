@@ -21,6 +21,7 @@
 #include "treecut/model.hpp"
 #include "treecut/splat/camera_path.hpp"
 #include "treecut/splat/context.hpp"
+#include "treecut/splat/frame.hpp"
 #include "treecut/splat/frame_rate.hpp"
 #include "treecut/splat/image.hpp"
 #include "view_script.hpp"
@@ -375,14 +376,13 @@ void run_render(const RenderArgs& a) {
       governor = splat::FrameRateGovernor::for_strategy(*strategy, h.node_count());
     }
     Controller controller(make_model(h), std::move(strategy),
-                          snapshot_of(cam, size, world_light_dir(settings.light, cam)),
-                          stage_options);
-    splat::CutBuffer cut;
-    FrameDriver driver{&controller, &cut};
+                          splat::view_snapshot(cam, size, settings.light), stage_options);
+    splat::QueryExecutor queries;
+    splat::RenderThreadFrame frame_loop(controller, renderer, &queries);
+    const splat::CutBuffer& cut = frame_loop.cut();
     auto frame = [&](const splat::Camera& c) {
       const auto t0 = std::chrono::steady_clock::now();
-      driver.begin(c, size, world_light_dir(settings.light, c));
-      renderer.draw(cut, c, settings, true);
+      frame_loop.run_render_thread(c, settings, true);
       const double ms =
           std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
       if (governor) {

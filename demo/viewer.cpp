@@ -29,6 +29,7 @@
 #include "treecut/model.hpp"
 #include "treecut/splat/camera_path.hpp"
 #include "treecut/splat/context.hpp"
+#include "treecut/splat/frame.hpp"
 #include "treecut/splat/frame_rate.hpp"
 #include "treecut/splat/gl.hpp"
 #include "treecut/splat/image.hpp"
@@ -73,9 +74,10 @@ class Viewer {
     configure_stage(stage_options, args.scene);
     controller_ = std::make_unique<Controller>(
         make_model(*scene_.hierarchy), std::move(strategy),
-        snapshot_of(camera_, window_.framebuffer_size(), world_light_dir(settings_.light, camera_)),
-        stage_options);
-    driver_ = FrameDriver{controller_.get(), &cut_};
+        splat::view_snapshot(camera_, window_.framebuffer_size(), settings_.light), stage_options);
+    queries_ = std::make_unique<splat::QueryExecutor>();
+    frame_loop_ =
+        std::make_unique<splat::RenderThreadFrame>(*controller_, *renderer_, queries_.get());
 
     glfwSetWindowUserPointer(window_.handle(), &input_);
     glfwSetScrollCallback(window_.handle(), &on_scroll);  // before ImGui, which chains it
@@ -114,8 +116,7 @@ class Viewer {
       record_key();
       splat::fit_clip_planes(camera_, scene_.center, scene_.radius);
 
-      driver_.begin(camera_, size, world_light_dir(settings_.light, camera_));
-      const splat::FrameStats stats = renderer_->draw(cut_, camera_, settings_);
+      const splat::FrameStats stats = frame_loop_->run_render_thread(camera_, settings_).stats;
       draw_ms_ = stats.cpu_ms;
       // frame_ms_ is the time of the previous frame: it pairs with the splats
       // that frame drew. The model keeps learning while the control is off.
@@ -373,18 +374,7 @@ class Viewer {
   // The screenshot function: what the window shows (scene and HUD), read from
   // the back buffer after the HUD is drawn and before the swap.
   void save_screenshot(const std::string& file, glm::ivec2 size) {
-    namespace gl = treecut::gl;
-    const auto w = static_cast<std::size_t>(size.x);
-    const auto h = static_cast<std::size_t>(size.y);
-    std::vector<std::uint8_t> bottom_up(w * h * 4);
-    gl::BindFramebuffer(GL_READ_FRAMEBUFFER, 0);
-    gl::NamedFramebufferReadBuffer(0, GL_BACK);
-    gl::PixelStorei(GL_PACK_ALIGNMENT, 1);
-    gl::ReadPixels(0, 0, size.x, size.y, GL_RGBA, GL_UNSIGNED_BYTE, bottom_up.data());
-    splat::Image img{size.x, size.y, std::vector<std::uint8_t>(bottom_up.size())};
-    for (std::size_t y = 0; y < h; ++y) {
-      std::copy_n(&bottom_up[(h - 1 - y) * w * 4], w * 4, &img.rgba[y * w * 4]);
-    }
+    splat::Image img{size.x, size.y, splat::read_back_rgba(0, GL_BACK, size)};
     for (std::size_t i = 3; i < img.rgba.size(); i += 4) img.rgba[i] = 255;
     // Never over a file the viewer did not write this session: the next free name.
     const std::filesystem::path p = free_screenshot_name(file);
@@ -543,8 +533,8 @@ class Viewer {
   double chosen_fps_ = 30.0;
   std::unique_ptr<splat::Renderer> renderer_;
   std::unique_ptr<Controller> controller_;
-  splat::CutBuffer cut_;
-  FrameDriver driver_;
+  std::unique_ptr<splat::QueryExecutor> queries_;
+  std::unique_ptr<splat::RenderThreadFrame> frame_loop_;  // after what it refers to
   splat::Camera camera_;
   Input input_;
   glm::vec2 last_mouse_{0.0f};

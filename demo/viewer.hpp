@@ -1,6 +1,6 @@
 // Shared pieces of `treecut render` (headless) and `treecut view` (window):
-// model and strategy set-up from the command line, the per-frame loop body
-// that drives the Controller and the renderer, and the viewer entry point.
+// model and strategy set-up from the command line and the viewer entry point.
+// The frame itself runs in the library (treecut/splat/frame.hpp).
 #pragma once
 
 #include <CLI/CLI.hpp>
@@ -14,9 +14,9 @@
 #include "treecut/controller.hpp"
 #include "treecut/hierarchy.hpp"
 #include "treecut/registry.hpp"
-#include "treecut/up_axis.hpp"
 #include "treecut/splat/camera.hpp"
 #include "treecut/splat/renderer.hpp"
+#include "treecut/up_axis.hpp"
 
 namespace treecut::cli {
 
@@ -71,21 +71,6 @@ void check_params(const StrategyRegistry& registry, const std::vector<std::strin
 
 splat::RenderSettings render_settings(const SceneArgs& args);
 
-/// The light direction handed to the strategies (model space, towards the
-/// light) for a camera, matching what the renderer lights with.
-glm::vec3 world_light_dir(const splat::Light& light, const splat::Camera& camera);
-
-/// One frame of the Controller/renderer protocol on the render thread:
-/// camera in, poll (exchange/request), upload the index list if it changed.
-/// Returns whether the list was exchanged this frame.
-struct FrameDriver {
-  Controller* controller = nullptr;
-  splat::CutBuffer* cut = nullptr;
-  std::uint64_t uploaded_generation = 0;
-
-  bool begin(const splat::Camera& camera, glm::ivec2 size, glm::vec3 light_dir);
-};
-
 /// The stage options `render` and `view` share: --validate, and a bounded exit
 /// when a strategy ignores cancellation at shutdown (one error line, exit 1).
 void configure_stage(StageOptions& options, const SceneArgs& args);
@@ -94,9 +79,6 @@ void configure_stage(StageOptions& options, const SceneArgs& args);
 /// all, or requests that waited past the starvation bound); else empty.
 std::string stage_shortfall(const std::string& strategy, const StageCounters& counters,
                             const StageOptions& options, int frames);
-
-/// The ViewSnapshot of a camera (initial view of a Controller).
-ViewSnapshot snapshot_of(const splat::Camera& camera, glm::ivec2 size, glm::vec3 light_dir);
 
 struct ViewArgs {
   SceneArgs scene;

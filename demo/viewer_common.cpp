@@ -188,36 +188,4 @@ splat::RenderSettings render_settings(const SceneArgs& args) {
   return r;
 }
 
-glm::vec3 world_light_dir(const splat::Light& light, const splat::Camera& camera) {
-  glm::vec3 d = light.direction;
-  if (light.follow_camera) d = glm::mat3(glm::inverse(camera.view_matrix())) * d;
-  const float len = glm::length(d);
-  return len > 0.0f ? d / len : glm::vec3(0.0f, 0.0f, 1.0f);
-}
-
-ViewSnapshot snapshot_of(const splat::Camera& camera, glm::ivec2 size, glm::vec3 light_dir) {
-  ViewSnapshot v;
-  v.view = camera.view_matrix();
-  v.projection = camera.projection_matrix(static_cast<float>(size.x) / static_cast<float>(size.y));
-  v.viewport = size;
-  v.light_dir = light_dir;
-  v.finalize();
-  return v;
-}
-
-bool FrameDriver::begin(const splat::Camera& camera, glm::ivec2 size, glm::vec3 light_dir) {
-  controller->set_camera(
-      camera.view_matrix(),
-      camera.projection_matrix(static_cast<float>(size.x) / static_cast<float>(size.y)), size);
-  controller->set_light(light_dir);
-  const FrameLists lists = controller->begin_frame();
-  if (lists.current.generation != uploaded_generation && lists.current.hierarchy != nullptr) {
-    // ReleaseMode::OnExchange: the list is copied into the GPU index buffer
-    // now, so the stage may reuse it after the next exchange.
-    cut->upload(*lists.current.hierarchy, lists.current.nodes);
-    uploaded_generation = lists.current.generation;
-  }
-  return lists.exchanged;
-}
-
 }  // namespace treecut::cli

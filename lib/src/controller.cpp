@@ -28,12 +28,15 @@ void Controller::set_light(glm::vec3 direction) {
 }
 
 FrameLists Controller::begin_frame() {
-  ++view_.frame;
   if (view_dirty_) {
     stage_.set_view(view_);
     view_dirty_ = false;
   }
-  return stage_.poll();
+  FrameLists lists = stage_.poll();
+  // One frame counter: the stage's (it numbers the requests and so every
+  // VisibilityResult); the controller only mirrors it.
+  view_.frame = stage_.frame();
+  return lists;
 }
 
 }  // namespace treecut

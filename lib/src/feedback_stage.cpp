@@ -473,7 +473,12 @@ FrameLists FeedbackStage::poll() {
     ++counters_.starved;
     set_boost(true);
   }
-  if (state == State::Wait) {
+  // A fade runs to its end before the next exchange: an exchange in the
+  // middle of one would snap the pixels still fading (and with an iteration
+  // per frame no fade would ever get past its first step). The finished list
+  // waits in the back buffer meanwhile; an error is reported at once.
+  const bool hold = blending_ && in_flight_ && state == State::Wait && outbox_.ready;
+  if (state == State::Wait && !hold) {
     if (in_flight_) {
       in_flight_ = false;
       set_boost(false);
@@ -526,14 +531,15 @@ FrameLists FeedbackStage::poll() {
 void FeedbackStage::set_view(const ViewSnapshot& view) {
   ViewSnapshot& p = pending_.view;
   if (view.version != p.version) pending_.view_changed = true;
-  p.view = view.view;
-  p.projection = view.projection;
-  p.viewport = view.viewport;
-  p.light_dir = view.light_dir;
-  p.frame = view.frame;
-  p.version = view.version;
-  p.derived = view.derived;
-  p.visibility.insert(p.visibility.end(), view.visibility.begin(), view.visibility.end());
+  // One assignment of the whole value (a field added later is never dropped);
+  // the pending results survive it in the scratch vector, and both vectors
+  // keep their capacity, so this allocates only while they grow.
+  std::vector<VisibilityResult>& kept = pending_.visibility_scratch;
+  kept.swap(p.visibility);
+  p = view;
+  kept.insert(kept.end(), p.visibility.begin(), p.visibility.end());
+  kept.swap(p.visibility);
+  kept.clear();
 }
 
 void FeedbackStage::post_visibility(std::span<const VisibilityResult> results) {

@@ -30,11 +30,14 @@ class Controller {
   }
   void set_param(std::string_view name, double value) { stage_.set_param(name, value); }
 
-  /// Call at the start of every frame: advances the frame number, hands the
-  /// view to the stage and polls it (exchange and request, never blocking).
+  /// Call at the start of every frame: hands the view to the stage and polls
+  /// it (exchange and request, never blocking), which advances the frame number.
   FrameLists begin_frame();
 
   [[nodiscard]] const ViewSnapshot& view() const { return view_; }
+  /// The number of the frame begun by the last begin_frame(): the stage's
+  /// frame counter (FeedbackStage::frame()), not a second count.
+  [[nodiscard]] std::uint64_t frame() const { return stage_.frame(); }
   [[nodiscard]] FeedbackStage& stage() { return stage_; }
   [[nodiscard]] const FeedbackStage& stage() const { return stage_; }
 

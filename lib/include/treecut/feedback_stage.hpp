@@ -199,8 +199,11 @@ class FeedbackStage {
   /// the front list stays, and the next poll() requests again.
   FrameLists poll();
 
-  /// The view of the next request. Its `version` decides whether the view
-  /// changed. The visibility results in it are appended to the pending ones.
+  /// The view of the next request, taken whole (every field, so a field added
+  /// to ViewSnapshot travels without a change here), except: `frame` is set
+  /// by the stage at the request, and the visibility results in it are
+  /// appended to the pending ones. Its `version` decides whether the view
+  /// changed.
   void set_view(const ViewSnapshot& view);
   /// Query results for the next request (render thread, any time).
   void post_visibility(std::span<const VisibilityResult> results);
@@ -217,6 +220,10 @@ class FeedbackStage {
   void release(std::uint64_t generation);
 
   [[nodiscard]] const StageCounters& counters() const { return counters_; }
+  /// The frame counter of the render thread: the number of the frame begun by
+  /// the last poll() (1 for the first). The Controller, the request's
+  /// ViewSnapshot::frame and the query executor all count frames with it.
+  [[nodiscard]] std::uint64_t frame() const { return counters_.frames; }
   [[nodiscard]] const FrontList& front() const { return front_view_; }
   /// The name of the strategy the next iteration will run.
   [[nodiscard]] const std::string& strategy_name() const { return strategy_name_; }
@@ -271,7 +278,8 @@ class FeedbackStage {
     std::unique_ptr<Strategy> strategy;
     std::vector<std::pair<std::string, double>> params;
     std::optional<Model> model;
-    std::vector<ParamSpec> specs;  // of the strategy the next iteration runs
+    std::vector<ParamSpec> specs;                      // of the strategy the next iteration runs
+    std::vector<VisibilityResult> visibility_scratch;  // set_view's swap space (keeps capacity)
   };
 
   void run();

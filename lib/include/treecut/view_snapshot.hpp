@@ -31,11 +31,20 @@
 
 namespace treecut {
 
+/// What a query counts. A strategy that only needs "visible or not" asks for
+/// AnySamples: the View may then use GL_ANY_SAMPLES_PASSED_CONSERVATIVE, which
+/// a GPU can answer sooner (and its answer may err only towards visible).
+enum class QueryKind : std::uint8_t {
+  Samples,     ///< GL_SAMPLES_PASSED: how many samples of the proxy pass the depth test
+  AnySamples,  ///< GL_ANY_SAMPLES_PASSED_CONSERVATIVE: 0 or 1
+};
+
 /// One occlusion (or other visibility) query a strategy asks the View to run.
 struct QueryRequest {
   std::uint32_t object = 0;  ///< which hierarchy of a many-object scene (0 for one model)
   NodeId node = kNoNode;     ///< the node whose bounding sphere is tested
   std::uint32_t tag = 0;     ///< opaque to the View, returned unchanged in the result
+  QueryKind kind = QueryKind::Samples;
 };
 
 /// The answer to a QueryRequest, delivered frames later in a ViewSnapshot.
@@ -43,8 +52,14 @@ struct VisibilityResult {
   std::uint32_t object = 0;
   NodeId node = kNoNode;
   std::uint32_t tag = 0;
-  std::uint32_t samples_passed = 0;  ///< GL_SAMPLES_PASSED (0 = occluded)
-  std::uint64_t frame_issued = 0;    ///< the frame number the query was issued in
+  std::uint32_t samples_passed = 0;  ///< GL_SAMPLES_PASSED (0 = occluded); 0 or 1 for AnySamples
+  /// Both on the one frame counter of the render thread (FeedbackStage::frame(),
+  /// ViewSnapshot::frame): the frame the proxy was drawn in and the frame its
+  /// answer was read in. frame_read > frame_issued unless the View answered
+  /// without the GPU (the eye inside the sphere).
+  std::uint64_t frame_issued = 0;
+  std::uint64_t frame_read = 0;
+  QueryKind kind = QueryKind::Samples;
 };
 
 /// A plane n.x + d >= 0 for points inside.
@@ -55,7 +70,10 @@ struct ViewSnapshot {
   glm::mat4 projection{1.0f};             ///< eye-to-clip, perspective or orthographic
   glm::ivec2 viewport{1, 1};              ///< pixels
   glm::vec3 light_dir{0.0f, 0.0f, 1.0f};  ///< unit, model space, pointing towards the light
-  std::uint64_t frame = 0;                ///< the render thread's frame number when taken
+  /// The render thread's frame number when the update was requested: the
+  /// stage's poll count (FeedbackStage::frame()), the counter every
+  /// VisibilityResult is numbered on. Set by the stage.
+  std::uint64_t frame = 0;
   /// Incremented by the render thread whenever camera, projection, viewport or
   /// light change; strategies use it to tell "same view" (convergence) apart.
   std::uint64_t version = 0;

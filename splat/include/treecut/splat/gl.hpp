@@ -17,6 +17,12 @@
 
 namespace treecut::gl {
 
+// The query executor's proxies: one instanced draw per query, its base
+// instance selecting the node's sphere.
+#define TREECUT_GL_INSTANCING(X)                                               \
+  X(PFNGLDRAWARRAYSINSTANCEDBASEINSTANCEPROC, DrawArraysInstancedBaseInstance) \
+  X(PFNGLVERTEXARRAYBINDINGDIVISORPROC, VertexArrayBindingDivisor)
+
 // X(type, name): every function here is called as treecut::gl::name(...), and
 // is loaded from "gl" #name.
 #define TREECUT_GL_FUNCTIONS(X)                                        \
@@ -92,8 +98,13 @@ namespace treecut::gl {
   X(PFNGLBEGINQUERYPROC, BeginQuery)                                   \
   X(PFNGLENDQUERYPROC, EndQuery)                                       \
   X(PFNGLGETQUERYOBJECTUI64VPROC, GetQueryObjectui64v)                 \
-  X(PFNGLGETQUERYOBJECTUIVPROC, GetQueryObjectuiv)
+  X(PFNGLGETQUERYOBJECTUIVPROC, GetQueryObjectuiv)                     \
+  TREECUT_GL_INSTANCING(X)
 
+// The pointers are plain variables on purpose: a test may interpose an entry
+// point by assigning its own function after load() and restoring the old
+// pointer afterwards (render thread only), e.g. to check that nothing reads a
+// query result before GL_QUERY_RESULT_AVAILABLE said it is there.
 #define TREECUT_GL_DECLARE(type, name) extern type name;
 TREECUT_GL_FUNCTIONS(TREECUT_GL_DECLARE)
 #undef TREECUT_GL_DECLARE

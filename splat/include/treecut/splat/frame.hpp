@@ -1,0 +1,93 @@
+// The frame layer: one object that runs a frame of the View on the render
+// thread (camera and light in, poll the Feedback Stage through the
+// Controller, upload the index list on an exchange, draw, execute the
+// strategy's GPU queries, post their answers). `treecut view`, `treecut
+// render` and the benchmarks run their frames through it; presenting to a
+// window or reading the image back stays with the caller (present(),
+// read_back_rgba()).
+//
+// Thread affinity: everything here runs on the render thread, with the GL
+// context current (members end in _render_thread or say so). The only thing
+// that crosses to the Feedback Stage thread is what Controller/FeedbackStage
+// hand over themselves (the ViewSnapshot as one value, the query results).
+#pragma once
+
+#include <cstdint>
+#include <glm/mat4x4.hpp>
+#include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
+#include <vector>
+
+#include "treecut/controller.hpp"
+#include "treecut/splat/camera.hpp"
+#include "treecut/splat/gl.hpp"
+#include "treecut/splat/query_executor.hpp"
+#include "treecut/splat/renderer.hpp"
+#include "treecut/view_snapshot.hpp"
+
+namespace treecut::splat {
+
+/// The unit direction towards the light in world (model) space that the
+/// renderer lights with for a camera with this view matrix: the one place of
+/// that maths (the renderer and the ViewSnapshot handed to strategies both use it).
+[[nodiscard]] glm::vec3 world_light_dir(const Light& light, const glm::mat4& view);
+
+/// The ViewSnapshot of a camera drawing into a `size` framebuffer, lit by
+/// `light`, finalized (the initial view of a Controller).
+[[nodiscard]] ViewSnapshot view_snapshot(const Camera& camera, glm::ivec2 size, const Light& light);
+
+/// Reads `size` pixels of framebuffer `fbo` (0: the window, from `read_buffer`,
+/// e.g. GL_BACK; ignored for another framebuffer) as tightly packed RGBA8, top
+/// row first (image order). Render thread only. The one read-back of the
+/// project: Renderer::read_pixels and the viewer's screenshot use it.
+[[nodiscard]] std::vector<std::uint8_t> read_back_rgba(GLuint fbo, GLenum read_buffer,
+                                                       glm::ivec2 size);
+
+/// What one frame did.
+struct FrameResult {
+  FrameStats stats;                ///< the renderer's
+  std::uint64_t frame = 0;         ///< the frame's number (the stage's counter)
+  std::uint64_t generation = 0;    ///< of the list drawn
+  bool exchanged = false;          ///< a new list became current this frame
+  bool requested = false;          ///< an iteration was requested this frame
+  std::size_t results_posted = 0;  ///< query answers handed to the stage this frame
+};
+
+/// Runs frames of one Controller with one Renderer (render thread only).
+/// Neither is owned; both must outlive the frame object. With an executor,
+/// the strategy's queries run inside every draw and their answers go to the
+/// stage after it (see QueryExecutor); without one, requests are ignored.
+class RenderThreadFrame {
+ public:
+  RenderThreadFrame(Controller& controller, Renderer& renderer, QueryExecutor* executor = nullptr);
+  ~RenderThreadFrame();
+  RenderThreadFrame(const RenderThreadFrame&) = delete;
+  RenderThreadFrame& operator=(const RenderThreadFrame&) = delete;
+
+  /// Render thread. Camera and light in, poll (exchange/request), upload the
+  /// list if it changed: what a frame does before it draws.
+  FrameResult begin_render_thread(const Camera& camera, const Light& light);
+  /// Render thread. Draws the current list (queries inside the draw when an
+  /// executor is set) and posts the query answers read this frame to the
+  /// stage. With `finish`, waits for the GPU (FrameStats::cpu_ms is the frame).
+  FrameResult draw_render_thread(const Camera& camera, const RenderSettings& settings,
+                                 bool finish = false);
+  /// Render thread. begin_render_thread + draw_render_thread.
+  FrameResult run_render_thread(const Camera& camera, const RenderSettings& settings,
+                                bool finish = false);
+
+  [[nodiscard]] const CutBuffer& cut() const { return cut_; }
+  [[nodiscard]] Controller& controller() { return *controller_; }
+  [[nodiscard]] Renderer& renderer() { return *renderer_; }
+  [[nodiscard]] QueryExecutor* executor() { return executor_; }
+
+ private:
+  Controller* controller_;
+  Renderer* renderer_;
+  QueryExecutor* executor_;
+  CutBuffer cut_;
+  std::uint64_t uploaded_generation_ = 0;
+  FrameResult current_;
+};
+
+}  // namespace treecut::splat

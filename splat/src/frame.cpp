@@ -1,0 +1,101 @@
+#include "treecut/splat/frame.hpp"
+
+#include <cstring>
+#include <glm/geometric.hpp>
+#include <glm/mat3x3.hpp>
+#include <glm/matrix.hpp>
+
+namespace treecut::splat {
+
+glm::vec3 world_light_dir(const Light& light, const glm::mat4& view) {
+  glm::vec3 d = light.direction;
+  // A headlight is given in view space: the inverse view's rotation turns it
+  // into the world.
+  if (light.follow_camera) d = glm::mat3(glm::inverse(view)) * d;
+  const float len = glm::length(d);
+  return len > 0.0f ? d / len : glm::vec3(0.0f, 0.0f, 1.0f);
+}
+
+ViewSnapshot view_snapshot(const Camera& camera, glm::ivec2 size, const Light& light) {
+  ViewSnapshot v;
+  v.view = camera.view_matrix();
+  v.projection = camera.projection_matrix(static_cast<float>(size.x) / static_cast<float>(size.y));
+  v.viewport = size;
+  v.light_dir = world_light_dir(light, v.view);
+  v.finalize();
+  return v;
+}
+
+std::vector<std::uint8_t> read_back_rgba(GLuint fbo, GLenum read_buffer, glm::ivec2 size) {
+  const auto w = static_cast<std::size_t>(size.x);
+  const auto h = static_cast<std::size_t>(size.y);
+  std::vector<std::uint8_t> bottom_up(w * h * 4);
+  gl::BindFramebuffer(GL_READ_FRAMEBUFFER, fbo);
+  if (fbo == 0) gl::NamedFramebufferReadBuffer(0, read_buffer);
+  gl::PixelStorei(GL_PACK_ALIGNMENT, 1);
+  gl::ReadPixels(0, 0, size.x, size.y, GL_RGBA, GL_UNSIGNED_BYTE, bottom_up.data());
+  gl::BindFramebuffer(GL_READ_FRAMEBUFFER, 0);
+  gl::check("read back");
+  // GL's rows run bottom-up; images top-down.
+  std::vector<std::uint8_t> top_down(bottom_up.size());
+  for (std::size_t y = 0; y < h; ++y) {
+    std::memcpy(&top_down[y * w * 4], &bottom_up[(h - 1 - y) * w * 4], w * 4);
+  }
+  return top_down;
+}
+
+RenderThreadFrame::RenderThreadFrame(Controller& controller, Renderer& renderer,
+                                     QueryExecutor* executor)
+    : controller_(&controller), renderer_(&renderer), executor_(executor) {}
+
+RenderThreadFrame::~RenderThreadFrame() {
+  // The renderer may outlive this object: never leave it a dangling hook.
+  if (executor_ != nullptr) renderer_->set_query_hook(nullptr);
+}
+
+FrameResult RenderThreadFrame::begin_render_thread(const Camera& camera, const Light& light) {
+  const glm::ivec2 size = renderer_->size();
+  const glm::mat4 view = camera.view_matrix();
+  controller_->set_camera(
+      view, camera.projection_matrix(static_cast<float>(size.x) / static_cast<float>(size.y)),
+      size);
+  controller_->set_light(world_light_dir(light, view));
+  const FrameLists lists = controller_->begin_frame();
+  if (lists.current.generation != uploaded_generation_ && lists.current.hierarchy != nullptr) {
+    // ReleaseMode::OnExchange: the list is copied into the GPU index buffer
+    // now, so the stage may reuse it after the next exchange.
+    cut_.upload(*lists.current.hierarchy, lists.current.nodes);
+    uploaded_generation_ = lists.current.generation;
+  }
+  current_ = FrameResult{};
+  current_.frame = controller_->frame();
+  current_.generation = lists.current.generation;
+  current_.exchanged = lists.exchanged;
+  current_.requested = lists.requested;
+  // Queued once per generation (the executor ignores a generation it has seen).
+  if (executor_ != nullptr) executor_->begin_frame_render_thread(lists.current, current_.frame);
+  return current_;
+}
+
+FrameResult RenderThreadFrame::draw_render_thread(const Camera& camera,
+                                                  const RenderSettings& settings, bool finish) {
+  if (executor_ != nullptr) renderer_->set_query_hook(executor_);
+  current_.stats = renderer_->draw(cut_, camera, settings, finish);
+  if (executor_ != nullptr) {
+    const auto results = executor_->results();
+    // The stage hands them to the strategy with the next request: frames
+    // after they were issued, never in the frame that asked.
+    if (!results.empty()) controller_->stage().post_visibility(results);
+    current_.results_posted = results.size();
+    executor_->clear_results();
+  }
+  return current_;
+}
+
+FrameResult RenderThreadFrame::run_render_thread(const Camera& camera,
+                                                 const RenderSettings& settings, bool finish) {
+  begin_render_thread(camera, settings.light);
+  return draw_render_thread(camera, settings, finish);
+}
+
+}  // namespace treecut::splat
