@@ -15,14 +15,18 @@
 #include <numeric>
 #include <vector>
 
+#include "treecut/controller.hpp"
 #include "treecut/hierarchy.hpp"
+#include "treecut/model.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/point_set.hpp"
 #include "treecut/splat/camera.hpp"
 #include "treecut/splat/context.hpp"
+#include "treecut/splat/frame.hpp"
 #include "treecut/splat/gl.hpp"
 #include "treecut/splat/gl_objects.hpp"
 #include "treecut/splat/renderer.hpp"
+#include "treecut/strategy.hpp"
 #include "treecut/tree_cut.hpp"
 
 namespace treecut::splat {
@@ -334,6 +338,75 @@ TEST_F(QueryExecutorTest, NeverReadsAResultBeforeItIsAvailable) {
   EXPECT_EQ(answered, requests.size());
   EXPECT_EQ(ReadCheck::violations, 0);
   std::printf("availability checks that said 'not yet': %d\n", ReadCheck::checks_false);
+}
+
+// Posts one query per iteration (tagged with the iteration) about the root
+// and records what comes back, with the frame of each request.
+class AskingStrategy final : public Strategy {
+ public:
+  AskingStrategy() : Strategy({}) {}
+  [[nodiscard]] std::string_view name() const override { return "asking"; }
+  [[nodiscard]] Mode mode() const override { return Mode::Evolve; }
+  void reset(const Hierarchy&) override {}
+  void iterate(const IterationInput& in, IterationOutput& out) override {
+    request_frames.push_back(in.view.frame);
+    for (const VisibilityResult& v : in.view.visibility) seen.push_back({v, in.view.frame});
+    out.queries->push_back(
+        {0, 0, static_cast<std::uint32_t>(request_frames.size()), QueryKind::Samples});
+    out.result.converged = false;
+  }
+  struct Seen {
+    VisibilityResult result;
+    std::uint64_t request_frame;
+  };
+  std::vector<std::uint64_t> request_frames;
+  std::vector<Seen> seen;
+};
+
+TEST(RenderThreadFrameQueries, ResultsReachTheStrategyFramesLaterOnOneFrameCounter) {
+  context();
+  auto h = std::make_shared<const Hierarchy>(wall());
+  Renderer renderer(*h, {kWidth, kHeight});
+  QueryExecutor executor;
+  auto strategy = std::make_unique<AskingStrategy>();
+  AskingStrategy* s = strategy.get();
+  StageOptions o;
+  o.launch = Launch::Manual;
+  const Camera cam = wall_camera();
+  Controller controller(Model{h, TreeCut::root_cut(*h)}, std::move(strategy),
+                        view_snapshot(cam, {kWidth, kHeight}, Light{}), o);
+  std::map<std::uint64_t, std::uint64_t> first_drawn;  // generation -> frame
+  {
+    RenderThreadFrame frame(controller, renderer, &executor);
+    for (int i = 0; i < 30; ++i) {
+      const FrameResult r = frame.run_render_thread(cam, RenderSettings{}, true);
+      EXPECT_EQ(r.frame, static_cast<std::uint64_t>(i + 1));  // one counter, from 1
+      EXPECT_EQ(r.frame, controller.frame());
+      EXPECT_EQ(r.frame, controller.stage().counters().frames);
+      first_drawn.emplace(r.generation, r.frame);
+      controller.stage().step();
+    }
+  }
+  ASSERT_GE(s->seen.size(), 5u);
+  std::map<std::uint32_t, int> per_tag;
+  for (const AskingStrategy::Seen& v : s->seen) {
+    ++per_tag[v.result.tag];
+    // Issued in a frame that drew the list asking for it (generation tag + 1:
+    // the initial cut is generation 1 and asks nothing), read later, handed
+    // over with a later request.
+    const std::uint64_t generation = v.result.tag + 1;
+    ASSERT_TRUE(first_drawn.count(generation)) << v.result.tag;
+    EXPECT_GE(v.result.frame_issued, first_drawn.at(generation));
+    EXPECT_GT(v.result.frame_read, v.result.frame_issued);
+    EXPECT_GT(v.request_frame, v.result.frame_read);
+    EXPECT_GT(v.result.samples_passed, 0u);  // the root in front of nothing
+  }
+  for (const auto& [tag, count] : per_tag) EXPECT_EQ(count, 1) << "tag " << tag;  // once
+  // The request frames are the same counter: strictly increasing, within the run.
+  for (std::size_t i = 1; i < s->request_frames.size(); ++i) {
+    EXPECT_GT(s->request_frames[i], s->request_frames[i - 1]);
+  }
+  EXPECT_LE(s->request_frames.back(), 30u);
 }
 
 }  // namespace

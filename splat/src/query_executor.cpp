@@ -193,6 +193,9 @@ void QueryExecutor::run(const FrameView& view) {
   stats_.answered_last = 0;
   // Poll first: a query issued in this frame is never read in this frame.
   poll_render_thread();
+  stats_.poll_ns_last = static_cast<std::uint64_t>(
+      std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - start)
+          .count());
   issue_render_thread(view);
   stats_.pending = in_flight_.size() - in_flight_head_;
   stats_.queued = queue_.size() - queue_next_;

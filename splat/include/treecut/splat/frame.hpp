@@ -86,7 +86,6 @@ class RenderThreadFrame {
   Renderer* renderer_;
   QueryExecutor* executor_;
   CutBuffer cut_;
-  std::uint64_t uploaded_generation_ = 0;
   FrameResult current_;
 };
 

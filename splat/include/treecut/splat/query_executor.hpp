@@ -59,6 +59,7 @@ struct QueryStats {
   std::uint64_t latency_frames_max = 0;
   std::uint64_t cpu_ns_total = 0;  ///< render-thread time in run() (issue + poll)
   std::uint64_t cpu_ns_last = 0;   ///< of the last run()
+  std::uint64_t poll_ns_last = 0;  ///< of which polling earlier queries
   std::size_t issued_last = 0;     ///< issued by the last run()
   std::size_t answered_last = 0;   ///< read by the last run()
   std::size_t pool_size = 0;       ///< query objects created

@@ -1,0 +1,139 @@
+// The GPU query executor (treecut/splat/query_executor.hpp) on OSMesa
+// (llvmpipe), 1280x720, fast splats, a generated terrain of 200,000 points
+// drawn as the cut of one hierarchy level (the same draws in every frame).
+//
+//  - Queries/N: frames alternate between "off" (the cut alone) and "on" (the
+//    cut and N queries: every frame a new list generation of N requests about
+//    nodes of the drawn cut, so N proxies are issued and about N earlier
+//    answers polled per frame). us_per_query_median / _max: the executor's
+//    render-thread CPU time per frame (issue + poll, QueryStats::cpu_ns_last)
+//    divided by N, over the "on" frames (target <= 2 us). frame_ms_{on,off}
+//    median and max: wall time of a frame (poll, draw with the queries inside,
+//    glFinish); max_ratio = max on / max off (target <= 1.2: a frame never
+//    waits for a query). latency: mean frames from issue to read.
+//
+// Run: build/perf/tests/bench/query_bench --benchmark_min_time=5
+#include <benchmark/benchmark.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <memory>
+#include <vector>
+
+#include "bench_models.hpp"
+#include "treecut/splat/camera.hpp"
+#include "treecut/splat/context.hpp"
+#include "treecut/splat/query_executor.hpp"
+#include "treecut/splat/renderer.hpp"
+
+namespace treecut::bench {
+namespace {
+
+constexpr int kWidth = 1280;
+constexpr int kHeight = 720;
+
+splat::GlContext& context() {
+  static splat::OsmesaContext ctx(kWidth, kHeight);
+  ctx.make_current();
+  return ctx;
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+  return v[v.size() / 2];
+}
+
+void Queries(benchmark::State& state) {
+  const auto n = static_cast<std::size_t>(state.range(0));
+  context();
+  const std::shared_ptr<const Hierarchy> h = generated(ModelKind::Terrain, 200'000);
+  splat::Renderer renderer(*h, {kWidth, kHeight});
+  // A level with at least 20,000 nodes (or the leaves): the drawn cut.
+  int level = 0;
+  while (level + 1 < h->level_count() &&
+         h->level_begin(level + 1) - h->level_begin(level) < 20'000) {
+    ++level;
+  }
+  std::vector<NodeId> cut_nodes;
+  for (NodeId id = h->level_begin(level); id < h->level_begin(level + 1); ++id) {
+    cut_nodes.push_back(id);
+  }
+  splat::CutBuffer cut;
+  cut.upload(*h, cut_nodes);
+  const splat::Camera cam = splat::default_camera(h->bounds_min(), h->bounds_max(),
+                                                  float(kWidth) / float(kHeight), {0, 0, 1});
+  splat::QueryExecutorOptions eo;
+  eo.max_issue_per_frame = std::max<std::size_t>(n, 1);
+  splat::QueryExecutor executor(eo);
+  // N requests about nodes spread over the cut.
+  std::vector<QueryRequest> requests;
+  for (std::size_t i = 0; i < n; ++i) {
+    requests.push_back({0, cut_nodes[(i * 7919) % cut_nodes.size()], static_cast<std::uint32_t>(i),
+                        QueryKind::Samples});
+  }
+  FrontList list;
+  list.hierarchy = h.get();
+  list.queries = requests;
+  std::uint64_t frame = 0;
+  std::vector<double> on_ms, off_ms, per_query_us, poll_us;
+  const splat::RenderSettings settings;
+  auto run_frame = [&](bool queries) {
+    const auto t0 = std::chrono::steady_clock::now();
+    ++frame;
+    if (queries) {
+      list.generation = frame;  // a new list every frame: N issued per frame
+      executor.begin_frame_render_thread(list, frame);
+      renderer.set_query_hook(&executor);
+    }
+    renderer.draw(cut, cam, settings, true);
+    renderer.set_query_hook(nullptr);
+    executor.clear_results();
+    const double ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    return ms;
+  };
+  for (int i = 0; i < 4; ++i) {  // warm-up: pool grown, caches hot
+    run_frame(true);
+    run_frame(false);
+  }
+  const std::uint64_t answered0 = executor.stats().answered;
+  const std::uint64_t latency0 = executor.stats().latency_frames_total;
+  for (auto _ : state) {
+    const double on = run_frame(true);
+    if (n > 0) {
+      per_query_us.push_back(double(executor.stats().cpu_ns_last) * 1e-3 / double(n));
+      poll_us.push_back(double(executor.stats().poll_ns_last) * 1e-3 / double(n));
+    }
+    on_ms.push_back(on);
+    off_ms.push_back(run_frame(false));
+  }
+  const double on_max = *std::max_element(on_ms.begin(), on_ms.end());
+  const double off_max = *std::max_element(off_ms.begin(), off_ms.end());
+  state.counters["cut_nodes"] = double(cut_nodes.size());
+  state.counters["frame_ms_on_median"] = median(on_ms);
+  state.counters["frame_ms_off_median"] = median(off_ms);
+  state.counters["frame_ms_on_max"] = on_max;
+  state.counters["frame_ms_off_max"] = off_max;
+  state.counters["max_ratio"] = on_max / off_max;
+  state.counters["median_ratio"] = median(on_ms) / median(off_ms);
+  if (n > 0) {
+    state.counters["us_per_query_median"] = median(per_query_us);
+    state.counters["poll_us_per_query_median"] = median(poll_us);
+    state.counters["us_per_query_max"] =
+        *std::max_element(per_query_us.begin(), per_query_us.end());
+    const std::uint64_t answered = executor.stats().answered - answered0;
+    state.counters["latency_frames_mean"] =
+        answered == 0 ? 0.0
+                      : double(executor.stats().latency_frames_total - latency0) / double(answered);
+    state.counters["latency_frames_max"] = double(executor.stats().latency_frames_max);
+    state.counters["dropped"] = double(executor.stats().dropped);
+  }
+}
+BENCHMARK(Queries)->Arg(100)->Arg(10'000)->Unit(benchmark::kMillisecond)->Iterations(60);
+
+}  // namespace
+}  // namespace treecut::bench
+
+BENCHMARK_MAIN();
