@@ -38,9 +38,12 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <limits>
 #include <map>
 #include <memory>
+#include <numeric>
+#include <string>
 #include <thread>
 #include <vector>
 
@@ -368,6 +371,195 @@ BENCHMARK_CAPTURE(FullVsLod, dragon, std::string("dragon_vrip.ply"))
     ->Unit(benchmark::kMillisecond)
     ->UseManualTime();
 BENCHMARK_CAPTURE(FullVsLod, lion, std::string("lion_takanawa.ply"))
+    ->Unit(benchmark::kMillisecond)
+    ->UseManualTime();
+
+// Per-range overhead of Renderer::draw_ranges: the dragon's quarter-budget
+// optimization cut drawn as one call and as `ranges` equal ranges in
+// ascending order with an empty hook between them, frames alternating.
+// ns_per_range = (ranges median - one-call median) / ranges, from wall
+// times with glFinish, and the same from the render thread's CPU time.
+class NoopHook final : public RangeHook {
+ public:
+  void after_range(std::size_t, const FrameView&) override { ++calls; }
+  std::size_t calls = 0;
+};
+
+void RangeOverhead(benchmark::State& state) {
+  const Hierarchy* h = model("dragon_vrip.ply");
+  if (h == nullptr) {
+    state.SkipWithError("../shared/assets/dragon_vrip.ply is absent");
+    return;
+  }
+  context();
+  Renderer renderer(*h, kSize);
+  const RenderSettings settings;
+  const Camera cam = default_camera(h->bounds_min(), h->bounds_max(), kAspect);
+  static const std::vector<NodeId> nodes = converged_cut(*h, cam, h->leaf_count() / 4);
+  CutBuffer cut;
+  cut.upload(*h, nodes);
+  const auto n = static_cast<std::uint32_t>(state.range(0));
+  std::vector<CutRange> ranges;
+  const auto size = static_cast<std::uint32_t>(cut.size());
+  for (std::uint32_t i = 0; i < n; ++i) {
+    const std::uint32_t first = static_cast<std::uint32_t>(std::uint64_t{size} * i / n);
+    const std::uint32_t end = static_cast<std::uint32_t>(std::uint64_t{size} * (i + 1) / n);
+    ranges.push_back({first, end - first});
+  }
+  NoopHook hook;
+  FrameTimes one, many;
+  for (auto _ : state) {
+    double ms = one.measure([&] { renderer.draw(cut, cam, settings, true); });
+    ms += many.measure([&] { renderer.draw_ranges(cut, ranges, cam, settings, &hook, true); });
+    state.SetIterationTime(ms * 1e-3);
+  }
+  state.counters["one_call_ms"] = one.median();
+  state.counters["ranges_ms"] = many.median();
+  state.counters["ns_per_range"] = (many.median() - one.median()) * 1e6 / double(n);
+  state.counters["thread_ns_per_range"] =
+      (many.mean_thread() - one.mean_thread()) * 1e6 / double(n);
+  state.counters["cut"] = double(cut.size());
+  state.counters["hook_calls_per_frame"] =
+      double(hook.calls) / double(std::max<std::size_t>(many.wall_ms.size(), 1));
+}
+BENCHMARK(RangeOverhead)
+    ->Arg(10)
+    ->Arg(1000)
+    ->Arg(10000)
+    ->Unit(benchmark::kMillisecond)
+    ->UseManualTime();
+
+// Fades under a slowly moving camera: the dragon, the optimization strategy
+// (budget leaves / arg0), an orbit of arg1 / 1000 degrees per frame. Three
+// Controllers run the same path side by side, frame by frame: blend_frames 0,
+// 4 and 8, each stage stepped once after every frame outside the frame time
+// (as `treecut render --sync`: deterministic). Per frame: the fraction of
+// pixels whose RGB changes by more than 8/255 against the previous frame of
+// the same controller (image.hpp changed_fraction), and the frame time
+// (poll + upload + draw + glFinish). max_changed_* is the largest fraction
+// over the path, frame_ms_* the median frame time. With TREECUT_FADE_CSV=DIR
+// the per-frame values go to DIR/fades_ARG0_ARG1.csv (tests/bench/fade_plot.py).
+// max_changed_frozen: the same path with the first cut frozen (the camera's
+// motion alone).
+void FadeStability(benchmark::State& state) {
+  const Hierarchy* h = model("dragon_vrip.ply");
+  if (h == nullptr) {
+    state.SkipWithError("../shared/assets/dragon_vrip.ply is absent");
+    return;
+  }
+  context();
+  Renderer renderer(*h, kSize);
+  const RenderSettings settings;
+  const std::size_t budget = h->leaf_count() / static_cast<std::size_t>(state.range(0));
+  const Camera cam = default_camera(h->bounds_min(), h->bounds_max(), kAspect);
+  const glm::vec3 center = cam.target;
+  const float kStep = float(state.range(1)) * 1e-3f * 3.14159265f / 180.0f;
+  auto camera_at = [&](std::size_t i) {
+    const float angle = kStep * float(i);
+    const glm::vec3 off = cam.eye - center;
+    Camera c = cam;
+    c.eye = center + glm::vec3(off.x * std::cos(angle) - off.z * std::sin(angle), off.y,
+                               off.x * std::sin(angle) + off.z * std::cos(angle));
+    return c;
+  };
+  const std::vector<unsigned> blends{0, 4, 8};
+  struct Run {
+    std::unique_ptr<Controller> ctl;
+    CutBuffer cut;
+    FrameTimes times;
+    Image last;
+    std::vector<double> changed;
+    std::uint64_t exchanges = 0;
+  };
+  std::vector<Run> runs(blends.size());
+  for (std::size_t b = 0; b < blends.size(); ++b) {
+    StageOptions o;
+    o.launch = Launch::Manual;
+    o.blend_frames = blends[b];
+    o.list_buffers = 3;
+    runs[b].ctl = std::make_unique<Controller>(make_model(*h), optimization(budget),
+                                               snapshot(cam, {0, 0, 1}), o);
+    // Untimed: converge at the first camera.
+    for (int i = 0; i < 3000; ++i) {
+      runs[b].ctl->set_camera(cam.view_matrix(), cam.projection_matrix(kAspect), kSize);
+      runs[b].cut.follow(runs[b].ctl->begin_frame());
+      if (runs[b].ctl->stage().counters().converged && runs[b].cut.fade() >= 1.0f) break;
+      runs[b].ctl->stage().step();
+    }
+    renderer.draw(runs[b].cut, cam, settings, true);
+    runs[b].last = grab(renderer);
+  }
+  // The motion alone: the first converged cut, frozen, along the same path.
+  CutBuffer frozen;
+  frozen.upload(*h, runs[0].cut.ids());
+  renderer.draw(frozen, cam, settings, true);
+  Image frozen_last = grab(renderer);
+  std::vector<double> frozen_changed;
+  std::size_t frame = 1;
+  for (auto _ : state) {
+    double seconds = 0.0;
+    const Camera c = camera_at(frame++);
+    renderer.draw(frozen, c, settings, true);
+    Image still = grab(renderer);
+    frozen_changed.push_back(changed_fraction(frozen_last, still));
+    frozen_last = std::move(still);
+    for (Run& r : runs) {
+      seconds += r.times.measure([&] {
+        r.ctl->set_camera(c.view_matrix(), c.projection_matrix(kAspect), kSize);
+        r.cut.follow(r.ctl->begin_frame());
+        renderer.draw(r.cut, c, settings, true);
+      }) * 1e-3;
+      Image img = grab(renderer);
+      r.changed.push_back(changed_fraction(r.last, img));
+      r.last = std::move(img);
+      r.ctl->stage().step();
+    }
+    state.SetIterationTime(seconds);
+  }
+  for (std::size_t b = 0; b < blends.size(); ++b) {
+    const Run& r = runs[b];
+    const std::string k = std::to_string(blends[b]);
+    state.counters["max_changed_" + k] =
+        r.changed.empty() ? 0.0 : *std::max_element(r.changed.begin(), r.changed.end());
+    std::vector<double> sorted = r.changed;
+    std::sort(sorted.begin(), sorted.end());
+    state.counters["p99_changed_" + k] =
+        sorted.empty() ? 0.0 : sorted[std::min(sorted.size() - 1, sorted.size() * 99 / 100)];
+    state.counters["mean_changed_" + k] =
+        sorted.empty() ? 0.0
+                       : std::accumulate(sorted.begin(), sorted.end(), 0.0) / double(sorted.size());
+    state.counters["frame_ms_" + k] = r.times.median();
+    state.counters["thread_ms_" + k] = r.times.mean_thread();
+    state.counters["exchanges_" + k] = double(r.ctl->stage().counters().exchanges);
+  }
+  state.counters["max_changed_frozen"] =
+      frozen_changed.empty() ? 0.0
+                             : *std::max_element(frozen_changed.begin(), frozen_changed.end());
+  state.counters["cut"] = double(runs[0].cut.size());
+  if (const char* dir = std::getenv("TREECUT_FADE_CSV")) {
+    const std::string path = std::string(dir) + "/fades_" + std::to_string(state.range(0)) + "_" +
+                             std::to_string(state.range(1)) + ".csv";
+    if (FILE* f = std::fopen(path.c_str(), "w")) {
+      std::fprintf(f, "frame,changed_frozen");
+      for (const unsigned b : blends) std::fprintf(f, ",changed_%u,frame_ms_%u", b, b);
+      std::fprintf(f, "\n");
+      for (std::size_t i = 0; i < runs[0].changed.size(); ++i) {
+        std::fprintf(f, "%zu,%.6f", i + 1, frozen_changed[i]);
+        for (const Run& r : runs) std::fprintf(f, ",%.6f,%.3f", r.changed[i], r.times.wall_ms[i]);
+        std::fprintf(f, "\n");
+      }
+      if (std::fclose(f) != 0) std::fprintf(stderr, "%s: write failed\n", path.c_str());
+    } else {
+      std::fprintf(stderr, "%s: cannot write\n", path.c_str());
+    }
+  }
+}
+// Args: budget = leaves / arg0; camera step arg1 / 1000 degrees per frame.
+BENCHMARK(FadeStability)
+    ->Args({4, 100})
+    ->Args({32, 100})
+    ->Args({32, 20})
+    ->Iterations(240)
     ->Unit(benchmark::kMillisecond)
     ->UseManualTime();
 
