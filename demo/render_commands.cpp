@@ -473,6 +473,17 @@ void run_render(const RenderArgs& a) {
                   run.stability_converged ? "" : " [not converged]");
     }
     std::printf("\n");
+    // Only a strategy that posts GPU queries gets this line.
+    if (const splat::QueryStats& q = queries.stats(); q.issued > 0 || q.answered > 0) {
+      std::printf(
+          "queries   %s: %llu issued, %llu answered (%llu occluded), %zu pending, "
+          "%llu dropped, latency %.2f frames (max %llu), %.3f ms per frame\n",
+          name.c_str(), static_cast<unsigned long long>(q.issued),
+          static_cast<unsigned long long>(q.answered), static_cast<unsigned long long>(q.occluded),
+          q.pending, static_cast<unsigned long long>(q.dropped), q.latency_frames_mean(),
+          static_cast<unsigned long long>(q.latency_frames_max),
+          double(q.cpu_ns_total) * 1e-6 / double(std::max<std::uint64_t>(controller.frame(), 1)));
+    }
     // Fewer iterations than the path needed: say so (the frames lag or show the root).
     if (const std::string late =
             stage_shortfall(name, controller.stage().counters(), stage_options,

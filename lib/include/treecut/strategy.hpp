@@ -29,9 +29,18 @@
 //   set_param); parameter changes from the render thread travel through
 //   FeedbackStage::set_param. name(), mode() and param_specs() are immutable
 //   after construction and may be read from any thread.
-// - GPU queries: a strategy appends QueryRequests to `*output.queries`; the
-//   render thread executes them after it exchanges the list and reports the
-//   answers in `input.view.visibility` of a later iteration, frames later.
+// - GPU queries: a strategy appends QueryRequests to `*output.queries`
+//   (QueryKind::AnySamples when "visible or not" is enough); the render
+//   thread executes them once, in the frames after it exchanges that list
+//   (a per-frame cap may spread them over several frames; requests of a list
+//   replaced before they were issued are dropped), and reports the answers in
+//   `input.view.visibility` of a later iteration. Each VisibilityResult
+//   carries frame_issued and frame_read on the one frame counter that
+//   `input.view.frame` also counts (FeedbackStage::frame()). A strategy that
+//   wants a result in the same frame, or in the iteration that asked, is
+//   impossible by design: the list must be drawn before its queries can be
+//   issued, and an answer is read only once the GPU says it is available,
+//   never by waiting for it (treecut/splat/query_executor.hpp).
 // - State: a strategy may keep per-node state across iterations (hysteresis,
 //   event queues); reset() drops it when the hierarchy changes.
 // - Events: `input.view.version` changes when the view changed and
