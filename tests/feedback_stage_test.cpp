@@ -537,5 +537,71 @@ TEST(ViewSnapshot, FrustumProjectionAndBackfacing) {
   EXPECT_TRUE(v.backfacing({3, 0, 0}, 0.1f, {1, 0, 0}, 0.99f));
 }
 
+// Keeps a copy of the snapshot of every iteration.
+class SnapshotRecorder final : public Strategy {
+ public:
+  SnapshotRecorder() : Strategy({}) {}
+  [[nodiscard]] std::string_view name() const override { return "recorder"; }
+  [[nodiscard]] Mode mode() const override { return Mode::Evolve; }
+  void reset(const Hierarchy&) override {}
+  void iterate(const IterationInput& in, IterationOutput& out) override {
+    views.push_back(in.view);
+    out.result.converged = true;
+  }
+  std::vector<ViewSnapshot> views;
+};
+
+TEST(FeedbackStage, SetViewHandsTheSnapshotOverWholeOnTheStagesFrameCounter) {
+  auto rec = std::make_unique<SnapshotRecorder>();
+  SnapshotRecorder* r = rec.get();
+  FeedbackStage stage(sphere_model(), std::move(rec), manual());
+  ViewSnapshot v = orbit_view(*sphere_model().hierarchy, 0.7f, 1.3f);
+  v.viewport = {321, 123};
+  v.light_dir = {0.0f, 1.0f, 0.0f};
+  v.version = 42;
+  v.frame = 999;  // the stage numbers frames itself
+  v.finalize();
+  v.visibility = {{0, 1, 7, 5, 1, 2, QueryKind::Samples}};
+  stage.set_view(v);
+  ViewSnapshot w = v;
+  w.visibility = {{0, 2, 8, 0, 2, 3, QueryKind::AnySamples}};
+  stage.set_view(w);  // the same view again: its results are appended, not replacing
+  stage.post_visibility(std::vector<VisibilityResult>{{0, 3, 9, 1, 3, 4, QueryKind::Samples}});
+  (void)stage.poll();
+  (void)stage.poll();  // Process: no request, but the frame counts
+  ASSERT_TRUE(stage.step());
+  ASSERT_EQ(r->views.size(), 1u);
+  const ViewSnapshot& got = r->views[0];
+  EXPECT_EQ(got.view, v.view);
+  EXPECT_EQ(got.projection, v.projection);
+  EXPECT_EQ(got.viewport, v.viewport);
+  EXPECT_EQ(got.light_dir, v.light_dir);
+  EXPECT_EQ(got.version, 42u);
+  EXPECT_EQ(got.derived.eye, v.derived.eye);
+  EXPECT_EQ(got.derived.pixel_scale, v.derived.pixel_scale);
+  EXPECT_EQ(got.frame, 1u);  // the frame of the request, the stage's counter
+  EXPECT_EQ(stage.frame(), 2u);
+  ASSERT_EQ(got.visibility.size(), 3u);
+  EXPECT_EQ(got.visibility[0].tag, 7u);
+  EXPECT_EQ(got.visibility[1].tag, 8u);
+  EXPECT_EQ(got.visibility[1].kind, QueryKind::AnySamples);
+  EXPECT_EQ(got.visibility[2].tag, 9u);
+  EXPECT_EQ(got.visibility[2].frame_read, 4u);
+}
+
+TEST(Controller, CountsFramesWithTheStagesCounter) {
+  auto h = test::small_hierarchy(ModelKind::Sphere, 5000);
+  ViewSnapshot v = orbit_view(*h, 0.6f, 1.2f);
+  v.frame = 500;  // an initial view's own number does not start a second count
+  Controller c(Model{h, TreeCut::root_cut(*h)}, std::make_unique<SnapshotRecorder>(), v, manual());
+  for (std::uint64_t i = 1; i <= 5; ++i) {
+    (void)c.begin_frame();
+    EXPECT_EQ(c.frame(), i);
+    EXPECT_EQ(c.view().frame, i);
+    EXPECT_EQ(c.stage().frame(), i);
+    c.stage().step();
+  }
+}
+
 }  // namespace
 }  // namespace treecut
