@@ -435,6 +435,15 @@ class Viewer {
                 static_cast<unsigned long long>(c.iterations),
                 static_cast<unsigned long long>(c.exchanges));
     ImGui::Text("converged: %s", c.converged ? "yes" : "no");
+    if (const splat::QueryStats& q = queries_->stats(); q.issued > 0 || q.queued > 0) {
+      // The strategy's GPU queries: what is waiting, and how late answers come.
+      ImGui::Text("queries: %llu issued, %llu answered (%llu occluded), %zu pending, %zu queued",
+                  static_cast<unsigned long long>(q.issued),
+                  static_cast<unsigned long long>(q.answered),
+                  static_cast<unsigned long long>(q.occluded), q.pending, q.queued);
+      ImGui::Text("query latency %.1f frames (max %llu), %.3f ms/frame", q.latency_frames_mean(),
+                  static_cast<unsigned long long>(q.latency_frames_max), q.cpu_ns_last * 1e-6);
+    }
     if (!ImGui::CollapsingHeader("strategy", ImGuiTreeNodeFlags_DefaultOpen)) {
       rendering_panel();
       ImGui::End();
@@ -504,6 +513,15 @@ class Viewer {
       ImGui::SliderFloat("point size", &settings_.point_size_px, 1.0f, 16.0f);
     }
     ImGui::Checkbox("light follows camera", &settings_.light.follow_camera);
+    // Fades of an exchange (--blend N): the stage holds the next list until one ends.
+    int blend = static_cast<int>(controller_->stage().blend_frames());
+    bool fades = blend > 0;
+    if (ImGui::Checkbox("fade exchanges", &fades)) {
+      controller_->stage().set_blend_frames(fades ? 8u : 0u);
+    }
+    if (fades && ImGui::SliderInt("fade frames", &blend, 1, 32)) {
+      controller_->stage().set_blend_frames(static_cast<unsigned>(blend));
+    }
     ImGui::Checkbox("fly camera (Tab)", &fly_);
     if (ImGui::Button("fit (F)")) fit();
     ImGui::SameLine();

@@ -36,6 +36,7 @@ struct SceneArgs {
   std::string up = "auto";        ///< x | y | z | auto (from the data: treecut/up_axis.hpp)
   bool validate = false;          ///< --validate: check every cut a strategy returns in full
   int stage_wait_bound_ms = 100;  ///< raise a starved stage after this wait; 0 = never
+  unsigned blend_frames = 0;      ///< --blend N: exchanges fade over N frames (0 = swap)
 };
 
 void add_scene_options(CLI::App& cmd, SceneArgs& args);

@@ -51,6 +51,11 @@ void add_scene_options(CLI::App& cmd, SceneArgs& args) {
   cmd.add_flag("--validate", args.validate,
                "Check every cut a strategy returns with TreeCut::validate (always on in Debug "
                "and sanitizer builds; see docs/plugin-guide.md)");
+  cmd.add_option("--blend", args.blend_frames,
+                 "Frames over which the splats of an exchanged cut fade in and the replaced ones "
+                 "out (screen-door dither; 0 = swap at once; docs/rendering.md, \"Fades\")")
+      ->check(CLI::Range(0u, 64u))
+      ->capture_default_str();
   cmd.add_option("--stage-wait-bound", args.stage_wait_bound_ms,
                  "Milliseconds an update may wait for the low-priority Feedback Stage before it "
                  "runs at normal priority until done (0 = never; docs/threading.md)")
@@ -59,6 +64,7 @@ void add_scene_options(CLI::App& cmd, SceneArgs& args) {
 }
 
 void configure_stage(StageOptions& options, const SceneArgs& args) {
+  options.blend_frames = args.blend_frames;
   if (args.validate) options.validate = true;
   options.starvation_bound = std::chrono::milliseconds(args.stage_wait_bound_ms);
   // The stage cannot leave while the iteration runs (it reads the stage's

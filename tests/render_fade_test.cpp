@@ -7,12 +7,17 @@
 // frame after the exchange is B.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
+#include <fstream>
 #include <memory>
 #include <numeric>
+#include <string>
 #include <vector>
 
+#include "test_support.hpp"
 #include "treecut/feedback_stage.hpp"
 #include "treecut/generate.hpp"
 #include "treecut/model.hpp"
@@ -200,6 +205,75 @@ INSTANTIATE_TEST_SUITE_P(Modes, RenderFade,
                          [](const ::testing::TestParamInfo<SplatMode>& p) {
                            return std::string(splat_mode_name(p.param));
                          });
+
+}  // namespace
+}  // namespace treecut::splat
+
+namespace treecut::splat {
+namespace {
+
+// The `exchanges` column (cumulative) of a stats.csv, one value per frame.
+std::vector<long> exchanges_per_frame(const std::filesystem::path& csv) {
+  std::ifstream in(csv);
+  std::string line;
+  std::getline(in, line);
+  std::size_t column = 0;
+  for (std::size_t pos = 0, i = 0;; ++i) {
+    const std::size_t comma = line.find(',', pos);
+    if (line.substr(pos, comma - pos) == "exchanges") {
+      column = i;
+      break;
+    }
+    if (comma == std::string::npos) return {};
+    pos = comma + 1;
+  }
+  std::vector<long> v;
+  while (std::getline(in, line)) {
+    std::size_t pos = 0;
+    for (std::size_t i = 0; i < column; ++i) pos = line.find(',', pos) + 1;
+    v.push_back(std::stol(line.substr(pos)));
+  }
+  return v;
+}
+
+// `treecut render --blend N`: a fade runs to its end before the next exchange,
+// so exchanges come at least N frames apart; without it the --sync stage
+// exchanges every frame while the cut grows. Out of range: exit 2, one line.
+TEST(RenderFadeCommand, BlendSpacesTheExchangesByItsFrames) {
+  const std::filesystem::path dir = test::scratch_dir("render_fade_command");
+  const std::string common =
+      "render --default-points 30000 --sync --no-png --frames 30 --warmup 0 -p max_nodes=3000 ";
+  for (const unsigned blend : {0u, 4u}) {
+    const std::filesystem::path out = dir / ("blend" + std::to_string(blend));
+    const test::CommandResult r =
+        test::run_treecut(common + "--blend " + std::to_string(blend) + " -o " + test::quote(out));
+    ASSERT_EQ(r.code, 0) << r.out;
+    const std::vector<long> ex = exchanges_per_frame(out / "stats.csv");
+    ASSERT_EQ(ex.size(), 30u) << r.out;
+    std::size_t shortest = ex.size();
+    std::size_t last = 0;
+    bool seen = false;
+    for (std::size_t f = 1; f < ex.size(); ++f) {
+      EXPECT_LE(ex[f] - ex[f - 1], 1) << "frame " << f;
+      if (ex[f] == ex[f - 1]) continue;
+      if (seen) shortest = std::min(shortest, f - last);
+      last = f;
+      seen = true;
+    }
+    ASSERT_LT(shortest, ex.size()) << "fewer than two exchanges: " << r.out;
+    if (blend == 0) {
+      EXPECT_EQ(shortest, 1u);
+    } else {
+      EXPECT_GE(shortest, blend);
+    }
+  }
+  const test::CommandResult bad =
+      test::run_treecut(common + "--blend 65 -o " + test::quote(dir / "bad"));
+  EXPECT_EQ(bad.code, 2);
+  EXPECT_EQ(std::count(bad.out.begin(), bad.out.end(), '\n'), 1) << bad.out;
+  EXPECT_NE(bad.out.find("--blend"), std::string::npos) << bad.out;
+  EXPECT_FALSE(std::filesystem::exists(dir / "bad"));
+}
 
 }  // namespace
 }  // namespace treecut::splat

@@ -215,6 +215,10 @@ class FeedbackStage {
   void set_param(std::string_view name, double value);
   /// Replaces hierarchy and cut at the next request (the strategy is reset).
   void set_model(Model model);
+  /// Frames over which the next exchanges fade (StageOptions::blend_frames;
+  /// the viewer's HUD switch). 0 ends a running fade at the next poll().
+  void set_blend_frames(unsigned frames) { options_.blend_frames = frames; }
+  [[nodiscard]] unsigned blend_frames() const { return options_.blend_frames; }
   /// The render thread no longer needs list `generation` (ReleaseMode::Manual).
   /// Unknown or already free generations are ignored.
   void release(std::uint64_t generation);
