@@ -54,6 +54,7 @@
 #include "treecut/registry.hpp"
 #include "treecut/splat/camera.hpp"
 #include "treecut/splat/context.hpp"
+#include "treecut/splat/frame.hpp"
 #include "treecut/splat/image.hpp"
 #include "treecut/splat/renderer.hpp"
 #include "treecut/strategies/builtin.hpp"
@@ -186,23 +187,17 @@ void FeedbackOverhead(
     return c;
   };
 
-  CutBuffer cut;     // "on": the stage's lists
   CutBuffer frozen;  // "off": the stage's last list before the block, uploaded untimed
   StageOptions options;
   options.priority = priority;
   options.starvation_bound = starvation_bound;
-  Controller ctl(make_model(*h), optimization(budget), snapshot(cam, {0, 0, 1}), options);
-  std::uint64_t uploaded = 0;
+  Controller ctl(make_model(*h), optimization(budget), view_snapshot(cam, kSize, settings.light),
+                 options);
+  // "on": the library's frame (poll, upload on an exchange, draw), as in treecut render.
+  RenderThreadFrame frame(ctl, renderer);
+  const CutBuffer& cut = frame.cut();
   std::size_t frame_index = 0;
-  auto on_frame = [&](const Camera& c) {
-    ctl.set_camera(c.view_matrix(), c.projection_matrix(kAspect), kSize);
-    const FrameLists lists = ctl.begin_frame();
-    if (lists.current.generation != uploaded) {
-      cut.upload(*lists.current.hierarchy, lists.current.nodes);
-      uploaded = lists.current.generation;
-    }
-    renderer.draw(cut, c, settings, true);
-  };
+  auto on_frame = [&](const Camera& c) { frame.run_render_thread(c, settings, true); };
   // Untimed: grow the stage's cut to the budget first (same cut size as off),
   // and for the static camera let the stage converge.
   for (int i = 0; i < 3000; ++i) {
