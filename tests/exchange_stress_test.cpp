@@ -1,8 +1,9 @@
 // Thread stress of the wait/process exchange ("Parallel TreeCut
 // Manipulation", figure 2): a render loop stand-in polls a threaded Feedback
 // Stage with randomized delays on both sides, checks every list it receives
-// (complete and valid), pretends a GPU still reads the last lists (Manual
-// release, content verified unchanged at release), and switches strategies,
+// (complete and valid), verifies that the lists the frame may read (the
+// current one, the fading previous one) keep their content until the next
+// poll while the stage thread writes, and switches strategies,
 // parameters, views and models, and shuts stages down, in the middle of
 // iterations. TREECUT_STRESS_EXCHANGES sets the number of exchanges (default
 // 1,000,000). Nothing here measures time; a deadlock hangs and the CTest
@@ -12,7 +13,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdlib>
-#include <deque>
 #include <memory>
 #include <random>
 #include <string>
@@ -54,7 +54,6 @@ std::uint64_t run_session(std::mt19937_64& rng, std::uint64_t budget,
   const auto& h0 = models[rng() % models.size()];
   StageOptions options;
   options.list_buffers = 3 + static_cast<unsigned>(rng() % 3);
-  options.release = ReleaseMode::Manual;
   options.blend_frames = static_cast<unsigned>(rng() % 3);
   // How the idle stage notices requests: the defaults (spin, then poll), or
   // parked at once, so that every request wakes it.
@@ -68,8 +67,7 @@ std::uint64_t run_session(std::mt19937_64& rng, std::uint64_t budget,
   FeedbackStage stage(Model{h0, TreeCut::root_cut(*h0)}, std::move(walk), options);
 
   std::shared_ptr<const Hierarchy> current = h0;
-  std::deque<InFlight> gpu;  // lists the pretend GPU may still read, oldest first
-  gpu.push_back({1, stage.front().nodes, checksum(stage.front().nodes)});
+  std::vector<InFlight> drawn;  // what this frame may read, checked before the next poll
   std::uint64_t version = 1;
   const std::uint64_t frames = budget * 4 + 1000;
   for (std::uint64_t frame = 0; frame < frames && stage.counters().exchanges < budget; ++frame) {
@@ -106,17 +104,11 @@ std::uint64_t run_session(std::mt19937_64& rng, std::uint64_t budget,
         return stage.counters().exchanges;
       }
       ++lists_checked;
-      gpu.push_back({f.current.generation, f.current.nodes, checksum(f.current.nodes)});
     }
-    // The pretend GPU finishes the oldest lists after a random number of frames.
-    while (gpu.size() > 1 && (gpu.size() > 3 || rng() % 4 == 0)) {
-      const InFlight& old = gpu.front();
-      if (checksum(old.nodes) != old.sum) {
-        ADD_FAILURE() << "list " << old.generation << " changed while in flight";
-        return stage.counters().exchanges;
-      }
-      stage.release(old.generation);
-      gpu.pop_front();
+    drawn.clear();
+    drawn.push_back({f.current.generation, f.current.nodes, checksum(f.current.nodes)});
+    if (!f.previous.nodes.empty()) {
+      drawn.push_back({f.previous.generation, f.previous.nodes, checksum(f.previous.nodes)});
     }
     // Render-thread delay: mostly none, sometimes a short spin or a yield.
     const std::uint64_t delay = rng() % 100;
@@ -125,6 +117,13 @@ std::uint64_t run_session(std::mt19937_64& rng, std::uint64_t budget,
       for (std::uint64_t i = 0; i < rng() % 3000; ++i) sink = sink + i;
     } else if (delay < 12) {
       std::this_thread::yield();
+    }
+    // The stage thread ran meanwhile: the lists of this frame are unchanged.
+    for (const InFlight& d : drawn) {
+      if (checksum(d.nodes) != d.sum) {
+        ADD_FAILURE() << "list " << d.generation << " changed while the frame could read it";
+        return stage.counters().exchanges;
+      }
     }
   }
   return stage.counters().exchanges;  // ~FeedbackStage: shutdown, maybe mid-iteration

@@ -30,11 +30,9 @@ Model sphere_model() {
   return Model{h, TreeCut::root_cut(*h)};
 }
 
-StageOptions manual(ReleaseMode release = ReleaseMode::OnExchange, unsigned buffers = 3,
-                    unsigned blend = 0) {
+StageOptions manual(unsigned buffers = 3, unsigned blend = 0) {
   StageOptions o;
   o.launch = Launch::Manual;
-  o.release = release;
   o.list_buffers = buffers;
   o.blend_frames = blend;
   return o;
@@ -223,53 +221,55 @@ TEST(FeedbackStage, QueriesReachTheRenderThreadAndResultsComeBack) {
   EXPECT_EQ(p->seen.size(), 1u) << "a result is delivered once";
 }
 
-TEST(FeedbackStage, ManualReleaseHoldsRetiredListsUntilReleased) {
-  FeedbackStage stage(sphere_model(), std::make_unique<test::RandomWalkStrategy>(),
-                      manual(ReleaseMode::Manual, 3));
-  std::vector<std::uint64_t> in_flight;
-  // front(1) + back: exchange 1 retires gen 1, exchange 2 retires gen 2; then
-  // all three buffers are taken (front + two retired) and no request is made.
-  for (int i = 0; i < 6; ++i) {
+TEST(FeedbackStage, AReplacedListIsFreeAtOnce) {
+  // The renderer copies a list in the frame of its exchange, so with two
+  // buffers (front + back) the stage is asked again in the frame after every
+  // exchange: no frame waits for a free buffer.
+  FeedbackStage stage(sphere_model(), std::make_unique<test::RandomWalkStrategy>(), manual(2));
+  for (int i = 0; i < 20; ++i) {
     const FrameLists f = stage.poll();
-    if (f.exchanged) in_flight.push_back(f.current.generation - 1);
+    EXPECT_TRUE(f.requested) << "frame " << i;
+    if (i > 0) {
+      EXPECT_TRUE(f.exchanged) << "frame " << i;
+    }
     stage.step();
   }
-  EXPECT_EQ(stage.counters().exchanges, 2u);
-  EXPECT_GT(stage.counters().no_free_buffer, 0u);
-  EXPECT_FALSE(stage.poll().requested);
-  stage.release(in_flight.front());
-  EXPECT_TRUE(stage.poll().requested);
-  stage.release(12345);  // unknown: ignored
+  EXPECT_EQ(stage.counters().no_free_buffer, 0u);
+  EXPECT_EQ(stage.counters().exchanges, 19u);
 }
 
-TEST(FeedbackStage, RetiredListsKeepTheirContentUntilReleased) {
-  FeedbackStage stage(sphere_model(), std::make_unique<test::RandomWalkStrategy>(),
-                      manual(ReleaseMode::Manual, 4));
-  struct InFlight {
-    FrontList list;
-    std::vector<NodeId> copy;
-  };
-  std::vector<InFlight> gpu;  // lists a pretend GPU still reads
-  gpu.push_back({stage.front(), {stage.front().nodes.begin(), stage.front().nodes.end()}});
-  for (int i = 0; i < 300; ++i) {
-    const FrameLists f = stage.poll();
-    if (f.exchanged) gpu.push_back({f.current, {f.current.nodes.begin(), f.current.nodes.end()}});
-    stage.step();
-    for (const InFlight& g : gpu) {
-      ASSERT_EQ(std::vector<NodeId>(g.list.nodes.begin(), g.list.nodes.end()), g.copy)
-          << "generation " << g.list.generation << " was overwritten while in flight";
+TEST(FeedbackStage, ListsKeepTheirContentWhileCurrentOrFading) {
+  // What a renderer may rely on: the current list until the next exchange,
+  // the fading previous one until its fade ends, whatever the stage writes
+  // meanwhile (two buffers besides them: the stage always has one to write).
+  for (const unsigned blend : {0u, 2u}) {
+    FeedbackStage stage(sphere_model(), std::make_unique<test::RandomWalkStrategy>(),
+                        manual(4, blend));
+    struct Held {
+      FrontList list;
+      std::vector<NodeId> copy;
+    };
+    std::vector<Held> held;
+    for (int i = 0; i < 300; ++i) {
+      const FrameLists f = stage.poll();
+      held.clear();
+      held.push_back({f.current, {f.current.nodes.begin(), f.current.nodes.end()}});
+      if (!f.previous.nodes.empty()) {
+        held.push_back({f.previous, {f.previous.nodes.begin(), f.previous.nodes.end()}});
+      }
+      stage.step();  // the stage writes a back list while this frame draws
+      for (const Held& g : held) {
+        ASSERT_EQ(std::vector<NodeId>(g.list.nodes.begin(), g.list.nodes.end()), g.copy)
+            << "generation " << g.list.generation << " was overwritten while drawn";
+      }
     }
-    if (gpu.size() > 3) {  // the oldest retired list's fence signalled
-      stage.release(gpu.front().list.generation);
-      gpu.erase(gpu.begin());
-    }
+    EXPECT_GT(stage.counters().exchanges, blend > 0 ? 90u : 250u);
   }
-  EXPECT_GT(stage.counters().exchanges, 100u);
 }
 
 TEST(FeedbackStage, BlendingKeepsThePreviousListWithRisingWeight) {
   FeedbackStage stage(sphere_model(), std::make_unique<test::RandomWalkStrategy>(),
-                      manual(ReleaseMode::OnExchange, 4, 3));
+                      manual(4, 3));
   stage.poll();
   stage.step();
   FrameLists f = stage.poll();
@@ -492,7 +492,7 @@ TEST(FeedbackStage, RejectsBadConstruction) {
                std::invalid_argument);
   EXPECT_THROW(FeedbackStage(sphere_model(), nullptr, manual()), std::invalid_argument);
   EXPECT_THROW(FeedbackStage(sphere_model(), std::make_unique<ProbeStrategy>(),
-                             manual(ReleaseMode::OnExchange, 1)),
+                             manual(1)),
                std::invalid_argument);
   EXPECT_THROW(
       FeedbackStage(Model{m.hierarchy, TreeCut()}, std::make_unique<ProbeStrategy>(), manual()),

@@ -2,7 +2,7 @@
 // Schiffner et al.), section 3, figure 2. See feedback_stage.hpp and
 // docs/threading.md for the ownership rules this file relies on.
 // Model-checked: tests/model/exchange.pml is this protocol in Promela, with the
-// same names (states, buffer uses, poll/exchange/request/retire/release,
+// same names (states, buffer uses, poll/exchange/request/retire,
 // run/process with Extract, Iterate, Publish, the destructor); change both.
 #include "treecut/feedback_stage.hpp"
 
@@ -389,16 +389,9 @@ std::optional<std::uint32_t> FeedbackStage::free_buffer() const {
   return std::nullopt;
 }
 
-void FeedbackStage::retire(std::uint32_t index) {
-  buffers_[index].use =
-      options_.release == ReleaseMode::OnExchange ? BufferUse::Free : BufferUse::Retired;
-}
-
-void FeedbackStage::release(std::uint64_t generation) {
-  for (ListBuffer& b : buffers_) {
-    if (b.use == BufferUse::Retired && b.generation == generation) b.use = BufferUse::Free;
-  }
-}
+// A list the renderer no longer draws: it was copied in the frame of its
+// exchange (CutBuffer::follow), so the stage may write it again at once.
+void FeedbackStage::retire(std::uint32_t index) { buffers_[index].use = BufferUse::Free; }
 
 // The Exchange: O(1), swaps which buffer is the front; no list is copied.
 void FeedbackStage::exchange() {

@@ -5,9 +5,9 @@
  * figure 2; docs/threading.md). tests/model/check.sh verifies it with spin.
  *
  * The names are the code's: the states Wait, Process, Exit (State), the
- * buffer uses Free, Back, Front, Blending, Retired (BufferUse); the render
+ * buffer uses Free, Back, Front, Blending (BufferUse); the render
  * thread's poll() (with completed(), its in_flight_ branch, and due(), its
- * `due` test), exchange(), request(), retire(), free_buffer(), release(),
+ * `due` test), exchange(), request(), retire(), free_buffer(),
  * set_strategy() (set_model() hands over and cancels the same way) and the
  * destructor; the stage's run() and process() with its steps extract(),
  * iterate() and publish() (extract_ns, iteration_ns, publish_ns in the code).
@@ -15,17 +15,18 @@
  * for (state_ -> state, cancel_ -> cancel, buffers_[i].use -> use[i], ...).
  *
  * What is abstracted: list contents (a list is its buffer index), counters,
- * generations (a retired buffer holds exactly one), the view and the pending
+ * generations, the view and the pending
  * inputs (a request may be due in any frame), blend_frames (a blending list
- * may retire in any poll), the strategy's mode (the stage's cut may be stale
+ * may retire in any poll; the hold of a finished list until a fade ends is
+ * not modelled: it only removes interleavings), the strategy's mode (the stage's cut may be stale
  * after any iteration), whether an iteration throws, converges or is a
  * strategy that returns only when cancelled (tests' GateStrategy).
  *
  * Properties:
  *  - no invalid end state: the destructor always returns, nobody blocks;
- *  - ownership (assertions): the render thread (CPU, or with MANUAL the GPU
- *    until release()) never reads a list the stage is writing, the stage
- *    never writes a list the render thread or the GPU reads or one it reads
+ *  - ownership (assertions): the render thread never reads a list the stage
+ *    is writing (it copies what it draws within the frame: CutBuffer::follow),
+ *    the stage never writes a list the render thread reads or one it reads
  *    itself, and the inbox and outbox are never accessed by both threads at
  *    once;
  *  - a cancel the render thread asks for (set_strategy, set_model, the
@@ -34,8 +35,9 @@
  *    cancelled iteration returns to Wait), under weak fairness.
  *
  * Configurations (spin -D...): BUFFERS = StageOptions::list_buffers (>= 2,
- * default 3), MANUAL = ReleaseMode::Manual (else OnExchange), BLEND =
- * blend_frames > 0.
+ * default 3), BLEND = blend_frames > 0. (A manual release mode, with the GPU
+ * reading lists until release(), was removed with ReleaseMode: the renderer
+ * copies every list.)
  *
  * The deliberately broken variants (exchange_broken_*.pml) each replace one
  * inline below (the #ifndef BROKEN_* hooks) and include this file.
@@ -46,7 +48,7 @@
 #endif
 
 mtype = { Wait, Process, Exit };                  /* FeedbackStage::State */
-mtype = { Free, Back, Front, Blending, Retired };  /* FeedbackStage::BufferUse */
+mtype = { Free, Back, Front, Blending };  /* FeedbackStage::BufferUse */
 
 /* The only synchronization: state_ (acquire/release) and cancel_ (no data). */
 mtype state = Wait;
@@ -73,7 +75,6 @@ bool cut_stale = false;  /* cut_stale_ */
 
 /* Ghost state for the properties (no counterpart in the code). */
 byte render_reading[BUFFERS];  /* the renderer draws the list this frame */
-bool gpu_reading[BUFFERS];     /* MANUAL: the GPU may read the list until release() */
 bool stage_reading[BUFFERS];
 bool stage_writing[BUFFERS];
 bool render_inbox = false;
@@ -96,7 +97,7 @@ inline stage_read_begin(b) {
 inline stage_read_end(b) { stage_reading[b] = false }
 inline stage_write_begin(b) {
   atomic {
-    assert(render_reading[b] == 0 && !gpu_reading[b] && !stage_reading[b]);
+    assert(render_reading[b] == 0 && !stage_reading[b]);
     stage_writing[b] = true
   }
 }
@@ -112,13 +113,9 @@ inline stage_outbox_end() { stage_outbox = false }
 
 /* ---- render thread ---- */
 
-/* FeedbackStage::retire: a list the renderer no longer draws. */
+/* FeedbackStage::retire: a list the renderer no longer draws (it was copied). */
 inline retire(b) {
-#ifdef MANUAL
-  use[b] = Retired
-#else
   use[b] = Free
-#endif
 }
 
 /* FeedbackStage::free_buffer: the first Free buffer. */
@@ -248,16 +245,6 @@ inline draw() {
   :: else -> skip
   fi;
 #endif
-#ifdef MANUAL
-  /* Draws that source the list directly: the GPU reads it until release(). */
-  gpu_reading[front_] = true;
-#ifdef BLEND
-  if
-  :: has_blending -> gpu_reading[blending_] = true
-  :: else -> skip
-  fi;
-#endif
-#endif
   render_read_end(front_);
 #ifdef BLEND
   if
@@ -265,20 +252,6 @@ inline draw() {
   :: else -> skip
   fi
 #endif
-}
-
-/* FeedbackStage::release(generation): the GPU finished a retired list (a
-   fence signalled); any one of them. */
-inline release(idx) {
-  idx = 0;
-  do
-  :: idx < BUFFERS && use[idx] == Retired ->
-     gpu_reading[idx] = false;
-     use[idx] = Free;
-     break
-  :: idx < BUFFERS -> idx++
-  :: idx >= BUFFERS -> break
-  od
 }
 
 /* FeedbackStage::set_strategy and set_model: the input waits in pending_ for
@@ -319,9 +292,6 @@ active proctype RenderThread() {
   do
   :: poll(idx, found, old, thrown); draw()
   :: set_strategy()
-#ifdef MANUAL
-  :: release(idx)
-#endif
   :: break /* the owner destroys the stage */
   od;
   destructor()

@@ -14,12 +14,13 @@
 // Process the stage does; the state's acquire/release orders the hand-over.
 //
 // The exchange is O(1): it swaps buffer indices, never copies a list. A list
-// the renderer no longer draws is "retired"; the stage writes into it again
-// only after it is released: at once (ReleaseMode::OnExchange, for renderers
-// that copy the list into a GPU buffer during the frame) or when the render
-// thread calls release(generation) after the GPU finished reading it
-// (ReleaseMode::Manual, e.g. after a fence). No update is requested while no
-// buffer is free; see docs/threading.md.
+// the renderer no longer draws is free for the stage at once: the renderer
+// copies a list into a GPU buffer in the frame it is exchanged
+// (splat::CutBuffer::follow), so no GPU read outlives the exchange and no
+// fence is needed (a manual release mode for renderers that read the lists
+// in place was removed: nothing used it). While blending the fading list is
+// kept until the fade ends. No update is requested while no buffer is free;
+// see docs/threading.md.
 //
 // Threads: every public member except step() is for the render thread (the
 // thread that constructed the stage). step() is for the thread that acts as
@@ -47,11 +48,6 @@
 #include "treecut/view_snapshot.hpp"
 
 namespace treecut {
-
-enum class ReleaseMode {
-  OnExchange,  ///< a retired list is free at once (the renderer copied it)
-  Manual,      ///< a retired list is free after release(generation)
-};
 
 enum class Launch {
   Thread,  ///< the stage runs its own thread
@@ -96,9 +92,8 @@ class StrategyError : public std::runtime_error {
 [[nodiscard]] std::string describe_strategy(std::string_view name, std::string_view origin);
 
 struct StageOptions {
-  unsigned list_buffers = 3;  ///< >= 2 (front + back); more absorb late releases and blending
+  unsigned list_buffers = 3;  ///< >= 2 (front + back); a third lets the stage work while blending
   StagePriority priority = StagePriority::Normal;
-  ReleaseMode release = ReleaseMode::OnExchange;
   /// Frames over which an exchanged list fades in over the previous one; 0 = swap at once.
   unsigned blend_frames = 0;
   Launch launch = Launch::Thread;
@@ -133,8 +128,8 @@ struct StageOptions {
 };
 
 /// A list the renderer may draw. `nodes` and `hierarchy` stay valid until the
-/// list is released (at the next exchange with ReleaseMode::OnExchange,
-/// otherwise until release(generation)).
+/// next exchange (a fading `previous` list until its fade ends): copy them
+/// within the frame (splat::CutBuffer::follow does).
 struct FrontList {
   /// Ascending node ids: the stage sorts every list it publishes.
   std::span<const NodeId> nodes;
@@ -219,9 +214,6 @@ class FeedbackStage {
   /// the viewer's HUD switch). 0 ends a running fade at the next poll().
   void set_blend_frames(unsigned frames) { options_.blend_frames = frames; }
   [[nodiscard]] unsigned blend_frames() const { return options_.blend_frames; }
-  /// The render thread no longer needs list `generation` (ReleaseMode::Manual).
-  /// Unknown or already free generations are ignored.
-  void release(std::uint64_t generation);
 
   [[nodiscard]] const StageCounters& counters() const { return counters_; }
   /// The frame counter of the render thread: the number of the frame begun by
@@ -245,7 +237,7 @@ class FeedbackStage {
 
  private:
   enum class State : std::uint32_t { Wait, Process, Exit };
-  enum class BufferUse : std::uint8_t { Free, Back, Front, Blending, Retired };
+  enum class BufferUse : std::uint8_t { Free, Back, Front, Blending };
 
   struct ListBuffer {
     std::vector<NodeId> nodes;

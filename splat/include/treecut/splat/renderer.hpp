@@ -101,7 +101,7 @@ class CutBuffer {
   /// uploads a list of a new generation (fading from FrameLists::previous
   /// while the stage blends, StageOptions::blend_frames; plainly otherwise or
   /// across a model change) and sets the frame's fade weight. Returns whether
-  /// it uploaded. The lists are copied here, so ReleaseMode::OnExchange suits.
+  /// it uploaded. The lists are copied here: the stage may reuse them at once.
   bool follow(const FrameLists& lists);
   /// Weight of the new list in [0, 1] (FrameLists::blend): a pixel shows the
   /// entering splats where its dither threshold is below it and the leaving
@@ -210,7 +210,7 @@ class Renderer {
   /// a pixel (the first drawn wins; tests/render_ranges_test.cpp). A range
   /// past the list is clipped. A fading cut fades each range's entering part
   /// and draws the leaving run after the last range. FrameStats::splats
-  /// counts the splats of the ranges.
+  /// counts the splats of the ranges (FrameStats::points is 0).
   FrameStats draw_ranges(const CutBuffer& cut, std::span<const CutRange> ranges,
                          const Camera& camera, const RenderSettings& settings,
                          RangeHook* hook = nullptr, bool finish = false);
