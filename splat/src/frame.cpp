@@ -61,9 +61,9 @@ FrameResult RenderThreadFrame::begin_render_thread(const Camera& camera, const L
       size);
   controller_->set_light(world_light_dir(light, view));
   const FrameLists lists = controller_->begin_frame();
-  // A new generation is copied into the GPU index buffer now (so
-  // ReleaseMode::OnExchange suits: the stage may reuse the list after the
-  // next exchange), fading from the previous list while the stage blends.
+  // A new generation is copied into the GPU index buffer now (so the stage
+  // may reuse the list after the next exchange), fading from the previous
+  // list while the stage blends.
   cut_.follow(lists);
   current_ = FrameResult{};
   current_.frame = controller_->frame();
