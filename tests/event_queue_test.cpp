@@ -300,6 +300,63 @@ TEST(EventQueue, event_times_are_lower_bounds) {
   EXPECT_GT(checked, 10000u);
 }
 
+// The two clocks: while the eye has moved less than m rho AND the direction
+// has turned less than w omega, the test cannot change, for any split of the
+// visibility gap (the camera's pace) and any mix of the two motions: brute
+// force over random nodes and moves up to just below both bounds.
+TEST(EventQueue, two_clock_event_times_are_lower_bounds) {
+  const auto h = small_hierarchy(ModelKind::Sphere, 20000);
+  const Scene s = scene_of(*h);
+  const auto& cr = h->arrays().center_radius;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const double rho = 0.002 * 2.0 * double(h->radius(0));
+  const double omega = 0.02;
+  const double paces[] = {0.0, 0.05, 1.0, 20.0};
+  std::size_t checked = 0, rotation_bounded = 0;
+  for (int trial = 0; trial < 300; ++trial) {
+    const glm::vec3 eye = s.center + float(0.3 + 0.5 * (u(rng) + 1.0)) * s.extent *
+                                         glm::normalize(glm::vec3(u(rng), u(rng), u(rng)));
+    const glm::vec3 target = s.center + 0.2f * s.extent * glm::vec3(u(rng), u(rng), u(rng));
+    const auto c0 = strategies::CriterionCamera::from_view(camera(s, eye, target, 1), 1.5);
+    const strategies::EventRates rates(c0, rho, omega, 511.0, 63.0, paces[trial % 4]);
+    for (int k = 0; k < 100; ++k) {
+      const NodeId n =
+          NodeId(std::uniform_int_distribution<std::uint32_t>(0, h->node_count() - 1)(rng));
+      const bool now = strategies::unfold_test(c0, cr[n]);
+      const strategies::EventTime t = now ? strategies::potential_fold_event(c0, cr[n], rates)
+                                          : strategies::potential_unfold_event(c0, cr[n], rates);
+      if (t.m <= 0.0 && t.w <= 0.0) continue;
+      rotation_bounded += std::isinf(t.w) ? 0 : 1;
+      const glm::dvec3 d = glm::dvec3(glm::vec3(cr[n])) - glm::dvec3(eye);
+      for (int m = 0; m < 8; ++m) {
+        // Translation up to just below m rho (none when m is 0), rotation up
+        // to just below w omega (half a turn when rotation cannot matter).
+        const double f_m = m < 4 ? 0.999 : 0.999 * 0.5 * (u(rng) + 1.0);
+        const double f_w = m % 2 == 0 ? 0.999 : 0.999 * 0.5 * (u(rng) + 1.0);
+        const double dist = f_m * t.m * rho;
+        const double angle = f_w * std::min(std::isinf(t.w) ? 1e9 : t.w * omega, 3.0);
+        glm::dvec3 move =
+            m % 3 == 0 ? glm::normalize(d) : glm::normalize(glm::dvec3(u(rng), u(rng), u(rng)));
+        const glm::vec3 e1 = glm::vec3(glm::dvec3(eye) + dist * move);
+        const glm::dvec3 fwd = glm::normalize(glm::dvec3(target - eye));
+        const glm::dvec3 axis =
+            glm::normalize(glm::cross(fwd, m % 2 == 0 ? d : glm::dvec3(u(rng), u(rng), u(rng))));
+        const double a = angle * (m % 4 < 2 ? 1.0 : -1.0);
+        const glm::dvec3 f1 = fwd * std::cos(a) + glm::cross(axis, fwd) * std::sin(a);
+        const auto c1 =
+            strategies::CriterionCamera::from_view(camera(s, e1, e1 + glm::vec3(f1), 2), 1.5);
+        ASSERT_EQ(strategies::unfold_test(c1, cr[n]), now)
+            << "node " << n << " event (m " << t.m << ", w " << t.w << ") changed after "
+            << dist / rho << " rho and " << angle / omega << " omega";
+        ++checked;
+      }
+    }
+  }
+  EXPECT_GT(checked, 10000u);
+  EXPECT_GT(rotation_bounded, 1000u);
+}
+
 // The CLI: both strategies along the same path with --sync draw the same
 // number of splats in every row of stats.csv and the same frames.
 std::vector<std::string> column(const std::filesystem::path& csv, const std::string& name) {

@@ -215,7 +215,12 @@ void BM_Selection(benchmark::State& state) {
       double tn = 0, en = 0;
       const IterationResult rt = top.step(views[i], &tn);
       const IterationResult re = ev.step(views[i], &en);
-      if (top.cut.size() != ev.cut.size()) throw std::runtime_error("event_queue != topdown");
+      if (top.cut.size() != ev.cut.size()) {
+        throw std::runtime_error(std::string(kModels[which]) + "/" + kPaths[path_kind] + " frame " +
+                                 std::to_string(i) + ": event_queue " +
+                                 std::to_string(ev.cut.size()) + " nodes, topdown " +
+                                 std::to_string(top.cut.size()));
+      }
       top_ns.push_back(tn);
       event_ns.push_back(en);
       cut.push_back(double(ev.cut.size()));

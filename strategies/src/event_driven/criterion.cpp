@@ -1,14 +1,15 @@
 // Event times of the fold/unfold criterion (Zach & Karner 2003, section 3):
-// lower bounds, never later than the first frame in which unfold_test can
-// change, when the eye moves at most rho and the view direction turns at most
-// omega per frame. Each bound is derived below from the geometry; the
-// velocities carry a relative margin of 1e-6 and every result is floored, so
-// rounding errors (of the order of 1e-15 in double) can only make an event
-// earlier, never later. The event_queue strategy's exactness against topdown
+// lower bounds of how far the eye must move (in units of rho) or the view
+// direction turn (in units of omega) before unfold_test can change. Each
+// bound is derived below from the geometry; the velocities carry a relative
+// margin of 1e-6 and every result an absolute one of 1e-6 units, so rounding
+// errors (of the order of 1e-15 in double) can only make an event earlier,
+// never later. The event_queue strategy's exactness against topdown
 // (tests/event_queue_test.cpp) rests on these bounds.
 #include <algorithm>
 #include <cmath>
 #include <glm/mat4x4.hpp>
+#include <limits>
 
 #include "treecut/strategies/refinement_criterion.hpp"
 
@@ -113,90 +114,132 @@ bool unfold_test(const CriterionCamera& cam, const ViewSnapshot& view, const glm
 }
 
 // A folded node (unfold_test false, so the eye is outside the sphere).
-// Let s <= k rho be how far the eye has moved after k frames.
-// - t_i: inside needs |c - e_k| < r, and |c - e_k| >= d - s, so k > (d - r) / rho.
-// - t_m: the threshold needs |c - e_k| <= R = r S / theta, so k >= (d - R) / rho
+// Let s <= m rho be how far the eye has moved and w omega how far the view
+// direction has turned since.
+// - t_i: inside needs |c - e_k| < r, and |c - e_k| >= d - s, so m > (d - r) / rho.
+// - t_m: the threshold needs |c - e_k| <= R = r S / theta, so m >= (d - R) / rho
 //   (moving straight at the center is the fastest way, figure 5).
 // - t_r: seen from e_k the sphere looks like the sphere (c - (e_k - e), r)
 //   seen from e, which lies inside the sphere (c, r + s); so visible needs
 //   angle(u_k, D) <= beta + asin((r + s) / d), and angle(u_k, D) >=
-//   alpha - k omega. For k <= K with x1 = (r + K rho) / d < 1, asin is convex,
-//   so asin((r + k rho) / d) <= phi + k rho / (d sqrt(1 - x1^2)): visible
-//   needs k >= (alpha - phi - beta) / (omega + rho / (d sqrt(1 - x1^2))), and
-//   if that exceeds K, k > K. (The paper's t_r = (alpha - phi - sqrt(2) fov/2)
-//   / omega leaves out that translation turns the direction to the sphere too.)
-//   The angle alpha - phi - beta itself is replaced by its sine, a lower
-//   bound (gap_out_of_view).
-// Unfold needs inside, or visible and the threshold: k >= min(t_i, max(t_r, t_m)).
+//   alpha - w omega. For m <= K with x1 = (r + K rho) / d < 1, asin is
+//   convex, so asin((r + m rho) / d) <= phi + m b with b = rho / (d sqrt(1 -
+//   x1^2)): visible needs w omega + m b >= G = alpha - phi - beta (replaced
+//   by its sine, a lower bound: gap_out_of_view), or m > K. (The paper's t_r
+//   = (alpha - phi - sqrt(2) fov/2) / omega leaves out that translation
+//   turns the direction to the sphere too.)
+// The two clocks share G: with M = min(K, G / (b + k)) for any k > 0, while
+// m < M and w < W = (G - b M) / omega the sum w omega + m b stays below G.
+// k is the camera's own recent ratio of rotation to translation (rates.split,
+// clamped to [b / 7, 7 b]), which makes both come after about the same time
+// for a camera that keeps its pace; with both clocks in step (k = omega) M
+// is the single-clock t_r = G / (omega + b).
+// Unfold needs inside, or visible and the threshold: m >= min(t_i, max(t_r, t_m)).
+// When M <= t_m the threshold alone keeps the node folded until t_m and
+// rotation cannot change that (w = infinity); else the node waits for
+// min(t_i, M) on the translation clock or W on the rotation clock.
 
-EventRates::EventRates(const CriterionCamera& cam, double rho_, double omega_, std::uint32_t cap_)
+EventRates::EventRates(const CriterionCamera& cam, double rho_, double omega_, double cap_,
+                       double cap_w_, double turn_per_move)
     : rho(rho_ * kVelocityMargin),
       inv_rho(1.0 / (rho_ * kVelocityMargin)),
       omega(omega_ * kVelocityMargin),
+      inv_omega(1.0 / (omega_ * kVelocityMargin)),
       size_scale(cam.pixel_scale / cam.theta),
-      cap(double(cap_)),
-      cap_frames(cap_) {}
+      cap(cap_),
+      cap_w(cap_w_),
+      split(omega_ * turn_per_move) {}
 
-std::uint32_t potential_unfold_time(const CriterionCamera& cam, const glm::vec4& cr, double rho,
-                                    double omega, std::uint32_t cap) {
-  return potential_unfold_time(cam, cr, EventRates(cam, rho, omega, cap));
+namespace {
+
+// A real time x as the bound handed out: clamped to [0, cap], less an
+// absolute margin for the rounding of the distances (a clock is a real
+// number now, so an error cannot hide below a whole frame any more).
+constexpr double kAbsoluteMargin = 1e-6;
+double clock_bound(double x, double cap) {
+  if (!(x > kAbsoluteMargin)) return 0.0;
+  return std::min(cap, x - kAbsoluteMargin);
 }
 
-std::uint32_t potential_unfold_time(const CriterionCamera& cam, const glm::vec4& cr,
-                                    const EventRates& q) {
+constexpr double kNever = std::numeric_limits<double>::infinity();
+
+// k of the split, clamped to [b / 7, 7 b] (lambda = b / (b + k) in [1/8, 7/8]):
+// a camera that has not turned for a while still gets a rotation time of at
+// least G / (8 omega), so its first turn does not make every such node due.
+double split_of(const EventRates& q, double b) {
+  return std::clamp(q.split, b * (1.0 / 7.0), 7.0 * b);
+}
+
+}  // namespace
+
+EventTime potential_unfold_event(const CriterionCamera& cam, const glm::vec4& cr,
+                                 const EventRates& q) {
   const Geometry g = geometry(cam, cr);
-  if (g.d2 < g.r * g.r || !cam.perspective) return 0;
+  if (g.d2 < g.r * g.r || !cam.perspective) return {0.0, 0.0};
   const double t_i = (g.d - g.r) * q.inv_rho;
   const double t_m = (g.d - g.r * q.size_scale) * q.inv_rho;
-  if (t_m >= t_i) return frames(t_i, q.cap_frames);  // max(t_r, t_m) >= t_i already
-  double t_r = 0.0;
+  if (t_m >= t_i) return {clock_bound(t_i, q.cap), kNever};  // max(t_r, t_m) >= t_i already
   // Visible now (the test's own inequality, no trigonometry): t_r = 0.
   const double along = g.dx * cam.ux + g.dy * cam.uy + g.dz * cam.uz;
   const bool visible = along >= cam.cos_beta * std::sqrt(g.d2 - g.r * g.r) - cam.sin_beta * g.r;
   const double gap = visible ? 0.0 : gap_out_of_view(cam, silhouette_angle(cam, g), g.d2);
-  if (gap > 0.0) {
-    const double k_max = std::min(q.cap, std::floor(0.5 * (g.d - g.r) * q.inv_rho));
-    if (k_max >= 1.0) {
-      const double x1 = (g.r + k_max * q.rho) / g.d;
-      const double slope = q.omega + q.rho / (g.d * std::sqrt(1.0 - x1 * x1));
-      t_r = std::min(k_max, gap / slope);
-    }
-  }
-  return frames(std::min(t_i, std::max(t_r, t_m)), q.cap_frames);
+  if (!(gap > 0.0)) return {clock_bound(t_m, q.cap), kNever};
+  const double k_max = std::min(q.cap, 0.5 * (g.d - g.r) * q.inv_rho);
+  const double x1 = (g.r + k_max * q.rho) / g.d;
+  const double b = q.rho / (g.d * std::sqrt(1.0 - x1 * x1));
+  const double t_r = std::min(k_max, gap / (b + split_of(q, b)));
+  if (t_r <= t_m) return {clock_bound(t_m, q.cap), kNever};
+  const double m = std::min(t_i, t_r);
+  return {clock_bound(m, q.cap), clock_bound((gap - b * m) * q.inv_omega, q.cap_w)};
 }
 
 // An unfolded node (unfold_test true).
-// - Inside: the test stays true until the eye leaves the sphere: k >= (r - d) / rho.
+// - Inside: the test stays true until the eye leaves the sphere: m >= (r - d) / rho;
+//   rotation plays no part (w = infinity).
 // - Outside (visible and above the threshold), the dual of the above:
-//   t_m: the threshold fails only when |c - e_k| > R, k > (R - d) / rho;
+//   t_m: the threshold fails only when |c - e_k| > R, m > (R - d) / rho;
 //   t_r: from e_k the direction to c is within asin(s / d) of D (s < d) and
 //   the sphere's angular radius is at least asin(r / (d + s)), so it can leave
-//   the view only if alpha + k omega + asin(s / d) > beta + asin(r / (d + s)).
-//   For k <= K with K rho <= d / 2: asin(k rho / d) <= (pi / 3) k rho / d (the
+//   the view only if alpha + w omega + asin(s / d) > beta + asin(r / (d + s)).
+//   For m <= K with K rho <= d / 2: asin(m rho / d) <= (pi / 3) m rho / d (the
 //   chord of the convex asin up to 1/2) and asin(r / (d + s)) >= phi -
 //   s r / (d sqrt(d^2 - r^2)) (its tangent at s = 0, it is convex in s); so
-//   k >= (beta - (alpha - phi)) / (omega + (pi/3) rho / d + rho r / (d sqrt(d^2 - r^2))).
-//   (beta - (alpha - phi) replaced by its sine, gap_into_view.)
-//   Fold needs either: k >= min(t_r, t_m).
-std::uint32_t potential_fold_time(const CriterionCamera& cam, const glm::vec4& cr, double rho,
-                                  double omega, std::uint32_t cap) {
-  return potential_fold_time(cam, cr, EventRates(cam, rho, omega, cap));
+//   leaving needs w omega + m b >= G = beta - (alpha - phi) with
+//   b = (pi/3) rho / d + rho r / (d sqrt(d^2 - r^2)) (G replaced by its sine,
+//   gap_into_view), or m > K.
+//   Fold needs either: with M = min(t_m, K, G / (b + k)) the node keeps its
+//   test while m < M and w < (G - b M) / omega; rotation alone can always
+//   turn it out of view, so w is always finite.
+EventTime potential_fold_event(const CriterionCamera& cam, const glm::vec4& cr,
+                               const EventRates& q) {
+  const Geometry g = geometry(cam, cr);
+  if (!cam.perspective) return {0.0, 0.0};
+  if (g.d2 < g.r * g.r) return {clock_bound((g.r - g.d) * q.inv_rho, q.cap), kNever};
+  const double t_m = (g.r * q.size_scale - g.d) * q.inv_rho;
+  const double k_max = std::min(q.cap, 0.5 * g.d * q.inv_rho);
+  const double tangent = std::sqrt(std::max(0.0, g.d2 - g.r * g.r));
+  if (!(tangent > 0.0)) return {0.0, 0.0};
+  const double b = (kPi / 3.0) * q.rho / g.d + q.rho * g.r / (g.d * tangent);
+  const double gap = gap_into_view(cam, silhouette_angle(cam, g), g.d2);
+  if (!(gap > 0.0)) return {0.0, 0.0};
+  const double m = std::min(std::min(t_m, k_max), gap / (b + split_of(q, b)));
+  return {clock_bound(m, q.cap), clock_bound((gap - b * std::max(m, 0.0)) * q.inv_omega, q.cap_w)};
 }
 
-std::uint32_t potential_fold_time(const CriterionCamera& cam, const glm::vec4& cr,
-                                  const EventRates& q) {
-  const Geometry g = geometry(cam, cr);
-  if (!cam.perspective) return 0;
-  if (g.d2 < g.r * g.r) return frames((g.r - g.d) * q.inv_rho, q.cap_frames);
-  const double t_m = (g.r * q.size_scale - g.d) * q.inv_rho;
-  if (!(t_m >= 1.0)) return 0;
-  const double k_max = std::min(q.cap, std::floor(0.5 * g.d * q.inv_rho));
-  const double tangent = std::sqrt(std::max(0.0, g.d2 - g.r * g.r));
-  if (k_max < 1.0 || !(tangent > 0.0)) return 0;
-  const double slope = q.omega + (kPi / 3.0) * q.rho / g.d + q.rho * g.r / (g.d * tangent);
-  const double gap = gap_into_view(cam, silhouette_angle(cam, g), g.d2);
-  const double t_r = std::min(k_max, gap / slope);
-  return frames(std::min(t_m, t_r), q.cap_frames);
+// Both clocks in step, one frame of each: the frames before which nothing
+// can change are those before either clock's bound.
+std::uint32_t potential_unfold_time(const CriterionCamera& cam, const glm::vec4& cr, double rho,
+                                    double omega, std::uint32_t cap) {
+  const EventTime e =
+      potential_unfold_event(cam, cr, EventRates(cam, rho, omega, double(cap), double(cap)));
+  return frames(std::min(e.m, e.w), cap);
+}
+
+std::uint32_t potential_fold_time(const CriterionCamera& cam, const glm::vec4& cr, double rho,
+                                  double omega, std::uint32_t cap) {
+  const EventTime e =
+      potential_fold_event(cam, cr, EventRates(cam, rho, omega, double(cap), double(cap)));
+  return frames(std::min(e.m, e.w), cap);
 }
 
 }  // namespace treecut::strategies

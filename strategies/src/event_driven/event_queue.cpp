@@ -4,6 +4,7 @@
 #include "treecut/strategies/event_queue.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 
 #include "top_down.hpp"
@@ -11,11 +12,24 @@
 namespace treecut::strategies {
 namespace {
 
-constexpr std::uint32_t kMask = EventQueueStrategy::kSlots - 1;
-// The farthest event: beyond it, slots not yet processed in a multi-frame
-// advance would be reused (see advance()).
-constexpr std::uint32_t kCap = EventQueueStrategy::kSlots / 2 - 1;
-static_assert((EventQueueStrategy::kSlots & kMask) == 0, "kSlots is a power of two");
+// Either clock's circular buffer: kSlots lists, a list per 1 / kPerUnit of
+// a unit (rho, omega). A slot's list is handled whenever the clock advances
+// within it, however little, so a slot is a fraction of a unit: a camera
+// that turns by float noise only (a flythrough's lookAt) makes only the
+// rotation events due within 1/64 omega handled again.
+constexpr std::uint32_t kMSlots = EventQueueStrategy::kTranslationSlots;
+constexpr std::uint32_t kWSlots = EventQueueStrategy::kRotationSlots;
+constexpr std::uint32_t kMMask = kMSlots - 1;
+constexpr std::uint32_t kWMask = kWSlots - 1;
+static_assert((kMSlots & kMMask) == 0 && (kWSlots & kWMask) == 0, "powers of two");
+constexpr double kMPerUnit = EventQueueStrategy::kTranslationSlotsPerUnit;
+constexpr double kWPerUnit = EventQueueStrategy::kRotationSlotsPerUnit;
+// The farthest event, in units of each clock: beyond half the buffer, slots
+// not yet processed in a multi-slot advance would be reused (see advance()).
+constexpr double kMCap = double(kMSlots / 2 - 1) / kMPerUnit;
+constexpr double kWCap = double(kWSlots / 2 - 1) / kWPerUnit;
+// Entries handled between two looks at the cancellation flag.
+constexpr std::uint64_t kCancelEvery = 4096;
 
 }  // namespace
 
@@ -31,20 +45,60 @@ EventQueueStrategy::EventQueueStrategy()
 
 void EventQueueStrategy::reset(const Hierarchy& hierarchy) {
   state_.assign(hierarchy.node_count(), NodeState{});
-  slots_.assign(kSlots, {});
+  slots_.assign(kMSlots, {});
+  wslots_.assign(kWSlots, {});
   work_.clear();
-  queued_ = 0;
-  frame_ = 0;
+  wwork_.clear();
+  processing_ = kNone;
+  mbase_ = wbase_ = 0;
+  mfrac_ = wfrac_ = 0.0;
+  queued_ = wlive_ = wentries_ = 0;
+  pace_m_ = pace_w_ = 1.0;
   valid_ = false;
   stats_ = {};
 }
 
-void EventQueueStrategy::insert(NodeId n, std::uint32_t t, bool boundary) {
-  const auto slot = static_cast<std::uint16_t>((frame_ + t) & kMask);
+void EventQueueStrategy::schedule(NodeId n, const EventTime& t, bool boundary) {
+  NodeState& st = state_[n];
+  // Translation: the list of the slot the clock is in after t.m units (t.m
+  // <= kMCap, so at most kCapSlots ahead). That may be the current slot: its
+  // list is handled again at the next advance of the clock, however small.
+  const std::uint64_t ms = mbase_ + static_cast<std::uint64_t>(mfrac_ + t.m * kMPerUnit);
+  const auto slot = static_cast<std::uint16_t>(ms & kMMask);
   std::vector<NodeId>& list = slots_[slot];
-  state_[n] = {static_cast<std::uint32_t>(list.size()), slot};
+  st.index = static_cast<std::uint32_t>(list.size());
+  st.slot = slot;
   list.push_back(boundary ? n | kBoundary : n);
   ++queued_;
+  // Rotation: none when rotation alone cannot change the test.
+  if (!(t.w <= kWCap)) {
+    if (st.wslot != kNoneW) {
+      st.wslot = kNoneW;
+      --wlive_;
+    }
+    return;
+  }
+  // Slots ahead, and the slot used when a new entry is needed: rounded down
+  // to 3 significant bits (at most 25 % early), so a node whose time keeps
+  // shrinking while the clock stands still (a camera that flies without
+  // turning) needs a new entry only every quarter of its time or so.
+  const auto ahead = static_cast<std::uint64_t>(wfrac_ + t.w * kWPerUnit);
+  const std::uint16_t flag = boundary ? kWBoundary : 0;
+  if (st.wslot != kNoneW) {
+    // The entry the node has is kept when it comes no later and is for the
+    // same state: an earlier test is always correct.
+    if ((st.wslot & kWBoundary) == flag &&
+        ((std::uint64_t(st.wslot & kWMask) - wbase_) & kWMask) <= ahead) {
+      return;
+    }
+  } else {
+    ++wlive_;
+  }
+  const int drop = std::max(0, int(std::bit_width(ahead)) - 3);
+  const std::uint64_t ws = wbase_ + ((ahead >> drop) << drop);
+  st.wslot = static_cast<std::uint16_t>((ws & kWMask) | flag);
+  wslots_[ws & kWMask].push_back(n);
+  ++wentries_;
 }
 
 void EventQueueStrategy::erase(NodeId n) {
@@ -66,124 +120,207 @@ void EventQueueStrategy::erase(NodeId n) {
   --queued_;
 }
 
+void EventQueueStrategy::drop_rotation(NodeId n) {
+  NodeState& e = state_[n];
+  if (e.wslot == kNoneW) return;
+  e.wslot = kNoneW;  // its entry is stale now
+  --wlive_;
+}
+
 void EventQueueStrategy::clear_queue() {
   // Through the lists rather than the node array: O(events), not O(nodes).
-  for (std::vector<NodeId>& list : slots_) {
-    for (const NodeId n : list) state_[n & ~kBoundary].slot = kNone;
+  // The work lists too: a cancelled iteration leaves the rest of one there.
+  auto clear = [&](std::vector<NodeId>& list) {
+    for (const NodeId e : list) {
+      if (e == kErased) continue;
+      NodeState& st = state_[e & ~kBoundary];
+      st.slot = kNone;
+      st.wslot = kNoneW;
+    }
     list.clear();
+  };
+  for (std::vector<NodeId>& list : slots_) clear(list);
+  for (std::vector<NodeId>& list : wslots_) clear(list);
+  clear(work_);
+  clear(wwork_);
+  processing_ = kNone;
+  queued_ = wlive_ = wentries_ = 0;
+}
+
+void EventQueueStrategy::compact_rotation_lists() {
+  std::size_t kept = 0;
+  for (std::uint32_t s = 0; s < kWSlots; ++s) {
+    std::vector<NodeId>& list = wslots_[s];
+    std::size_t out = 0;
+    for (const NodeId n : list) {
+      const std::uint16_t w = state_[n].wslot;
+      if (w != kNoneW && (w & kWMask) == s) list[out++] = n;
+    }
+    list.resize(out);
+    kept += out;
   }
-  queued_ = 0;
+  wentries_ = kept;
 }
 
 // A jump: one top-down pass (figure 3, the code `topdown` runs) decides every
 // active and boundary node under the current camera and schedules its next
-// event. Each was just tested, so no event is due before the next frame.
+// event. Each was just tested, so no event is due before the next slot.
 void EventQueueStrategy::rebuild(const IterationInput& input, TreeCut& cut, IterationResult& r) {
   const Hierarchy& h = input.hierarchy;
   const auto& cr = h.arrays().center_radius;
   clear_queue();
-  ++frame_;
-  const EventRates rates(camera_, rho_, omega_, kCap);
   auto test = [&](NodeId n) { return unfold_test(camera_, cr[n]); };
   auto decided = [&](NodeId n, bool active) {
-    const std::uint32_t t = active ? potential_fold_time(camera_, cr[n], rates)
-                                   : potential_unfold_time(camera_, cr[n], rates);
-    insert(n, std::max<std::uint32_t>(1, t), !active);
+    schedule(n,
+             active ? potential_fold_event(camera_, cr[n], rates_)
+                    : potential_unfold_event(camera_, cr[n], rates_),
+             !active);
   };
-  auto drop = [&](NodeId n) { erase(n); };
+  auto drop = [&](NodeId n) {
+    erase(n);
+    drop_rotation(n);
+  };
   detail::TopDown pass(h, cut, r, input, test, decided, drop);
   valid_ = pass.run(h.root());
   stats_.rebuilt = true;
 }
 
-// Figure 7 for every frame from the last one up to the current: the nodes
-// whose events are due are tested against the current camera (the only one
-// there is; the events were computed so that nothing else can have changed).
-// Insertions are relative to the current frame, at most kCap ahead, so they
-// never land in a slot of this advance that is still to be processed
-// (steps + kCap < kSlots); t = 0 lands in the current frame's slot, which is
-// processed last, until no insertion is left in it.
-void EventQueueStrategy::advance(const IterationInput& input, TreeCut& cut, IterationResult& r,
-                                 std::uint64_t steps) {
-  const std::uint64_t from = frame_ + 1;
-  frame_ += steps;
-  for (std::uint64_t f = from; f <= frame_; ++f) {
-    const auto slot = static_cast<std::uint32_t>(f & kMask);
-    do {
-      if (!process(slot, input, cut, r)) {
-        // The cut is valid (every change was one refine or coarsen); the
-        // events are not complete any more: the next iteration rebuilds.
-        r.cancelled = true;
-        valid_ = false;
-        return;
-      }
-    } while (f == frame_ && !slots_[slot].empty());
+// Figure 7 for both clocks: every list of a slot the clock was in since the
+// last iteration (from the one it was in then, whose entries may have a time
+// in its rest, to the one it is in now) is handled once, testing its nodes
+// against the current camera (the only one there is; the events were
+// computed so that nothing else can have changed). Insertions are relative to
+// the clocks' new values, at most kCapSlots ahead, so they never land in a
+// list of this advance still to be processed (an advance is below half the
+// buffer);
+// the current lists are taken out first, so what is inserted into them waits
+// for the next advance.
+bool EventQueueStrategy::advance(const IterationInput& input, TreeCut& cut, IterationResult& r,
+                                 double dm, double dw) {
+  const std::uint64_t mfrom = mbase_, wfrom = wbase_;
+  const double mt = mfrac_ + dm * kMPerUnit, wt = wfrac_ + dw * kWPerUnit;
+  mbase_ += static_cast<std::uint64_t>(mt);
+  mfrac_ = mt - std::floor(mt);
+  wbase_ += static_cast<std::uint64_t>(wt);
+  wfrac_ = wt - std::floor(wt);
+  const auto mslot = [](std::uint64_t s) { return static_cast<std::uint32_t>(s & kMMask); };
+  const auto wslot = [](std::uint64_t s) { return static_cast<std::uint32_t>(s & kWMask); };
+  const bool moved = dm > 0.0, turned = dw > 0.0;
+  if (moved) take(mslot(mbase_));
+  if (turned) wwork_.swap(wslots_[wslot(wbase_)]);
+  if (moved && !run(input, cut, r)) return false;
+  if (turned && !run_rotation(wslot(wbase_), input, cut, r)) return false;
+  for (std::uint64_t s = mfrom; moved && s < mbase_; ++s) {
+    take(mslot(s));
+    if (!run(input, cut, r)) return false;
+  }
+  for (std::uint64_t s = wfrom; turned && s < wbase_; ++s) {
+    wwork_.swap(wslots_[wslot(s)]);
+    if (!run_rotation(wslot(s), input, cut, r)) return false;
+  }
+  return true;
+}
+
+void EventQueueStrategy::handle(NodeId n, bool boundary, const glm::vec4& c,
+                                const IterationInput& input, TreeCut& cut, IterationResult& r) {
+  const Hierarchy& h = input.hierarchy;
+  const HierarchyArrays& a = h.arrays();
+  const bool pass = unfold_test(camera_, c);
+  if (boundary) {
+    if (!pass) {
+      schedule(n, potential_unfold_event(camera_, c, rates_), true);
+      return;
+    }
+    // Unfold: the node is active now (its fold event), and its non-leaf
+    // children become boundary nodes, tested right away (they may unfold
+    // too: the descent of figure 3 below n).
+    cut.refine(h, n);
+    ++r.refined;
+    schedule(n, potential_fold_event(camera_, c, rates_), false);
+    const NodeId first = a.first_child[n];
+    const NodeId end = first + a.child_count[n];
+    for (NodeId ch = first; ch < end; ++ch) {
+      if (a.child_count[ch] == 0) continue;
+      ++r.visited;
+      handle(ch, true, a.center_radius[ch], input, cut, r);
+    }
+  } else if (pass) {
+    schedule(n, potential_fold_event(camera_, c, rates_), false);
+  } else {
+    // Fold: the subtree collapses into n and its events go; n becomes a
+    // boundary node waiting to unfold.
+    auto drop = [&](NodeId m) {
+      erase(m);
+      drop_rotation(m);
+    };
+    detail::fold_subtree(h, cut, n, r, drop);
+    schedule(n, potential_unfold_event(camera_, c, rates_), true);
   }
 }
 
-bool EventQueueStrategy::process(std::uint32_t slot, const IterationInput& input, TreeCut& cut,
-                                 IterationResult& r) {
-  constexpr std::size_t kAhead = 16;  // entries prefetched ahead, enough to cover a DRAM miss
-  const Hierarchy& h = input.hierarchy;
-  const HierarchyArrays& a = h.arrays();
-  // Take the list out of its slot (the slot gets work_'s empty buffer), so a
-  // fold that erases an entry still to come marks it instead of moving it.
+void EventQueueStrategy::take(std::uint32_t slot) {
+  // The slot gets work_'s empty buffer, so a fold that erases an entry still
+  // to come marks it instead of moving it.
   work_.swap(slots_[slot]);
   processing_ = static_cast<std::uint16_t>(slot);
-  auto drop = [&](NodeId n) { erase(n); };
-  const EventRates rates(camera_, rho_, omega_, kCap);
+}
+
+bool EventQueueStrategy::run(const IterationInput& input, TreeCut& cut, IterationResult& r) {
+  constexpr std::size_t kAhead = 16;  // entries prefetched ahead, enough to cover a DRAM miss
+  const auto& cr = input.hierarchy.arrays().center_radius;
   const std::size_t count = work_.size();
   for (std::size_t i = 0; i < count; ++i) {
     if (i + kAhead < count && work_[i + kAhead] != kErased) {
-      __builtin_prefetch(&a.center_radius[work_[i + kAhead] & ~kBoundary]);
+      __builtin_prefetch(&cr[work_[i + kAhead] & ~kBoundary]);
       __builtin_prefetch(&state_[work_[i + kAhead] & ~kBoundary], 1);
     }
     const NodeId entry = work_[i];
     if (entry == kErased) continue;
-    work_[i] = kErased;
-    --queued_;
-    const NodeId n = entry & ~kBoundary;
-    const bool boundary = (entry & kBoundary) != 0;
-    if ((++r.visited & 4095) == 0 && input.cancelled()) {
-      for (std::size_t j = i + 1; j < count; ++j) {
-        if (work_[j] != kErased) state_[work_[j] & ~kBoundary].slot = kNone;
-      }
-      state_[n].slot = kNone;
-      work_.clear();
+    if ((++r.visited % kCancelEvery) == 0 && input.cancelled()) {
+      // The rest of work_ stays for clear_queue (the next iteration rebuilds).
       processing_ = kNone;
       return false;
     }
-    // No state_[n].slot = kNone here: every branch below queues n again.
-    const glm::vec4 c = a.center_radius[n];
-    const bool pass = unfold_test(camera_, c);
-    if (boundary) {
-      if (!pass) {
-        insert(n, std::max<std::uint32_t>(1, potential_unfold_time(camera_, c, rates)), true);
-        continue;
-      }
-      // Unfold: the node is active now (its fold event), and its non-leaf
-      // children become boundary nodes with their own unfold events, maybe
-      // due in this very frame.
-      cut.refine(h, n);
-      ++r.refined;
-      insert(n, std::max<std::uint32_t>(1, potential_fold_time(camera_, c, rates)), false);
-      const NodeId first = a.first_child[n];
-      const NodeId end = first + a.child_count[n];
-      for (NodeId ch = first; ch < end; ++ch) {
-        if (a.child_count[ch] == 0) continue;
-        insert(ch, potential_unfold_time(camera_, a.center_radius[ch], rates), true);
-      }
-    } else if (pass) {
-      insert(n, std::max<std::uint32_t>(1, potential_fold_time(camera_, c, rates)), false);
-    } else {
-      // Fold: the subtree collapses into n and its events go; n becomes a
-      // boundary node waiting to unfold.
-      detail::fold_subtree(h, cut, n, r, drop);
-      insert(n, std::max<std::uint32_t>(1, potential_unfold_time(camera_, c, rates)), true);
-    }
+    work_[i] = kErased;
+    --queued_;
+    const NodeId n = entry & ~kBoundary;
+    // No state_[n].slot = kNone here: handle() queues n again.
+    handle(n, (entry & kBoundary) != 0, cr[n], input, cut, r);
   }
   work_.clear();
   processing_ = kNone;
+  return true;
+}
+
+bool EventQueueStrategy::run_rotation(std::uint32_t slot, const IterationInput& input, TreeCut& cut,
+                                      IterationResult& r) {
+  constexpr std::size_t kAhead = 16;
+  const auto& cr = input.hierarchy.arrays().center_radius;
+  const std::size_t count = wwork_.size();
+  for (std::size_t i = 0; i < count; ++i) {
+    if (i + kAhead < count) {
+      __builtin_prefetch(&state_[wwork_[i + kAhead]], 1);
+      __builtin_prefetch(&cr[wwork_[i + kAhead]]);
+    }
+    const NodeId n = wwork_[i];
+    NodeState& st = state_[n];
+    // A stale entry: the node's live one is elsewhere, or it has none.
+    if (st.wslot == kNoneW || (st.wslot & kWMask) != slot) {
+      wwork_[i] = kErased;
+      --wentries_;
+      continue;
+    }
+    if ((++r.visited % kCancelEvery) == 0 && input.cancelled()) return false;
+    wwork_[i] = kErased;
+    --wentries_;
+    const bool boundary = (st.wslot & kWBoundary) != 0;
+    st.wslot = kNoneW;
+    --wlive_;
+    erase(n);  // its translation entry: handle() queues n again
+    ++stats_.rotation_events;
+    handle(n, boundary, cr[n], input, cut, r);
+  }
+  wwork_.clear();
   return true;
 }
 
@@ -215,37 +352,50 @@ void EventQueueStrategy::iterate(const IterationInput& input, IterationOutput& o
   if (!jump && input.view.version == last_version_) {
     r.converged = true;  // nothing due: O(1)
     stats_.queued = queued_;
+    stats_.rotation_queued = wlive_;
     return;
   }
-  double steps = 0.0;
+  double dm = 0.0, dw = 0.0;
   if (!jump) {
-    // How many frames of rho and omega the camera's change since the last
-    // iteration takes; the angle between unit vectors from their chord.
+    // How far the camera moved and turned since the last iteration, in units
+    // of rho and omega; the angle between unit vectors from their chord.
     const double mx = camera_.ex - last_camera_.ex;
     const double my = camera_.ey - last_camera_.ey;
     const double mz = camera_.ez - last_camera_.ez;
     const double wx = camera_.ux - last_camera_.ux;
     const double wy = camera_.uy - last_camera_.uy;
     const double wz = camera_.uz - last_camera_.uz;
-    const double moved = std::sqrt(mx * mx + my * my + mz * mz);
-    const double turned =
-        2.0 * std::asin(std::min(1.0, 0.5 * std::sqrt(wx * wx + wy * wy + wz * wz)));
-    steps = std::max(std::ceil(moved / rho_), std::ceil(turned / omega_));
+    dm = std::sqrt(mx * mx + my * my + mz * mz) / rho_;
+    dw = 2.0 * std::asin(std::min(1.0, 0.5 * std::sqrt(wx * wx + wy * wy + wz * wz))) / omega_;
     // Far jumps (and NaN) rebuild: the events would all be due anyway.
-    if (!(steps < double(kSlots / 2))) jump = true;
+    if (!(dm < kMCap && dw < kWCap)) jump = true;
   }
+  if (!jump && (dm > 0.0 || dw > 0.0)) {
+    pace_m_ += (dm - pace_m_) * 0.125;
+    pace_w_ += (dw - pace_w_) * 0.125;
+  }
+  rates_ = EventRates(camera_, rho_, omega_, kMCap, kWCap, pace_w_ / std::max(pace_m_, 1e-9));
   if (jump) {
     rebuild(input, cut, r);
     stats_.frames_advanced = 1;
-  } else if (steps > 0.0) {
-    advance(input, cut, r, static_cast<std::uint64_t>(steps));
-    stats_.frames_advanced = static_cast<std::uint64_t>(steps);
+  } else if (dm > 0.0 || dw > 0.0) {
+    if (!advance(input, cut, r, dm, dw)) {
+      // The cut is valid (every change was one refine or coarsen); the
+      // events are not complete any more: the next iteration rebuilds.
+      r.cancelled = true;
+      valid_ = false;
+    }
+    stats_.frames_advanced = static_cast<std::uint64_t>(std::ceil(std::max(dm, dw)));
+    stats_.moved = dm;
+    stats_.turned = dw;
   }
+  if (wentries_ > 3 * wlive_ + 65536) compact_rotation_lists();
   last_camera_ = camera_;
   last_version_ = input.view.version;
   last_params_ = input.params_version;
   last_cut_size_ = cut.size();
   stats_.queued = queued_;
+  stats_.rotation_queued = wlive_;
   r.converged = !r.cancelled;
 }
 

@@ -28,18 +28,31 @@
 // the node's non-leaf children (t may be 0) and a fold erases its subtree's
 // events.
 //
-// Frames: one iteration advances the strategy's own frame counter by
-// ceil(max(moved / rho, turned / omega)) since its last camera (at least 1
-// when the camera changed at all, 0 and O(1) when it did not), so a camera
-// faster than rho and omega only makes more events due, never a wrong cut. A
+// Clocks: two real-valued clocks, one for the eye's translation (units of
+// rho) and one for the view direction's rotation (units of omega), each with
+// its own circular buffer of lists; an iteration advances each by what the
+// camera really did since the strategy's last camera (moved / rho, turned /
+// omega, fractions kept) and handles the lists the clocks passed. A node is
+// due when either of its two times has come (criterion.cpp: a rotation time
+// only where visibility is what keeps the node's change late), so a camera
+// that only flies never makes a rotation event due and one that only turns
+// never a translation event; a camera faster than rho and omega only makes
+// more events due, never a wrong cut. The same view version costs O(1). A
 // jump rebuilds the queue with one top-down pass: the first iteration, a
-// camera that moved kSlots / 2 frames' worth or more, a new projection or
+// camera that moved or turned kSlots / 2 units or more, a new projection or
 // viewport, a parameter change, reset(), a cut that is not the one the
 // strategy left, an iteration cancelled before (the cut then stays valid,
 // the events are redone). Orthographic views: a top-down pass every
 // iteration.
 //
-// Memory: 8 bytes per hierarchy node plus 4 bytes per queued event.
+// The rotation lists are lazy: a node's rotation entry is only moved when
+// its new time is earlier than the one it has (an early test is always
+// correct), and a moved or dropped entry stays behind, recognized as stale
+// because the node's state names another slot; the lists are compacted when
+// stale entries outnumber live ones twice.
+//
+// Memory: 8 bytes per hierarchy node plus 4 bytes per queued event, and 4
+// per rotation entry (live or stale, at most 3 per live one plus 65,536).
 #pragma once
 
 #include <cstdint>
@@ -57,9 +70,14 @@ class EventQueueStrategy final : public Strategy {
     kRho,    ///< maximal eye translation per frame, in model diameters (root sphere)
     kOmega,  ///< maximal rotation of the view direction per frame, radians
   };
-  /// Frames the circular buffer holds; events farther away are tested after
-  /// kSlots / 2 - 1 frames (and rescheduled).
-  static constexpr std::uint32_t kSlots = 1024;
+  /// Lists in the circular buffer of each clock, and lists per unit (rho,
+  /// omega); events farther than half a buffer are tested then (and
+  /// rescheduled): after 511.75 rho or 63.98 omega. A camera that moves or
+  /// turns that much in one iteration rebuilds the queue.
+  static constexpr std::uint32_t kTranslationSlots = 4096;
+  static constexpr std::uint32_t kTranslationSlotsPerUnit = 4;
+  static constexpr std::uint32_t kRotationSlots = 8192;
+  static constexpr std::uint32_t kRotationSlotsPerUnit = 64;
 
   EventQueueStrategy();
   [[nodiscard]] std::string_view name() const override { return "event_queue"; }
@@ -69,15 +87,21 @@ class EventQueueStrategy final : public Strategy {
 
   /// Statistics of the last iteration, for tests and benchmarks.
   struct Stats {
-    std::uint64_t frames_advanced = 0;  ///< frames the counter moved (0: nothing due)
+    std::uint64_t frames_advanced = 0;  ///< ceil(max(moved / rho, turned / omega)); 0: nothing due
+    double moved = 0.0;                 ///< translation clock advance, units of rho
+    double turned = 0.0;                ///< rotation clock advance, units of omega
     bool rebuilt = false;               ///< the queue was rebuilt (a jump)
-    std::size_t queued = 0;             ///< events in the queue afterwards
+    std::size_t queued = 0;             ///< events in the translation lists afterwards
+    std::size_t rotation_queued = 0;    ///< nodes with a live rotation entry afterwards
+    std::uint64_t rotation_events = 0;  ///< events handled from the rotation lists
   };
   [[nodiscard]] const Stats& stats() const { return stats_; }
   /// Bytes of the event state: per node, and the lists' storage.
   [[nodiscard]] std::size_t state_bytes() const {
-    std::size_t bytes = state_.capacity() * sizeof(NodeState) + work_.capacity() * sizeof(NodeId);
+    std::size_t bytes = state_.capacity() * sizeof(NodeState) +
+                        (work_.capacity() + wwork_.capacity()) * sizeof(NodeId);
     for (const auto& s : slots_) bytes += s.capacity() * sizeof(NodeId);
+    for (const auto& s : wslots_) bytes += s.capacity() * sizeof(NodeId);
     return bytes;
   }
   /// Bytes per node of the state array, and per queued event.
@@ -85,34 +109,61 @@ class EventQueueStrategy final : public Strategy {
   static constexpr std::size_t kBytesPerEvent = 4;
 
  private:
-  // Per node: which frame's list holds its event and where. 8 bytes.
+  // Per node: which translation list holds its event and where, and which
+  // rotation list holds its live rotation entry (with the boundary flag of
+  // that entry in the top bit). 8 bytes.
   struct NodeState {
     std::uint32_t index = 0;
     std::uint16_t slot = kNone;
+    std::uint16_t wslot = kNoneW;
   };
-  static constexpr std::uint16_t kNone = 0xffff;  // not queued
+  static constexpr std::uint16_t kNone = 0xffff;   // not queued
+  static constexpr std::uint16_t kNoneW = 0x7fff;  // no rotation entry (slots are 13 bits)
+  static constexpr std::uint16_t kWBoundary = 0x8000;
   // A list entry is a node id with this bit set for a boundary node (in the
   // cut; else active), so a due event reads only its node's sphere.
   static constexpr NodeId kBoundary = 0x80000000u;
   static constexpr NodeId kErased = 0xffffffffu;  // an erased or read entry of work_
 
-  void insert(NodeId n, std::uint32_t t, bool boundary);
-  void erase(NodeId n);
+  // Queues n (just tested under this camera and decided: boundary or active)
+  // with its event time.
+  void schedule(NodeId n, const EventTime& t, bool boundary);
+  void erase(NodeId n);          // the translation entry
+  void drop_rotation(NodeId n);  // the rotation entry becomes stale
   void clear_queue();
+  void compact_rotation_lists();
   void rebuild(const IterationInput& input, TreeCut& cut, IterationResult& r);
-  void advance(const IterationInput& input, TreeCut& cut, IterationResult& r, std::uint64_t steps);
-  // Processes the events of one frame's list; false when cancelled.
-  bool process(std::uint32_t slot, const IterationInput& input, TreeCut& cut, IterationResult& r);
+  bool advance(const IterationInput& input, TreeCut& cut, IterationResult& r, double dm, double dw);
+  // Tests a due node (its entries already taken) and acts on the result.
+  void handle(NodeId n, bool boundary, const glm::vec4& c, const IterationInput& input,
+              TreeCut& cut, IterationResult& r);
+  // Moves a translation list into work_ for run().
+  void take(std::uint32_t slot);
+  // Handles the events of work_ (a translation list) or wwork_ (the rotation
+  // list of `slot`); false when cancelled.
+  bool run(const IterationInput& input, TreeCut& cut, IterationResult& r);
+  bool run_rotation(std::uint32_t slot, const IterationInput& input, TreeCut& cut,
+                    IterationResult& r);
 
-  std::vector<NodeState> state_;            // per hierarchy node
-  std::vector<std::vector<NodeId>> slots_;  // the circular buffer: kSlots frames' lists
-  std::vector<NodeId> work_;                // a list taken out of its slot for processing
-  std::uint16_t processing_ = kNone;        // the slot work_ was taken from, while it is read
-  std::uint64_t frame_ = 0;                 // the strategy's frame counter
+  std::vector<NodeState> state_;             // per hierarchy node
+  std::vector<std::vector<NodeId>> slots_;   // translation clock: kSlots lists
+  std::vector<std::vector<NodeId>> wslots_;  // rotation clock: kSlots lists
+  std::vector<NodeId> work_;                 // a list taken out of its slot for processing
+  std::vector<NodeId> wwork_;                // the same for a rotation list
+  std::uint16_t processing_ = kNone;         // the slot work_ was taken from, while it is read
+  // The clocks: the current slot's number and the fraction within it.
+  std::uint64_t mbase_ = 0, wbase_ = 0;
+  double mfrac_ = 0.0, wfrac_ = 0.0;
   std::size_t queued_ = 0;
+  std::size_t wlive_ = 0;     // nodes with a live rotation entry
+  std::size_t wentries_ = 0;  // entries in the rotation lists, live or stale
+  // The camera's recent pace (moving average per iteration) in either unit:
+  // their ratio sets how a visibility gap is split between the clocks.
+  double pace_m_ = 1.0, pace_w_ = 1.0;
   bool valid_ = false;           // the queue describes the cut and last_camera_
   CriterionCamera camera_;       // the camera of this iteration
   CriterionCamera last_camera_;  // the camera the queue's events are relative to
+  EventRates rates_{CriterionCamera{}, 1.0, 1.0, 1.0, 1.0};
   std::uint64_t last_version_ = 0;
   std::uint64_t last_params_ = 0;
   std::size_t last_cut_size_ = 0;

@@ -18,10 +18,10 @@
 //   pixel_scale from the snapshot's field of view and viewport) >= theta.
 //
 // Evaluated in double precision from the float node data. A node that is a
-// leaf is never unfolded. The event times below are lower bounds of the first
-// frame in which the result can change when the eye moves at most rho and the
-// view direction turns at most omega per frame; see the derivations beside
-// each function in criterion.cpp.
+// leaf is never unfolded. The event times below are lower bounds of how far
+// the eye must move (in units of rho) or the view direction turn (in units
+// of omega) before the result can change; see the derivations beside each
+// function in criterion.cpp.
 #pragma once
 
 #include <cmath>
@@ -75,32 +75,55 @@ struct CriterionCamera {
 /// The same for any projection (orthographic views fall back to the frustum).
 bool unfold_test(const CriterionCamera& cam, const ViewSnapshot& view, const glm::vec4& cr);
 
-/// rho and omega with their safety margin, and the reciprocals the event
-/// times divide by, computed once per iteration.
+/// When a node's test can change next, on two clocks: `m` counts the eye's
+/// translation in units of rho, `w` the view direction's rotation in units
+/// of omega, both real numbers. The test cannot change while the eye has
+/// moved less than m rho AND the direction has turned less than w omega since
+/// the time was computed (w = infinity: rotation alone cannot change it). Two
+/// clocks rather than frames of both: a camera that only flies does not use
+/// up the rotation budget, one that only turns not the translation budget.
+struct EventTime {
+  double m;
+  double w;
+};
+
+/// rho and omega with their safety margin, the reciprocals the event times
+/// divide by, and how the visibility gap is split between the two clocks,
+/// computed once per iteration.
 struct EventRates {
-  EventRates(const CriterionCamera& cam, double rho, double omega, std::uint32_t cap);
-  double rho, inv_rho, omega;
+  /// `turn_per_move`: the camera's recent rotation (in omega units) per unit
+  /// of translation (in rho units), which sets the split; any split gives a
+  /// correct bound, this one the latest events for a camera that keeps its
+  /// pace. `cap`, `cap_w`: the farthest times returned on each clock.
+  EventRates(const CriterionCamera& cam, double rho, double omega, double cap, double cap_w,
+             double turn_per_move = 1.0);
+  double rho, inv_rho, omega, inv_omega;
   double
       size_scale;  ///< pixel_scale / theta: the distance at which r reaches theta is r * size_scale
-  double cap;
-  std::uint32_t cap_frames;
+  double cap, cap_w;
+  double split;  ///< omega * turn_per_move: radians per rho unit the camera turns
 };
+
+/// When unfold_test, false now, can become true (a folded node): translation
+/// min(t_i, max(t_r, t_m)) with t_r's gap split between the clocks; rotation
+/// only moves it into view, so w is finite only when visibility is what
+/// keeps the translation time late.
+EventTime potential_unfold_event(const CriterionCamera& cam, const glm::vec4& cr,
+                                 const EventRates& rates);
+/// When unfold_test, true now, can become false (an unfolded node): leaving
+/// the sphere, or min(t_r, t_m) outside it.
+EventTime potential_fold_event(const CriterionCamera& cam, const glm::vec4& cr,
+                               const EventRates& rates);
 
 /// Frames (>= 0, at most `cap`) before which unfold_test cannot become true
 /// for a node for which it is false now, with the eye moving at most `rho`
-/// and the direction turning at most `omega` radians per frame:
-/// min(t_i, max(t_r, t_m)) (the paper's combination for a folded node).
+/// and the direction turning at most `omega` radians per frame, both at once:
+/// min(m, w) of potential_unfold_event, floored.
 std::uint32_t potential_unfold_time(const CriterionCamera& cam, const glm::vec4& cr, double rho,
                                     double omega, std::uint32_t cap);
 /// Frames before which unfold_test cannot become false for a node for which
-/// it is true now (the dual: leaving the sphere, or, outside it,
-/// min(t_r, t_m) for turning it out of view or moving away from it).
+/// it is true now (the dual).
 std::uint32_t potential_fold_time(const CriterionCamera& cam, const glm::vec4& cr, double rho,
                                   double omega, std::uint32_t cap);
-/// The same with the rates precomputed (the event queue's hot path).
-std::uint32_t potential_unfold_time(const CriterionCamera& cam, const glm::vec4& cr,
-                                    const EventRates& rates);
-std::uint32_t potential_fold_time(const CriterionCamera& cam, const glm::vec4& cr,
-                                  const EventRates& rates);
 
 }  // namespace treecut::strategies
