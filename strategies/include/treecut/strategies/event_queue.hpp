@@ -1,20 +1,20 @@
 // Event-driven refinement: Zach & Karner, "Fast Event-Driven Refinement of
 // Dynamic Levels of Detail" (2003), section 3 and figure 7. Every node whose
-// state can change carries the earliest frame in which its fold/unfold test
-// (refinement_criterion.hpp, the same test as `topdown`) can change, computed
-// from the maximal translation rho and rotation omega per frame; an iteration
-// tests only the nodes whose frame has come. The result equals `topdown`'s
+// state can change carries how far the eye must move (in units of rho) or
+// the view direction turn (in units of omega) before its fold/unfold test
+// (refinement_criterion.hpp, the same test as `topdown`) can change; an
+// iteration tests only the nodes whose time has come on either clock. The result equals `topdown`'s
 // under the same view, node for node (tests/event_queue_test.cpp).
 //
-// The queue is the paper's faster form: a circular buffer of per-frame lists
-// (kSlots frames ahead). Each list is an array of node ids and every node
+// The queue is the paper's faster form: circular buffers of lists, one per
+// fraction of a unit of each clock. Each list is an array of node ids and every node
 // stores its list and index, so insert (append) and erase (the last entry
 // moves into the gap) are O(1), and a due list is read front to back with its
 // nodes' data prefetched ahead. (Measured on the dragon orbit of
 // selection_bench: intrusive doubly-linked lists over node ids took 2x the
 // time, a dependent cache miss per event; events carrying their node's
-// sphere, 24 bytes, 1.4x, from the writes into the lists.) An insertion for
-// the current frame (t = 0) is handled within the same iteration.
+// sphere, 24 bytes, 1.4x, from the writes into the lists.) The children of
+// an unfolded node are tested at once.
 //
 // Which nodes are queued: every boundary node (a cut node that is not a leaf:
 // its unfold event) and every active node (its fold event). The paper queues
@@ -25,8 +25,7 @@
 // figure 3 then folds a whole subtree the paper's queue would not see. So an
 // unfolded node keeps its fold event (its own test is farther from the
 // threshold than its children's, so its events are rare), an unfold queues
-// the node's non-leaf children (t may be 0) and a fold erases its subtree's
-// events.
+// the node's non-leaf children and a fold erases its subtree's events.
 //
 // Clocks: two real-valued clocks, one for the eye's translation (units of
 // rho) and one for the view direction's rotation (units of omega), each with
