@@ -16,10 +16,12 @@ namespace {
 TEST(StrategyRegistry, ListsTheBuiltInsSortedWithTheirParameters) {
   const StrategyRegistry r = strategies::builtin_registry();
   const auto list = r.list();
-  ASSERT_EQ(list.size(), 3u);
+  ASSERT_EQ(list.size(), 5u);
   EXPECT_EQ(list[0].name, "bucket");
-  EXPECT_EQ(list[1].name, "optimization");
-  EXPECT_EQ(list[2].name, "recursive");
+  EXPECT_EQ(list[1].name, "event_queue");
+  EXPECT_EQ(list[2].name, "optimization");
+  EXPECT_EQ(list[3].name, "recursive");
+  EXPECT_EQ(list[4].name, "topdown");
   for (const StrategyInfo& info : list) {
     EXPECT_EQ(info.origin, "built-in");
     EXPECT_FALSE(info.description.empty());
@@ -37,8 +39,9 @@ TEST(StrategyRegistry, AnUnknownNameIsAnInputErrorListingTheKnownOnes) {
     (void)r.create("qsplat");
     FAIL() << "no exception";
   } catch (const InputError& e) {
-    EXPECT_EQ(std::string(e.what()),
-              "unknown strategy 'qsplat' (known: bucket, optimization, recursive)");
+    EXPECT_EQ(
+        std::string(e.what()),
+        "unknown strategy 'qsplat' (known: bucket, event_queue, optimization, recursive, topdown)");
   }
 }
 
@@ -51,7 +54,7 @@ TEST(StrategyRegistry, RefusesDuplicatesAndMismatchedFactories) {
                      [] { return std::make_unique<strategies::OptimizationStrategy>(); }),
                std::invalid_argument);
   EXPECT_THROW(r.add("", "empty", nullptr), std::invalid_argument);
-  EXPECT_EQ(r.names().size(), 3u);
+  EXPECT_EQ(r.names().size(), 5u);
 }
 
 TEST(StrategyParams, OutOfRangeNonIntegralAndUnknownValuesAreRefusedUnchanged) {
