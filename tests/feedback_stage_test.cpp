@@ -268,8 +268,7 @@ TEST(FeedbackStage, ListsKeepTheirContentWhileCurrentOrFading) {
 }
 
 TEST(FeedbackStage, BlendingKeepsThePreviousListWithRisingWeight) {
-  FeedbackStage stage(sphere_model(), std::make_unique<test::RandomWalkStrategy>(),
-                      manual(4, 3));
+  FeedbackStage stage(sphere_model(), std::make_unique<test::RandomWalkStrategy>(), manual(4, 3));
   stage.poll();
   stage.step();
   FrameLists f = stage.poll();
@@ -366,6 +365,16 @@ std::string poll_error(FeedbackStage& stage) {
   return "no StrategyError";
 }
 
+// The stage goes on after a rejected iteration: the next poll requests, and
+// the list the iteration after it returns is exchanged and valid.
+void expect_next_iteration_exchanged(FeedbackStage& stage) {
+  ASSERT_TRUE(stage.poll().requested);
+  stage.step();
+  const FrameLists f = stage.poll();
+  EXPECT_TRUE(f.exchanged);
+  EXPECT_EQ(TreeCut::validate(*f.current.hierarchy, f.current.nodes), "");
+}
+
 TEST(FeedbackStage, AnExceptionOfAnyTypeBecomesAStrategyErrorNamingTheStrategy) {
   using F = MisbehavingStrategy::Fault;
   for (const F fault : {F::ThrowInt, F::ThrowString}) {
@@ -381,11 +390,7 @@ TEST(FeedbackStage, AnExceptionOfAnyTypeBecomesAStrategyErrorNamingTheStrategy) 
     EXPECT_EQ(stage.counters().last_error, m);
     EXPECT_EQ(stage.front().generation, 1u) << "the previous list stays";
     // The stage goes on: the next iteration behaves and is exchanged.
-    EXPECT_TRUE(stage.poll().requested);
-    stage.step();
-    const FrameLists f = stage.poll();
-    EXPECT_TRUE(f.exchanged);
-    EXPECT_EQ(TreeCut::validate(*f.current.hierarchy, f.current.nodes), "");
+    expect_next_iteration_exchanged(stage);
   }
 }
 
@@ -405,11 +410,7 @@ TEST(FeedbackStage, ARebuildListMissingANodeIsRejectedAndThePreviousListStays) {
   EXPECT_EQ(stage.counters().exchanges, 0u);
   EXPECT_EQ(std::vector<NodeId>(stage.front().nodes.begin(), stage.front().nodes.end()), before);
   // The strategy behaves from now on: the next poll requests, the cut after it is shown.
-  ASSERT_TRUE(stage.poll().requested);
-  stage.step();
-  const FrameLists f = stage.poll();
-  EXPECT_TRUE(f.exchanged);
-  EXPECT_EQ(TreeCut::validate(*f.current.hierarchy, f.current.nodes), "");
+  expect_next_iteration_exchanged(stage);
 }
 
 TEST(FeedbackStage, AnEmptyCutFromAnEvolveStrategyIsRejectedAndTheNextStartsFromTheFront) {
@@ -425,11 +426,7 @@ TEST(FeedbackStage, AnEmptyCutFromAnEvolveStrategyIsRejectedAndTheNextStartsFrom
       << m;
   EXPECT_EQ(stage.front().nodes.size(), 1u) << "the root, the initial cut";
   EXPECT_EQ(stage.counters().invalid_cuts, 1u);
-  ASSERT_TRUE(stage.poll().requested);
-  stage.step();
-  const FrameLists f = stage.poll();
-  EXPECT_TRUE(f.exchanged);
-  EXPECT_EQ(TreeCut::validate(*f.current.hierarchy, f.current.nodes), "");
+  expect_next_iteration_exchanged(stage);
 }
 
 TEST(FeedbackStage, TheFullCheckCatchesADuplicateWithTheRightPointTotal) {
@@ -491,8 +488,7 @@ TEST(FeedbackStage, RejectsBadConstruction) {
   EXPECT_THROW(FeedbackStage(Model{}, std::make_unique<ProbeStrategy>(), manual()),
                std::invalid_argument);
   EXPECT_THROW(FeedbackStage(sphere_model(), nullptr, manual()), std::invalid_argument);
-  EXPECT_THROW(FeedbackStage(sphere_model(), std::make_unique<ProbeStrategy>(),
-                             manual(1)),
+  EXPECT_THROW(FeedbackStage(sphere_model(), std::make_unique<ProbeStrategy>(), manual(1)),
                std::invalid_argument);
   EXPECT_THROW(
       FeedbackStage(Model{m.hierarchy, TreeCut()}, std::make_unique<ProbeStrategy>(), manual()),
