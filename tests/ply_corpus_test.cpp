@@ -30,32 +30,47 @@ struct CorpusEntry {
   std::string what;
 };
 
-std::vector<CorpusEntry> read_manifest() {
-  std::vector<CorpusEntry> entries;
-  auto dir = treecut::test::shared_dir();
-  if (!dir) return entries;
-  std::ifstream in(*dir / "ply-corpus" / "MANIFEST.tsv");
+// The rows of a MANIFEST.tsv below its column names, each split into COLUMNS
+// fields at tabs (the last field keeps the rest of the line; missing ones stay
+// empty). Both corpora's manifests share this layout.
+std::vector<std::vector<std::string>> manifest_rows(const std::filesystem::path& manifest,
+                                                    std::size_t columns) {
+  std::vector<std::vector<std::string>> rows;
+  std::ifstream in(manifest);
   std::string line;
   std::getline(in, line);  // column names
   while (std::getline(in, line)) {
     if (line.empty()) continue;
     std::istringstream fields(line);
-    CorpusEntry entry;
-    std::string points;
-    std::getline(fields, entry.file, '\t');
-    std::getline(fields, entry.expect, '\t');
-    std::getline(fields, points, '\t');
-    std::getline(fields, entry.what);
-    if (entry.expect == "ok") entry.points = std::stoul(points);
+    std::vector<std::string> row(columns);
+    for (std::size_t i = 0; i < columns; ++i)
+      std::getline(fields, row[i], i + 1 < columns ? '\t' : '\n');
+    rows.push_back(std::move(row));
+  }
+  return rows;
+}
+
+// A test's name from its file's: anything but a letter or digit becomes '_'.
+std::string name_of_file(const std::string& file) {
+  std::string name;
+  for (char c : file) name += std::isalnum(static_cast<unsigned char>(c)) ? c : '_';
+  return name;
+}
+
+std::vector<CorpusEntry> read_manifest() {
+  std::vector<CorpusEntry> entries;
+  auto dir = treecut::test::shared_dir();
+  if (!dir) return entries;
+  for (const auto& row : manifest_rows(*dir / "ply-corpus" / "MANIFEST.tsv", 4)) {
+    CorpusEntry entry{row[0], row[1], 0, row[3]};
+    if (entry.expect == "ok") entry.points = std::stoul(row[2]);
     entries.push_back(entry);
   }
   return entries;
 }
 
 std::string test_name(const testing::TestParamInfo<CorpusEntry>& info) {
-  std::string name;
-  for (char c : info.param.file) name += std::isalnum(static_cast<unsigned char>(c)) ? c : '_';
-  return name;
+  return name_of_file(info.param.file);
 }
 
 class PlyCorpus : public testing::TestWithParam<CorpusEntry> {};
@@ -138,29 +153,16 @@ std::filesystem::path project_corpus() {
 
 std::vector<ProjectEntry> read_project_manifest() {
   std::vector<ProjectEntry> entries;
-  std::ifstream in(project_corpus() / "MANIFEST.tsv");
-  std::string line;
-  std::getline(in, line);  // column names
-  while (std::getline(in, line)) {
-    if (line.empty()) continue;
-    std::istringstream fields(line);
-    ProjectEntry entry;
-    std::string points;
-    std::getline(fields, entry.file, '\t');
-    std::getline(fields, entry.expect, '\t');
-    std::getline(fields, points, '\t');
-    std::getline(fields, entry.what, '\t');
-    std::getline(fields, entry.message);
-    if (entry.expect == "ok") entry.points = std::stoul(points);
+  for (const auto& row : manifest_rows(project_corpus() / "MANIFEST.tsv", 5)) {
+    ProjectEntry entry{row[0], row[1], 0, row[3], row[4]};
+    if (entry.expect == "ok") entry.points = std::stoul(row[2]);
     entries.push_back(entry);
   }
   return entries;
 }
 
 std::string project_test_name(const testing::TestParamInfo<ProjectEntry>& info) {
-  std::string name;
-  for (char c : info.param.file) name += std::isalnum(static_cast<unsigned char>(c)) ? c : '_';
-  return name;
+  return name_of_file(info.param.file);
 }
 
 std::vector<std::string> lines_of(const std::string& text) {
