@@ -38,15 +38,7 @@ struct Runner {
     s.reset(hierarchy);
   }
   IterationResult step(const ViewSnapshot& view, const std::atomic<bool>* cancel = nullptr) {
-    std::vector<NodeId> nodes;
-    std::vector<QueryRequest> queries;
-    IterationInput in{h, view, 0, cancel, s.params_version()};
-    IterationOutput out;
-    out.cut = &cut;
-    out.nodes = &nodes;
-    out.queries = &queries;
-    s.iterate(in, out);
-    return out.result;
+    return iterate_once(s, h, cut, view, cancel);
   }
   [[nodiscard]] std::vector<NodeId> sorted() const {
     std::vector<NodeId> v(cut.nodes().begin(), cut.nodes().end());

@@ -24,14 +24,7 @@ namespace {
 // The reference: topdown driven directly on this thread.
 std::vector<NodeId> topdown_cut(strategies::TopDownStrategy& s, const Hierarchy& h, TreeCut& cut,
                                 const ViewSnapshot& view) {
-  std::vector<NodeId> nodes;
-  std::vector<QueryRequest> queries;
-  IterationInput in{h, view, 0, nullptr, s.params_version()};
-  IterationOutput out;
-  out.cut = &cut;
-  out.nodes = &nodes;
-  out.queries = &queries;
-  s.iterate(in, out);
+  test::iterate_once(s, h, cut, view);
   std::vector<NodeId> v(cut.nodes().begin(), cut.nodes().end());
   std::sort(v.begin(), v.end());
   return v;

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <map>
@@ -43,6 +44,22 @@ inline ViewSnapshot orbit_view(const Hierarchy& h, float angle, float distance_f
   const glm::vec3 eye =
       center + distance_factor * extent * glm::vec3(std::cos(angle), 0.35f, std::sin(angle));
   return ViewSnapshot::look_at(eye, center, viewport, 0.8f, 0.001f * extent, 10.0f * extent);
+}
+
+/// One iteration of S on CUT as the Feedback Stage runs it: frame 0, the
+/// strategy's current parameter version, fresh node and query lists.
+inline IterationResult iterate_once(Strategy& s, const Hierarchy& h, TreeCut& cut,
+                                    const ViewSnapshot& view,
+                                    const std::atomic<bool>* cancel = nullptr) {
+  std::vector<NodeId> nodes;
+  std::vector<QueryRequest> queries;
+  IterationInput in{h, view, 0, cancel, s.params_version()};
+  IterationOutput out;
+  out.cut = &cut;
+  out.nodes = &nodes;
+  out.queries = &queries;
+  s.iterate(in, out);
+  return out.result;
 }
 
 /// Watches refine and coarsen operations between consecutive cuts under a
