@@ -48,6 +48,18 @@ std::vector<char> but_identity_time(std::vector<char> bytes) {
   return bytes;
 }
 
+// Edits a binary PLY in place: one byte of the first point's x, so the file
+// keeps its size but not its content (the caller restores the mtime).
+void flip_first_point_byte(const fs::path& ply) {
+  std::fstream f(ply, std::ios::in | std::ios::out | std::ios::binary);
+  std::string text(4096, '\0');
+  f.read(text.data(), static_cast<std::streamsize>(text.size()));
+  const auto body = text.find("end_header\n");
+  ASSERT_NE(body, std::string::npos);
+  f.seekp(static_cast<std::streamoff>(body + 11 + 1));
+  f.put(static_cast<char>(text[body + 11 + 1] ^ 0x40));
+}
+
 bool settled(const CacheKey& k) {
   return k.identity_ns != 0 && k.source_ctime_ns <= k.identity_ns - kSettledNs;
 }
@@ -156,16 +168,7 @@ TEST(Cache, AModelEditedInPlaceWithItsMtimeRestoredIsRebuilt) {
   ASSERT_TRUE(open_model(dir / "m.ply", o).from_cache);
   const auto size = fs::file_size(dir / "m.ply");
   const auto mtime = fs::last_write_time(dir / "m.ply");
-  {
-    // The first point's x, one byte of it: the same size, other content.
-    std::fstream f(dir / "m.ply", std::ios::in | std::ios::out | std::ios::binary);
-    std::string text(4096, '\0');
-    f.read(text.data(), static_cast<std::streamsize>(text.size()));
-    const auto body = text.find("end_header\n");
-    ASSERT_NE(body, std::string::npos);
-    f.seekp(static_cast<std::streamoff>(body + 11 + 1));
-    f.put(static_cast<char>(text[body + 11 + 1] ^ 0x40));
-  }
+  ASSERT_NO_FATAL_FAILURE(flip_first_point_byte(dir / "m.ply"));
   fs::last_write_time(dir / "m.ply", mtime);
   ASSERT_EQ(fs::file_size(dir / "m.ply"), size);
   ASSERT_EQ(fs::last_write_time(dir / "m.ply"), mtime);
@@ -247,15 +250,7 @@ TEST(Cache, AnEditInTheTickOfTheBuildIsHashedAndRebuilt) {
   const auto built_for = read_cache_key(dir / "m.tch", &why);
   ASSERT_TRUE(built_for) << why;
   const auto mtime = fs::last_write_time(dir / "m.ply");
-  {
-    std::fstream f(dir / "m.ply", std::ios::in | std::ios::out | std::ios::binary);
-    std::string text(4096, '\0');
-    f.read(text.data(), static_cast<std::streamsize>(text.size()));
-    const auto body = text.find("end_header\n");
-    ASSERT_NE(body, std::string::npos);
-    f.seekp(static_cast<std::streamoff>(body + 11 + 1));
-    f.put(static_cast<char>(text[body + 11 + 1] ^ 0x40));
-  }
+  ASSERT_NO_FATAL_FAILURE(flip_first_point_byte(dir / "m.ply"));
   fs::last_write_time(dir / "m.ply", mtime);
   // The edited file's identity, recorded with the old content's hash, 1 s after its ctime.
   CacheKey hidden = cache_identity_of(dir / "m.ply", options_bits(o.attributes, o.build));
