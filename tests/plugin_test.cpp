@@ -109,17 +109,26 @@ TEST(MisbehavingPlugin, EveryErrorNamesTheStrategyAndThePluginFile) {
   }
 }
 
+// `treecut render` of a small generated model, no PNGs, with STRATEGY of the
+// misbehaving plugin, OPTIONS (frames, --sync, --validate) and the output OUT.
+test::CommandResult render_misbehaving(const std::string& strategy, const std::string& options,
+                                       const std::filesystem::path& out,
+                                       int timeout_seconds = 300) {
+  return test::run_treecut("render " + options + " --plugin " + test::quote(kBadPlugin) + " -s " +
+                               strategy +
+                               " --warmup 0 --no-png --width 64 --height 48 "
+                               "--default-points 3000 --out " +
+                               test::quote(out),
+                           timeout_seconds);
+}
+
 // `treecut render` with a failing strategy: exit 1 and one line naming the
 // strategy and the plugin (--sync: the iteration runs in the frame, so the
 // error arrives at the next one).
 TEST(MisbehavingPlugin, RenderExitsOneWithOneLineNamingStrategyAndPlugin) {
   const auto dir = test::scratch_dir("misbehaving_render");
   for (const char* s : {"drops_node", "throws_int"}) {
-    const test::CommandResult r =
-        test::run_treecut("render --plugin " + test::quote(kBadPlugin) + " -s " + s +
-                          " --sync --frames 3 --warmup 0 --no-png --width 64 "
-                          "--height 48 --default-points 3000 --out " +
-                          test::quote(dir / s));
+    const test::CommandResult r = render_misbehaving(s, "--sync --frames 3", dir / s);
     EXPECT_EQ(r.code, 1) << r.out;
     const std::string line =
         "treecut: error: strategy '" + std::string(s) + "' (plugin " + kBadPlugin + "): ";
@@ -132,10 +141,7 @@ TEST(MisbehavingPlugin, RenderExitsOneWithOneLineNamingStrategyAndPlugin) {
 TEST(MisbehavingPlugin, RenderValidateRejectsADuplicateNode) {
   const auto dir = test::scratch_dir("misbehaving_validate");
   const test::CommandResult r =
-      test::run_treecut("render --validate --plugin " + test::quote(kBadPlugin) +
-                        " -s duplicate --sync --frames 3 --warmup 0 --no-png --width 64 "
-                        "--height 48 --default-points 3000 --out " +
-                        test::quote(dir));
+      render_misbehaving("duplicate", "--validate --sync --frames 3", dir);
   EXPECT_EQ(r.code, 1) << r.out;
   EXPECT_NE(r.out.find("treecut: error: strategy 'duplicate' (plugin " + kBadPlugin +
                        "): returned an invalid cut: node "),
@@ -148,12 +154,8 @@ TEST(MisbehavingPlugin, RenderValidateRejectsADuplicateNode) {
 // reports it after StageOptions::cancel_timeout and treecut exits 1.
 TEST(MisbehavingPlugin, RenderWithAStrategyIgnoringCancellationEndsAndSaysSo) {
   const auto dir = test::scratch_dir("misbehaving_cancel");
-  const test::CommandResult r =
-      test::run_treecut("render --plugin " + test::quote(kBadPlugin) +
-                            " -s ignores_cancel --frames 2 --warmup 0 --no-png "
-                            "--width 64 --height 48 --default-points 3000 --out " +
-                            test::quote(dir),
-                        50);  // the strategy itself would take 60 s
+  const test::CommandResult r = render_misbehaving("ignores_cancel", "--frames 2", dir,
+                                                   50);  // the strategy itself would take 60 s
   EXPECT_EQ(r.code, 1) << r.out;
   EXPECT_NE(r.out.find("warning: ignores_cancel: no strategy iteration completed in "),
             std::string::npos)
