@@ -15,6 +15,7 @@
 #include <fstream>
 #include <functional>
 #include <glm/geometric.hpp>
+#include <random>
 #include <set>
 #include <sstream>
 #include <string>
@@ -57,6 +58,24 @@ struct Scene {
 
 Scene scene_of(const Hierarchy& h) {
   return {0.5f * (h.bounds_min() + h.bounds_max()), glm::length(h.bounds_max() - h.bounds_min())};
+}
+
+// A random camera of the brute-force bound tests: the eye 0.3 to 0.8 extents
+// from the center in any direction, the target within 0.2 extents of it.
+struct EyeAndTarget {
+  glm::vec3 eye;
+  glm::vec3 target;
+};
+EyeAndTarget random_camera(const Scene& s, std::mt19937& rng,
+                           std::uniform_real_distribution<double>& u) {
+  const glm::vec3 eye = s.center + float(0.3 + 0.5 * (u(rng) + 1.0)) * s.extent *
+                                       glm::normalize(glm::vec3(u(rng), u(rng), u(rng)));
+  const glm::vec3 target = s.center + 0.2f * s.extent * glm::vec3(u(rng), u(rng), u(rng));
+  return {eye, target};
+}
+
+NodeId random_node(const Hierarchy& h, std::mt19937& rng) {
+  return NodeId(std::uniform_int_distribution<std::uint32_t>(0, h.node_count() - 1)(rng));
 }
 
 ViewSnapshot camera(const Scene& s, glm::vec3 eye, glm::vec3 target, std::uint64_t version) {
@@ -256,14 +275,11 @@ TEST(EventQueue, event_times_are_lower_bounds) {
   const double omega = 0.02;
   std::size_t checked = 0;
   for (int trial = 0; trial < 300; ++trial) {
-    const glm::vec3 eye = s.center + float(0.3 + 0.5 * (u(rng) + 1.0)) * s.extent *
-                                         glm::normalize(glm::vec3(u(rng), u(rng), u(rng)));
-    const glm::vec3 target = s.center + 0.2f * s.extent * glm::vec3(u(rng), u(rng), u(rng));
+    const auto [eye, target] = random_camera(s, rng, u);
     const ViewSnapshot v0 = camera(s, eye, target, 1);
     const auto c0 = strategies::CriterionCamera::from_view(v0, 1.5);
     for (int k = 0; k < 200; ++k) {
-      const NodeId n =
-          NodeId(std::uniform_int_distribution<std::uint32_t>(0, h->node_count() - 1)(rng));
+      const NodeId n = random_node(*h, rng);
       const bool now = strategies::unfold_test(c0, cr[n]);
       const std::uint32_t t = now ? strategies::potential_fold_time(c0, cr[n], rho, omega, 511)
                                   : strategies::potential_unfold_time(c0, cr[n], rho, omega, 511);
@@ -307,14 +323,11 @@ TEST(EventQueue, two_clock_event_times_are_lower_bounds) {
   const double paces[] = {0.0, 0.05, 1.0, 20.0};
   std::size_t checked = 0, rotation_bounded = 0;
   for (int trial = 0; trial < 300; ++trial) {
-    const glm::vec3 eye = s.center + float(0.3 + 0.5 * (u(rng) + 1.0)) * s.extent *
-                                         glm::normalize(glm::vec3(u(rng), u(rng), u(rng)));
-    const glm::vec3 target = s.center + 0.2f * s.extent * glm::vec3(u(rng), u(rng), u(rng));
+    const auto [eye, target] = random_camera(s, rng, u);
     const auto c0 = strategies::CriterionCamera::from_view(camera(s, eye, target, 1), 1.5);
     const strategies::EventRates rates(c0, rho, omega, 511.0, 63.0, paces[trial % 4]);
     for (int k = 0; k < 100; ++k) {
-      const NodeId n =
-          NodeId(std::uniform_int_distribution<std::uint32_t>(0, h->node_count() - 1)(rng));
+      const NodeId n = random_node(*h, rng);
       const bool now = strategies::unfold_test(c0, cr[n]);
       const strategies::EventTime t = now ? strategies::potential_fold_event(c0, cr[n], rates)
                                           : strategies::potential_unfold_event(c0, cr[n], rates);
