@@ -85,6 +85,14 @@ const Hierarchy* model(const std::string& asset) {
   return cache.emplace(asset, std::move(h)).first->second.get();
 }
 
+// The asset's hierarchy, or nullptr with the benchmark marked skipped (the
+// shared assets are optional).
+const Hierarchy* model_or_skip(benchmark::State& state, const std::string& asset) {
+  const Hierarchy* h = model(asset);
+  if (h == nullptr) state.SkipWithError(("../shared/assets/" + asset + " is absent").c_str());
+  return h;
+}
+
 ViewSnapshot snapshot(const Camera& c, glm::vec3 light) {
   ViewSnapshot v;
   v.view = c.view_matrix();
@@ -165,11 +173,8 @@ Image grab(const Renderer& r) {
 void FeedbackOverhead(
     benchmark::State& state, bool moving, StagePriority priority,
     std::chrono::milliseconds starvation_bound = StageOptions{}.starvation_bound) {
-  const Hierarchy* h = model("dragon_vrip.ply");
-  if (h == nullptr) {
-    state.SkipWithError("../shared/assets/dragon_vrip.ply is absent");
-    return;
-  }
+  const Hierarchy* h = model_or_skip(state, "dragon_vrip.ply");
+  if (h == nullptr) return;
   context();
   Renderer renderer(*h, kSize);
   const RenderSettings settings;
@@ -332,11 +337,8 @@ glm::vec3 up_of(const std::string& asset) {
 }
 
 void FullVsLod(benchmark::State& state, const std::string& asset) {
-  const Hierarchy* h = model(asset);
-  if (h == nullptr) {
-    state.SkipWithError(("../shared/assets/" + asset + " is absent").c_str());
-    return;
-  }
+  const Hierarchy* h = model_or_skip(state, asset);
+  if (h == nullptr) return;
   context();
   Renderer renderer(*h, kSize);
   const Camera cam = default_camera(h->bounds_min(), h->bounds_max(), kAspect, up_of(asset));
@@ -381,11 +383,8 @@ class NoopHook final : public RangeHook {
 };
 
 void RangeOverhead(benchmark::State& state) {
-  const Hierarchy* h = model("dragon_vrip.ply");
-  if (h == nullptr) {
-    state.SkipWithError("../shared/assets/dragon_vrip.ply is absent");
-    return;
-  }
+  const Hierarchy* h = model_or_skip(state, "dragon_vrip.ply");
+  if (h == nullptr) return;
   context();
   Renderer renderer(*h, kSize);
   const RenderSettings settings;
@@ -437,11 +436,8 @@ BENCHMARK(RangeOverhead)
 // max_changed_frozen: the same path with the first cut frozen (the camera's
 // motion alone).
 void FadeStability(benchmark::State& state) {
-  const Hierarchy* h = model("dragon_vrip.ply");
-  if (h == nullptr) {
-    state.SkipWithError("../shared/assets/dragon_vrip.ply is absent");
-    return;
-  }
+  const Hierarchy* h = model_or_skip(state, "dragon_vrip.ply");
+  if (h == nullptr) return;
   context();
   Renderer renderer(*h, kSize);
   const RenderSettings settings;
