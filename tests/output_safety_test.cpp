@@ -61,6 +61,15 @@ std::size_t count_lines_with(const std::string& text, const std::string& needle)
   return n;
 }
 
+// The house rule for a failure: exit CODE and one line, which says TEXT
+// (CONTEXT goes before the output in a failure's message).
+void expect_one_line_failure(const CommandResult& r, int code, const std::string& text,
+                             const std::string& context = "") {
+  EXPECT_EQ(r.code, code) << context << r.out;
+  EXPECT_EQ(lines_of(r.out).size(), 1u) << r.out;
+  EXPECT_NE(r.out.find(text), std::string::npos) << r.out;
+}
+
 std::vector<fs::path> files_under(const fs::path& dir) {
   std::vector<fs::path> out;
   for (const auto& e : fs::recursive_directory_iterator(dir))
@@ -113,9 +122,8 @@ TEST(OutputSafety, BuildNeverOverwritesTheModelItself) {
     for (const fs::path& out : {model, dir / "hard.ply", dir / "link.ply"}) {
       const CommandResult r =
           run_treecut("build " + std::string(force) + quote(model) + " -o " + quote(out));
-      EXPECT_EQ(r.code, 2) << force << out << "\n" << r.out;
-      EXPECT_EQ(lines_of(r.out).size(), 1u) << r.out;
-      EXPECT_NE(r.out.find(out.string() + ": is the model itself"), std::string::npos) << r.out;
+      expect_one_line_failure(r, 2, out.string() + ": is the model itself",
+                              force + out.string() + "\n");
       EXPECT_EQ(read_all(model), bytes) << "the model was replaced through " << out;
     }
   }
@@ -238,9 +246,7 @@ TEST(OutputSafety, AFifoOrADirectoryAtTheDefaultCachePath) {
     }
     for (const char* force : {"", "-f "}) {
       r = run_treecut("build " + std::string(force) + quote(model), 30);
-      EXPECT_EQ(r.code, 1) << what << "\n" << r.out;
-      EXPECT_EQ(lines_of(r.out).size(), 1u) << r.out;
-      EXPECT_NE(r.out.find(cache.string() + ": " + what), std::string::npos) << r.out;
+      expect_one_line_failure(r, 1, cache.string() + ": " + what, what + "\n");
     }
     // info goes on without the cache, with one warning.
     r = run_treecut("info " + quote(model), 30);
@@ -260,11 +266,7 @@ TEST(OutputSafety, BuildFailsWhenTheCacheCannotBeWrittenAndInfoGoesOn) {
   const ScopedEnv xdg("XDG_CACHE_HOME", (dir / "a-file").string());
   for (const char* force : {"", "-f "}) {
     const CommandResult r = run_treecut("build " + std::string(force) + quote(model));
-    EXPECT_EQ(r.code, 1) << r.out;
-    EXPECT_EQ(lines_of(r.out).size(), 1u) << r.out;
-    EXPECT_NE(r.out.find((dir / "a-file" / "treecut").string() + ": Not a directory"),
-              std::string::npos)
-        << r.out;
+    expect_one_line_failure(r, 1, (dir / "a-file" / "treecut").string() + ": Not a directory");
     EXPECT_EQ(r.out.find("cache       "), std::string::npos) << "printed as written: " << r.out;
   }
   const CommandResult r = run_treecut("info " + quote(model));
@@ -286,11 +288,7 @@ TEST(OutputSafety, BuildFailsOnAReadOnlyFolderAndRenderGoesOn) {
   for (const char* force : {"", "-f "}) {
     const CommandResult r = run_treecut("build " + std::string(force) + quote(model) + " -o " +
                                         quote(disk->path() / "m.tch"));
-    EXPECT_EQ(r.code, 1) << r.out;
-    EXPECT_EQ(lines_of(r.out).size(), 1u) << r.out;
-    EXPECT_NE(r.out.find((disk->path() / "m.tch").string() + ": Read-only file system"),
-              std::string::npos)
-        << r.out;
+    expect_one_line_failure(r, 1, (disk->path() / "m.tch").string() + ": Read-only file system");
   }
   const ScopedEnv xdg("XDG_CACHE_HOME", disk->path().string());
   const CommandResult r =
@@ -311,11 +309,7 @@ TEST(OutputSafety, BuildOnAFullDiskFailsAndLeavesNoFile) {
   for (const char* force : {"", "-f "}) {
     const CommandResult r = run_treecut("build " + std::string(force) + quote(model) + " -o " +
                                         quote(disk->path() / "m.tch"));
-    EXPECT_EQ(r.code, 1) << r.out;
-    EXPECT_EQ(lines_of(r.out).size(), 1u) << r.out;
-    EXPECT_NE(r.out.find((disk->path() / "m.tch").string() + ": No space left on device"),
-              std::string::npos)
-        << r.out;
+    expect_one_line_failure(r, 1, (disk->path() / "m.tch").string() + ": No space left on device");
     EXPECT_TRUE(fs::is_empty(disk->path())) << "a truncated cache or temporary was left";
   }
 }
@@ -375,9 +369,7 @@ TEST(OutputSafety, GenReplacesOnlyAPlyAndNeverBlocks) {
       {dir / "notes.txt", ": exists and is not a PLY file"}};
   for (const auto& [out, why] : cases) {
     const CommandResult r = run_treecut("gen sphere -n 100 -o " + quote(out), 30);
-    EXPECT_EQ(r.code, 2) << out << "\n" << r.out;
-    EXPECT_EQ(lines_of(r.out).size(), 1u) << r.out;
-    EXPECT_NE(r.out.find(out.string() + why), std::string::npos) << r.out;
+    expect_one_line_failure(r, 2, out.string() + why, out.string() + "\n");
   }
   EXPECT_EQ(read_all(dir / "notes.txt"), "my notes\n");
   // A PLY is what gen replaces (regenerating a model).
@@ -393,9 +385,7 @@ TEST(OutputSafety, GenOnAFullDiskFailsAndKeepsTheOldModel) {
   const fs::path model = small_model(disk->path(), "m.ply", 1000);
   const std::string bytes = read_all(model);
   CommandResult r = run_treecut("gen terrain -n 100000 -o " + quote(model));
-  EXPECT_EQ(r.code, 1) << r.out;
-  EXPECT_EQ(lines_of(r.out).size(), 1u) << r.out;
-  EXPECT_NE(r.out.find(model.string() + ": No space left on device"), std::string::npos) << r.out;
+  expect_one_line_failure(r, 1, model.string() + ": No space left on device");
   EXPECT_EQ(read_all(model), bytes) << "the old model was replaced by a partial one";
   EXPECT_EQ(files_under(disk->path()).size(), 1u) << "a temporary was left behind";
   r = run_treecut("gen terrain -n 100000 -o " + quote(disk->path() / "new.ply"));
@@ -411,10 +401,7 @@ TEST(OutputSafety, RenderRefusesAFolderOfTheUsersAndReusesItsOwn) {
   write_text(dir / "mine" / "notes.txt", "my notes\n");
   write_text(dir / "mine" / "stats.csv", "my own table\n");
   CommandResult r = run_treecut(kTinyRender + "-o " + quote(dir / "mine"));
-  EXPECT_EQ(r.code, 2) << r.out;
-  EXPECT_EQ(lines_of(r.out).size(), 1u) << r.out;
-  EXPECT_NE(r.out.find((dir / "mine").string() + ": folder is not empty"), std::string::npos)
-      << r.out;
+  expect_one_line_failure(r, 2, (dir / "mine").string() + ": folder is not empty");
   EXPECT_EQ(files_under(dir / "mine").size(), 2u) << "wrote into the user's folder";
   EXPECT_EQ(read_all(dir / "mine" / "stats.csv"), "my own table\n");
 
@@ -440,9 +427,7 @@ TEST(OutputSafety, RenderRefusesAFolderOfTheUsersAndReusesItsOwn) {
 TEST(OutputSafety, RenderOfTheSameStrategyTwiceIsRefused) {
   const fs::path dir = scratch_dir("safety_render_twice");
   const CommandResult r = run_treecut(kTinyRender + "-s bucket -s bucket -o " + quote(dir / "out"));
-  EXPECT_EQ(r.code, 2) << r.out;
-  EXPECT_EQ(lines_of(r.out).size(), 1u) << r.out;
-  EXPECT_NE(r.out.find("bucket given twice"), std::string::npos) << r.out;
+  expect_one_line_failure(r, 2, "bucket given twice");
   EXPECT_FALSE(fs::exists(dir / "out"));
 }
 
