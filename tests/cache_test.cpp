@@ -60,6 +60,15 @@ void flip_first_point_byte(const fs::path& ply) {
   f.put(static_cast<char>(text[body + 11 + 1] ^ 0x40));
 }
 
+// Writes a generated model to DIR/m.ply; the options open it with its cache
+// at DIR/m.tch.
+OpenOptions model_in(const fs::path& dir, ModelKind kind, std::size_t points, std::uint64_t seed) {
+  save_ply(dir / "m.ply", generate_model(kind, points, seed));
+  OpenOptions o;
+  o.cache_path = dir / "m.tch";
+  return o;
+}
+
 bool settled(const CacheKey& k) {
   return k.identity_ns != 0 && k.source_ctime_ns <= k.identity_ns - kSettledNs;
 }
@@ -160,9 +169,7 @@ TEST(Cache, StaleWhenTheContentHashDiffers) {
 // `touch -d` or a careful editor does: the content hash notices.
 TEST(Cache, AModelEditedInPlaceWithItsMtimeRestoredIsRebuilt) {
   const fs::path dir = test::scratch_dir("cache_edit_in_place");
-  save_ply(dir / "m.ply", generate_model(ModelKind::Terrain, 4000, 3));
-  OpenOptions o;
-  o.cache_path = dir / "m.tch";
+  OpenOptions o = model_in(dir, ModelKind::Terrain, 4000, 3);
   const OpenedModel first = open_model(dir / "m.ply", o);
   ASSERT_FALSE(first.from_cache);
   ASSERT_TRUE(open_model(dir / "m.ply", o).from_cache);
@@ -212,9 +219,7 @@ TEST(Cache, TheIdentityServesOnlyWhenExactAndSettled) {
 // reject it.
 TEST(Cache, AnUnchangedSettledModelIsServedWithoutHashing) {
   const fs::path dir = test::scratch_dir("cache_identity_fast");
-  save_ply(dir / "m.ply", generate_model(ModelKind::Terrain, 4000, 3));
-  OpenOptions o;
-  o.cache_path = dir / "m.tch";
+  OpenOptions o = model_in(dir, ModelKind::Terrain, 4000, 3);
   const OpenedModel built = open_model(dir / "m.ply", o);
   ASSERT_TRUE(built.hashed);
   CacheKey key = cache_key_for(dir / "m.ply", options_bits(o.attributes, o.build));
@@ -242,9 +247,7 @@ TEST(Cache, AnUnchangedSettledModelIsServedWithoutHashing) {
 // older than the read, so the content is hashed and the cache rebuilt.
 TEST(Cache, AnEditInTheTickOfTheBuildIsHashedAndRebuilt) {
   const fs::path dir = test::scratch_dir("cache_identity_racy");
-  save_ply(dir / "m.ply", generate_model(ModelKind::Terrain, 4000, 3));
-  OpenOptions o;
-  o.cache_path = dir / "m.tch";
+  OpenOptions o = model_in(dir, ModelKind::Terrain, 4000, 3);
   ASSERT_FALSE(open_model(dir / "m.ply", o).from_cache);
   std::string why;
   const auto built_for = read_cache_key(dir / "m.tch", &why);
@@ -271,9 +274,7 @@ TEST(Cache, AnEditInTheTickOfTheBuildIsHashedAndRebuilt) {
 // is not settled: the next open hashes, and the same content serves.
 TEST(Cache, AFreshBuildIsCheckedByItsHashUntilSettled) {
   const fs::path dir = test::scratch_dir("cache_identity_fresh");
-  save_ply(dir / "m.ply", generate_model(ModelKind::City, 3000, 1));
-  OpenOptions o;
-  o.cache_path = dir / "m.tch";
+  OpenOptions o = model_in(dir, ModelKind::City, 3000, 1);
   ASSERT_FALSE(open_model(dir / "m.ply", o).from_cache);
   std::string why;
   const auto stored = read_cache_key(dir / "m.tch", &why);
@@ -288,9 +289,7 @@ TEST(Cache, AFreshBuildIsCheckedByItsHashUntilSettled) {
 // Only touched: the identity moves, the content is hashed, the same hash serves.
 TEST(Cache, ATouchedModelIsHashedAndServed) {
   const fs::path dir = test::scratch_dir("cache_identity_touch");
-  save_ply(dir / "m.ply", generate_model(ModelKind::City, 3000, 1));
-  OpenOptions o;
-  o.cache_path = dir / "m.tch";
+  OpenOptions o = model_in(dir, ModelKind::City, 3000, 1);
   ASSERT_FALSE(open_model(dir / "m.ply", o).from_cache);
   std::string why;
   const auto before = read_cache_key(dir / "m.tch", &why);
@@ -347,9 +346,7 @@ TEST(Cache, ContentHashIsOfTheBytes) {
 
 TEST(Cache, OpenModelUsesTheCacheAndRebuildsACorruptOne) {
   const fs::path dir = test::scratch_dir("cache_open");
-  save_ply(dir / "m.ply", generate_model(ModelKind::City, 3000, 1));
-  OpenOptions o;
-  o.cache_path = dir / "m.tch";
+  OpenOptions o = model_in(dir, ModelKind::City, 3000, 1);
   std::vector<std::string> warnings;
   o.warn = [&](const std::string& w) { warnings.push_back(w); };
 
@@ -387,9 +384,7 @@ TEST(Cache, OpenModelUsesTheCacheAndRebuildsACorruptOne) {
 // says why, rebuilds from the PLY and writes the complete cache back.
 TEST(Cache, OpenModelRebuildsFromThePlyAfterEveryTruncationOfItsCache) {
   const fs::path dir = test::scratch_dir("cache_open_truncate");
-  save_ply(dir / "m.ply", generate_model(ModelKind::Sphere, 24, 5));
-  OpenOptions o;
-  o.cache_path = dir / "m.tch";
+  OpenOptions o = model_in(dir, ModelKind::Sphere, 24, 5);
   std::size_t rebuild_warnings = 0;
   o.warn = [&](const std::string& w) {
     rebuild_warnings += w.find("rebuilding") != std::string::npos;
@@ -413,9 +408,7 @@ TEST(Cache, OpenModelRebuildsFromThePlyAfterEveryTruncationOfItsCache) {
 
 TEST(Cache, OpenModelRebuildsFromThePlyAfterAnyFlippedByteInItsCache) {
   const fs::path dir = test::scratch_dir("cache_open_flip");
-  save_ply(dir / "m.ply", generate_model(ModelKind::Terrain, 24, 5));
-  OpenOptions o;
-  o.cache_path = dir / "m.tch";
+  OpenOptions o = model_in(dir, ModelKind::Terrain, 24, 5);
   const OpenedModel built = open_model(dir / "m.ply", o);
   auto bytes = read_all(dir / "m.tch");
   for (std::size_t i = 0; i < bytes.size(); ++i) {
