@@ -43,12 +43,14 @@
 #include <map>
 #include <memory>
 #include <numeric>
+#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
 
 #include "test_support.hpp"
 #include "treecut/controller.hpp"
+#include "treecut/file_io.hpp"
 #include "treecut/model.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/registry.hpp"
@@ -530,18 +532,24 @@ void FadeStability(benchmark::State& state) {
   if (const char* dir = std::getenv("TREECUT_FADE_CSV")) {
     const std::string path = std::string(dir) + "/fades_" + std::to_string(state.range(0)) + "_" +
                              std::to_string(state.range(1)) + ".csv";
-    if (FILE* f = std::fopen(path.c_str(), "w")) {
-      std::fprintf(f, "frame,changed_frozen");
-      for (const unsigned b : blends) std::fprintf(f, ",changed_%u,frame_ms_%u", b, b);
-      std::fprintf(f, "\n");
-      for (std::size_t i = 0; i < runs[0].changed.size(); ++i) {
-        std::fprintf(f, "%zu,%.6f", i + 1, frozen_changed[i]);
-        for (const Run& r : runs) std::fprintf(f, ",%.6f,%.3f", r.changed[i], r.times.wall_ms[i]);
-        std::fprintf(f, "\n");
+    std::ostringstream csv;
+    csv << "frame,changed_frozen";
+    for (const unsigned b : blends) csv << ",changed_" << b << ",frame_ms_" << b;
+    csv << '\n';
+    char cell[48];
+    for (std::size_t i = 0; i < runs[0].changed.size(); ++i) {
+      std::snprintf(cell, sizeof cell, "%zu,%.6f", i + 1, frozen_changed[i]);
+      csv << cell;
+      for (const Run& r : runs) {
+        std::snprintf(cell, sizeof cell, ",%.6f,%.3f", r.changed[i], r.times.wall_ms[i]);
+        csv << cell;
       }
-      if (std::fclose(f) != 0) std::fprintf(stderr, "%s: write failed\n", path.c_str());
-    } else {
-      std::fprintf(stderr, "%s: cannot write\n", path.c_str());
+      csv << '\n';
+    }
+    try {
+      treecut::write_file_atomically(path, csv.str());
+    } catch (const std::exception& e) {
+      state.SkipWithError(e.what());
     }
   }
 }

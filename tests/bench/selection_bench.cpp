@@ -17,15 +17,16 @@
 #include <cstdio>
 #include <cstdlib>
 #include <ctime>
-#include <fstream>
 #include <glm/geometric.hpp>
 #include <glm/gtc/matrix_transform.hpp>
 #include <random>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "bench_models.hpp"
+#include "treecut/file_io.hpp"
 #include "treecut/strategies/event_queue.hpp"
 #include "treecut/strategies/topdown.hpp"
 
@@ -245,13 +246,19 @@ void BM_Selection(benchmark::State& state) {
   state.counters["events"] = median(tail(events));
   state.SetLabel(std::string(kModels[which]) + "/" + kPaths[path_kind]);
   if (const char* dir = std::getenv("TREECUT_SELECTION_CSV")) {
-    std::ofstream out(std::string(dir) + "/" + kModels[which] + "_" + kPaths[path_kind] + ".csv");
+    std::ostringstream out;
     out << "frame,segment,cut,topdown_us,event_queue_us,topdown_tests,events,frames_advanced,"
            "theta\n";
     for (std::size_t i = 0; i < cut.size(); ++i) {
       out << i << ',' << segment[i] << ',' << cut[i] << ',' << 1e-3 * top_ns[i] << ','
           << 1e-3 * event_ns[i] << ',' << tests[i] << ',' << events[i] << ',' << advanced[i] << ','
           << theta << '\n';
+    }
+    try {
+      treecut::write_file_atomically(
+          std::string(dir) + "/" + kModels[which] + "_" + kPaths[path_kind] + ".csv", out.str());
+    } catch (const std::exception& e) {
+      state.SkipWithError(e.what());
     }
   }
 }
