@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "cache_checksum.hpp"
+#include "build/cache_checksum.hpp"
 #include "fuzz/fuzz_checks.hpp"
 #include "test_support.hpp"
 #include "treecut/cache.hpp"
