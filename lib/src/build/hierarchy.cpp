@@ -1,26 +1,31 @@
 // QSplat-style bounding-sphere hierarchy, built top-down by median splits and
 // filled bottom-up (Rusinkiewicz & Levoy, "QSplat: A Multiresolution Point
-// Rendering System for Large Meshes", SIGGRAPH 2000, section 3.1).
+// Rendering System for Large Meshes", SIGGRAPH 2000, section 3.1; cited as
+// [Rus00] in ../shared/papers/parallel-treecut-manipulation.txt).
 //
-// Build in three stages, each data-parallel over the nodes of one level:
-//   1. topology: split each node's point range at the median of its longest
-//      axis, twice, giving up to four children (QSplat's branching factor);
-//   2. leaves: copy the point attributes into the node arrays, attribute by
-//      attribute, releasing each PointSet array as soon as it is consumed so
-//      the peak memory stays near the size of the result;
-//   3. interior nodes, deepest level first: bounding sphere of the children's
-//      spheres, normal cone, average color, monotone priority.
-// Nothing depends on the thread count, so the output is byte-identical for
-// any number of workers.
+// build_hierarchy runs five named stages; each consumes the previous one's
+// output and releases what it no longer needs, so the peak memory stays near
+// the size of the result:
+//   1. order_points:   PointSet positions -> build items and bounding box;
+//   2. build_topology: items -> the tree's shape, level by level, by QSplat's
+//                      split (median of the longest axis, twice: four children);
+//   3. fill_leaves:    PointSet attributes -> the leaves' node arrays;
+//   4. fill_interior:  children -> parents, deepest level first (QSplat's
+//                      bottom-up pass: bounding sphere, normal cone, color);
+//   5. assemble:       node arrays -> an immutable Hierarchy.
+// Stages 2-4 are data-parallel over the nodes of one level. Nothing depends on
+// the thread count, so the output is byte-identical for any number of workers.
 #include "treecut/hierarchy.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <glm/geometric.hpp>
 #include <numeric>
 #include <stdexcept>
 #include <thread>
+#include <vector>
 
 #include "treecut/parallel.hpp"
 
@@ -142,71 +147,71 @@ float cone_priority(float cone_cos) {
   return clamp01(0.5f * (1.0f - cone_cos));
 }
 
-}  // namespace
+// Progress in work units, reported from the building thread: N per topology
+// level (capped at N), then N / levels per interior level (capped at 2N).
+class BuildProgress {
+ public:
+  BuildProgress(const BuildOptions& options, std::uint32_t points)
+      : report_(options.progress), total_(2 * std::size_t{points}) {}
+  void topology_level(std::size_t units) {
+    done_ += units;
+    report(std::min(done_, total_ / 2));
+  }
+  void interior_level(std::size_t units) {
+    done_ += units;
+    report(std::min(done_, total_));
+  }
+  void finish() { report(total_); }
 
-glm::i16vec4 pack_normal_cone(glm::vec3 normal, float cone_cos) {
-  auto q = [](float v) {  // round to nearest (lround is a library call, this is not)
-    const float x = std::clamp(v, -1.0f, 1.0f) * 32767.0f;
-    return static_cast<std::int16_t>(x + (x >= 0.0f ? 0.5f : -0.5f));
-  };
-  // The cone is rounded towards wider (smaller cosine) so it stays conservative.
-  const auto c =
-      static_cast<std::int16_t>(std::floor(std::clamp(cone_cos, -1.0f, 1.0f) * 32767.0f));
-  return {q(normal.x), q(normal.y), q(normal.z), std::max<std::int16_t>(c, -32767)};
-}
+ private:
+  void report(std::size_t done) const {
+    if (report_) report_(done, total_);
+  }
+  const std::function<void(std::size_t, std::size_t)>& report_;
+  std::size_t done_ = 0;
+  std::size_t total_;
+};
 
-std::size_t Hierarchy::memory_bytes() const {
-  const std::size_t n = node_count_;
-  return n * (sizeof(glm::vec4) + sizeof(glm::i16vec4) + sizeof(glm::u8vec4) + sizeof(float) +
-              sizeof(std::uint32_t) + 2 * sizeof(NodeId) + 2 * sizeof(std::uint8_t));
-}
+// ---- Stage 1: order the points ---------------------------------------------
 
-Hierarchy Hierarchy::from_arrays(std::shared_ptr<const void> storage, const HierarchyArrays& a,
-                                 std::vector<NodeId> level_begin, glm::vec3 bounds_min,
-                                 glm::vec3 bounds_max) {
-  const std::size_t n = a.center_radius.size();
-  if (a.normal_cone.size() != n || a.color.size() != n || a.priority.size() != n ||
-      a.point_count.size() != n || a.parent.size() != n || a.first_child.size() != n ||
-      a.child_count.size() != n || a.depth.size() != n)
-    throw std::invalid_argument("hierarchy arrays differ in size");
-  if (level_begin.empty() || level_begin.front() != 0 || level_begin.back() != n)
-    throw std::invalid_argument("hierarchy level table does not span the nodes");
-  Hierarchy h;
-  h.storage_ = std::move(storage);
-  h.a_ = a;
-  h.level_begin_ = std::move(level_begin);
-  h.node_count_ = static_cast<std::uint32_t>(n);
-  h.leaf_count_ = n ? a.point_count[0] : 0;
-  h.bounds_min_ = bounds_min;
-  h.bounds_max_ = bounds_max;
-  return h;
-}
+struct BuildOrder {
+  std::vector<Item> items;  // every point, moved by build_topology into split order
+  glm::vec3 bounds_min{INFINITY}, bounds_max{-INFINITY};
+};
 
-Hierarchy build_hierarchy(PointSet&& points, const BuildOptions& options) {
-  const std::size_t n_points = points.size();
-  if (n_points == 0) throw std::invalid_argument("build_hierarchy: no points");
-  if (n_points >= (std::size_t{1} << 31))
-    throw std::invalid_argument("build_hierarchy: more than 2^31 points");
-  if (!points.has_normals() || !points.has_radii() || !points.has_curvature())
-    throw std::invalid_argument("build_hierarchy: normals, radii and curvature are required");
-  const unsigned threads = worker_count(options.threads);
-  const auto N = static_cast<std::uint32_t>(n_points);
-
-  glm::vec3 bmin(INFINITY), bmax(-INFINITY);
-  std::vector<Item> items(N);
+// Consumes points.positions (and the triangles, which the hierarchy ignores);
+// produces one Item per point in input order and the model's bounding box.
+BuildOrder order_points(PointSet& points) {
+  const auto N = static_cast<std::uint32_t>(points.size());
+  BuildOrder o;
+  o.items.resize(N);
   for (std::uint32_t i = 0; i < N; ++i) {
-    items[i] = {points.positions[i], i};
-    bmin = glm::min(bmin, points.positions[i]);
-    bmax = glm::max(bmax, points.positions[i]);
+    o.items[i] = {points.positions[i], i};
+    o.bounds_min = glm::min(o.bounds_min, points.positions[i]);
+    o.bounds_max = glm::max(o.bounds_max, points.positions[i]);
   }
   release(points.positions);
   release(points.triangles);
+  return o;
+}
 
-  // Stage 1: topology, one level at a time. `ranges` holds each node's span of
-  // `items`; a leaf's range is its single point.
-  OwnedArrays a;
-  std::vector<Range> ranges{{0, N}};
-  std::vector<NodeId> level_begin{0};
+// ---- Stage 2: topology -----------------------------------------------------
+
+struct Topology {
+  std::vector<Range> ranges;        // each node's span of the items; a leaf's is one point
+  std::vector<NodeId> level_begin;  // first node of each depth, then the node count
+};
+
+// QSplat's split (section 3.1), one level at a time: partition() reorders each
+// node's items about the medians, child_ranges() names the children. Produces
+// a.parent, a.depth, a.first_child and a.child_count in breadth-first order,
+// and every node's range of `items`, which fill_leaves consumes.
+Topology build_topology(std::vector<Item>& items, OwnedArrays& a, unsigned threads,
+                        BuildProgress& progress) {
+  const auto N = static_cast<std::uint32_t>(items.size());
+  Topology t{{{0, N}}, {0}};
+  std::vector<Range>& ranges = t.ranges;
+  std::vector<NodeId>& level_begin = t.level_begin;
   // Capacity only: untouched pages cost no memory. Interior nodes < N.
   ranges.reserve(2 * std::size_t{N});
   a.parent.reserve(2 * std::size_t{N});
@@ -215,8 +220,6 @@ Hierarchy build_hierarchy(PointSet&& points, const BuildOptions& options) {
   a.child_count.reserve(2 * std::size_t{N});
   a.parent.push_back(kNoNode);
   a.depth.push_back(0);
-  std::size_t progress_done = 0;
-  const std::size_t progress_total = 2 * std::size_t{N};
   for (int depth = 0;; ++depth) {
     const std::size_t lb = level_begin.back(), le = ranges.size();
     if (lb == le) break;
@@ -239,14 +242,22 @@ Hierarchy build_hierarchy(PointSet&& points, const BuildOptions& options) {
         a.depth.push_back(static_cast<std::uint8_t>(depth + 1));
       }
     }
-    progress_done += N;
-    if (options.progress)
-      options.progress(std::min(progress_done, progress_total / 2), progress_total);
+    progress.topology_level(N);
   }
-  const std::size_t M = ranges.size();
+  return t;
+}
 
-  // Stage 2: leaves. A leaf's point, in `items` order; remembered in
-  // first_child (unused by leaves) until the arrays are final.
+// ---- Stage 3: leaves -------------------------------------------------------
+
+// Consumes the ranges, the items and the PointSet's radii, normals, colors and
+// curvature, one array at a time (each released as soon as it is copied);
+// produces every leaf's center_radius, normal_cone, color, priority and
+// point_count. Interior entries are sized but left for fill_interior.
+void fill_leaves(OwnedArrays& a, std::vector<Range>&& ranges, std::vector<Item>&& items,
+                 PointSet& points, unsigned threads) {
+  const std::size_t M = ranges.size();
+  // A leaf's point, in `items` order; remembered in first_child (unused by
+  // leaves) until the arrays are final.
   std::vector<NodeId>& leaf_point = a.first_child;
   for (std::size_t i = 0; i < M; ++i)
     if (a.child_count[i] == 0) leaf_point[i] = ranges[i].begin;
@@ -313,113 +324,197 @@ Hierarchy build_hierarchy(PointSet&& points, const BuildOptions& options) {
       },
       threads);
   release(points.curvature);
+}
 
-  // Stage 3: interior nodes, deepest level first.
+// ---- Stage 4: interior nodes -----------------------------------------------
+
+// The sphere of node i from its children's spheres c0 .. c0 + cc: center at
+// the midpoint of the box [lo, hi] around them (or, with at_real_point, the
+// child center nearest to it), radius the smallest that bounds them.
+glm::vec4 enclosing_sphere(const OwnedArrays& a, std::size_t c0, unsigned cc, glm::vec3 lo,
+                           glm::vec3 hi, bool at_real_point) {
+  glm::vec3 center = 0.5f * (lo + hi);
+  if (at_real_point) {
+    std::size_t best = c0;
+    float best_d = INFINITY;
+    for (std::size_t c = c0; c < c0 + cc; ++c) {
+      const float dd = glm::distance(glm::vec3(a.center_radius[c]), center);
+      if (dd < best_d) best_d = dd, best = c;
+    }
+    center = glm::vec3(a.center_radius[best]);
+  }
+  float radius = 0.0f;
+  for (std::size_t c = c0; c < c0 + cc; ++c)
+    radius = std::max(radius,
+                      glm::distance(center, glm::vec3(a.center_radius[c])) + a.center_radius[c].w);
+  // Guard the containment invariant against float rounding.
+  radius = radius * (1.0f + 4e-6f) + 1e-30f;
+  return glm::vec4(center, radius);
+}
+
+// The cone cosine around the (non-zero) weighted normal sum `nsum` that covers
+// every child's cone, measured with the quantized values that are stored;
+// -1 (full cone) when the sum vanishes or a child faces anywhere. Writes the
+// cone's axis to `nrm`.
+float children_cone_cos(const OwnedArrays& a, std::size_t c0, unsigned cc, glm::vec3 nsum,
+                        glm::vec3& nrm) {
+  const float nlen = glm::length(nsum);
+  nrm = glm::vec3(0.0f);
+  if (!(nlen > 1e-6f)) return -1.0f;
+  nrm = nsum / nlen;
+  const glm::i16vec4 qn = pack_normal_cone(nrm, 1.0f);
+  const glm::vec3 u = glm::normalize(glm::vec3(qn));
+  // Work with versines v = 1 - cos and sines: v(a + b) = va + vb - va vb
+  // + sa sb. No inverse trigonometry per child, and small angles keep
+  // their precision (1 - dot rounds them to zero in float).
+  float widest = 0.0f;  // versine of the cone's half-angle
+  for (std::size_t c = c0; c < c0 + cc; ++c) {
+    const glm::i16vec4 k = a.normal_cone[c];
+    const glm::vec3 kv = glm::vec3(k);
+    const float cb = static_cast<float>(k.w) * (1.0f / 32767.0f);
+    if (glm::dot(kv, kv) < 0.25f * 32767.0f * 32767.0f || cb <= -1.0f + 1e-6f) {
+      widest = 2.0f;  // a child facing anywhere: full cone
+      break;
+    }
+    const glm::vec3 w = glm::normalize(kv);
+    const glm::vec3 uw = u - w;
+    const float va = 0.5f * glm::dot(uw, uw), sa = glm::length(glm::cross(u, w));
+    const float vb = 1.0f - cb, sb = std::sqrt(std::max(0.0f, vb * (2.0f - vb)));
+    const float ca = 1.0f - va;
+    if (sa * cb + ca * sb < 0.0f) {  // the angles add up beyond pi
+      widest = 2.0f;
+      break;
+    }
+    widest = std::max(widest, va + vb - va * vb + sa * sb);
+  }
+  // Widen by 2e-4 rad for the snorm16 rounding of the normals:
+  // v(t + e) ~ v(t) + e sin(t) + e^2 / 2.
+  if (widest < 2.0f) widest += 2e-4f * std::sqrt(std::max(0.0f, widest * (2.0f - widest))) + 2e-8f;
+  return std::max(-1.0f, 1.0f - widest);
+}
+
+// One interior node from its children, which are final: QSplat's bounding
+// sphere and normal cone (section 3.1), the point-weighted average color, and
+// a priority never below a child's (parallel-treecut, section 4.1).
+void fill_interior_node(OwnedArrays& a, std::size_t i, bool at_real_point) {
+  const unsigned cc = a.child_count[i];
+  const std::size_t c0 = a.first_child[i];
+  glm::vec3 lo(INFINITY), hi(-INFINITY), nsum(0.0f);
+  glm::vec4 csum(0.0f);
+  std::uint32_t count = 0;
+  float prio = 0.0f;
+  for (std::size_t c = c0; c < c0 + cc; ++c) {
+    const glm::vec4 s = a.center_radius[c];
+    lo = glm::min(lo, glm::vec3(s) - s.w);
+    hi = glm::max(hi, glm::vec3(s) + s.w);
+    const float w = static_cast<float>(a.point_count[c]);
+    nsum += w * glm::vec3(a.normal_cone[c]) * (1.0f / 32767.0f);
+    csum += w * glm::vec4(a.color[c]);
+    count += a.point_count[c];
+    prio = std::max(prio, a.priority[c]);
+  }
+  a.center_radius[i] = enclosing_sphere(a, c0, cc, lo, hi, at_real_point);
+  glm::vec3 nrm;
+  const float cone_cos = children_cone_cos(a, c0, cc, nsum, nrm);
+  a.normal_cone[i] = pack_normal_cone(nrm, cone_cos);
+  const glm::vec4 avg = csum / static_cast<float>(count);
+  a.color[i] = glm::u8vec4(glm::round(glm::clamp(avg, 0.0f, 255.0f)));
+  a.priority[i] = std::max(prio, cone_priority(cone_cos));
+  a.point_count[i] = count;
+}
+
+// Consumes the leaves' arrays and the topology; produces every interior
+// node's center_radius, normal_cone, color, priority and point_count, level by
+// level from the deepest, so a node's children are final when it is filled.
+void fill_interior(OwnedArrays& a, const std::vector<NodeId>& level_begin, std::uint32_t points,
+                   bool at_real_point, unsigned threads, BuildProgress& progress) {
   const int levels = static_cast<int>(level_begin.size()) - 1;
-  const bool at_real_point = options.parent_at_real_point;
   for (int d = levels - 1; d >= 0; --d) {
     const std::size_t lb = level_begin[static_cast<std::size_t>(d)];
     const std::size_t le = level_begin[static_cast<std::size_t>(d) + 1];
     parallel_for(
         le - lb,
         [&](std::size_t b, std::size_t e) {
-          for (std::size_t i = lb + b; i < lb + e; ++i) {
-            const unsigned cc = a.child_count[i];
-            if (cc == 0) continue;
-            const std::size_t c0 = a.first_child[i];
-            // Center: midpoint of the box around the children's spheres (or the
-            // real point nearest to it), radius: the smallest that bounds them.
-            glm::vec3 lo(INFINITY), hi(-INFINITY), nsum(0.0f);
-            glm::vec4 csum(0.0f);
-            std::uint32_t count = 0;
-            float prio = 0.0f;
-            for (std::size_t c = c0; c < c0 + cc; ++c) {
-              const glm::vec4 s = a.center_radius[c];
-              lo = glm::min(lo, glm::vec3(s) - s.w);
-              hi = glm::max(hi, glm::vec3(s) + s.w);
-              const float w = static_cast<float>(a.point_count[c]);
-              nsum += w * glm::vec3(a.normal_cone[c]) * (1.0f / 32767.0f);
-              csum += w * glm::vec4(a.color[c]);
-              count += a.point_count[c];
-              prio = std::max(prio, a.priority[c]);
-            }
-            glm::vec3 center = 0.5f * (lo + hi);
-            if (at_real_point) {
-              std::size_t best = c0;
-              float best_d = INFINITY;
-              for (std::size_t c = c0; c < c0 + cc; ++c) {
-                const float dd = glm::distance(glm::vec3(a.center_radius[c]), center);
-                if (dd < best_d) best_d = dd, best = c;
-              }
-              center = glm::vec3(a.center_radius[best]);
-            }
-            float radius = 0.0f;
-            for (std::size_t c = c0; c < c0 + cc; ++c)
-              radius = std::max(radius, glm::distance(center, glm::vec3(a.center_radius[c])) +
-                                            a.center_radius[c].w);
-            // Guard the containment invariant against float rounding.
-            radius = radius * (1.0f + 4e-6f) + 1e-30f;
-            a.center_radius[i] = glm::vec4(center, radius);
-
-            // Normal cone: average normal, half-angle covering every child's cone
-            // measured with the quantized values that are stored.
-            const float nlen = glm::length(nsum);
-            float cone_cos = -1.0f;
-            glm::vec3 nrm(0.0f);
-            if (nlen > 1e-6f) {
-              nrm = nsum / nlen;
-              const glm::i16vec4 qn = pack_normal_cone(nrm, 1.0f);
-              const glm::vec3 u = glm::normalize(glm::vec3(qn));
-              // Work with versines v = 1 - cos and sines: v(a + b) = va + vb - va vb
-              // + sa sb. No inverse trigonometry per child, and small angles keep
-              // their precision (1 - dot rounds them to zero in float).
-              float widest = 0.0f;  // versine of the cone's half-angle
-              for (std::size_t c = c0; c < c0 + cc; ++c) {
-                const glm::i16vec4 k = a.normal_cone[c];
-                const glm::vec3 kv = glm::vec3(k);
-                const float cb = static_cast<float>(k.w) * (1.0f / 32767.0f);
-                if (glm::dot(kv, kv) < 0.25f * 32767.0f * 32767.0f || cb <= -1.0f + 1e-6f) {
-                  widest = 2.0f;  // a child facing anywhere: full cone
-                  break;
-                }
-                const glm::vec3 w = glm::normalize(kv);
-                const glm::vec3 uw = u - w;
-                const float va = 0.5f * glm::dot(uw, uw), sa = glm::length(glm::cross(u, w));
-                const float vb = 1.0f - cb, sb = std::sqrt(std::max(0.0f, vb * (2.0f - vb)));
-                const float ca = 1.0f - va;
-                if (sa * cb + ca * sb < 0.0f) {  // the angles add up beyond pi
-                  widest = 2.0f;
-                  break;
-                }
-                widest = std::max(widest, va + vb - va * vb + sa * sb);
-              }
-              // Widen by 2e-4 rad for the snorm16 rounding of the normals:
-              // v(t + e) ~ v(t) + e sin(t) + e^2 / 2.
-              if (widest < 2.0f)
-                widest += 2e-4f * std::sqrt(std::max(0.0f, widest * (2.0f - widest))) + 2e-8f;
-              cone_cos = std::max(-1.0f, 1.0f - widest);
-            }
-            a.normal_cone[i] = pack_normal_cone(nrm, cone_cos);
-            const glm::vec4 avg = csum / static_cast<float>(count);
-            a.color[i] = glm::u8vec4(glm::round(glm::clamp(avg, 0.0f, 255.0f)));
-            // Monotone by construction: never below a child (parallel-treecut, sec. 4.1).
-            a.priority[i] = std::max(prio, cone_priority(cone_cos));
-            a.point_count[i] = count;
-          }
+          for (std::size_t i = lb + b; i < lb + e; ++i)
+            if (a.child_count[i] != 0) fill_interior_node(a, i, at_real_point);
         },
         threads, 256);
-    progress_done += N / static_cast<std::size_t>(std::max(levels, 1));
-    if (options.progress) options.progress(std::min(progress_done, progress_total), progress_total);
+    progress.interior_level(points / static_cast<std::size_t>(std::max(levels, 1)));
   }
-  if (options.progress) options.progress(progress_total, progress_total);
+}
 
-  // No shrink_to_fit: the spare capacity of the topology arrays was never
-  // touched, so it costs address space only, while shrinking would copy.
+// ---- Stage 5: assemble -----------------------------------------------------
+
+// Hands the node arrays to an immutable Hierarchy that owns them. No
+// shrink_to_fit: the spare capacity of the topology arrays was never touched,
+// so it costs address space only, while shrinking would copy.
+Hierarchy assemble(OwnedArrays&& a, std::vector<NodeId>&& level_begin, const BuildOrder& order) {
   auto owned = std::make_shared<OwnedArrays>(std::move(a));
   HierarchyArrays spans{owned->center_radius, owned->normal_cone, owned->color,
                         owned->priority,      owned->point_count, owned->parent,
                         owned->first_child,   owned->child_count, owned->depth};
-  return Hierarchy::from_arrays(owned, spans, std::move(level_begin), bmin, bmax);
+  return Hierarchy::from_arrays(owned, spans, std::move(level_begin), order.bounds_min,
+                                order.bounds_max);
+}
+
+}  // namespace
+
+glm::i16vec4 pack_normal_cone(glm::vec3 normal, float cone_cos) {
+  auto q = [](float v) {  // round to nearest (lround is a library call, this is not)
+    const float x = std::clamp(v, -1.0f, 1.0f) * 32767.0f;
+    return static_cast<std::int16_t>(x + (x >= 0.0f ? 0.5f : -0.5f));
+  };
+  // The cone is rounded towards wider (smaller cosine) so it stays conservative.
+  const auto c =
+      static_cast<std::int16_t>(std::floor(std::clamp(cone_cos, -1.0f, 1.0f) * 32767.0f));
+  return {q(normal.x), q(normal.y), q(normal.z), std::max<std::int16_t>(c, -32767)};
+}
+
+std::size_t Hierarchy::memory_bytes() const {
+  const std::size_t n = node_count_;
+  return n * (sizeof(glm::vec4) + sizeof(glm::i16vec4) + sizeof(glm::u8vec4) + sizeof(float) +
+              sizeof(std::uint32_t) + 2 * sizeof(NodeId) + 2 * sizeof(std::uint8_t));
+}
+
+Hierarchy Hierarchy::from_arrays(std::shared_ptr<const void> storage, const HierarchyArrays& a,
+                                 std::vector<NodeId> level_begin, glm::vec3 bounds_min,
+                                 glm::vec3 bounds_max) {
+  const std::size_t n = a.center_radius.size();
+  if (a.normal_cone.size() != n || a.color.size() != n || a.priority.size() != n ||
+      a.point_count.size() != n || a.parent.size() != n || a.first_child.size() != n ||
+      a.child_count.size() != n || a.depth.size() != n)
+    throw std::invalid_argument("hierarchy arrays differ in size");
+  if (level_begin.empty() || level_begin.front() != 0 || level_begin.back() != n)
+    throw std::invalid_argument("hierarchy level table does not span the nodes");
+  Hierarchy h;
+  h.storage_ = std::move(storage);
+  h.a_ = a;
+  h.level_begin_ = std::move(level_begin);
+  h.node_count_ = static_cast<std::uint32_t>(n);
+  h.leaf_count_ = n ? a.point_count[0] : 0;
+  h.bounds_min_ = bounds_min;
+  h.bounds_max_ = bounds_max;
+  return h;
+}
+
+Hierarchy build_hierarchy(PointSet&& points, const BuildOptions& options) {
+  const std::size_t n_points = points.size();
+  if (n_points == 0) throw std::invalid_argument("build_hierarchy: no points");
+  if (n_points >= (std::size_t{1} << 31))
+    throw std::invalid_argument("build_hierarchy: more than 2^31 points");
+  if (!points.has_normals() || !points.has_radii() || !points.has_curvature())
+    throw std::invalid_argument("build_hierarchy: normals, radii and curvature are required");
+  const unsigned threads = worker_count(options.threads);
+  const auto N = static_cast<std::uint32_t>(n_points);
+  BuildProgress progress(options, N);
+
+  BuildOrder order = order_points(points);
+  OwnedArrays a;
+  Topology topology = build_topology(order.items, a, threads, progress);
+  fill_leaves(a, std::move(topology.ranges), std::move(order.items), points, threads);
+  fill_interior(a, topology.level_begin, N, options.parent_at_real_point, threads, progress);
+  progress.finish();
+  return assemble(std::move(a), std::move(topology.level_begin), order);
 }
 
 std::string check_invariants(const Hierarchy& h) {
