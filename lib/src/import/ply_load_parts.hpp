@@ -1,0 +1,185 @@
+// The parts of PLY import, in the order load_ply (ply_load.cpp) runs them:
+//   ply_elements.cpp  what the file holds: the vertex properties by meaning,
+//                     the elements used and ignored, the warnings naming them;
+//   ply_plan.cpp      the way to OpenMesh: which layouts its reader decodes
+//                     correctly (our header over the file's own bytes), a
+//                     canonical transcoded body for the rest, then OpenMesh's
+//                     read and its count checks. The only place that knows
+//                     OpenMesh's fragilities;
+//   ply_tidy.cpp      the PointSet contract: finite positions, unit normals,
+//                     positive radii.
+// Before them, ply_header.cpp and ply_rows.cpp (ply_format.hpp) validate
+// every byte; nothing here is sized from a header count they did not check.
+#pragma once
+
+#include <cstddef>
+#include <glm/vec3.hpp>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "ply_format.hpp"
+#include "ply_openmesh.hpp"
+#include "treecut/ply.hpp"
+#include "treecut/point_set.hpp"
+
+namespace treecut::ply_load {
+
+using ply::Element;
+using ply::Format;
+using ply::Header;
+using ply::Property;
+using ply::Row;
+using ply::Type;
+
+// Vertex properties by meaning; -1 when absent. Normals and colours count only
+// when all three components are present as scalars.
+struct VertexRoles {
+  int x = -1, y = -1, z = -1;
+  int nx = -1, ny = -1, nz = -1;
+  int red = -1, green = -1, blue = -1;
+  int radius = -1;
+
+  [[nodiscard]] bool normals() const { return nx >= 0; }
+  [[nodiscard]] bool colors() const { return red >= 0; }
+};
+
+class Warnings {
+ public:
+  Warnings(const std::string& name, const WarningSink& sink) : name_(name), sink_(sink) {}
+  void operator()(const std::string& message) const {
+    if (sink_) sink_(name_ + ": " + message);
+  }
+
+ private:
+  const std::string& name_;
+  const WarningSink& sink_;
+};
+
+inline const Property& property(const Element& element, int index) {
+  return element.properties[static_cast<std::size_t>(index)];
+}
+
+// The index list of a face or tristrips element, or -1.
+inline int index_property(const Element& element) {
+  int p = element.find("vertex_indices");
+  return p >= 0 ? p : element.find("vertex_index");
+}
+
+inline std::string plural(std::size_t n, const std::string& word) {
+  return std::to_string(n) + " " + word + (n == 1 ? "" : "s");
+}
+
+// Collects tristrips as triangles. A negative index restarts the strip; odd
+// triangles are flipped to keep the winding; the degenerate triangles strips
+// use as stitches are skipped.
+struct StripSink {
+  std::size_t vertices = 0;
+  std::vector<glm::uvec3> triangles;
+  std::size_t out_of_range = 0;
+  std::vector<double> strip;
+
+  void row(const Row& row, int indices) {
+    const auto p = static_cast<std::size_t>(indices);
+    strip.clear();
+    for (std::size_t k = 0; k < row.size[p]; ++k) {
+      const double v = row.values[row.first[p] + k];
+      if (v < 0) {
+        flush();
+        strip.clear();
+      } else {
+        strip.push_back(v);
+      }
+    }
+    flush();
+  }
+
+  void flush() {
+    for (std::size_t k = 0; k + 2 < strip.size(); ++k) {
+      double a = strip[k];
+      double b = strip[k + 1];
+      const double c = strip[k + 2];
+      if (k % 2 == 1) std::swap(a, b);
+      if (a == b || b == c || a == c) continue;
+      const auto n = static_cast<double>(vertices);
+      if (a >= n || b >= n || c >= n) {
+        ++out_of_range;
+        continue;
+      }
+      triangles.emplace_back(static_cast<unsigned>(a), static_cast<unsigned>(b),
+                             static_cast<unsigned>(c));
+    }
+  }
+};
+
+// The elements load_ply uses, by index into Header::elements.
+struct Elements {
+  std::size_t vertex = 0;
+  int face = -1;    ///< "face" with an index list, or -1
+  int strips = -1;  ///< "tristrips" with an index list, or -1
+  VertexRoles roles;
+  std::vector<std::size_t> ignored;  ///< elements read past, in header order
+  /// A face or tristrips element sits at or after a binary element that does
+  /// not match its header: no faces are read, the points load as a cloud.
+  bool faces_lost = false;
+};
+
+// An element after the vertex element that does not match its header.
+struct BrokenElement {
+  std::size_t index = 0;
+  std::string problem;
+};
+
+// Everything the read needs: OpenMesh's input, the transcoded body it may
+// point into, and what we read ourselves because OpenMesh does not.
+struct Plan {
+  ply::OpenMeshInput input;
+  std::string vertex_bytes;  ///< transcoded vertex rows (unused when direct)
+  std::string face_bytes;    ///< transcoded face rows (unused when direct)
+  std::vector<float> radii;
+  std::vector<glm::u8vec4> colors;  ///< colours OpenMesh does not read, or empty
+  StripSink strips;
+  std::vector<BrokenElement> broken;  ///< ascii elements whose rows do not match
+  bool faces_lost = false;            ///< a face element is among them
+  std::size_t trailing_lines = 0;     ///< ascii: non-blank lines after the last row
+};
+
+// ---- ply_elements.cpp: what the file holds
+
+// Elements from LOST_FROM on could not be located (a binary element that does
+// not match its header); they are neither read nor listed as ignored.
+Elements classify(const Header& header, const Warnings& warn, std::size_t lost_from);
+
+// One warning for all ignored elements, naming the first few: a header may
+// declare thousands. Elements that did not match their header have a warning
+// of their own and are not listed again.
+void warn_ignored(const Header& header, const Elements& elements,
+                  const std::vector<BrokenElement>& broken, const Warnings& warn);
+
+// What a later element that does not match its header costs, appended to its
+// problem: the element (and, binary, every element after it, which can no
+// longer be located) and, when it held faces, the faces.
+std::string broken_consequence(const Header& header, std::size_t index, bool binary,
+                               bool faces_lost);
+
+// ---- ply_plan.cpp: the way to OpenMesh
+
+// Fills PLAN for OpenMesh: the file's own bytes under our header when
+// OpenMesh's reader decodes the layout correctly, else a canonical body
+// transcoded from the validated rows; either way with what we read ourselves
+// (radius, non-uchar colours, tristrips).
+void plan_openmesh_read(const Header& header, const ply::BinaryLayout& layout,
+                        std::string_view file, const Elements& elements, Plan& plan);
+
+// Runs OpenMesh, checks that it read exactly the rows it was given, and adds
+// what we read ourselves.
+PointSet read_plan(Plan& plan, const Warnings& warn, PlyLoadReport& report);
+
+// ---- ply_tidy.cpp: the PointSet contract
+
+// Makes the PointSet contract hold: finite positions, unit (or zero)
+// normals, radii all positive or none.
+void tidy(PointSet& points, const Warnings& warn, PlyLoadReport& report);
+
+}  // namespace treecut::ply_load

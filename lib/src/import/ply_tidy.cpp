@@ -1,0 +1,118 @@
+// The PointSet contract after OpenMesh's read (ply_load_parts.hpp): points
+// with a non-finite or out-of-range coordinate dropped with their faces,
+// normals unit or zero, radii all positive or none.
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <string>
+
+#include "ply_load_parts.hpp"
+
+namespace treecut::ply_load {
+
+namespace {
+
+// Beyond this magnitude the float arithmetic of attributes and build (squared
+// distances, covariances) overflows: such points are as unusable as NaNs.
+constexpr float kMaxCoordinate = 1e18f;
+
+bool out_of_range(const glm::vec3& p) {
+  return !(std::fabs(p.x) <= kMaxCoordinate && std::fabs(p.y) <= kMaxCoordinate &&
+           std::fabs(p.z) <= kMaxCoordinate);
+}
+
+// Drops points with a non-finite or out-of-range coordinate from every array,
+// and the faces that use them; remaps the remaining indices. Returns {points,
+// faces} dropped.
+std::pair<std::size_t, std::size_t> drop_nonfinite(PointSet& points) {
+  const std::size_t n = points.size();
+  std::size_t bad = 0;
+  for (const glm::vec3& p : points.positions) {
+    if (out_of_range(p)) ++bad;
+  }
+  if (bad == 0) return {0, 0};
+
+  constexpr auto kDropped = std::numeric_limits<std::uint32_t>::max();
+  std::vector<std::uint32_t> remap(n, kDropped);
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (out_of_range(points.positions[i])) continue;
+    remap[i] = static_cast<std::uint32_t>(kept);
+    points.positions[kept] = points.positions[i];
+    if (points.has_normals()) points.normals[kept] = points.normals[i];
+    if (points.has_colors()) points.colors[kept] = points.colors[i];
+    if (points.has_radii()) points.radii[kept] = points.radii[i];
+    ++kept;
+  }
+  points.positions.resize(kept);
+  if (points.has_normals()) points.normals.resize(kept);
+  if (points.has_colors()) points.colors.resize(kept);
+  if (points.has_radii()) points.radii.resize(kept);
+
+  std::size_t faces_kept = 0;
+  const std::size_t faces = points.triangles.size();
+  for (const glm::uvec3& t : points.triangles) {
+    const glm::uvec3 r(remap[t.x], remap[t.y], remap[t.z]);
+    if (r.x == kDropped || r.y == kDropped || r.z == kDropped) continue;
+    points.triangles[faces_kept++] = r;
+  }
+  points.triangles.resize(faces_kept);
+  return {bad, faces - faces_kept};
+}
+
+}  // namespace
+
+void tidy(PointSet& points, const Warnings& warn, PlyLoadReport& report) {
+  const bool huge =
+      std::any_of(points.positions.begin(), points.positions.end(), [](const glm::vec3& p) {
+        return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z) && out_of_range(p);
+      });
+  const std::size_t read = points.size();
+  if (std::all_of(points.positions.begin(), points.positions.end(), out_of_range)) {
+    // One line that names the real problem, not a warning about dropping
+    // every point followed by an error about having none.
+    throw ply::Error("no finite points (" +
+                     (read == 1 ? std::string("the only vertex is")
+                                : "all " + std::to_string(read) + " vertices are") +
+                     " NaN or infinite" + (huge ? " or beyond 1e18" : "") + ")");
+  }
+  const auto [dropped_points, dropped_faces] = drop_nonfinite(points);
+  report.dropped_nonfinite = dropped_points;
+  if (dropped_points > 0) {
+    warn("dropped " + plural(dropped_points, "point") + " with non-finite" +
+         (huge ? " or out-of-range (beyond 1e18)" : "") + " coordinates" +
+         (dropped_faces > 0 ? " and " + plural(dropped_faces, "face") + " using them" : ""));
+  }
+
+  if (points.has_normals()) {
+    std::size_t undefined = 0;
+    for (glm::vec3& n : points.normals) {
+      // In double: squaring a large finite float component must not overflow.
+      const double x = n.x;
+      const double y = n.y;
+      const double z = n.z;
+      const double length = std::sqrt(x * x + y * y + z * z);
+      if (std::isfinite(length) && length > 0.0) {
+        n = glm::vec3(static_cast<float>(x / length), static_cast<float>(y / length),
+                      static_cast<float>(z / length));
+      } else {
+        if (!std::isfinite(length)) ++undefined;
+        n = glm::vec3(0.0f);
+      }
+    }
+    if (undefined > 0) warn(plural(undefined, "normal") + " not finite, set to zero");
+  }
+  if (points.has_radii()) {
+    const auto bad = static_cast<std::size_t>(
+        std::count_if(points.radii.begin(), points.radii.end(),
+                      [](float r) { return !(std::isfinite(r) && r > 0.0f); }));
+    if (bad > 0) {
+      warn("ignoring the radius property: " + std::to_string(bad) + " of " +
+           std::to_string(points.radii.size()) + " radii are not positive finite numbers");
+      points.radii.clear();
+    }
+  }
+}
+
+}  // namespace treecut::ply_load
