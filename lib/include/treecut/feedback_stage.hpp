@@ -209,6 +209,8 @@ class FeedbackStage {
   /// request. Throws InputError at once for an unknown name or bad value.
   void set_param(std::string_view name, double value);
   /// Replaces hierarchy and cut at the next request (the strategy is reset).
+  /// Query answers posted from now until the new model's first list is
+  /// exchanged are dropped: they answer queries about the old model.
   void set_model(Model model);
   /// Frames over which the next exchanges fade (StageOptions::blend_frames;
   /// the viewer's HUD switch). 0 ends a running fade at the next poll().
@@ -322,6 +324,9 @@ class FeedbackStage {
   bool boosted_ = false;
   bool starved_ = false;               // the in-flight request passed the bound
   const Strategy* running_ = nullptr;  // the strategy of the in-flight iteration
+  // set_model's hierarchy until its first list is front: post_visibility
+  // drops answers meanwhile (they are about the old model). Identity only.
+  const Hierarchy* switching_to_ = nullptr;
 
   // Stage thread only (in Process).
   std::shared_ptr<const Hierarchy> hierarchy_;

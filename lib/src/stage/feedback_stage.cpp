@@ -408,6 +408,7 @@ void FeedbackStage::exchange() {
   }
   front_view_ = list_of(front_);
   ++counters_.exchanges;
+  if (front_view_.hierarchy == switching_to_) switching_to_ = nullptr;
 }
 
 bool FeedbackStage::request() {
@@ -536,6 +537,8 @@ void FeedbackStage::set_view(const ViewSnapshot& view) {
 }
 
 void FeedbackStage::post_visibility(std::span<const VisibilityResult> results) {
+  // Until the new model's first list is drawn, every answer is about the old one.
+  if (switching_to_ != nullptr) return;
   pending_.view.visibility.insert(pending_.view.visibility.end(), results.begin(), results.end());
 }
 
@@ -571,6 +574,9 @@ void FeedbackStage::set_model(Model model) {
   if (std::string why = model.cut.validate(*model.hierarchy); !why.empty()) {
     throw std::invalid_argument("FeedbackStage: invalid cut: " + why);
   }
+  // Answers not yet handed over name nodes of the model being replaced.
+  pending_.view.visibility.clear();
+  switching_to_ = model.hierarchy.get();
   pending_.model = std::move(model);
   converged_ = false;
   if (state_.load(std::memory_order_relaxed) == State::Process) {

@@ -61,11 +61,22 @@ FrameResult RenderThreadFrame::begin_render_thread(const Camera& camera, const L
       size);
   controller_->set_light(world_light_dir(light, view));
   const FrameLists lists = controller_->begin_frame();
+  // Another model (FeedbackStage::set_model): its vertices go up before its
+  // first list, so no id of one hierarchy is drawn against the other's
+  // vertices. follow() then uploads that list plainly: a fade never mixes two
+  // hierarchies (the old model's list is dropped at once).
+  bool switched = false;
+  if (lists.current.hierarchy != nullptr && lists.current.hierarchy != renderer_->hierarchy()) {
+    renderer_->set_hierarchy(*lists.current.hierarchy);
+    switched = true;
+  }
   // A new generation is copied into the GPU index buffer now (so the stage
   // may reuse the list after the next exchange), fading from the previous
   // list while the stage blends.
   cut_.follow(lists);
   current_ = FrameResult{};
+  current_.model_switched = switched;
+  if (switched) model_frame_ = controller_->frame();
   current_.frame = controller_->frame();
   current_.generation = lists.current.generation;
   current_.exchanged = lists.exchanged;
@@ -80,7 +91,19 @@ FrameResult RenderThreadFrame::draw_render_thread(const Camera& camera,
   if (executor_ != nullptr) renderer_->set_query_hook(executor_);
   current_.stats = renderer_->draw(cut_, camera, settings, finish);
   if (executor_ != nullptr) {
-    const auto results = executor_->results();
+    std::span<const VisibilityResult> results = executor_->results();
+    if (model_frame_ > 0 && !results.empty() && results.front().frame_issued < model_frame_) {
+      // Answers to queries issued before the model switch name nodes of the
+      // old hierarchy: dropped (the executor queued the new model's requests
+      // in the switch frame, so everything issued from then on is the new
+      // model's). The executor answers in issue order: a prefix.
+      kept_.clear();
+      for (const VisibilityResult& r : results) {
+        if (r.frame_issued >= model_frame_) kept_.push_back(r);
+      }
+      stale_results_ += results.size() - kept_.size();
+      results = kept_;
+    }
     // The stage hands them to the strategy with the next request: frames
     // after they were issued, never in the frame that asked.
     if (!results.empty()) controller_->stage().post_visibility(results);

@@ -79,6 +79,8 @@ void CutBuffer::upload(const Hierarchy& h, std::span<const NodeId> nodes) {
   leaving_ = 0;
   fade_ = 1.0f;
   points_ = points;
+  hierarchy_ = &h;
+  max_id_ = sorted_.empty() ? 0 : sorted_.back();
 }
 
 void CutBuffer::upload(const Hierarchy& h, std::span<const NodeId> nodes,
@@ -128,6 +130,8 @@ void CutBuffer::upload(const Hierarchy& h, std::span<const NodeId> nodes,
   leaving_ = leaving_ids_.size();
   fade_ = 0.0f;
   points_ = points;
+  hierarchy_ = &h;
+  max_id_ = std::max(cur.empty() ? NodeId{0} : cur.back(), prev.back());
 }
 
 bool CutBuffer::follow(const FrameLists& lists) {
@@ -197,37 +201,14 @@ Renderer::Uniforms Renderer::lookup_uniforms(const gl::Program& p) {
   return u;
 }
 
-Renderer::Renderer(const Hierarchy& h, glm::ivec2 size) : node_count_(h.node_count()) {
-  if (h.empty()) throw std::invalid_argument("Renderer: empty hierarchy");
+Renderer::Renderer(const Hierarchy& h, glm::ivec2 size) {
   if (!gl::loaded()) throw gl::GlError("Renderer: no GL context is current");
-  const HierarchyArrays& a = h.arrays();
-  const std::size_t n = h.node_count();
-  const std::size_t cr_bytes = n * sizeof(glm::vec4);
-  const std::size_t nc_bytes = n * sizeof(glm::i16vec4);
-  const std::size_t co_bytes = n * sizeof(glm::u8vec4);
-  // One static buffer holding the three node arrays back to back.
-  nodes_ = gl::Buffer::create(cr_bytes + nc_bytes + co_bytes, nullptr, GL_DYNAMIC_STORAGE_BIT);
-  nodes_.sub_data(0, std::as_bytes(a.center_radius));
-  nodes_.sub_data(cr_bytes, std::as_bytes(a.normal_cone));
-  nodes_.sub_data(cr_bytes + nc_bytes, std::as_bytes(a.color));
-
   vao_ = gl::VertexArray::create();
-  const GLuint vao = vao_.id();
-  gl::VertexArrayVertexBuffer(vao, 0, nodes_.id(), 0, sizeof(glm::vec4));
-  gl::VertexArrayVertexBuffer(vao, 1, nodes_.id(), static_cast<GLintptr>(cr_bytes),
-                              sizeof(glm::i16vec4));
-  gl::VertexArrayVertexBuffer(vao, 2, nodes_.id(), static_cast<GLintptr>(cr_bytes + nc_bytes),
-                              sizeof(glm::u8vec4));
-  gl::VertexArrayAttribFormat(vao, 0, 4, GL_FLOAT, GL_FALSE, 0);
-  gl::VertexArrayAttribFormat(vao, 1, 4, GL_SHORT, GL_TRUE, 0);
-  gl::VertexArrayAttribFormat(vao, 2, 4, GL_UNSIGNED_BYTE, GL_TRUE, 0);
-  for (GLuint i = 0; i < 3; ++i) {
-    gl::VertexArrayAttribBinding(vao, i, i);
-    gl::EnableVertexArrayAttrib(vao, i);
-  }
+  set_hierarchy(h);
   empty_vao_ = gl::VertexArray::create();
 
-  fast_ = make_program({{GL_VERTEX_SHADER, shaders::kSplatVertex},
+  fast_ = make_program(
+{{GL_VERTEX_SHADER, shaders::kSplatVertex},
                         {GL_GEOMETRY_SHADER, shaders::kSplatGeometry},
                         {GL_FRAGMENT_SHADER, shaders::kFastFragment}},
                        "splat fast", "#define SPLAT_LIT 1\n");
@@ -252,6 +233,56 @@ Renderer::Renderer(const Hierarchy& h, glm::ivec2 size) : node_count_(h.node_cou
   fixed_u_ = lookup_uniforms(fixed_);
   resize(size);
   gl::check("Renderer setup");
+}
+
+void Renderer::set_hierarchy(const Hierarchy& h) {
+  if (h.empty()) throw std::invalid_argument("Renderer: empty hierarchy");
+  const HierarchyArrays& a = h.arrays();
+  const std::size_t n = h.node_count();
+  const std::size_t cr_bytes = n * sizeof(glm::vec4);
+  const std::size_t nc_bytes = n * sizeof(glm::i16vec4);
+  const std::size_t co_bytes = n * sizeof(glm::u8vec4);
+  // One static buffer holding the three node arrays back to back.
+  nodes_ = gl::Buffer::create(cr_bytes + nc_bytes + co_bytes, nullptr, GL_DYNAMIC_STORAGE_BIT);
+  nodes_.sub_data(0, std::as_bytes(a.center_radius));
+  nodes_.sub_data(cr_bytes, std::as_bytes(a.normal_cone));
+  nodes_.sub_data(cr_bytes + nc_bytes, std::as_bytes(a.color));
+
+  const GLuint vao = vao_.id();
+  gl::VertexArrayVertexBuffer(vao, 0, nodes_.id(), 0, sizeof(glm::vec4));
+  gl::VertexArrayVertexBuffer(vao, 1, nodes_.id(), static_cast<GLintptr>(cr_bytes),
+                              sizeof(glm::i16vec4));
+  gl::VertexArrayVertexBuffer(vao, 2, nodes_.id(), static_cast<GLintptr>(cr_bytes + nc_bytes),
+                              sizeof(glm::u8vec4));
+  gl::VertexArrayAttribFormat(vao, 0, 4, GL_FLOAT, GL_FALSE, 0);
+  gl::VertexArrayAttribFormat(vao, 1, 4, GL_SHORT, GL_TRUE, 0);
+  gl::VertexArrayAttribFormat(vao, 2, 4, GL_UNSIGNED_BYTE, GL_TRUE, 0);
+  for (GLuint i = 0; i < 3; ++i) {
+    gl::VertexArrayAttribBinding(vao, i, i);
+    gl::EnableVertexArrayAttrib(vao, i);
+  }
+  node_count_ = static_cast<std::uint32_t>(n);
+  hierarchy_ = &h;
+  ++hierarchy_uploads_;
+  gl::check("Renderer vertex buffer");
+}
+
+void Renderer::check_cut(const CutBuffer& cut) {
+  // An empty buffer draws nothing, whatever it was uploaded for.
+  if (cut.size() + cut.leaving() == 0) {
+    last_max_id_ = 0;
+    return;
+  }
+  if (cut.hierarchy() != hierarchy_) {
+    throw std::logic_error(
+        "Renderer: the cut belongs to another hierarchy than the vertex buffer "
+        "(set_hierarchy first)");
+  }
+  if (cut.max_id() >= node_count_) {
+    throw std::logic_error("Renderer: the cut names node " + std::to_string(cut.max_id()) +
+                           ", the vertex buffer holds " + std::to_string(node_count_));
+  }
+  last_max_id_ = cut.max_id();
 }
 
 Renderer::~Renderer() = default;
@@ -377,6 +408,7 @@ FrameStats Renderer::draw_ranges(const CutBuffer& cut, std::span<const CutRange>
 FrameStats Renderer::render(const CutBuffer& cut, std::span<const CutRange> ranges, bool whole,
                             const Camera& camera, const RenderSettings& settings, RangeHook* hook,
                             bool finish) {
+  check_cut(cut);
   const auto start = std::chrono::steady_clock::now();
   const float aspect = static_cast<float>(size_.x) / static_cast<float>(size_.y);
   FrameView frame;

@@ -16,6 +16,7 @@
 #include <glm/mat4x4.hpp>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
+#include <span>
 #include <vector>
 
 #include "treecut/controller.hpp"
@@ -51,12 +52,24 @@ struct FrameResult {
   bool exchanged = false;          ///< a new list became current this frame
   bool requested = false;          ///< an iteration was requested this frame
   std::size_t results_posted = 0;  ///< query answers handed to the stage this frame
+  /// The list drawn this frame is the first of another hierarchy: its
+  /// vertices were uploaded (Renderer::set_hierarchy) before it.
+  bool model_switched = false;
 };
 
 /// Runs frames of one Controller with one Renderer (render thread only).
 /// Neither is owned; both must outlive the frame object. With an executor,
 /// the strategy's queries run inside every draw and their answers go to the
 /// stage after it (see QueryExecutor); without one, requests are ignored.
+///
+/// Models that change (Controller::set_model): the renderer follows the
+/// hierarchy of the list it draws. The frame that receives the first list of
+/// another hierarchy uploads that hierarchy's vertex buffer before drawing
+/// it, drops the old model's list (no fade across the switch) and the
+/// executor drops the old model's queries; frames before it draw the old
+/// model, whose hierarchy the stage keeps alive while its list is current
+/// (ListBuffer holds a shared_ptr). The renderer keeps no pointer into a
+/// hierarchy: it copies the vertices and remembers the address as an identity.
 class RenderThreadFrame {
  public:
   RenderThreadFrame(Controller& controller, Renderer& renderer, QueryExecutor* executor = nullptr);
@@ -80,6 +93,8 @@ class RenderThreadFrame {
   [[nodiscard]] Controller& controller() { return *controller_; }
   [[nodiscard]] Renderer& renderer() { return *renderer_; }
   [[nodiscard]] QueryExecutor* executor() { return executor_; }
+  /// Query answers dropped because they were issued for a replaced model.
+  [[nodiscard]] std::uint64_t stale_results() const { return stale_results_; }
 
  private:
   Controller* controller_;
@@ -87,6 +102,9 @@ class RenderThreadFrame {
   QueryExecutor* executor_;
   CutBuffer cut_;
   FrameResult current_;
+  std::uint64_t model_frame_ = 0;  // the frame that first drew the current model (0: the first)
+  std::uint64_t stale_results_ = 0;
+  std::vector<VisibilityResult> kept_;  // reused by the filter of stale answers
 };
 
 }  // namespace treecut::splat

@@ -123,6 +123,12 @@ class CutBuffer {
   [[nodiscard]] std::size_t leaving() const { return leaving_; }
   /// The buffer holding the current list.
   [[nodiscard]] const gl::Buffer& buffer() const { return buffers_[current_]; }
+  /// The hierarchy the uploaded ids belong to (null before the first
+  /// upload). An identity for Renderer::draw's check, never dereferenced
+  /// after upload() returns.
+  [[nodiscard]] const Hierarchy* hierarchy() const { return hierarchy_; }
+  /// The largest id in the buffer, the leaving run included (0 when empty).
+  [[nodiscard]] NodeId max_id() const { return max_id_; }
 
  private:
   void write(std::span<const NodeId> ids);
@@ -135,6 +141,8 @@ class CutBuffer {
   float fade_ = 1.0f;
   std::uint64_t points_ = 0;
   std::uint64_t generation_ = 0;         // of the list follow() uploaded last
+  const Hierarchy* hierarchy_ = nullptr;  // identity only (see hierarchy())
+  NodeId max_id_ = 0;
   std::vector<NodeId> sorted_;           // the uploaded order (reused)
   std::vector<NodeId> scratch_;          // radix sort ping-pong (reused)
   std::vector<NodeId> current_sorted_;   // an unsorted input, sorted (reused)
@@ -196,8 +204,30 @@ class Renderer {
   [[nodiscard]] glm::ivec2 size() const { return size_; }
   [[nodiscard]] std::uint32_t node_count() const { return node_count_; }
 
+  /// Replaces the static vertex buffer with the nodes of `h` (another model:
+  /// FeedbackStage::set_model). Lists of the previous hierarchy can no longer
+  /// be drawn (draw() refuses them); RenderThreadFrame calls this when the
+  /// list it is about to draw belongs to another hierarchy. Like the
+  /// constructor, it copies what it needs: `h` need not outlive the call.
+  /// Throws std::invalid_argument for an empty hierarchy (the old one stays).
+  void set_hierarchy(const Hierarchy& h);
+  /// The hierarchy whose nodes are in the vertex buffer: an identity to
+  /// compare a list's FrontList::hierarchy with, never dereferenced. It
+  /// cannot be mistaken for a newer hierarchy at the same address: a list's
+  /// hierarchy is alive while that list is drawn, and its successor is
+  /// created before the exchange that retires it.
+  [[nodiscard]] const Hierarchy* hierarchy() const { return hierarchy_; }
+  /// Vertex buffers uploaded so far (1 after construction).
+  [[nodiscard]] std::uint64_t hierarchy_uploads() const { return hierarchy_uploads_; }
+  /// The largest node id the last draw sent to the GPU (CutBuffer::max_id);
+  /// always below node_count(): draw() checks it.
+  [[nodiscard]] NodeId last_max_id() const { return last_max_id_; }
+
   /// Draws `cut` into the renderer's own color target. With `finish`, waits for
-  /// the GPU so FrameStats::cpu_ms is the whole frame time.
+  /// the GPU so FrameStats::cpu_ms is the whole frame time. Throws
+  /// std::logic_error, before any GL call, for a cut uploaded for another
+  /// hierarchy than the vertex buffer's or naming a node past it: new ids
+  /// are never drawn against old vertices (O(1): CutBuffer keeps its max).
   FrameStats draw(const CutBuffer& cut, const Camera& camera, const RenderSettings& settings,
                   bool finish = false);
 
@@ -242,6 +272,7 @@ class Renderer {
   static Uniforms lookup_uniforms(const gl::Program& p);
 
   void create_targets();
+  void check_cut(const CutBuffer& cut);
   FrameStats render(const CutBuffer& cut, std::span<const CutRange> ranges, bool whole,
                     const Camera& camera, const RenderSettings& settings, RangeHook* hook,
                     bool finish);
@@ -253,6 +284,9 @@ class Renderer {
 
   glm::ivec2 size_{0};
   std::uint32_t node_count_ = 0;
+  const Hierarchy* hierarchy_ = nullptr;  // identity only (see hierarchy())
+  std::uint64_t hierarchy_uploads_ = 0;
+  NodeId last_max_id_ = 0;
   gl::Buffer nodes_;  // center_radius | normal_cone | color, one region each
   gl::VertexArray vao_;
   gl::VertexArray empty_vao_;  // for the full-screen pass (core profile needs a VAO)
