@@ -1,10 +1,13 @@
 // The GPU query executor (treecut/splat/query_executor.hpp) on OSMesa: a wall
 // the test builds in front of some small spheres and beside others. Every
-// occluded proxy answers 0 samples, every visible one more; the answers equal
-// each proxy drawn alone against the wall's depth (read after glFinish); the
-// requests of a list generation are issued once; and no result is ever read
-// before GL_QUERY_RESULT_AVAILABLE said so (the GL entry points interposed,
-// with a check that the interposer catches a read that comes too early).
+// occluded proxy answers 0 samples, every visible one more; the batched
+// answers (one instanced draw, a counter per request) equal each proxy drawn
+// alone against the wall's depth and counted by a GL_SAMPLES_PASSED query
+// (read after glFinish); the requests of a list generation are issued once;
+// and no counter is ever read before its batch's fence was seen signaled (the
+// GL entry points interposed: a signaled fence is reported pending for a few
+// polls while the counters hold poison, with a check that this makes a read
+// that comes too early visible).
 #include "treecut/splat/query_executor.hpp"
 
 #include <gtest/gtest.h>
@@ -13,6 +16,7 @@
 #include <map>
 #include <memory>
 #include <numeric>
+#include <utility>
 #include <vector>
 
 #include "treecut/controller.hpp"
@@ -149,8 +153,9 @@ class QueryExecutorTest : public ::testing::Test {
   std::unique_ptr<QueryExecutor> executor_;
 };
 
-// Each proxy drawn alone against the wall's depth, read after glFinish:
-// the reference for one request.
+// Each proxy drawn alone against the wall's depth (a batch of one) inside a
+// GL_SAMPLES_PASSED query, read after glFinish: the reference for one request,
+// counted by the GL's occlusion counter instead of the executor's atomics.
 class AloneHook final : public QueryHook {
  public:
   explicit AloneHook(QueryRequest r) : request_(r) {}
@@ -162,11 +167,12 @@ class AloneHook final : public QueryHook {
     l.hierarchy = &probe_hierarchy();
     l.queries = one;
     single.begin_frame_render_thread(l, 1);
-    single.run(view);  // issues the one query
+    const gl::Query q = gl::Query::create(GL_SAMPLES_PASSED);
+    q.begin();
+    single.run(view);  // draws the one proxy
+    q.end();
     gl::Finish();
-    single.begin_frame_render_thread(l, 2);
-    single.run(view);  // reads it: available after glFinish
-    if (!single.results().empty()) samples = single.results().front().samples_passed;
+    if (const auto v = q.try_result()) samples = static_cast<std::int64_t>(*v);
   }
   QueryRequest request_;
   std::int64_t samples = -1;
@@ -192,7 +198,8 @@ TEST_F(QueryExecutorTest, OccludedProxiesAnswerZeroAndVisibleOnesMoreLikeEachAlo
     }
     EXPECT_GT(r.frame_read, r.frame_issued);  // never in the frame that issued it
   }
-  // Every node (inner ones too) equals its proxy drawn alone.
+  // Every node (inner ones too), answered from one batch, equals its proxy
+  // drawn alone.
   for (const QueryRequest& q : requests) {
     AloneHook alone(q);
     renderer_->set_query_hook(&alone);
@@ -251,93 +258,172 @@ TEST_F(QueryExecutorTest, RequestsOfOneGenerationRunOnceWithTheCapCarryingTheRes
   EXPECT_EQ(executor_->stats().dropped, requests.size() - 2);
 }
 
-// --- reads before GL_QUERY_RESULT_AVAILABLE --------------------------------
-// The interposer remembers, per query object, whether the last availability
-// check said "available" since the query was last begun; a GL_QUERY_RESULT
-// read of an object without one is a violation.
-struct ReadCheck {
-  static inline PFNGLGETQUERYOBJECTUIVPROC real_uiv = nullptr;
-  static inline PFNGLGETQUERYOBJECTUI64VPROC real_ui64v = nullptr;
-  static inline PFNGLBEGINQUERYPROC real_begin = nullptr;
-  static inline std::map<GLuint, bool> available;
-  static inline int violations = 0;
-  static inline int checks_false = 0;
+// --- reads before the fence -----------------------------------------------
+// The interposer knows each batch's counter buffer (the storage buffer bound
+// last before the fence), its mapping and its upload size. When the real
+// glClientWaitSync first says a batch's fence is signaled, the interposer
+// saves the counters, overwrites them with kPoison and reports the fence
+// pending for kHide more polls; then it restores them and reports it
+// signaled. An executor that reads a counter before it was TOLD the fence is
+// signaled reads poison (or the GPU's unfinished zeros), not the counts.
+struct FenceCheck {
+  static constexpr GLuint kPoison = 0xfffffff0u;
+  static constexpr int kHide = 2;
+  enum class Phase { Fresh, Hiding, Shown };
+  struct Fence {
+    GLuint buffer = 0;
+    Phase phase = Phase::Fresh;
+    int hide = kHide;
+    std::vector<std::byte> saved;
+  };
+  static inline PFNGLMAPNAMEDBUFFERRANGEPROC real_map = nullptr;
+  static inline PFNGLBINDBUFFERBASEPROC real_bind = nullptr;
+  static inline PFNGLNAMEDBUFFERSUBDATAPROC real_sub_data = nullptr;
+  static inline PFNGLFENCESYNCPROC real_fence = nullptr;
+  static inline PFNGLCLIENTWAITSYNCPROC real_wait = nullptr;
+  static inline PFNGLDELETESYNCPROC real_delete = nullptr;
+  static inline std::map<GLuint, const std::byte*> mapped;
+  static inline std::map<GLuint, GLsizeiptr> uploaded;
+  static inline std::map<GLsync, Fence> fences;
+  static inline GLuint last_storage = 0;
+  static inline int hidden_polls = 0;
 
-  static void APIENTRY begin(GLenum target, GLuint id) {
-    available[id] = false;
-    real_begin(target, id);
+  static void* APIENTRY map(GLuint buffer, GLintptr offset, GLsizeiptr length, GLbitfield access) {
+    void* p = real_map(buffer, offset, length, access);
+    mapped[buffer] = static_cast<const std::byte*>(p);
+    return p;
   }
-  static void APIENTRY uiv(GLuint id, GLenum pname, GLuint* params) {
-    if (pname == GL_QUERY_RESULT) {
-      if (!available[id]) ++violations;
-      real_uiv(id, pname, params);
-      return;
-    }
-    real_uiv(id, pname, params);
-    if (pname == GL_QUERY_RESULT_AVAILABLE) {
-      available[id] = *params != GL_FALSE;
-      if (*params == GL_FALSE) ++checks_false;
-    }
+  static void APIENTRY bind(GLenum target, GLuint index, GLuint buffer) {
+    if (target == GL_SHADER_STORAGE_BUFFER && buffer != 0) last_storage = buffer;
+    real_bind(target, index, buffer);
   }
-  static void APIENTRY ui64v(GLuint id, GLenum pname, GLuint64* params) {
-    if (pname == GL_QUERY_RESULT && !available[id]) ++violations;
-    real_ui64v(id, pname, params);
+  static void APIENTRY sub_data(GLuint buffer, GLintptr offset, GLsizeiptr size, const void* data) {
+    uploaded[buffer] = offset + size;
+    real_sub_data(buffer, offset, size, data);
+  }
+  static GLsync APIENTRY fence(GLenum condition, GLbitfield flags) {
+    const GLsync s = real_fence(condition, flags);
+    fences[s].buffer = last_storage;
+    return s;
+  }
+  static GLenum APIENTRY wait(GLsync sync, GLbitfield flags, GLuint64 timeout) {
+    const GLenum r = real_wait(sync, flags, timeout);
+    const auto it = fences.find(sync);
+    if (it == fences.end() || (r != GL_ALREADY_SIGNALED && r != GL_CONDITION_SATISFIED)) return r;
+    Fence& f = it->second;
+    const GLsizeiptr bytes = uploaded[f.buffer];
+    if (f.phase == Phase::Fresh) {
+      const std::byte* p = mapped[f.buffer];
+      f.saved.assign(p, p + bytes);
+      gl::ClearNamedBufferSubData(f.buffer, GL_R32UI, 0, bytes, GL_RED_INTEGER, GL_UNSIGNED_INT,
+                                  &kPoison);
+      gl::Finish();
+      f.phase = Phase::Hiding;
+    }
+    if (f.phase == Phase::Hiding) {
+      if (f.hide-- > 0) {
+        ++hidden_polls;
+        return GL_TIMEOUT_EXPIRED;
+      }
+      real_sub_data(f.buffer, 0, bytes, f.saved.data());
+      gl::Finish();
+      f.phase = Phase::Shown;
+    }
+    return r;
+  }
+  static void APIENTRY remove(GLsync sync) {
+    fences.erase(sync);
+    real_delete(sync);
   }
 
-  ReadCheck() {
-    real_uiv = gl::GetQueryObjectuiv;
-    real_ui64v = gl::GetQueryObjectui64v;
-    real_begin = gl::BeginQuery;
-    gl::GetQueryObjectuiv = &uiv;
-    gl::GetQueryObjectui64v = &ui64v;
-    gl::BeginQuery = &begin;
-    available.clear();
-    violations = 0;
-    checks_false = 0;
+  FenceCheck() {
+    real_map = std::exchange(gl::MapNamedBufferRange, &map);
+    real_bind = std::exchange(gl::BindBufferBase, &bind);
+    real_sub_data = std::exchange(gl::NamedBufferSubData, &sub_data);
+    real_fence = std::exchange(gl::FenceSync, &fence);
+    real_wait = std::exchange(gl::ClientWaitSync, &wait);
+    real_delete = std::exchange(gl::DeleteSync, &remove);
+    mapped.clear();
+    uploaded.clear();
+    fences.clear();
+    last_storage = 0;
+    hidden_polls = 0;
   }
-  ~ReadCheck() {
-    gl::GetQueryObjectuiv = real_uiv;
-    gl::GetQueryObjectui64v = real_ui64v;
-    gl::BeginQuery = real_begin;
+  ~FenceCheck() {
+    gl::MapNamedBufferRange = real_map;
+    gl::BindBufferBase = real_bind;
+    gl::NamedBufferSubData = real_sub_data;
+    gl::FenceSync = real_fence;
+    gl::ClientWaitSync = real_wait;
+    gl::DeleteSync = real_delete;
   }
+  FenceCheck(const FenceCheck&) = delete;
+  FenceCheck& operator=(const FenceCheck&) = delete;
 };
 
-TEST(QueryReadCheck, CatchesAResultReadBeforeAvailabilityWasChecked) {
-  context();
-  const ReadCheck check;
-  gl::Query q = gl::Query::create(GL_SAMPLES_PASSED);
-  q.begin();
-  q.end();
-  GLuint64 value = 0;
-  // The blocking read a careless executor would do.
-  gl::GetQueryObjectui64v(q.id(), GL_QUERY_RESULT, &value);
-  EXPECT_EQ(ReadCheck::violations, 1);
-  // After a check that said "available", the same read is fine.
-  gl::Finish();
-  EXPECT_TRUE(q.try_result().has_value());
-  EXPECT_EQ(ReadCheck::violations, 1);
+TEST_F(QueryExecutorTest, FenceCheckMakesACounterReadBeforeTheSignalSeePoison) {
+  const FenceCheck check;
+  const Hierarchy& h = probe_hierarchy();
+  std::vector<QueryRequest> requests;
+  for (NodeId n = 0; n < h.node_count(); ++n) requests.push_back({0, n, n, QueryKind::Samples});
+  const FrontList list = list_of(requests, 1);
+  frame(list, 1, true);                           // the batch: one draw
+  executor_->begin_frame_render_thread(list, 2);  // its fence
+  gl::Finish();                                   // the GPU is done with it
+  ASSERT_EQ(FenceCheck::fences.size(), 1u);
+  const auto& [sync, f] = *FenceCheck::fences.begin();
+  ASSERT_NE(FenceCheck::mapped[f.buffer], nullptr);
+  const auto* counters = reinterpret_cast<const std::uint32_t*>(FenceCheck::mapped[f.buffer]);
+  // Signaled in truth, reported pending: a read now would see the poison.
+  EXPECT_EQ(gl::ClientWaitSync(sync, 0, 0), static_cast<GLenum>(GL_TIMEOUT_EXPIRED));
+  for (std::size_t i = 0; i < requests.size(); ++i) EXPECT_EQ(counters[i], FenceCheck::kPoison);
+  EXPECT_EQ(gl::ClientWaitSync(sync, 0, 0), static_cast<GLenum>(GL_TIMEOUT_EXPIRED));
+  // Then signaled, with the counts back: the root's proxy is visible.
+  const GLenum r = gl::ClientWaitSync(sync, 0, 0);
+  EXPECT_TRUE(r == GL_ALREADY_SIGNALED || r == GL_CONDITION_SATISFIED) << r;
+  std::uint32_t root = FenceCheck::kPoison;
+  for (std::size_t i = 0; i < requests.size(); ++i) {
+    EXPECT_NE(counters[i], FenceCheck::kPoison);
+    if (requests[i].node == 0) root = counters[i];
+  }
+  EXPECT_GT(root, 0u);
+  EXPECT_EQ(FenceCheck::hidden_polls, FenceCheck::kHide);
 }
 
-TEST_F(QueryExecutorTest, NeverReadsAResultBeforeItIsAvailable) {
-  const ReadCheck check;
+TEST_F(QueryExecutorTest, NeverReadsACounterBeforeItsFenceWasSeenSignaled) {
   const Hierarchy& h = probe_hierarchy();
+  std::vector<QueryRequest> one_each;
+  for (NodeId n = 0; n < h.node_count(); ++n) one_each.push_back({0, n, n, QueryKind::Samples});
+  std::uint64_t f = 0;
+  const auto expected = run_to_completion(list_of(one_each, 1), f);
+  ASSERT_EQ(expected.size(), one_each.size());
+
+  const FenceCheck check;
   std::vector<QueryRequest> requests;
   for (int rep = 0; rep < 200; ++rep) {
     for (NodeId n = 0; n < h.node_count(); ++n) {
       requests.push_back({0, n, static_cast<std::uint32_t>(requests.size()), QueryKind::Samples});
     }
   }
-  std::uint64_t f = 0;
+  executor_->set_max_issue_per_frame(500);  // several batches, several in flight
   std::size_t answered = 0;
-  // Unfinished frames: results arrive when the GPU gets to them.
-  for (int i = 0; i < 200 && answered < requests.size(); ++i) {
-    frame(list_of(requests, 1), ++f, i % 7 == 6);
+  int wrong = 0;
+  // Unfinished frames: fences signal when the GPU gets to them.
+  for (int i = 0; i < 400 && answered < requests.size(); ++i) {
+    frame(list_of(requests, 2), ++f, i % 7 == 6);
+    for (const VisibilityResult& r : executor_->results()) {
+      if (r.samples_passed != expected.at(r.node).samples_passed) ++wrong;
+      EXPECT_GT(r.frame_read, r.frame_issued);
+    }
     answered += executor_->results().size();
     executor_->clear_results();
   }
   EXPECT_EQ(answered, requests.size());
-  EXPECT_EQ(ReadCheck::violations, 0);
-  std::printf("availability checks that said 'not yet': %d\n", ReadCheck::checks_false);
+  EXPECT_EQ(wrong, 0) << "answers that read poison or unfinished counters";
+  // The check was live: signaled fences were reported pending, and the
+  // executor waited them out.
+  EXPECT_GE(FenceCheck::hidden_polls, 2 * int(requests.size() / 500));
+  EXPECT_GT(executor_->stats().batches, 1u);
 }
 
 // Posts one query per iteration (tagged with the iteration) about the root

@@ -18,6 +18,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <ctime>
 #include <memory>
 #include <vector>
 
@@ -45,8 +46,19 @@ double median(std::vector<double> v) {
   return v[v.size() / 2];
 }
 
+std::uint64_t thread_cpu_ns() {
+  timespec t{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return std::uint64_t(t.tv_sec) * 1'000'000'000u + std::uint64_t(t.tv_nsec);
+}
+
+double max_of(const std::vector<double>& v) {
+  return v.empty() ? 0.0 : *std::max_element(v.begin(), v.end());
+}
+
 void Queries(benchmark::State& state) {
   const auto n = static_cast<std::size_t>(state.range(0));
+  const auto backend = static_cast<splat::QueryBackend>(state.range(1));
   context();
   const std::shared_ptr<const Hierarchy> h = generated(ModelKind::Terrain, 200'000);
   splat::Renderer renderer(*h, {kWidth, kHeight});
@@ -66,6 +78,7 @@ void Queries(benchmark::State& state) {
                                                   float(kWidth) / float(kHeight), {0, 0, 1});
   splat::QueryExecutorOptions eo;
   eo.max_issue_per_frame = std::max<std::size_t>(n, 1);
+  eo.backend = backend;
   splat::QueryExecutor executor(eo);
   // N requests about nodes spread over the cut.
   std::vector<QueryRequest> requests;
@@ -77,10 +90,13 @@ void Queries(benchmark::State& state) {
   list.hierarchy = h.get();
   list.queries = requests;
   std::uint64_t frame = 0;
-  std::vector<double> on_ms, off_ms, per_query_us, poll_us;
+  std::vector<double> on_ms, off_ms, on_cpu_ms, off_cpu_ms, per_query_us, per_query_wall_us,
+      poll_us;
   const splat::RenderSettings settings;
+  double frame_cpu_ms = 0.0;
   auto run_frame = [&](bool queries) {
     const auto t0 = std::chrono::steady_clock::now();
+    const std::uint64_t c0 = thread_cpu_ns();
     ++frame;
     if (queries) {
       list.generation = frame;  // a new list every frame: N issued per frame
@@ -92,6 +108,7 @@ void Queries(benchmark::State& state) {
     executor.clear_results();
     const double ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    frame_cpu_ms = double(thread_cpu_ns() - c0) * 1e-6;
     return ms;
   };
   for (int i = 0; i < 4; ++i) {  // warm-up: pool grown, caches hot
@@ -102,15 +119,18 @@ void Queries(benchmark::State& state) {
   const std::uint64_t latency0 = executor.stats().latency_frames_total;
   for (auto _ : state) {
     const double on = run_frame(true);
+    on_cpu_ms.push_back(frame_cpu_ms);
     if (n > 0) {
       per_query_us.push_back(double(executor.stats().cpu_ns_last) * 1e-3 / double(n));
+      per_query_wall_us.push_back(double(executor.stats().wall_ns_last) * 1e-3 / double(n));
       poll_us.push_back(double(executor.stats().poll_ns_last) * 1e-3 / double(n));
     }
     on_ms.push_back(on);
     off_ms.push_back(run_frame(false));
+    off_cpu_ms.push_back(frame_cpu_ms);
   }
-  const double on_max = *std::max_element(on_ms.begin(), on_ms.end());
-  const double off_max = *std::max_element(off_ms.begin(), off_ms.end());
+  const double on_max = max_of(on_ms);
+  const double off_max = max_of(off_ms);
   state.counters["cut_nodes"] = double(cut_nodes.size());
   state.counters["frame_ms_on_median"] = median(on_ms);
   state.counters["frame_ms_off_median"] = median(off_ms);
@@ -118,11 +138,15 @@ void Queries(benchmark::State& state) {
   state.counters["frame_ms_off_max"] = off_max;
   state.counters["max_ratio"] = on_max / off_max;
   state.counters["median_ratio"] = median(on_ms) / median(off_ms);
+  state.counters["frame_cpu_ms_on_median"] = median(on_cpu_ms);
+  state.counters["frame_cpu_ms_off_median"] = median(off_cpu_ms);
+  state.counters["cpu_max_ratio"] = max_of(on_cpu_ms) / max_of(off_cpu_ms);
   if (n > 0) {
     state.counters["us_per_query_median"] = median(per_query_us);
+    state.counters["us_per_query_max"] = max_of(per_query_us);
+    state.counters["wall_us_per_query_median"] = median(per_query_wall_us);
+    state.counters["wall_us_per_query_max"] = max_of(per_query_wall_us);
     state.counters["poll_us_per_query_median"] = median(poll_us);
-    state.counters["us_per_query_max"] =
-        *std::max_element(per_query_us.begin(), per_query_us.end());
     const std::uint64_t answered = executor.stats().answered - answered0;
     state.counters["latency_frames_mean"] =
         answered == 0 ? 0.0
@@ -131,7 +155,17 @@ void Queries(benchmark::State& state) {
     state.counters["dropped"] = double(executor.stats().dropped);
   }
 }
-BENCHMARK(Queries)->Arg(100)->Arg(10'000)->Unit(benchmark::kMillisecond)->Iterations(60);
+// Second argument: 0 batched, 1 per query (QueryBackend).
+BENCHMARK(Queries)
+    ->ArgsProduct({{1, 10, 100, 10'000}, {0}})
+    ->ArgNames({"n", "per_query"})
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(60);
+BENCHMARK(Queries)
+    ->ArgsProduct({{1, 10, 100, 10'000}, {1}})
+    ->ArgNames({"n", "per_query"})
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(20);
 
 }  // namespace
 }  // namespace treecut::bench

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstring>
+#include <ctime>
 #include <glm/gtc/type_ptr.hpp>
 #include <string>
 
@@ -9,13 +11,17 @@ namespace treecut::splat {
 
 namespace {
 
-// The proxy of one node: instance attribute 0 is its bounding sphere (the
-// hierarchy's center_radius, selected by the draw's base instance); the four
-// vertices of a strip make the square described in query_executor.hpp.
-constexpr const char* kProxyVertex = R"(#version 450 core
+// The proxies of a batch: one instance per request, its node's sphere an
+// instance attribute; the four vertices of a strip make the square described
+// in query_executor.hpp. The fragment shader runs only
+// for fragments that passed the depth test (early_fragment_tests: it has no
+// outputs and writes no depth, so the test can run first) and counts them per
+// instance: what GL_SAMPLES_PASSED counts on a single-sampled target.
+constexpr const char* kBatchVertex = R"(#version 450 core
 layout(location = 0) in vec4 a_sphere;
 uniform mat4 u_view;
 uniform mat4 u_proj;
+flat out uint v_slot;
 void main() {
   vec3 c = (u_view * vec4(a_sphere.xyz, 1.0)).xyz;
   float r = a_sphere.w;
@@ -32,46 +38,72 @@ void main() {
   // smaller than the sphere's silhouette.
   vec3 p = axis * front + (corner.x * u + corner.y * v) * half_size * 1.001;
   gl_Position = u_proj * vec4(p, 1.0);
+  v_slot = uint(gl_InstanceID);
 }
 )";
 
-constexpr const char* kProxyFragment = R"(#version 450 core
-void main() {}
+constexpr const char* kBatchFragment = R"(#version 450 core
+layout(early_fragment_tests) in;
+flat in uint v_slot;
+layout(std430, binding = 0) buffer Counters { uint counts[]; };
+void main() { atomicAdd(counts[v_slot], 1u); }
 )";
+
+// The counters' binding point (the renderer binds no storage buffers).
+constexpr GLuint kCounterBinding = 0;
+
+std::uint64_t thread_cpu_ns() {
+  timespec t{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return std::uint64_t(t.tv_sec) * 1'000'000'000u + std::uint64_t(t.tv_nsec);
+}
+
+gl::Program link_program(const char* vertex, const char* fragment, const char* label) {
+  const gl::Shader vs = gl::Shader::compile(GL_VERTEX_SHADER, vertex, label);
+  const gl::Shader fs = gl::Shader::compile(GL_FRAGMENT_SHADER, fragment, label);
+  const gl::Shader* stages[] = {&vs, &fs};
+  return gl::Program::link(stages, label);
+}
+
+// A vertex array whose attribute 0 is a per-instance vec4 from binding 0.
+gl::VertexArray sphere_instances() {
+  gl::VertexArray vao = gl::VertexArray::create();
+  gl::VertexArrayAttribFormat(vao.id(), 0, 4, GL_FLOAT, GL_FALSE, 0);
+  gl::VertexArrayAttribBinding(vao.id(), 0, 0);
+  gl::VertexArrayBindingDivisor(vao.id(), 0, 1);
+  gl::EnableVertexArrayAttrib(vao.id(), 0);
+  return vao;
+}
 
 }  // namespace
 
 QueryExecutor::QueryExecutor(QueryExecutorOptions options) : options_(options) {
   if (!gl::loaded()) throw gl::GlError("QueryExecutor: no GL context is current");
-  const gl::Shader vs = gl::Shader::compile(GL_VERTEX_SHADER, kProxyVertex, "query proxy");
-  const gl::Shader fs = gl::Shader::compile(GL_FRAGMENT_SHADER, kProxyFragment, "query proxy");
-  const gl::Shader* stages[] = {&vs, &fs};
-  proxy_ = gl::Program::link(stages, "query proxy");
-  // Looked up once: run() sets them every frame.
+  options_.batches_in_flight = std::max<std::size_t>(options_.batches_in_flight, 1);
+  proxy_ = link_program(kBatchVertex, kBatchFragment, "query proxy");
+  // Looked up once: run() sets them every frame that issues.
   u_view_ = gl::GetUniformLocation(proxy_.id(), "u_view");
   u_proj_ = gl::GetUniformLocation(proxy_.id(), "u_proj");
-  vao_ = gl::VertexArray::create();
-  gl::VertexArrayAttribFormat(vao_.id(), 0, 4, GL_FLOAT, GL_FALSE, 0);
-  gl::VertexArrayAttribBinding(vao_.id(), 0, 0);
-  gl::VertexArrayBindingDivisor(vao_.id(), 0, 1);
-  gl::EnableVertexArrayAttrib(vao_.id(), 0);
+  vao_ = sphere_instances();
+  ring_.resize(options_.batches_in_flight);
   gl::check("QueryExecutor setup");
 }
 
-QueryExecutor::~QueryExecutor() = default;
+QueryExecutor::~QueryExecutor() {
+  for (Batch& b : ring_) {
+    if (b.fence != nullptr) gl::DeleteSync(b.fence);
+  }
+}
 
 void QueryExecutor::upload_spheres(const Hierarchy& h) {
   const auto cr = h.arrays().center_radius;
   spheres_.assign(cr.begin(), cr.end());
-  sphere_buffer_ = gl::Buffer::create(std::max<std::size_t>(cr.size_bytes(), 16), nullptr,
-                                      GL_DYNAMIC_STORAGE_BIT);
-  if (!cr.empty()) sphere_buffer_.sub_data(0, std::as_bytes(cr));
-  gl::VertexArrayVertexBuffer(vao_.id(), 0, sphere_buffer_.id(), 0, sizeof(glm::vec4));
   hierarchy_ = &h;
 }
 
 void QueryExecutor::begin_frame_render_thread(const FrontList& list, std::uint64_t frame) {
   frame_ = frame;
+  fence_last_batch_render_thread();
   if (list.hierarchy == nullptr || list.generation == generation_) return;
   generation_ = list.generation;
   if (list.hierarchy != hierarchy_) {
@@ -84,20 +116,6 @@ void QueryExecutor::begin_frame_render_thread(const FrontList& list, std::uint64
   queue_.assign(list.queries.begin(), list.queries.end());
   queue_next_ = 0;
   stats_.queued = queue_.size();
-}
-
-std::uint32_t QueryExecutor::acquire(QueryKind kind) {
-  const bool any = kind == QueryKind::AnySamples;
-  std::vector<std::uint32_t>& free = any ? any_free_ : samples_free_;
-  std::vector<gl::Query>& pool = any ? any_pool_ : samples_pool_;
-  if (!free.empty()) {
-    const std::uint32_t q = free.back();
-    free.pop_back();
-    return q;
-  }
-  pool.push_back(gl::Query::create(any ? GL_ANY_SAMPLES_PASSED_CONSERVATIVE : GL_SAMPLES_PASSED));
-  ++stats_.pool_size;
-  return static_cast<std::uint32_t>(pool.size() - 1);
 }
 
 void QueryExecutor::answer(const QueryRequest& r, std::uint32_t samples, std::uint64_t issued) {
@@ -118,92 +136,163 @@ void QueryExecutor::answer(const QueryRequest& r, std::uint32_t samples, std::ui
   stats_.latency_frames_max = std::max(stats_.latency_frames_max, latency);
 }
 
-void QueryExecutor::poll_render_thread() {
-  while (in_flight_head_ < in_flight_.size()) {
-    const InFlight& f = in_flight_[in_flight_head_];
-    const bool any = f.request.kind == QueryKind::AnySamples;
-    const gl::Query& q = (any ? any_pool_ : samples_pool_)[f.query];
-    GLuint available = GL_FALSE;
-    gl::GetQueryObjectuiv(q.id(), GL_QUERY_RESULT_AVAILABLE, &available);
-    if (available == GL_FALSE) break;  // later ones are later still: next frame
-    GLuint64 samples = 0;
-    gl::GetQueryObjectui64v(q.id(), GL_QUERY_RESULT, &samples);
-    answer(f.request, static_cast<std::uint32_t>(std::min<GLuint64>(samples, 0xffffffffu)),
-           f.frame_issued);
-    (any ? any_free_ : samples_free_).push_back(f.query);
-    ++in_flight_head_;
+bool QueryExecutor::answer_on_host(const QueryRequest& r, const FrameView& view) {
+  if (r.node >= static_cast<NodeId>(spheres_.size())) {  // not a node of this hierarchy
+    answer(r, 0, frame_);
+    return true;
   }
-  if (in_flight_head_ == in_flight_.size()) {
-    in_flight_.clear();
-    in_flight_head_ = 0;
-  } else if (in_flight_head_ > 1024 && in_flight_head_ * 2 > in_flight_.size()) {
-    // Keep the pending ones at the front; amortized O(1) per query.
-    in_flight_.erase(in_flight_.begin(),
-                     in_flight_.begin() + static_cast<std::ptrdiff_t>(in_flight_head_));
-    in_flight_head_ = 0;
+  const glm::vec4 s = spheres_[r.node];
+  const glm::vec3 d = glm::vec3(s) - view.eye;
+  if (d.x * d.x + d.y * d.y + d.z * d.z <= s.w * s.w) {
+    // The eye inside the sphere: it covers the whole view.
+    answer(r, r.kind == QueryKind::AnySamples ? 1u : std::uint32_t(view.size.x * view.size.y),
+           frame_);
+    return true;
   }
+  return false;
 }
 
-void QueryExecutor::issue_render_thread(const FrameView& view) {
-  const std::size_t end = std::min(queue_.size(), queue_next_ + options_.max_issue_per_frame);
-  if (queue_next_ >= end || hierarchy_ == nullptr) return;
-  GLint depth_func = GL_LESS;
-  gl::GetIntegerv(GL_DEPTH_FUNC, &depth_func);
+void QueryExecutor::begin_proxy_state(const FrameView& view) {
+  gl::GetIntegerv(GL_DEPTH_FUNC, &depth_func_);
   // LEQUAL: a proxy exactly on an occluder's depth counts as visible.
   gl::DepthFunc(GL_LEQUAL);
   gl::Enable(GL_DEPTH_CLAMP);
   gl::UseProgram(proxy_.id());
   gl::ProgramUniformMatrix4fv(proxy_.id(), u_view_, 1, GL_FALSE, glm::value_ptr(view.view));
   gl::ProgramUniformMatrix4fv(proxy_.id(), u_proj_, 1, GL_FALSE, glm::value_ptr(view.projection));
-  gl::BindVertexArray(vao_.id());
-  const auto node_count = static_cast<NodeId>(spheres_.size());
-  for (std::size_t i = queue_next_; i < end; ++i) {
-    const QueryRequest& r = queue_[i];
-    if (r.node >= node_count) {  // not a node of this hierarchy: nothing to see
-      answer(r, 0, frame_);
-      continue;
-    }
-    const glm::vec4 s = spheres_[r.node];
-    const glm::vec3 d = glm::vec3(s) - view.eye;
-    if (d.x * d.x + d.y * d.y + d.z * d.z <= s.w * s.w) {
-      // The eye inside the sphere: it covers the whole view.
-      answer(r, r.kind == QueryKind::AnySamples ? 1u : std::uint32_t(view.size.x * view.size.y),
-             frame_);
-      continue;
-    }
-    const std::uint32_t q = acquire(r.kind);
-    const gl::Query& query = (r.kind == QueryKind::AnySamples ? any_pool_ : samples_pool_)[q];
-    query.begin();
-    gl::DrawArraysInstancedBaseInstance(GL_TRIANGLE_STRIP, 0, 4, 1, r.node);
-    query.end();
-    in_flight_.push_back({r, q, frame_});
-    ++stats_.issued;
-    ++stats_.issued_last;
-  }
-  queue_next_ = end;
+}
+
+void QueryExecutor::end_proxy_state() {
   gl::BindVertexArray(0);
   gl::UseProgram(0);
   gl::Disable(GL_DEPTH_CLAMP);
-  gl::DepthFunc(static_cast<GLenum>(depth_func));
+  gl::DepthFunc(static_cast<GLenum>(depth_func_));
+}
+
+void QueryExecutor::poll_render_thread() {
+  while (ring_count_ > 0) {
+    Batch& b = ring_[ring_head_];
+    if (b.fence == nullptr) break;  // issued this frame: fenced when the next one begins
+    // Timeout 0: a status check, never a wait.
+    const GLenum status = gl::ClientWaitSync(b.fence, 0, 0);
+    if (status == GL_WAIT_FAILED) throw gl::GlError("QueryExecutor: glClientWaitSync failed");
+    if (status != GL_ALREADY_SIGNALED && status != GL_CONDITION_SATISFIED) break;  // in order
+    gl::DeleteSync(b.fence);
+    b.fence = nullptr;
+    // Signaled: the counters in the mapping are final (the barrier before
+    // the fence made the shader's atomics visible to the mapping).
+    for (std::size_t i = 0; i < b.requests.size(); ++i) {
+      const QueryRequest& r = b.requests[i];
+      const std::uint32_t c = b.mapped[i];
+      answer(r, r.kind == QueryKind::AnySamples ? (c > 0 ? 1u : 0u) : c, b.frame_issued);
+    }
+    b.requests.clear();
+    ring_head_ = (ring_head_ + 1) % ring_.size();
+    --ring_count_;
+  }
+  stats_.pending = 0;
+  for (std::size_t k = 0; k < ring_count_; ++k) {
+    stats_.pending += ring_[(ring_head_ + k) % ring_.size()].requests.size();
+  }
+}
+
+void QueryExecutor::issue_render_thread(const FrameView& view, std::size_t end) {
+  if (ring_count_ > 0 && ring_[(ring_head_ + ring_count_ - 1) % ring_.size()].fence == nullptr) {
+    return;  // run() twice in one frame: one batch per frame, the rest waits
+  }
+  if (ring_count_ == ring_.size()) {
+    ++stats_.ring_full;  // every slot still on the GPU: the requests wait a frame
+    return;
+  }
+  Batch& b = ring_[(ring_head_ + ring_count_) % ring_.size()];
+  b.requests.clear();
+  staging_.clear();
+  for (std::size_t i = queue_next_; i < end; ++i) {
+    const QueryRequest& r = queue_[i];
+    if (answer_on_host(r, view)) continue;
+    b.requests.push_back(r);
+    staging_.push_back(spheres_[r.node]);
+  }
+  queue_next_ = end;
+  if (b.requests.empty()) return;
+  const std::size_t n = b.requests.size();
+  if (b.capacity < n) {
+    // Grown to a power of two: a few sizes over a run, then reused.
+    std::size_t cap = 256;
+    while (cap < n) cap *= 2;
+    // Counters and spheres in one buffer, mapped once for reading, persistent
+    // and coherent: a read after the fence needs only
+    // GL_CLIENT_MAPPED_BUFFER_BARRIER_BIT (glGetBufferSubData would need
+    // GL_BUFFER_UPDATE_BARRIER_BIT).
+    constexpr GLbitfield kMap = GL_MAP_READ_BIT | GL_MAP_PERSISTENT_BIT | GL_MAP_COHERENT_BIT;
+    const std::size_t bytes = cap * (sizeof(std::uint32_t) + sizeof(glm::vec4));
+    b.buffer = gl::Buffer::create(bytes, nullptr, kMap | GL_DYNAMIC_STORAGE_BIT);
+    b.mapped = static_cast<const std::uint32_t*>(
+        gl::MapNamedBufferRange(b.buffer.id(), 0, static_cast<GLsizeiptr>(bytes), kMap));
+    if (b.mapped == nullptr) throw gl::GlError("QueryExecutor: cannot map the sample counters");
+    if (b.capacity == 0) ++stats_.pool_size;
+    b.capacity = cap;
+  }
+  // One upload: n zeroed counters, then (16-byte aligned) the n spheres. The
+  // slot's last batch was read after its fence: the GPU is done with it.
+  const std::size_t spheres_at = (n * sizeof(std::uint32_t) + 15) / 16 * 16;
+  upload_.assign(spheres_at + n * sizeof(glm::vec4), std::byte{0});
+  std::memcpy(upload_.data() + spheres_at, staging_.data(), n * sizeof(glm::vec4));
+  b.buffer.sub_data(0, upload_);
+  begin_proxy_state(view);
+  gl::VertexArrayVertexBuffer(vao_.id(), 0, b.buffer.id(), static_cast<GLintptr>(spheres_at),
+                              sizeof(glm::vec4));
+  gl::BindVertexArray(vao_.id());
+  gl::BindBufferBase(GL_SHADER_STORAGE_BUFFER, kCounterBinding, b.buffer.id());
+  gl::DrawArraysInstancedBaseInstance(GL_TRIANGLE_STRIP, 0, 4, static_cast<GLsizei>(n), 0);
+  gl::BindBufferBase(GL_SHADER_STORAGE_BUFFER, kCounterBinding, 0);
+  // No barrier and fence here: fence_last_batch_render_thread() sets them
+  // when the next frame begins (see there).
+  end_proxy_state();
+  b.frame_issued = frame_;
+  ++ring_count_;
+  ++stats_.batches;
+  stats_.issued += n;
+  stats_.issued_last += n;
+  stats_.pending += n;
+}
+
+void QueryExecutor::fence_last_batch_render_thread() {
+  if (ring_count_ == 0) return;
+  Batch& b = ring_[(ring_head_ + ring_count_ - 1) % ring_.size()];
+  if (b.fence != nullptr) return;
+  const std::uint64_t cpu0 = thread_cpu_ns();
+  // The barrier makes the shader's atomics visible to the mapping; the fence
+  // after it says when. Both here, before the frame draws anything, and not
+  // right after the batch's draw: a driver may implement the barrier as a
+  // wait for everything drawn so far (llvmpipe does, a glFinish), and here
+  // that is nothing, the last frame having ended with a swap, read-back or
+  // glFinish. The flush sends the fence on its way (polls never flush: that
+  // would be a wait on llvmpipe, in the middle of a frame).
+  gl::MemoryBarrier(GL_CLIENT_MAPPED_BUFFER_BARRIER_BIT);
+  b.fence = gl::FenceSync(GL_SYNC_GPU_COMMANDS_COMPLETE, 0);
+  gl::Flush();
+  fence_ns_ += thread_cpu_ns() - cpu0;
 }
 
 void QueryExecutor::run(const FrameView& view) {
-  const auto start = std::chrono::steady_clock::now();
+  const auto wall0 = std::chrono::steady_clock::now();
+  const std::uint64_t cpu0 = thread_cpu_ns();
   stats_.issued_last = 0;
   stats_.answered_last = 0;
   // Poll first: a query issued in this frame is never read in this frame.
   poll_render_thread();
-  stats_.poll_ns_last = static_cast<std::uint64_t>(
-      std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - start)
-          .count());
-  issue_render_thread(view);
-  stats_.pending = in_flight_.size() - in_flight_head_;
+  stats_.poll_ns_last = thread_cpu_ns() - cpu0;
+  const std::size_t end = std::min(queue_.size(), queue_next_ + options_.max_issue_per_frame);
+  if (queue_next_ < end && hierarchy_ != nullptr) issue_render_thread(view, end);
   stats_.queued = queue_.size() - queue_next_;
-  const auto ns =
-      std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - start)
-          .count();
-  stats_.cpu_ns_last = static_cast<std::uint64_t>(ns);
+  // The fence set when this frame began is part of the executor's cost.
+  stats_.cpu_ns_last = thread_cpu_ns() - cpu0 + fence_ns_;
+  fence_ns_ = 0;
   stats_.cpu_ns_total += stats_.cpu_ns_last;
+  stats_.wall_ns_last = static_cast<std::uint64_t>(
+      std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - wall0)
+          .count());
 }
 
 }  // namespace treecut::splat

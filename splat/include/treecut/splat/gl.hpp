@@ -17,11 +17,23 @@
 
 namespace treecut::gl {
 
-// The query executor's proxies: one instanced draw per query, its base
-// instance selecting the node's sphere.
+// The query executor's proxies: one instanced draw per batch, an instance
+// per request.
 #define TREECUT_GL_INSTANCING(X)                                               \
   X(PFNGLDRAWARRAYSINSTANCEDBASEINSTANCEPROC, DrawArraysInstancedBaseInstance) \
   X(PFNGLVERTEXARRAYBINDINGDIVISORPROC, VertexArrayBindingDivisor)
+
+// The query executor's batches: per-request sample counters in a shader
+// storage buffer, persistently mapped, read once the batch's fence is
+// signaled (GL 4.4+ core).
+#define TREECUT_GL_SAMPLE_COUNTERS(X)                          \
+  X(PFNGLBINDBUFFERBASEPROC, BindBufferBase)                   \
+  X(PFNGLCLEARNAMEDBUFFERSUBDATAPROC, ClearNamedBufferSubData) \
+  X(PFNGLMAPNAMEDBUFFERRANGEPROC, MapNamedBufferRange)         \
+  X(PFNGLMEMORYBARRIERPROC, MemoryBarrier)                     \
+  X(PFNGLFENCESYNCPROC, FenceSync)                             \
+  X(PFNGLCLIENTWAITSYNCPROC, ClientWaitSync)                   \
+  X(PFNGLDELETESYNCPROC, DeleteSync)
 
 // X(type, name): every function here is called as treecut::gl::name(...), and
 // is loaded from "gl" #name.
@@ -99,7 +111,8 @@ namespace treecut::gl {
   X(PFNGLENDQUERYPROC, EndQuery)                                       \
   X(PFNGLGETQUERYOBJECTUI64VPROC, GetQueryObjectui64v)                 \
   X(PFNGLGETQUERYOBJECTUIVPROC, GetQueryObjectuiv)                     \
-  TREECUT_GL_INSTANCING(X)
+  TREECUT_GL_INSTANCING(X)                                             \
+  TREECUT_GL_SAMPLE_COUNTERS(X)
 
 // The pointers are plain variables on purpose: a test may interpose an entry
 // point by assigning its own function after load() and restoring the old

@@ -7,21 +7,32 @@
 //   dropped when a newer list arrives (counted): they were asked about a cut
 //   that is no longer drawn, and the strategy asks again with its next list.
 // - A per-frame cap (max_issue_per_frame): the rest waits for later frames.
-// - A pool of query objects, grown on demand and reused (no glGenQueries per
-//   frame once the pool has grown).
+// - One batch per frame: the frame's issued requests are ONE instanced draw
+//   of their proxies (per-instance node sphere from a buffer filled once per
+//   batch) against the frame's depth, color and depth writes off, depth
+//   clamping on (a proxy in front of the near plane passes instead of being
+//   clipped away), GL_LEQUAL. The fragment shader runs after the depth test
+//   (early_fragment_tests) and adds 1 per fragment to its request's counter
+//   in a shader storage buffer: on a single-sampled target exactly what
+//   GL_SAMPLES_PASSED counts. QueryKind::AnySamples answers count > 0.
 // - The proxy of a node is a screen-aligned square in front of its bounding
 //   sphere: in the plane normal to the eye-to-center axis at the sphere's
 //   nearest distance, large enough to cover the cone of rays that touch the
 //   sphere. Every ray that hits the sphere crosses the square no farther than
 //   the sphere, so the proxy passes wherever the sphere would (conservative).
-//   Drawn against the frame's depth with color and depth writes off and depth
-//   clamping on (a proxy in front of the near plane passes instead of being
-//   clipped away). An eye inside the sphere is answered visible at once.
-// - GL_SAMPLES_PASSED, or GL_ANY_SAMPLES_PASSED_CONSERVATIVE for
-//   QueryKind::AnySamples.
-// - A result is read only after GL_QUERY_RESULT_AVAILABLE said it is there;
-//   never a blocking read. Queries are polled in issue order and the poll of
-//   a frame stops at the first one still pending (a GPU answers in order).
+//   An eye inside the sphere is answered visible at once, without the GPU.
+// - A small ring of counter buffers (batches_in_flight), made once and reused
+//   (no buffer per frame once the ring has grown), persistently mapped for
+//   reading. A batch gets its memory barrier and fence when the next frame
+//   begins (begin_frame_render_thread); its counters are read only after
+//   glClientWaitSync(fence, 0, 0) said signaled: never a blocking read.
+//   Batches are polled in issue order and a poll stops at the first one
+//   still pending (a GPU answers in order).
+//
+// Why not one GL query object per request: measured (query_bench, llvmpipe)
+// the batch costs the same render-thread CPU as a single query object for
+// one request and 6 to 10 times less from 10 requests on; see
+// docs/rendering.md.
 //
 // All members: render thread only, with the GL context current. The executor
 // is a QueryHook: the renderer calls run() inside draw(); RenderThreadFrame
@@ -44,6 +55,9 @@ namespace treecut::splat {
 struct QueryExecutorOptions {
   /// Queries issued per frame at most; the rest are carried to later frames.
   std::size_t max_issue_per_frame = 4096;
+  /// Batches in flight at most (the ring of counter buffers); a frame that
+  /// finds every one still unsignaled issues nothing (its requests wait).
+  std::size_t batches_in_flight = 4;
 };
 
 /// Counters of the executor (cesium-native's tilesOccluded /
@@ -57,12 +71,15 @@ struct QueryStats {
   std::size_t queued = 0;                  ///< requested, not yet issued (waiting for the cap)
   std::uint64_t latency_frames_total = 0;  ///< sum of frame_read - frame_issued
   std::uint64_t latency_frames_max = 0;
-  std::uint64_t cpu_ns_total = 0;  ///< render-thread time in run() (issue + poll)
+  std::uint64_t cpu_ns_total = 0;  ///< render-thread CPU time in run() (issue + poll)
   std::uint64_t cpu_ns_last = 0;   ///< of the last run()
-  std::uint64_t poll_ns_last = 0;  ///< of which polling earlier queries
+  std::uint64_t poll_ns_last = 0;  ///< of which polling earlier batches (CPU time)
+  std::uint64_t wall_ns_last = 0;  ///< wall time of the last run() (a wait would show here)
   std::size_t issued_last = 0;     ///< issued by the last run()
   std::size_t answered_last = 0;   ///< read by the last run()
-  std::size_t pool_size = 0;       ///< query objects created
+  std::uint64_t batches = 0;       ///< batches issued (one draw and one fence each)
+  std::uint64_t ring_full = 0;     ///< runs that issued nothing: every counter buffer in flight
+  std::size_t pool_size = 0;       ///< counter buffers made (ring slots in use so far)
   [[nodiscard]] double latency_frames_mean() const {
     return answered == 0 ? 0.0 : double(latency_frames_total) / double(answered);
   }
@@ -77,8 +94,9 @@ class QueryExecutor final : public QueryHook {
 
   /// Render thread, before draw(): the list drawn this frame and the frame's
   /// number (the stage's frame counter). A generation seen for the first time
-  /// queues its requests; the same generation again changes nothing. Uploads
-  /// the node spheres when the list's hierarchy is new.
+  /// queues its requests; the same generation again changes nothing. Takes
+  /// the node spheres when the list's hierarchy is new. Sets the barrier and
+  /// fence of the last frame's batch (before this frame draws anything).
   void begin_frame_render_thread(const FrontList& list, std::uint64_t frame);
 
   /// Render thread, called by the renderer inside draw() with the frame's
@@ -94,15 +112,27 @@ class QueryExecutor final : public QueryHook {
   void set_max_issue_per_frame(std::size_t n) { options_.max_issue_per_frame = n; }
 
  private:
-  struct InFlight {
-    QueryRequest request;
-    std::uint32_t query = 0;  // index into the pool of its kind
+  // One slot of the ring of batches: a batch's instance spheres and counters
+  // stay untouched until its fence was seen signaled.
+  struct Batch {
+    // n counters (one uint per instance), then at a 16-byte aligned offset
+    // the n instance spheres (vec4 center, radius).
+    gl::Buffer buffer;
+    const std::uint32_t* mapped = nullptr;  // the counters, mapped persistent and coherent
+    std::size_t capacity = 0;
+    GLsync fence = nullptr;
+    std::vector<QueryRequest> requests;  // instance i answers requests[i]
     std::uint64_t frame_issued = 0;
   };
   void upload_spheres(const Hierarchy& h);
+  // Answers without the GPU (no such node, or the eye inside its sphere);
+  // false if the request needs a proxy.
+  bool answer_on_host(const QueryRequest& r, const FrameView& view);
+  void fence_last_batch_render_thread();
   void poll_render_thread();
-  void issue_render_thread(const FrameView& view);
-  std::uint32_t acquire(QueryKind kind);
+  void issue_render_thread(const FrameView& view, std::size_t end);
+  void begin_proxy_state(const FrameView& view);
+  void end_proxy_state();
   void answer(const QueryRequest& r, std::uint32_t samples, std::uint64_t issued);
 
   QueryExecutorOptions options_;
@@ -110,19 +140,20 @@ class QueryExecutor final : public QueryHook {
   std::uint64_t frame_ = 0;
   std::uint64_t generation_ = 0;
   const Hierarchy* hierarchy_ = nullptr;
-  std::vector<glm::vec4> spheres_;   // the hierarchy's center_radius, for the eye-inside test
+  std::vector<glm::vec4> spheres_;   // the hierarchy's center_radius
   std::vector<QueryRequest> queue_;  // of the current generation
   std::size_t queue_next_ = 0;       // first not yet issued
-  std::vector<InFlight> in_flight_;  // issue order; [in_flight_head_, end) pending
-  std::size_t in_flight_head_ = 0;
-  std::vector<VisibilityResult> results_;
-  // Pools per kind (a query object keeps its target): all objects, the free ones.
-  std::vector<gl::Query> samples_pool_, any_pool_;
-  std::vector<std::uint32_t> samples_free_, any_free_;
-  gl::Buffer sphere_buffer_;
+  // Batched: a ring of slots, [ring_head_, ring_head_ + ring_count_) in flight.
+  std::vector<Batch> ring_;
+  std::size_t ring_head_ = 0, ring_count_ = 0;
+  std::vector<glm::vec4> staging_;  // the batch being filled
+  std::vector<std::byte> upload_;   // its zeroed counters and spheres
+  std::uint64_t fence_ns_ = 0;      // CPU time of the last fence, charged to the next run()
   gl::VertexArray vao_;
   gl::Program proxy_;
   GLint u_view_ = -1, u_proj_ = -1;
+  GLint depth_func_ = GL_LESS;
+  std::vector<VisibilityResult> results_;
 };
 
 }  // namespace treecut::splat
