@@ -1,25 +1,23 @@
 // Hierarchy cache files: one header, the node arrays (64-byte aligned, so the
 // loader can hand out spans straight into a read-only mapping), and a trailing
 // 64-bit checksum. Every field is checked before any of it is used, so any
-// truncation or flipped byte is reported, never rendered.
+// truncation or flipped byte is reported, never rendered. Which cache serves
+// which model (identity, content hash, the lookup) is cache_lookup.cpp's.
 #include "treecut/cache.hpp"
 
 #include <fcntl.h>
 #include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
-#include <xxhash.h>
 
 #include <array>
 #include <bit>
 #include <cerrno>
-#include <chrono>
 #include <cstring>
-#include <ctime>
-#include <future>
 #include <stdexcept>
 
 #include "cache_checksum.hpp"
+#include "cache_format.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
 
@@ -271,66 +269,6 @@ std::optional<Hierarchy> map_and_verify(const std::filesystem::path& path, Heade
                                 {h.bounds[3], h.bounds[4], h.bounds[5]});
 }
 
-}  // namespace
-
-namespace {
-
-std::int64_t ns_of(const timespec& t) {
-  return static_cast<std::int64_t>(t.tv_sec) * 1000000000 + t.tv_nsec;
-}
-
-// The identity of the file behind FD and the wall-clock time just before it
-// was taken (so before any of the content is read).
-CacheKey identity_of_descriptor(const std::filesystem::path& source, int fd,
-                                std::uint32_t options_bits) {
-  timespec now{};
-  ::clock_gettime(CLOCK_REALTIME, &now);
-  struct stat st {};
-  if (::fstat(fd, &st) != 0) throw std::runtime_error(system_error_text(source, errno));
-  CacheKey key;
-  key.source_size = static_cast<std::uint64_t>(st.st_size);
-  key.source_mtime_ns = ns_of(st.st_mtim);
-  key.options_bits = options_bits;
-  key.source_device = static_cast<std::uint64_t>(st.st_dev);
-  key.source_inode = static_cast<std::uint64_t>(st.st_ino);
-  key.source_ctime_ns = ns_of(st.st_ctim);
-  key.identity_ns = ns_of(now);
-  return key;
-}
-
-// XXH3-64 of the SIZE bytes behind FD. Through a read-only mapping (no copy
-// into a buffer; the model was usually just read, so its pages are in the
-// page cache and hashing runs at memory bandwidth).
-std::uint64_t hash_descriptor(const std::filesystem::path& source, int fd, std::uint64_t size) {
-  if (size == 0) return XXH3_64bits(nullptr, 0);
-  const auto length = static_cast<std::size_t>(size);
-  void* base = ::mmap(nullptr, length, PROT_READ, MAP_PRIVATE, fd, 0);
-  if (base == MAP_FAILED) throw std::runtime_error(system_error_text(source, errno));
-  ::madvise(base, length, MADV_SEQUENTIAL);
-  const std::uint64_t hash = XXH3_64bits(base, length);
-  ::munmap(base, length);
-  return hash;
-}
-
-CacheKey key_of_descriptor(const std::filesystem::path& source, int fd,
-                           std::uint32_t options_bits) {
-  CacheKey key = identity_of_descriptor(source, fd, options_bits);
-  key.content_hash = hash_descriptor(source, fd, key.source_size);
-  return key;
-}
-
-struct Descriptor {
-  int fd;
-  explicit Descriptor(int f) : fd(f) {}
-  Descriptor(const Descriptor&) = delete;
-  Descriptor& operator=(const Descriptor&) = delete;
-  ~Descriptor() { ::close(fd); }
-};
-
-bool settled(const CacheKey& k) {
-  return k.identity_ns != 0 && k.source_ctime_ns <= k.identity_ns - kSettledNs;
-}
-
 // The header of CACHE as it is on disk, unverified (the checksum is checked
 // by map_and_verify before anything is served): only to decide whether the
 // content hash can be skipped. Never blocks.
@@ -350,89 +288,12 @@ bool peek_header(const std::filesystem::path& cache, Header* h) {
          h->version == kVersion && h->endian_tag == kEndianTag && h->header_size == sizeof *h;
 }
 
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
-
 }  // namespace
 
-CacheKey cache_key_for(const std::filesystem::path& source, std::uint32_t options_bits) {
-  const Descriptor file(open_regular_file(source));  // InputError: missing, a FIFO, a directory...
-  return key_of_descriptor(source, file.fd, options_bits);
-}
-
-CacheKey cache_identity_of(const std::filesystem::path& source, std::uint32_t options_bits) {
-  const Descriptor file(open_regular_file(source));
-  return identity_of_descriptor(source, file.fd, options_bits);
-}
-
-bool cache_identity_serves(const CacheKey& stored, const CacheKey& now) {
-  return settled(stored) && stored.options_bits == now.options_bits &&
-         stored.source_device == now.source_device && stored.source_inode == now.source_inode &&
-         stored.source_size == now.source_size && stored.source_mtime_ns == now.source_mtime_ns &&
-         stored.source_ctime_ns == now.source_ctime_ns;
-}
-
-CacheLookup lookup_cache(const std::filesystem::path& source, const std::filesystem::path& cache,
-                         std::uint32_t options_bits, bool refresh) {
-  CacheLookup out;
-  const Descriptor file(open_regular_file(source));  // InputError: missing, a FIFO, a directory...
-  out.key = identity_of_descriptor(source, file.fd, options_bits);
-  auto hash = [&] {
-    const auto t0 = std::chrono::steady_clock::now();
-    const std::uint64_t h = hash_descriptor(source, file.fd, out.key.source_size);
-    out.hash_seconds = seconds_since(t0);
-    return h;
-  };
-  Header peeked{};
-  const bool identity_decides =
-      peek_header(cache, &peeked) && cache_identity_serves(key_of(peeked), out.key);
-  // Otherwise the content hash (memory bandwidth over the whole model) runs
-  // beside the cache's own verification (its checksum over the whole cache):
-  // a cached open costs the longer of the two, not their sum. (A thread only
-  // pays for itself on a large model.)
-  const bool large = out.key.source_size >= (std::uint64_t{64} << 20);
-  std::future<std::uint64_t> pending;
-  if (!identity_decides)
-    pending = std::async(large ? std::launch::async : std::launch::deferred, hash);
-  const auto t0 = std::chrono::steady_clock::now();
+std::optional<CacheKey> detail::peek_cache_key(const std::filesystem::path& cache) {
   Header h{};
-  auto hier = map_and_verify(cache, &h, &out.why);
-  out.cache_seconds = seconds_since(t0);
-  const CacheKey stored = key_of(h);
-  if (hier && identity_decides && cache_identity_serves(stored, out.key)) {
-    out.key.content_hash = stored.content_hash;
-    out.hierarchy = std::move(hier);
-    return out;
-  }
-  // Not decided by the identity (or the cache changed between the two reads):
-  // the content decides.
-  out.key.content_hash = pending.valid() ? pending.get() : hash();
-  out.hashed = true;
-  if (!hier) return out;
-  if (!cache_key_matches(stored, out.key)) {
-    out.why = "stale (the model or the build options changed)";
-    return out;
-  }
-  out.hierarchy = std::move(hier);
-  // The same content under another identity (touched, copied) or a build that
-  // was not settled yet: once settled, rewrite the cache with the identity of
-  // now so the next open skips the hash. Only an optimization: a failure
-  // (read-only folder, full disk) leaves the cache as it was.
-  if (refresh && settled(out.key) && !cache_identity_serves(stored, out.key)) {
-    try {
-      const auto t1 = std::chrono::steady_clock::now();
-      save_cache(*out.hierarchy, out.key, cache);
-      out.cache_seconds += seconds_since(t1);
-      out.refreshed = true;
-    } catch (const std::exception&) {
-    }
-  }
-  return out;
-}
-
-std::uint64_t content_hash_of(const std::filesystem::path& source) {
-  return cache_key_for(source, 0).content_hash;
+  if (!peek_header(cache, &h)) return std::nullopt;
+  return key_of(h);
 }
 
 bool looks_like_cache(const std::filesystem::path& path) {
@@ -548,14 +409,6 @@ std::optional<Hierarchy> load_cache_and_key(const std::filesystem::path& cache, 
   auto hier = map_and_verify(cache, &h, why);
   if (hier && stored) *stored = key_of(h);
   return hier;
-}
-
-bool cache_key_matches(const CacheKey& stored, const CacheKey& expected) {
-  // The modification time does not decide: an edit with the mtime restored
-  // changes the hash, and a touch (or a copy) that changes nothing keeps the cache.
-  return stored.source_size == expected.source_size &&
-         stored.content_hash == expected.content_hash &&
-         stored.options_bits == expected.options_bits;
 }
 
 std::optional<CacheKey> read_cache_key(const std::filesystem::path& cache, std::string* why) {

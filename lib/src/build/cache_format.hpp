@@ -1,0 +1,19 @@
+// What cache_lookup.cpp needs of the cache file beyond the public cache.hpp:
+// the key in a cache's header without verifying the file. Private to the
+// library; the layout itself stays inside cache.cpp.
+#pragma once
+
+#include <filesystem>
+#include <optional>
+
+#include "treecut/cache.hpp"
+
+namespace treecut::detail {
+
+/// The key recorded in CACHE's header as it is on disk, unverified (the
+/// checksum is checked by load_cache_and_key before anything is served): only
+/// to decide whether the content hash can be skipped. nullopt when CACHE is
+/// not a readable cache of this format version. Never blocks.
+std::optional<CacheKey> peek_cache_key(const std::filesystem::path& cache);
+
+}  // namespace treecut::detail
