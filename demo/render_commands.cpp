@@ -375,7 +375,9 @@ void run_render(const RenderArgs& a) {
     if (a.target_fps > 0.0) {
       governor = splat::FrameRateGovernor::for_strategy(*strategy, h.node_count());
     }
-    Controller controller(make_model(h), std::move(strategy),
+    // The scene's hierarchy itself (no copy): the renderer's vertex buffer is
+    // of the hierarchy in the stage's lists, so it is never uploaded again.
+    Controller controller(Model{scene.hierarchy, TreeCut::root_cut(h)}, std::move(strategy),
                           splat::view_snapshot(cam, size, settings.light), stage_options);
     splat::QueryExecutor queries;
     splat::RenderThreadFrame frame_loop(controller, renderer, &queries);
@@ -548,6 +550,7 @@ void add_render_commands(CLI::App& app) {
   auto va = std::make_shared<ViewArgs>();
   auto* view = app.add_subcommand("view", "Open a window on a model (GLFW, OpenGL 4.5 core)");
   add_scene_options(*view, va->scene);
+  view->add_option("MORE", va->more_models, "Further models; O in the window opens the next");
   view->add_option("--width", va->width, "Window width")
       ->check(CLI::Range(16, 8192))
       ->capture_default_str();

@@ -115,6 +115,17 @@ std::vector<ScriptCommand> parse_view_script(std::string_view text,
         // The path's own FILE:LINE (or the registry's reason) after ours.
         throw InputError(where + c.verb + ": " + e.what());
       }
+    } else if (c.verb == "open") {
+      // Another model, resolved like `play`; it must be a regular file now (a
+      // missing one fails before the window opens), whether it loads is seen
+      // when the viewer opens it.
+      want(1, "a model file (PLY or .tch)");
+      c.arg = (file.parent_path() / std::string(words[1])).string();
+      try {
+        require_regular_file(c.arg);
+      } catch (const InputError& e) {
+        throw InputError(where + c.verb + ": " + e.what());
+      }
     } else if (c.verb == "param") {
       want(2, "NAME VALUE");
       c.arg = std::string(words[1]);

@@ -14,8 +14,9 @@ namespace treecut::cli {
 
 /// One line of a script. `number` holds the count of frames/converge (a whole
 /// number in [0, kMaxScriptFrames]), the value of param and the degrees of
-/// orbit; `arg` the strategy, mode, screenshot name, parameter name or the
-/// camera path (resolved against the script's folder).
+/// orbit; `arg` the strategy, mode, screenshot name, parameter name, or the
+/// camera path or model file of play and open (resolved against the script's
+/// folder).
 struct ScriptCommand {
   std::string verb;
   std::string arg;

@@ -5,9 +5,11 @@
 
 #include <CLI/CLI.hpp>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -53,6 +55,10 @@ struct Scene {
 /// Opens the model (through its cache) or generates the default one.
 /// Throws InputError for a bad model file.
 Scene load_scene(const SceneArgs& args);
+/// The same, reporting the stages of opening a model file (OpenOptions::progress:
+/// "read", "attributes", "hierarchy", "cache"; on the calling thread).
+using LoadProgressFn = std::function<void(std::string_view stage, std::size_t, std::size_t)>;
+Scene load_scene(const SceneArgs& args, const LoadProgressFn& progress);
 
 /// The built-in strategies plus the plugins named in `args`.
 StrategyRegistry make_registry(const SceneArgs& args);
@@ -89,6 +95,8 @@ struct ViewArgs {
   std::string script;  ///< scripted run: see docs/camera-paths.md
   std::string screenshot_dir = ".";
   double target_fps = 0.0;  ///< > 0: adapt the strategy's budget to hold this rate
+  /// Further models (`treecut view A B C`): the O key cycles through all of them.
+  std::vector<std::string> more_models;
 };
 
 /// Runs the window until it is closed (or the script ends). Returns an exit code.

@@ -105,6 +105,10 @@ std::string stage_shortfall(const std::string& strategy, const StageCounters& c,
 }
 
 Scene load_scene(const SceneArgs& args) {
+  return load_scene(args, {});
+}
+
+Scene load_scene(const SceneArgs& args, const LoadProgressFn& progress) {
   Scene s;
   if (args.model.empty()) {
     const ModelKind kind = parse_model_kind(args.default_kind);
@@ -116,6 +120,7 @@ Scene load_scene(const SceneArgs& args) {
     OpenOptions o;
     o.attributes.k = args.k;
     o.warn = [](const std::string& w) { std::fprintf(stderr, "warning: %s\n", w.c_str()); };
+    o.progress = progress;
     s.hierarchy = std::make_shared<const Hierarchy>(open_model(args.model, o).hierarchy);
     s.label = std::filesystem::path(args.model).filename().string();
   }

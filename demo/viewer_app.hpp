@@ -1,0 +1,160 @@
+// treecut view: the interactive window (GLFW + Dear ImGui HUD). The class is
+// split by job over these files:
+//   viewer.cpp          set-up, the main loop, switching to a loaded model
+//   viewer_input.cpp    camera controls (mouse, keys, drag and drop)
+//   viewer_playback.cpp view scripts, camera path recording and replay
+//   viewer_hud.cpp      the HUD
+//   viewer_output.cpp   screenshots
+//   viewer_loader.cpp   opening another model on a background thread
+//
+// Controls: left drag orbits (fly mode: looks around), right or middle drag
+// pans, wheel zooms, Tab toggles orbit/fly, WASD/QE fly (Shift = faster),
+// F fits the model, U turns another axis up (x -> y -> z), L toggles the
+// headlight, H hides the HUD, F12 or P saves a screenshot, R starts/stops
+// recording a camera path, Space replays the last recorded (or --path) path,
+// O opens the next model named on the command line, a PLY or .tch dropped on
+// the window opens it, Esc quits.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <deque>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#define GLFW_INCLUDE_NONE
+#include <GLFW/glfw3.h>
+
+#include "treecut/controller.hpp"
+#include "treecut/registry.hpp"
+#include "treecut/splat/camera.hpp"
+#include "treecut/splat/camera_path.hpp"
+#include "treecut/splat/context.hpp"
+#include "treecut/splat/frame.hpp"
+#include "treecut/splat/frame_rate.hpp"
+#include "treecut/splat/query_executor.hpp"
+#include "treecut/splat/renderer.hpp"
+#include "view_script.hpp"
+#include "viewer.hpp"
+#include "viewer_loader.hpp"
+
+namespace treecut::cli {
+
+/// What the GLFW callbacks leave for the next frame (the window's user pointer).
+struct ViewerInput {
+  double scroll = 0.0;
+  std::vector<std::string> dropped;  ///< paths dropped on the window, in order
+};
+
+class Viewer {
+ public:
+  explicit Viewer(const ViewArgs& args);
+  ~Viewer();
+  Viewer(const Viewer&) = delete;
+  Viewer& operator=(const Viewer&) = delete;
+
+  int run();
+  void set_target_fps(double fps) {
+    target_fps_ = fps;
+    if (fps > 0.0) chosen_fps_ = fps;
+  }
+
+ private:
+  struct ParamState {
+    ParamSpec spec;
+    double value;
+  };
+
+  // viewer.cpp: strategies and models.
+  void read_params(const Strategy& s);
+  void set_param_value(const std::string& name, double v);
+  void switch_strategy(const std::string& name);
+  /// Starts loading `file` ("" = the generated default model) in the background.
+  void open_model(const std::string& file);
+  /// Each frame: hands a finished load to the stage (set_model), or reports
+  /// its failure (HUD + stderr; a script's failure ends the run).
+  void poll_loader();
+  /// After the frame that first drew the new model: the scene is its.
+  void adopt_scene();
+
+  // viewer_input.cpp: camera controls.
+  void fit();
+  void orbit(float dx, float dy);
+  void handle_input(double dt);
+
+  // viewer_playback.cpp: scripts and camera paths.
+  std::string next_name(const char* ext);
+  void toggle_recording();
+  void record_key();
+  void start_playback();
+  void advance_playback(double dt);
+  void step_script();
+
+  // viewer_output.cpp: screenshots.
+  void save_screenshot(const std::string& file, glm::ivec2 size);
+  [[nodiscard]] std::filesystem::path free_screenshot_name(
+      const std::filesystem::path& wanted) const;
+
+  // viewer_hud.cpp.
+  void hud(const splat::FrameStats& stats);
+  void rendering_panel();
+  void models_panel();
+
+  const ViewArgs& args_;
+  StrategyRegistry registry_;
+  splat::RenderSettings settings_;
+  splat::GlfwWindow window_;
+  Scene scene_;
+  std::vector<std::string> strategy_names_;
+  std::string strategy_;
+  std::vector<ParamState> params_;
+  std::optional<splat::FrameRateGovernor> governor_;
+  double target_fps_ = 0.0;
+  double chosen_fps_ = 30.0;
+  std::unique_ptr<splat::Renderer> renderer_;
+  std::unique_ptr<Controller> controller_;
+  std::unique_ptr<splat::QueryExecutor> queries_;
+  std::unique_ptr<splat::RenderThreadFrame> frame_loop_;  // after what it refers to
+
+  // Models: those named on the command line (O cycles), the load running in
+  // the background, and a loaded one handed to the stage but not yet drawn.
+  std::vector<std::string> models_;
+  std::size_t model_index_ = 0;
+  ModelLoader loader_;
+  std::optional<Scene> incoming_;
+  std::string load_error_;     // the last failed load's line (HUD)
+  char open_field_[512] = {};  // the HUD's "open" field
+
+  splat::Camera camera_;
+  ViewerInput input_;
+  glm::vec2 last_mouse_{0.0f};
+  bool have_mouse_ = false;
+  bool keys_down_[GLFW_KEY_LAST + 1] = {};
+  bool fly_ = false;
+  bool show_hud_ = true;
+  bool quit_ = false;
+  std::deque<float> frame_times_;
+  double frame_ms_ = 0.0;
+  std::size_t last_splats_ = 0;
+  double draw_ms_ = 0.0;
+  std::uint64_t frame_ = 0;
+  std::string pending_screenshot_;
+  std::vector<std::filesystem::path> written_screenshots_;  // may be replaced by a script
+  std::string status_;
+  bool recording_ = false;
+  splat::CameraPath recorded_;
+  std::chrono::steady_clock::time_point record_start_;
+  splat::CameraPath path_;
+  bool playing_ = false;
+  double play_time_ = 0.0;
+  std::vector<ScriptCommand> script_;
+  std::size_t script_pos_ = 0;
+  int script_counter_ = -1;
+  bool script_playing_ = false;
+  bool script_opening_ = false;  // an `open` waits for its model to be drawn
+};
+
+}  // namespace treecut::cli

@@ -1,0 +1,135 @@
+// treecut view: camera controls (mouse, keys) and the files dropped on the window.
+#include <imgui.h>
+
+#include <algorithm>
+#include <cmath>
+#include <glm/geometric.hpp>
+#include <glm/gtc/matrix_transform.hpp>
+
+#include "viewer_app.hpp"
+
+namespace treecut::cli {
+
+void Viewer::fit() {
+  const glm::ivec2 size = window_.framebuffer_size();
+  camera_ = splat::default_camera(scene_.hierarchy->bounds_min(), scene_.hierarchy->bounds_max(),
+                                  float(size.x) / float(std::max(size.y, 1)), scene_.up);
+}
+
+// Turns the eye about the model's up axis (dx) and raises it towards the
+// pole (dy), stopping short of it. Radians.
+void Viewer::orbit(float dx, float dy) {
+  const glm::vec3 up = scene_.up;
+  glm::vec3 offset = camera_.eye - camera_.target;
+  offset = glm::vec3(glm::rotate(glm::mat4(1.0f), -dx, up) * glm::vec4(offset, 0.0f));
+  const float dist = glm::length(offset);
+  const glm::vec3 side = glm::cross(up, offset);
+  if (dist > 0.0f && glm::length(side) > 1e-6f * dist) {
+    const float now = std::asin(std::clamp(glm::dot(offset, up) / dist, -1.0f, 1.0f));
+    const float next = std::clamp(now + dy, -1.55f, 1.55f);
+    offset = glm::vec3(glm::rotate(glm::mat4(1.0f), -(next - now), glm::normalize(side)) *
+                       glm::vec4(offset, 0.0f));
+  }
+  camera_.eye = camera_.target + offset;
+  camera_.up = up;
+}
+
+void Viewer::handle_input(double dt) {
+  // A drop opens the last file dropped (several at once: the others are
+  // named on stderr as ignored, not queued behind it).
+  if (!input_.dropped.empty()) {
+    for (std::size_t i = 0; i + 1 < input_.dropped.size(); ++i) {
+      std::fprintf(stderr, "treecut: %s: ignored (several files dropped; opening the last)\n",
+                   input_.dropped[i].c_str());
+    }
+    open_model(input_.dropped.back());
+    input_.dropped.clear();
+  }
+  GLFWwindow* w = window_.handle();
+  double x = 0.0, y = 0.0;
+  glfwGetCursorPos(w, &x, &y);
+  const glm::vec2 mouse(static_cast<float>(x), static_cast<float>(y));
+  const glm::vec2 delta = have_mouse_ ? mouse - last_mouse_ : glm::vec2(0.0f);
+  last_mouse_ = mouse;
+  have_mouse_ = true;
+  const ImGuiIO& io = ImGui::GetIO();
+  if (playing_ || !script_.empty()) return;  // the path or the script owns the camera
+  const float scale = scene_.radius;
+  if (!io.WantCaptureMouse) {
+    if (glfwGetMouseButton(w, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS) {
+      if (fly_) {
+        const glm::vec3 f = camera_.forward();
+        glm::mat4 rot = glm::rotate(glm::mat4(1.0f), -delta.x * 0.005f, scene_.up);
+        const glm::vec3 right = glm::normalize(glm::cross(f, camera_.up));
+        rot = glm::rotate(rot, -delta.y * 0.005f, right);
+        const glm::vec3 nf = glm::vec3(rot * glm::vec4(f, 0.0f));
+        camera_.target = camera_.eye + nf * glm::length(camera_.target - camera_.eye);
+      } else {
+        orbit(delta.x * 0.008f, delta.y * 0.008f);
+      }
+    }
+    if (glfwGetMouseButton(w, GLFW_MOUSE_BUTTON_RIGHT) == GLFW_PRESS ||
+        glfwGetMouseButton(w, GLFW_MOUSE_BUTTON_MIDDLE) == GLFW_PRESS) {
+      const glm::vec3 f = camera_.forward();
+      const glm::vec3 right = glm::normalize(glm::cross(f, camera_.up));
+      const glm::vec3 up = glm::cross(right, f);
+      const float k = glm::length(camera_.eye - camera_.target) * 0.0015f;
+      const glm::vec3 move = (-delta.x * right + delta.y * up) * k;
+      camera_.eye += move;
+      camera_.target += move;
+    }
+    if (input_.scroll != 0.0) {
+      const glm::vec3 offset = camera_.eye - camera_.target;
+      camera_.eye = camera_.target + offset * static_cast<float>(std::pow(0.88, input_.scroll));
+    }
+  }
+  input_.scroll = 0.0;
+  if (io.WantCaptureKeyboard) return;
+  auto pressed_once = [&](int key) {
+    const bool down = glfwGetKey(w, key) == GLFW_PRESS;
+    const bool was = keys_down_[key];
+    keys_down_[key] = down;
+    return down && !was;
+  };
+  if (pressed_once(GLFW_KEY_ESCAPE)) quit_ = true;
+  if (pressed_once(GLFW_KEY_TAB)) fly_ = !fly_;
+  if (pressed_once(GLFW_KEY_F)) fit();
+  if (pressed_once(GLFW_KEY_U)) {
+    // When --up auto guessed wrong: the next axis, and the view fitted to it.
+    scene_.up_axis = next_up_axis(scene_.up_axis);
+    scene_.up = scene_.up_axis.vector();
+    fit();
+  }
+  if (pressed_once(GLFW_KEY_L)) settings_.light.follow_camera = !settings_.light.follow_camera;
+  if (pressed_once(GLFW_KEY_H)) show_hud_ = !show_hud_;
+  if (pressed_once(GLFW_KEY_F12) || pressed_once(GLFW_KEY_P))
+    pending_screenshot_ = next_name("png");
+  if (pressed_once(GLFW_KEY_R)) toggle_recording();
+  if (pressed_once(GLFW_KEY_SPACE)) start_playback();
+  if (pressed_once(GLFW_KEY_O)) {
+    // The next model named on the command line (the first after the last).
+    if (models_.size() < 2) {
+      status_ = "O: name more models on the command line (treecut view A B), or drop a file";
+    } else {
+      model_index_ = (model_index_ + 1) % models_.size();
+      open_model(models_[model_index_]);
+    }
+  }
+  if (fly_) {
+    const float speed = scale * (glfwGetKey(w, GLFW_KEY_LEFT_SHIFT) == GLFW_PRESS ? 1.5f : 0.4f) *
+                        static_cast<float>(dt);
+    const glm::vec3 f = camera_.forward();
+    const glm::vec3 right = glm::normalize(glm::cross(f, camera_.up));
+    glm::vec3 move(0.0f);
+    if (glfwGetKey(w, GLFW_KEY_W) == GLFW_PRESS) move += f;
+    if (glfwGetKey(w, GLFW_KEY_S) == GLFW_PRESS) move -= f;
+    if (glfwGetKey(w, GLFW_KEY_D) == GLFW_PRESS) move += right;
+    if (glfwGetKey(w, GLFW_KEY_A) == GLFW_PRESS) move -= right;
+    if (glfwGetKey(w, GLFW_KEY_E) == GLFW_PRESS) move += camera_.up;
+    if (glfwGetKey(w, GLFW_KEY_Q) == GLFW_PRESS) move -= camera_.up;
+    camera_.eye += move * speed;
+    camera_.target += move * speed;
+  }
+}
+
+}  // namespace treecut::cli

@@ -1,0 +1,110 @@
+// treecut view: view scripts (--script, docs/camera-paths.md), camera path
+// recording (R) and replay (Space, --path).
+#include <cstdio>
+#include <filesystem>
+
+#include "viewer_app.hpp"
+
+namespace treecut::cli {
+
+std::string Viewer::next_name(const char* ext) {
+  for (int i = 0;; ++i) {
+    char name[64];
+    std::snprintf(name, sizeof name, "treecut_%03d.%s", i, ext);
+    const auto p = std::filesystem::path(args_.screenshot_dir) / name;
+    if (!std::filesystem::exists(p)) return p.string();
+  }
+}
+
+void Viewer::toggle_recording() {
+  if (!recording_) {
+    recorded_ = {};
+    recording_ = true;
+    record_start_ = std::chrono::steady_clock::now();
+    return;
+  }
+  recording_ = false;
+  if (recorded_.keys.size() >= 2) {
+    const std::string file = next_name("campath");
+    splat::save_camera_path(file, recorded_);
+    path_ = recorded_;
+    status_ = "saved " + file;
+  }
+}
+
+void Viewer::record_key() {
+  if (!recording_) return;
+  const double t =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - record_start_).count();
+  // At most 30 keys per second; the player interpolates between them.
+  if (!recorded_.keys.empty() && t - recorded_.keys.back().time < 1.0 / 30.0) return;
+  recorded_.keys.push_back({t, camera_});
+}
+
+void Viewer::start_playback() {
+  if (path_.empty()) return;
+  playing_ = true;
+  play_time_ = 0.0;
+  camera_ = path_.at(0.0);
+}
+
+void Viewer::advance_playback(double dt) {
+  if (!playing_) return;
+  play_time_ += dt;
+  camera_ = path_.at(play_time_);
+  if (play_time_ >= path_.duration()) playing_ = false;
+}
+
+// Frame-based (not wall-clock) so a run is the same on any machine: "play"
+// advances the path by 1/30 s per frame.
+void Viewer::step_script() {
+  while (script_pos_ < script_.size()) {
+    const ScriptCommand& c = script_[script_pos_];
+    if (c.verb == "frames") {
+      if (script_counter_ < 0) script_counter_ = static_cast<int>(c.number);
+      if (script_counter_-- > 0) return;
+    } else if (c.verb == "converge") {
+      if (script_counter_ < 0) script_counter_ = static_cast<int>(c.number);
+      if (!controller_->stage().counters().converged && script_counter_-- > 0) return;
+    } else if (c.verb == "play") {
+      if (!script_playing_) {
+        path_ = splat::load_camera_path(c.arg);
+        script_playing_ = true;
+        play_time_ = 0.0;
+      }
+      camera_ = path_.at(play_time_);
+      play_time_ += 1.0 / 30.0;
+      if (play_time_ <= path_.duration() + 1.0 / 30.0) return;
+      script_playing_ = false;
+    } else if (c.verb == "open") {
+      // Waits (frames go on drawing the old model) until the new model is
+      // drawn; a failed load throws from poll_loader() and ends the run.
+      if (script_counter_ < 0) {
+        script_counter_ = 0;
+        script_opening_ = true;
+        open_model(c.arg);
+      }
+      if (script_opening_) return;
+    } else if (c.verb == "screenshot") {
+      pending_screenshot_ = (std::filesystem::path(args_.screenshot_dir) / c.arg).string();
+    } else if (c.verb == "strategy") {
+      switch_strategy(c.arg);
+    } else if (c.verb == "param") {
+      controller_->set_param(c.arg, c.number);
+      set_param_value(c.arg, c.number);
+    } else if (c.verb == "mode") {
+      settings_.mode = splat::parse_splat_mode(c.arg);
+    } else if (c.verb == "fit") {
+      fit();
+    } else if (c.verb == "orbit") {
+      orbit(static_cast<float>(c.number * 3.14159265358979 / 180.0), 0.0f);
+    } else if (c.verb == "exit") {
+      quit_ = true;
+    }
+    script_counter_ = -1;
+    ++script_pos_;
+    if (quit_ || !pending_screenshot_.empty()) return;
+  }
+}
+
+}  // namespace treecut::cli
