@@ -226,13 +226,13 @@ TEST(EventQueue, static_camera_costs_nothing) {
   EXPECT_EQ(ev.s.stats().frames_advanced, 0u);
   EXPECT_FALSE(ev.s.stats().rebuilt);
   EXPECT_EQ(ev.sorted(), before);
-  // The event state: 8 bytes per node plus 4 per queued event (the lists
-  // keep their capacity, at most twice what they ever held).
-  static_assert(EventQueueStrategy::kBytesPerNode == 8 && EventQueueStrategy::kBytesPerEvent == 4);
+  // The event state: a 32-byte record per node plus 4 bytes per queued event
+  // (the lists keep their capacity, at most twice what they ever held).
+  static_assert(EventQueueStrategy::kBytesPerNode == 32 && EventQueueStrategy::kBytesPerEvent == 4);
   const std::size_t queued = ev.s.stats().queued;
   EXPECT_GT(queued, ev.cut.size() / 2);
-  EXPECT_GE(ev.s.state_bytes(), 8u * h->node_count() + 4u * queued);
-  EXPECT_LE(ev.s.state_bytes(), 8u * h->node_count() + 2u * 4u * 2u * queued);
+  EXPECT_GE(ev.s.state_bytes(), 32u * h->node_count() + 4u * queued);
+  EXPECT_LE(ev.s.state_bytes(), 32u * h->node_count() + 2u * 4u * 2u * queued);
 }
 
 TEST(EventQueue, cancelled_iteration_leaves_a_valid_cut_and_recovers) {
@@ -360,6 +360,43 @@ TEST(EventQueue, two_clock_event_times_are_lower_bounds) {
   }
   EXPECT_GT(checked, 10000u);
   EXPECT_GT(rotation_bounded, 1000u);
+}
+
+// decide() is the test and the event time of its result in one call, and
+// must be exactly those (the queue uses it, the bound tests above check the
+// two event functions): bit for bit, over random nodes (leaves, inner nodes,
+// the eye inside spheres), cameras and paces.
+TEST(EventQueue, decide_equals_test_and_event_time) {
+  const auto h = small_hierarchy(ModelKind::Sphere, 20000);
+  const Scene s = scene_of(*h);
+  const auto& cr = h->arrays().center_radius;
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const double rho = 0.002 * 2.0 * double(h->radius(0));
+  const double paces[] = {0.0, 0.05, 1.0, 20.0};
+  std::size_t passes = 0, fails = 0, inside = 0;
+  for (int trial = 0; trial < 200; ++trial) {
+    auto [eye, target] = random_camera(s, rng, u);
+    if (trial % 5 == 0) eye = s.center + 0.05f * s.extent * glm::vec3(u(rng), u(rng), u(rng));
+    const auto cam = strategies::CriterionCamera::from_view(camera(s, eye, target, 1), 1.5);
+    const strategies::EventRates rates(cam, rho, 0.02, 511.0, 63.0, paces[trial % 4]);
+    for (int k = 0; k < 200; ++k) {
+      // Ids are breadth-first: every tenth node among the 64 largest spheres.
+      const NodeId n = k % 10 == 0 ? random_node(*h, rng) % 64 : random_node(*h, rng);
+      const strategies::Decision d = strategies::decide(cam, cr[n], rates);
+      const bool pass = strategies::unfold_test(cam, cr[n]);
+      ASSERT_EQ(d.pass, pass) << "node " << n;
+      const strategies::EventTime t = pass ? strategies::potential_fold_event(cam, cr[n], rates)
+                                           : strategies::potential_unfold_event(cam, cr[n], rates);
+      ASSERT_EQ(d.t.m, t.m) << "node " << n;
+      ASSERT_EQ(d.t.w, t.w) << "node " << n;
+      (pass ? passes : fails) += 1;
+      inside += glm::length(glm::vec3(cr[n]) - eye) < cr[n].w ? 1 : 0;
+    }
+  }
+  EXPECT_GT(passes, 1000u);
+  EXPECT_GT(fails, 1000u);
+  EXPECT_GT(inside, 100u);
 }
 
 // The CLI: both strategies along the same path with --sync draw the same

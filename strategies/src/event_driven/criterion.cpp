@@ -29,22 +29,6 @@ std::uint32_t frames(double x, std::uint32_t cap) {
   return static_cast<std::uint32_t>(x);
 }
 
-struct Geometry {
-  double dx, dy, dz;  // c - e
-  double r, d2, d;
-};
-
-Geometry geometry(const CriterionCamera& cam, const glm::vec4& cr) {
-  Geometry g{};
-  g.dx = double(cr.x) - cam.ex;
-  g.dy = double(cr.y) - cam.ey;
-  g.dz = double(cr.z) - cam.ez;
-  g.r = cr.w;
-  g.d2 = g.dx * g.dx + g.dy * g.dy + g.dz * g.dz;
-  g.d = std::sqrt(g.d2);
-  return g;
-}
-
 // alpha - phi, the angle between the view direction and the nearest point of
 // the sphere's silhouette (negative when the direction points into it), as
 // d^2 (cos, sin) of it: from d sin(alpha) = |u x D|, d cos(alpha) = <u, D>,
@@ -53,13 +37,13 @@ struct SilhouetteAngle {
   double x, y;  // d^2 cos(alpha - phi), d^2 sin(alpha - phi)
 };
 
-SilhouetteAngle silhouette_angle(const CriterionCamera& cam, const Geometry& g) {
+// `tangent` = sqrt(d^2 - r^2), from look() where it computed it.
+SilhouetteAngle silhouette_angle(const CriterionCamera& cam, const Sight& g, double tangent) {
   const double along = g.dx * cam.ux + g.dy * cam.uy + g.dz * cam.uz;
   const double cx = cam.uy * g.dz - cam.uz * g.dy;
   const double cy = cam.uz * g.dx - cam.ux * g.dz;
   const double cz = cam.ux * g.dy - cam.uy * g.dx;
   const double across = std::sqrt(cx * cx + cy * cy + cz * cz);
-  const double tangent = std::sqrt(std::max(0.0, g.d2 - g.r * g.r));
   return {along * tangent + across * g.r, across * tangent - along * g.r};
 }
 
@@ -172,25 +156,65 @@ double split_of(const EventRates& q, double b) {
 
 }  // namespace
 
-EventTime potential_unfold_event(const CriterionCamera& cam, const glm::vec4& cr,
-                                 const EventRates& q) {
-  const Geometry g = geometry(cam, cr);
+namespace {
+
+// Both from look()'s values, so that decide() and the two functions below
+// are the same code on the same numbers.
+EventTime unfold_event(const CriterionCamera& cam, const Sight& g, const EventRates& q) {
   if (g.d2 < g.r * g.r || !cam.perspective) return {0.0, 0.0};
-  const double t_i = (g.d - g.r) * q.inv_rho;
-  const double t_m = (g.d - g.r * q.size_scale) * q.inv_rho;
+  const double d = g.d;  // computed by look() (outside)
+  const double t_i = (d - g.r) * q.inv_rho;
+  const double t_m = (d - g.r * q.size_scale) * q.inv_rho;
   if (t_m >= t_i) return {clock_bound(t_i, q.cap), kNever};  // max(t_r, t_m) >= t_i already
-  // Visible now (the test's own inequality, no trigonometry): t_r = 0.
-  const double along = g.dx * cam.ux + g.dy * cam.uy + g.dz * cam.uz;
-  const bool visible = along >= cam.cos_beta * std::sqrt(g.d2 - g.r * g.r) - cam.sin_beta * g.r;
-  const double gap = visible ? 0.0 : gap_out_of_view(cam, silhouette_angle(cam, g), g.d2);
+  // Visible now (the test's own inequality, no trigonometry): t_r = 0. When
+  // look() got past the threshold the test failed on visibility: not visible.
+  const bool tested = !std::isnan(g.tangent);
+  const double tangent = tested ? g.tangent : std::sqrt(g.d2 - g.r * g.r);
+  bool visible = false;
+  if (!tested) {
+    const double along = g.dx * cam.ux + g.dy * cam.uy + g.dz * cam.uz;
+    visible = along >= cam.cos_beta * tangent - cam.sin_beta * g.r;
+  }
+  const double gap = visible ? 0.0 : gap_out_of_view(cam, silhouette_angle(cam, g, tangent), g.d2);
   if (!(gap > 0.0)) return {clock_bound(t_m, q.cap), kNever};
-  const double k_max = std::min(q.cap, 0.5 * (g.d - g.r) * q.inv_rho);
-  const double x1 = (g.r + k_max * q.rho) / g.d;
-  const double b = q.rho / (g.d * std::sqrt(1.0 - x1 * x1));
+  const double k_max = std::min(q.cap, 0.5 * (d - g.r) * q.inv_rho);
+  // b = rho / (d sqrt(1 - x1^2)) with x1 = (r + K rho) / d, as rho /
+  // sqrt(d^2 - (r + K rho)^2): one division less. Clamped at 0 (b infinite,
+  // t_r = 0) where rounding takes the root's argument below zero.
+  const double reach = g.r + k_max * q.rho;
+  const double b = q.rho / std::sqrt(std::max(0.0, g.d2 - reach * reach));
   const double t_r = std::min(k_max, gap / (b + split_of(q, b)));
   if (t_r <= t_m) return {clock_bound(t_m, q.cap), kNever};
   const double m = std::min(t_i, t_r);
   return {clock_bound(m, q.cap), clock_bound((gap - b * m) * q.inv_omega, q.cap_w)};
+}
+
+EventTime fold_event(const CriterionCamera& cam, const Sight& g, const EventRates& q) {
+  if (!cam.perspective) return {0.0, 0.0};
+  if (g.d2 < g.r * g.r) return {clock_bound((g.r - std::sqrt(g.d2)) * q.inv_rho, q.cap), kNever};
+  // look() passed the threshold: d and the tangent are computed.
+  const double d = g.d, tangent = g.tangent;
+  const double t_m = (g.r * q.size_scale - d) * q.inv_rho;
+  const double k_max = std::min(q.cap, 0.5 * d * q.inv_rho);
+  if (!(tangent > 0.0)) return {0.0, 0.0};
+  // (pi/3) rho / d + rho r / (d tangent) with one division.
+  const double b = q.rho * ((kPi / 3.0) * tangent + g.r) / (d * tangent);
+  const double gap = gap_into_view(cam, silhouette_angle(cam, g, tangent), g.d2);
+  if (!(gap > 0.0)) return {0.0, 0.0};
+  const double m = std::min(std::min(t_m, k_max), gap / (b + split_of(q, b)));
+  return {clock_bound(m, q.cap), clock_bound((gap - b * std::max(m, 0.0)) * q.inv_omega, q.cap_w)};
+}
+
+}  // namespace
+
+EventTime potential_unfold_event(const CriterionCamera& cam, const glm::vec4& cr,
+                                 const EventRates& q) {
+  return unfold_event(cam, look(cam, cr), q);
+}
+
+Decision decide(const CriterionCamera& cam, const glm::vec4& cr, const EventRates& q) {
+  const Sight g = look(cam, cr);
+  return {g.pass ? fold_event(cam, g, q) : unfold_event(cam, g, q), g.pass};
 }
 
 // An unfolded node (unfold_test true).
@@ -212,18 +236,7 @@ EventTime potential_unfold_event(const CriterionCamera& cam, const glm::vec4& cr
 //   turn it out of view, so w is always finite.
 EventTime potential_fold_event(const CriterionCamera& cam, const glm::vec4& cr,
                                const EventRates& q) {
-  const Geometry g = geometry(cam, cr);
-  if (!cam.perspective) return {0.0, 0.0};
-  if (g.d2 < g.r * g.r) return {clock_bound((g.r - g.d) * q.inv_rho, q.cap), kNever};
-  const double t_m = (g.r * q.size_scale - g.d) * q.inv_rho;
-  const double k_max = std::min(q.cap, 0.5 * g.d * q.inv_rho);
-  const double tangent = std::sqrt(std::max(0.0, g.d2 - g.r * g.r));
-  if (!(tangent > 0.0)) return {0.0, 0.0};
-  const double b = (kPi / 3.0) * q.rho / g.d + q.rho * g.r / (g.d * tangent);
-  const double gap = gap_into_view(cam, silhouette_angle(cam, g), g.d2);
-  if (!(gap > 0.0)) return {0.0, 0.0};
-  const double m = std::min(std::min(t_m, k_max), gap / (b + split_of(q, b)));
-  return {clock_bound(m, q.cap), clock_bound((gap - b * std::max(m, 0.0)) * q.inv_omega, q.cap_w)};
+  return fold_event(cam, look(cam, cr), q);
 }
 
 // Both clocks in step, one frame of each: the frames before which nothing

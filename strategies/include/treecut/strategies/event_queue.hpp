@@ -54,6 +54,7 @@
 // per rotation entry (live or stale, at most 3 per live one plus 65,536).
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
@@ -61,6 +62,32 @@
 #include "treecut/strategy.hpp"
 
 namespace treecut::strategies {
+
+namespace detail {
+/// A fixed-size array of trivially copyable T in memory asked to be backed by
+/// transparent huge pages (madvise; a hint, ignored where unsupported): the
+/// event queue reads its per-node records in random order, and with 4 KiB
+/// pages nearly every event missed the TLB too.
+template <class T>
+class HugeArray {
+ public:
+  HugeArray() = default;
+  HugeArray(const HugeArray&) = delete;
+  HugeArray& operator=(const HugeArray&) = delete;
+  ~HugeArray() { release(); }
+  /// n copies of `value` (the old contents are gone).
+  void assign(std::size_t n, const T& value);
+  [[nodiscard]] std::size_t size() const { return size_; }
+  T& operator[](std::size_t i) { return data_[i]; }
+  const T& operator[](std::size_t i) const { return data_[i]; }
+
+ private:
+  void release();
+  T* data_ = nullptr;
+  std::size_t size_ = 0;
+  std::size_t bytes_ = 0;
+};
+}  // namespace detail
 
 class EventQueueStrategy final : public Strategy {
  public:
@@ -97,25 +124,34 @@ class EventQueueStrategy final : public Strategy {
   [[nodiscard]] const Stats& stats() const { return stats_; }
   /// Bytes of the event state: per node, and the lists' storage.
   [[nodiscard]] std::size_t state_bytes() const {
-    std::size_t bytes = state_.capacity() * sizeof(NodeState) +
-                        (work_.capacity() + wwork_.capacity()) * sizeof(NodeId);
+    std::size_t bytes =
+        state_.size() * sizeof(NodeState) + (work_.capacity() + wwork_.capacity()) * sizeof(NodeId);
     for (const auto& s : slots_) bytes += s.capacity() * sizeof(NodeId);
     for (const auto& s : wslots_) bytes += s.capacity() * sizeof(NodeId);
     return bytes;
   }
   /// Bytes per node of the state array, and per queued event.
-  static constexpr std::size_t kBytesPerNode = 8;
+  static constexpr std::size_t kBytesPerNode = 32;
   static constexpr std::size_t kBytesPerEvent = 4;
 
  private:
-  // Per node: which translation list holds its event and where, and which
-  // rotation list holds its live rotation entry (with the boundary flag of
-  // that entry in the top bit). 8 bytes.
-  struct NodeState {
+  // Per node, all that an event reads and writes, in one aligned 32-byte
+  // record (half a cache line): a copy of the node's sphere and of its
+  // children's range, which translation list holds its event and where, and
+  // which rotation list holds its live rotation entry (with the boundary flag
+  // of that entry in the top bit). An event used to touch four arrays in
+  // random order (the sphere, the children, the child count, this state):
+  // four cache lines and four pages. The sphere is a bit-for-bit copy, so the
+  // test is still unfold_test on the very same floats as topdown's.
+  struct alignas(32) NodeState {
+    glm::vec4 sphere{0.0f};
+    NodeId first_child = 0;
+    std::uint8_t child_count = 0;
     std::uint32_t index = 0;
     std::uint16_t slot = kNone;
     std::uint16_t wslot = kNoneW;
   };
+  static_assert(sizeof(NodeState) == 32);
   static constexpr std::uint16_t kNone = 0xffff;   // not queued
   static constexpr std::uint16_t kNoneW = 0x7fff;  // no rotation entry (slots are 13 bits)
   static constexpr std::uint16_t kWBoundary = 0x8000;
@@ -133,8 +169,9 @@ class EventQueueStrategy final : public Strategy {
   void compact_rotation_lists();
   void rebuild(const IterationInput& input, TreeCut& cut, IterationResult& r);
   bool advance(const IterationInput& input, TreeCut& cut, IterationResult& r, double dm, double dw);
-  // Tests a due node (its entries already taken) and acts on the result.
-  void handle(NodeId n, bool boundary, const glm::vec4& c, const IterationInput& input,
+  // Acts on a due node's decision (its test and next event time; its entries
+  // already taken).
+  void handle(NodeId n, bool boundary, const Decision& dec, const IterationInput& input,
               TreeCut& cut, IterationResult& r);
   // Moves a translation list into work_ for run().
   void take(std::uint32_t slot);
@@ -144,7 +181,8 @@ class EventQueueStrategy final : public Strategy {
   bool run_rotation(std::uint32_t slot, const IterationInput& input, TreeCut& cut,
                     IterationResult& r);
 
-  std::vector<NodeState> state_;             // per hierarchy node
+  detail::HugeArray<NodeState> state_;       // per hierarchy node
+  const glm::vec4* spheres_ = nullptr;       // the hierarchy state_ was copied from
   std::vector<std::vector<NodeId>> slots_;   // translation clock: kSlots lists
   std::vector<std::vector<NodeId>> wslots_;  // rotation clock: kSlots lists
   std::vector<NodeId> work_;                 // a list taken out of its slot for processing
