@@ -167,6 +167,7 @@ void Viewer::open_model(const std::string& file) {
   // A newer request replaces a load still running (it is asked to stop) and
   // a loaded model not yet drawn (the stage takes the latest set_model).
   loader_.start(args);
+  open_frame_ = frame_;
   load_error_.clear();
   status_.clear();
 }
@@ -199,8 +200,10 @@ void Viewer::adopt_scene() {
   glfwSetWindowTitle(window_.handle(), ("treecut - " + scene_.label).c_str());
   fit();
   status_ = "opened " + scene_.label;
-  std::printf("opened %s (%zu nodes)\n", scene_.label.c_str(),
-              static_cast<std::size_t>(scene_.hierarchy->node_count()));
+  // The frames the window drew meanwhile (the old model): a load never blocks it.
+  std::printf("opened %s (%zu nodes) after %llu frames of the old model\n", scene_.label.c_str(),
+              static_cast<std::size_t>(scene_.hierarchy->node_count()),
+              static_cast<unsigned long long>(frame_ - open_frame_));
   script_opening_ = false;
 }
 

@@ -125,8 +125,9 @@ class Viewer {
   std::size_t model_index_ = 0;
   ModelLoader loader_;
   std::optional<Scene> incoming_;
-  std::string load_error_;     // the last failed load's line (HUD)
-  char open_field_[512] = {};  // the HUD's "open" field
+  std::string load_error_;        // the last failed load's line (HUD)
+  std::uint64_t open_frame_ = 0;  // frame_ when the last open started
+  char open_field_[512] = {};     // the HUD's "open" field
 
   splat::Camera camera_;
   ViewerInput input_;
