@@ -134,6 +134,7 @@ void QueryExecutor::answer(const QueryRequest& r, std::uint32_t samples, std::ui
   const std::uint64_t latency = frame_ - issued;
   stats_.latency_frames_total += latency;
   stats_.latency_frames_max = std::max(stats_.latency_frames_max, latency);
+  stats_.latency_frames_max_last = std::max(stats_.latency_frames_max_last, latency);
 }
 
 bool QueryExecutor::answer_on_host(const QueryRequest& r, const FrameView& view) {
@@ -280,6 +281,7 @@ void QueryExecutor::run(const FrameView& view) {
   const std::uint64_t cpu0 = thread_cpu_ns();
   stats_.issued_last = 0;
   stats_.answered_last = 0;
+  stats_.latency_frames_max_last = 0;
   // Poll first: a query issued in this frame is never read in this frame.
   poll_render_thread();
   stats_.poll_ns_last = thread_cpu_ns() - cpu0;

@@ -77,9 +77,10 @@ struct QueryStats {
   std::uint64_t wall_ns_last = 0;  ///< wall time of the last run() (a wait would show here)
   std::size_t issued_last = 0;     ///< issued by the last run()
   std::size_t answered_last = 0;   ///< read by the last run()
-  std::uint64_t batches = 0;       ///< batches issued (one draw and one fence each)
-  std::uint64_t ring_full = 0;     ///< runs that issued nothing: every counter buffer in flight
-  std::size_t pool_size = 0;       ///< counter buffers made (ring slots in use so far)
+  std::uint64_t latency_frames_max_last = 0;  ///< of the answers read by the last run()
+  std::uint64_t batches = 0;                  ///< batches issued (one draw and one fence each)
+  std::uint64_t ring_full = 0;  ///< runs that issued nothing: every counter buffer in flight
+  std::size_t pool_size = 0;    ///< counter buffers made (ring slots in use so far)
   [[nodiscard]] double latency_frames_mean() const {
     return answered == 0 ? 0.0 : double(latency_frames_total) / double(answered);
   }

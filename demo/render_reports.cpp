@@ -1,0 +1,294 @@
+#include "render_reports.hpp"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <sstream>
+#include <string_view>
+#include <system_error>
+
+#include "treecut/error.hpp"
+#include "treecut/file_io.hpp"
+
+namespace treecut::cli {
+
+namespace {
+
+std::string json_number(double v) {
+  if (!std::isfinite(v)) return "null";
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g", v);
+  return buf;
+}
+
+nlohmann::ordered_json psnr_json(double v) {
+  if (std::isinf(v) && v > 0) return "inf";
+  if (!std::isfinite(v)) return nullptr;
+  return std::strtod(json_number(v).c_str(), nullptr);
+}
+
+// Six significant digits as before; null for a NaN (not measured).
+nlohmann::ordered_json number_json(double v) {
+  if (!std::isfinite(v)) return nullptr;
+  return std::strtod(json_number(v).c_str(), nullptr);
+}
+
+std::size_t identical_frames(const std::vector<FrameRow>& rows) {
+  return static_cast<std::size_t>(std::count_if(rows.begin(), rows.end(), [](const FrameRow& r) {
+    return std::isinf(r.psnr_db) && r.psnr_db > 0;
+  }));
+}
+
+// What `render --out DIR` may write into: a missing or empty folder, or one an
+// earlier render wrote (its marker, or the stats.csv an older treecut wrote).
+// Anything else is the user's and is refused before any work.
+constexpr const char* kRenderMarker = ".treecut-render";
+
+bool starts_with_stats_header(const std::filesystem::path& file) {
+  if (file_kind(file) != FileKind::Regular) return false;
+  // Only the header line matters (a long run's table may be large); opened
+  // without blocking, as every input.
+  int fd = -1;
+  try {
+    fd = open_regular_file(file);
+  } catch (const std::exception&) {
+    return false;
+  }
+  constexpr std::string_view kHeader = "frame,time_s,frame_ms,";
+  char head[kHeader.size()] = {};
+  const ssize_t n = ::read(fd, head, sizeof head);
+  ::close(fd);
+  return n == static_cast<ssize_t>(sizeof head) && std::string_view(head, sizeof head) == kHeader;
+}
+
+bool is_earlier_render_output(const std::filesystem::path& dir) {
+  if (file_kind(dir / kRenderMarker) == FileKind::Regular) return true;
+  if (starts_with_stats_header(dir / "stats.csv")) return true;
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(dir, ec))
+    if (e.is_directory(ec) && starts_with_stats_header(e.path() / "stats.csv")) return true;
+  return false;
+}
+
+void check_output_target(const std::filesystem::path& file) {
+  const FileKind kind = file_kind(file);
+  if (kind != FileKind::Missing && kind != FileKind::Regular)
+    throw InputError(file.string() + ": is " + std::string(describe(kind)) +
+                     "; refusing to write render output there");
+}
+
+}  // namespace
+
+double mean_of(const std::vector<FrameRow>& rows, double FrameRow::*field) {
+  double s = 0.0;
+  std::size_t n = 0;
+  for (const FrameRow& r : rows) {
+    if (std::isfinite(r.*field)) {
+      s += r.*field;
+      ++n;
+    }
+  }
+  return n > 0 ? s / double(n) : std::numeric_limits<double>::quiet_NaN();
+}
+
+double median_frame_ms(const std::vector<FrameRow>& rows) {
+  std::vector<double> v;
+  for (const FrameRow& r : rows) v.push_back(r.frame_ms);
+  if (v.empty()) return 0.0;
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+  return v[v.size() / 2];
+}
+
+// PSNR of identical images is +infinity: "inf" in stdout, stats.csv and
+// summary.json (a JSON string there; float("inf") reads all three back), an
+// empty field / null when it was not measured.
+std::string psnr_text(double v) {
+  if (std::isinf(v) && v > 0) return "inf";
+  return std::isfinite(v) ? json_number(v) : std::string();
+}
+
+// The mean over the frames that differ from full detail; +infinity when every
+// measured frame was identical to it, NaN when none was measured.
+double mean_psnr(const std::vector<FrameRow>& rows) {
+  double sum = 0.0;
+  std::size_t finite = 0, identical = 0;
+  for (const FrameRow& r : rows) {
+    if (std::isfinite(r.psnr_db)) {
+      sum += r.psnr_db;
+      ++finite;
+    } else if (std::isinf(r.psnr_db)) {
+      ++identical;
+    }
+  }
+  if (finite > 0) return sum / double(finite);
+  return identical > 0 ? std::numeric_limits<double>::infinity()
+                       : std::numeric_limits<double>::quiet_NaN();
+}
+
+void write_stats_csv(const std::filesystem::path& file, const std::vector<FrameRow>& rows) {
+  std::ostringstream out;
+  // The query columns last: an older reader of the first ten still works.
+  out << "frame,time_s,frame_ms,splats_drawn,points_represented,iteration_ms,exchanges,iterations,"
+         "converged,psnr_db,queries_issued,queries_answered,queries_pending,"
+         "query_latency_frames_mean,query_latency_frames_max,query_cpu_us\n";
+  for (const FrameRow& r : rows) {
+    out << r.frame << ',' << r.time_s << ',' << r.frame_ms << ',' << r.cut_size << ',' << r.points
+        << ',' << r.iteration_ms << ',' << r.exchanges << ',' << r.iterations << ','
+        << (r.converged ? 1 : 0) << ',' << psnr_text(r.psnr_db) << ',' << r.queries_issued << ','
+        << r.queries_answered << ',' << r.queries_pending << ',' << r.query_latency_frames_mean
+        << ',' << r.query_latency_frames_max << ',' << r.query_cpu_us << '\n';
+  }
+  write_file_atomically(file, out.str());
+}
+
+std::string summary_json(const RunSummary& s) {
+  std::size_t cut_sum = 0;
+  std::uint64_t points_sum = 0;
+  for (const FrameRow& r : s.rows) {
+    cut_sum += r.cut_size;
+    points_sum += r.points;
+  }
+  const double n = std::max<double>(1.0, double(s.rows.size()));
+  nlohmann::ordered_json j;
+  j["written_by"] = "treecut render";
+  j["strategy"] = s.strategy;
+  j["frames"] = s.rows.size();
+  j["mean_frame_ms"] = number_json(mean_of(s.rows, &FrameRow::frame_ms));
+  j["median_frame_ms"] = number_json(median_frame_ms(s.rows));
+  j["mean_splats_drawn"] = number_json(double(cut_sum) / n);
+  j["mean_points_represented"] = number_json(double(points_sum) / n);
+  j["mean_iteration_ms"] = number_json(mean_of(s.rows, &FrameRow::iteration_ms));
+  j["exchanges"] = s.rows.empty() ? 0 : s.rows.back().exchanges;
+  j["mean_psnr_db"] = psnr_json(mean_psnr(s.rows));
+  j["psnr_identical_frames"] = identical_frames(s.rows);
+  j["stability"] = {{"frames", s.stability_frames},
+                    {"converged", s.stability_converged},
+                    {"mean_changed_fraction", number_json(s.stability_changed)},
+                    {"max_changed_fraction", number_json(s.stability_max)},
+                    {"splats_drawn", s.converged_cut},
+                    {"psnr_db", psnr_json(s.converged_psnr)}};
+  // The executor's totals (zeros for a strategy that posts no queries).
+  const splat::QueryStats& q = s.queries;
+  j["queries"] = {
+      {"issued", q.issued},
+      {"answered", q.answered},
+      {"occluded", q.occluded},
+      {"pending", q.pending},
+      {"queued", q.queued},
+      {"dropped", q.dropped},
+      {"batches", q.batches},
+      {"latency_frames_mean", number_json(q.latency_frames_mean())},
+      {"latency_frames_max", q.latency_frames_max},
+      {"frames", s.query_frames},
+      {"cpu_us_per_frame", number_json(double(q.cpu_ns_total) * 1e-3 /
+                                       double(std::max<std::uint64_t>(s.query_frames, 1)))}};
+  return j.dump(2) + "\n";
+}
+
+void check_output_folder(const std::filesystem::path& out,
+                         const std::vector<std::string>& strategies) {
+  std::set<std::string> seen;
+  for (const std::string& name : strategies)
+    if (!seen.insert(name).second)
+      throw InputError("--strategy " + name +
+                       " given twice: each strategy runs once (a second run would overwrite the "
+                       "first one's output)");
+  const FileKind kind = file_kind(out);
+  if (kind == FileKind::Missing) return;
+  if (kind != FileKind::Directory)
+    throw InputError(out.string() + ": is " + std::string(describe(kind)) +
+                     ", not a folder; refusing to write render output there");
+  std::error_code ec;
+  const bool empty = std::filesystem::is_empty(out, ec);
+  if (ec) throw InputError(system_error_text(out, ec.value()));
+  if (!empty && !is_earlier_render_output(out))
+    throw InputError(out.string() +
+                     ": folder is not empty and not an earlier treecut render output; refusing to "
+                     "write into it");
+  check_output_target(out / "plot.svg");
+  for (const std::string& name : strategies) {
+    const std::filesystem::path dir = strategies.size() > 1 ? out / name : out;
+    const FileKind dir_kind = file_kind(dir);
+    if (dir_kind != FileKind::Missing && dir_kind != FileKind::Directory)
+      throw InputError(dir.string() + ": is " + std::string(describe(dir_kind)) +
+                       ", not a folder; refusing to write render output there");
+    check_output_target(dir / "stats.csv");
+    check_output_target(dir / "summary.json");
+  }
+}
+
+void make_output_folder(const std::filesystem::path& dir) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) throw std::runtime_error(system_error_text(dir, ec.value()));
+}
+
+void mark_output_folder(const std::filesystem::path& out) {
+  // The marker makes the folder recognizably ours for the next run.
+  if (file_kind(out / kRenderMarker) != FileKind::Regular)
+    write_file_atomically(out / kRenderMarker, "written by treecut render\n");
+}
+
+// Two stacked charts (frame time, cut size) over the frame index, one line per
+// strategy: the plot of the README's benchmark section.
+void write_plot_svg(const std::filesystem::path& file, const std::vector<RunSummary>& runs,
+                    const std::string& title) {
+  constexpr double kW = 900, kH = 260, kLeft = 70, kRight = 20, kTop = 40, kGap = 50;
+  const char* colors[] = {"#d62728", "#1f77b4", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b"};
+  std::ostringstream o;
+  o << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << kW << "\" height=\""
+    << kTop + 2 * kH + kGap + 40 << "\" font-family=\"sans-serif\" font-size=\"12\">\n";
+  o << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
+  o << "<text x=\"" << kLeft << "\" y=\"20\" font-size=\"14\">" << title << "</text>\n";
+  auto chart = [&](int index, const char* label, auto value) {
+    const double y0 = kTop + index * (kH + kGap);
+    double vmax = 0.0;
+    std::size_t frames = 1;
+    for (const RunSummary& r : runs) {
+      frames = std::max(frames, r.rows.size());
+      for (const FrameRow& row : r.rows) vmax = std::max(vmax, double(value(row)));
+    }
+    if (vmax <= 0.0) vmax = 1.0;
+    const double pw = kW - kLeft - kRight;
+    o << "<rect x=\"" << kLeft << "\" y=\"" << y0 << "\" width=\"" << pw << "\" height=\"" << kH
+      << "\" fill=\"none\" stroke=\"#888\"/>\n";
+    o << "<text x=\"" << kLeft << "\" y=\"" << y0 - 6 << "\">" << label << " (max "
+      << json_number(vmax) << ")</text>\n";
+    for (int t = 0; t <= 4; ++t) {
+      const double y = y0 + kH - kH * t / 4.0;
+      o << "<text x=\"" << kLeft - 6 << "\" y=\"" << y + 4 << "\" text-anchor=\"end\">"
+        << json_number(vmax * t / 4.0) << "</text>\n";
+    }
+    o << "<text x=\"" << kLeft + pw / 2 << "\" y=\"" << y0 + kH + 16
+      << "\" text-anchor=\"middle\">frame</text>\n";
+    for (std::size_t ri = 0; ri < runs.size(); ++ri) {
+      o << "<polyline fill=\"none\" stroke=\"" << colors[ri % 6]
+        << "\" stroke-width=\"1.5\" points=\"";
+      const auto& rows = runs[ri].rows;
+      for (std::size_t i = 0; i < rows.size(); ++i) {
+        const double x = kLeft + pw * double(i) / double(std::max<std::size_t>(frames - 1, 1));
+        const double y = y0 + kH - kH * double(value(rows[i])) / vmax;
+        o << x << ',' << y << ' ';
+      }
+      o << "\"/>\n";
+    }
+  };
+  chart(0, "frame time [ms]", [](const FrameRow& r) { return r.frame_ms; });
+  chart(1, "cut size [nodes]", [](const FrameRow& r) { return double(r.cut_size); });
+  for (std::size_t ri = 0; ri < runs.size(); ++ri) {
+    const double x = kLeft + 150.0 * double(ri);
+    const double y = kTop + 2 * kH + kGap + 30;
+    o << "<rect x=\"" << x << "\" y=\"" << y - 10 << "\" width=\"14\" height=\"4\" fill=\""
+      << colors[ri % 6] << "\"/><text x=\"" << x + 20 << "\" y=\"" << y - 5 << "\">"
+      << runs[ri].strategy << "</text>\n";
+  }
+  o << "</svg>\n";
+  write_file_atomically(file, o.str());
+}
+
+}  // namespace treecut::cli

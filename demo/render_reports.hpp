@@ -1,0 +1,81 @@
+// What `treecut render` writes besides the frames: the rows it records per
+// frame, stats.csv, summary.json and plot.svg (docs/rendering.md documents
+// the columns and keys), and the guard of the output folder (what --out may
+// write into). The run loop is in render_commands.cpp.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "treecut/splat/query_executor.hpp"
+
+namespace treecut::cli {
+
+struct FrameRow {
+  int frame = 0;
+  double time_s = 0.0;
+  double frame_ms = 0.0;
+  std::size_t cut_size = 0;  // splats drawn: the nodes of the cut
+  std::uint64_t points = 0;  // points represented: the leaves under them
+  double iteration_ms = 0.0;
+  std::uint64_t exchanges = 0;
+  std::uint64_t iterations = 0;
+  bool converged = false;
+  double psnr_db = std::numeric_limits<double>::quiet_NaN();
+  // The strategy's GPU queries in this frame (QueryExecutor): 0 for a
+  // strategy that posts none.
+  std::uint64_t queries_issued = 0;
+  std::uint64_t queries_answered = 0;
+  std::size_t queries_pending = 0;         // issued, not yet answered, after the frame
+  double query_latency_frames_mean = 0.0;  // of this frame's answers (0: none)
+  std::uint64_t query_latency_frames_max = 0;
+  double query_cpu_us = 0.0;  // the executor's render-thread CPU time
+};
+
+struct RunSummary {
+  std::string strategy;
+  std::vector<FrameRow> rows;
+  double stability_changed = std::numeric_limits<double>::quiet_NaN();  // mean fraction
+  double stability_max = std::numeric_limits<double>::quiet_NaN();
+  int stability_frames = 0;
+  bool stability_converged = false;
+  double converged_psnr = std::numeric_limits<double>::quiet_NaN();
+  std::size_t converged_cut = 0;
+  // The executor's totals at the end of the run (warm-up and stability frames
+  // included), over `query_frames` frames.
+  splat::QueryStats queries;
+  std::uint64_t query_frames = 0;
+};
+
+/// The mean of a field over the rows where it is finite; NaN if none is.
+double mean_of(const std::vector<FrameRow>& rows, double FrameRow::*field);
+double median_frame_ms(const std::vector<FrameRow>& rows);
+/// The mean over the frames that differ from full detail; +infinity when every
+/// measured frame was identical to it, NaN when none was measured.
+double mean_psnr(const std::vector<FrameRow>& rows);
+/// "inf" for +infinity, "" for NaN (not measured), else six significant digits.
+std::string psnr_text(double v);
+
+/// stats.csv: the header, one row per frame (write_file_atomically).
+void write_stats_csv(const std::filesystem::path& file, const std::vector<FrameRow>& rows);
+/// The text of summary.json.
+std::string summary_json(const RunSummary& s);
+/// Two stacked charts (frame time, cut size) over the frame index, one line
+/// per strategy.
+void write_plot_svg(const std::filesystem::path& file, const std::vector<RunSummary>& runs,
+                    const std::string& title);
+
+/// Refuses (InputError) an --out that is not a missing or empty folder or an
+/// earlier render's output, a strategy given twice, or a report file that is
+/// not a regular file; before any work.
+void check_output_folder(const std::filesystem::path& out,
+                         const std::vector<std::string>& strategies);
+void make_output_folder(const std::filesystem::path& dir);
+/// Writes the marker that makes `out` recognizably an earlier render's output.
+void mark_output_folder(const std::filesystem::path& out);
+
+}  // namespace treecut::cli
