@@ -1,0 +1,128 @@
+// HLOD blocks: the hierarchy grouped into subtrees of about `block_size`
+// splats, the unit of visibility for occlusion culling.
+//
+// One occlusion query per splat is far too fine (a query costs about as much
+// as drawing a thousand splats), so the occlusion strategies query and decide
+// per block, as both papers do with their scene hierarchies:
+//   - J. Bittner, M. Wimmer, H. Piringer, W. Purgathofer, "Coherent
+//     Hierarchical Culling: Hardware Occlusion Queries Made Useful",
+//     Eurographics 2004 (../shared/papers/coherent-hierarchical-culling.tex.txt):
+//     a hierarchy of bounding boxes, queried front to back, whose leaves hold
+//     the geometry.
+//   - L. Charalambos, J. Bittner, M. Wimmer, E. Romero, "Optimized HLOD
+//     Refinement Driven by Hardware Occlusion Queries", ISVC 2007
+//     (../shared/papers/hoq-driven-hlod-refinement.txt): an HLOD tree whose
+//     every node has a box and a representation of its whole subtree at that
+//     node's level; a cut of the HLOD tree is what is drawn.
+//
+// The blocks:
+//   - Leaf blocks are the subtrees cut at the nodes whose subtree holds
+//     <= block_size leaves while their parent's holds more (the hierarchy root
+//     when it holds <= block_size). Every leaf of the hierarchy is in exactly
+//     one leaf block. A leaf block's representation is its leaves (full detail).
+//   - Interior blocks are the hierarchy nodes above the leaf blocks; the tree of
+//     blocks is that upper tree: an interior block's children are the blocks
+//     rooted at its root's children. Its representation is a cut of its subtree
+//     of at most block_size nodes: its root refined breadth first (the biggest
+//     splats first: hierarchy ids are breadth-first) while the count fits.
+//   - Block ids are breadth-first over the tree of blocks (block 0 is the root
+//     block; children of a block are a contiguous id range), in the order of
+//     their root node ids.
+//   - Each block has an axis-aligned box containing the sphere of every node of
+//     its representation and so (children lie inside their parent's sphere,
+//     check_invariants) of every node below it: whatever the block draws at its
+//     level or finer lies inside the box. Not the root's own sphere when the
+//     representation is finer than the root: that splat is never drawn for it.
+//
+// A cut of blocks (every leaf block under exactly one block of the list) maps to
+// a TreeCut index list (the concatenated representations), so everything
+// downstream still sees an index list.
+//
+// Immutable once built; all const members may be called from any thread. Build
+// cost: linear in the leaves plus block_size per interior block, parallel
+// (tests/bench/blocks_bench.cpp; figures in docs/scenes.md): cheap enough to
+// rebuild at load, so blocks are not cached.
+#pragma once
+
+#include <cstdint>
+#include <glm/vec3.hpp>
+#include <limits>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "treecut/hierarchy.hpp"
+
+namespace treecut::strategies {
+
+using BlockId = std::uint32_t;
+inline constexpr BlockId kNoBlock = std::numeric_limits<BlockId>::max();
+inline constexpr std::uint32_t kDefaultBlockSize = 1000;
+
+struct Box {
+  glm::vec3 lo{0.0f};
+  glm::vec3 hi{0.0f};
+  [[nodiscard]] bool contains_sphere(glm::vec3 c, float r) const;
+};
+
+class HlodBlocks {
+ public:
+  HlodBlocks() = default;
+
+  /// Groups `h` into blocks of at most `block_size` (>= 1) leaves; throws
+  /// std::invalid_argument for block_size 0 or an empty hierarchy. Parallel.
+  static HlodBlocks build(const Hierarchy& h, std::uint32_t block_size = kDefaultBlockSize);
+
+  [[nodiscard]] std::uint32_t block_size() const { return block_size_; }
+  [[nodiscard]] std::uint32_t block_count() const {
+    return static_cast<std::uint32_t>(root_.size());
+  }
+  [[nodiscard]] std::uint32_t leaf_block_count() const { return leaf_blocks_; }
+  /// The hierarchy's node count the blocks were built for (a cheap identity check).
+  [[nodiscard]] std::uint32_t hierarchy_nodes() const { return hierarchy_nodes_; }
+
+  [[nodiscard]] NodeId root(BlockId b) const { return root_[b]; }
+  [[nodiscard]] BlockId parent(BlockId b) const { return parent_[b]; }
+  [[nodiscard]] BlockId first_child(BlockId b) const { return first_child_[b]; }
+  [[nodiscard]] unsigned child_count(BlockId b) const { return child_count_[b]; }
+  [[nodiscard]] bool is_leaf(BlockId b) const { return child_count_[b] == 0; }
+  /// Leaves of the hierarchy under the block (its root's point_count).
+  [[nodiscard]] std::uint32_t leaf_count(BlockId b) const { return leaves_[b]; }
+  [[nodiscard]] const Box& box(BlockId b) const { return box_[b]; }
+  /// The nodes drawn for the block at its level: a cut of its root's subtree.
+  [[nodiscard]] std::span<const NodeId> representation(BlockId b) const {
+    return {rep_.data() + rep_begin_[b], rep_begin_[b + 1] - rep_begin_[b]};
+  }
+  /// The block whose root is `n`, or kNoBlock (binary search over the roots).
+  [[nodiscard]] BlockId block_of_root(NodeId n) const;
+
+  /// The cut holding only the root block.
+  [[nodiscard]] std::vector<BlockId> root_block_cut() const { return {0}; }
+  /// Every leaf block (the full refinement).
+  [[nodiscard]] std::vector<BlockId> leaf_block_cut() const;
+
+  /// Empty when `cut` covers every leaf block exactly once with valid ids,
+  /// else the first problem.
+  [[nodiscard]] std::string validate_cut(std::span<const BlockId> cut) const;
+  /// The TreeCut index list of a block cut: the representations, concatenated
+  /// in the cut's order. Throws std::invalid_argument unless validate_cut passes.
+  [[nodiscard]] std::vector<NodeId> nodes_of_cut(std::span<const BlockId> cut) const;
+  /// The same without the check (the per-frame path; `out` is cleared first).
+  void append_nodes(std::span<const BlockId> cut, std::vector<NodeId>& out) const;
+
+ private:
+  std::uint32_t block_size_ = 0;
+  std::uint32_t leaf_blocks_ = 0;
+  std::uint32_t hierarchy_nodes_ = 0;
+  std::vector<NodeId> root_;
+  std::vector<BlockId> parent_;
+  std::vector<BlockId> first_child_;
+  std::vector<std::uint8_t> child_count_;
+  std::vector<std::uint32_t> leaves_;
+  std::vector<Box> box_;
+  std::vector<std::uint64_t> rep_begin_;  // block_count() + 1 offsets into rep_
+  std::vector<NodeId> rep_;
+};
+
+}  // namespace treecut::strategies
