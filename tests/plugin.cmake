@@ -33,3 +33,16 @@ treecut_warnings(treecut_misbehaving_plugin)
 add_dependencies(plugin_test treecut_misbehaving_plugin treecut)
 target_compile_definitions(plugin_test PRIVATE
   TREECUT_MISBEHAVING_PLUGIN="$<TARGET_FILE:treecut_misbehaving_plugin>")
+
+# A plugin whose strategy posts GPU queries (tests/querying_plugin.cpp): none
+# of the built-in ones does; render_command_test runs `treecut render` with it
+# to see the query columns of stats.csv and summary.json filled in.
+add_library(treecut_querying_plugin MODULE ${CMAKE_CURRENT_SOURCE_DIR}/querying_plugin.cpp)
+target_link_libraries(treecut_querying_plugin PRIVATE treecut::core)
+set_target_properties(treecut_querying_plugin PROPERTIES
+  CXX_VISIBILITY_PRESET hidden VISIBILITY_INLINES_HIDDEN ON PREFIX "lib")
+target_link_options(treecut_querying_plugin PRIVATE "LINKER:--exclude-libs,ALL")
+treecut_warnings(treecut_querying_plugin)
+add_dependencies(render_command_test treecut_querying_plugin treecut)
+target_compile_definitions(render_command_test PRIVATE
+  TREECUT_QUERYING_PLUGIN="$<TARGET_FILE:treecut_querying_plugin>")

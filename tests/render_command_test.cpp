@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -157,6 +158,97 @@ TEST(RenderCommand, NoPngWritesStatisticsOnly) {
   int lines = 0;
   while (std::getline(csv, line)) ++lines;
   EXPECT_EQ(lines, 1 + 3);
+}
+
+// The query columns of stats.csv and the queries block of summary.json, from
+// a strategy that posts queries (tests/querying_plugin.cpp: each iteration a
+// request about each child of the root, and one about the root; --sync: one
+// iteration per frame) and from one that posts none (all zeros).
+TEST(RenderCommand, StatsAndSummaryCountTheStrategysQueries) {
+  const fs::path dir = treecut::test::scratch_dir("render_command_queries") / "out";
+  constexpr int kFrames = 12;
+  const treecut::test::CommandResult r = treecut::test::run_treecut(
+      "render --default-kind sphere --default-points 6000 --width 160 --height 96 --warmup 3 "
+      "--sync --no-png --frames " +
+      std::to_string(kFrames) + " --plugin " + treecut::test::quote(TREECUT_QUERYING_PLUGIN) +
+      " -s querying -o " + treecut::test::quote(dir));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("queries   querying: "), std::string::npos) << r.out;
+
+  std::ifstream csv(dir / "stats.csv");
+  std::string line;
+  ASSERT_TRUE(std::getline(csv, line));
+  EXPECT_EQ(line, documented_stats_header());
+  const std::vector<std::string> names = split(line, ',');
+  auto column = [&](const char* name) {
+    const auto at = std::size_t(std::find(names.begin(), names.end(), name) - names.begin());
+    EXPECT_LT(at, names.size()) << name;
+    return at;
+  };
+  double issued = 0, answered = 0, latency_max = 0;
+  int rows = 0;
+  while (std::getline(csv, line)) {
+    const std::vector<std::string> f = split(line, ',');
+    ASSERT_EQ(f.size(), names.size()) << line;
+    const double i = number(f[column("queries_issued")]);
+    const double a = number(f[column("queries_answered")]);
+    const double pending = number(f[column("queries_pending")]);
+    const double mean = number(f[column("query_latency_frames_mean")]);
+    const double max = number(f[column("query_latency_frames_max")]);
+    EXPECT_GE(i, 0.0) << line;
+    EXPECT_GE(pending, 0.0) << line;
+    EXPECT_GE(number(f[column("query_cpu_us")]), 0.0) << line;
+    if (a > 0) {
+      // Answers come frames later, never in the frame that asked.
+      EXPECT_GE(mean, 1.0) << line;
+      EXPECT_GE(max, mean) << line;
+    } else {
+      EXPECT_EQ(mean, 0.0) << line;
+      EXPECT_EQ(max, 0.0) << line;
+    }
+    issued += i;
+    answered += a;
+    latency_max = std::max(latency_max, max);
+    ++rows;
+  }
+  EXPECT_EQ(rows, kFrames);
+  EXPECT_GT(issued, double(kFrames));  // the children of the root and the root, most frames
+  EXPECT_GT(answered, 0.0);
+
+  // The totals cover the warm-up too: at least what the rows add up to.
+  const nlohmann::json j = nlohmann::json::parse(read_text(dir / "summary.json"));
+  ASSERT_TRUE(j.contains("queries")) << j.dump();
+  const nlohmann::json& q = j["queries"];
+  EXPECT_GE(q["issued"].get<double>(), issued);
+  EXPECT_GE(q["answered"].get<double>(), answered);
+  EXPECT_LE(q["answered"].get<double>(), q["issued"].get<double>());
+  EXPECT_EQ(q["issued"].get<double>() - q["answered"].get<double>(), q["pending"].get<double>());
+  EXPECT_GE(q["latency_frames_mean"].get<double>(), 1.0);
+  EXPECT_GE(q["latency_frames_max"].get<double>(), latency_max);
+  EXPECT_EQ(q["frames"].get<int>(), 3 + kFrames);
+  EXPECT_GT(q["batches"].get<double>(), 0.0);
+
+  // A strategy that posts none: the same columns, all zeros but the CPU time
+  // of an idle executor.
+  const fs::path none = treecut::test::scratch_dir("render_command_no_queries") / "out";
+  const treecut::test::CommandResult r0 = treecut::test::run_treecut(
+      kSmallRun + "--frames 3 --no-png -o " + treecut::test::quote(none));
+  ASSERT_EQ(r0.code, 0) << r0.out;
+  EXPECT_EQ(r0.out.find("queries   "), std::string::npos) << r0.out;
+  std::ifstream csv0(none / "stats.csv");
+  ASSERT_TRUE(std::getline(csv0, line));
+  EXPECT_EQ(line, documented_stats_header());
+  while (std::getline(csv0, line)) {
+    const std::vector<std::string> f = split(line, ',');
+    ASSERT_EQ(f.size(), names.size()) << line;
+    for (const char* c : {"queries_issued", "queries_answered", "queries_pending",
+                          "query_latency_frames_mean", "query_latency_frames_max"}) {
+      EXPECT_EQ(number(f[column(c)]), 0.0) << c << ": " << line;
+    }
+  }
+  const nlohmann::json j0 = nlohmann::json::parse(read_text(none / "summary.json"));
+  EXPECT_EQ(j0["queries"]["issued"].get<int>(), 0);
+  EXPECT_EQ(j0["queries"]["answered"].get<int>(), 0);
 }
 
 TEST(RenderCommand, BadInputExitsWithTwoAndWritesNothing) {
