@@ -193,7 +193,7 @@ void BM_Selection(benchmark::State& state) {
   std::vector<ViewSnapshot> views;
   for (std::size_t i = 0; i < path.size(); ++i) views.push_back(view_of(*h, path[i], i + 1, up));
   const double theta = choose_theta(*h, views[0]);
-  std::vector<double> top_ns, event_ns, cut, events, tests, advanced;
+  std::vector<double> top_ns, event_ns, cut, events, tests, advanced, changed;
   std::vector<std::string> segment;
   for (auto _ : state) {
     Runner<TopDownStrategy> top(*h);
@@ -211,6 +211,7 @@ void BM_Selection(benchmark::State& state) {
     events.clear();
     tests.clear();
     advanced.clear();
+    changed.clear();
     segment.clear();
     for (std::size_t i = 0; i < views.size(); ++i) {
       double tn = 0, en = 0;
@@ -228,6 +229,7 @@ void BM_Selection(benchmark::State& state) {
       events.push_back(double(re.visited));
       tests.push_back(double(rt.visited));
       advanced.push_back(ev.s.stats().rebuilt ? -1.0 : double(ev.s.stats().frames_advanced));
+      changed.push_back(double(ev.s.stats().changed));
       segment.emplace_back(path[i].segment);
     }
     state.SetIterationTime(1e-9 * median(event_ns));
@@ -244,15 +246,18 @@ void BM_Selection(benchmark::State& state) {
   state.counters["ratio"] = me / mt;
   state.counters["top_tests"] = median(tail(tests));
   state.counters["events"] = median(tail(events));
+  // Tests that changed the cut (unfolds and folds; the rest only rescheduled).
+  state.counters["changed"] = median(tail(changed));
+  state.counters["ns_per_event"] = me / median(tail(events));
   state.SetLabel(std::string(kModels[which]) + "/" + kPaths[path_kind]);
   if (const char* dir = std::getenv("TREECUT_SELECTION_CSV")) {
     std::ostringstream out;
     out << "frame,segment,cut,topdown_us,event_queue_us,topdown_tests,events,frames_advanced,"
-           "theta\n";
+           "theta,changed\n";
     for (std::size_t i = 0; i < cut.size(); ++i) {
       out << i << ',' << segment[i] << ',' << cut[i] << ',' << 1e-3 * top_ns[i] << ','
           << 1e-3 * event_ns[i] << ',' << tests[i] << ',' << events[i] << ',' << advanced[i] << ','
-          << theta << '\n';
+          << theta << ',' << changed[i] << '\n';
     }
     try {
       treecut::write_file_atomically(

@@ -195,7 +195,11 @@ void EventQueueStrategy::compact_rotation_lists() {
   for (std::uint32_t s = 0; s < kWSlots; ++s) {
     std::vector<NodeId>& list = wslots_[s];
     std::size_t out = 0;
-    for (const NodeId n : list) {
+    const std::size_t count = list.size();
+    for (std::size_t i = 0; i < count; ++i) {
+      // The records are read in random order: ahead of time.
+      if (i + 16 < count) __builtin_prefetch(&state_[list[i + 16]]);
+      const NodeId n = list[i];
       const std::uint16_t w = state_[n].wslot;
       if (w != kNoneW && (w & kWMask) == s) list[out++] = n;
     }
@@ -281,6 +285,7 @@ void EventQueueStrategy::handle(NodeId n, bool boundary, const Decision& dec,
     // too: the descent of figure 3 below n).
     cut.refine(h, n);
     ++r.refined;
+    ++stats_.changed;
     schedule(n, dec.t, false);
     const NodeId first = state_[n].first_child;
     const NodeId end = first + state_[n].child_count;
@@ -299,6 +304,7 @@ void EventQueueStrategy::handle(NodeId n, bool boundary, const Decision& dec,
       drop_rotation(m);
     };
     detail::fold_subtree(h, cut, n, r, drop);
+    ++stats_.changed;
     schedule(n, dec.t, true);
   }
 }
@@ -334,11 +340,15 @@ bool EventQueueStrategy::run(const IterationInput& input, TreeCut& cut, Iteratio
       const NodeId n = entry & ~kBoundary;
       const bool boundary = (entry & kBoundary) != 0;
       d[i - b0] = decide(camera_, state_[n].sphere, rates_);
-      if (d[i - b0].pass && boundary) {
-        // An unfold reads the node's children next (contiguous records).
+      if (d[i - b0].pass == boundary) {
+        // A change: an unfold reads the node's and its children's entries of
+        // the cut and the children's records (contiguous) next, a fold the
+        // children's.
         const NodeState& st = state_[n];
         __builtin_prefetch(&state_[st.first_child], 1);
         __builtin_prefetch(&state_[st.first_child + st.child_count - 1], 1);
+        cut.prefetch(st.first_child);
+        if (boundary) cut.prefetch(n);
       }
     }
     for (std::size_t i = b0; i < b1; ++i) {
