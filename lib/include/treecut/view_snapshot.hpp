@@ -32,11 +32,12 @@
 namespace treecut {
 
 /// What a query counts. A strategy that only needs "visible or not" asks for
-/// AnySamples: the View may then use GL_ANY_SAMPLES_PASSED_CONSERVATIVE, which
-/// a GPU can answer sooner (and its answer may err only towards visible).
+/// AnySamples (the View's executor counts both the same way, see
+/// treecut/splat/query_executor.hpp; a boolean leaves it free to answer
+/// sooner, erring only towards visible).
 enum class QueryKind : std::uint8_t {
-  Samples,     ///< GL_SAMPLES_PASSED: how many samples of the proxy pass the depth test
-  AnySamples,  ///< GL_ANY_SAMPLES_PASSED_CONSERVATIVE: 0 or 1
+  Samples,     ///< how many samples of the proxy pass the depth test (as GL_SAMPLES_PASSED)
+  AnySamples,  ///< 0 or 1 (as GL_ANY_SAMPLES_PASSED_CONSERVATIVE)
 };
 
 /// One occlusion (or other visibility) query a strategy asks the View to run.

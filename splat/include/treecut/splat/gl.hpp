@@ -117,7 +117,7 @@ namespace treecut::gl {
 // The pointers are plain variables on purpose: a test may interpose an entry
 // point by assigning its own function after load() and restoring the old
 // pointer afterwards (render thread only), e.g. to check that nothing reads a
-// query result before GL_QUERY_RESULT_AVAILABLE said it is there.
+// query's counters before the fence of its batch was seen signaled.
 #define TREECUT_GL_DECLARE(type, name) extern type name;
 TREECUT_GL_FUNCTIONS(TREECUT_GL_DECLARE)
 #undef TREECUT_GL_DECLARE
