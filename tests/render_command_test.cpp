@@ -221,8 +221,10 @@ TEST(RenderCommand, StatsAndSummaryCountTheStrategysQueries) {
   const nlohmann::json& q = j["queries"];
   EXPECT_GE(q["issued"].get<double>(), issued);
   EXPECT_GE(q["answered"].get<double>(), answered);
-  EXPECT_LE(q["answered"].get<double>(), q["issued"].get<double>());
-  EXPECT_EQ(q["issued"].get<double>() - q["answered"].get<double>(), q["pending"].get<double>());
+  // Every proxy issued is answered or pending (answered also counts requests
+  // answered without the GPU: an eye inside the node's sphere).
+  EXPECT_LE(q["pending"].get<double>(), q["issued"].get<double>());
+  EXPECT_GE(q["answered"].get<double>() + q["pending"].get<double>(), q["issued"].get<double>());
   EXPECT_GE(q["latency_frames_mean"].get<double>(), 1.0);
   EXPECT_GE(q["latency_frames_max"].get<double>(), latency_max);
   EXPECT_EQ(q["frames"].get<int>(), 3 + kFrames);
