@@ -175,6 +175,12 @@ void Viewer::open_model(const std::string& file) {
 void Viewer::poll_loader() {
   std::optional<LoadedModel> done = loader_.take();
   if (!done) return;
+  if (done->scene && done->scene->hierarchy->empty()) {
+    // The stage takes no empty model (set_model would throw): a bad file.
+    done->error = done->file + ": no points to show";
+    done->input_error = true;
+    done->scene.reset();
+  }
   if (!done->scene) {
     // The old model stays. One line, on the HUD and on stderr; in a script the
     // run's failure (exit 2 for a bad or missing file, as a bad script line).
@@ -184,7 +190,9 @@ void Viewer::poll_loader() {
       if (done->input_error) throw InputError(done->error);
       throw std::runtime_error(done->error);
     }
-    std::fprintf(stderr, "treecut: error: %s\n", done->error.c_str());
+    // The program's own prefixes: "treecut: " for bad input, "treecut: error: " else.
+    std::fprintf(stderr, "treecut: %s%s\n",
+                 done->input_error ? "" : "error: ", done->error.c_str());
     return;
   }
   const std::shared_ptr<const Hierarchy> h = done->scene->hierarchy;
