@@ -207,8 +207,7 @@ Renderer::Renderer(const Hierarchy& h, glm::ivec2 size) {
   set_hierarchy(h);
   empty_vao_ = gl::VertexArray::create();
 
-  fast_ = make_program(
-{{GL_VERTEX_SHADER, shaders::kSplatVertex},
+  fast_ = make_program({{GL_VERTEX_SHADER, shaders::kSplatVertex},
                         {GL_GEOMETRY_SHADER, shaders::kSplatGeometry},
                         {GL_FRAGMENT_SHADER, shaders::kFastFragment}},
                        "splat fast", "#define SPLAT_LIT 1\n");

@@ -140,7 +140,7 @@ class CutBuffer {
   std::size_t leaving_ = 0;
   float fade_ = 1.0f;
   std::uint64_t points_ = 0;
-  std::uint64_t generation_ = 0;         // of the list follow() uploaded last
+  std::uint64_t generation_ = 0;          // of the list follow() uploaded last
   const Hierarchy* hierarchy_ = nullptr;  // identity only (see hierarchy())
   NodeId max_id_ = 0;
   std::vector<NodeId> sorted_;           // the uploaded order (reused)
