@@ -2,13 +2,16 @@
 """Plots and tables from selection_bench's per-frame CSVs (event_queue vs topdown).
 
     TREECUT_SELECTION_CSV=DIR selection_bench > DIR/bench.txt
-    python3 tests/bench/selection_plot.py DIR docs/plots
+    python3 tests/bench/selection_plot.py DIR [DIR2 ...] docs/plots
 
 Writes OUT/selection_<path>.svg (one per camera path: a panel per model with
-the selection time per frame of both strategies and the cut size) and prints
-the README's Markdown table: medians over the frames after the first (which
-builds the first cut from the root for both), and for the abrupt path the
-medians of its segments (fast turn, teleport frames, frames after a teleport).
+the selection time per frame of both strategies and the cut size, from the
+first DIR) and prints the README's Markdown table: medians over the frames
+after the first (which builds the first cut from the root for both), and for
+the abrupt path the medians of its segments (fast turn, teleport frames,
+frames after a teleport). With several DIRs (repeated runs) every cell is
+the median over the runs of that run's median, and the ratio column the
+median of the runs' ratios (each measured within one run).
 """
 import csv
 import os
@@ -56,31 +59,54 @@ def panel(o, rows, y0, title, w=900.0, h=200.0, left=70.0, right=70.0):
     o.append(f'<text x="{left + pw / 2}" y="{y0 + h + 16}" text-anchor="middle">frame</text>')
 
 
+def rows_of(rows, path):
+    """One table row per segment of a run: the medians of its frames."""
+    tail = rows[1:]
+    # The abrupt path only by segment: its three parts have nothing in common.
+    segments = [] if path == "abrupt" else [("all", tail)]
+    if path == "abrupt":
+        for seg in ("fast turn", "teleport", "after teleport"):
+            segments.append((seg, [r for r in tail if r["segment"] == seg]))
+    out = []
+    for seg, rs in segments:
+        if not rs:
+            continue
+        mt, me = med(rs, "topdown_us"), med(rs, "event_queue_us")
+        ev = med(rs, "events")
+        changed = med(rs, "changed") if "changed" in rs[0] else float("nan")
+        out.append((path if seg == "all" else f"{path}: {seg}",
+                    [float(rows[0]["theta"]), med(rs, "cut"), mt, me, me / mt,
+                     med(rs, "topdown_tests"), ev, med(rs, "frames_advanced"), changed,
+                     1000.0 * me / ev if ev > 0 else float("nan")]))
+    return out
+
+
+def write_checked(name, text):
+    # Beside the target, then renamed: a failed write leaves the old plot.
+    tmp = name + ".tmp"
+    with open(tmp, "w") as f:
+        f.write(text)
+    os.replace(tmp, name)
+
+
 def main():
-    src, out = sys.argv[1], sys.argv[2]
+    srcs, out = sys.argv[1:-1], sys.argv[-1]
     table = []
     for path in PATHS:
         o = []
         y = 50.0
         for model, label in MODELS:
-            f = os.path.join(src, f"{model}_{path}.csv")
-            if not os.path.exists(f):
+            runs = [load(os.path.join(src, f"{model}_{path}.csv")) for src in srcs
+                    if os.path.exists(os.path.join(src, f"{model}_{path}.csv"))]
+            if not runs:
                 continue
-            rows = load(f)
-            panel(o, rows, y, label)
+            panel(o, runs[0], y, label)
             y += 250.0
-            tail = rows[1:]
-            segments = [("all", tail)]
-            if path == "abrupt":
-                for seg in ("fast turn", "teleport", "after teleport"):
-                    segments.append((seg, [r for r in tail if r["segment"] == seg]))
-            for seg, rs in segments:
-                if not rs:
-                    continue
-                mt, me = med(rs, "topdown_us"), med(rs, "event_queue_us")
-                table.append((label, path if seg == "all" else f"{path}: {seg}", float(rows[0]["theta"]),
-                              med(rs, "cut"), mt, me, me / mt, med(rs, "topdown_tests"),
-                              med(rs, "events"), med(rs, "frames_advanced")))
+            per_run = [rows_of(rows, path) for rows in runs]
+            for i, (name, _) in enumerate(per_run[0]):
+                cells = [statistics.median(r[i][1][k] for r in per_run)
+                         for k in range(len(per_run[0][i][1]))]
+                table.append((label, name, *cells))
         if not o:
             continue
         head = [f'<svg xmlns="http://www.w3.org/2000/svg" width="900" height="{y + 10}" '
@@ -94,15 +120,17 @@ def main():
                 '<text x="220" y="33">event_queue</text>',
                 f'<rect x="350" y="28" width="14" height="4" fill="{COLORS["cut"]}"/>'
                 '<text x="370" y="33">cut size</text>']
-        with open(os.path.join(out, f"selection_{path}.svg"), "w") as f:
-            f.write("\n".join(head + o + ["</svg>"]) + "\n")
+        write_checked(os.path.join(out, f"selection_{path}.svg"),
+                      "\n".join(head + o + ["</svg>"]) + "\n")
     print("| model | path | theta | cut (median) | topdown us | event_queue us | event / top |"
-          " tests (top) | events | frames advanced |")
-    print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|")
-    for label, path, theta, cut, mt, me, ratio, tests, events, adv in table:
+          " tests (top) | events | changed | ns / event | frames advanced |")
+    print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for label, path, theta, cut, mt, me, ratio, tests, events, adv, changed, ns in table:
         advanced = "rebuild" if adv < 0 else f"{adv:g}"
+        # A rebuild's changes are the top-down pass's, not counted as events.
+        ch = "-" if changed != changed or adv < 0 else f"{changed:,.0f}"
         print(f"| {label} | {path} | {theta:.2f} | {cut:,.0f} | {fmt(mt)} | {fmt(me)} | "
-              f"{ratio:.2f} | {tests:,.0f} | {events:,.0f} | {advanced} |")
+              f"{ratio:.2f} | {tests:,.0f} | {events:,.0f} | {ch} | {ns:.0f} | {advanced} |")
 
 
 if __name__ == "__main__":

@@ -12,6 +12,7 @@
 #include <memory>
 #include <new>
 
+#include "event_time.hpp"
 #include "top_down.hpp"
 
 namespace treecut::strategies {
@@ -339,7 +340,7 @@ bool EventQueueStrategy::run(const IterationInput& input, TreeCut& cut, Iteratio
       if (entry == kErased) continue;
       const NodeId n = entry & ~kBoundary;
       const bool boundary = (entry & kBoundary) != 0;
-      d[i - b0] = decide(camera_, state_[n].sphere, rates_);
+      d[i - b0] = event_time::decide(camera_, state_[n].sphere, rates_);
       if (d[i - b0].pass == boundary) {
         // A change: an unfold reads the node's and its children's entries of
         // the cut and the children's records (contiguous) next, a fold the
