@@ -9,11 +9,14 @@
 
 #include "commands.hpp"
 #include "progress.hpp"
+#include "treecut/attributes.hpp"
 #include "treecut/cache.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
 #include "treecut/generate.hpp"
 #include "treecut/model_io.hpp"
+#include "treecut/ply.hpp"
+#include "treecut/splat/camera_path.hpp"
 #include "treecut/up_axis.hpp"
 
 namespace treecut::cli {
@@ -128,6 +131,27 @@ void check_ply_output(const std::filesystem::path& out) {
     throw InputError(out.string() + ": exists and is not a PLY file; refusing to overwrite it");
 }
 
+// `gen --walk PATH` replaces only a camera path (or writes a new file).
+void check_walk_output(const std::filesystem::path& out) {
+  const FileKind kind = file_kind(out);
+  if (kind == FileKind::Missing) return;
+  if (kind != FileKind::Regular)
+    throw InputError(out.string() + ": is " + std::string(describe(kind)) +
+                     "; refusing to write a camera path there");
+  bool campath = false;
+  try {
+    const int fd = open_regular_file(out);
+    char head[20] = {};
+    campath =
+        ::read(fd, head, sizeof head) == 20 && std::string_view(head, 19) == "treecut-camera-path";
+    ::close(fd);
+  } catch (const std::exception&) {
+    campath = false;
+  }
+  if (!campath)
+    throw InputError(out.string() + ": exists and is not a camera path; refusing to overwrite it");
+}
+
 }  // namespace
 
 void add_model_commands(CLI::App& app) {
@@ -173,30 +197,69 @@ void add_model_commands(CLI::App& app) {
   struct GenArgs {
     std::string kind;
     std::string out;
+    std::string source;
+    std::string walk;
     std::size_t points = 200000;
     std::uint64_t seed = 1;
   };
   auto gen_args = std::make_shared<GenArgs>();
-  auto* gen = app.add_subcommand("gen", "Write a procedural model (sphere, terrain, city) as PLY");
-  gen->add_option("KIND", gen_args->kind, "sphere | terrain | city")->required();
+  auto* gen = app.add_subcommand(
+      "gen", "Write a procedural model (sphere, terrain, city, field, plant) as PLY");
+  gen->add_option("KIND", gen_args->kind, "sphere | terrain | city | field | plant")->required();
   gen->add_option("-n,--points", gen_args->points, "Number of points")
       ->check(CLI::Range(1ull, 1ull << 31));
   gen->add_option("-o,--output", gen_args->out, "Output PLY (default: assets/KIND.ply)");
   gen->add_option("--seed", gen_args->seed, "Random seed");
+  gen->add_option("--source", gen_args->source,
+                  "field: the scanned model (PLY) whose copies fill the field");
+  gen->add_option("--walk", gen_args->walk,
+                  "city, field, plant: also write the scene's walkthrough camera path "
+                  "(assets/paths/KIND_walk.campath is made this way)");
   gen->callback([gen_args] {
     const ModelKind kind = parse_model_kind(gen_args->kind);
+    if (kind == ModelKind::Field && gen_args->source.empty())
+      throw InputError("gen field: needs --source PLY (the model to copy)");
+    if (kind != ModelKind::Field && !gen_args->source.empty())
+      throw InputError("gen " + gen_args->kind + ": --source is only for field");
+    if (!gen_args->walk.empty() && kind != ModelKind::City && kind != ModelKind::Field &&
+        kind != ModelKind::Plant)
+      throw InputError("gen " + gen_args->kind + ": --walk is only for city, field and plant");
     const std::filesystem::path out =
         gen_args->out.empty() ? std::filesystem::path("assets") / (gen_args->kind + ".ply")
                               : std::filesystem::path(gen_args->out);
     check_ply_output(out);
+    if (!gen_args->walk.empty()) check_walk_output(gen_args->walk);
+    PointSet source;
+    if (kind == ModelKind::Field) {
+      require_regular_file(gen_args->source);
+      source = load_ply(gen_args->source);
+      complete_attributes(source);
+    }
     if (out.has_parent_path()) {
       std::error_code ec;
       std::filesystem::create_directories(out.parent_path(), ec);
       if (ec) throw std::runtime_error(system_error_text(out.parent_path(), ec.value()));
     }
-    PointSet ps = generate_model(kind, gen_args->points, gen_args->seed);
+    PointSet ps = kind == ModelKind::Field ? generate_field(prepare_field_source(source),
+                                                            gen_args->points, gen_args->seed)
+                                           : generate_model(kind, gen_args->points, gen_args->seed);
     save_ply(out, ps);
     std::printf("wrote %s (%zu points)\n", out.string().c_str(), ps.size());
+    if (!gen_args->walk.empty()) {
+      splat::CameraPath path;
+      for (const WalkKey& k : scene_walkthrough(kind)) {
+        splat::CameraKey key;
+        key.time = k.time;
+        key.camera.eye = k.eye;
+        key.camera.target = k.target;
+        key.camera.up = k.up;
+        key.camera.fov_y_deg = k.fov_deg;
+        path.keys.push_back(key);
+      }
+      save_camera_path(gen_args->walk, path);
+      std::printf("wrote %s (%zu keys, %.1f s)\n", gen_args->walk.c_str(), path.keys.size(),
+                  path.duration());
+    }
   });
 }
 

@@ -1,4 +1,5 @@
-// Procedural models: a sphere, a fractal terrain and a city of boxes. Every
+// Procedural models: a sphere and a fractal terrain; the scenes (city, field,
+// plant) are in generate_scenes.cpp. Every
 // point is a pure function of (seed, index), so generation is parallel and
 // deterministic.
 #include "treecut/generate.hpp"
@@ -110,91 +111,20 @@ PointSet terrain(std::size_t n, std::uint64_t seed) {
   return ps;
 }
 
-// A grid of G x G box buildings on a ground square [-1, 1]^2 (z up). Points are
-// spread over all visible surfaces in proportion to their area.
-PointSet city(std::size_t n, std::uint64_t seed) {
-  constexpr int G = 12;
-  constexpr float cell = 2.0f / G, footprint = 0.6f * cell;
-  struct Box {
-    glm::vec2 lo, hi;
-    float height;
-    glm::u8vec4 color;
-  };
-  std::vector<Box> boxes;
-  for (int j = 0; j < G; ++j)
-    for (int i = 0; i < G; ++i) {
-      const auto id = static_cast<std::uint64_t>(j * G + i);
-      const glm::vec2 c(-1.0f + cell * (static_cast<float>(i) + 0.5f),
-                        -1.0f + cell * (static_cast<float>(j) + 0.5f));
-      const float h = 0.08f + 0.5f * std::pow(unit(seed, id, 2), 2.0f);
-      boxes.push_back(
-          {c - 0.5f * footprint, c + 0.5f * footprint, h,
-           rgb(0.5f + 0.4f * unit(seed, id, 0), 0.5f + 0.3f * unit(seed, id, 1), 0.55f)});
-    }
-  // Surfaces: ground (minus footprints), then per box a roof and four walls.
-  struct Surface {
-    glm::vec3 origin, u, v, normal;
-    glm::u8vec4 color;
-    float area;
-  };
-  std::vector<Surface> surfaces;
-  surfaces.push_back(
-      {{-1, -1, 0}, {2, 0, 0}, {0, 2, 0}, {0, 0, 1}, rgb(0.45f, 0.47f, 0.45f), 4.0f});
-  for (const Box& bx : boxes) {
-    const glm::vec2 s = bx.hi - bx.lo;
-    const float h = bx.height;
-    surfaces.push_back({{bx.lo, h}, {s.x, 0, 0}, {0, s.y, 0}, {0, 0, 1}, bx.color, s.x * s.y});
-    surfaces.push_back({{bx.lo, 0}, {s.x, 0, 0}, {0, 0, h}, {0, -1, 0}, bx.color, s.x * h});
-    surfaces.push_back(
-        {{bx.hi.x, bx.lo.y, 0}, {0, s.y, 0}, {0, 0, h}, {1, 0, 0}, bx.color, s.y * h});
-    surfaces.push_back({{bx.hi, 0}, {-s.x, 0, 0}, {0, 0, h}, {0, 1, 0}, bx.color, s.x * h});
-    surfaces.push_back(
-        {{bx.lo.x, bx.hi.y, 0}, {0, -s.y, 0}, {0, 0, h}, {-1, 0, 0}, bx.color, s.y * h});
-  }
-  std::vector<double> cumulative;
-  double total = 0.0;
-  for (const auto& s : surfaces) cumulative.push_back(total += s.area);
-  PointSet ps = make(n);
-  auto inside_footprint = [&](glm::vec3 p) {
-    const int i = std::clamp(static_cast<int>((p.x + 1.0f) / cell), 0, G - 1);
-    const int j = std::clamp(static_cast<int>((p.y + 1.0f) / cell), 0, G - 1);
-    const Box& bx = boxes[static_cast<std::size_t>(j * G + i)];
-    return p.x > bx.lo.x && p.x < bx.hi.x && p.y > bx.lo.y && p.y < bx.hi.y;
-  };
-  parallel_for(n, [&](std::size_t b, std::size_t e) {
-    for (std::size_t i = b; i < e; ++i) {
-      // Stratified choice of the surface, then a uniform point on it; ground
-      // points under a building are re-drawn on that building's roof.
-      const double t = (static_cast<double>(i) + 0.5) / static_cast<double>(n) * total;
-      const auto k = static_cast<std::size_t>(
-          std::lower_bound(cumulative.begin(), cumulative.end(), t) - cumulative.begin());
-      const Surface* s = &surfaces[std::min(k, surfaces.size() - 1)];
-      glm::vec3 p = s->origin + unit(seed, i, 0) * s->u + unit(seed, i, 1) * s->v;
-      if (s == &surfaces[0] && inside_footprint(p)) {
-        const int bi = std::clamp(static_cast<int>((p.x + 1.0f) / cell), 0, G - 1);
-        const int bj = std::clamp(static_cast<int>((p.y + 1.0f) / cell), 0, G - 1);
-        s = &surfaces[1 + 5 * static_cast<std::size_t>(bj * G + bi)];
-        p = s->origin + unit(seed, i, 2) * s->u + unit(seed, i, 3) * s->v;
-      }
-      ps.positions[i] = p;
-      ps.normals[i] = s->normal;
-      ps.colors[i] = s->color;
-    }
-  });
-  return ps;
-}
-
 }  // namespace
 
 ModelKind parse_model_kind(std::string_view name) {
   if (name == "sphere") return ModelKind::Sphere;
   if (name == "terrain") return ModelKind::Terrain;
   if (name == "city") return ModelKind::City;
-  throw InputError("unknown model kind '" + std::string(name) + "' (sphere, terrain or city)");
+  if (name == "field") return ModelKind::Field;
+  if (name == "plant") return ModelKind::Plant;
+  throw InputError("unknown model kind '" + std::string(name) +
+                   "' (sphere, terrain, city, field or plant)");
 }
 
 std::vector<std::string> model_kind_names() {
-  return {"sphere", "terrain", "city"};
+  return {"sphere", "terrain", "city", "field", "plant"};
 }
 
 PointSet generate_model(ModelKind kind, std::size_t points, std::uint64_t seed) {
@@ -205,7 +135,11 @@ PointSet generate_model(ModelKind kind, std::size_t points, std::uint64_t seed) 
     case ModelKind::Terrain:
       return terrain(points, seed);
     case ModelKind::City:
-      return city(points, seed);
+      return generate_city(points, seed);
+    case ModelKind::Plant:
+      return generate_plant(points, seed);
+    case ModelKind::Field:
+      throw InputError("a field needs a source model (treecut gen field --source PLY)");
   }
   throw InputError("generate_model: unknown kind");
 }
