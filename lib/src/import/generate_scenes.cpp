@@ -166,7 +166,16 @@ PointSet sample_scene(const std::vector<Surface>& surfaces, std::size_t n, std::
 
 enum CityMaterial { kCityGround, kCityWall, kCityRoof };
 
-glm::u8vec4 city_ground(const CityLayout& c, glm::vec3 p) {
+// The point spacing of n points over the surfaces. Colour details narrower
+// than about two spacings are left out: undersampled, they would be speckle
+// (aliasing), not structure, so small models get plain walls and streets.
+float spacing_of(const std::vector<Surface>& surfaces, std::size_t n) {
+  double total = 0.0;
+  for (const auto& s : surfaces) total += s.area;
+  return static_cast<float>(std::sqrt(total / static_cast<double>(n)));
+}
+
+glm::u8vec4 city_ground(const CityLayout& c, glm::vec3 p, float spacing) {
   auto street = [&](float x, float& offset) {
     const float f = std::fmod(x + 1.0f, c.block_pitch);
     offset = std::min(f, c.block_pitch - f);
@@ -174,17 +183,19 @@ glm::u8vec4 city_ground(const CityLayout& c, glm::vec3 p) {
   };
   float ox = 0.0f, oy = 0.0f;
   const bool sx = street(p.x, ox), sy = street(p.y, oy);
-  if (sx || sy) {
+  if ((sx || sy) && spacing < c.street_width / 3.0f) {
     // Dashed centre lines on the streets (not in the crossings).
-    const bool line = (sy && !sx && oy < 0.0009f && std::fmod(p.x + 10.0f, 0.02f) < 0.011f) ||
-                      (sx && !sy && ox < 0.0009f && std::fmod(p.y + 10.0f, 0.02f) < 0.011f);
+    const bool line = spacing < 0.0008f &&
+                      ((sy && !sx && oy < 0.001f && std::fmod(p.x + 10.0f, 0.02f) < 0.011f) ||
+                       (sx && !sy && ox < 0.001f && std::fmod(p.y + 10.0f, 0.02f) < 0.011f));
     return line ? rgb(0.85f, 0.78f, 0.35f) : rgb(0.22f, 0.22f, 0.24f);
   }
   const int bi = std::clamp(static_cast<int>((p.x + 1.0f) / c.block_pitch), 0, c.blocks - 1);
   const int bj = std::clamp(static_cast<int>((p.y + 1.0f) / c.block_pitch), 0, c.blocks - 1);
-  if (c.park[static_cast<std::size_t>(bj * c.blocks + bi)]) return rgb(0.30f, 0.52f, 0.25f);
+  if (spacing < 0.01f && c.park[static_cast<std::size_t>(bj * c.blocks + bi)])
+    return rgb(0.30f, 0.52f, 0.25f);
   const float edge = std::min(ox, oy) - 0.5f * c.street_width;
-  return edge < c.setback ? rgb(0.62f, 0.61f, 0.58f) : rgb(0.48f, 0.47f, 0.45f);
+  return edge < c.setback && spacing < 0.002f ? rgb(0.62f, 0.61f, 0.58f) : rgb(0.48f, 0.47f, 0.45f);
 }
 
 }  // namespace
@@ -203,8 +214,8 @@ CityLayout city_layout(std::uint64_t seed) {
         c.park[b] = true;
         continue;
       }
-      const int nx = 1 + static_cast<int>(rnd(seed, b, 101) * 3.0f);
-      const int ny = 1 + static_cast<int>(rnd(seed, b, 102) * 3.0f);
+      const int nx = 1 + static_cast<int>(rnd(seed, b, 101) * 2.0f);
+      const int ny = 1 + static_cast<int>(rnd(seed, b, 102) * 2.0f);
       const float inner = side - 2.0f * c.setback;
       const float lot_x = (inner - c.alley * static_cast<float>(nx - 1)) / static_cast<float>(nx);
       const float lot_y = (inner - c.alley * static_cast<float>(ny - 1)) / static_cast<float>(ny);
@@ -221,8 +232,12 @@ CityLayout city_layout(std::uint64_t seed) {
           const float fy = lot_y * (0.75f + 0.25f * rnd(seed, id, 104));
           const float h = (0.03f + 0.30f * std::pow(rnd(seed, id, 105), 2.5f)) * downtown + 0.012f;
           CityLayout::Building bd;
-          bd.lo = {lx, ly, 0.0f};
-          bd.hi = {lx + fx, ly + fy, h};
+          // Placed at random in its lot: the facades of neighbours are not
+          // coplanar (coplanar splats of two colours tie in depth and flicker).
+          const float px = lx + (lot_x - fx) * rnd(seed, id, 108);
+          const float py = ly + (lot_y - fy) * rnd(seed, id, 109);
+          bd.lo = {px, py, 0.0f};
+          bd.hi = {px + fx, py + fy, h};
           bd.style = static_cast<int>(rnd(seed, id, 106) * 4.0f);
           c.buildings.push_back(bd);
           c.block_of.push_back(static_cast<std::uint32_t>(b));
@@ -264,19 +279,21 @@ PointSet city_scene(std::size_t n, std::uint64_t seed) {
     }
     return false;
   };
+  const float spacing = spacing_of(s, n);
   static const glm::vec3 facade[4] = {
       {0.78f, 0.72f, 0.60f}, {0.62f, 0.33f, 0.26f}, {0.50f, 0.60f, 0.70f}, {0.86f, 0.86f, 0.84f}};
   const Shade shade = [&](const Surface& f, const Sample& x) {
-    if (f.material == kCityGround) return city_ground(c, x.p);
+    if (f.material == kCityGround) return city_ground(c, x.p, spacing);
     const auto& b = c.buildings[f.id];
-    const glm::vec3 base = facade[b.style] * (0.85f + 0.3f * rnd(seed, f.id, 107));
+    const glm::vec3 base = facade[b.style];
     if (f.material == kCityRoof) return rgb(0.40f, 0.40f, 0.42f);
     // Storeys of 5 m (0.01) with a row of windows each: the walls read as
-    // buildings and show their scale (resolved from about 2 M points on).
+    // buildings and show their scale (from about 2 M points on: spacing < 0.0025).
     const float along = x.a * glm::length(f.u);
     const float fz = std::fmod(x.p.z, 0.01f) / 0.01f;
     const float fa = std::fmod(along, 0.012f) / 0.012f;
-    const bool window = x.p.z > 0.008f && fz > 0.3f && fz < 0.8f && fa > 0.2f && fa < 0.8f;
+    const bool window =
+        spacing < 0.0025f && x.p.z > 0.008f && fz > 0.3f && fz < 0.8f && fa > 0.2f && fa < 0.8f;
     const glm::vec3 col = window ? base * 0.45f + glm::vec3(0.05f, 0.07f, 0.10f) : base;
     return rgb(col);
   };
@@ -409,6 +426,7 @@ PointSet plant_scene(std::size_t n, std::uint64_t seed) {
     return false;
   };
   const float half = 0.5f * p.aisle_width;
+  const float spacing = spacing_of(s, n);
   const Shade shade = [&](const Surface& f, const Sample& x) {
     switch (f.material) {
       case kPlantGround: {
@@ -416,7 +434,8 @@ PointSet plant_scene(std::size_t n, std::uint64_t seed) {
         const float fx = std::fmod(x.p.x + 1.0f, p.cell_pitch),
                     fy = std::fmod(x.p.y + 1.0f, p.cell_pitch);
         const float ox = std::min(fx, p.cell_pitch - fx), oy = std::min(fy, p.cell_pitch - fy);
-        const bool line = std::abs(ox - half) < 0.002f || std::abs(oy - half) < 0.002f;
+        const bool line =
+            spacing < 0.002f && (std::abs(ox - half) < 0.002f || std::abs(oy - half) < 0.002f);
         return line ? rgb(0.85f, 0.75f, 0.15f) : rgb(0.55f, 0.55f, 0.53f);
       }
       case kPlantTank: {
@@ -425,7 +444,8 @@ PointSet plant_scene(std::size_t n, std::uint64_t seed) {
         const glm::vec3 band = hue(rnd(seed, f.id, 230));
         const float seam = std::fmod(x.p.z, 0.02f);
         if (x.b > 0.78f && x.b < 0.88f) return rgb(band);
-        return seam < 0.0012f ? rgb(0.55f, 0.56f, 0.58f) : rgb(0.86f, 0.87f, 0.88f);
+        return seam < 0.0012f && spacing < 0.0006f ? rgb(0.55f, 0.56f, 0.58f)
+                                                   : rgb(0.86f, 0.87f, 0.88f);
       }
       case kPlantCap:
         return rgb(0.70f, 0.71f, 0.72f);
@@ -597,6 +617,9 @@ PointSet generate_field(const FieldSource& src, std::size_t n, std::uint64_t see
       auto rot = [&](glm::vec3 v) {
         return glm::vec3(cs * v.x - sn * v.y, sn * v.x + cs * v.y, v.z);
       };
+      // A point cloud's tangential jitter can dip below the ground at the
+      // copy's foot: it stays on the ground (z = 0), where the copy stands.
+      p.z = std::max(p.z, 0.0f);
       ps.positions[i] = glm::vec3(copy.centre, 0.0f) + copy.radius * rot(p);
       ps.normals[i] = rot(nn);
       const auto idx = static_cast<std::uint64_t>(&copy - f.copies.data());
