@@ -181,6 +181,10 @@ TEST(Field, FacedSourceSamplesItsSurface) {
   PointSet src = treecut::load_ply(bunny);
   treecut::complete_attributes(src);
   const auto prepared = treecut::prepare_field_source(src);
+  double copies = 0.0;
+  for (const auto& c : treecut::field_layout(1).copies) copies += c.radius * c.radius;
+  std::printf("field of bun_zipper.ply at seed 1: copies' area %.2f\n",
+              prepared.unit_area * copies);
   const PointSet a = treecut::generate_field(prepared, 30000, 2);
   const PointSet b = treecut::generate_field(prepared, 30000, 2);
   EXPECT_EQ(a.size(), 30000u);
@@ -201,6 +205,39 @@ TEST(Field, NeedsASourceModel) {
       treecut::test::quote(treecut::test::scratch_dir("field_nosrc") / "f.ply"));
   EXPECT_EQ(r.code, 2) << r.out;
   EXPECT_EQ(r.out, "treecut: gen field: needs --source PLY (the model to copy)\n");
+}
+
+TEST(GenWalk, WritesTheWalkthroughAndRefusesToOverwriteOtherFiles) {
+  namespace fs = std::filesystem;
+  using treecut::test::quote;
+  const fs::path dir = treecut::test::scratch_dir("gen_walk");
+  auto r = treecut::test::run_treecut("gen plant -n 500 -o " + quote(dir / "p.ply") + " --walk " +
+                                      quote(dir / "w.campath"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_EQ(treecut::splat::load_camera_path(dir / "w.campath").keys.size(),
+            treecut::scene_walkthrough(ModelKind::Plant).size());
+  // Again over its own output: a camera path may be replaced.
+  r = treecut::test::run_treecut("gen plant -n 500 -o " + quote(dir / "p.ply") + " --walk " +
+                                 quote(dir / "w.campath"));
+  EXPECT_EQ(r.code, 0) << r.out;
+  // Not over a file of the user's: refused before anything is written.
+  {
+    std::FILE* f = std::fopen((dir / "notes.txt").c_str(), "w");
+    ASSERT_NE(f, nullptr);
+    std::fputs("mine\n", f);
+    std::fclose(f);
+  }
+  r = treecut::test::run_treecut("gen city -n 500 -o " + quote(dir / "c.ply") + " --walk " +
+                                 quote(dir / "notes.txt"));
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_EQ(r.out, "treecut: " + (dir / "notes.txt").string() +
+                       ": exists and is not a camera path; refusing to overwrite it\n");
+  EXPECT_FALSE(fs::exists(dir / "c.ply"));
+  EXPECT_EQ(fs::file_size(dir / "notes.txt"), 5u);
+  r = treecut::test::run_treecut("gen sphere -n 500 -o " + quote(dir / "s.ply") + " --walk " +
+                                 quote(dir / "s.campath"));
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_EQ(r.out, "treecut: gen sphere: --walk is only for city, field and plant\n");
 }
 
 // ---------------------------------------------------------------- walkthroughs
@@ -311,5 +348,25 @@ TEST_P(Walks, StreetLevelIsOccludedAndTheOverviewIsOpen) {
 INSTANTIATE_TEST_SUITE_P(Kinds, Walks,
                          ::testing::Values(ModelKind::City, ModelKind::Plant, ModelKind::Field),
                          [](const auto& param_info) { return name_of(param_info.param); });
+
+}  // namespace
+
+namespace {
+
+// The surface areas behind the densities of docs/scenes.md (spacing =
+// sqrt(area / points); splat radius from complete_attributes ~1.5 spacings).
+TEST(SceneAreas, MatchTheDocumentedFigures) {
+  double city = 4.0;
+  for (const auto& b : treecut::city_layout(1).buildings) {
+    const glm::vec3 d = b.hi - b.lo;
+    city += 2.0 * d.z * (d.x + d.y);  // walls; the roof replaces the ground below
+  }
+  double plant = 4.0;
+  for (const auto& c : treecut::plant_layout(1).cylinders)
+    plant += 2.0 * 3.14159265 * c.radius * c.length;  // caps replace the ground below
+  std::printf("area at seed 1: city %.2f, plant %.2f\n", city, plant);
+  EXPECT_NEAR(city, 9.0, 1.0);
+  EXPECT_NEAR(plant, 13.7, 1.0);
+}
 
 }  // namespace
