@@ -1,5 +1,5 @@
 // Procedural models: a sphere and a fractal terrain; the scenes (city, field,
-// plant) are in generate_scenes.cpp. Every
+// plant) are in generate_city.cpp, generate_plant.cpp and generate_field.cpp. Every
 // point is a pure function of (seed, index), so generation is parallel and
 // deterministic.
 #include "treecut/generate.hpp"
