@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstring>
 #include <ctime>
 #include <glm/gtc/type_ptr.hpp>
@@ -21,6 +22,7 @@ constexpr const char* kBatchVertex = R"(#version 450 core
 layout(location = 0) in vec4 a_sphere;
 uniform mat4 u_view;
 uniform mat4 u_proj;
+uniform int u_base;
 flat out uint v_slot;
 void main() {
   vec3 c = (u_view * vec4(a_sphere.xyz, 1.0)).xyz;
@@ -38,7 +40,20 @@ void main() {
   // smaller than the sphere's silhouette.
   vec3 p = axis * front + (corner.x * u + corner.y * v) * half_size * 1.001;
   gl_Position = u_proj * vec4(p, 1.0);
-  v_slot = uint(gl_InstanceID);
+  // The quads follow the batch's points in the counters.
+  v_slot = uint(gl_InstanceID + u_base);
+}
+)";
+
+// The point proxies: the host computed each one's window position, depth
+// and side (QueryExecutor::point_proxy); the counter is the vertex's.
+constexpr const char* kPointVertex = R"(#version 450 core
+layout(location = 0) in vec4 a_point;
+flat out uint v_slot;
+void main() {
+  gl_Position = vec4(a_point.xyz, 1.0);
+  gl_PointSize = a_point.w;
+  v_slot = uint(gl_VertexID);
 }
 )";
 
@@ -65,14 +80,34 @@ gl::Program link_program(const char* vertex, const char* fragment, const char* l
   return gl::Program::link(stages, label);
 }
 
-// A vertex array whose attribute 0 is a per-instance vec4 from binding 0.
-gl::VertexArray sphere_instances() {
+// A vertex array whose attribute 0 is a vec4 from binding 0, per instance
+// (divisor 1) or per vertex (0).
+gl::VertexArray vec4_attribute(GLuint divisor) {
   gl::VertexArray vao = gl::VertexArray::create();
   gl::VertexArrayAttribFormat(vao.id(), 0, 4, GL_FLOAT, GL_FALSE, 0);
   gl::VertexArrayAttribBinding(vao.id(), 0, 0);
-  gl::VertexArrayBindingDivisor(vao.id(), 0, 1);
+  gl::VertexArrayBindingDivisor(vao.id(), 0, divisor);
   gl::EnableVertexArrayAttrib(vao.id(), 0);
   return vao;
+}
+
+// A perspective frustum (glm::perspective / glm::frustum): clip w = -z_eye,
+// x and y of clip space from x and y of the eye only. The point proxies'
+// bounds assume it; another projection takes the quad path.
+bool is_frustum(const glm::mat4& p) {
+  return p[0][1] == 0.0f && p[0][2] == 0.0f && p[0][3] == 0.0f && p[1][0] == 0.0f &&
+         p[1][2] == 0.0f && p[1][3] == 0.0f && p[2][3] == -1.0f && p[3][0] == 0.0f &&
+         p[3][1] == 0.0f && p[3][3] == 0.0f && p[0][0] > 0.0f && p[1][1] > 0.0f;
+}
+
+// The slopes x / depth of the two planes through the eye tangent to a circle
+// at (x, depth) of radius r, depth > r (the circle in front of the eye's
+// plane): tan(theta -+ alpha), theta the center's angle, sin(alpha) = r / |c|.
+// Both denominators are > 0 exactly when depth > r.
+void tangent_slopes(float x, float depth, float r, float& lo, float& hi) {
+  const float t = std::sqrt(std::max(x * x + depth * depth - r * r, 0.0f));
+  lo = (x * t - r * depth) / (depth * t + x * r);
+  hi = (x * t + r * depth) / (depth * t - x * r);
 }
 
 }  // namespace
@@ -84,7 +119,13 @@ QueryExecutor::QueryExecutor(QueryExecutorOptions options) : options_(options) {
   // Looked up once: run() sets them every frame that issues.
   u_view_ = gl::GetUniformLocation(proxy_.id(), "u_view");
   u_proj_ = gl::GetUniformLocation(proxy_.id(), "u_proj");
-  vao_ = sphere_instances();
+  u_base_ = gl::GetUniformLocation(proxy_.id(), "u_base");
+  vao_ = vec4_attribute(1);
+  point_proxy_ = link_program(kPointVertex, kBatchFragment, "query point proxy");
+  point_vao_ = vec4_attribute(0);
+  GLfloat range[2] = {1.0f, 1.0f};
+  gl::GetFloatv(GL_POINT_SIZE_RANGE, range);
+  max_point_size_ = range[1];
   ring_.resize(options_.batches_in_flight);
   gl::check("QueryExecutor setup");
 }
@@ -153,14 +194,59 @@ bool QueryExecutor::answer_on_host(const QueryRequest& r, const FrameView& view)
   return false;
 }
 
-void QueryExecutor::begin_proxy_state(const FrameView& view) {
+bool QueryExecutor::point_proxy(glm::vec4 sphere, const FrameView& view, glm::vec4& out) const {
+  const glm::mat4& p = view.projection;
+  const glm::vec3 c = glm::vec3(view.view * glm::vec4(glm::vec3(sphere), 1.0f));
+  const float r = sphere.w;
+  const float depth = -c.z;
+  // Not entirely in front of the eye's plane (with a margin: near it the
+  // bounds grow without limit anyway): the quad path.
+  if (!(depth > r * 1.001f + 1e-6f)) return false;
+  float sx0 = 0.0f, sx1 = 0.0f, sy0 = 0.0f, sy1 = 0.0f;
+  tangent_slopes(c.x, depth, r, sx0, sx1);
+  tangent_slopes(c.y, depth, r, sy0, sy1);
+  const float w = float(view.size.x), h = float(view.size.y);
+  // ndc = p00 * x / depth - p20 (clip w = depth); to window coordinates,
+  // kMargin wider on each side: more than float rounding and the
+  // rasterizer's snapping of the point's position and size to its subpixel
+  // grid (1/256 pixel on llvmpipe, at least 1/16 on any GL 4.5 driver's
+  // 4 bits), so every pixel center inside the sphere's exact rectangle lies
+  // strictly inside the sprite. A whole pixel more would add 20 to 40 % to
+  // the fragments of the typical proxy of 5 to 10 pixels.
+  constexpr float kMargin = 0.125f;
+  const float x0 = (p[0][0] * sx0 - p[2][0] + 1.0f) * 0.5f * w - kMargin;
+  const float x1 = (p[0][0] * sx1 - p[2][0] + 1.0f) * 0.5f * w + kMargin;
+  const float y0 = (p[1][1] * sy0 - p[2][1] + 1.0f) * 0.5f * h - kMargin;
+  const float y1 = (p[1][1] * sy1 - p[2][1] + 1.0f) * 0.5f * h + kMargin;
+  if (!(x0 <= x1 && y0 <= y1)) return false;  // NaN: leave it to the quad
+  // Clipped to the viewport: a point whose center lies outside the clip
+  // volume is discarded whole, so the sprite is centered on the visible part.
+  const float cx0 = std::max(x0, 0.0f), cx1 = std::min(x1, w);
+  const float cy0 = std::max(y0, 0.0f), cy1 = std::min(y1, h);
+  if (cx0 >= cx1 || cy0 >= cy1) {
+    out.w = -1.0f;  // no pixel center of the view inside: the sphere covers none
+    return true;
+  }
+  // A sprite of side S covers the pixels whose centers lie in the S x S
+  // square around its center (the rule of a polygon's rasterization too):
+  // the square of the rectangle's longer side holds the whole rectangle.
+  const float side = std::max(cx1 - cx0, cy1 - cy0);
+  if (side > max_point_size_) return false;
+  // The depth of the sphere's nearest plane: in front of all of the sphere.
+  // In front of the near plane (or NaN): depth 0, which passes everywhere.
+  const float zf = c.z + r;
+  float ndc_z = (p[2][2] * zf + p[3][2]) / -zf;
+  if (!(ndc_z >= -1.0f)) ndc_z = -1.0f;
+  ndc_z = std::min(ndc_z, 1.0f);
+  out = glm::vec4((cx0 + cx1) / w - 1.0f, (cy0 + cy1) / h - 1.0f, ndc_z, side);
+  return true;
+}
+
+void QueryExecutor::begin_proxy_state() {
   gl::GetIntegerv(GL_DEPTH_FUNC, &depth_func_);
   // LEQUAL: a proxy exactly on an occluder's depth counts as visible.
   gl::DepthFunc(GL_LEQUAL);
   gl::Enable(GL_DEPTH_CLAMP);
-  gl::UseProgram(proxy_.id());
-  gl::ProgramUniformMatrix4fv(proxy_.id(), u_view_, 1, GL_FALSE, glm::value_ptr(view.view));
-  gl::ProgramUniformMatrix4fv(proxy_.id(), u_proj_, 1, GL_FALSE, glm::value_ptr(view.projection));
 }
 
 void QueryExecutor::end_proxy_state() {
@@ -184,7 +270,8 @@ void QueryExecutor::poll_render_thread() {
     // the fence made the shader's atomics visible to the mapping).
     for (std::size_t i = 0; i < b.requests.size(); ++i) {
       const QueryRequest& r = b.requests[i];
-      const std::uint32_t c = b.mapped[i];
+      std::uint32_t c = 0;
+      std::memcpy(&c, b.mapped + i * sizeof(std::uint32_t), sizeof c);
       answer(r, r.kind == QueryKind::AnySamples ? (c > 0 ? 1u : 0u) : c, b.frame_issued);
     }
     b.requests.clear();
@@ -208,44 +295,82 @@ void QueryExecutor::issue_render_thread(const FrameView& view, std::size_t end) 
   Batch& b = ring_[(ring_head_ + ring_count_) % ring_.size()];
   b.requests.clear();
   staging_.clear();
+  staging_quads_.clear();
+  quad_requests_.clear();
+  const bool points = options_.point_proxies && is_frustum(view.projection);
   for (std::size_t i = queue_next_; i < end; ++i) {
     const QueryRequest& r = queue_[i];
     if (answer_on_host(r, view)) continue;
-    b.requests.push_back(r);
-    staging_.push_back(spheres_[r.node]);
+    const glm::vec4 s = spheres_[r.node];
+    glm::vec4 pt;
+    if (points && point_proxy(s, view, pt)) {
+      if (pt.w < 0.0f) {
+        ++stats_.offscreen;
+        answer(r, 0, frame_);
+        continue;
+      }
+      b.requests.push_back(r);
+      staging_.push_back(pt);
+    } else {
+      quad_requests_.push_back(r);
+      staging_quads_.push_back(s);
+    }
   }
   queue_next_ = end;
+  const std::size_t n_points = b.requests.size();
+  const std::size_t n_quads = quad_requests_.size();
+  b.requests.insert(b.requests.end(), quad_requests_.begin(), quad_requests_.end());
   if (b.requests.empty()) return;
   const std::size_t n = b.requests.size();
   if (b.capacity < n) {
     // Grown to a power of two: a few sizes over a run, then reused.
     std::size_t cap = 256;
     while (cap < n) cap *= 2;
-    // Counters and spheres in one buffer, mapped once for reading, persistent
-    // and coherent: a read after the fence needs only
-    // GL_CLIENT_MAPPED_BUFFER_BARRIER_BIT (glGetBufferSubData would need
-    // GL_BUFFER_UPDATE_BARRIER_BIT).
-    constexpr GLbitfield kMap = GL_MAP_READ_BIT | GL_MAP_PERSISTENT_BIT | GL_MAP_COHERENT_BIT;
-    const std::size_t bytes = cap * (sizeof(std::uint32_t) + sizeof(glm::vec4));
-    b.buffer = gl::Buffer::create(bytes, nullptr, kMap | GL_DYNAMIC_STORAGE_BIT);
-    b.mapped = static_cast<const std::uint32_t*>(
+    // Counters and proxies in one buffer, mapped once, persistent and
+    // coherent: the batch is written straight into the mapping (a
+    // glNamedBufferSubData may make the driver synchronize), and a read after
+    // the fence needs only GL_CLIENT_MAPPED_BUFFER_BARRIER_BIT.
+    constexpr GLbitfield kMap =
+        GL_MAP_READ_BIT | GL_MAP_WRITE_BIT | GL_MAP_PERSISTENT_BIT | GL_MAP_COHERENT_BIT;
+    const std::size_t bytes = cap * (sizeof(std::uint32_t) + sizeof(glm::vec4)) + 16;
+    b.buffer = gl::Buffer::create(bytes, nullptr, kMap);
+    b.mapped = static_cast<std::byte*>(
         gl::MapNamedBufferRange(b.buffer.id(), 0, static_cast<GLsizeiptr>(bytes), kMap));
     if (b.mapped == nullptr) throw gl::GlError("QueryExecutor: cannot map the sample counters");
     if (b.capacity == 0) ++stats_.pool_size;
     b.capacity = cap;
   }
-  // One upload: n zeroed counters, then (16-byte aligned) the n spheres. The
-  // slot's last batch was read after its fence: the GPU is done with it.
-  const std::size_t spheres_at = (n * sizeof(std::uint32_t) + 15) / 16 * 16;
-  upload_.assign(spheres_at + n * sizeof(glm::vec4), std::byte{0});
-  std::memcpy(upload_.data() + spheres_at, staging_.data(), n * sizeof(glm::vec4));
-  b.buffer.sub_data(0, upload_);
-  begin_proxy_state(view);
-  gl::VertexArrayVertexBuffer(vao_.id(), 0, b.buffer.id(), static_cast<GLintptr>(spheres_at),
-                              sizeof(glm::vec4));
-  gl::BindVertexArray(vao_.id());
+  // n zeroed counters, then (16-byte aligned) the points and the quads'
+  // spheres. The slot's last batch was read after its fence: the GPU is
+  // done with this memory.
+  const std::size_t data_at = (n * sizeof(std::uint32_t) + 15) / 16 * 16;
+  std::memset(b.mapped, 0, n * sizeof(std::uint32_t));
+  std::memcpy(b.mapped + data_at, staging_.data(), n_points * sizeof(glm::vec4));
+  std::memcpy(b.mapped + data_at + n_points * sizeof(glm::vec4), staging_quads_.data(),
+              n_quads * sizeof(glm::vec4));
+  begin_proxy_state();
   gl::BindBufferBase(GL_SHADER_STORAGE_BUFFER, kCounterBinding, b.buffer.id());
-  gl::DrawArraysInstancedBaseInstance(GL_TRIANGLE_STRIP, 0, 4, static_cast<GLsizei>(n), 0);
+  if (n_points > 0) {
+    gl::GetIntegerv(GL_PROGRAM_POINT_SIZE, &program_point_size_);
+    if (program_point_size_ == 0) gl::Enable(GL_PROGRAM_POINT_SIZE);
+    gl::UseProgram(point_proxy_.id());
+    gl::VertexArrayVertexBuffer(point_vao_.id(), 0, b.buffer.id(), static_cast<GLintptr>(data_at),
+                                sizeof(glm::vec4));
+    gl::BindVertexArray(point_vao_.id());
+    gl::DrawArrays(GL_POINTS, 0, static_cast<GLsizei>(n_points));
+    if (program_point_size_ == 0) gl::Disable(GL_PROGRAM_POINT_SIZE);
+  }
+  if (n_quads > 0) {
+    gl::UseProgram(proxy_.id());
+    gl::ProgramUniformMatrix4fv(proxy_.id(), u_view_, 1, GL_FALSE, glm::value_ptr(view.view));
+    gl::ProgramUniformMatrix4fv(proxy_.id(), u_proj_, 1, GL_FALSE, glm::value_ptr(view.projection));
+    gl::ProgramUniform1i(proxy_.id(), u_base_, static_cast<GLint>(n_points));
+    gl::VertexArrayVertexBuffer(vao_.id(), 0, b.buffer.id(),
+                                static_cast<GLintptr>(data_at + n_points * sizeof(glm::vec4)),
+                                sizeof(glm::vec4));
+    gl::BindVertexArray(vao_.id());
+    gl::DrawArraysInstancedBaseInstance(GL_TRIANGLE_STRIP, 0, 4, static_cast<GLsizei>(n_quads), 0);
+  }
   gl::BindBufferBase(GL_SHADER_STORAGE_BUFFER, kCounterBinding, 0);
   // No barrier and fence here: fence_last_batch_render_thread() sets them
   // when the next frame begins (see there).
@@ -256,6 +381,8 @@ void QueryExecutor::issue_render_thread(const FrameView& view, std::size_t end) 
   stats_.issued += n;
   stats_.issued_last += n;
   stats_.pending += n;
+  stats_.point_proxies += n_points;
+  stats_.quad_proxies += n_quads;
 }
 
 void QueryExecutor::fence_last_batch_render_thread() {

@@ -15,11 +15,25 @@
 //   (early_fragment_tests) and adds 1 per fragment to its request's counter
 //   in a shader storage buffer: on a single-sampled target exactly what
 //   GL_SAMPLES_PASSED counts. QueryKind::AnySamples answers count > 0.
-// - The proxy of a node is a screen-aligned square in front of its bounding
-//   sphere: in the plane normal to the eye-to-center axis at the sphere's
-//   nearest distance, large enough to cover the cone of rays that touch the
-//   sphere. Every ray that hits the sphere crosses the square no farther than
-//   the sphere, so the proxy passes wherever the sphere would (conservative).
+// - The proxy of a node, usually ONE point (a point costs llvmpipe a small
+//   fraction of a strip of two triangles): the host computes the window
+//   rectangle that bounds the projection of the node's bounding sphere
+//   (exact tangent planes of a perspective projection, half a pixel wider on
+//   every side, clipped to the viewport) and draws a point sprite of side
+//   max(width, height) + 1 pixels at its center, at the depth of the
+//   sphere's nearest plane (z_eye = c.z + r). Every pixel whose center the
+//   sphere covers lies strictly inside the sprite, and every point of the
+//   sphere lies behind that depth, so the point passes wherever the sphere
+//   would (conservative). A rectangle that misses the viewport is answered 0
+//   on the host (the sphere covers no pixel).
+// - The rest take the quad path: a sphere not entirely in front of the
+//   eye's plane, a sprite wider than GL_POINT_SIZE_RANGE's max, or a
+//   projection that is not a perspective frustum. Its proxy is a square in
+//   front of the sphere: in the plane normal to the eye-to-center axis at the
+//   sphere's nearest distance, large enough to cover the cone of rays that
+//   touch the sphere. Every ray that hits the sphere crosses the square no
+//   farther than the sphere (conservative). Points and quads are two draws
+//   of one batch (the second only if there are quads).
 //   An eye inside the sphere is answered visible at once, without the GPU.
 // - A small ring of counter buffers (batches_in_flight), made once and reused
 //   (no buffer per frame once the ring has grown), persistently mapped for
@@ -58,6 +72,9 @@ struct QueryExecutorOptions {
   /// Batches in flight at most (the ring of counter buffers); a frame that
   /// finds every one still unsignaled issues nothing (its requests wait).
   std::size_t batches_in_flight = 4;
+  /// Point proxies where they fit (see above); false: every proxy a quad
+  /// (for the tests and the benchmark's comparison).
+  bool point_proxies = true;
 };
 
 /// Counters of the executor (cesium-native's tilesOccluded /
@@ -79,8 +96,11 @@ struct QueryStats {
   std::size_t answered_last = 0;   ///< read by the last run()
   std::uint64_t latency_frames_max_last = 0;  ///< of the answers read by the last run()
   std::uint64_t batches = 0;                  ///< batches issued (one draw and one fence each)
-  std::uint64_t ring_full = 0;  ///< runs that issued nothing: every counter buffer in flight
-  std::size_t pool_size = 0;    ///< counter buffers made (ring slots in use so far)
+  std::uint64_t ring_full = 0;      ///< runs that issued nothing: every counter buffer in flight
+  std::size_t pool_size = 0;        ///< counter buffers made (ring slots in use so far)
+  std::uint64_t point_proxies = 0;  ///< proxies drawn as one point
+  std::uint64_t quad_proxies = 0;   ///< proxies drawn as a square of two triangles
+  std::uint64_t offscreen = 0;  ///< answered 0 on the host: the sphere's rectangle misses the view
   [[nodiscard]] double latency_frames_mean() const {
     return answered == 0 ? 0.0 : double(latency_frames_total) / double(answered);
   }
@@ -116,10 +136,12 @@ class QueryExecutor final : public QueryHook {
   // One slot of the ring of batches: a batch's instance spheres and counters
   // stay untouched until its fence was seen signaled.
   struct Batch {
-    // n counters (one uint per instance), then at a 16-byte aligned offset
-    // the n instance spheres (vec4 center, radius).
+    // n counters (one uint per proxy), then at a 16-byte aligned offset
+    // the points' vec4s (ndc x, y, depth, side in pixels), then the quads'
+    // spheres (vec4 center, radius): points first, the same order as the
+    // counters.
     gl::Buffer buffer;
-    const std::uint32_t* mapped = nullptr;  // the counters, mapped persistent and coherent
+    std::byte* mapped = nullptr;  // the whole buffer, mapped persistent and coherent
     std::size_t capacity = 0;
     GLsync fence = nullptr;
     std::vector<QueryRequest> requests;  // instance i answers requests[i]
@@ -129,10 +151,13 @@ class QueryExecutor final : public QueryHook {
   // Answers without the GPU (no such node, or the eye inside its sphere);
   // false if the request needs a proxy.
   bool answer_on_host(const QueryRequest& r, const FrameView& view);
+  // The point proxy of a sphere (ndc x, y, depth, side px); w < 0: it
+  // misses the viewport; false: it needs the quad path.
+  bool point_proxy(glm::vec4 sphere, const FrameView& view, glm::vec4& out) const;
   void fence_last_batch_render_thread();
   void poll_render_thread();
   void issue_render_thread(const FrameView& view, std::size_t end);
-  void begin_proxy_state(const FrameView& view);
+  void begin_proxy_state();
   void end_proxy_state();
   void answer(const QueryRequest& r, std::uint32_t samples, std::uint64_t issued);
 
@@ -147,13 +172,18 @@ class QueryExecutor final : public QueryHook {
   // Batched: a ring of slots, [ring_head_, ring_head_ + ring_count_) in flight.
   std::vector<Batch> ring_;
   std::size_t ring_head_ = 0, ring_count_ = 0;
-  std::vector<glm::vec4> staging_;  // the batch being filled
-  std::vector<std::byte> upload_;   // its zeroed counters and spheres
-  std::uint64_t fence_ns_ = 0;      // CPU time of the last fence, charged to the next run()
-  gl::VertexArray vao_;
-  gl::Program proxy_;
-  GLint u_view_ = -1, u_proj_ = -1;
+  std::vector<glm::vec4> staging_;        // the batch's points being filled
+  std::vector<glm::vec4> staging_quads_;  // and its quads' spheres
+  std::vector<QueryRequest> quad_requests_;
+  std::uint64_t fence_ns_ = 0;  // CPU time of the last fence, charged to the next run()
+  gl::VertexArray vao_;         // quads: per-instance spheres
+  gl::VertexArray point_vao_;   // points: per-vertex
+  gl::Program proxy_;           // quads
+  gl::Program point_proxy_;
+  GLint u_view_ = -1, u_proj_ = -1, u_base_ = -1;
   GLint depth_func_ = GL_LESS;
+  GLint program_point_size_ = 0;
+  float max_point_size_ = 1.0f;  // GL_POINT_SIZE_RANGE's max
   std::vector<VisibilityResult> results_;
 };
 
