@@ -207,6 +207,14 @@ void Viewer::adopt_scene() {
   incoming_.reset();
   glfwSetWindowTitle(window_.handle(), ("treecut - " + scene_.label).c_str());
   fit();
+  // The governor caps a budget at the hierarchy's node count and its cost
+  // model belongs to the old model: it starts again from the current value.
+  if (governor_) {
+    std::vector<ParamSpec> specs;
+    for (const ParamState& p : params_) specs.push_back(p.spec);
+    governor_ = splat::FrameRateGovernor::for_params(specs, governor_->value(),
+                                                     scene_.hierarchy->node_count());
+  }
   status_ = "opened " + scene_.label;
   // The frames the window drew meanwhile (the old model): a load never blocks it.
   std::printf("opened %s (%zu nodes) after %llu frames of the old model\n", scene_.label.c_str(),

@@ -20,7 +20,7 @@ void add_scene_options(CLI::App& cmd, SceneArgs& args) {
   cmd.add_option("MODEL", args.model,
                  "PLY model or .tch cache (default: a generated model, see --default-kind)");
   cmd.add_option("--default-kind", args.default_kind,
-                 "Procedural model used without MODEL: sphere | terrain | city")
+                 "Procedural model used without MODEL: sphere | terrain | city | plant")
       ->capture_default_str();
   cmd.add_option("--default-points", args.default_points, "Points of the generated model")
       ->check(CLI::Range(std::size_t{1}, std::size_t{1} << 28))
