@@ -12,6 +12,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <map>
@@ -179,6 +180,51 @@ class AloneHook final : public QueryHook {
   std::int64_t samples = -1;
 };
 
+// The frame's depth (read in the hook, where the renderer has it complete)
+// and view: the reference of the CPU ray test below.
+class DepthHook final : public QueryHook {
+ public:
+  void run(const FrameView& v) override {
+    view = v;
+    depth.assign(std::size_t(v.size.x) * std::size_t(v.size.y), 0.0f);
+    gl::PixelStorei(GL_PACK_ALIGNMENT, 1);
+    gl::ReadPixels(0, 0, v.size.x, v.size.y, GL_DEPTH_COMPONENT, GL_FLOAT, depth.data());
+  }
+  FrameView view;
+  std::vector<float> depth;
+};
+
+// The samples of the sphere itself: pixels whose center's ray hits the
+// sphere (eye outside it) with the nearest hit's window depth <= the
+// frame's depth there (GL_LEQUAL). A conservative proxy counts at least
+// these, and 0 only where this is 0.
+std::uint32_t true_samples(glm::vec4 sphere, const DepthHook& d) {
+  const FrameView& v = d.view;
+  const glm::mat4 vp = v.projection * v.view;
+  const glm::mat4 inv = glm::inverse(vp);
+  const glm::vec3 c(sphere);
+  const float r = sphere.w;
+  std::uint32_t n = 0;
+  for (int y = 0; y < v.size.y; ++y) {
+    for (int x = 0; x < v.size.x; ++x) {
+      const glm::vec2 ndc((float(x) + 0.5f) / float(v.size.x) * 2.0f - 1.0f,
+                          (float(y) + 0.5f) / float(v.size.y) * 2.0f - 1.0f);
+      const glm::vec4 far_h = inv * glm::vec4(ndc, 1.0f, 1.0f);
+      const glm::vec3 dir = glm::normalize(glm::vec3(far_h) / far_h.w - v.eye);
+      const glm::vec3 oc = v.eye - c;
+      const float b = glm::dot(oc, dir);
+      const float disc = b * b - (glm::dot(oc, oc) - r * r);
+      if (disc < 0.0f) continue;
+      const float t = -b - std::sqrt(disc);
+      if (t <= 0.0f) continue;  // behind the eye
+      const glm::vec4 hit = vp * glm::vec4(v.eye + t * dir, 1.0f);
+      const float depth = std::clamp(hit.z / hit.w * 0.5f + 0.5f, 0.0f, 1.0f);
+      if (depth <= d.depth[std::size_t(y) * std::size_t(v.size.x) + std::size_t(x)]) ++n;
+    }
+  }
+  return n;
+}
+
 TEST_F(QueryExecutorTest, OccludedProxiesAnswerZeroAndVisibleOnesMoreLikeEachAlone) {
   const Hierarchy& h = probe_hierarchy();
   std::vector<QueryRequest> requests;
@@ -199,8 +245,33 @@ TEST_F(QueryExecutorTest, OccludedProxiesAnswerZeroAndVisibleOnesMoreLikeEachAlo
     }
     EXPECT_GT(r.frame_read, r.frame_issued);  // never in the frame that issued it
   }
+  // Against the spheres themselves (a CPU ray test against the frame's
+  // depth): every count at least the sphere's own samples, 0 only where the
+  // sphere has none; the point sprite adds at most the corners of its square
+  // (a bounding square of the sphere's disc: under 4/pi of it, plus a pixel
+  // on every side).
+  DepthHook depth;
+  renderer_->set_query_hook(&depth);
+  renderer_->draw(cut_, wall_camera(), RenderSettings{}, true);
+  renderer_->set_query_hook(executor_.get());
+  for (const QueryRequest& q : requests) {
+    const std::uint32_t truth = true_samples(h.arrays().center_radius[q.node], depth);
+    const std::uint32_t got = answers.at(q.tag).samples_passed;
+    EXPECT_GE(got, truth) << "node " << q.node;
+    EXPECT_EQ(got == 0, truth == 0) << "node " << q.node;
+  }
+  for (const Probe& p : probes()) {
+    const NodeId leaf = leaf_at(p.center);
+    const std::uint32_t truth = true_samples(h.arrays().center_radius[leaf], depth);
+    EXPECT_EQ(truth == 0, p.occluded) << p.center.x << "," << p.center.y;
+    if (!p.occluded) {
+      const double side = std::sqrt(truth * 4.0 / 3.14159265) + 2.0;
+      EXPECT_LE(answers.at(leaf).samples_passed, side * side) << "leaf " << leaf;
+    }
+  }
+  EXPECT_GT(executor_->stats().point_proxies, 0u);
   // Every node (inner ones too), answered from one batch, equals its proxy
-  // drawn alone.
+  // drawn alone: the batch's counters do not mix.
   for (const QueryRequest& q : requests) {
     AloneHook alone(q);
     renderer_->set_query_hook(&alone);
@@ -210,6 +281,73 @@ TEST_F(QueryExecutorTest, OccludedProxiesAnswerZeroAndVisibleOnesMoreLikeEachAlo
   }
   // The root holds visible spheres: visible.
   EXPECT_GT(answers.at(0).samples_passed, 0u);
+}
+
+// Spheres the point path cannot take or need not draw: one reaching behind
+// the eye's plane (beside the eye, in front of the wall: the quad path), one
+// wider than the view (its sprite clipped to the viewport), one outside the
+// view (answered 0 on the host), one ordinary. Each answer at least the
+// sphere's own samples, 0 only where it has none; the same with every proxy
+// a quad.
+TEST_F(QueryExecutorTest, QuadPathAndClippedSpritesStayConservative) {
+  static const Hierarchy big = [] {
+    PointSet p;
+    const std::vector<glm::vec4> spheres = {
+        {1.6f, 0.0f, 2.9f, 1.5f},    // eye (0, 0, 3) outside, reaching behind it
+        {0.0f, 0.0f, -3.0f, 4.0f},   // partly behind the wall, wider than the view
+        {40.0f, 0.0f, -1.0f, 0.5f},  // outside the view
+        {0.6f, 0.6f, 1.0f, 0.2f},    // in front of the wall
+    };
+    for (const glm::vec4& s : spheres) {
+      p.positions.push_back(glm::vec3(s));
+      p.normals.push_back({0.0f, 0.0f, 1.0f});
+      p.radii.push_back(s.w);
+      p.curvature.push_back(0.0f);
+    }
+    return build_from_points(std::move(p));
+  }();
+  DepthHook depth;
+  renderer_->set_query_hook(&depth);
+  renderer_->draw(cut_, wall_camera(), RenderSettings{}, true);
+  for (const bool points : {true, false}) {
+    QueryExecutorOptions o;
+    o.point_proxies = points;
+    executor_ = std::make_unique<QueryExecutor>(o);
+    renderer_->set_query_hook(executor_.get());
+    std::vector<QueryRequest> requests;
+    for (NodeId n = 0; n < big.node_count(); ++n) {
+      if (big.is_leaf(n)) requests.push_back({0, n, n, QueryKind::Samples});
+    }
+    ASSERT_EQ(requests.size(), 4u);
+    FrontList list;
+    list.generation = 1;
+    list.hierarchy = &big;
+    list.queries = requests;
+    std::map<std::uint32_t, VisibilityResult> answers;
+    std::uint64_t f = 0;
+    for (int i = 0; i < 20 && answers.size() < requests.size(); ++i) {
+      frame(list, ++f, true);
+      for (const VisibilityResult& r : executor_->results()) answers[r.tag] = r;
+      executor_->clear_results();
+    }
+    ASSERT_EQ(answers.size(), requests.size());
+    int none = 0;
+    for (const QueryRequest& q : requests) {
+      const std::uint32_t truth = true_samples(big.arrays().center_radius[q.node], depth);
+      const std::uint32_t got = answers.at(q.tag).samples_passed;
+      EXPECT_GE(got, truth) << "node " << q.node << (points ? " points" : " quads");
+      EXPECT_EQ(got == 0, truth == 0) << "node " << q.node << (points ? " points" : " quads");
+      none += truth == 0 ? 1 : 0;
+    }
+    EXPECT_EQ(none, 1);  // only the one outside the view
+    if (points) {
+      EXPECT_EQ(executor_->stats().quad_proxies, 1u);  // the one reaching behind the eye
+      EXPECT_EQ(executor_->stats().point_proxies, 2u);
+      EXPECT_EQ(executor_->stats().offscreen, 1u);
+    } else {
+      EXPECT_EQ(executor_->stats().point_proxies, 0u);
+    }
+  }
 }
 
 TEST_F(QueryExecutorTest, AnySamplesAnswersZeroOrOne) {
