@@ -208,6 +208,41 @@ TEST(EventQueue, event_queue_exact_vs_topdown_random_walk_and_params) {
   }
 }
 
+// TreeCut::refine_known / coarsen_known (what the event queue edits the cut
+// with, from its copies of the children's ranges) make the very list and
+// slot map that refine / coarsen make, position for position.
+TEST(EventQueue, known_children_edits_equal_refine_and_coarsen) {
+  const auto h = small_hierarchy(ModelKind::Terrain, 5000);
+  TreeCut a = TreeCut::root_cut(*h), b = TreeCut::root_cut(*h);
+  std::mt19937 rng(5);
+  std::size_t refined = 0, coarsened = 0;
+  for (int step = 0; step < 2000; ++step) {
+    const std::span<const NodeId> nodes = a.nodes();
+    const NodeId n = nodes[std::uniform_int_distribution<std::size_t>(0, nodes.size() - 1)(rng)];
+    if (step % 3 != 2) {
+      if (h->is_leaf(n)) continue;
+      ASSERT_TRUE(a.refine(*h, n));
+      b.refine_known(n, h->first_child(n), h->child_count(n));
+      ++refined;
+    } else {
+      if (n == h->root()) continue;
+      const NodeId p = h->parent(n);
+      if (!a.can_coarsen(*h, p)) continue;
+      ASSERT_TRUE(a.coarsen(*h, p));
+      b.coarsen_known(p, h->first_child(p), h->child_count(p));
+      ++coarsened;
+    }
+    ASSERT_TRUE(std::equal(a.nodes().begin(), a.nodes().end(), b.nodes().begin(), b.nodes().end()))
+        << "step " << step;
+  }
+  EXPECT_GT(refined, 100u);
+  EXPECT_GT(coarsened, 20u);
+  EXPECT_EQ(TreeCut::validate(*h, b.nodes()), "");
+  for (NodeId n = 0; n < h->node_count(); ++n) ASSERT_EQ(a.contains(n), b.contains(n)) << n;
+  EXPECT_EQ(a.refinements(), b.refinements());
+  EXPECT_EQ(a.coarsenings(), b.coarsenings());
+}
+
 TEST(EventQueue, static_camera_costs_nothing) {
   const auto h = small_hierarchy(ModelKind::Terrain, 40000);
   const Scene s = scene_of(*h);

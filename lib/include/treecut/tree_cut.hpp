@@ -41,6 +41,14 @@ class TreeCut {
   /// Replaces the children of `parent` (all of which must be in the cut) by
   /// `parent`. Returns false and changes nothing otherwise.
   bool coarsen(const Hierarchy& h, NodeId parent);
+  /// refine() and coarsen() for a caller that has the node's children range
+  /// [first, first + count) at hand (exactly the hierarchy's) and has checked
+  /// the precondition (node in the cut and not a leaf; every child in the
+  /// cut): the same edits without reading the hierarchy's arrays, which were
+  /// two more cache misses per edit for the event queue (it keeps a copy of
+  /// the range beside each node's sphere).
+  void refine_known(NodeId node, NodeId first, unsigned count);
+  void coarsen_known(NodeId parent, NodeId first, unsigned count);
   /// True when every child of `parent` is in the cut, so coarsen() would succeed.
   /// Inline: the strategies ask it in their per-node pass.
   [[nodiscard]] bool can_coarsen(const Hierarchy& h, NodeId parent) const {

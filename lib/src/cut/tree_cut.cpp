@@ -177,6 +177,28 @@ bool TreeCut::coarsen(const Hierarchy& h, NodeId parent) {
   return true;
 }
 
+void TreeCut::refine_known(NodeId node, NodeId first, unsigned count) {
+  // As refine(): the first child takes the parent's slot.
+  const std::uint32_t s = slot_[node];
+  slot_[node] = kNotInCut;
+  nodes_[s] = first;
+  slot_[first] = s;
+  moved(s);
+  for (NodeId c = first + 1; c < first + count; ++c) insert(c);
+  ++refinements_;
+}
+
+void TreeCut::coarsen_known(NodeId parent, NodeId first, unsigned count) {
+  // As coarsen(): the parent takes the first child's slot.
+  const std::uint32_t s = slot_[first];
+  slot_[first] = kNotInCut;
+  nodes_[s] = parent;
+  slot_[parent] = s;
+  moved(s);
+  for (NodeId c = first + 1; c < first + count; ++c) erase(c);
+  ++coarsenings_;
+}
+
 std::string TreeCut::validate(const Hierarchy& h, std::span<const NodeId> nodes) {
   const std::uint32_t M = h.node_count();
   if (M == 0) return nodes.empty() ? std::string{} : "cut over an empty hierarchy";

@@ -273,7 +273,6 @@ bool EventQueueStrategy::advance(const IterationInput& input, TreeCut& cut, Iter
 
 void EventQueueStrategy::handle(NodeId n, bool boundary, const Decision& dec,
                                 const IterationInput& input, TreeCut& cut, IterationResult& r) {
-  const Hierarchy& h = input.hierarchy;
   // dec.t is the event of the state the node is in afterwards: its fold
   // event when it passes (active), its unfold event when not (boundary).
   if (boundary) {
@@ -284,7 +283,8 @@ void EventQueueStrategy::handle(NodeId n, bool boundary, const Decision& dec,
     // Unfold: the node is active now (its fold event), and its non-leaf
     // children become boundary nodes, tested right away (they may unfold
     // too: the descent of figure 3 below n).
-    cut.refine(h, n);
+    // From the node's record: n is a boundary node (in the cut, not a leaf).
+    cut.refine_known(n, state_[n].first_child, state_[n].child_count);
     ++r.refined;
     ++stats_.changed;
     schedule(n, dec.t, false);
@@ -300,14 +300,25 @@ void EventQueueStrategy::handle(NodeId n, bool boundary, const Decision& dec,
   } else {
     // Fold: the subtree collapses into n and its events go; n becomes a
     // boundary node waiting to unfold.
-    auto drop = [&](NodeId m) {
-      erase(m);
-      drop_rotation(m);
-    };
-    detail::fold_subtree(h, cut, n, r, drop);
+    fold(n, cut, r);
     ++stats_.changed;
     schedule(n, dec.t, true);
   }
+}
+
+// detail::fold_subtree (the same edits in the same order) on the node
+// records instead of the hierarchy's arrays, which the records copy: the
+// children's records are in cache already (run() prefetched them).
+void EventQueueStrategy::fold(NodeId n, TreeCut& cut, IterationResult& r) {
+  const NodeId first = state_[n].first_child;
+  const unsigned count = state_[n].child_count;
+  for (NodeId c = first; c < first + count; ++c) {
+    if (state_[c].child_count != 0 && !cut.contains(c)) fold(c, cut, r);
+    erase(c);
+    drop_rotation(c);
+  }
+  cut.coarsen_known(n, first, count);
+  ++r.coarsened;
 }
 
 void EventQueueStrategy::take(std::uint32_t slot) {

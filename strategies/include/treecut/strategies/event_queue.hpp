@@ -182,6 +182,9 @@ class EventQueueStrategy final : public Strategy {
   // already taken).
   void handle(NodeId n, bool boundary, const Decision& dec, const IterationInput& input,
               TreeCut& cut, IterationResult& r);
+  // Folds the active node n: its subtree collapses into it, its nodes'
+  // events go.
+  void fold(NodeId n, TreeCut& cut, IterationResult& r);
   // Moves a translation list into work_ for run().
   void take(std::uint32_t slot);
   // Handles the events of work_ (a translation list) or wwork_ (the rotation
