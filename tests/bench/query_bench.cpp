@@ -2,8 +2,9 @@
 // (llvmpipe), 1280x720, fast splats, a generated terrain of 200,000 points
 // drawn as the cut of one hierarchy level (the same draws in every frame).
 //
-//  - Queries/n:N: frames alternate between "off" (the cut alone) and "on"
-//    (the cut and N queries: every frame a new list generation of N requests
+//  - Queries/n:N/points:P: frames alternate between "off" (the cut alone,
+//    with a hook that issues nothing) and "on" (the cut and N queries:
+//    every frame a new list generation of N requests
 //    about nodes of the drawn cut, so one batch of N proxies is issued and
 //    the batch of the last "on" frame read per frame).
 //    us_per_query_median / _max: the executor's render-thread CPU time
@@ -16,6 +17,13 @@
 //    the same for medians (target <= 1.2: a frame never waits for a query);
 //    frame_cpu_ms_*: the render thread's CPU time of a frame. latency: mean
 //    frames from issue to read (2: only "on" frames poll).
+//    P = 1: point proxies where they fit (the default), 0: every proxy a
+//    quad (QueryExecutorOptions::point_proxies); point_share: of the proxies.
+//    tail_us_{on,off}_median: render-thread CPU from the hook's return to
+//    the end of the frame (glFinish): where a frame without queries would pay
+//    work of the cut that the executor's first draw made happen earlier;
+//    added_us_per_query_median = (executor + tail of "on" frames - tail of
+//    "off" frames) / N, medians: the render-thread CPU the queries add.
 //
 // Run: build/perf/tests/bench/query_bench
 #include <benchmark/benchmark.h>

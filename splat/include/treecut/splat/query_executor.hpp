@@ -7,14 +7,15 @@
 //   dropped when a newer list arrives (counted): they were asked about a cut
 //   that is no longer drawn, and the strategy asks again with its next list.
 // - A per-frame cap (max_issue_per_frame): the rest waits for later frames.
-// - One batch per frame: the frame's issued requests are ONE instanced draw
-//   of their proxies (per-instance node sphere from a buffer filled once per
-//   batch) against the frame's depth, color and depth writes off, depth
-//   clamping on (a proxy in front of the near plane passes instead of being
-//   clipped away), GL_LEQUAL. The fragment shader runs after the depth test
-//   (early_fragment_tests) and adds 1 per fragment to its request's counter
-//   in a shader storage buffer: on a single-sampled target exactly what
-//   GL_SAMPLES_PASSED counts. QueryKind::AnySamples answers count > 0.
+// - One batch per frame: the frame's issued requests are ONE draw of their
+//   point proxies (and one instanced draw of the few quads, below), from a
+//   buffer written once per batch, against the frame's depth, color and
+//   depth writes off, depth clamping on (a proxy in front of the near plane
+//   passes instead of being clipped away), GL_LEQUAL. The fragment shader
+//   runs after the depth test (early_fragment_tests) and adds 1 per fragment
+//   to its request's counter in a shader storage buffer: on a single-sampled
+//   target exactly what GL_SAMPLES_PASSED counts. QueryKind::AnySamples
+//   answers count > 0.
 // - The proxy of a node, usually ONE point (a point costs llvmpipe a small
 //   fraction of a strip of two triangles): the host computes the window
 //   rectangle that bounds the projection of the node's bounding sphere
@@ -36,8 +37,9 @@
 //   of one batch (the second only if there are quads).
 //   An eye inside the sphere is answered visible at once, without the GPU.
 // - A small ring of counter buffers (batches_in_flight), made once and reused
-//   (no buffer per frame once the ring has grown), persistently mapped for
-//   reading. A batch gets its memory barrier and fence when the next frame
+//   (no buffer per frame once the ring has grown), persistently mapped: the
+//   batch is written into the mapping (no glBufferSubData), its counters read
+//   from it. A batch gets its memory barrier and fence when the next frame
 //   begins (begin_frame_render_thread); its counters are read only after
 //   glClientWaitSync(fence, 0, 0) said signaled: never a blocking read.
 //   Batches are polled in issue order and a poll stops at the first one
