@@ -34,6 +34,11 @@ class TreeCut {
   void prefetch(NodeId n) const {
     if (n < slot_.size()) __builtin_prefetch(slot_.data() + n);
   }
+  /// The next step for a cut node whose slot entry is in cache (after
+  /// prefetch(n)): its position in the list, which refine and coarsen write.
+  void prefetch_position(NodeId n) const {
+    if (n < slot_.size() && slot_[n] != kNotInCut) __builtin_prefetch(nodes_.data() + slot_[n], 1);
+  }
 
   /// Replaces `node` (which must be in the cut and not a leaf) by its children.
   /// Returns false and changes nothing otherwise.

@@ -363,6 +363,22 @@ bool EventQueueStrategy::run(const IterationInput& input, TreeCut& cut, Iteratio
         if (boundary) cut.prefetch(n);
       }
     }
+    // The changes' list positions in the cut, now that their slot entries
+    // (prefetched above) have arrived: refine writes the node's, coarsen
+    // the children's.
+    for (std::size_t i = b0; i < b1; ++i) {
+      const NodeId entry = work_[i];
+      if (entry == kErased || d[i - b0].pass != ((entry & kBoundary) != 0)) continue;
+      const NodeId n = entry & ~kBoundary;
+      if ((entry & kBoundary) != 0) {
+        cut.prefetch_position(n);
+      } else {
+        const NodeState& st = state_[n];
+        for (NodeId c = st.first_child; c < st.first_child + st.child_count; ++c) {
+          cut.prefetch_position(c);
+        }
+      }
+    }
     for (std::size_t i = b0; i < b1; ++i) {
       const NodeId entry = work_[i];
       if (entry == kErased) continue;
