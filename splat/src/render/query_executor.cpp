@@ -345,9 +345,14 @@ void QueryExecutor::issue_render_thread(const FrameView& view, std::size_t end) 
   // done with this memory.
   const std::size_t data_at = (n * sizeof(std::uint32_t) + 15) / 16 * 16;
   std::memset(b.mapped, 0, n * sizeof(std::uint32_t));
-  std::memcpy(b.mapped + data_at, staging_.data(), n_points * sizeof(glm::vec4));
-  std::memcpy(b.mapped + data_at + n_points * sizeof(glm::vec4), staging_quads_.data(),
-              n_quads * sizeof(glm::vec4));
+  // (memcpy from an empty vector's data() may be from a null pointer: UB)
+  if (n_points > 0) {
+    std::memcpy(b.mapped + data_at, staging_.data(), n_points * sizeof(glm::vec4));
+  }
+  if (n_quads > 0) {
+    std::memcpy(b.mapped + data_at + n_points * sizeof(glm::vec4), staging_quads_.data(),
+                n_quads * sizeof(glm::vec4));
+  }
   begin_proxy_state();
   gl::BindBufferBase(GL_SHADER_STORAGE_BUFFER, kCounterBinding, b.buffer.id());
   if (n_points > 0) {
