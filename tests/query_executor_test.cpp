@@ -124,6 +124,17 @@ class QueryExecutorTest : public ::testing::Test {
   }
   void TearDown() override { renderer_->set_query_hook(nullptr); }
 
+  // A fresh executor with a minimum batch of `min_batch` (max_defer_frames
+  // `defer`) in place of the default one.
+  void use_executor(std::size_t min_batch, std::uint64_t defer = 1) {
+    QueryExecutorOptions o;
+    o.min_batch = min_batch;
+    o.max_defer_frames = defer;
+    renderer_->set_query_hook(nullptr);
+    executor_ = std::make_unique<QueryExecutor>(o);
+    renderer_->set_query_hook(executor_.get());
+  }
+
   // One frame: the executor sees `list` as the drawn list of frame `frame`.
   void frame(const FrontList& list, std::uint64_t frame_number, bool finish = false) {
     executor_->begin_frame_render_thread(list, frame_number);
@@ -162,7 +173,9 @@ class AloneHook final : public QueryHook {
  public:
   explicit AloneHook(QueryRequest r) : request_(r) {}
   void run(const FrameView& view) override {
-    QueryExecutor single;
+    QueryExecutorOptions o;
+    o.min_batch = 1;  // issued in this run(), not batched with later ones
+    QueryExecutor single(o);
     FrontList l;
     const std::vector<QueryRequest> one{request_};
     l.generation = 1;
@@ -389,12 +402,118 @@ TEST_F(QueryExecutorTest, RequestsOfOneGenerationRunOnceWithTheCapCarryingTheRes
   // Pool: objects are reused, not made per frame.
   EXPECT_LE(executor_->stats().pool_size, 4u);
 
-  // A new generation queues its own requests once; unissued old ones are dropped.
+  // A new generation queues its own requests once. Below the minimum batch
+  // they wait a frame (max_defer_frames 1) and are kept when the next
+  // generation arrives: nothing dropped, both go out as one batch (cap 2).
   const FrontList next = list_of(requests, 8);
   frame(next, ++f, true);
+  EXPECT_EQ(executor_->stats().issued_last, 0u);
   const FrontList third = list_of(requests, 9);
   frame(third, ++f, true);
-  EXPECT_EQ(executor_->stats().dropped, requests.size() - 2);
+  EXPECT_EQ(executor_->stats().dropped, 0u);
+  EXPECT_EQ(executor_->stats().issued_last, 2u);
+  EXPECT_EQ(executor_->stats().queued, 2 * requests.size() - 2);
+  // Those were due and did not fit the cap: a newer generation drops them.
+  const FrontList fourth = list_of(requests, 10);
+  frame(fourth, ++f, true);
+  EXPECT_EQ(executor_->stats().dropped, 2 * requests.size() - 2);
+  EXPECT_EQ(executor_->stats().queued, requests.size());
+}
+
+// The probes' requests (tag = index + offset), and whether each is occluded.
+std::vector<QueryRequest> probe_requests(std::uint32_t offset) {
+  std::vector<QueryRequest> r;
+  for (std::uint32_t i = 0; i < probes().size(); ++i) {
+    r.push_back({0, leaf_at(probes()[i].center), offset + i, QueryKind::Samples});
+  }
+  return r;
+}
+
+TEST_F(QueryExecutorTest, ATrickleBelowTheMinimumBatchGoesOutAfterMaxDeferFramesAsOneBatch) {
+  constexpr std::uint64_t kDefer = 3;
+  use_executor(1000, kDefer);
+  const std::size_t k = probes().size();
+  std::map<std::uint32_t, std::uint64_t> requested;  // tag -> frame of its request
+  std::uint64_t f = 0;
+  // A new generation every frame, k requests each: held back for kDefer
+  // frames, then the four generations' requests go out as one batch.
+  for (std::uint32_t g = 0; g <= kDefer; ++g) {
+    const std::vector<QueryRequest> r = probe_requests(g * 100);
+    for (const QueryRequest& q : r) requested[q.tag] = f + 1;
+    frame(list_of(r, g + 1), ++f, true);
+    if (g < kDefer) {
+      EXPECT_EQ(executor_->stats().issued_last, 0u) << "frame " << f;
+      EXPECT_EQ(executor_->stats().queued, (g + 1) * k);
+    }
+  }
+  EXPECT_EQ(executor_->stats().issued_last, (kDefer + 1) * k);
+  EXPECT_EQ(executor_->stats().batches, 1u);
+  EXPECT_EQ(executor_->stats().deferred_runs, kDefer);
+  EXPECT_EQ(executor_->stats().dropped, 0u);
+  EXPECT_EQ(executor_->stats().queued, 0u);
+  // The deferral of each request: kDefer, kDefer - 1, ..., 0 frames.
+  EXPECT_EQ(executor_->stats().deferral_frames_total, k * kDefer * (kDefer + 1) / 2);
+  const std::uint64_t issue_frame = f;
+  std::vector<VisibilityResult> answers;
+  for (int i = 0; i < 20 && answers.size() < requested.size(); ++i) {
+    frame(list_of(probe_requests(0), kDefer + 1), ++f, true);  // the same list: nothing new
+    answers.insert(answers.end(), executor_->results().begin(), executor_->results().end());
+    executor_->clear_results();
+  }
+  ASSERT_EQ(answers.size(), requested.size());
+  std::uint64_t latency_total = 0, latency_max = 0;
+  std::map<std::uint32_t, int> once;
+  for (const VisibilityResult& r : answers) {
+    ++once[r.tag];
+    const Probe& p = probes()[r.tag % 100];
+    EXPECT_EQ(r.node, leaf_at(p.center));
+    if (p.occluded) {
+      EXPECT_EQ(r.samples_passed, 0u) << r.tag;
+    } else {
+      EXPECT_GT(r.samples_passed, 0u) << r.tag;
+    }
+    EXPECT_EQ(r.frame_issued, issue_frame);  // the frame its proxy was drawn in
+    EXPECT_GT(r.frame_read, r.frame_issued);
+    const std::uint64_t latency = r.frame_read - requested.at(r.tag);
+    latency_total += latency;
+    latency_max = std::max(latency_max, latency);
+  }
+  for (const auto& [tag, count] : once) EXPECT_EQ(count, 1) << "tag " << tag;
+  // The latency counts from the request: the deferral included.
+  EXPECT_EQ(executor_->stats().latency_frames_total, latency_total);
+  EXPECT_EQ(executor_->stats().latency_frames_max, latency_max);
+  EXPECT_GE(latency_max, kDefer + 1);
+}
+
+TEST_F(QueryExecutorTest, ABatchOfAtLeastMinBatchGoesOutAtOnceAndATrickleAFrameLater) {
+  // The defaults: min_batch 256, max_defer_frames 1.
+  ASSERT_EQ(executor_->options().min_batch, 256u);
+  ASSERT_EQ(executor_->options().max_defer_frames, 1u);
+  std::vector<QueryRequest> many;
+  for (std::uint32_t rep = 0; many.size() < 300; ++rep) {
+    for (QueryRequest q : probe_requests(0)) {
+      q.tag = static_cast<std::uint32_t>(many.size());
+      many.push_back(q);
+    }
+  }
+  std::uint64_t f = 0;
+  frame(list_of(many, 1), ++f, true);
+  EXPECT_EQ(executor_->stats().issued_last, many.size());  // at once
+  EXPECT_EQ(executor_->stats().deferred_runs, 0u);
+  const auto answers = run_to_completion(list_of(many, 1), f);
+  ASSERT_EQ(answers.size(), many.size());
+  for (const auto& [tag, r] : answers) {
+    EXPECT_EQ(r.frame_issued, 1u);
+    const bool occluded = probes()[tag % probes().size()].occluded;
+    EXPECT_EQ(r.samples_passed == 0, occluded) << tag;
+  }
+  // A few: held one frame, then issued whatever their number.
+  const std::vector<QueryRequest> few = probe_requests(0);
+  frame(list_of(few, 2), ++f, true);
+  EXPECT_EQ(executor_->stats().issued_last, 0u);
+  EXPECT_EQ(executor_->stats().deferred_runs, 1u);
+  frame(list_of(few, 2), ++f, true);
+  EXPECT_EQ(executor_->stats().issued_last, few.size());
 }
 
 // --- reads before the fence -----------------------------------------------
@@ -508,6 +627,7 @@ TEST_F(QueryExecutorTest, FenceCheckMakesACounterReadBeforeTheSignalSeePoison) {
   std::vector<QueryRequest> requests;
   for (NodeId n = 0; n < h.node_count(); ++n) requests.push_back({0, n, n, QueryKind::Samples});
   const FrontList list = list_of(requests, 1);
+  use_executor(1);                                // no minimum batch: issued in frame 1
   frame(list, 1, true);                           // the batch: one draw
   executor_->begin_frame_render_thread(list, 2);  // its fence
   gl::Finish();                                   // the GPU is done with it

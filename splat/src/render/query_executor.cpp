@@ -147,19 +147,31 @@ void QueryExecutor::begin_frame_render_thread(const FrontList& list, std::uint64
   fence_last_batch_render_thread();
   if (list.hierarchy == nullptr || list.generation == generation_) return;
   generation_ = list.generation;
+  // What an older generation left unissued: requests that were due and did
+  // not fit (cap, full ring) are dropped, they asked about a cut no longer
+  // drawn; those held back only by the minimum batch are kept and join this
+  // generation's batch (else a strategy that posts a few requests with every
+  // list would never see one issued). Another model drops them all: they
+  // name nodes of the old hierarchy.
+  std::size_t keep = std::max(due_end_, queue_next_);
+  if (list.hierarchy != hierarchy_) keep = queue_.size();
+  stats_.dropped += keep - queue_next_;
+  queue_.erase(queue_.begin(), queue_.begin() + static_cast<std::ptrdiff_t>(keep));
+  queue_next_ = 0;
+  due_end_ = 0;
   if (list.hierarchy != hierarchy_) {
     // Another model: queries in flight name nodes of the old one. Their
     // answers are still read (in order) but describe the old hierarchy; the
     // stage drops results of a model it replaced along with its state.
     upload_spheres(*list.hierarchy);
   }
-  stats_.dropped += queue_.size() - queue_next_;
-  queue_.assign(list.queries.begin(), list.queries.end());
-  queue_next_ = 0;
+  queue_.reserve(queue_.size() + list.queries.size());
+  for (const QueryRequest& r : list.queries) queue_.push_back({r, frame});
   stats_.queued = queue_.size();
 }
 
-void QueryExecutor::answer(const QueryRequest& r, std::uint32_t samples, std::uint64_t issued) {
+void QueryExecutor::answer(const Queued& q, std::uint32_t samples, std::uint64_t issued) {
+  const QueryRequest& r = q.request;
   VisibilityResult v;
   v.object = r.object;
   v.node = r.node;
@@ -172,22 +184,24 @@ void QueryExecutor::answer(const QueryRequest& r, std::uint32_t samples, std::ui
   ++stats_.answered;
   ++stats_.answered_last;
   if (samples == 0) ++stats_.occluded;
-  const std::uint64_t latency = frame_ - issued;
+  // From the request: a batch's deferral is part of what a strategy waits.
+  const std::uint64_t latency = frame_ - q.frame_requested;
   stats_.latency_frames_total += latency;
   stats_.latency_frames_max = std::max(stats_.latency_frames_max, latency);
   stats_.latency_frames_max_last = std::max(stats_.latency_frames_max_last, latency);
 }
 
-bool QueryExecutor::answer_on_host(const QueryRequest& r, const FrameView& view) {
+bool QueryExecutor::answer_on_host(const Queued& q, const FrameView& view) {
+  const QueryRequest& r = q.request;
   if (r.node >= static_cast<NodeId>(spheres_.size())) {  // not a node of this hierarchy
-    answer(r, 0, frame_);
+    answer(q, 0, frame_);
     return true;
   }
   const glm::vec4 s = spheres_[r.node];
   const glm::vec3 d = glm::vec3(s) - view.eye;
   if (d.x * d.x + d.y * d.y + d.z * d.z <= s.w * s.w) {
     // The eye inside the sphere: it covers the whole view.
-    answer(r, r.kind == QueryKind::AnySamples ? 1u : std::uint32_t(view.size.x * view.size.y),
+    answer(q, r.kind == QueryKind::AnySamples ? 1u : std::uint32_t(view.size.x * view.size.y),
            frame_);
     return true;
   }
@@ -269,10 +283,10 @@ void QueryExecutor::poll_render_thread() {
     // Signaled: the counters in the mapping are final (the barrier before
     // the fence made the shader's atomics visible to the mapping).
     for (std::size_t i = 0; i < b.requests.size(); ++i) {
-      const QueryRequest& r = b.requests[i];
+      const Queued& q = b.requests[i];
       std::uint32_t c = 0;
       std::memcpy(&c, b.mapped + i * sizeof(std::uint32_t), sizeof c);
-      answer(r, r.kind == QueryKind::AnySamples ? (c > 0 ? 1u : 0u) : c, b.frame_issued);
+      answer(q, q.request.kind == QueryKind::AnySamples ? (c > 0 ? 1u : 0u) : c, b.frame_issued);
     }
     b.requests.clear();
     ring_head_ = (ring_head_ + 1) % ring_.size();
@@ -299,20 +313,21 @@ void QueryExecutor::issue_render_thread(const FrameView& view, std::size_t end) 
   quad_requests_.clear();
   const bool points = options_.point_proxies && is_frustum(view.projection);
   for (std::size_t i = queue_next_; i < end; ++i) {
-    const QueryRequest& r = queue_[i];
-    if (answer_on_host(r, view)) continue;
-    const glm::vec4 s = spheres_[r.node];
+    const Queued& q = queue_[i];
+    stats_.deferral_frames_total += frame_ - q.frame_requested;
+    if (answer_on_host(q, view)) continue;
+    const glm::vec4 s = spheres_[q.request.node];
     glm::vec4 pt;
     if (points && point_proxy(s, view, pt)) {
       if (pt.w < 0.0f) {
         ++stats_.offscreen;
-        answer(r, 0, frame_);
+        answer(q, 0, frame_);
         continue;
       }
-      b.requests.push_back(r);
+      b.requests.push_back(q);
       staging_.push_back(pt);
     } else {
-      quad_requests_.push_back(r);
+      quad_requests_.push_back(q);
       staging_quads_.push_back(s);
     }
   }
@@ -417,8 +432,25 @@ void QueryExecutor::run(const FrameView& view) {
   // Poll first: a query issued in this frame is never read in this frame.
   poll_render_thread();
   stats_.poll_ns_last = thread_cpu_ns() - cpu0;
-  const std::size_t end = std::min(queue_.size(), queue_next_ + options_.max_issue_per_frame);
-  if (queue_next_ < end && hierarchy_ != nullptr) issue_render_thread(view, end);
+  if (queue_next_ < queue_.size() && hierarchy_ != nullptr) {
+    // The minimum batch: issue when enough are queued, the oldest has waited
+    // long enough, or some were already due and did not fit (cap, ring).
+    const bool due = queue_next_ < due_end_ || queue_.size() - queue_next_ >= options_.min_batch ||
+                     frame_ - queue_[queue_next_].frame_requested >= options_.max_defer_frames;
+    if (due) {
+      due_end_ = queue_.size();
+      issue_render_thread(view,
+                          std::min(queue_.size(), queue_next_ + options_.max_issue_per_frame));
+    } else {
+      ++stats_.deferred_runs;
+    }
+  }
+  if (queue_next_ == queue_.size() && !queue_.empty()) {
+    // All issued: the queue's memory is reused by the next generation.
+    queue_.clear();
+    queue_next_ = 0;
+    due_end_ = 0;
+  }
   stats_.queued = queue_.size() - queue_next_;
   // The fence set when this frame began is part of the executor's cost.
   stats_.cpu_ns_last = thread_cpu_ns() - cpu0 + fence_ns_;

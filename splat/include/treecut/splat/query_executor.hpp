@@ -6,6 +6,21 @@
 //   returns the same list. Requests of an older generation not yet issued are
 //   dropped when a newer list arrives (counted): they were asked about a cut
 //   that is no longer drawn, and the strategy asks again with its next list.
+// - A minimum batch (CHC++'s query batching, Mattausch, Bittner and Wimmer
+//   2008: batches cut the state changes): every batch pays a fixed cost
+//   (~100-150 us of render-thread CPU on llvmpipe, docs/rendering.md)
+//   whatever it holds, so queued requests go out when at least min_batch
+//   are queued or when the oldest has waited max_defer_frames frames
+//   (defaults 256 and 1): a trickle of 100 requests per frame goes out every
+//   other frame as one batch of 200, a large batch at once. Requests held
+//   back only by this rule are kept when a newer generation arrives (they
+//   join its batch: a strategy posting a new list every frame still gets
+//   answers); those that were due and did not fit (cap, full ring) are
+//   dropped as below. The contract for a strategy: a strategy asking for
+//   few queries gets its answers up to max_defer_frames frames later than
+//   without batching. frame_issued stays the frame the proxy was drawn in;
+//   the latency stats count from the frame the request was queued in
+//   (frame_read - frame requested), the deferral included.
 // - A per-frame cap (max_issue_per_frame): the rest waits for later frames.
 // - One batch per frame: the frame's issued requests are ONE draw of their
 //   point proxies (and one instanced draw of the few quads, below), from a
@@ -74,6 +89,11 @@ struct QueryExecutorOptions {
   /// Batches in flight at most (the ring of counter buffers); a frame that
   /// finds every one still unsignaled issues nothing (its requests wait).
   std::size_t batches_in_flight = 4;
+  /// Issue when at least this many requests are queued (see above); 0 or 1:
+  /// every frame that has requests issues them (no batching).
+  std::size_t min_batch = 256;
+  /// ... or when the oldest queued request has waited this many frames.
+  std::uint64_t max_defer_frames = 1;
   /// Point proxies where they fit (see above); false: every proxy a quad
   /// (for the tests and the benchmark's comparison).
   bool point_proxies = true;
@@ -82,13 +102,14 @@ struct QueryExecutorOptions {
 /// Counters of the executor (cesium-native's tilesOccluded /
 /// tilesWaitingForOcclusionResults in spirit). Totals since construction.
 struct QueryStats {
-  std::uint64_t issued = 0;                ///< proxies drawn inside a query
-  std::uint64_t answered = 0;              ///< results read (and those answered without the GPU)
-  std::uint64_t occluded = 0;              ///< answers with 0 samples
-  std::uint64_t dropped = 0;               ///< requests of a replaced generation never issued
-  std::size_t pending = 0;                 ///< issued, answer not yet available
-  std::size_t queued = 0;                  ///< requested, not yet issued (waiting for the cap)
-  std::uint64_t latency_frames_total = 0;  ///< sum of frame_read - frame_issued
+  std::uint64_t issued = 0;    ///< proxies drawn inside a query
+  std::uint64_t answered = 0;  ///< results read (and those answered without the GPU)
+  std::uint64_t occluded = 0;  ///< answers with 0 samples
+  std::uint64_t dropped = 0;   ///< requests of a replaced generation never issued
+  std::size_t pending = 0;     ///< issued, answer not yet available
+  std::size_t queued = 0;      ///< requested, not yet issued (waiting for the cap)
+  std::uint64_t latency_frames_total =
+      0;  ///< sum of frame_read - frame requested (deferral included)
   std::uint64_t latency_frames_max = 0;
   std::uint64_t cpu_ns_total = 0;  ///< render-thread CPU time in run() (issue + poll)
   std::uint64_t cpu_ns_last = 0;   ///< of the last run()
@@ -103,6 +124,8 @@ struct QueryStats {
   std::uint64_t point_proxies = 0;  ///< proxies drawn as one point
   std::uint64_t quad_proxies = 0;   ///< proxies drawn as a square of two triangles
   std::uint64_t offscreen = 0;  ///< answered 0 on the host: the sphere's rectangle misses the view
+  std::uint64_t deferred_runs = 0;  ///< runs that held queued requests back (below min_batch)
+  std::uint64_t deferral_frames_total = 0;  ///< sum of frame issued - frame requested
   [[nodiscard]] double latency_frames_mean() const {
     return answered == 0 ? 0.0 : double(latency_frames_total) / double(answered);
   }
@@ -135,6 +158,12 @@ class QueryExecutor final : public QueryHook {
   void set_max_issue_per_frame(std::size_t n) { options_.max_issue_per_frame = n; }
 
  private:
+  // A queued request and the frame it was queued in (its latency counts
+  // from there).
+  struct Queued {
+    QueryRequest request;
+    std::uint64_t frame_requested = 0;
+  };
   // One slot of the ring of batches: a batch's instance spheres and counters
   // stay untouched until its fence was seen signaled.
   struct Batch {
@@ -146,13 +175,13 @@ class QueryExecutor final : public QueryHook {
     std::byte* mapped = nullptr;  // the whole buffer, mapped persistent and coherent
     std::size_t capacity = 0;
     GLsync fence = nullptr;
-    std::vector<QueryRequest> requests;  // instance i answers requests[i]
+    std::vector<Queued> requests;  // instance i answers requests[i]
     std::uint64_t frame_issued = 0;
   };
   void upload_spheres(const Hierarchy& h);
   // Answers without the GPU (no such node, or the eye inside its sphere);
   // false if the request needs a proxy.
-  bool answer_on_host(const QueryRequest& r, const FrameView& view);
+  bool answer_on_host(const Queued& q, const FrameView& view);
   // The point proxy of a sphere (ndc x, y, depth, side px); w < 0: it
   // misses the viewport; false: it needs the quad path.
   bool point_proxy(glm::vec4 sphere, const FrameView& view, glm::vec4& out) const;
@@ -161,22 +190,23 @@ class QueryExecutor final : public QueryHook {
   void issue_render_thread(const FrameView& view, std::size_t end);
   void begin_proxy_state();
   void end_proxy_state();
-  void answer(const QueryRequest& r, std::uint32_t samples, std::uint64_t issued);
+  void answer(const Queued& q, std::uint32_t samples, std::uint64_t issued);
 
   QueryExecutorOptions options_;
   QueryStats stats_;
   std::uint64_t frame_ = 0;
   std::uint64_t generation_ = 0;
   const Hierarchy* hierarchy_ = nullptr;
-  std::vector<glm::vec4> spheres_;   // the hierarchy's center_radius
-  std::vector<QueryRequest> queue_;  // of the current generation
-  std::size_t queue_next_ = 0;       // first not yet issued
+  std::vector<glm::vec4> spheres_;  // the hierarchy's center_radius
+  std::vector<Queued> queue_;       // the current generation's (and deferred older ones)
+  std::size_t queue_next_ = 0;      // first not yet issued
+  std::size_t due_end_ = 0;         // [queue_next_, due_end_): were due, did not fit
   // Batched: a ring of slots, [ring_head_, ring_head_ + ring_count_) in flight.
   std::vector<Batch> ring_;
   std::size_t ring_head_ = 0, ring_count_ = 0;
   std::vector<glm::vec4> staging_;        // the batch's points being filled
   std::vector<glm::vec4> staging_quads_;  // and its quads' spheres
-  std::vector<QueryRequest> quad_requests_;
+  std::vector<Queued> quad_requests_;
   std::uint64_t fence_ns_ = 0;  // CPU time of the last fence, charged to the next run()
   gl::VertexArray vao_;         // quads: per-instance spheres
   gl::VertexArray point_vao_;   // points: per-vertex
