@@ -2,23 +2,36 @@
 // (llvmpipe), 1280x720, fast splats, a generated terrain of 200,000 points
 // drawn as the cut of one hierarchy level (the same draws in every frame).
 //
-//  - Queries/n:N/points:P: frames alternate between "off" (the cut alone,
-//    with a hook that issues nothing) and "on" (the cut and N queries:
-//    every frame a new list generation of N requests
-//    about nodes of the drawn cut, so one batch of N proxies is issued and
-//    the batch of the last "on" frame read per frame).
-//    us_per_query_median / _max: the executor's render-thread CPU time
-//    (thread CPU clock) per frame, issue + poll + the batch's fence
-//    (QueryStats::cpu_ns_last), divided by N, over the "on" frames (target
-//    <= 2 us); wall_us_per_query_*: the same as wall time (a wait inside the
-//    executor would show here and not in the CPU time).
+//  - Queries/n:N/points:P/batch:B: frames alternate between "off" (the cut
+//    alone, with a hook that issues nothing) and "on" (the cut and N
+//    queries: every "on" frame a new list generation of N requests about
+//    nodes of the drawn cut). The executor counts only the "on" frames (its
+//    frame numbers 1, 2, 3, ...): the "off" frames are the control, run
+//    interleaved so that both see the same load, as if every frame had
+//    queries. B = 1: the executor's minimum batch (defaults: min_batch 256,
+//    max_defer_frames 1: a trickle of N < 256 goes out every other "on"
+//    frame as one batch of 2N); B = 0: min_batch 1 (a batch every frame,
+//    the executor before batching).
+//    us_per_query_median / _max: per WINDOW, the executor's render-thread
+//    CPU time (thread CPU clock: issue + poll + the batch's fence,
+//    QueryStats::cpu_ns_last) summed over the "on" frames of the window,
+//    divided by the requests posted in them; a window ends with the frame
+//    that emptied the queue (the batching period: 2 frames for N < 256, 1
+//    from 256 on, 1 for B = 0), so a frame that only polls charges its cost
+//    to the requests it deferred and a batch's cost is never hidden
+//    (target <= 2 us). frame_us_per_query_max: the largest single "on"
+//    frame's executor CPU / N (not charged over the window).
+//    wall_us_per_query_*: the same per window as wall time (a wait inside
+//    the executor would show here and not in the CPU time).
 //    frame_ms_{on,off} median and max: wall time of a frame (draw with the
 //    queries inside, glFinish); max_ratio = max on / max off, median_ratio
 //    the same for medians (target <= 1.2: a frame never waits for a query);
 //    frame_cpu_ms_*: the render thread's CPU time of a frame. latency: mean
-//    frames from issue to read (2: only "on" frames poll).
-//    P = 1: point proxies where they fit (the default), 0: every proxy a
-//    quad (QueryExecutorOptions::point_proxies); point_share: of the proxies.
+//    and max executor frames from the REQUEST to the read (the deferral
+//    included; 1 without it).
+//    P = 1 (the registered runs): point proxies where they fit (the
+//    default), 0: every proxy a quad (QueryExecutorOptions::point_proxies);
+//    point_share: of the proxies.
 //    tail_us_{on,off}_median: render-thread CPU from the hook's return to
 //    the end of the frame (glFinish): where a frame without queries would pay
 //    work of the cut that the executor's first draw made happen earlier;
@@ -89,8 +102,10 @@ void Queries(benchmark::State& state) {
   const splat::Camera cam = splat::default_camera(h->bounds_min(), h->bounds_max(),
                                                   float(kWidth) / float(kHeight), {0, 0, 1});
   splat::QueryExecutorOptions eo;
-  eo.max_issue_per_frame = std::max<std::size_t>(n, 1);
+  // Never the limit here (a batch holds up to 2N): the cap is not measured.
+  eo.max_issue_per_frame = std::max<std::size_t>(2 * n, 4096);
   eo.point_proxies = state.range(1) != 0;
+  if (state.range(2) == 0) eo.min_batch = 1;
   splat::QueryExecutor executor(eo);
   // N requests about nodes spread over the cut.
   std::vector<QueryRequest> requests;
@@ -102,8 +117,10 @@ void Queries(benchmark::State& state) {
   list.hierarchy = h.get();
   list.queries = requests;
   std::uint64_t frame = 0;
+  std::uint64_t executor_frame = 0;  // counts the "on" frames only
   std::vector<double> on_ms, off_ms, on_cpu_ms, off_cpu_ms, per_query_us, per_query_wall_us,
-      poll_us, tail_on_us, tail_off_us, on_hook_tail_us;
+      poll_us, tail_on_us, tail_off_us, on_hook_tail_us, frame_per_query_us;
+  double window_cpu_ns = 0.0, window_wall_ns = 0.0, window_requests = 0.0;
   const splat::RenderSettings settings;
   double frame_cpu_ms = 0.0;
   // Installed in every frame (the "off" frames: a hook that issues nothing,
@@ -126,8 +143,8 @@ void Queries(benchmark::State& state) {
     ++frame;
     timed.inner = nullptr;
     if (queries) {
-      list.generation = frame;  // a new list every frame: N issued per frame
-      executor.begin_frame_render_thread(list, frame);
+      list.generation = frame;  // a new list every "on" frame: N requested per frame
+      executor.begin_frame_render_thread(list, ++executor_frame);
       timed.inner = &executor;
     }
     renderer.draw(cut, cam, settings, true);
@@ -145,6 +162,12 @@ void Queries(benchmark::State& state) {
     run_frame(true);
     run_frame(false);
   }
+  // Measured windows start at a window's start: run "on" frames until the
+  // queue is empty (a batch just went out).
+  for (int i = 0; i < 8 && executor.stats().queued != 0; ++i) {
+    run_frame(true);
+    run_frame(false);
+  }
   const std::uint64_t answered0 = executor.stats().answered;
   const std::uint64_t latency0 = executor.stats().latency_frames_total;
   for (auto _ : state) {
@@ -153,9 +176,17 @@ void Queries(benchmark::State& state) {
     tail_on_us.push_back(frame_tail_us);
     on_hook_tail_us.push_back(double(executor.stats().cpu_ns_last) * 1e-3 + frame_tail_us);
     if (n > 0) {
-      per_query_us.push_back(double(executor.stats().cpu_ns_last) * 1e-3 / double(n));
-      per_query_wall_us.push_back(double(executor.stats().wall_ns_last) * 1e-3 / double(n));
-      poll_us.push_back(double(executor.stats().poll_ns_last) * 1e-3 / double(n));
+      const splat::QueryStats& q = executor.stats();
+      window_cpu_ns += double(q.cpu_ns_last);
+      window_wall_ns += double(q.wall_ns_last);
+      window_requests += double(n);
+      frame_per_query_us.push_back(double(q.cpu_ns_last) * 1e-3 / double(n));
+      poll_us.push_back(double(q.poll_ns_last) * 1e-3 / double(n));
+      if (q.queued == 0) {  // the queue emptied: the window (batching period) ends
+        per_query_us.push_back(window_cpu_ns * 1e-3 / window_requests);
+        per_query_wall_us.push_back(window_wall_ns * 1e-3 / window_requests);
+        window_cpu_ns = window_wall_ns = window_requests = 0.0;
+      }
     }
     on_ms.push_back(on);
     off_ms.push_back(run_frame(false));
@@ -177,6 +208,10 @@ void Queries(benchmark::State& state) {
   if (n > 0) {
     state.counters["us_per_query_median"] = median(per_query_us);
     state.counters["us_per_query_max"] = max_of(per_query_us);
+    state.counters["windows"] = double(per_query_us.size());
+    state.counters["frame_us_per_query_max"] = max_of(frame_per_query_us);
+    state.counters["batches_per_frame"] =
+        double(executor.stats().batches) / double(std::max<std::uint64_t>(executor_frame, 1));
     state.counters["wall_us_per_query_median"] = median(per_query_wall_us);
     state.counters["wall_us_per_query_max"] = max_of(per_query_wall_us);
     state.counters["poll_us_per_query_median"] = median(poll_us);
@@ -197,8 +232,8 @@ void Queries(benchmark::State& state) {
   }
 }
 BENCHMARK(Queries)
-    ->ArgNames({"n", "points"})
-    ->ArgsProduct({{1, 10, 100, 10'000}, {1, 0}})
+    ->ArgNames({"n", "points", "batch"})
+    ->ArgsProduct({{1, 10, 100, 10'000}, {1}, {1, 0}})
     ->Unit(benchmark::kMillisecond)
     ->Iterations(60);
 
