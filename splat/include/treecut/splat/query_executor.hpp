@@ -3,9 +3,10 @@
 //
 // - Once per list generation: the requests of a generation are queued when
 //   that generation becomes the drawn list, never again on a later poll that
-//   returns the same list. Requests of an older generation not yet issued are
-//   dropped when a newer list arrives (counted): they were asked about a cut
-//   that is no longer drawn, and the strategy asks again with its next list.
+//   returns the same list. Requests of an older generation that were due
+//   and not yet issued (the cap, a full ring) are dropped when a newer list
+//   arrives (counted): they were asked about a cut that is no longer drawn,
+//   and the strategy asks again with its next list.
 // - A minimum batch (CHC++'s query batching, Mattausch, Bittner and Wimmer
 //   2008: batches cut the state changes): every batch pays a fixed cost
 //   (~100-150 us of render-thread CPU on llvmpipe, docs/rendering.md)
@@ -15,7 +16,8 @@
 //   other frame as one batch of 200, a large batch at once. Requests held
 //   back only by this rule are kept when a newer generation arrives (they
 //   join its batch: a strategy posting a new list every frame still gets
-//   answers); those that were due and did not fit (cap, full ring) are
+//   answers; a request the newer list repeats is then issued and answered
+//   twice); those that were due and did not fit (cap, full ring) are
 //   dropped as below. The contract for a strategy: a strategy asking for
 //   few queries gets its answers up to max_defer_frames frames later than
 //   without batching. frame_issued stays the frame the proxy was drawn in;
