@@ -32,8 +32,10 @@
 // - GPU queries: a strategy appends QueryRequests to `*output.queries`
 //   (QueryKind::AnySamples when "visible or not" is enough); the render
 //   thread executes them once, in the frames after it exchanges that list
-//   (a per-frame cap may spread them over several frames; requests of a list
-//   replaced before they were issued are dropped), and reports the answers in
+//   (a per-frame cap may spread them over several frames; a few requests
+//   wait up to max_defer_frames for a batch of min_batch; requests of a list
+//   replaced after they were due but before they were issued are dropped),
+//   and reports the answers in
 //   `input.view.visibility` of a later iteration. Each VisibilityResult
 //   carries frame_issued and frame_read on the one frame counter that
 //   `input.view.frame` also counts (FeedbackStage::frame()). A strategy that
