@@ -5,12 +5,14 @@
 // an older one (only the newest result is ever handed over); a loader
 // destroyed mid-load stops it and leaves no partial cache. GL-free.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <system_error>
 #include <thread>
 
 #include "test_support.hpp"
@@ -26,13 +28,17 @@ namespace fs = std::filesystem;
 class ViewerLoader : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    dir_ = new fs::path(test::scratch_dir("viewer_loader"));
+    // One folder per process: ctest runs each test of this file as its own
+    // process, in parallel, and each would otherwise empty the others' folder.
+    dir_ = new fs::path(test::scratch_dir("viewer_loader/" + std::to_string(::getpid())));
     // Caches go to the scratch folder, not the user's.
     setenv("XDG_CACHE_HOME", (*dir_ / "cache").c_str(), 1);
     save_ply(*dir_ / "small.ply", generate_model(ModelKind::Sphere, 2000, 1));
     save_ply(*dir_ / "large.ply", generate_model(ModelKind::Terrain, 400000, 2));
   }
   static void TearDownTestSuite() {
+    std::error_code ec;
+    fs::remove_all(*dir_, ec);
     delete dir_;
     dir_ = nullptr;
   }

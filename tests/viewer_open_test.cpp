@@ -105,7 +105,10 @@ class ViewerOpen : public ::testing::Test {
  protected:
   void SetUp() override {
     if (!have_xvfb()) GTEST_SKIP() << "xvfb-run not found (apt install xvfb)";
-    dir_ = treecut::test::scratch_dir("viewer_open");
+    // One folder per test: ctest runs the tests of this file as parallel processes.
+    dir_ =
+        treecut::test::scratch_dir(std::string("viewer_open/") +
+                                   ::testing::UnitTest::GetInstance()->current_test_info()->name());
     for (const auto& [kind, file] : {std::pair{"sphere", "a.ply"}, std::pair{"terrain", "b.ply"}}) {
       const auto r = treecut::test::run_treecut(std::string("gen ") + kind + " -n 20000 -o " +
                                                 quote(dir_ / file));
