@@ -151,34 +151,18 @@ void TreeCut::erase(NodeId n) {
 
 bool TreeCut::refine(const Hierarchy& h, NodeId node) {
   if (!contains(node) || h.is_leaf(node)) return false;
-  const NodeId c0 = h.first_child(node);
-  const unsigned cc = h.child_count(node);
-  // The first child takes the parent's slot; the others are appended.
-  const std::uint32_t s = slot_[node];
-  slot_[node] = kNotInCut;
-  nodes_[s] = c0;
-  slot_[c0] = s;
-  moved(s);
-  for (NodeId c = c0 + 1; c < c0 + cc; ++c) insert(c);
-  ++refinements_;
+  refine_known(node, h.first_child(node), h.child_count(node));
   return true;
 }
 
 bool TreeCut::coarsen(const Hierarchy& h, NodeId parent) {
   if (!can_coarsen(h, parent)) return false;
-  const NodeId c0 = h.first_child(parent);
-  const std::uint32_t s = slot_[c0];
-  slot_[c0] = kNotInCut;
-  nodes_[s] = parent;
-  slot_[parent] = s;
-  moved(s);
-  for (NodeId c = c0 + 1; c < c0 + h.child_count(parent); ++c) erase(c);
-  ++coarsenings_;
+  coarsen_known(parent, h.first_child(parent), h.child_count(parent));
   return true;
 }
 
 void TreeCut::refine_known(NodeId node, NodeId first, unsigned count) {
-  // As refine(): the first child takes the parent's slot.
+  // The first child takes the parent's slot; the others are appended.
   const std::uint32_t s = slot_[node];
   slot_[node] = kNotInCut;
   nodes_[s] = first;
@@ -189,7 +173,7 @@ void TreeCut::refine_known(NodeId node, NodeId first, unsigned count) {
 }
 
 void TreeCut::coarsen_known(NodeId parent, NodeId first, unsigned count) {
-  // As coarsen(): the parent takes the first child's slot.
+  // The parent takes the first child's slot; the other children are erased.
   const std::uint32_t s = slot_[first];
   slot_[first] = kNotInCut;
   nodes_[s] = parent;
