@@ -140,4 +140,16 @@ std::vector<WalkKey> scene_walkthrough(ModelKind kind);
 /// Eye height of the walkthrough at street level, in model units.
 float walk_eye_height(ModelKind kind);
 
+/// The walkthrough of a scene of objects on the ground plane (z up) within
+/// [lo, hi] in x and y and below z = top (the generated scenes of scene.hpp):
+/// an overview arc about the scene, a move to above the start of ROUTE, a
+/// vertical descent to EYE height, the walk along the ROUTE polyline (at
+/// least two points, in lanes that stay free) at SPEED units per second
+/// looking AHEAD units along it, the ascent and the overview again. Keys
+/// every 0.1 s. InputError for a route of fewer than two points or an empty
+/// extent.
+std::vector<WalkKey> route_walkthrough(glm::vec2 lo, glm::vec2 hi, float top,
+                                       const std::vector<glm::vec2>& route, float eye, float speed,
+                                       float ahead);
+
 }  // namespace treecut

@@ -151,4 +151,78 @@ std::vector<WalkKey> scene_walkthrough(ModelKind kind) {
   return keys;
 }
 
+
+std::vector<WalkKey> route_walkthrough(glm::vec2 lo, glm::vec2 hi, float top,
+                                       const std::vector<glm::vec2>& route, float eye, float speed,
+                                       float ahead) {
+  if (route.size() < 2) throw InputError("route_walkthrough: a route needs at least two points");
+  if (!(hi.x > lo.x && hi.y > lo.y) || !(speed > 0.0f) || !(eye > 0.0f))
+    throw InputError("route_walkthrough: empty extent, or no speed or eye height");
+  // The same five segments as scene_walkthrough, sized by the scene's extent
+  // instead of the unit square: a scene of any number of objects gets a path.
+  Polyline line;
+  for (const glm::vec2 p : route) line.p.emplace_back(p.x, p.y, eye);
+  line.s = {0.0f};
+  for (std::size_t i = 1; i < line.p.size(); ++i)
+    line.s.push_back(line.s.back() + glm::length(line.p[i] - line.p[i - 1]));
+  const float walk_length = line.s.back();
+  if (!(walk_length > 0.0f)) throw InputError("route_walkthrough: the route has no length");
+  // Past the end the target keeps going the way of the last leg.
+  const glm::vec3 last = glm::normalize(line.p.back() - line.p[line.p.size() - 2]);
+  line.p.push_back(line.p.back() + (ahead + 1.0f) * last);
+  line.s.push_back(walk_length + ahead + 1.0f);
+
+  const glm::vec2 mid = 0.5f * (lo + hi);
+  const float half = 0.5f * glm::length(hi - lo);
+  const glm::vec3 centre(mid.x, mid.y, 0.25f * top);
+  const float radius = 1.6f * half, height = top + 1.0f * half, high = top + 0.35f * half;
+  auto arc = [&](float deg) {
+    const float a = deg * std::numbers::pi_v<float> / 180.0f;
+    return glm::vec3(mid.x + radius * std::cos(a), mid.y + radius * std::sin(a), height);
+  };
+  std::vector<WalkKey> keys;
+  double t0 = 0.0;
+  auto segment = [&](double seconds, auto&& f) {
+    const int steps = std::max(1, static_cast<int>(std::lround(seconds * 10.0)));
+    for (int k = keys.empty() ? 0 : 1; k <= steps; ++k) {
+      WalkKey key;
+      key.time = t0 + seconds * k / steps;
+      f(static_cast<float>(k) / static_cast<float>(steps), key);
+      keys.push_back(key);
+    }
+    t0 += seconds;
+  };
+  const glm::vec3 start = line.at(0.0f), start_look = line.at(ahead);
+  const glm::vec3 end = line.at(walk_length), end_look = line.at(walk_length + ahead);
+  const glm::vec3 above_start(start.x, start.y, high), above_end(end.x, end.y, high);
+  segment(4.0, [&](float t, WalkKey& k) {
+    k.eye = arc(-60.0f - 80.0f * t);
+    k.target = centre;
+  });
+  segment(4.0, [&](float t, WalkKey& k) {
+    const float e = smooth(t);
+    k.eye = glm::mix(arc(-140.0f), above_start, e);
+    k.target = glm::mix(centre, start_look, e);
+  });
+  segment(3.0, [&](float t, WalkKey& k) {
+    k.eye = glm::mix(above_start, start, smooth(t));
+    k.target = start_look;
+  });
+  segment(walk_length / speed, [&](float t, WalkKey& k) {
+    const float d = t * walk_length;
+    k.eye = line.at(d);
+    k.target = line.at(d + ahead);
+  });
+  segment(3.0, [&](float t, WalkKey& k) {
+    k.eye = glm::mix(end, above_end, smooth(t));
+    k.target = end_look;
+  });
+  segment(4.0, [&](float t, WalkKey& k) {
+    const float e = smooth(t);
+    k.eye = glm::mix(above_end, arc(140.0f), e);
+    k.target = glm::mix(end_look, centre, e);
+  });
+  return keys;
+}
+
 }  // namespace treecut

@@ -1,0 +1,257 @@
+// Scenes of many objects (issue 13; Peng & Cao, "occlusion culling with
+// parallel LOD", section 3: "a complex 3D environment model consists of many
+// disconnected objects"): a scene file lists models and objects, each object
+// an instance of a model with a world transform. Instances of one model share
+// one Hierarchy, built (or mapped from its cache) once. Format and rules:
+// docs/scene-files.md.
+//
+// What the later stages take from here: the union cut of a scene is one
+// TreeCut per distinct model's hierarchy per object (SceneObject::model says
+// which), the renderer's pooled vertex buffer holds each distinct hierarchy
+// once (SceneModel is the unit of upload) and draws an object's cut with its
+// `world` matrix; culling and the budget (Eq. 1) read the world AABB, the
+// bounding sphere and the model's point count of every object.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <glm/mat4x4.hpp>
+#include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
+#include <glm/vec4.hpp>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "treecut/generate.hpp"
+#include "treecut/hierarchy.hpp"
+#include "treecut/model_io.hpp"
+
+namespace treecut {
+
+/// The header line of a scene file (version 1).
+inline constexpr std::string_view kSceneHeader = "treecut-scene 1";
+/// At most this many objects in a scene, includes counted (a line per object
+/// is 180 bytes loaded, SceneObject; a million objects are 180 MB).
+inline constexpr std::size_t kMaxSceneObjects = std::size_t{1} << 20;
+/// Includes nest at most this deep (a cycle is reported as a cycle before).
+inline constexpr int kMaxSceneIncludeDepth = 16;
+/// A generated model has at most this many points (as `treecut gen -n`).
+inline constexpr std::uint64_t kMaxGeneratedPoints = std::uint64_t{1} << 31;
+
+/// Where a model comes from: a file (PLY or .tch, through the cache) or a
+/// generator with a seed and a point count.
+struct SceneModelSource {
+  enum class Type { File, Generated } type = Type::File;
+  std::filesystem::path file;  ///< File: the path (relative ones resolved against the scene file)
+  std::string kind;            ///< Generated: scene_generated_kinds()
+  std::uint64_t seed = 0;
+  std::uint64_t points = 0;
+  /// "FILE" or "KIND seed S points N", for messages and summaries.
+  [[nodiscard]] std::string describe() const;
+};
+
+/// One distinct hierarchy of a scene: what every instance of it shares.
+struct SceneModel {
+  std::string name;  ///< the name of its first declaration
+  SceneModelSource source;
+  std::string declared_at;  ///< "FILE:LINE" of that declaration
+  /// Shared and immutable (Model::hierarchy takes it as is).
+  std::shared_ptr<const Hierarchy> hierarchy;
+  /// Model-space box around every splat: the points' bounds grown by the
+  /// largest leaf splat radius.
+  glm::vec3 box_min{0.0f}, box_max{0.0f};
+  std::uint32_t instances = 0;  ///< objects that use it
+  bool from_cache = false;      ///< a file model mapped from its cache
+};
+
+/// One object: an instance of a model placed in the world. Plain data,
+/// 180 bytes (the memory of one more instance of a model already loaded).
+struct SceneObject {
+  glm::mat4 world{1.0f};          ///< model -> world (an affine, invertible transform)
+  glm::mat4 world_inverse{1.0f};  ///< world -> model
+  /// World-space AABB of the model's splat box (its 8 corners transformed):
+  /// every splat of the object lies inside.
+  glm::vec3 aabb_min{0.0f}, aabb_max{0.0f};
+  /// World-space bounding sphere (centre, radius) of every splat: the smaller
+  /// of the transformed root sphere and the AABB's circumsphere.
+  glm::vec4 sphere{0.0f};
+  std::uint32_t model = 0;  ///< index into Scene::models
+  std::uint32_t file = 0;   ///< index into Scene::files (where the object line is)
+  std::uint32_t line = 0;   ///< its line number there
+};
+
+struct Scene {
+  std::vector<std::filesystem::path> files;      ///< the scene file, then each included file
+  std::vector<SceneModel> models;                ///< distinct hierarchies, in order of first use
+  std::vector<SceneObject> objects;              ///< in file order (includes where they stand)
+  glm::vec3 bounds_min{0.0f}, bounds_max{0.0f};  ///< union of the objects' AABBs
+  double load_seconds = 0.0;                     ///< wall time of load_scene's model loads
+
+  /// Points drawn at full detail: the sum over objects of their model's points.
+  [[nodiscard]] std::uint64_t instanced_points() const;
+  /// Points held: the sum over distinct models.
+  [[nodiscard]] std::uint64_t distinct_points() const;
+  /// "FILE:LINE" of an object's line.
+  [[nodiscard]] std::string where(const SceneObject& object) const;
+};
+
+/// The memory of a loaded scene (what `treecut info` and the benchmarks print).
+struct SceneMemory {
+  std::size_t hierarchy_bytes = 0;  ///< node arrays of the distinct hierarchies, each once
+  std::size_t object_bytes = 0;     ///< the object records
+  std::size_t unshared_bytes = 0;   ///< hierarchy bytes if every object had its own copy
+  std::size_t objects = 0;
+  /// One more instance of a loaded model: its object record.
+  static constexpr std::size_t per_instance_bytes = sizeof(SceneObject);
+  /// Everything divided by the objects: hierarchies and records.
+  [[nodiscard]] double per_object_bytes() const;
+};
+SceneMemory scene_memory(const Scene& scene);
+
+// ---------------------------------------------------------------------------
+// Parsing (no model is read; the files a model line names must exist).
+
+/// A model declaration as parsed.
+struct SceneModelDecl {
+  std::string name;
+  SceneModelSource source;
+  std::uint32_t file = 0, line = 0;
+};
+/// An object line as parsed: its model declaration and its transform.
+struct SceneObjectDecl {
+  std::uint32_t decl = 0;  ///< index into SceneDescription::models
+  glm::mat4 world{1.0f};
+  glm::mat4 world_inverse{1.0f};
+  std::uint32_t file = 0, line = 0;
+};
+struct SceneDescription {
+  std::vector<std::filesystem::path> files;
+  std::vector<SceneModelDecl> models;  ///< every declaration, includes' too
+  std::vector<SceneObjectDecl> objects;
+};
+
+struct SceneParseOptions {
+  std::size_t max_objects = kMaxSceneObjects;
+};
+
+/// Parses FILE and what it includes. Throws InputError "FILE:LINE: REASON"
+/// for any malformed line (docs/scene-files.md lists them), "FILE: REASON"
+/// for a file that cannot be read or a scene without objects.
+SceneDescription parse_scene_file(const std::filesystem::path& file,
+                                  const SceneParseOptions& options = {});
+
+/// Parses TEXT as the scene file NAME (relative paths resolve against NAME's
+/// folder). For tests and fuzzing; includes are read from disk.
+SceneDescription parse_scene_text(std::string_view text, const std::filesystem::path& name,
+                                  const SceneParseOptions& options = {});
+
+// ---------------------------------------------------------------------------
+// Loading.
+
+struct SceneLoadOptions {
+  SceneParseOptions parse;
+  /// How file models are opened (cache, attributes, build options). Its
+  /// `warn` may be called from several threads at once (load_scene
+  /// serializes the calls); its `progress` is not used.
+  OpenOptions open;
+  /// Threads that load distinct models at once; 0 = hardware threads.
+  unsigned threads = 0;
+};
+
+/// Parses FILE and loads every distinct model once, several at a time:
+/// objects naming the same file (the same device and inode, whatever the
+/// path or declaration) or the same generated kind, seed and point count
+/// share one Hierarchy. A model that fails to load is an error naming the
+/// line that declared it ("FILE:LINE: model NAME: REASON"), an InputError when
+/// the model is malformed, std::runtime_error otherwise.
+Scene load_scene(const std::filesystem::path& file, const SceneLoadOptions& options = {});
+
+/// Whether PATH looks like a scene file: its name ends in ".scene" or it
+/// starts with "treecut-scene". Never blocks (a FIFO is not one).
+bool looks_like_scene(const std::filesystem::path& path);
+
+// ---------------------------------------------------------------------------
+// Generated models a scene may name ("generate NAME KIND SEED POINTS").
+
+/// "sphere", "terrain", "city", "plant" (generate.hpp) and the scene parts
+/// "building" and "ground".
+std::vector<std::string> scene_generated_kinds();
+/// Exactly POINTS points of KIND (one of scene_generated_kinds()); throws
+/// InputError for another kind. Deterministic for a seed, parallel.
+PointSet generate_scene_model(std::string_view kind, std::size_t points, std::uint64_t seed);
+
+/// "building": a box building on the unit footprint [-0.5, 0.5]^2 from z = 0
+/// to 1, walls and roof (no floor), the seed choosing a palette and whether it
+/// has a set-back upper tier. Instances scale it per axis to their lot.
+PointSet generate_building(std::size_t points, std::uint64_t seed);
+/// "ground": the unit square [-0.5, 0.5]^2 at z = 0, normal +z (pavement).
+PointSet generate_ground(std::size_t points, std::uint64_t seed);
+
+// ---------------------------------------------------------------------------
+// Generated scenes (`treecut gen city-block | hall`), in metres, z up.
+
+/// A city of blocks of lots_x x lots_y lots between streets; each lot holds
+/// one building, an instance of one of `models` building models, scaled per
+/// axis to its footprint and height and turned by a multiple of 90 degrees;
+/// each block stands on a ground tile (an instance of one ground model) that
+/// reaches to the middle of the streets around it. Exactly `objects`
+/// buildings (the last block may be partly filled), plus one tile per block.
+struct CityBlockLayout {
+  struct Building {
+    std::uint32_t model = 0;  ///< 0 .. models - 1
+    glm::vec2 centre{0.0f};
+    glm::vec3 size{0.0f};  ///< model-space scale: footprint x, y (before the turn), height
+    int quarter_turns = 0;
+  };
+  int lots_x = 8, lots_y = 4;
+  float lot_w = 15.0f, lot_d = 20.0f;  ///< lot size along x and y
+  float street = 16.0f;                ///< street width
+  int blocks_x = 0, blocks_y = 0;      ///< the grid of blocks (blocks_x * blocks_y >= used)
+  int blocks = 0;                      ///< blocks with at least one building
+  std::uint32_t models = 4;
+  glm::vec2 origin{0.0f};  ///< corner of block (0, 0) (the grid is centred on 0)
+  std::vector<Building> buildings;
+  [[nodiscard]] float pitch_x() const { return lots_x * lot_w + street; }
+  [[nodiscard]] float pitch_y() const { return lots_y * lot_d + street; }
+};
+CityBlockLayout city_block_layout(std::size_t objects, std::uint64_t seed);
+
+/// The scene file of a city block: `generate` lines for the building and
+/// ground models (POINTS each) and an object line per building and tile.
+std::string format_city_block_scene(const CityBlockLayout& layout, std::uint64_t seed,
+                                    std::size_t points);
+/// Its walkthrough: the overview, down into the street west of the centre,
+/// a walk three blocks east, two north and back west at 1.7 m, and up.
+std::vector<WalkKey> city_block_walkthrough(const CityBlockLayout& layout);
+
+/// A hall of rows x cols plinth places on a floor; in each an instance of one
+/// of the sources, stood upright (its detected up axis turned to +z), scaled
+/// to a height of 1.4 .. 2.2 m and turned at random about z.
+struct HallSource {
+  std::filesystem::path path;  ///< as written in the scene (relative to it, or absolute)
+  glm::vec3 up{0.0f, 0.0f, 1.0f};
+  glm::vec3 box_min{0.0f}, box_max{0.0f};  ///< model-space bounds
+};
+struct HallLayout {
+  struct Copy {
+    std::uint32_t source = 0;
+    glm::vec2 centre{0.0f};
+    float height = 0.0f;  ///< metres
+    float turn_deg = 0.0f;
+  };
+  int rows = 0, cols = 0;
+  float spacing = 4.0f;  ///< between neighbouring places
+  glm::vec2 lo{0.0f}, hi{0.0f};
+  std::vector<Copy> copies;
+};
+HallLayout hall_layout(std::size_t objects, std::size_t sources, std::uint64_t seed);
+std::string format_hall_scene(const HallLayout& layout, const std::vector<HallSource>& sources,
+                              std::uint64_t seed, std::size_t floor_points);
+/// Its walkthrough: the overview, down into the aisle at the hall's south
+/// side, a walk east along it, north and back west at 1.6 m, and up.
+std::vector<WalkKey> hall_walkthrough(const HallLayout& layout);
+
+}  // namespace treecut

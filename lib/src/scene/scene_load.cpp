@@ -1,0 +1,267 @@
+// Loading a scene (scene.hpp): the distinct models once each, several at a
+// time, then the objects' world bounds. Instances share one Hierarchy: the
+// same file (device and inode, so hard links, symbolic links and two spellings
+// of one path count as one) or the same generated kind, seed and point count.
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <exception>
+#include <glm/mat3x3.hpp>
+#include <map>
+#include <mutex>
+#include <thread>
+#include <tuple>
+
+#include "treecut/error.hpp"
+#include "treecut/file_io.hpp"
+#include "treecut/parallel.hpp"
+#include "treecut/scene.hpp"
+
+namespace treecut {
+
+namespace {
+
+// The largest factor by which A stretches a vector (its spectral norm): the
+// square root of the largest eigenvalue of A^T A, in closed form for a
+// symmetric 3x3 (the trigonometric solution). A bounding sphere's radius
+// scales by it under any invertible linear map, sheared or not.
+double max_stretch(const glm::dmat3& a) {
+  const glm::dmat3 b = glm::transpose(a) * a;
+  const double p1 = b[0][1] * b[0][1] + b[0][2] * b[0][2] + b[1][2] * b[1][2];
+  double top = 0.0;
+  if (p1 == 0.0) {
+    top = std::max({b[0][0], b[1][1], b[2][2]});
+  } else {
+    const double q = (b[0][0] + b[1][1] + b[2][2]) / 3.0;
+    const double p2 = (b[0][0] - q) * (b[0][0] - q) + (b[1][1] - q) * (b[1][1] - q) +
+                      (b[2][2] - q) * (b[2][2] - q) + 2.0 * p1;
+    const double p = std::sqrt(p2 / 6.0);
+    const glm::dmat3 c = (1.0 / p) * (b - q * glm::dmat3(1.0));
+    const double r = std::clamp(glm::determinant(c) / 2.0, -1.0, 1.0);
+    top = q + 2.0 * p * std::cos(std::acos(r) / 3.0);
+  }
+  // A hair more than exact: the radius must bound, rounding included.
+  return std::sqrt(std::max(top, 0.0)) * (1.0 + 1e-9);
+}
+
+float down(double v) {
+  const auto f = static_cast<float>(v);
+  return double(f) > v ? std::nextafter(f, -INFINITY) : f;
+}
+float up(double v) {
+  const auto f = static_cast<float>(v);
+  return double(f) < v ? std::nextafter(f, INFINITY) : f;
+}
+
+// Model-space box around every splat: the points' bounds grown by the
+// largest leaf radius (a splat is a disc of that radius about its point).
+void splat_box(const Hierarchy& h, glm::vec3& lo, glm::vec3& hi) {
+  float r = 0.0f;
+  const auto& a = h.arrays();
+  for (std::uint32_t n = 0; n < h.node_count(); ++n)
+    if (a.child_count[n] == 0) r = std::max(r, a.center_radius[n].w);
+  lo = h.bounds_min() - glm::vec3(r);
+  hi = h.bounds_max() + glm::vec3(r);
+}
+
+// A copy of EXAMPLE (InputError or not) with MESSAGE.
+[[noreturn]] void rethrow_with(std::exception_ptr example, const std::string& prefix) {
+  try {
+    std::rethrow_exception(example);
+  } catch (const InputError& e) {
+    throw InputError(prefix + e.what());
+  } catch (const std::exception& e) {
+    throw std::runtime_error(prefix + e.what());
+  }
+}
+
+}  // namespace
+
+std::uint64_t Scene::instanced_points() const {
+  std::uint64_t n = 0;
+  for (const auto& o : objects) n += models[o.model].hierarchy->leaf_count();
+  return n;
+}
+
+std::uint64_t Scene::distinct_points() const {
+  std::uint64_t n = 0;
+  for (const auto& m : models) n += m.hierarchy->leaf_count();
+  return n;
+}
+
+std::string Scene::where(const SceneObject& object) const {
+  return files[object.file].string() + ":" + std::to_string(object.line);
+}
+
+double SceneMemory::per_object_bytes() const {
+  return objects ? static_cast<double>(hierarchy_bytes + object_bytes) / double(objects) : 0.0;
+}
+
+SceneMemory scene_memory(const Scene& scene) {
+  SceneMemory m;
+  m.objects = scene.objects.size();
+  for (const auto& model : scene.models) m.hierarchy_bytes += model.hierarchy->memory_bytes();
+  m.object_bytes =
+      scene.objects.size() * sizeof(SceneObject) + scene.models.size() * sizeof(SceneModel);
+  for (const auto& o : scene.objects)
+    m.unshared_bytes += scene.models[o.model].hierarchy->memory_bytes();
+  return m;
+}
+
+Scene load_scene(const std::filesystem::path& file, const SceneLoadOptions& options) {
+  SceneDescription d = parse_scene_file(file, options.parse);
+  Scene scene;
+  scene.files = std::move(d.files);
+
+  // 1. Distinct models, in order of first use; declarations no object uses
+  //    are not loaded.
+  std::map<std::pair<dev_t, ino_t>, std::uint32_t> by_file;
+  std::map<std::tuple<std::string, std::uint64_t, std::uint64_t>, std::uint32_t> by_kind;
+  std::vector<std::uint32_t> model_of_decl(d.models.size(), UINT32_MAX);
+  std::vector<std::uint32_t> decl_of_model;
+  for (const auto& o : d.objects) {
+    std::uint32_t& m = model_of_decl[o.decl];
+    if (m != UINT32_MAX) continue;
+    const SceneModelDecl& decl = d.models[o.decl];
+    const auto next = static_cast<std::uint32_t>(decl_of_model.size());
+    if (decl.source.type == SceneModelSource::Type::File) {
+      struct stat st {};
+      if (::stat(decl.source.file.c_str(), &st) != 0)
+        throw InputError(scene.files[decl.file].string() + ":" + std::to_string(decl.line) +
+                         ": model '" + decl.name +
+                         "': " + system_error_text(decl.source.file, errno));
+      m = by_file.try_emplace({st.st_dev, st.st_ino}, next).first->second;
+    } else {
+      m = by_kind.try_emplace({decl.source.kind, decl.source.seed, decl.source.points}, next)
+              .first->second;
+    }
+    if (m == next) decl_of_model.push_back(o.decl);
+  }
+
+  // 2. Load them, several at a time (each load is itself parallel inside:
+  //    a few large models keep the cores busy either way, many small ones
+  //    would not).
+  const std::size_t count = decl_of_model.size();
+  std::vector<std::shared_ptr<const Hierarchy>> loaded(count);
+  std::vector<bool> cached(count, false);
+  std::vector<std::exception_ptr> errors(count);
+  std::mutex warn_mutex;
+  OpenOptions open = options.open;
+  open.progress = nullptr;
+  open.build.progress = nullptr;
+  if (options.open.warn) {
+    open.warn = [&warn_mutex, &options](const std::string& w) {
+      const std::lock_guard lock(warn_mutex);
+      options.open.warn(w);
+    };
+  }
+  std::atomic<std::size_t> next{0};
+  auto work = [&] {
+    for (std::size_t i = next++; i < count; i = next++) {
+      const SceneModelDecl& decl = d.models[decl_of_model[i]];
+      try {
+        if (decl.source.type == SceneModelSource::Type::File) {
+          OpenedModel opened = open_model(decl.source.file, open);
+          cached[i] = opened.from_cache;
+          loaded[i] = std::make_shared<const Hierarchy>(std::move(opened.hierarchy));
+        } else {
+          loaded[i] = std::make_shared<const Hierarchy>(build_from_points(
+              generate_scene_model(decl.source.kind, decl.source.points, decl.source.seed),
+              open.attributes, open.build));
+        }
+      } catch (...) {
+        errors[i] = std::current_exception();
+      }
+    }
+  };
+  const auto t0 = std::chrono::steady_clock::now();
+  {
+    const unsigned workers =
+        static_cast<unsigned>(std::min<std::size_t>(worker_count(options.threads), count));
+    std::vector<std::jthread> pool;
+    for (unsigned w = 1; w < workers; ++w) pool.emplace_back(work);
+    work();
+  }
+  scene.load_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  for (std::size_t i = 0; i < count; ++i) {
+    if (!errors[i]) continue;
+    const SceneModelDecl& decl = d.models[decl_of_model[i]];
+    rethrow_with(errors[i], scene.files[decl.file].string() + ":" + std::to_string(decl.line) +
+                                ": model '" + decl.name + "': ");
+  }
+  scene.models.resize(count);
+  for (std::size_t i = 0; i < count; ++i) {
+    const SceneModelDecl& decl = d.models[decl_of_model[i]];
+    SceneModel& m = scene.models[i];
+    m.name = decl.name;
+    m.source = decl.source;
+    m.declared_at = scene.files[decl.file].string() + ":" + std::to_string(decl.line);
+    m.hierarchy = std::move(loaded[i]);
+    m.from_cache = cached[i];
+    splat_box(*m.hierarchy, m.box_min, m.box_max);
+  }
+
+  // 3. The objects' world bounds.
+  scene.objects.resize(d.objects.size());
+  std::atomic<bool> failed{false};
+  std::atomic<std::size_t> first_bad{SIZE_MAX};
+  parallel_for(d.objects.size(), [&](std::size_t b, std::size_t e) {
+    for (std::size_t i = b; i < e; ++i) {
+      const SceneObjectDecl& od = d.objects[i];
+      SceneObject& o = scene.objects[i];
+      o.model = model_of_decl[od.decl];
+      o.world = od.world;
+      o.world_inverse = od.world_inverse;
+      o.file = od.file;
+      o.line = od.line;
+      const SceneModel& m = scene.models[o.model];
+      const glm::dmat4 w(o.world);
+      glm::dvec3 lo(INFINITY), hi(-INFINITY);
+      for (int c = 0; c < 8; ++c) {
+        const glm::dvec3 corner(c & 1 ? m.box_max.x : m.box_min.x,
+                                c & 2 ? m.box_max.y : m.box_min.y,
+                                c & 4 ? m.box_max.z : m.box_min.z);
+        const glm::dvec3 p(w * glm::dvec4(corner, 1.0));
+        lo = glm::min(lo, p);
+        hi = glm::max(hi, p);
+      }
+      o.aabb_min = {down(lo.x), down(lo.y), down(lo.z)};
+      o.aabb_max = {up(hi.x), up(hi.y), up(hi.z)};
+      const glm::dvec3 root = glm::dvec3(m.hierarchy->center(0));
+      const glm::dvec3 c1(w * glm::dvec4(root, 1.0));
+      const double r1 = double(m.hierarchy->radius(0)) * max_stretch(glm::dmat3(w));
+      const glm::dvec3 c2 = 0.5 * (lo + hi);
+      const double r2 = 0.5 * glm::length(hi - lo);
+      const bool first = r1 <= r2;
+      const glm::dvec3 c = first ? c1 : c2;
+      o.sphere = glm::vec4(glm::vec3(c), up((first ? r1 : r2) * (1.0 + 1e-6)));
+      bool finite = std::isfinite(o.sphere.w);
+      for (int k = 0; k < 3; ++k)
+        finite = finite && std::isfinite(o.aabb_min[k]) && std::isfinite(o.aabb_max[k]) &&
+                 std::isfinite(o.sphere[k]);
+      if (!finite) {
+        failed = true;
+        std::size_t cur = first_bad.load();
+        while (i < cur && !first_bad.compare_exchange_weak(cur, i)) {
+        }
+      }
+    }
+  });
+  if (failed) {
+    const SceneObject& o = scene.objects[first_bad.load()];
+    throw InputError(scene.where(o) + ": the object's world bounds do not fit in floats");
+  }
+  for (auto& o : scene.objects) ++scene.models[o.model].instances;
+  scene.bounds_min = glm::vec3(INFINITY);
+  scene.bounds_max = glm::vec3(-INFINITY);
+  for (const auto& o : scene.objects) {
+    scene.bounds_min = glm::min(scene.bounds_min, o.aabb_min);
+    scene.bounds_max = glm::max(scene.bounds_max, o.aabb_max);
+  }
+  return scene;
+}
+
+}  // namespace treecut
