@@ -16,12 +16,13 @@ namespace {
 TEST(StrategyRegistry, ListsTheBuiltInsSortedWithTheirParameters) {
   const StrategyRegistry r = strategies::builtin_registry();
   const auto list = r.list();
-  ASSERT_EQ(list.size(), 5u);
+  ASSERT_EQ(list.size(), 6u);
   EXPECT_EQ(list[0].name, "bucket");
   EXPECT_EQ(list[1].name, "event_queue");
-  EXPECT_EQ(list[2].name, "optimization");
-  EXPECT_EQ(list[3].name, "recursive");
-  EXPECT_EQ(list[4].name, "topdown");
+  EXPECT_EQ(list[2].name, "hoq");
+  EXPECT_EQ(list[3].name, "optimization");
+  EXPECT_EQ(list[4].name, "recursive");
+  EXPECT_EQ(list[5].name, "topdown");
   for (const StrategyInfo& info : list) {
     EXPECT_EQ(info.origin, "built-in");
     EXPECT_FALSE(info.description.empty());
@@ -41,7 +42,8 @@ TEST(StrategyRegistry, AnUnknownNameIsAnInputErrorListingTheKnownOnes) {
   } catch (const InputError& e) {
     EXPECT_EQ(
         std::string(e.what()),
-        "unknown strategy 'qsplat' (known: bucket, event_queue, optimization, recursive, topdown)");
+        "unknown strategy 'qsplat' (known: bucket, event_queue, hoq, optimization, recursive, "
+        "topdown)");
   }
 }
 
@@ -54,7 +56,7 @@ TEST(StrategyRegistry, RefusesDuplicatesAndMismatchedFactories) {
                      [] { return std::make_unique<strategies::OptimizationStrategy>(); }),
                std::invalid_argument);
   EXPECT_THROW(r.add("", "empty", nullptr), std::invalid_argument);
-  EXPECT_EQ(r.names().size(), 5u);
+  EXPECT_EQ(r.names().size(), 6u);
 }
 
 TEST(StrategyParams, OutOfRangeNonIntegralAndUnknownValuesAreRefusedUnchanged) {

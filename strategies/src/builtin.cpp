@@ -4,6 +4,7 @@
 
 #include "treecut/strategies/bucket.hpp"
 #include "treecut/strategies/event_queue.hpp"
+#include "treecut/strategies/hoq.hpp"
 #include "treecut/strategies/optimization.hpp"
 #include "treecut/strategies/recursive.hpp"
 #include "treecut/strategies/topdown.hpp"
@@ -31,6 +32,10 @@ void register_builtin(StrategyRegistry& registry) {
                "the same cut as topdown, testing only the nodes whose earliest possible change "
                "(from rho, omega) is due [Zach & Karner 2003, fig. 7]",
                [] { return std::make_unique<EventQueueStrategy>(); });
+  registry.add("hoq",
+               "HLOD blocks refined by VMSSE = B_{s,t}(mu) * SSE from occlusion queries, with "
+               "refine/stop/delay predicted from cached bias [Charalambos et al. 2007, fig. 3]",
+               [] { return std::make_unique<HoqStrategy>(); });
 }
 
 StrategyRegistry builtin_registry() {

@@ -5,7 +5,7 @@
 
 namespace treecut::strategies {
 
-/// Adds "optimization", "bucket", "recursive", "topdown" and "event_queue".
+/// Adds "optimization", "bucket", "recursive", "topdown", "event_queue" and "hoq".
 void register_builtin(StrategyRegistry& registry);
 
 /// A registry holding the built-in strategies.

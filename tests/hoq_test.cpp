@@ -1,0 +1,450 @@
+// HOQ-coherent HLOD refinement (strategies/include/treecut/strategies/hoq.hpp,
+// Charalambos et al. 2007): the sigmoid bias, the block SSE, the proxy's
+// analytic pixels, the three outcomes of PredictRefinement (figure 3), and the
+// `hoq` strategy driven directly with query answers that arrive frames late,
+// as the View's executor delivers them.
+#include "treecut/strategies/hoq.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <deque>
+#include <functional>
+#include <random>
+#include <vector>
+
+#include "strategy_fixtures.hpp"
+#include "treecut/tree_cut.hpp"
+
+namespace {
+
+using treecut::Hierarchy;
+using treecut::IterationInput;
+using treecut::IterationOutput;
+using treecut::ModelKind;
+using treecut::NodeId;
+using treecut::QueryRequest;
+using treecut::TreeCut;
+using treecut::ViewSnapshot;
+using treecut::VisibilityResult;
+using treecut::strategies::BlockId;
+using treecut::strategies::HlodBlocks;
+using treecut::strategies::HoqStrategy;
+namespace hoq = treecut::strategies::hoq;
+using hoq::ChildState;
+using hoq::NodeState;
+using hoq::Prediction;
+
+// ---------------------------------------------------------------- the bias
+
+TEST(HoqBias, SmoothnessZeroGivesMu) {
+  for (float t : {0.0f, 0.1f, 0.5f, 0.9f, 1.0f})
+    for (int i = 0; i <= 20; ++i) {
+      const float mu = float(i) / 20.0f;
+      EXPECT_FLOAT_EQ(hoq::sigmoid_bias(mu, 0.0f, t), mu) << "mu " << mu << " t " << t;
+    }
+}
+
+TEST(HoqBias, FullVisibilityGivesOneAndNoneGivesZero) {
+  for (float s : {0.0f, 0.3f, 1.0f})
+    for (float t : {0.0f, 0.2f, 0.5f, 1.0f}) {
+      EXPECT_EQ(hoq::sigmoid_bias(1.0f, s, t), 1.0f) << "s " << s << " t " << t;
+      EXPECT_EQ(hoq::sigmoid_bias(0.0f, s, t), 0.0f) << "s " << s << " t " << t;
+    }
+}
+
+TEST(HoqBias, IsMonotoneAggressiveBelowTheTurnOverAndConservativeAbove) {
+  for (float s : {0.25f, 0.5f, 1.0f})
+    for (float t : {0.1f, 0.5f, 0.8f}) {
+      float previous = -1.0f;
+      for (int i = 0; i <= 1000; ++i) {
+        const float mu = float(i) / 1000.0f;
+        const float b = hoq::sigmoid_bias(mu, s, t);
+        EXPECT_GE(b, previous) << "mu " << mu << " s " << s << " t " << t;
+        EXPECT_GE(b, 0.0f);
+        EXPECT_LE(b, 1.0f);
+        if (mu > 0.0f && mu < t) {
+          EXPECT_LT(b, mu) << "mu " << mu << " t " << t;
+        }
+        if (mu > t && mu < 1.0f) {
+          EXPECT_GT(b, mu) << "mu " << mu << " t " << t;
+        }
+        previous = b;
+      }
+    }
+  // A turn-over closer to 0 modulates less (the paper: more conservative).
+  EXPECT_GT(hoq::sigmoid_bias(0.3f, 1.0f, 0.1f), hoq::sigmoid_bias(0.3f, 1.0f, 0.6f));
+  EXPECT_FLOAT_EQ(hoq::vmsse(0.25f, 8.0f), 2.0f);
+}
+
+// ------------------------------------------------------- PredictRefinement
+
+constexpr float kTau = 1.0f;
+
+TEST(HoqPredict, StopWhenTheCachedBiasKeepsTheVmsseBelowTau) {
+  const NodeState stopped{true, true, true, 0.1f};
+  EXPECT_EQ(hoq::predict_refinement(stopped, 9.0f, {}, kTau), Prediction::Stop);   // 0.9 <= 1
+  EXPECT_EQ(hoq::predict_refinement(stopped, 10.0f, {}, kTau), Prediction::Stop);  // 1.0 <= 1
+}
+
+TEST(HoqPredict, RefineWhenTheEstimateOfAStoppedNodeExceedsTauOrAChildNeedsMore) {
+  const NodeState stopped{true, true, true, 0.1f};
+  EXPECT_EQ(hoq::predict_refinement(stopped, 10.5f, {}, kTau), Prediction::Refine);
+  // Refined last frame, one child refined too: no candidate to shift up.
+  const NodeState refined{true, true, false, 1.0f};
+  const ChildState children_a[] = {{true, 0.5f, 1.0f}, {false, 0.5f, 1.0f}};
+  EXPECT_EQ(hoq::predict_refinement(refined, 1.5f, children_a, kTau), Prediction::Refine);
+  // Every child stopped, but one child's own estimate exceeds tau.
+  const ChildState children_b[] = {{true, 0.5f, 1.0f}, {true, 0.5f, 3.0f}};
+  EXPECT_EQ(hoq::predict_refinement(refined, 1.5f, children_b, kTau), Prediction::Refine);
+  // Every child would stop, but AvgBias * SSE(node) = 0.5 * 4 > tau.
+  const ChildState children_c[] = {{true, 0.5f, 1.0f}, {true, 0.5f, 1.0f}};
+  EXPECT_FLOAT_EQ(hoq::average_bias(children_c), 0.5f);
+  EXPECT_EQ(hoq::predict_refinement(refined, 4.0f, children_c, kTau), Prediction::Refine);
+}
+
+TEST(HoqPredict, DelayForUnvisitedInvisibleAndShiftUpCandidates) {
+  // Not visited in the last frame: nothing cached holds.
+  EXPECT_EQ(hoq::predict_refinement({false, true, true, 0.0f}, 0.5f, {}, kTau), Prediction::Delay);
+  // Invisible in the last frame.
+  EXPECT_EQ(hoq::predict_refinement({true, false, true, 0.0f}, 0.5f, {}, kTau), Prediction::Delay);
+  // Refined, every child stopped with its estimate <= tau, and AvgBias *
+  // SSE(node) = (0.2 + 0.4) / 2 * 3 = 0.9 <= tau: the front may move up.
+  const ChildState children[] = {{true, 0.2f, 2.0f}, {true, 0.4f, 2.5f}};
+  EXPECT_FLOAT_EQ(hoq::average_bias(children), 0.3f);
+  EXPECT_EQ(hoq::predict_refinement({true, true, false, 1.0f}, 3.0f, children, kTau),
+            Prediction::Delay);
+}
+
+// ------------------------------------------------- SSE and the proxy pixels
+
+TEST(HoqSse, NoSplatOfARepresentationProjectsLargerThanItsBlockSse) {
+  const auto h = treecut::test::small_hierarchy(ModelKind::City, 20000);
+  const HlodBlocks blocks = HlodBlocks::build(*h, 200);
+  const auto& a = h->arrays();
+  std::mt19937 rng(3);
+  for (int v = 0; v < 6; ++v) {
+    const ViewSnapshot view =
+        treecut::test::orbit_view(*h, 1.1f * float(v), 0.15f + 0.3f * float(v));
+    for (BlockId b = 0; b < blocks.block_count(); ++b) {
+      if (blocks.is_leaf(b)) continue;
+      float radius = 0.0f;
+      for (NodeId n : blocks.representation(b)) radius = std::max(radius, a.center_radius[n].w);
+      const float sse = hoq::block_sse(view, blocks.box(b), radius);
+      for (NodeId n : blocks.representation(b)) {
+        const glm::vec4 s = a.center_radius[n];
+        ASSERT_LE(view.projected_radius_px(glm::vec3(s), s.w), sse * 1.0001f + 1e-4f)
+            << "block " << b << " node " << n;
+      }
+    }
+  }
+  EXPECT_EQ(hoq::block_sse(treecut::test::orbit_view(*h, 0.0f), blocks.box(0), 0.0f), 0.0f);
+}
+
+TEST(HoqProxy, PixelsOfACentredSphereOffViewAndBehindTheEye) {
+  const ViewSnapshot view =
+      ViewSnapshot::look_at({0, 0, 10}, {0, 0, 0}, {400, 300}, 0.8f, 0.1f, 100.0f);
+  const hoq::QueryCamera cam{view.view, view.projection, view.viewport};
+  // Straight ahead at distance 10, radius 1: the tangent half-width is
+  // f * r / sqrt(d^2 - r^2) pixels, f = 150 / tan(0.4); 1/8 pixel more on
+  // each side; a square sprite of that side.
+  const double f = 150.0 / std::tan(0.4);
+  const double side = 2.0 * f / std::sqrt(99.0) + 0.25;
+  EXPECT_NEAR(hoq::proxy_pixels(cam, {0, 0, 0}, 1.0f), side * side, 0.01 * side * side);
+  // Off to the side, outside the view: no pixel.
+  EXPECT_EQ(hoq::proxy_pixels(cam, {100, 0, 0}, 1.0f), 0.0);
+  // Half off the left edge: the sprite is clipped, fewer pixels.
+  const double edge = hoq::proxy_pixels(cam, {-5.6f, 0, 0}, 1.0f);
+  EXPECT_GT(edge, 0.0);
+  EXPECT_LT(edge, side * side);
+  // The eye inside or behind: no analytic count.
+  EXPECT_LT(hoq::proxy_pixels(cam, {0, 0, 10}, 1.0f), 0.0);
+  EXPECT_LT(hoq::proxy_pixels(cam, {0, 0, 20}, 1.0f), 0.0);
+  // mu: 0 without a sample, clamped to 1, 1 without an analytic count.
+  EXPECT_EQ(hoq::relative_visibility(0, 100.0), 0.0f);
+  EXPECT_FLOAT_EQ(hoq::relative_visibility(25, 100.0), 0.25f);
+  EXPECT_EQ(hoq::relative_visibility(150, 100.0), 1.0f);
+  EXPECT_EQ(hoq::relative_visibility(3, -1.0), 1.0f);
+}
+
+// ------------------------------------------------------- the strategy
+
+// The View's executor, simulated: a request posted by the iteration of frame
+// F is drawn in frame F + 1 and read `latency` frames later; its samples
+// are the proxy's analytic pixels times what `visible_fraction` says of its
+// node (the scene's occlusion, made up by the test).
+class FakeExecutor {
+ public:
+  FakeExecutor(const Hierarchy& h, std::function<float(NodeId)> visible_fraction)
+      : h_(h), fraction_(std::move(visible_fraction)) {}
+
+  void post(const std::vector<QueryRequest>& queries, std::uint64_t frame, const ViewSnapshot& view,
+            std::uint64_t latency) {
+    const hoq::QueryCamera cam{view.view, view.projection, view.viewport};
+    for (const QueryRequest& q : queries) {
+      const glm::vec4 s = h_.arrays().center_radius[q.node];
+      const double pixels = hoq::proxy_pixels(cam, glm::vec3(s), s.w);
+      const float f = fraction_(q.node);
+      std::uint32_t samples = 0;
+      if (f > 0.0f) {
+        samples = pixels < 0.0 ? std::uint32_t(view.viewport.x * view.viewport.y)
+                               : std::uint32_t(std::max(1.0, std::floor(pixels * f)));
+        if (pixels == 0.0) samples = 0;
+      }
+      VisibilityResult r;
+      r.object = q.object;
+      r.node = q.node;
+      r.tag = q.tag;
+      r.samples_passed = samples;
+      r.frame_issued = frame + 1;
+      r.frame_read = frame + 1 + latency;
+      r.kind = q.kind;
+      in_flight_.push_back(r);
+    }
+  }
+  // The answers read by frame `frame` and not delivered yet.
+  std::vector<VisibilityResult> due(std::uint64_t frame, bool hold = false) {
+    std::vector<VisibilityResult> out;
+    if (hold) return out;
+    std::deque<VisibilityResult> rest;
+    for (const VisibilityResult& r : in_flight_) {
+      if (r.frame_read <= frame) {
+        out.push_back(r);
+      } else {
+        rest.push_back(r);
+      }
+    }
+    in_flight_.swap(rest);
+    return out;
+  }
+
+ private:
+  const Hierarchy& h_;
+  std::function<float(NodeId)> fraction_;
+  std::deque<VisibilityResult> in_flight_;
+};
+
+struct Step {
+  treecut::IterationResult result;
+  std::vector<NodeId> nodes;
+  std::vector<QueryRequest> queries;
+};
+
+Step iterate(HoqStrategy& s, const Hierarchy& h, ViewSnapshot view) {
+  Step st;
+  TreeCut unused = TreeCut::root_cut(h);
+  IterationInput in{h, view, 0, nullptr, s.params_version()};
+  IterationOutput out;
+  out.cut = &unused;
+  out.nodes = &st.nodes;
+  out.queries = &st.queries;
+  s.iterate(in, out);
+  st.result = out.result;
+  return st;
+}
+
+// The block cut of refinement by SSE alone (every block visible: B = 1):
+// what `hoq` must reach under a static camera when every answer is "fully
+// visible", frustum culling included.
+void sse_cut(const HlodBlocks& b, const Hierarchy& h, const ViewSnapshot& view,
+             const std::vector<float>& radius, BlockId id, float tau, std::vector<BlockId>& out) {
+  const glm::vec4 s = h.arrays().center_radius[b.root(id)];
+  if (b.is_leaf(id) || view.outside_frustum(glm::vec3(s), s.w) ||
+      hoq::block_sse(view, b.box(id), radius[id]) <= tau) {
+    out.push_back(id);
+    return;
+  }
+  for (BlockId c = b.first_child(id); c < b.first_child(id) + b.child_count(id); ++c)
+    sse_cut(b, h, view, radius, c, tau, out);
+}
+
+std::vector<float> error_radii(const HlodBlocks& b, const Hierarchy& h) {
+  std::vector<float> r(b.block_count(), 0.0f);
+  for (BlockId i = 0; i < b.block_count(); ++i) {
+    if (b.is_leaf(i)) continue;
+    for (NodeId n : b.representation(i)) r[i] = std::max(r[i], h.arrays().center_radius[n].w);
+  }
+  return r;
+}
+
+ViewSnapshot street_view(const Hierarchy& h, float t) {
+  // A walk through the city at a low height, looking along the street.
+  const glm::vec3 lo = h.bounds_min(), hi = h.bounds_max();
+  const glm::vec3 c = 0.5f * (lo + hi);
+  const float ext = glm::length(hi - lo);
+  const glm::vec3 eye = c + ext * glm::vec3(-0.3f + 0.4f * t, -0.02f, 0.03f);
+  const glm::vec3 target = eye + glm::vec3(std::cos(0.6f * t), std::sin(0.6f * t), -0.05f);
+  return ViewSnapshot::look_at(eye, target, {640, 360}, 0.9f, 0.0005f * ext, 4.0f * ext);
+}
+
+class HoqStrategyTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    h = treecut::test::small_hierarchy(ModelKind::City, 20000);
+    s.set_param("block_size", 200);
+    s.set_param("theta", 2.0);
+    s.reset(*h);
+  }
+  std::shared_ptr<const Hierarchy> h;
+  HoqStrategy s;
+};
+
+TEST_F(HoqStrategyTest, CutIsValidEveryIterationWithLateAnswersOnAMovingCamera) {
+  // Blocks whose root lies in the western half are hidden, the rest half visible.
+  const float mid = 0.5f * (h->bounds_min().x + h->bounds_max().x);
+  FakeExecutor gpu(*h,
+                   [&](NodeId n) { return h->arrays().center_radius[n].x < mid ? 0.0f : 0.5f; });
+  std::mt19937 rng(11);
+  std::uint64_t answered = 0, delayed = 0, refined = 0;
+  for (std::uint64_t frame = 1; frame <= 120; ++frame) {
+    ViewSnapshot view = street_view(*h, float(frame) / 60.0f);
+    view.frame = frame;
+    view.version = frame;
+    view.visibility = gpu.due(frame);
+    Step st = iterate(s, *h, view);
+    const std::string why = TreeCut::validate(*h, [&] {
+      std::sort(st.nodes.begin(), st.nodes.end());
+      return st.nodes;
+    }());
+    ASSERT_EQ(why, "") << "frame " << frame;
+    ASSERT_EQ(s.blocks().validate_cut(s.block_cut()), "") << "frame " << frame;
+    // Latency 1 to 4 frames, varying per iteration.
+    gpu.post(st.queries, frame, view, 1 + rng() % 4);
+    answered += s.last().answers;
+    delayed += s.last().delayed;
+    refined += s.last().refined;
+    EXPECT_EQ(s.last().blocks, s.block_cut().size());
+    EXPECT_EQ(s.last().drawn + s.last().culled, s.last().blocks);
+  }
+  EXPECT_GT(answered, 0u);
+  EXPECT_GT(delayed, 0u);
+  EXPECT_GT(refined, 0u);
+  EXPECT_GT(s.block_cut().size(), 1u);
+}
+
+TEST_F(HoqStrategyTest, FullyVisibleAnswersConvergeToTheSseCut) {
+  FakeExecutor gpu(*h, [](NodeId) { return 1.0f; });
+  const ViewSnapshot fixed = street_view(*h, 0.4f);
+  bool converged = false;
+  for (std::uint64_t frame = 1; frame <= 200 && !converged; ++frame) {
+    ViewSnapshot view = fixed;
+    view.frame = frame;
+    view.version = 1;
+    view.visibility = gpu.due(frame);
+    Step st = iterate(s, *h, view);
+    gpu.post(st.queries, frame, view, 2);
+    converged = st.result.converged;
+  }
+  ASSERT_TRUE(converged);
+  std::vector<BlockId> expected;
+  sse_cut(s.blocks(), *h, fixed, error_radii(s.blocks(), *h), 0, 2.0f, expected);
+  std::vector<BlockId> got(s.block_cut().begin(), s.block_cut().end());
+  std::sort(expected.begin(), expected.end());
+  std::sort(got.begin(), got.end());
+  EXPECT_EQ(got, expected);
+  EXPECT_GT(got.size(), 10u);
+  EXPECT_EQ(s.last().culled + s.last().drawn, got.size());
+}
+
+TEST_F(HoqStrategyTest, OccludedBlocksStayCoarserThanTheSseCut) {
+  // Everything hidden.
+  FakeExecutor gpu(*h, [](NodeId) { return 0.0f; });
+  const ViewSnapshot fixed = street_view(*h, 0.4f);
+  for (std::uint64_t frame = 1; frame <= 60; ++frame) {
+    ViewSnapshot view = fixed;
+    view.frame = frame;
+    view.version = 1;
+    view.visibility = gpu.due(frame);
+    Step st = iterate(s, *h, view);
+    gpu.post(st.queries, frame, view, 2);
+  }
+  std::vector<BlockId> sse;
+  sse_cut(s.blocks(), *h, fixed, error_radii(s.blocks(), *h), 0, 2.0f, sse);
+  EXPECT_LT(s.block_cut().size(), sse.size());
+  // The root block's answer says invisible: it is culled where it is, never refined.
+  EXPECT_EQ(s.block_cut().size(), 1u);
+  EXPECT_EQ(s.last().culled, 1u);
+  EXPECT_EQ(s.last().drawn, 0u);
+  EXPECT_EQ(s.totals().refined, 0u);
+}
+
+TEST_F(HoqStrategyTest, ADelayedBlockKeepsItsStateUntilItsAnswerArrives) {
+  FakeExecutor gpu(*h, [](NodeId) { return 1.0f; });
+  const ViewSnapshot fixed = street_view(*h, 0.4f);
+  auto run = [&](std::uint64_t frame, bool hold) {
+    ViewSnapshot view = fixed;
+    view.frame = frame;
+    view.version = 1;
+    view.visibility = gpu.due(frame, hold);
+    Step st = iterate(s, *h, view);
+    gpu.post(st.queries, frame, view, 1);
+    return st;
+  };
+  // The first iteration: the root block enters, is delayed and drawn as it is.
+  Step first = run(1, false);
+  EXPECT_EQ(s.block_cut().size(), 1u);
+  EXPECT_EQ(s.last().delayed, 1u);
+  EXPECT_EQ(first.queries.size(), 1u);
+  // While its answer is held back, nothing changes: the same cut, still delayed.
+  for (std::uint64_t f = 2; f <= 6; ++f) {
+    run(f, true);
+    EXPECT_EQ(s.block_cut().size(), 1u) << f;
+    EXPECT_EQ(s.last().delayed, 1u) << f;
+  }
+  // The answer arrives: the root block's VMSSE exceeds theta, it is refined,
+  // drawn too coarse for the frames it waited (late_frames), and its children enter delayed.
+  run(7, false);
+  EXPECT_EQ(s.last().late_refined, 1u);
+  EXPECT_EQ(s.last().late_frames, 7u + 1u - 1u);
+  EXPECT_EQ(s.block_cut().size(), s.blocks().child_count(0));
+  EXPECT_GE(s.last().delayed + s.last().culled, 1u);
+}
+
+TEST_F(HoqStrategyTest, AStoppedBlockWhoseNewAnswerRaisesItsBiasIsARarn) {
+  // Hidden at first: the cut stays coarse, every block invisible.
+  float fraction = 0.0f;
+  FakeExecutor gpu(*h, [&](NodeId) { return fraction; });
+  const ViewSnapshot fixed = street_view(*h, 0.4f);
+  std::uint64_t frame = 0;
+  auto run = [&] {
+    ++frame;
+    ViewSnapshot view = fixed;
+    view.frame = frame;
+    view.version = 1;
+    view.visibility = gpu.due(frame);
+    Step st = iterate(s, *h, view);
+    gpu.post(st.queries, frame, view, 2);
+  };
+  // Barely visible: the root's children stop at a tiny bias (mu = 1e-4 of
+  // their pixels gives B ~ 1e-4: VMSSE <= theta).
+  fraction = 1e-6f;
+  for (int i = 0; i < 30; ++i) run();
+  const std::size_t coarse = s.block_cut().size();
+  EXPECT_EQ(s.last().rarn, 0u);
+  // Then fully visible: the next answers show VMSSE > theta for blocks the
+  // prediction stopped: RARN, each drawn too coarse for >= its latency.
+  fraction = 1.0f;
+  std::uint64_t rarn = 0, rarn_frames = 0;
+  for (int i = 0; i < 40; ++i) {
+    run();
+    rarn += s.last().rarn;
+    rarn_frames += s.last().rarn_frames;
+  }
+  EXPECT_GT(rarn, 0u);
+  EXPECT_GE(rarn_frames, rarn * 2u);  // issued at F + 1, read 2 frames later
+  EXPECT_GT(s.block_cut().size(), coarse);
+}
+
+TEST_F(HoqStrategyTest, ABlockSizeChangeRebuildsTheBlocks) {
+  const std::uint32_t before = s.blocks().block_count();
+  s.set_param("block_size", 1000);
+  ViewSnapshot view = street_view(*h, 0.0f);
+  view.frame = 1;
+  Step st = iterate(s, *h, view);
+  EXPECT_LT(s.blocks().block_count(), before);
+  std::sort(st.nodes.begin(), st.nodes.end());
+  EXPECT_EQ(TreeCut::validate(*h, st.nodes), "");
+}
+
+}  // namespace
