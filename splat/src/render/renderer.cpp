@@ -404,6 +404,26 @@ FrameStats Renderer::draw_ranges(const CutBuffer& cut, std::span<const CutRange>
   return render(cut, ranges, false, camera, settings, hook, finish);
 }
 
+void Renderer::set_common_uniforms(const gl::Program& program, const Uniforms& u,
+                                   const FrameView& frame, const RenderSettings& settings,
+                                   float fade) const {
+  const Light& light = settings.light;
+  // The same direction the strategies are handed (frame.hpp): one function.
+  const glm::vec3 light_dir = world_light_dir(light, frame.view);
+  // Locations were looked up at link time (lookup_uniforms).
+  const GLuint p = program.id();
+  gl::ProgramUniformMatrix4fv(p, u.view, 1, GL_FALSE, glm::value_ptr(frame.view));
+  gl::ProgramUniformMatrix4fv(p, u.proj, 1, GL_FALSE, glm::value_ptr(frame.projection));
+  gl::ProgramUniform3f(p, u.eye, frame.eye.x, frame.eye.y, frame.eye.z);
+  gl::ProgramUniform1f(p, u.radius_scale, settings.radius_scale);
+  gl::ProgramUniform1i(p, u.cull, settings.backface_culling ? 1 : 0);
+  gl::ProgramUniform1f(p, u.min_radius_px, 0.75f);
+  gl::ProgramUniform1f(p, u.viewport_h, static_cast<float>(size_.y));
+  gl::ProgramUniform3f(p, u.light_dir, light_dir.x, light_dir.y, light_dir.z);
+  gl::ProgramUniform4f(p, u.light, light.ambient, light.diffuse, light.specular, light.shininess);
+  gl::ProgramUniform1f(p, u.fade, fade);
+}
+
 FrameStats Renderer::render(const CutBuffer& cut, std::span<const CutRange> ranges, bool whole,
                             const Camera& camera, const RenderSettings& settings, RangeHook* hook,
                             bool finish) {
@@ -416,23 +436,8 @@ FrameStats Renderer::render(const CutBuffer& cut, std::span<const CutRange> rang
   frame.eye = camera.eye;
   frame.size = size_;
 
-  const Light& light = settings.light;
-  // The same direction the strategies are handed (frame.hpp): one function.
-  const glm::vec3 light_dir = world_light_dir(light, frame.view);
-
-  // Locations were looked up at link time (lookup_uniforms).
   auto set_common = [&](const gl::Program& program, const Uniforms& u) {
-    const GLuint p = program.id();
-    gl::ProgramUniformMatrix4fv(p, u.view, 1, GL_FALSE, glm::value_ptr(frame.view));
-    gl::ProgramUniformMatrix4fv(p, u.proj, 1, GL_FALSE, glm::value_ptr(frame.projection));
-    gl::ProgramUniform3f(p, u.eye, frame.eye.x, frame.eye.y, frame.eye.z);
-    gl::ProgramUniform1f(p, u.radius_scale, settings.radius_scale);
-    gl::ProgramUniform1i(p, u.cull, settings.backface_culling ? 1 : 0);
-    gl::ProgramUniform1f(p, u.min_radius_px, 0.75f);
-    gl::ProgramUniform1f(p, u.viewport_h, static_cast<float>(size_.y));
-    gl::ProgramUniform3f(p, u.light_dir, light_dir.x, light_dir.y, light_dir.z);
-    gl::ProgramUniform4f(p, u.light, light.ambient, light.diffuse, light.specular, light.shininess);
-    gl::ProgramUniform1f(p, u.fade, cut.fade());
+    set_common_uniforms(program, u, frame, settings, cut.fade());
   };
 
   gl::Viewport(0, 0, size_.x, size_.y);
@@ -545,6 +550,77 @@ FrameStats Renderer::render(const CutBuffer& cut, std::span<const CutRange> rang
   stats.finished = finish;
   stats.cpu_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  return stats;
+}
+
+void Renderer::begin_frame_ranges(const gl::Buffer& elements, NodeId max_id, const Camera& camera,
+                                  const RenderSettings& settings) {
+  if (settings.mode == SplatMode::HighQuality) {
+    throw std::invalid_argument("Renderer: in-frame ranges need a one-pass mode (fast or fixed)");
+  }
+  if (max_id >= node_count_) {
+    throw std::logic_error("Renderer: the ranges name node " + std::to_string(max_id) +
+                           ", the vertex buffer holds " + std::to_string(node_count_));
+  }
+  in_frame_start_ = std::chrono::steady_clock::now();
+  const float aspect = static_cast<float>(size_.x) / static_cast<float>(size_.y);
+  in_frame_view_.view = camera.view_matrix();
+  in_frame_view_.projection = camera.projection_matrix(aspect);
+  in_frame_view_.eye = camera.eye;
+  in_frame_view_.size = size_;
+  in_frame_splats_ = 0;
+  const bool fixed = settings.mode == SplatMode::FixedSize;
+  in_frame_program_ = fixed ? &fixed_ : &fast_;
+  const Uniforms& u = fixed ? fixed_u_ : fast_u_;
+  set_common_uniforms(*in_frame_program_, u, in_frame_view_, settings, 1.0f);
+  gl::ProgramUniform1i(in_frame_program_->id(), u.fade_mode, 0);
+  if (fixed) {
+    gl::ProgramUniform1f(fixed_.id(), u.point_size, std::max(settings.point_size_px, 1.0f));
+    gl::Enable(GL_PROGRAM_POINT_SIZE);
+  } else {
+    gl::ProgramUniform1f(fast_.id(), u.depth_offset, 0.0f);
+  }
+  gl::VertexArrayElementBuffer(vao_.id(), elements.id());
+  gl::Viewport(0, 0, size_.x, size_.y);
+  gl::Disable(GL_BLEND);
+  gl::Enable(GL_DEPTH_TEST);
+  gl::DepthFunc(GL_LESS);
+  clear_color(scene_fbo_, 0, glm::vec4(settings.background, 1.0f));
+  clear_depth(scene_fbo_);
+  gl::BindFramebuffer(GL_FRAMEBUFFER, scene_fbo_.id());
+  last_max_id_ = max_id;
+}
+
+void Renderer::draw_frame_range(std::uint32_t first, std::uint32_t count) {
+  if (in_frame_program_ == nullptr) throw std::logic_error("Renderer: no frame of ranges is open");
+  if (count == 0) return;
+  // The caller's queries may have changed these since the last range.
+  gl::ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+  gl::DepthMask(GL_TRUE);
+  gl::DepthFunc(GL_LESS);
+  gl::BindVertexArray(vao_.id());
+  gl::UseProgram(in_frame_program_->id());
+  gl::DrawElements(GL_POINTS, static_cast<GLsizei>(count), GL_UNSIGNED_INT,
+                   reinterpret_cast<const void*>(std::uintptr_t{first} * sizeof(NodeId)));
+  in_frame_splats_ += count;
+}
+
+FrameStats Renderer::end_frame_ranges(bool finish) {
+  if (in_frame_program_ == nullptr) throw std::logic_error("Renderer: no frame of ranges is open");
+  if (in_frame_program_ == &fixed_) gl::Disable(GL_PROGRAM_POINT_SIZE);
+  in_frame_program_ = nullptr;
+  gl::ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+  gl::DepthMask(GL_TRUE);
+  gl::BindVertexArray(0);
+  gl::UseProgram(0);
+  gl::BindFramebuffer(GL_FRAMEBUFFER, 0);
+  if (finish) gl::Finish();
+  FrameStats stats;
+  stats.splats = in_frame_splats_;
+  stats.finished = finish;
+  stats.cpu_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() -
+                                                           in_frame_start_)
+                     .count();
   return stats;
 }
 

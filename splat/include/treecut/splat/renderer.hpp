@@ -19,6 +19,7 @@
 #pragma once
 
 #include <array>
+#include <chrono>
 #include <cstddef>
 #include <cstdint>
 #include <glm/mat4x4.hpp>
@@ -245,6 +246,25 @@ class Renderer {
                          const Camera& camera, const RenderSettings& settings,
                          RangeHook* hook = nullptr, bool finish = false);
 
+  /// In-frame drawing for a traversal that decides what to draw while it
+  /// draws (CHC: splat/occlusion_device_gl.hpp). begin_frame_ranges clears
+  /// the frame and makes `elements` (node ids of this renderer's hierarchy,
+  /// the caller's buffer, none above `max_id`: checked like draw()'s) the
+  /// element buffer; draw_frame_range draws positions [first, first + count)
+  /// of it, one call; end_frame_ranges closes the frame (read_pixels and
+  /// present show it). Between draws the scene framebuffer stays bound and
+  /// the caller may draw into it with its own program, vertex array and
+  /// color/depth masks (draw_frame_range sets the renderer's again). One-pass
+  /// modes (fast, fixed); hq, whose later passes need the whole list first,
+  /// throws std::invalid_argument.
+  void begin_frame_ranges(const gl::Buffer& elements, NodeId max_id, const Camera& camera,
+                          const RenderSettings& settings);
+  void draw_frame_range(std::uint32_t first, std::uint32_t count);
+  /// FrameStats::splats counts the splats of the frame's ranges.
+  FrameStats end_frame_ranges(bool finish = false);
+  /// The frame's matrices while a frame of ranges is open.
+  [[nodiscard]] const FrameView& frame_view() const { return in_frame_view_; }
+
   /// Copies the last frame to the bound draw framebuffer 0 (a window), scaled
   /// to `window_size`.
   void present(glm::ivec2 window_size) const;
@@ -270,6 +290,9 @@ class Renderer {
           inv_view_proj = -1, fade_mode = -1, fade = -1;
   };
   static Uniforms lookup_uniforms(const gl::Program& p);
+  // The per-frame uniforms every splat program reads.
+  void set_common_uniforms(const gl::Program& program, const Uniforms& u, const FrameView& frame,
+                           const RenderSettings& settings, float fade) const;
 
   void create_targets();
   void check_cut(const CutBuffer& cut);
@@ -307,6 +330,11 @@ class Renderer {
   gl::Framebuffer visibility_fbo_;  // depth_ only
   gl::Framebuffer accum_fbo_;       // accum_color_ + accum_normal_ + depth_ (test only)
   QueryHook* query_hook_ = nullptr;
+  // The open frame of begin_frame_ranges (null program: none).
+  const gl::Program* in_frame_program_ = nullptr;
+  FrameView in_frame_view_;
+  std::chrono::steady_clock::time_point in_frame_start_;
+  std::size_t in_frame_splats_ = 0;
 };
 
 }  // namespace treecut::splat

@@ -1,0 +1,248 @@
+// Coherent hierarchical culling: J. Bittner, M. Wimmer, H. Piringer,
+// W. Purgathofer, "Coherent Hierarchical Culling: Hardware Occlusion Queries
+// Made Useful", Eurographics 2004
+// (../shared/papers/coherent-hierarchical-culling.tex.txt, figure "Pseudo-code
+// of coherent hierarchical culling"), over HLOD blocks, with the paper's
+// baselines (VFC, stop-and-wait, Ideal) in the same loop.
+#include "treecut/strategies/chc.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <glm/geometric.hpp>
+#include <glm/vec4.hpp>
+
+namespace treecut::strategies {
+
+std::string_view occlusion_mode_name(OcclusionMode mode) {
+  switch (mode) {
+    case OcclusionMode::Vfc:
+      return "vfc";
+    case OcclusionMode::StopAndWait:
+      return "sw";
+    case OcclusionMode::Chc:
+      return "chc";
+    case OcclusionMode::Ideal:
+      return "ideal";
+  }
+  return "?";
+}
+
+namespace {
+
+float box_distance(const Box& box, glm::vec3 eye) {
+  const glm::vec3 d = glm::max(glm::max(box.lo - eye, eye - box.hi), glm::vec3(0.0f));
+  return glm::length(d);
+}
+
+// Gribb and Hartmann: the six planes of clip = m * world, normals inward.
+void frustum_planes(const glm::mat4& m, glm::vec4 (&planes)[6]) {
+  const glm::vec4 r0(m[0][0], m[1][0], m[2][0], m[3][0]);
+  const glm::vec4 r1(m[0][1], m[1][1], m[2][1], m[3][1]);
+  const glm::vec4 r2(m[0][2], m[1][2], m[2][2], m[3][2]);
+  const glm::vec4 r3(m[0][3], m[1][3], m[2][3], m[3][3]);
+  planes[0] = r3 + r0;
+  planes[1] = r3 - r0;
+  planes[2] = r3 + r1;
+  planes[3] = r3 - r1;
+  planes[4] = r3 + r2;
+  planes[5] = r3 - r2;
+}
+
+// Conservative: false only when the box lies wholly outside one plane (its
+// corner farthest along the plane's normal is behind it).
+bool box_in_frustum(const Box& box, const glm::vec4 (&planes)[6]) {
+  for (const glm::vec4& p : planes) {
+    const glm::vec3 corner(p.x >= 0.0f ? box.hi.x : box.lo.x, p.y >= 0.0f ? box.hi.y : box.lo.y,
+                           p.z >= 0.0f ? box.hi.z : box.lo.z);
+    if (p.x * corner.x + p.y * corner.y + p.z * corner.z + p.w < 0.0f) return false;
+  }
+  return true;
+}
+
+bool heap_less(const auto& a, const auto& b) {
+  // std heaps are max-heaps: the nearest block must compare greatest.
+  return a.distance > b.distance || (a.distance == b.distance && a.block > b.block);
+}
+
+}  // namespace
+
+ChcTraversal::ChcTraversal(const HlodBlocks& blocks, ChcOptions options)
+    : blocks_(&blocks), options_(options) {
+  reset();
+}
+
+void ChcTraversal::reset() {
+  const std::size_t n = blocks_->block_count();
+  frame_ = 0;
+  visible_.assign(n, 0);
+  last_visited_.assign(n, 0);
+  visible_query_.assign(n, 0);
+  drawn_frame_.assign(n, 0);
+  drawn_.clear();
+  classified_.clear();
+}
+
+void ChcTraversal::set_ideal_leaves(std::span<const BlockId> leaves) {
+  ideal_.assign(blocks_->block_count(), 0);
+  for (const BlockId leaf : leaves) {
+    if (leaf >= blocks_->block_count() || !blocks_->is_leaf(leaf)) continue;
+    // Mark the leaf and its ancestors: the oracle's "visible" for every block.
+    for (BlockId b = leaf; b != kNoBlock && ideal_[b] == 0; b = blocks_->parent(b)) ideal_[b] = 1;
+  }
+}
+
+bool ChcTraversal::answer_visible(std::uint64_t samples) const {
+  return samples > 0 && samples >= options_.min_visible_samples;
+}
+
+void ChcTraversal::push(BlockId b, const OcclusionView& view) {
+  heap_.push_back({box_distance(blocks_->box(b), view.eye), b});
+  std::push_heap(heap_.begin(), heap_.end(),
+                 [](const Entry& x, const Entry& y) { return heap_less(x, y); });
+}
+
+void ChcTraversal::draw(BlockId b, OcclusionDeviceRenderThread& device) {
+  if (drawn_frame_[b] == frame_) return;  // a previously visible leaf, drawn when queried
+  drawn_frame_[b] = frame_;
+  device.draw_render_thread(b);
+  drawn_.push_back(b);
+}
+
+// The paper's TraverseNode: a leaf is drawn, an interior block's children go
+// to the traversal queue.
+void ChcTraversal::traverse(BlockId b, const OcclusionView& view,
+                            OcclusionDeviceRenderThread& device) {
+  if (blocks_->is_leaf(b)) {
+    draw(b, device);
+    return;
+  }
+  const BlockId first = blocks_->first_child(b);
+  for (unsigned i = 0; i < blocks_->child_count(b); ++i) push(first + i, view);
+}
+
+// The paper's PullUpVisibility: every block of this frame starts invisible,
+// so a visible answer marks its ancestors up to the first already visible.
+void ChcTraversal::pull_up(BlockId b) {
+  for (; b != kNoBlock && visible_[b] == 0; b = blocks_->parent(b)) visible_[b] = 1;
+}
+
+ChcFrameStats ChcTraversal::frame_render_thread(OcclusionDeviceRenderThread& device,
+                                                const OcclusionView& view, bool finish) {
+  const auto start = std::chrono::steady_clock::now();
+  ++frame_;
+  const std::uint64_t frame = frame_;
+  const OcclusionMode mode = options_.mode;
+  frustum_planes(view.view_projection, planes_);
+  heap_.clear();
+  pending_.clear();
+  pending_head_ = 0;
+  drawn_.clear();
+  classified_.clear();
+  if (mode == OcclusionMode::Ideal && ideal_.size() != blocks_->block_count()) {
+    ideal_.assign(blocks_->block_count(), 0);
+  }
+  ChcFrameStats stats;
+  auto heap_cmp = [](const Entry& x, const Entry& y) { return heap_less(x, y); };
+
+  device.begin_frame_render_thread();
+  push(0, view);
+  while (!heap_.empty() || pending_head_ < pending_.size()) {
+    // Part 1: answers. Stop-and-wait always waits; CHC reads an answer only
+    // when it is available, or when there is nothing else to do.
+    while (pending_head_ < pending_.size() &&
+           (mode == OcclusionMode::StopAndWait || heap_.empty() ||
+            device.result_available_render_thread(pending_[pending_head_].query))) {
+      const Pending p = pending_[pending_head_++];
+      const std::uint64_t samples = device.result_render_thread(p.query);
+      if (answer_visible(samples)) {
+        pull_up(p.block);
+        visible_query_[p.block] = frame;
+        traverse(p.block, view, device);  // pull-down (a leaf drawn when queried is not redrawn)
+      }
+    }
+    // Part 2: the hierarchical traversal, front to back.
+    if (heap_.empty()) continue;
+    std::pop_heap(heap_.begin(), heap_.end(), heap_cmp);
+    const Entry e = heap_.back();
+    heap_.pop_back();
+    const BlockId b = e.block;
+    const Box& box = blocks_->box(b);
+    if (!box_in_frustum(box, planes_)) {
+      ++stats.frustum_culled;
+      continue;
+    }
+    const bool leaf = blocks_->is_leaf(b);
+    if (leaf) classified_.push_back(b);
+    const bool was_visible = visible_[b] != 0 && last_visited_[b] + 1 == frame;
+    visible_[b] = 0;
+    last_visited_[b] = frame;
+    // A box the eye is in (or at the near plane) cannot be queried: its
+    // proxy would be clipped. It is visible.
+    const bool near = e.distance <= view.near_radius;
+    switch (mode) {
+      case OcclusionMode::Vfc:
+        pull_up(b);
+        traverse(b, view, device);
+        break;
+      case OcclusionMode::Ideal:
+        if (ideal_[b] != 0) {
+          pull_up(b);
+          traverse(b, view, device);
+        }
+        break;
+      case OcclusionMode::StopAndWait:
+        if (near) {
+          pull_up(b);
+          traverse(b, view, device);
+        } else {
+          pending_.push_back({b, device.query_box_render_thread(b), false});
+          ++stats.queries;
+        }
+        break;
+      case OcclusionMode::Chc: {
+        const bool opened = was_visible && !leaf;
+        if (opened || near) {
+          // An opened node: no query, its children decide (pull-up).
+          if (near) pull_up(b);
+          traverse(b, view, device);
+        } else if (was_visible && options_.assume_visible_frames > 0 &&
+                   frame - visible_query_[b] <= options_.assume_visible_frames) {
+          // Conservative visibility testing: assumed visible, no query.
+          pull_up(b);
+          traverse(b, view, device);
+        } else {
+          pending_.push_back({b, device.query_box_render_thread(b), was_visible});
+          ++stats.queries;
+          if (was_visible) traverse(b, view, device);  // a previously visible leaf: draw at once
+        }
+        break;
+      }
+    }
+  }
+  device.end_frame_render_thread(finish);
+
+  const DeviceFrameStats& d = device.frame_stats();
+  stats.blocking_reads = d.blocking_reads;
+  stats.wait_ms = d.wait_ms;
+  stats.blocks_drawn = drawn_.size();
+  stats.splats_drawn = d.splats_drawn;
+  for (const BlockId b : classified_) stats.leaves_visible += visible_[b];
+  stats.frame_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  return stats;
+}
+
+std::vector<BlockId> ChcTraversal::visible_leaves() const {
+  std::vector<BlockId> out;
+  for (const BlockId b : classified_) {
+    if (visible_[b] != 0) out.push_back(b);
+  }
+  return out;
+}
+
+bool ChcTraversal::visible(BlockId b) const {
+  return b < visible_.size() && visible_[b] != 0 && last_visited_[b] == frame_;
+}
+
+}  // namespace treecut::strategies

@@ -1,0 +1,270 @@
+// CHC on the GL device (splat/occlusion_device_gl.hpp, strategies/chc.hpp) on
+// OSMesa, on small generated scenes with their walkthroughs:
+//  - nothing visible is culled under exact settings (t_av = 0, n_vp = 0):
+//    every leaf block that a brute-force reference sees (drawn inside a
+//    query after every other leaf block in the frustum: samples > 0) is drawn
+//    by CHC, frame after frame along the walkthrough;
+//  - the render thread reads GL_QUERY_RESULT only after
+//    GL_QUERY_RESULT_AVAILABLE said true for that query, or in a read the
+//    device counts as a blocking wait (interposed entry points; availability
+//    is hidden from the device for a while to make the check live);
+//  - no GL object is made per frame once the pool is warm.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <memory>
+#include <set>
+#include <utility>
+#include <vector>
+
+#include "treecut/attributes.hpp"
+#include "treecut/generate.hpp"
+#include "treecut/hierarchy.hpp"
+#include "treecut/splat/camera.hpp"
+#include "treecut/splat/context.hpp"
+#include "treecut/splat/gl.hpp"
+#include "treecut/splat/occlusion_device_gl.hpp"
+#include "treecut/splat/renderer.hpp"
+#include "treecut/strategies/chc.hpp"
+
+namespace treecut::splat {
+namespace {
+
+using strategies::BlockId;
+using strategies::ChcFrameStats;
+using strategies::ChcOptions;
+using strategies::ChcTraversal;
+using strategies::HlodBlocks;
+using strategies::OcclusionMode;
+
+constexpr int kWidth = 320;
+constexpr int kHeight = 180;
+
+struct SceneCase {
+  ModelKind kind;
+  std::size_t points;
+};
+
+std::shared_ptr<const Hierarchy> scene(ModelKind kind, std::size_t points) {
+  static std::map<int, std::shared_ptr<const Hierarchy>> cache;
+  auto& slot = cache[static_cast<int>(kind)];
+  if (!slot) {
+    PointSet ps = kind == ModelKind::City ? generate_city(points, 5) : generate_plant(points, 5);
+    complete_attributes(ps);
+    slot = std::make_shared<const Hierarchy>(build_hierarchy(std::move(ps)));
+  }
+  return slot;
+}
+
+// Frames of the walkthrough: `count` times spread over it (overview, descent,
+// street level, ascent).
+std::vector<Camera> walk_cameras(ModelKind kind, const Hierarchy& h, int count) {
+  const auto keys = scene_walkthrough(kind);
+  const glm::vec3 center = 0.5f * (h.bounds_min() + h.bounds_max());
+  const float radius = 0.5f * glm::length(h.bounds_max() - h.bounds_min());
+  std::vector<Camera> out;
+  for (int i = 0; i < count; ++i) {
+    const WalkKey& k =
+        keys[(keys.size() - 1) * static_cast<std::size_t>(i) / static_cast<std::size_t>(count - 1)];
+    Camera c;
+    c.eye = k.eye, c.target = k.target, c.up = k.up, c.fov_y_deg = k.fov_deg;
+    fit_clip_planes(c, center, radius);
+    out.push_back(c);
+  }
+  return out;
+}
+
+class ChcGl : public ::testing::TestWithParam<SceneCase> {
+ protected:
+  static void SetUpTestSuite() {
+    static OsmesaContext ctx(kWidth, kHeight);
+    ctx.make_current();
+  }
+  void SetUp() override {
+    h_ = scene(GetParam().kind, GetParam().points);
+    blocks_ = HlodBlocks::build(*h_, 500);
+    renderer_ = std::make_unique<Renderer>(*h_, glm::ivec2(kWidth, kHeight));
+    device_ = std::make_unique<GlOcclusionDevice>(*renderer_, blocks_);
+  }
+
+  // The reference: each leaf block in the frustum drawn inside a query after
+  // every other one; visible if any of its samples passed.
+  std::set<BlockId> reference(const Camera& c) {
+    ChcTraversal vfc(blocks_, {OcclusionMode::Vfc});
+    device_->set_view_render_thread(c, settings_);
+    vfc.frame_render_thread(*device_, occlusion_view(c, {kWidth, kHeight}));
+    const std::vector<BlockId> in = vfc.drawn();
+    std::set<BlockId> seen;
+    for (const BlockId b : in) {
+      device_->begin_frame_render_thread();
+      for (const BlockId o : in) {
+        if (o != b) device_->draw_render_thread(o);
+      }
+      const auto q = device_->query_draw_render_thread(b);
+      if (device_->result_render_thread(q) > 0) seen.insert(b);
+      device_->end_frame_render_thread(false);
+    }
+    return seen;
+  }
+
+  std::shared_ptr<const Hierarchy> h_;
+  HlodBlocks blocks_;
+  std::unique_ptr<Renderer> renderer_;
+  std::unique_ptr<GlOcclusionDevice> device_;
+  RenderSettings settings_;
+};
+
+TEST_P(ChcGl, NothingVisibleIsCulledUnderExactSettings) {
+  const auto cameras = walk_cameras(GetParam().kind, *h_, 7);
+  ChcTraversal chc(blocks_, {OcclusionMode::Chc, 0, 0});
+  std::size_t occluded_frames = 0;
+  for (std::size_t f = 0; f < cameras.size(); ++f) {
+    const std::set<BlockId> seen = reference(cameras[f]);
+    device_->set_view_render_thread(cameras[f], settings_);
+    const ChcFrameStats s =
+        chc.frame_render_thread(*device_, occlusion_view(cameras[f], {kWidth, kHeight}));
+    const std::set<BlockId> drawn(chc.drawn().begin(), chc.drawn().end());
+    std::size_t missed = 0;
+    for (const BlockId b : seen) missed += drawn.count(b) == 0 ? 1 : 0;
+    EXPECT_EQ(missed, 0u) << "frame " << f << ": " << missed << " of " << seen.size()
+                          << " visible leaf blocks culled";
+    EXPECT_GE(s.blocks_drawn, seen.size());
+    // The check has teeth: some frames hide most of what is in the frustum.
+    ChcTraversal vfc(blocks_, {OcclusionMode::Vfc});
+    vfc.frame_render_thread(*device_, occlusion_view(cameras[f], {kWidth, kHeight}));
+    if (seen.size() * 2 < vfc.drawn().size()) ++occluded_frames;
+  }
+  EXPECT_GE(occluded_frames, 2u);
+}
+
+TEST_P(ChcGl, StopAndWaitAndIdealDrawTheSameSetAndChcConvergesToIt) {
+  const Camera c = walk_cameras(GetParam().kind, *h_, 9)[4];  // street level
+  const auto view = occlusion_view(c, {kWidth, kHeight});
+  device_->set_view_render_thread(c, settings_);
+  ChcTraversal sw(blocks_, {OcclusionMode::StopAndWait});
+  const ChcFrameStats s = sw.frame_render_thread(*device_, view);
+  EXPECT_GT(s.queries, 0u);
+  ChcTraversal ideal(blocks_, {OcclusionMode::Ideal});
+  ideal.set_ideal_leaves(sw.drawn());
+  const ChcFrameStats i = ideal.frame_render_thread(*device_, view);
+  EXPECT_EQ(ideal.drawn(), sw.drawn());
+  EXPECT_EQ(i.queries, 0u);
+  EXPECT_EQ(i.splats_drawn, s.splats_drawn);
+  ChcTraversal chc(blocks_, {OcclusionMode::Chc});
+  ChcFrameStats last;
+  for (int f = 0; f < 4; ++f) last = chc.frame_render_thread(*device_, view);
+  // A static view: the S&W classification (the paper, section 3.4).
+  const std::set<BlockId> a(chc.drawn().begin(), chc.drawn().end());
+  const std::set<BlockId> b(sw.drawn().begin(), sw.drawn().end());
+  EXPECT_EQ(a, b);
+  EXPECT_LT(last.queries, s.queries);
+}
+
+INSTANTIATE_TEST_SUITE_P(Scenes, ChcGl,
+                         ::testing::Values(SceneCase{ModelKind::City, 60000},
+                                           SceneCase{ModelKind::Plant, 60000}),
+                         [](const auto& p) {
+                           return p.param.kind == ModelKind::City ? "city" : "plant";
+                         });
+
+// Interposed query entry points: which query's availability was seen, and
+// reads of a result before it.
+struct QueryCheck {
+  static inline PFNGLBEGINQUERYPROC real_begin = nullptr;
+  static inline PFNGLGETQUERYOBJECTUIVPROC real_uiv = nullptr;
+  static inline PFNGLGETQUERYOBJECTUI64VPROC real_ui64v = nullptr;
+  static inline PFNGLCREATEQUERIESPROC real_create = nullptr;
+  static inline std::map<GLuint, bool> seen;
+  static inline std::map<GLuint, int> hide;  // polls still to report "pending"
+  static inline int hidden = 0;
+  static inline int early_reads = 0;
+  static inline int reads = 0;
+  static inline int created = 0;
+
+  static void APIENTRY begin(GLenum target, GLuint id) {
+    seen[id] = false;
+    hide[id] = 2;
+    real_begin(target, id);
+  }
+  static void APIENTRY uiv(GLuint id, GLenum pname, GLuint* v) {
+    real_uiv(id, pname, v);
+    if (pname != GL_QUERY_RESULT_AVAILABLE) return;
+    if (*v != GL_FALSE && hide[id] > 0) {
+      --hide[id];
+      ++hidden;
+      *v = GL_FALSE;  // available in truth, reported pending
+    }
+    if (*v != GL_FALSE) seen[id] = true;
+  }
+  static void APIENTRY ui64v(GLuint id, GLenum pname, GLuint64* v) {
+    if (pname == GL_QUERY_RESULT) {
+      ++reads;
+      if (!seen[id]) ++early_reads;
+    }
+    real_ui64v(id, pname, v);
+  }
+  static void APIENTRY create(GLenum target, GLsizei n, GLuint* ids) {
+    created += n;
+    real_create(target, n, ids);
+  }
+  QueryCheck() {
+    real_begin = std::exchange(gl::BeginQuery, &begin);
+    real_uiv = std::exchange(gl::GetQueryObjectuiv, &uiv);
+    real_ui64v = std::exchange(gl::GetQueryObjectui64v, &ui64v);
+    real_create = std::exchange(gl::CreateQueries, &create);
+    seen.clear(), hide.clear();
+    hidden = early_reads = reads = created = 0;
+  }
+  ~QueryCheck() {
+    gl::BeginQuery = real_begin;
+    gl::GetQueryObjectuiv = real_uiv;
+    gl::GetQueryObjectui64v = real_ui64v;
+    gl::CreateQueries = real_create;
+  }
+  QueryCheck(const QueryCheck&) = delete;
+  QueryCheck& operator=(const QueryCheck&) = delete;
+};
+
+class ChcGlQueries : public ChcGl {};
+
+TEST_P(ChcGlQueries, NeverReadsAResultBeforeItWasSeenAvailableUnlessItCountsTheWait) {
+  const auto cameras = walk_cameras(GetParam().kind, *h_, 12);
+  for (const OcclusionMode mode : {OcclusionMode::Chc, OcclusionMode::StopAndWait}) {
+    ChcTraversal t(blocks_, {mode});
+    // Warm: the pool has grown to what the walk needs.
+    for (const Camera& c : cameras) {
+      device_->set_view_render_thread(c, settings_);
+      t.frame_render_thread(*device_, occlusion_view(c, {kWidth, kHeight}), false);
+    }
+    t.reset();
+    const QueryCheck check;
+    std::uint64_t blocking = 0, queries = 0;
+    for (const Camera& c : cameras) {
+      device_->set_view_render_thread(c, settings_);
+      const ChcFrameStats s =
+          t.frame_render_thread(*device_, occlusion_view(c, {kWidth, kHeight}), false);
+      blocking += s.blocking_reads;
+      queries += s.queries;
+    }
+    EXPECT_GT(queries, 0u);
+    EXPECT_EQ(static_cast<std::uint64_t>(QueryCheck::reads), queries);
+    // Every read before availability was seen is a wait the device counted.
+    EXPECT_EQ(static_cast<std::uint64_t>(QueryCheck::early_reads), blocking)
+        << occlusion_mode_name(mode);
+    if (mode == OcclusionMode::StopAndWait) {
+      EXPECT_EQ(blocking, queries) << "stop-and-wait waits for every answer it could not see";
+    } else {
+      EXPECT_GT(QueryCheck::hidden, 0) << "the check hid available results";
+      EXPECT_LT(blocking, queries) << "CHC reads answers after polling them";
+    }
+    EXPECT_EQ(QueryCheck::created, 0) << "no query object made per frame";
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Scenes, ChcGlQueries, ::testing::Values(SceneCase{ModelKind::City, 60000}),
+                         [](const auto&) { return "city"; });
+
+}  // namespace
+}  // namespace treecut::splat

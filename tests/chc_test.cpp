@@ -1,0 +1,475 @@
+// CHC traversal (strategies/include/treecut/strategies/chc.hpp) on a CPU
+// device: a perspective "GPU" looking down +x whose depth buffer is a grid of
+// pixels over the projected rectangles of block boxes (a drawn leaf block
+// fills its box's rectangle at the box's nearest depth; a box query counts the
+// pixels of its rectangle where its nearest depth is in front). Answers come
+// `latency` device calls after the query, so the query queue, polling and
+// blocking are all observable. The reference ("truth") is brute force on the
+// same device model: a leaf is visible when some pixel of its rectangle is
+// nearer than every other leaf's rectangle there.
+#include "treecut/strategies/chc.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <glm/geometric.hpp>
+#include <glm/gtc/matrix_transform.hpp>
+#include <limits>
+#include <map>
+#include <memory>
+#include <set>
+#include <vector>
+
+#include "treecut/attributes.hpp"
+#include "treecut/hierarchy.hpp"
+#include "treecut/point_set.hpp"
+
+namespace {
+
+using treecut::Hierarchy;
+using treecut::PointSet;
+using treecut::strategies::BlockId;
+using treecut::strategies::Box;
+using treecut::strategies::ChcFrameStats;
+using treecut::strategies::ChcOptions;
+using treecut::strategies::ChcTraversal;
+using treecut::strategies::DeviceFrameStats;
+using treecut::strategies::HlodBlocks;
+using treecut::strategies::kNoBlock;
+using treecut::strategies::OcclusionDeviceRenderThread;
+using treecut::strategies::OcclusionMode;
+using treecut::strategies::OcclusionView;
+using treecut::strategies::QueryHandle;
+
+constexpr int kRes = 96;  // pixels per side over u, v in [-1, 1]
+
+// Sheets of points in planes x = const (facing the eye), spread in y and z;
+// and one cluster far off to the side (outside the 90 degree frustum).
+std::shared_ptr<const Hierarchy> sheets() {
+  static std::shared_ptr<const Hierarchy> h;
+  if (h) return h;
+  struct Sheet {
+    float x, y, z, half;
+  };
+  const std::vector<Sheet> list = {
+      {0.0f, 0.0f, 0.0f, 0.55f}, {1.0f, 0.9f, 0.2f, 0.5f}, {1.5f, -0.9f, -0.3f, 0.45f},
+      {2.5f, 0.1f, 0.0f, 0.6f},  {3.0f, 1.8f, 1.2f, 0.5f}, {4.0f, -0.2f, 0.1f, 0.9f},
+      {5.0f, -2.5f, 0.5f, 0.7f}, {6.0f, 0.0f, 0.0f, 2.8f}, {2.0f, 40.0f, 0.0f, 0.5f},
+  };
+  PointSet ps;
+  for (const Sheet& s : list) {
+    const int n = 16;
+    for (int i = 0; i < n; ++i) {
+      for (int j = 0; j < n; ++j) {
+        const float fy = -s.half + 2.0f * s.half * (i + 0.5f) / n;
+        const float fz = -s.half + 2.0f * s.half * (j + 0.5f) / n;
+        ps.positions.push_back({s.x, s.y + fy, s.z + fz});
+        ps.normals.push_back({-1.0f, 0.0f, 0.0f});
+      }
+    }
+  }
+  treecut::complete_attributes(ps);
+  h = std::make_shared<const Hierarchy>(treecut::build_hierarchy(std::move(ps)));
+  return h;
+}
+
+struct Rect {
+  int i0 = 0, i1 = -1, j0 = 0, j1 = -1;  // inclusive pixel ranges, empty if i1 < i0
+  float depth = 0.0f;
+};
+
+class FakeDevice final : public OcclusionDeviceRenderThread {
+ public:
+  FakeDevice(const HlodBlocks& blocks, int latency) : blocks_(&blocks), latency_(latency) {}
+
+  void set_eye(glm::vec3 eye) { eye_ = eye; }
+  void watch(const ChcTraversal* t) { traversal_ = t; }
+
+  Rect rect(BlockId b) const {
+    const Box& box = blocks_->box(b);
+    float umin = 1e30f, umax = -1e30f, vmin = 1e30f, vmax = -1e30f;
+    for (int c = 0; c < 8; ++c) {
+      const glm::vec3 p((c & 1) ? box.hi.x : box.lo.x, (c & 2) ? box.hi.y : box.lo.y,
+                        (c & 4) ? box.hi.z : box.lo.z);
+      const float w = p.x - eye_.x;  // > 0: every box lies ahead of the eye
+      umin = std::min(umin, (p.y - eye_.y) / w), umax = std::max(umax, (p.y - eye_.y) / w);
+      vmin = std::min(vmin, (p.z - eye_.z) / w), vmax = std::max(vmax, (p.z - eye_.z) / w);
+    }
+    // Pixels whose centres (-1 + (i + 0.5) * 2 / kRes) lie inside.
+    auto first = [](float a) { return std::max(0, int(std::ceil((a + 1.0f) * kRes / 2 - 0.5f))); };
+    auto last = [](float a) {
+      return std::min(kRes - 1, int(std::floor((a + 1.0f) * kRes / 2 - 0.5f)));
+    };
+    // Depth: the distance from the eye to the box, the traversal's order, so
+    // front to back is an occlusion order and S&W is exact on this device.
+    const glm::vec3 d = glm::max(glm::max(box.lo - eye_, eye_ - box.hi), glm::vec3(0.0f));
+    Rect r{first(umin), last(umax), first(vmin), last(vmax), glm::length(d)};
+    return r;
+  }
+
+  void begin_frame_render_thread() override {
+    depth_.assign(kRes * kRes, std::numeric_limits<float>::infinity());
+    stats_ = {};
+    answers_.clear();
+    queried_.clear();
+    ++frame_;
+  }
+  QueryHandle query_box_render_thread(BlockId b) override {
+    tick();
+    const Rect r = rect(b);
+    std::uint64_t samples = 0;
+    for (int i = r.i0; i <= r.i1; ++i)
+      for (int j = r.j0; j <= r.j1; ++j) samples += r.depth <= depth_[i * kRes + j] ? 1 : 0;  // GL_LEQUAL, as the GL device's proxies
+    return issue(b, samples);
+  }
+  QueryHandle query_draw_render_thread(BlockId b) override {
+    const QueryHandle q = query_box_render_thread(b);
+    draw_render_thread(b);
+    return q;
+  }
+  bool result_available_render_thread(QueryHandle q) override {
+    tick();
+    ++polls;
+    return ticks_ >= queries_.at(q).ready;
+  }
+  std::uint64_t result_render_thread(QueryHandle q) override {
+    tick();
+    const Query query = queries_.at(q);
+    queries_.erase(q);
+    if (ticks_ < query.ready) {
+      ++stats_.blocking_reads;
+      ++blocking_total;
+      if (traversal_ != nullptr && traversal_->queued() > 0) ++blocked_with_work;
+      ticks_ = query.ready;  // the "GPU" catches up while the CPU waits
+    }
+    answers_[query.block] = query.samples;
+    return query.samples;
+  }
+  void draw_render_thread(BlockId b) override {
+    tick();
+    const Rect r = rect(b);
+    for (int i = r.i0; i <= r.i1; ++i)
+      for (int j = r.j0; j <= r.j1; ++j)
+        depth_[i * kRes + j] = std::min(depth_[i * kRes + j], r.depth);
+    ++stats_.blocks_drawn;
+    stats_.splats_drawn += blocks_->representation(b).size();
+  }
+  void end_frame_render_thread(bool) override { tick(); }
+  [[nodiscard]] const DeviceFrameStats& frame_stats() const override { return stats_; }
+
+  // Per frame: the answer each queried block got, and the queried blocks.
+  std::map<BlockId, std::uint64_t> answers_;
+  std::vector<BlockId> queried_;
+  std::uint64_t blocking_total = 0;
+  std::uint64_t blocked_with_work = 0;
+  std::uint64_t polls = 0;
+
+ private:
+  struct Query {
+    BlockId block;
+    std::uint64_t samples, ready;
+  };
+  void tick() { ++ticks_; }
+  QueryHandle issue(BlockId b, std::uint64_t samples) {
+    ++stats_.queries;
+    queried_.push_back(b);
+    const QueryHandle q = next_++;
+    queries_[q] = {b, samples, ticks_ + static_cast<std::uint64_t>(latency_)};
+    return q;
+  }
+
+  const HlodBlocks* blocks_;
+  int latency_;
+  const ChcTraversal* traversal_ = nullptr;
+  glm::vec3 eye_{-3.0f, 0.0f, 0.0f};
+  std::vector<float> depth_;
+  std::map<QueryHandle, Query> queries_;
+  QueryHandle next_ = 0;
+  std::uint64_t ticks_ = 0;
+  std::uint64_t frame_ = 0;
+  DeviceFrameStats stats_;
+};
+
+OcclusionView view_from(glm::vec3 eye) {
+  const glm::mat4 proj = glm::perspective(glm::radians(90.0f), 1.0f, 0.1f, 100.0f);
+  const glm::mat4 view = glm::lookAt(eye, eye + glm::vec3(1, 0, 0), glm::vec3(0, 0, 1));
+  OcclusionView v;
+  v.view_projection = proj * view;
+  v.eye = eye;
+  v.near_radius = 0.1f * std::sqrt(3.0f);
+  return v;
+}
+
+class Chc : public ::testing::Test {
+ protected:
+  void SetUp() override { blocks_ = HlodBlocks::build(*sheets(), 64); }
+
+  std::vector<BlockId> leaves_in_frustum(const FakeDevice& d) const {
+    std::vector<BlockId> out;
+    for (BlockId b = 0; b < blocks_.block_count(); ++b) {
+      const Rect r = d.rect(b);
+      if (blocks_.is_leaf(b) && r.i1 >= r.i0 && r.j1 >= r.j0) out.push_back(b);
+    }
+    return out;
+  }
+  // Brute force: visible where no other leaf block is strictly nearer.
+  std::set<BlockId> truth(const FakeDevice& d, std::uint64_t min_samples = 1) const {
+    std::vector<float> depth(kRes * kRes, std::numeric_limits<float>::infinity());
+    const auto leaves = leaves_in_frustum(d);
+    std::set<BlockId> out;
+    for (const BlockId b : leaves) {
+      const Rect r = d.rect(b);
+      std::uint64_t samples = 0;
+      for (int i = r.i0; i <= r.i1; ++i) {
+        for (int j = r.j0; j <= r.j1; ++j) {
+          bool front = true;
+          for (const BlockId o : leaves) {
+            if (o == b) continue;
+            const Rect q = d.rect(o);
+            if (i >= q.i0 && i <= q.i1 && j >= q.j0 && j <= q.j1 && q.depth < r.depth) {
+              front = false;
+              break;
+            }
+          }
+          samples += front ? 1 : 0;
+        }
+      }
+      if (samples >= min_samples) out.insert(b);
+    }
+    return out;
+  }
+  static std::set<BlockId> as_set(const std::vector<BlockId>& v) { return {v.begin(), v.end()}; }
+
+  HlodBlocks blocks_;
+};
+
+TEST_F(Chc, TheSceneHasOcclusionAndAnOffScreenPart) {
+  FakeDevice d(blocks_, 0);
+  const auto in = leaves_in_frustum(d);
+  const auto seen = truth(d);
+  EXPECT_GE(seen.size(), 3u);
+  EXPECT_GE(in.size(), seen.size() + 3) << "some leaf blocks must be hidden";
+  EXPECT_LT(in.size(), blocks_.leaf_block_count()) << "some leaf blocks must be off screen";
+}
+
+TEST_F(Chc, VfcDrawsEveryLeafBlockInTheFrustumWithoutQueries) {
+  FakeDevice d(blocks_, 2);
+  ChcTraversal t(blocks_, {OcclusionMode::Vfc});
+  const ChcFrameStats s = t.frame_render_thread(d, view_from({-3, 0, 0}));
+  const auto in = leaves_in_frustum(d);
+  const auto drawn = as_set(t.drawn());
+  // Every leaf block on screen; none of the off-screen cluster (a box that
+  // meets the frustum but covers no pixel centre may be drawn too).
+  for (const BlockId b : in) EXPECT_TRUE(drawn.count(b)) << b;
+  for (const BlockId b : drawn) EXPECT_LT(blocks_.box(b).lo.y, 30.0f) << b;
+  EXPECT_EQ(s.queries, 0u);
+  EXPECT_EQ(s.blocks_drawn, drawn.size());
+  EXPECT_GT(s.frustum_culled, 0u);
+}
+
+TEST_F(Chc, StopAndWaitDrawsExactlyTheVisibleLeafBlocksAndWaitsForEveryQuery) {
+  FakeDevice d(blocks_, 3);
+  ChcTraversal t(blocks_, {OcclusionMode::StopAndWait});
+  d.watch(&t);
+  const ChcFrameStats s = t.frame_render_thread(d, view_from({-3, 0, 0}));
+  EXPECT_EQ(as_set(t.drawn()), truth(d));
+  EXPECT_EQ(as_set(t.visible_leaves()), truth(d));
+  EXPECT_EQ(s.leaves_visible, truth(d).size());
+  // Every query blocked (latency 3), even with work in the traversal queue.
+  EXPECT_EQ(s.blocking_reads, s.queries);
+  EXPECT_GT(d.blocked_with_work, 0u) << "the counter of the CHC test below is live";
+}
+
+TEST_F(Chc, IdealDrawsTheStopAndWaitSetWithNoQuery) {
+  FakeDevice d(blocks_, 3);
+  ChcTraversal sw(blocks_, {OcclusionMode::StopAndWait});
+  sw.frame_render_thread(d, view_from({-3, 0.3f, 0}));
+  const auto set = sw.drawn();
+  ChcTraversal ideal(blocks_, {OcclusionMode::Ideal});
+  ideal.set_ideal_leaves(set);
+  const ChcFrameStats s = ideal.frame_render_thread(d, view_from({-3, 0.3f, 0}));
+  EXPECT_EQ(as_set(ideal.drawn()), as_set(set));
+  EXPECT_EQ(ideal.drawn(), set) << "the same front-to-back order";
+  EXPECT_EQ(s.queries, 0u);
+  EXPECT_EQ(d.frame_stats().queries, 0u);
+}
+
+TEST_F(Chc, ChcIsConservativeEveryFrameAndExactOnceTheViewStops) {
+  FakeDevice d(blocks_, 4);
+  ChcTraversal t(blocks_, {OcclusionMode::Chc});
+  for (int f = 0; f < 30; ++f) {
+    const float y = f < 20 ? -1.5f + 0.15f * f : 1.5f;  // moves, then stands
+    d.set_eye({-3, y, 0.2f});
+    t.frame_render_thread(d, view_from({-3, y, 0.2f}));
+    const auto seen = truth(d);
+    const auto drawn = as_set(t.drawn());
+    for (const BlockId b : seen) EXPECT_TRUE(drawn.count(b)) << "frame " << f << " culled " << b;
+    if (f >= 22) {
+      EXPECT_EQ(drawn, seen) << "frame " << f;
+      EXPECT_EQ(as_set(t.visible_leaves()), seen) << "frame " << f;
+    }
+  }
+}
+
+TEST_F(Chc, ChcNeverBlocksWhileTheTraversalQueueHasWork) {
+  for (const int latency : {0, 1, 3, 8, 50}) {
+    FakeDevice d(blocks_, latency);
+    ChcTraversal t(blocks_, {OcclusionMode::Chc});
+    d.watch(&t);
+    for (int f = 0; f < 20; ++f) {
+      const glm::vec3 eye(-3, -1.0f + 0.1f * f, 0);
+      d.set_eye(eye);
+      t.frame_render_thread(d, view_from(eye));
+    }
+    EXPECT_EQ(d.blocked_with_work, 0u) << "latency " << latency;
+    if (latency >= 8) {
+      EXPECT_GT(d.blocking_total, 0u) << "the queue ran dry: some reads block";
+    }
+    EXPECT_GT(d.polls, 0u);
+  }
+}
+
+TEST_F(Chc, ChcIssuesFewerQueriesThanStopAndWaitOnACoherentSequence) {
+  std::uint64_t q[2] = {0, 0};
+  std::uint64_t waits[2] = {0, 0};
+  const OcclusionMode modes[2] = {OcclusionMode::StopAndWait, OcclusionMode::Chc};
+  for (int m = 0; m < 2; ++m) {
+    FakeDevice d(blocks_, 2);
+    ChcTraversal t(blocks_, {modes[m]});
+    for (int f = 0; f < 40; ++f) {
+      const glm::vec3 eye(-3, -1.0f + 0.05f * f, 0.1f);
+      d.set_eye(eye);
+      const ChcFrameStats s = t.frame_render_thread(d, view_from(eye));
+      q[m] += s.queries;
+      waits[m] += s.blocking_reads;
+    }
+  }
+  EXPECT_LT(q[1], q[0]);
+  EXPECT_LT(waits[1], waits[0]);
+}
+
+TEST_F(Chc, PullDownOpensAnOccludedRegionAndPullUpClosesIt) {
+  FakeDevice d(blocks_, 1);
+  ChcTraversal t(blocks_, {OcclusionMode::Chc});
+  auto run = [&](glm::vec3 eye, int frames) {
+    ChcFrameStats s;
+    d.set_eye(eye);
+    for (int f = 0; f < frames; ++f) s = t.frame_render_thread(d, view_from(eye));
+    return s;
+  };
+  // Close behind the big first sheet: almost everything is hidden.
+  const glm::vec3 hidden(-0.6f, 0.0f, 0.0f);
+  const glm::vec3 open(-3.0f, 0.0f, 2.5f);
+  const ChcFrameStats closed = run(hidden, 3);
+  const auto closed_set = as_set(t.visible_leaves());
+  EXPECT_EQ(closed_set, truth(d));
+  // Which interior blocks are termination nodes (queried, invisible)?
+  std::set<BlockId> terminated;
+  for (const auto& [b, samples] : d.answers_)
+    if (samples == 0) terminated.insert(b);
+  EXPECT_FALSE(terminated.empty());
+  bool interior_terminated = false;
+  for (const BlockId b : terminated) interior_terminated |= !blocks_.is_leaf(b);
+  EXPECT_TRUE(interior_terminated) << "the occluded region is closed high in the tree";
+
+  // Pull-down: from above, the region opens; its leaves are found and drawn.
+  run(open, 3);
+  const auto open_set = as_set(t.visible_leaves());
+  EXPECT_EQ(open_set, truth(d));
+  EXPECT_GT(open_set.size(), closed_set.size());
+  for (const BlockId b : terminated) {
+    if (blocks_.is_leaf(b)) continue;
+    bool some_leaf_below_visible = false;
+    for (const BlockId l : open_set) {
+      for (BlockId a = l; a != kNoBlock; a = blocks_.parent(a)) some_leaf_below_visible |= a == b;
+    }
+    if (some_leaf_below_visible) {
+      EXPECT_TRUE(t.visible(b)) << "pulled up from a visible leaf: " << b;
+    }
+  }
+  // Pull-up: back behind the sheet, the open region closes again, and with
+  // it the number of queries of a frame returns to that of the closed state.
+  const ChcFrameStats again = run(hidden, 3);
+  EXPECT_EQ(as_set(t.visible_leaves()), closed_set);
+  EXPECT_LE(again.queries, closed.queries + 1);
+  for (const BlockId b : terminated) EXPECT_FALSE(t.visible(b)) << b;
+}
+
+TEST_F(Chc, AssumeVisibleFramesSkipsQueriesOfVisibleLeavesForTavFrames) {
+  FakeDevice d(blocks_, 0);
+  ChcOptions o;
+  o.assume_visible_frames = 2;
+  ChcTraversal t(blocks_, o);
+  std::map<BlockId, std::vector<int>> queried_frames;
+  std::set<BlockId> seen;
+  for (int f = 1; f <= 10; ++f) {
+    t.frame_render_thread(d, view_from({-3, 0, 0}));
+    for (const BlockId b : d.queried_) queried_frames[b].push_back(f);
+    if (f == 1) seen = truth(d);
+    EXPECT_EQ(as_set(t.drawn()), seen) << "static view: the visible set, every frame";
+  }
+  ASSERT_FALSE(seen.empty());
+  for (const BlockId b : seen) {
+    // Found visible in frame 1 (the first frame queries every termination
+    // node); assumed visible in 2 and 3; queried in 4, then 7, 10.
+    EXPECT_EQ(queried_frames[b], (std::vector<int>{1, 4, 7, 10})) << "leaf " << b;
+  }
+  // Invisible termination nodes are queried every frame.
+  ChcTraversal exact(blocks_, {OcclusionMode::Chc});
+  std::uint64_t q_exact = 0, q_tav = 0;
+  for (int f = 0; f < 6; ++f)
+    q_exact += exact.frame_render_thread(d, view_from({-3, 0, 0})).queries;
+  for (int f = 0; f < 6; ++f) q_tav += t.frame_render_thread(d, view_from({-3, 0, 0})).queries;
+  EXPECT_LT(q_tav, q_exact);
+}
+
+TEST_F(Chc, MinVisibleSamplesCullsAnswersBelowNvp) {
+  FakeDevice d(blocks_, 0);
+  // Every answer at or above n_vp opens its block; below it, culls it.
+  for (const std::uint64_t nvp : {0ull, 1ull, 5ull, 40ull, 400ull}) {
+    for (const OcclusionMode mode : {OcclusionMode::StopAndWait, OcclusionMode::Chc}) {
+      ChcOptions o{mode, 0, nvp};
+      ChcTraversal t(blocks_, o);
+      for (int f = 0; f < 3; ++f) t.frame_render_thread(d, view_from({-3, 0, 0}));
+      const auto drawn = as_set(t.drawn());
+      const std::uint64_t threshold = std::max<std::uint64_t>(nvp, 1);
+      for (const auto& [b, samples] : d.answers_) {
+        if (!blocks_.is_leaf(b)) continue;
+        EXPECT_EQ(drawn.count(b) == 1, samples >= threshold)
+            << "n_vp " << nvp << " block " << b << " samples " << samples;
+      }
+    }
+  }
+  // n_vp = 0 and 1 are the exact classification.
+  ChcTraversal zero(blocks_, {OcclusionMode::StopAndWait, 0, 0});
+  zero.frame_render_thread(d, view_from({-3, 0, 0}));
+  ChcTraversal one(blocks_, {OcclusionMode::StopAndWait, 0, 1});
+  one.frame_render_thread(d, view_from({-3, 0, 0}));
+  EXPECT_EQ(zero.drawn(), one.drawn());
+  // A threshold above the screen culls everything at the first queries (the
+  // root's box holds the eye: its coarse splats are large, so its children
+  // are the first blocks queried).
+  ChcTraversal all(blocks_, {OcclusionMode::StopAndWait, 0, kRes * kRes + 1});
+  const ChcFrameStats s = all.frame_render_thread(d, view_from({-3, 0, 0}));
+  EXPECT_TRUE(all.drawn().empty());
+  EXPECT_GT(s.queries, 0u);
+  for (const auto& [b, samples] : d.answers_) {
+    EXPECT_LT(samples, kRes * kRes + 1u);
+    EXPECT_EQ(d.answers_.count(blocks_.parent(b)), 0u) << "nothing below a culled block: " << b;
+  }
+}
+
+TEST_F(Chc, TheEyeInsideABoxMakesItVisibleWithoutAQuery) {
+  FakeDevice d(blocks_, 0);
+  ChcTraversal t(blocks_, {OcclusionMode::StopAndWait});
+  // Eye inside the root's box: the root is not queried.
+  const glm::vec3 eye(-3, 0, 0);
+  OcclusionView v = view_from(eye);
+  v.near_radius = 1e9f;  // every box counts as at the near plane
+  const ChcFrameStats s = t.frame_render_thread(d, v);
+  EXPECT_EQ(s.queries, 0u);
+  EXPECT_GE(t.drawn().size(), leaves_in_frustum(d).size());
+}
+
+}  // namespace
