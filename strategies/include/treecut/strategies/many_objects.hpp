@@ -1,0 +1,260 @@
+// Scenes of many objects: the common ground of the budgeted LOD selection
+// (budget.hpp) and the hierarchical Z-map culling (hzm.hpp), after
+//   X. Peng, Y. Cao, "Integrating Occlusion Culling and Parallel LOD for
+//   Rendering Complex 3D Environments on GPU", I3D 2013
+//   (../shared/papers/occlusion-culling-with-parallel-lod.txt, sections 5, 6),
+// on the CPU cores instead of CUDA.
+//
+// The input is a plain array of objects (SceneObject: a world oriented box,
+// its world AABB, the points it has, its compactness), so a scene loader
+// plugs in later by filling that array. Everything here is world space: the
+// camera is a ViewSnapshot whose `view` maps world to eye (no model matrix
+// folded in); object_view() folds one object's transform in for the
+// per-object cut (budget.hpp, best_cut).
+//
+// Screen conventions, shared by the culler and the exact reference so that
+// both speak about the same pixels: pixel (x, y) covers [x, x+1) x [y, y+1)
+// with y up (OpenGL's window coordinates) and is sampled at its center, as
+// the rasterizer does. Depth is the eye-space distance along the view axis
+// (z_e = -z_eye > 0 in front of the camera), not the window depth.
+#pragma once
+
+#include <algorithm>
+#include <atomic>
+#include <condition_variable>
+#include <cstddef>
+#include <cstdint>
+#include <exception>
+#include <glm/mat3x3.hpp>
+#include <glm/mat4x4.hpp>
+#include <glm/vec2.hpp>
+#include <glm/vec3.hpp>
+#include <mutex>
+#include <thread>
+#include <type_traits>
+#include <vector>
+
+#include "treecut/view_snapshot.hpp"
+
+namespace treecut::strategies::many {
+
+/// Axis-aligned box, world units.
+struct Aabb {
+  glm::vec3 min{0.0f};
+  glm::vec3 max{0.0f};
+};
+
+/// Oriented box: center, unit orthogonal axes (columns of `axes`), half
+/// extents along them.
+struct Obb {
+  glm::vec3 center{0.0f};
+  glm::mat3 axes{1.0f};
+  glm::vec3 half{0.0f};
+};
+
+/// The world AABB of an oriented box (exact: the box's extreme corners).
+Aabb bounds_of(const Obb& box);
+/// `box` moved by an affine transform (rotation, translation and scale per
+/// axis are kept exactly; a shear makes the result the box of the transformed
+/// axes, which then contains the transformed box only approximately).
+Obb transformed(const Obb& box, const glm::mat4& transform);
+
+/// One object of a scene, as the budget and the culler need it.
+struct SceneObject {
+  /// The object's oriented bounding box in world space (object OBB moved by
+  /// its transform): what the exact reference draws for a box object.
+  Obb box;
+  /// World AABB containing `box`; the run-time tests use it (the paper:
+  /// "we always use AABBs during run-time").
+  Aabb bounds;
+  /// A box inside the object's solid: what the object may write into the
+  /// occluders' depth image (conservative: every ray that reaches it has hit
+  /// the object already). For a box object (compactness 1) it is `box`.
+  /// `has_inner` false: the object never occludes.
+  Obb inner;
+  bool has_inner = false;
+  std::uint32_t points = 0;  ///< P_i: available points (the hierarchy's leaves)
+  float compactness = 0.0f;  ///< Eq. 2, in [0, 1] (hzm.hpp, compactness())
+};
+
+/// A box object (a building): box, bounds and inner box all the same box,
+/// compactness 1.
+SceneObject box_object(const Obb& box, std::uint32_t points);
+
+/// A seeded city of `count` box buildings (y up, ground at y = 0): lots of
+/// 20 x 20 units on a square grid, a street of 12 units after every fourth
+/// lot in both directions, one building per lot with a random footprint of
+/// 6 to 18 units, a height of 4 to 80 (mostly low, a few towers), a third of
+/// them turned about the vertical axis, and 2,000 to 200,000 points. The
+/// same seed gives the same city. For the tests and the benchmark; scene
+/// files come with the scene loader.
+std::vector<SceneObject> box_city(std::size_t count, std::uint32_t seed);
+/// Street-level cameras of a box_city(count, ...): `views` eyes at 1.7
+/// units along and across the streets, looking along them or obliquely,
+/// seeded.
+std::vector<ViewSnapshot> city_views(std::size_t count, std::size_t views, std::uint32_t seed,
+                                     glm::ivec2 viewport = {1280, 720});
+
+/// What a camera sees of an AABB: its screen rectangle and nearest depth.
+struct ScreenRect {
+  /// The bounding rectangle of the projected box, clipped to the viewport,
+  /// in pixels (x0 < x1 and y0 < y1 when not empty).
+  float x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+  /// D_i: the smallest eye depth of the box's corners, or the near plane's
+  /// when the box crosses it.
+  float depth = 0;
+  bool crosses_near = false;  ///< a corner lies in front of the near plane
+  /// False when frustum culled: the box lies outside the viewport's
+  /// rectangle, behind the near plane or beyond the far plane.
+  bool in_frustum = false;
+  /// A_i: area of the clipped rectangle in square pixels (0 when culled).
+  [[nodiscard]] float area() const { return in_frustum ? (x1 - x0) * (y1 - y0) : 0.0f; }
+};
+
+/// A perspective camera in world space, prepared for projecting boxes and
+/// casting pixel rays. Built from a finalized ViewSnapshot whose projection
+/// is a perspective frustum (glm::perspective / glm::frustum form: w_clip =
+/// -z_eye, no skew); anything else is a std::invalid_argument.
+class FrameView {
+ public:
+  explicit FrameView(const ViewSnapshot& view);
+
+  [[nodiscard]] const ViewSnapshot& snapshot() const { return view_; }
+  [[nodiscard]] glm::ivec2 viewport() const { return view_.viewport; }
+  [[nodiscard]] float near_plane() const { return near_; }
+  [[nodiscard]] float far_plane() const { return far_; }
+  [[nodiscard]] glm::vec3 eye() const { return eye_; }
+  /// Unit viewing direction in world space (E of Eq. 3).
+  [[nodiscard]] glm::vec3 forward() const { return forward_; }
+
+  /// The clipped screen rectangle and nearest depth of a world AABB. A box
+  /// crossing the near plane: its 12 edges are clipped at the near plane and
+  /// the rectangle bounds the projected corners in front plus the edges'
+  /// crossing points (the rectangle of the box's part in front of the near
+  /// plane, exact), and its depth is the near plane's.
+  [[nodiscard]] ScreenRect project(const Aabb& box) const;
+
+  /// World direction of the ray through window point (x, y) (pixels, y up),
+  /// scaled so that its parameter t is the eye depth of the point reached.
+  [[nodiscard]] glm::vec3 ray_direction(float x, float y) const {
+    const float nx = 2.0f * x / static_cast<float>(view_.viewport.x) - 1.0f;
+    const float ny = 2.0f * y / static_cast<float>(view_.viewport.y) - 1.0f;
+    return ray_x_ * nx + ray_y_ * ny + ray_0_;
+  }
+  /// The same for normalized device coordinates, as an affine map:
+  /// direction = ray_x * ndc_x + ray_y * ndc_y + ray_0.
+  [[nodiscard]] glm::vec3 ray_x() const { return ray_x_; }
+  [[nodiscard]] glm::vec3 ray_y() const { return ray_y_; }
+  [[nodiscard]] glm::vec3 ray_0() const { return ray_0_; }
+
+ private:
+  ViewSnapshot view_;
+  glm::mat4 view_projection_{1.0f};
+  glm::vec3 eye_{0.0f};
+  glm::vec3 forward_{0.0f, 0.0f, -1.0f};
+  glm::vec3 ray_x_{0.0f}, ray_y_{0.0f}, ray_0_{0.0f};
+  float near_ = 0.0f, far_ = 0.0f;
+};
+
+/// Entry and exit parameters of the ray o + t d through an oriented box
+/// whose frame is given as (origin in box coordinates, direction in box
+/// coordinates): t_in <= t_out when it hits. Slab method.
+struct RayHit {
+  float t_in = 0.0f;
+  float t_out = -1.0f;
+  [[nodiscard]] bool hit() const { return t_in <= t_out; }
+};
+[[gnu::always_inline]] inline RayHit ray_box_local(glm::vec3 o, glm::vec3 d, glm::vec3 half) {
+  RayHit r{-3.0e38f, 3.0e38f};
+  for (int k = 0; k < 3; ++k) {
+    if (d[k] == 0.0f) {
+      // Parallel to the slab: inside it or never.
+      if (o[k] < -half[k] || o[k] > half[k]) return RayHit{};
+      continue;
+    }
+    const float inv = 1.0f / d[k];
+    float a = (-half[k] - o[k]) * inv;
+    float b = (half[k] - o[k]) * inv;
+    if (a > b) std::swap(a, b);
+    r.t_in = std::max(r.t_in, a);
+    r.t_out = std::min(r.t_out, b);
+  }
+  return r;
+}
+/// The same in world space.
+RayHit ray_box(const Obb& box, glm::vec3 origin, glm::vec3 direction);
+
+/// A ViewSnapshot for one object: the world camera with the object's
+/// transform (object to world) folded into `view`, finalized; what the
+/// single-model code (priorities, best_cut) expects.
+ViewSnapshot object_view(const ViewSnapshot& world_view, const glm::mat4& transform);
+
+/// A fixed set of worker threads for the data-parallel passes of a frame
+/// (the paper's "object-level parallelism" on CUDA threads, here on cores).
+/// run() splits [0, n) into chunks of `grain` indices that the workers and
+/// the calling thread take in turn; it returns when all are done. Results
+/// written per index (or per chunk, indexed by chunk) do not depend on the
+/// thread count or the schedule. One run() at a time (the Feedback Stage
+/// thread drives it); the first exception of a body is rethrown.
+class WorkerPool {
+ public:
+  /// `threads` >= 1 participants, the calling thread included
+  /// (threads - 1 workers are started).
+  explicit WorkerPool(unsigned threads);
+  ~WorkerPool();
+  WorkerPool(const WorkerPool&) = delete;
+  WorkerPool& operator=(const WorkerPool&) = delete;
+
+  [[nodiscard]] unsigned threads() const { return static_cast<unsigned>(workers_.size()) + 1; }
+
+  /// body(begin, end, chunk) for every chunk [begin, end) of [0, n).
+  template <class Body>
+  void run(std::size_t n, std::size_t grain, Body&& body) {
+    if (n == 0) return;
+    grain = std::max<std::size_t>(grain, 1);
+    const std::size_t chunks = (n + grain - 1) / grain;
+    if (chunks == 1 || workers_.empty()) {
+      for (std::size_t c = 0; c < chunks; ++c) body(c * grain, std::min(n, (c + 1) * grain), c);
+      return;
+    }
+    using Fn = std::remove_reference_t<Body>;
+    struct Ctx {
+      Fn* body;
+      std::size_t n, grain;
+    } ctx{&body, n, grain};
+    dispatch(
+        chunks,
+        [](void* p, std::size_t c) {
+          auto* x = static_cast<Ctx*>(p);
+          (*x->body)(c * x->grain, std::min(x->n, (c + 1) * x->grain), c);
+        },
+        &ctx);
+  }
+  /// Chunks for n indices at this grain (to size per-chunk results).
+  [[nodiscard]] static std::size_t chunk_count(std::size_t n, std::size_t grain) {
+    grain = std::max<std::size_t>(grain, 1);
+    return (n + grain - 1) / grain;
+  }
+
+ private:
+  using ChunkFn = void (*)(void*, std::size_t);
+  void dispatch(std::size_t chunks, ChunkFn fn, void* ctx);
+  void work(std::uint64_t generation);
+  void take_chunks();
+
+  std::vector<std::thread> workers_;
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  std::condition_variable done_;
+  std::uint64_t generation_ = 0;  // guarded by mutex_
+  unsigned busy_ = 0;             // workers still in the current job, guarded
+  bool stop_ = false;             // guarded
+  // The current job; written under mutex_ before the generation is bumped.
+  ChunkFn fn_ = nullptr;
+  void* ctx_ = nullptr;
+  std::size_t chunks_ = 0;
+  std::atomic<std::size_t> next_{0};
+  std::exception_ptr error_;  // guarded
+};
+
+}  // namespace treecut::strategies::many

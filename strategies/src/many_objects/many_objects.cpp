@@ -1,0 +1,295 @@
+// Scenes of many objects: boxes, the camera's view of them, the worker pool.
+// After Peng & Cao, "Integrating Occlusion Culling and Parallel LOD for
+// Rendering Complex 3D Environments on GPU" (I3D 2013,
+// ../shared/papers/occlusion-culling-with-parallel-lod.txt), sections 5-6.
+#include "treecut/strategies/many_objects.hpp"
+
+#include <cmath>
+#include <glm/geometric.hpp>
+#include <glm/matrix.hpp>
+#include <random>
+#include <stdexcept>
+
+namespace treecut::strategies::many {
+
+Aabb bounds_of(const Obb& box) {
+  glm::vec3 e(0.0f);
+  for (int k = 0; k < 3; ++k) e += glm::abs(box.axes[k]) * box.half[k];
+  return {box.center - e, box.center + e};
+}
+
+Obb transformed(const Obb& box, const glm::mat4& transform) {
+  Obb r;
+  r.center = glm::vec3(transform * glm::vec4(box.center, 1.0f));
+  const glm::mat3 m(transform);
+  for (int k = 0; k < 3; ++k) {
+    const glm::vec3 a = m * box.axes[k];
+    const float len = glm::length(a);
+    r.axes[k] = len > 0.0f ? a / len : box.axes[k];
+    r.half[k] = box.half[k] * len;
+  }
+  return r;
+}
+
+SceneObject box_object(const Obb& box, std::uint32_t points) {
+  SceneObject o;
+  o.box = box;
+  o.bounds = bounds_of(box);
+  o.inner = box;
+  o.has_inner = true;
+  o.points = points;
+  o.compactness = 1.0f;
+  return o;
+}
+
+RayHit ray_box(const Obb& box, glm::vec3 origin, glm::vec3 direction) {
+  const glm::mat3 to_local = glm::transpose(box.axes);
+  return ray_box_local(to_local * (origin - box.center), to_local * direction, box.half);
+}
+
+ViewSnapshot object_view(const ViewSnapshot& world_view, const glm::mat4& transform) {
+  ViewSnapshot v = world_view;
+  v.view = world_view.view * transform;
+  v.finalize();
+  return v;
+}
+
+FrameView::FrameView(const ViewSnapshot& view) : view_(view) {
+  const glm::mat4& p = view.projection;
+  // Column-major: p[column][row]. The frustum form has w_clip = -z_eye and
+  // no term mixing x and y.
+  if (p[0][3] != 0.0f || p[1][3] != 0.0f || p[2][3] != -1.0f || p[3][3] != 0.0f ||
+      p[0][1] != 0.0f || p[1][0] != 0.0f || p[3][0] != 0.0f || p[3][1] != 0.0f || p[0][0] == 0.0f ||
+      p[1][1] == 0.0f) {
+    throw std::invalid_argument("many objects: the projection is not a perspective frustum");
+  }
+  if (view.viewport.x <= 0 || view.viewport.y <= 0) {
+    throw std::invalid_argument("many objects: empty viewport");
+  }
+  view_projection_ = p * view.view;
+  // Eye depth of NDC z: z_e = p32 / (ndc_z + p22).
+  near_ = p[3][2] / (p[2][2] - 1.0f);
+  far_ = p[3][2] / (p[2][2] + 1.0f);
+  const glm::mat3 to_world = glm::inverse(glm::mat3(view.view));
+  eye_ = glm::vec3(glm::inverse(view.view)[3]);
+  ray_x_ = to_world * glm::vec3(1.0f / p[0][0], 0.0f, 0.0f);
+  ray_y_ = to_world * glm::vec3(0.0f, 1.0f / p[1][1], 0.0f);
+  ray_0_ = to_world * glm::vec3(p[2][0] / p[0][0], p[2][1] / p[1][1], -1.0f);
+  forward_ = glm::normalize(to_world * glm::vec3(0.0f, 0.0f, -1.0f));
+}
+
+ScreenRect FrameView::project(const Aabb& box) const {
+  ScreenRect r;
+  const glm::vec3 center = 0.5f * (box.min + box.max);
+  const float radius = 0.5f * glm::length(box.max - box.min);
+  // Most of a large scene is outside the frustum: six planes first.
+  if (view_.outside_frustum(center, radius)) return r;
+  // Eye-space corners as the first one plus edge vectors: 8 corners from
+  // one matrix product and three scaled columns.
+  const glm::mat4& v = view_.view;
+  const glm::vec3 c0 = glm::vec3(v * glm::vec4(box.min, 1.0f));
+  const glm::vec3 ex = glm::vec3(v[0]) * (box.max.x - box.min.x);
+  const glm::vec3 ey = glm::vec3(v[1]) * (box.max.y - box.min.y);
+  const glm::vec3 ez = glm::vec3(v[2]) * (box.max.z - box.min.z);
+  glm::vec3 corner[8];
+  for (int i = 0; i < 8; ++i) {
+    corner[i] = c0 + ((i & 1) ? ex : glm::vec3(0.0f)) + ((i & 2) ? ey : glm::vec3(0.0f)) +
+                ((i & 4) ? ez : glm::vec3(0.0f));
+  }
+  const glm::mat4& p = view_.projection;
+  float lo_x = 3e38f, lo_y = 3e38f, hi_x = -3e38f, hi_y = -3e38f;
+  float min_depth = 3e38f;
+  bool front = false, behind = false;
+  const auto add = [&](glm::vec3 e) {
+    const float ze = -e.z;
+    const float inv = 1.0f / ze;
+    const float nx = (p[0][0] * e.x + p[2][0] * e.z) * inv;
+    const float ny = (p[1][1] * e.y + p[2][1] * e.z) * inv;
+    lo_x = std::min(lo_x, nx);
+    hi_x = std::max(hi_x, nx);
+    lo_y = std::min(lo_y, ny);
+    hi_y = std::max(hi_y, ny);
+  };
+  for (const glm::vec3& e : corner) {
+    const float ze = -e.z;
+    if (ze >= near_) {
+      front = true;
+      min_depth = std::min(min_depth, ze);
+      add(e);
+    } else {
+      behind = true;
+    }
+  }
+  if (!front) return r;  // wholly on the camera's side of the near plane
+  if (behind) {
+    // Clip the 12 edges at the near plane: corners i and i ^ bit differ in
+    // one coordinate.
+    for (int i = 0; i < 8; ++i) {
+      for (int bit = 1; bit < 8; bit <<= 1) {
+        const int j = i ^ bit;
+        if (j < i) continue;
+        const float zi = -corner[i].z, zj = -corner[j].z;
+        if ((zi >= near_) == (zj >= near_)) continue;
+        const float s = (near_ - zi) / (zj - zi);
+        glm::vec3 e = corner[i] + s * (corner[j] - corner[i]);
+        e.z = -near_;  // exactly on the plane despite rounding
+        add(e);
+      }
+    }
+    min_depth = near_;
+    r.crosses_near = true;
+  }
+  r.depth = min_depth;
+  if (min_depth > far_) return r;
+  const float w = static_cast<float>(view_.viewport.x), h = static_cast<float>(view_.viewport.y);
+  r.x0 = std::max(0.0f, (lo_x + 1.0f) * 0.5f * w);
+  r.x1 = std::min(w, (hi_x + 1.0f) * 0.5f * w);
+  r.y0 = std::max(0.0f, (lo_y + 1.0f) * 0.5f * h);
+  r.y1 = std::min(h, (hi_y + 1.0f) * 0.5f * h);
+  r.in_frustum = r.x0 < r.x1 && r.y0 < r.y1;
+  return r;
+}
+
+WorkerPool::WorkerPool(unsigned threads) {
+  const unsigned n = std::max(threads, 1u);
+  workers_.reserve(n - 1);
+  for (unsigned i = 1; i < n; ++i) {
+    workers_.emplace_back([this] {
+      std::uint64_t seen = 0;
+      for (;;) {
+        {
+          std::unique_lock lock(mutex_);
+          wake_.wait(lock, [&] { return stop_ || generation_ != seen; });
+          if (stop_) return;
+          seen = generation_;
+        }
+        take_chunks();
+        std::lock_guard lock(mutex_);
+        if (--busy_ == 0) done_.notify_one();
+      }
+    });
+  }
+}
+
+WorkerPool::~WorkerPool() {
+  {
+    std::lock_guard lock(mutex_);
+    stop_ = true;
+  }
+  wake_.notify_all();
+  for (std::thread& t : workers_) t.join();
+}
+
+void WorkerPool::take_chunks() {
+  for (;;) {
+    const std::size_t c = next_.fetch_add(1, std::memory_order_relaxed);
+    if (c >= chunks_) return;
+    try {
+      fn_(ctx_, c);
+    } catch (...) {
+      std::lock_guard lock(mutex_);
+      if (!error_) error_ = std::current_exception();
+    }
+  }
+}
+
+void WorkerPool::dispatch(std::size_t chunks, ChunkFn fn, void* ctx) {
+  {
+    std::lock_guard lock(mutex_);
+    fn_ = fn;
+    ctx_ = ctx;
+    chunks_ = chunks;
+    next_.store(0, std::memory_order_relaxed);
+    busy_ = static_cast<unsigned>(workers_.size());
+    error_ = nullptr;
+    ++generation_;
+  }
+  wake_.notify_all();
+  take_chunks();
+  std::exception_ptr error;
+  {
+    std::unique_lock lock(mutex_);
+    done_.wait(lock, [&] { return busy_ == 0; });
+    error = error_;
+    error_ = nullptr;
+  }
+  if (error) std::rethrow_exception(error);
+}
+
+}  // namespace treecut::strategies::many
+
+namespace treecut::strategies::many {
+namespace {
+
+constexpr float kLot = 20.0f;
+constexpr float kStreet = 12.0f;
+constexpr std::size_t kLotsPerBlock = 4;
+
+std::size_t city_side(std::size_t count) {
+  return static_cast<std::size_t>(std::ceil(std::sqrt(static_cast<double>(count))));
+}
+// The lower corner of lot i along one axis: lots and, after every fourth, a street.
+float lot_origin(std::size_t i) {
+  return static_cast<float>(i) * kLot + static_cast<float>(i / kLotsPerBlock) * kStreet;
+}
+
+}  // namespace
+
+std::vector<SceneObject> box_city(std::size_t count, std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  const std::size_t side = city_side(count);
+  std::vector<SceneObject> objects;
+  objects.reserve(count);
+  for (std::size_t k = 0; k < count; ++k) {
+    const std::size_t i = k % side, j = k / side;
+    const float w = 6.0f + 12.0f * unit(rng), d = 6.0f + 12.0f * unit(rng);
+    const float u = unit(rng);
+    const float height = 4.0f + 76.0f * u * u * u;  // mostly low, a few towers
+    Obb box;
+    box.half = {0.5f * w, 0.5f * height, 0.5f * d};
+    if (unit(rng) < 1.0f / 3.0f) {
+      const float yaw = 1.5707964f * unit(rng);
+      box.axes = glm::mat3(glm::vec3(std::cos(yaw), 0.0f, -std::sin(yaw)), glm::vec3(0, 1, 0),
+                           glm::vec3(std::sin(yaw), 0.0f, std::cos(yaw)));
+    }
+    // Within its lot (a turned box is shrunk until its AABB fits).
+    Aabb b = bounds_of(box);
+    const float fit =
+        std::min(1.0f, 0.5f * kLot / std::max(b.max.x - box.center.x, b.max.z - box.center.z));
+    box.half.x *= fit;
+    box.half.z *= fit;
+    box.center = {lot_origin(i) + 0.5f * kLot, 0.5f * height, lot_origin(j) + 0.5f * kLot};
+    const auto points = static_cast<std::uint32_t>(2000.0f + 198000.0f * unit(rng) * unit(rng));
+    objects.push_back(box_object(box, points));
+  }
+  return objects;
+}
+
+std::vector<ViewSnapshot> city_views(std::size_t count, std::size_t views, std::uint32_t seed,
+                                     glm::ivec2 viewport) {
+  std::mt19937 rng(seed ^ 0x9e3779b9u);
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  const std::size_t side = city_side(count);
+  const std::size_t streets = std::max<std::size_t>(1, side / kLotsPerBlock);
+  const float extent = lot_origin(side);
+  std::vector<ViewSnapshot> out;
+  for (std::size_t v = 0; v < views; ++v) {
+    // On a street (the gap after block s), somewhere along it.
+    const std::size_t s =
+        std::min(streets - 1, static_cast<std::size_t>(unit(rng) * static_cast<float>(streets)));
+    const float across = lot_origin((s + 1) * kLotsPerBlock) - 0.5f * kStreet;
+    const float along = extent * (0.1f + 0.8f * unit(rng));
+    const bool x_street = unit(rng) < 0.5f;
+    const glm::vec3 eye =
+        x_street ? glm::vec3(along, 1.7f, across) : glm::vec3(across, 1.7f, along);
+    // Along the street, or turned up to 40 degrees off it.
+    float heading = (x_street ? 0.0f : 1.5707964f) + (unit(rng) < 0.5f ? 0.0f : 3.1415927f);
+    heading += (unit(rng) - 0.5f) * 1.4f * (unit(rng) < 0.5f ? 1.0f : 0.0f);
+    const glm::vec3 dir(std::cos(heading), 0.02f, std::sin(heading));
+    out.push_back(ViewSnapshot::look_at(eye, eye + dir, viewport, 0.9f, 0.1f, 3000.0f));
+  }
+  return out;
+}
+
+}  // namespace treecut::strategies::many

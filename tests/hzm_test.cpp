@@ -1,0 +1,394 @@
+// Occlusion culling with a hierarchical Z-map (strategies/include/treecut/
+// strategies/hzm.hpp; Peng & Cao, I3D 2013, section 6): conservative against
+// an exact reference, the max-reduction levels, the level of Eq. 5, the
+// compactness of Eq. 2, the occluder weights of Eq. 3, the screen rectangles.
+#include "treecut/strategies/hzm.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <glm/geometric.hpp>
+#include <numbers>
+#include <random>
+#include <vector>
+
+#include "treecut/strategies/many_objects.hpp"
+
+namespace treecut::strategies::many {
+namespace {
+
+Obb axis_box(glm::vec3 center, glm::vec3 half) {
+  Obb b;
+  b.center = center;
+  b.half = half;
+  return b;
+}
+
+Obb turned_box(glm::vec3 center, glm::vec3 half, float yaw) {
+  Obb b = axis_box(center, half);
+  b.axes = glm::mat3(glm::vec3(std::cos(yaw), 0.0f, -std::sin(yaw)), glm::vec3(0, 1, 0),
+                     glm::vec3(std::sin(yaw), 0.0f, std::cos(yaw)));
+  return b;
+}
+
+// Random boxes in a cube of side 40 around the origin, some turned.
+std::vector<SceneObject> random_boxes(std::size_t n, std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> pos(-20.0f, 20.0f), size(0.2f, 4.0f), unit(0.0f, 1.0f);
+  std::vector<SceneObject> out;
+  for (std::size_t i = 0; i < n; ++i) {
+    const glm::vec3 c(pos(rng), pos(rng), pos(rng));
+    const glm::vec3 h(size(rng), size(rng), size(rng));
+    out.push_back(box_object(
+        unit(rng) < 0.4f ? turned_box(c, h, 6.2831853f * unit(rng)) : axis_box(c, h), 1000));
+  }
+  return out;
+}
+
+// A wall of boxes at z = 0 (a 6 x 4 grid of 2-unit boxes with 0.1 gaps) in
+// front of a field of small boxes behind it (z from -5 to -40).
+std::vector<SceneObject> wall_scene(std::uint32_t seed) {
+  std::vector<SceneObject> out;
+  for (int i = 0; i < 6; ++i) {
+    for (int j = 0; j < 4; ++j) {
+      out.push_back(box_object(axis_box({-6.3f + 2.1f * static_cast<float>(i) + 1.0f,
+                                         2.1f * static_cast<float>(j) + 1.0f, 0.0f},
+                                        {1.0f, 1.0f, 0.5f}),
+                               5000));
+    }
+  }
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> x(-10.0f, 10.0f), y(0.0f, 10.0f), z(-40.0f, -5.0f),
+      s(0.1f, 0.6f);
+  for (int k = 0; k < 300; ++k) {
+    out.push_back(box_object(axis_box({x(rng), y(rng), z(rng)}, {s(rng), s(rng), s(rng)}), 1000));
+  }
+  return out;
+}
+
+// Every object the reference sees is potentially visible; returns how many
+// were culled (so a caller can also require that culling happened).
+std::size_t expect_conservative(const std::vector<SceneObject>& objects, const ViewSnapshot& snap,
+                                const HzmParams& params, WorkerPool* pool) {
+  const FrameView view(snap);
+  HzmCuller culler(params);
+  culler.preprocess(objects);
+  culler.cull(objects, view, pool);
+  std::vector<std::uint8_t> seen;
+  reference_visibility(objects, view, seen, pool);
+  std::size_t culled = 0;
+  for (std::size_t i = 0; i < objects.size(); ++i) {
+    if (seen[i]) {
+      EXPECT_NE(culler.states()[i], ObjectState::Occluded)
+          << "object " << i << " is seen by the reference but culled";
+      EXPECT_NE(culler.states()[i], ObjectState::Outside)
+          << "object " << i << " is seen by the reference but frustum culled";
+    }
+    culled += culler.states()[i] == ObjectState::Occluded;
+  }
+  const CullAccuracy a = cull_accuracy(culler, seen);
+  EXPECT_EQ(a.wrongly, 0u);
+  EXPECT_LE(a.culled, a.hidden);
+  return culled;
+}
+
+TEST(Hzm, hzm_culling_is_conservative) {
+  WorkerPool pool(2);
+  std::size_t culled_total = 0;
+  for (std::uint32_t seed = 1; seed <= 6; ++seed) {
+    const auto objects = random_boxes(400, seed);
+    std::mt19937 rng(seed * 77);
+    std::uniform_real_distribution<float> a(0.0f, 6.2831853f);
+    for (int v = 0; v < 4; ++v) {
+      // Outside the cloud, inside it (boxes crossing the near plane), close up.
+      const float r = v == 0 ? 60.0f : v == 1 ? 25.0f : v == 2 ? 5.0f : 1.0f;
+      const float t = a(rng), p = 0.6f * (a(rng) / 6.2831853f - 0.5f);
+      const glm::vec3 eye =
+          r * glm::vec3(std::cos(t) * std::cos(p), std::sin(p), std::sin(t) * std::cos(p));
+      const auto snap =
+          ViewSnapshot::look_at(eye, glm::vec3(0.0f), {320, 200}, 0.9f, 0.05f, 500.0f);
+      HzmParams params;
+      params.active = 16;
+      params.depth_width = seed % 2 ? 64 : 320;  // cells of 5 pixels, and of one
+      culled_total += expect_conservative(objects, snap, params, &pool);
+    }
+  }
+  for (std::uint32_t seed = 1; seed <= 4; ++seed) {
+    const auto objects = wall_scene(seed);
+    for (const glm::vec3 eye : {glm::vec3(0.0f, 4.0f, 12.0f), glm::vec3(3.0f, 2.0f, 4.0f),
+                                glm::vec3(-8.0f, 5.0f, 10.0f), glm::vec3(0.0f, 12.0f, 10.0f)}) {
+      const auto snap =
+          ViewSnapshot::look_at(eye, {0.0f, 4.0f, -10.0f}, {400, 300}, 0.9f, 0.05f, 500.0f);
+      HzmParams params;
+      params.active = 24;
+      params.depth_width = 100;
+      culled_total += expect_conservative(objects, snap, params, &pool);
+    }
+  }
+  // Not vacuous: the wall hides most of the field from the front.
+  EXPECT_GT(culled_total, 300u);
+}
+
+TEST(Hzm, wall_culls_what_it_hides) {
+  const auto objects = wall_scene(3);
+  const auto snap = ViewSnapshot::look_at({0.0f, 4.0f, 12.0f}, {0.0f, 4.0f, -10.0f}, {400, 300},
+                                          0.9f, 0.05f, 500.0f);
+  const FrameView view(snap);
+  HzmCuller culler({400, 24, 0.5f});
+  culler.preprocess(objects);
+  culler.cull(objects, view, nullptr);
+  std::vector<std::uint8_t> seen;
+  reference_visibility(objects, view, seen, nullptr);
+  const CullAccuracy a = cull_accuracy(culler, seen);
+  EXPECT_EQ(a.wrongly, 0u);
+  EXPECT_GT(a.hidden, 50u);
+  EXPECT_GE(a.ratio(), 0.6) << a.culled << " culled of " << a.hidden << " hidden";
+  std::printf("wall: %zu culled of %zu hidden\n", a.culled, a.hidden);
+  // The 24 wall boxes are the active occluders (the largest, nearest, facing).
+  EXPECT_EQ(culler.active().size(), 24u);
+  for (const std::uint32_t i : culler.active()) EXPECT_LT(i, 24u);
+}
+
+TEST(Hzm, max_reduction_levels) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> d(1.0f, 100.0f);
+  for (const glm::ivec2 size :
+       {glm::ivec2(13, 7), glm::ivec2(16, 16), glm::ivec2(1, 9), glm::ivec2(33, 2)}) {
+    std::vector<float> base(static_cast<std::size_t>(size.x * size.y));
+    for (float& x : base) x = d(rng);
+    base[3 % base.size()] = std::numeric_limits<float>::infinity();  // an empty cell
+    WorkerPool pool(2);
+    HierarchicalZMap hzm;
+    hzm.build(base, size.x, size.y, &pool);
+    ASSERT_GE(hzm.levels(), 1);
+    EXPECT_EQ(hzm.width(hzm.levels() - 1), 1);
+    EXPECT_EQ(hzm.height(hzm.levels() - 1), 1);
+    for (int l = 0; l < hzm.levels(); ++l) {
+      EXPECT_EQ(hzm.width(l), (size.x + (1 << l) - 1) >> l);
+      EXPECT_EQ(hzm.height(l), (size.y + (1 << l) - 1) >> l);
+      for (int y = 0; y < hzm.height(l); ++y) {
+        for (int x = 0; x < hzm.width(l); ++x) {
+          // The max over the level-0 cells it covers.
+          float m = -1.0f;
+          for (int by = y << l; by < std::min(size.y, (y + 1) << l); ++by)
+            for (int bx = x << l; bx < std::min(size.x, (x + 1) << l); ++bx)
+              m = std::max(m, base[static_cast<std::size_t>(by * size.x + bx)]);
+          EXPECT_EQ(hzm.at(l, x, y), m) << "level " << l << " cell " << x << "," << y;
+        }
+      }
+    }
+  }
+}
+
+TEST(Hzm, eq5_level_choice) {
+  std::vector<float> base(256 * 256, 1.0f);
+  HierarchicalZMap hzm;
+  hzm.build(base, 256, 256, nullptr);
+  EXPECT_EQ(hzm.levels(), 9);  // log2 256 + 1, as the paper's count
+  EXPECT_EQ(hzm.level_for(1), 0);
+  EXPECT_EQ(hzm.level_for(2), 1);
+  EXPECT_EQ(hzm.level_for(3), 2);
+  EXPECT_EQ(hzm.level_for(4), 2);
+  EXPECT_EQ(hzm.level_for(5), 3);
+  EXPECT_EQ(hzm.level_for(256), 8);
+  EXPECT_EQ(hzm.level_for(1000), 8);  // clamped to the coarsest
+  // A square of R cells lies on 1 to 4 cells of its level, anywhere; one
+  // level finer it may need more (the level is the finest that bounds it).
+  std::mt19937 rng(9);
+  std::uniform_int_distribution<int> pos(0, 255), len(1, 100);
+  bool finer_needs_more = false;
+  for (int k = 0; k < 2000; ++k) {
+    const int r = len(rng);
+    const int x0 = std::min(pos(rng), 256 - r), y0 = std::min(pos(rng), 256 - r);
+    const int x1 = x0 + r - 1, y1 = y0 + r - 1;
+    const int l = hzm.level_for(r);
+    EXPECT_LE((x1 >> l) - (x0 >> l) + 1, 2);
+    EXPECT_LE((y1 >> l) - (y0 >> l) + 1, 2);
+    EXPECT_GE(1 << l, r);
+    if (l > 0) finer_needs_more |= (x1 >> (l - 1)) - (x0 >> (l - 1)) + 1 > 2;
+    int used = -1;
+    EXPECT_EQ(hzm.max_over(x0, y0, x1, y1, &used), 1.0f);
+    EXPECT_EQ(used, l);
+  }
+  EXPECT_TRUE(finer_needs_more);
+}
+
+TEST(Hzm, max_over_reads_every_cell_under_the_rectangle) {
+  std::vector<float> base(64 * 32, 1.0f);
+  base[static_cast<std::size_t>(10 * 64 + 37)] = 9.0f;
+  HierarchicalZMap hzm;
+  hzm.build(base, 64, 32, nullptr);
+  EXPECT_EQ(hzm.max_over(37, 10, 37, 10), 9.0f);
+  EXPECT_EQ(hzm.max_over(30, 5, 40, 12), 9.0f);
+  EXPECT_EQ(hzm.max_over(0, 0, 20, 20), 1.0f);
+}
+
+TEST(Hzm, compactness_eq2) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  // Points on the surface of a 4 x 2 x 1 box, turned.
+  const glm::vec3 h(2.0f, 1.0f, 0.5f);
+  const Obb truth = turned_box({3.0f, 1.0f, -2.0f}, h, 0.7f);
+  std::vector<glm::vec3> box_points;
+  for (int k = 0; k < 60000; ++k) {
+    glm::vec3 l(u(rng) * h.x, u(rng) * h.y, u(rng) * h.z);
+    const int face = k % 3;
+    l[face] = (k / 3) % 2 ? h[face] : -h[face];
+    box_points.push_back(truth.center + truth.axes * l);
+  }
+  const Obb fit = fit_obb(box_points);
+  std::vector<float> got{fit.half.x, fit.half.y, fit.half.z}, want{h.x, h.y, h.z};
+  std::sort(got.begin(), got.end());
+  std::sort(want.begin(), want.end());
+  for (int k = 0; k < 3; ++k)
+    EXPECT_NEAR(got[static_cast<std::size_t>(k)], want[static_cast<std::size_t>(k)], 0.02f);
+  EXPECT_NEAR(glm::length(fit.center - truth.center), 0.0f, 0.02f);
+  EXPECT_GT(compactness(box_points, fit), 0.97f);
+
+  // A sphere's surface fills pi/4 of each face.
+  std::vector<glm::vec3> sphere;
+  std::normal_distribution<float> g(0.0f, 1.0f);
+  for (int k = 0; k < 60000; ++k)
+    sphere.push_back(glm::normalize(glm::vec3(g(rng), g(rng), g(rng))));
+  const float cs = compactness(sphere, fit_obb(sphere));
+  EXPECT_NEAR(cs, std::numbers::pi_v<float> / 4.0f, 0.05f);
+
+  // A thin plus sign (two crossed rods in a plane) fills little.
+  std::vector<glm::vec3> plus;
+  for (int k = 0; k < 20000; ++k) {
+    const float t = u(rng) * 5.0f, w = u(rng) * 0.1f;
+    plus.push_back(k % 2 ? glm::vec3(t, w, 0.0f) : glm::vec3(w, t, 0.0f));
+  }
+  const float cp = compactness(plus, fit_obb(plus));
+  EXPECT_LT(cp, 0.3f);
+  EXPECT_GT(cp, 0.0f);
+  // The candidate set follows the threshold.
+  std::vector<SceneObject> objects(3);
+  objects[0] = box_object(truth, 100);
+  objects[1] = box_object(truth, 100);
+  objects[1].compactness = cs;
+  objects[2] = box_object(truth, 100);
+  objects[2].compactness = cp;
+  HzmCuller culler({64, 4, 0.55f});
+  culler.preprocess(objects);
+  ASSERT_EQ(culler.candidates().size(), 2u);
+  EXPECT_EQ(culler.candidates()[0], 0u);  // compactness descending
+  EXPECT_EQ(culler.candidates()[1], 1u);
+}
+
+TEST(Hzm, occluders_are_the_top_weights_of_eq3) {
+  const auto objects = random_boxes(500, 11);
+  const auto snap =
+      ViewSnapshot::look_at({0.0f, 0.0f, 45.0f}, glm::vec3(0.0f), {320, 240}, 0.9f, 0.05f, 500.0f);
+  const FrameView view(snap);
+  HzmCuller culler({64, 10, 0.5f});
+  culler.preprocess(objects);
+  culler.project(objects, view, nullptr);
+  culler.select_occluders(objects, view, nullptr);
+  ASSERT_EQ(culler.active().size(), 10u);
+  // The weights by hand: AABB volume * |N . E| / distance to the AABB.
+  std::vector<std::pair<float, std::uint32_t>> w;
+  for (std::uint32_t i = 0; i < objects.size(); ++i) {
+    const SceneObject& o = objects[i];
+    const ScreenRect r = view.project(o.bounds);
+    if (!r.in_frustum || r.crosses_near) continue;
+    int k = 0;
+    for (int a = 1; a < 3; ++a)
+      if (o.box.half[a] < o.box.half[k]) k = a;
+    const glm::vec3 e = view.eye();
+    const glm::vec3 out = glm::max(glm::max(o.bounds.min - e, e - o.bounds.max), glm::vec3(0.0f));
+    const glm::vec3 s = o.bounds.max - o.bounds.min;
+    const float weight =
+        s.x * s.y * s.z * std::abs(glm::dot(o.box.axes[k], view.forward())) / glm::length(out);
+    EXPECT_FLOAT_EQ(weight, occluder_weight(o, o.box.axes[k], r, view));
+    w.push_back({weight, i});
+  }
+  std::sort(w.begin(), w.end(), [](auto a, auto b) {
+    return a.first != b.first ? a.first > b.first : a.second < b.second;
+  });
+  for (std::size_t k = 0; k < 10; ++k) EXPECT_EQ(culler.active()[k], w[k].second);
+  // Nothing behind the camera or outside the frustum is chosen.
+  for (const std::uint32_t i : culler.active()) EXPECT_TRUE(culler.rects()[i].in_frustum);
+}
+
+TEST(Hzm, screen_rectangles_and_near_plane) {
+  const auto snap =
+      ViewSnapshot::look_at({0.0f, 0.0f, 10.0f}, glm::vec3(0.0f), {200, 100}, 0.9f, 0.5f, 100.0f);
+  const FrameView view(snap);
+  EXPECT_NEAR(view.near_plane(), 0.5f, 1e-4f);
+  EXPECT_NEAR(view.far_plane(), 100.0f, 0.05f);
+  // In front: the rectangle of the projected corners, depth of the nearest.
+  const ScreenRect r = view.project({{-1.0f, -1.0f, -1.0f}, {1.0f, 1.0f, 1.0f}});
+  ASSERT_TRUE(r.in_frustum);
+  EXPECT_FALSE(r.crosses_near);
+  EXPECT_NEAR(r.depth, 9.0f, 1e-4f);
+  const float f = 1.0f / std::tan(0.45f);  // projection[1][1]
+  const float half_h = 1.0f * f / 9.0f * 50.0f, half_w = 1.0f * f / 9.0f * 50.0f;
+  EXPECT_NEAR(r.x1 - r.x0, 2.0f * half_w, 1e-2f);
+  EXPECT_NEAR(r.y1 - r.y0, 2.0f * half_h, 1e-2f);
+  EXPECT_NEAR(0.5f * (r.x0 + r.x1), 100.0f, 1e-3f);
+  EXPECT_NEAR(r.area(), (r.x1 - r.x0) * (r.y1 - r.y0), 1e-3f);
+  // Behind the camera: culled.
+  EXPECT_FALSE(view.project({{-1.0f, -1.0f, 20.0f}, {1.0f, 1.0f, 22.0f}}).in_frustum);
+  // Beyond the far plane: culled.
+  EXPECT_FALSE(view.project({{-1.0f, -1.0f, -200.0f}, {1.0f, 1.0f, -190.0f}}).in_frustum);
+  // Off to the side: culled.
+  EXPECT_FALSE(view.project({{50.0f, -1.0f, -1.0f}, {52.0f, 1.0f, 1.0f}}).in_frustum);
+  // Crossing the near plane: depth = near, the rectangle of the part in
+  // front (clipped to the viewport), never culled by the HZM.
+  const ScreenRect c = view.project({{-0.2f, -0.2f, 9.0f}, {0.2f, 0.2f, 11.0f}});
+  ASSERT_TRUE(c.in_frustum);
+  EXPECT_TRUE(c.crosses_near);
+  EXPECT_FLOAT_EQ(c.depth, view.near_plane());
+  const float at_near = 0.2f * f / 0.5f * 50.0f;  // half size at the near plane, pixels
+  EXPECT_NEAR(c.y1 - c.y0, std::min(100.0f, 2.0f * at_near), 1e-2f);
+}
+
+TEST(Hzm, independent_of_the_thread_count) {
+  const auto objects = box_city(3000, 4);
+  const auto views = city_views(3000, 3, 4, {320, 180});
+  WorkerPool one(1), two(2);
+  for (const auto& snap : views) {
+    const FrameView view(snap);
+    HzmCuller a, b;
+    a.preprocess(objects);
+    b.preprocess(objects);
+    a.cull(objects, view, &one);
+    b.cull(objects, view, &two);
+    EXPECT_TRUE(std::equal(a.states().begin(), a.states().end(), b.states().begin()));
+    EXPECT_TRUE(
+        std::equal(a.active().begin(), a.active().end(), b.active().begin(), b.active().end()));
+    std::vector<std::uint8_t> ra, rb;
+    reference_visibility(objects, view, ra, &one);
+    reference_visibility(objects, view, rb, &two);
+    EXPECT_EQ(ra, rb);
+    const CullAccuracy acc = cull_accuracy(b, rb);
+    EXPECT_EQ(acc.wrongly, 0u);
+  }
+}
+
+TEST(Hzm, worker_pool_runs_every_chunk_once_and_rethrows) {
+  WorkerPool pool(2);
+  EXPECT_EQ(pool.threads(), 2u);
+  for (int round = 0; round < 50; ++round) {
+    std::vector<int> hits(10007, 0);
+    pool.run(hits.size(), 100, [&](std::size_t b, std::size_t e, std::size_t c) {
+      EXPECT_EQ(b, c * 100);
+      for (std::size_t i = b; i < e; ++i) ++hits[i];
+    });
+    EXPECT_TRUE(std::all_of(hits.begin(), hits.end(), [](int h) { return h == 1; }));
+  }
+  EXPECT_THROW(pool.run(1000, 10,
+                        [](std::size_t b, std::size_t, std::size_t) {
+                          if (b == 500) throw std::runtime_error("chunk 50");
+                        }),
+               std::runtime_error);
+  // Still usable after an exception.
+  std::atomic<int> n{0};
+  pool.run(100, 1, [&](std::size_t, std::size_t, std::size_t) { ++n; });
+  EXPECT_EQ(n.load(), 100);
+}
+
+}  // namespace
+}  // namespace treecut::strategies::many
