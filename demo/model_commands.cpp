@@ -16,6 +16,7 @@
 #include "treecut/generate.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/ply.hpp"
+#include "treecut/scene.hpp"
 #include "treecut/splat/camera_path.hpp"
 #include "treecut/up_axis.hpp"
 
@@ -152,6 +153,134 @@ void check_walk_output(const std::filesystem::path& out) {
     throw InputError(out.string() + ": exists and is not a camera path; refusing to overwrite it");
 }
 
+// `gen city-block | hall -o PATH` replaces only an earlier scene file.
+void check_scene_output(const std::filesystem::path& out) {
+  const FileKind kind = file_kind(out);
+  if (kind == FileKind::Missing) return;
+  if (kind != FileKind::Regular)
+    throw InputError(out.string() + ": is " + std::string(describe(kind)) +
+                     "; refusing to write a scene there");
+  bool scene = false;
+  try {
+    const int fd = open_regular_file(out);
+    char head[13] = {};
+    scene = ::read(fd, head, sizeof head) == 13 && std::string_view(head, 13) == "treecut-scene";
+    ::close(fd);
+  } catch (const std::exception&) {
+    scene = false;
+  }
+  if (!scene)
+    throw InputError(out.string() + ": exists and is not a scene file; refusing to overwrite it");
+}
+
+splat::CameraPath walk_path(const std::vector<WalkKey>& keys) {
+  splat::CameraPath path;
+  for (const WalkKey& k : keys) {
+    splat::CameraKey key;
+    key.time = k.time;
+    key.camera.eye = k.eye;
+    key.camera.target = k.target;
+    key.camera.up = k.up;
+    key.camera.fov_y_deg = k.fov_deg;
+    path.keys.push_back(key);
+  }
+  return path;
+}
+
+double mib(std::size_t bytes) {
+  return static_cast<double>(bytes) / (1024.0 * 1024.0);
+}
+
+void print_scene_summary(const std::filesystem::path& file, const Scene& scene) {
+  const SceneMemory mem = scene_memory(scene);
+  std::size_t generated = 0;
+  for (const auto& m : scene.models)
+    generated += m.source.type == SceneModelSource::Type::Generated ? 1 : 0;
+  std::printf("scene       %s\n", file.string().c_str());
+  std::printf("objects     %zu\n", scene.objects.size());
+  std::printf("models      %zu distinct hierarchies (%zu generated, %zu files)\n",
+              scene.models.size(), generated, scene.models.size() - generated);
+  std::printf("points      %llu in the objects, %llu in the hierarchies\n",
+              static_cast<unsigned long long>(scene.instanced_points()),
+              static_cast<unsigned long long>(scene.distinct_points()));
+  const glm::vec3 lo = scene.bounds_min, hi = scene.bounds_max;
+  std::printf("bounds      [%g %g %g] .. [%g %g %g]\n", lo.x, lo.y, lo.z, hi.x, hi.y, hi.z);
+  std::printf("memory      %.1f MiB: hierarchies %.1f MiB, object records %.2f MiB\n",
+              mib(mem.hierarchy_bytes + mem.object_bytes), mib(mem.hierarchy_bytes),
+              mib(mem.object_bytes));
+  std::printf("            %.0f bytes per object, %zu per instance (without sharing: %.1f MiB)\n",
+              mem.per_object_bytes(), SceneMemory::per_instance_bytes, mib(mem.unshared_bytes));
+  std::printf("loaded      in %.3f s\n", scene.load_seconds);
+  for (const auto& m : scene.models)
+    std::printf("  %-16s %7u instances %10u points %8.1f MiB  %s%s\n", m.name.c_str(), m.instances,
+                m.hierarchy->leaf_count(), mib(m.hierarchy->memory_bytes()),
+                m.source.describe().c_str(), m.from_cache ? " (cache)" : "");
+}
+
+// `treecut gen city-block | hall`: a scene file (and its walkthrough).
+struct SceneGenArgs {
+  std::string kind;
+  std::filesystem::path out;
+  std::vector<std::string> sources;
+  std::string walk;
+  std::size_t objects = 0;
+  std::size_t points = 0;
+  std::uint64_t seed = 1;
+};
+
+void generate_scene_file(const SceneGenArgs& a) {
+  check_scene_output(a.out);
+  if (!a.walk.empty()) check_walk_output(a.walk);
+  std::string text;
+  std::vector<WalkKey> walk;
+  if (a.kind == "city-block") {
+    if (!a.sources.empty()) throw InputError("gen city-block: --source is only for field and hall");
+    const CityBlockLayout layout = city_block_layout(a.objects, a.seed);
+    text = format_city_block_scene(layout, a.seed, a.points);
+    walk = city_block_walkthrough(layout);
+  } else {
+    if (a.sources.empty())
+      throw InputError("gen hall: needs --source PLY (one or more models to place)");
+    const std::filesystem::path dir =
+        std::filesystem::absolute(a.out).lexically_normal().parent_path();
+    std::vector<HallSource> sources;
+    for (const auto& s : a.sources) {
+      // Stood upright by its detected up axis, as `render --up auto` would.
+      require_regular_file(s);
+      OpenOptions o;
+      o.warn = print_warning;
+      const OpenedModel m = open_model(s, o);
+      HallSource src;
+      const std::filesystem::path abs = std::filesystem::absolute(s).lexically_normal();
+      const std::filesystem::path rel = abs.lexically_relative(dir);
+      src.path = rel.empty() ? abs : rel;
+      if (src.path.string().find_first_of(" \t#") != std::string::npos)
+        throw InputError(s + ": a path with blanks or '#' cannot be written in a scene file");
+      src.up = detect_up_axis(m.hierarchy).vector();
+      src.box_min = m.hierarchy.bounds_min();
+      src.box_max = m.hierarchy.bounds_max();
+      sources.push_back(src);
+    }
+    const HallLayout layout = hall_layout(a.objects, sources.size(), a.seed);
+    text = format_hall_scene(layout, sources, a.seed, a.points);
+    walk = hall_walkthrough(layout);
+  }
+  if (a.out.has_parent_path()) {
+    std::error_code ec;
+    std::filesystem::create_directories(a.out.parent_path(), ec);
+    if (ec) throw std::runtime_error(system_error_text(a.out.parent_path(), ec.value()));
+  }
+  write_file_atomically(a.out, text);
+  std::printf("wrote %s (%zu objects)\n", a.out.string().c_str(),
+              parse_scene_file(a.out).objects.size());
+  if (!a.walk.empty()) {
+    const splat::CameraPath path = walk_path(walk);
+    save_camera_path(a.walk, path);
+    std::printf("wrote %s (%zu keys, %.1f s)\n", a.walk.c_str(), path.keys.size(),
+                path.duration());
+  }
+}
+
 }  // namespace
 
 void add_model_commands(CLI::App& app) {
@@ -183,10 +312,16 @@ void add_model_commands(CLI::App& app) {
   auto info_args = std::make_shared<ModelArgs>();
   auto* info =
       app.add_subcommand("info", "Summarize a model (PLY, through its cache) or a cache file");
-  info->add_option("MODEL", info_args->model, "PLY or .tch cache file")->required();
+  info->add_option("MODEL", info_args->model, "PLY, .tch cache file or .scene")->required();
   add_build_options(*info, *info_args);
   info->callback([info_args] {
     OpenOptions o = open_options(*info_args);
+    if (looks_like_scene(info_args->model)) {
+      SceneLoadOptions so;
+      so.open = o;
+      print_scene_summary(info_args->model, load_scene(info_args->model, so));
+      return;
+    }
     ProgressBar bar("read");
     o.progress = bar.callback();
     const OpenedModel m = open_model(info_args->model, o);
@@ -197,25 +332,51 @@ void add_model_commands(CLI::App& app) {
   struct GenArgs {
     std::string kind;
     std::string out;
-    std::string source;
+    std::vector<std::string> source;
     std::string walk;
+    std::size_t objects = 0;
     std::size_t points = 200000;
     std::uint64_t seed = 1;
   };
   auto gen_args = std::make_shared<GenArgs>();
   auto* gen = app.add_subcommand(
-      "gen", "Write a procedural model (sphere, terrain, city, field, plant) as PLY");
-  gen->add_option("KIND", gen_args->kind, "sphere | terrain | city | field | plant")->required();
+      "gen",
+      "Write a procedural model (sphere, terrain, city, field, plant) as PLY, or a scene "
+      "(city-block, hall) as a scene file");
+  gen->add_option("KIND", gen_args->kind, "sphere | terrain | city | field | plant | city-block | hall")
+      ->required();
   gen->add_option("-n,--points", gen_args->points, "Number of points")
       ->check(CLI::Range(1ull, 1ull << 31));
   gen->add_option("-o,--output", gen_args->out, "Output PLY (default: assets/KIND.ply)");
   gen->add_option("--seed", gen_args->seed, "Random seed");
   gen->add_option("--source", gen_args->source,
-                  "field: the scanned model (PLY) whose copies fill the field");
+                  "field: the scanned model (PLY) whose copies fill the field; hall: the models "
+                  "to place (repeat the option for several)");
+  gen->add_option("--objects", gen_args->objects,
+                  "city-block (default 20000 buildings), hall (default 1000 copies): objects")
+      ->check(CLI::Range(std::size_t{1}, kMaxSceneObjects / 2));
   gen->add_option("--walk", gen_args->walk,
                   "city, field, plant: also write the scene's walkthrough camera path "
                   "(assets/paths/KIND_walk.campath is made this way)");
-  gen->callback([gen_args] {
+  gen->callback([gen_args, gen] {
+    if (gen_args->kind == "city-block" || gen_args->kind == "hall") {
+      SceneGenArgs a;
+      a.kind = gen_args->kind;
+      a.out = gen_args->out.empty() ? std::filesystem::path("assets") / (a.kind + ".scene")
+                                    : std::filesystem::path(gen_args->out);
+      a.sources = gen_args->source;
+      a.walk = gen_args->walk;
+      a.seed = gen_args->seed;
+      // -n is the points of each generated model (buildings, ground tiles).
+      a.points = gen->count("--points") ? gen_args->points : 20000;
+      a.objects = gen_args->objects ? gen_args->objects : (a.kind == "hall" ? 1000 : 20000);
+      generate_scene_file(a);
+      return;
+    }
+    if (gen_args->objects)
+      throw InputError("gen " + gen_args->kind + ": --objects is only for city-block and hall");
+    if (gen_args->source.size() > 1)
+      throw InputError("gen " + gen_args->kind + ": one --source only");
     const ModelKind kind = parse_model_kind(gen_args->kind);
     if (kind == ModelKind::Field && gen_args->source.empty())
       throw InputError("gen field: needs --source PLY (the model to copy)");
@@ -231,8 +392,8 @@ void add_model_commands(CLI::App& app) {
     if (!gen_args->walk.empty()) check_walk_output(gen_args->walk);
     PointSet source;
     if (kind == ModelKind::Field) {
-      require_regular_file(gen_args->source);
-      source = load_ply(gen_args->source);
+      require_regular_file(gen_args->source.front());
+      source = load_ply(gen_args->source.front());
       complete_attributes(source);
     }
     if (out.has_parent_path()) {

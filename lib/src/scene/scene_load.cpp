@@ -10,6 +10,7 @@
 #include <cmath>
 #include <exception>
 #include <glm/mat3x3.hpp>
+#include <limits>
 #include <map>
 #include <mutex>
 #include <thread>
@@ -47,24 +48,39 @@ double max_stretch(const glm::dmat3& a) {
   return std::sqrt(std::max(top, 0.0)) * (1.0 + 1e-9);
 }
 
+// Rounded outward to a float; past the float range an infinity (a plain
+// cast of such a double is undefined behaviour).
 float down(double v) {
+  if (!(v >= -double(std::numeric_limits<float>::max()))) return -INFINITY;
+  if (v > double(std::numeric_limits<float>::max())) return std::numeric_limits<float>::max();
   const auto f = static_cast<float>(v);
   return double(f) > v ? std::nextafter(f, -INFINITY) : f;
 }
 float up(double v) {
+  if (!(v <= double(std::numeric_limits<float>::max()))) return INFINITY;
+  if (v < -double(std::numeric_limits<float>::max())) return -std::numeric_limits<float>::max();
   const auto f = static_cast<float>(v);
   return double(f) < v ? std::nextafter(f, INFINITY) : f;
 }
 
-// Model-space box around every splat: the points' bounds grown by the
-// largest leaf radius (a splat is a disc of that radius about its point).
+// Model-space box around every splat: each leaf is a disc of its radius r
+// about its point, perpendicular to its normal n, so along axis k it reaches
+// r * sqrt(1 - n_k^2) from the point (the normals are snorm16: 0.01 more
+// covers their rounding near n_k = 1).
 void splat_box(const Hierarchy& h, glm::vec3& lo, glm::vec3& hi) {
-  float r = 0.0f;
+  lo = glm::vec3(INFINITY);
+  hi = glm::vec3(-INFINITY);
   const auto& a = h.arrays();
-  for (std::uint32_t n = 0; n < h.node_count(); ++n)
-    if (a.child_count[n] == 0) r = std::max(r, a.center_radius[n].w);
-  lo = h.bounds_min() - glm::vec3(r);
-  hi = h.bounds_max() + glm::vec3(r);
+  for (std::uint32_t n = 0; n < h.node_count(); ++n) {
+    if (a.child_count[n] != 0) continue;
+    const glm::vec3 p(a.center_radius[n]), nrm = h.normal(n);
+    const float r = a.center_radius[n].w;
+    glm::vec3 reach;
+    for (int k = 0; k < 3; ++k)
+      reach[k] = r * std::min(1.0f, std::sqrt(std::max(0.0f, 1.0f - nrm[k] * nrm[k])) + 0.01f);
+    lo = glm::min(lo, p - reach);
+    hi = glm::max(hi, p + reach);
+  }
 }
 
 // A copy of EXAMPLE (InputError or not) with MESSAGE.
@@ -230,18 +246,21 @@ Scene load_scene(const std::filesystem::path& file, const SceneLoadOptions& opti
       }
       o.aabb_min = {down(lo.x), down(lo.y), down(lo.z)};
       o.aabb_max = {up(hi.x), up(hi.y), up(hi.z)};
-      const glm::dvec3 root = glm::dvec3(m.hierarchy->center(0));
-      const glm::dvec3 c1(w * glm::dvec4(root, 1.0));
-      const double r1 = double(m.hierarchy->radius(0)) * max_stretch(glm::dmat3(w));
-      const glm::dvec3 c2 = 0.5 * (lo + hi);
-      const double r2 = 0.5 * glm::length(hi - lo);
-      const bool first = r1 <= r2;
-      const glm::dvec3 c = first ? c1 : c2;
-      o.sphere = glm::vec4(glm::vec3(c), up((first ? r1 : r2) * (1.0 + 1e-6)));
-      bool finite = std::isfinite(o.sphere.w);
+      bool finite = true;
       for (int k = 0; k < 3; ++k)
-        finite = finite && std::isfinite(o.aabb_min[k]) && std::isfinite(o.aabb_max[k]) &&
-                 std::isfinite(o.sphere[k]);
+        finite = finite && std::isfinite(o.aabb_min[k]) && std::isfinite(o.aabb_max[k]);
+      if (finite) {
+        const glm::dvec3 root = glm::dvec3(m.hierarchy->center(0));
+        const glm::dvec3 c1(w * glm::dvec4(root, 1.0));
+        const double r1 = double(m.hierarchy->radius(0)) * max_stretch(glm::dmat3(w));
+        const glm::dvec3 c2 = 0.5 * (lo + hi);
+        const double r2 = 0.5 * glm::length(hi - lo);
+        // The root sphere is inside the AABB's range: its centre fits a float.
+        const bool first = r1 <= r2;
+        const glm::dvec3 c = first ? c1 : c2;
+        o.sphere = glm::vec4(glm::vec3(c), up((first ? r1 : r2) * (1.0 + 1e-6)));
+        finite = std::isfinite(o.sphere.w);
+      }
       if (!finite) {
         failed = true;
         std::size_t cur = first_bad.load();

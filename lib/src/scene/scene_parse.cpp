@@ -266,12 +266,15 @@ struct Parser {
           if (!invertible(world)) throw InputError("the transform is not invertible (singular)");
           SceneObjectDecl o;
           o.decl = it->second;
-          o.world = glm::mat4(world);
-          o.world_inverse = glm::mat4(glm::inverse(world));
+          const Mat inverse = glm::inverse(world);
+          // Checked in double: casting a double past the float range is undefined.
           for (int c = 0; c < 4; ++c)
             for (int r = 0; r < 4; ++r)
-              if (!std::isfinite(o.world[c][r]) || !std::isfinite(o.world_inverse[c][r]))
+              if (!(std::abs(world[c][r]) <= double(std::numeric_limits<float>::max())) ||
+                  !(std::abs(inverse[c][r]) <= double(std::numeric_limits<float>::max())))
                 throw InputError("the transform or its inverse does not fit in floats");
+          o.world = glm::mat4(world);
+          o.world_inverse = glm::mat4(inverse);
           o.file = file;
           o.line = line_no;
           out.objects.push_back(o);
