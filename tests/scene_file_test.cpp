@@ -500,8 +500,20 @@ TEST(SceneFile, GeneratedHallLoadsWithItsObjects) {
     EXPECT_LE(o.aabb_max.x - o.aabb_min.x, 2.5f) << s.where(o);
   }
   EXPECT_EQ(copies, 30u);
+  // The walk at eye level keeps out of every copy (0.3 m to spare).
   const auto path = treecut::splat::load_camera_path(dir / "h.campath");
   EXPECT_GT(path.keys.size(), 100u);
+  for (const auto& k : path.keys) {
+    const glm::vec3 e = k.camera.eye;
+    EXPECT_GE(e.z, 1.6f - 1e-4f);
+    for (std::size_t i = 0; i < 30; ++i) {
+      const auto& o = s.objects[i];
+      ASSERT_FALSE(e.x > o.aabb_min.x - 0.3f && e.x < o.aabb_max.x + 0.3f &&
+                   e.y > o.aabb_min.y - 0.3f && e.y < o.aabb_max.y + 0.3f &&
+                   e.z < o.aabb_max.z + 0.3f)
+          << "key at " << k.time << " s is inside " << s.where(o);
+    }
+  }
 }
 
 TEST(SceneFile, TheCommittedWalksAreWhatTheGeneratorMakes) {

@@ -233,7 +233,8 @@ std::string format_hall_scene(const HallLayout& h, const std::vector<HallSource>
   out += "\n# treecut gen hall --objects " + std::to_string(h.copies.size()) + " --seed " +
          std::to_string(seed) + " -n " + std::to_string(floor_points) + "\n";
   out += "# " + std::to_string(h.rows) + " x " + std::to_string(h.cols) +
-         " places 4 m apart, each an upright copy of a source 1.4..2.2 m tall; metres, z up\n";
+         " places 4 m apart, each an upright copy of a source (1.4..2.2 m tall, at most 1.2 m "
+         "from its place); metres, z up\n";
   // Per source: the turn that stands it up (its up axis to +z), then the
   // move that puts the foot of its box at the origin; the scale that makes
   // it fit (height, and a horizontal radius of at most 1.2 m so the aisles
