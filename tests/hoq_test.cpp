@@ -362,11 +362,12 @@ TEST_F(HoqStrategyTest, OccludedBlocksStayCoarserThanTheSseCut) {
   std::vector<BlockId> sse;
   sse_cut(s.blocks(), *h, fixed, error_radii(s.blocks(), *h), 0, 2.0f, sse);
   EXPECT_LT(s.block_cut().size(), sse.size());
-  // The root block's answer says invisible: it is culled where it is, never refined.
+  // Every answer says invisible: the front moves up (shift-up candidates,
+  // AvgBias 0) until the root block is culled, and nothing refines again.
   EXPECT_EQ(s.block_cut().size(), 1u);
   EXPECT_EQ(s.last().culled, 1u);
   EXPECT_EQ(s.last().drawn, 0u);
-  EXPECT_EQ(s.totals().refined, 0u);
+  EXPECT_EQ(s.last().refined, 0u);
 }
 
 TEST_F(HoqStrategyTest, ADelayedBlockKeepsItsStateUntilItsAnswerArrives) {
@@ -381,7 +382,9 @@ TEST_F(HoqStrategyTest, ADelayedBlockKeepsItsStateUntilItsAnswerArrives) {
     gpu.post(st.queries, frame, view, 1);
     return st;
   };
-  // The first iteration: the root block enters, is delayed and drawn as it is.
+  // Without assume_visible: the first iteration, the root block enters, is
+  // delayed and drawn as it is.
+  s.set_param("assume_visible", 0);
   Step first = run(1, false);
   EXPECT_EQ(s.block_cut().size(), 1u);
   EXPECT_EQ(s.last().delayed, 1u);
@@ -434,6 +437,29 @@ TEST_F(HoqStrategyTest, AStoppedBlockWhoseNewAnswerRaisesItsBiasIsARarn) {
   EXPECT_GT(rarn, 0u);
   EXPECT_GE(rarn_frames, rarn * 2u);  // issued at F + 1, read 2 frames later
   EXPECT_GT(s.block_cut().size(), coarse);
+}
+
+TEST_F(HoqStrategyTest, AssumingVisibleTheFirstIterationIsTheSseCutWithEveryBlockDelayed) {
+  const ViewSnapshot view = street_view(*h, 0.4f);
+  Step st = iterate(s, *h, view);
+  std::vector<BlockId> expected;
+  sse_cut(s.blocks(), *h, view, error_radii(s.blocks(), *h), 0, 2.0f, expected);
+  std::vector<BlockId> got(s.block_cut().begin(), s.block_cut().end());
+  std::sort(expected.begin(), expected.end());
+  std::sort(got.begin(), got.end());
+  EXPECT_EQ(got, expected);
+  // Every block in view is queried; those that could still refine (not leaf
+  // blocks) wait for their first answer: delayed.
+  std::uint64_t drawn_interior = 0, drawn = 0;
+  for (BlockId b : got) {
+    const glm::vec4 sp = h->arrays().center_radius[s.blocks().root(b)];
+    if (view.outside_frustum(glm::vec3(sp), sp.w)) continue;
+    ++drawn;
+    if (!s.blocks().is_leaf(b)) ++drawn_interior;
+  }
+  EXPECT_EQ(s.last().drawn, drawn);
+  EXPECT_EQ(s.last().delayed, drawn_interior);
+  EXPECT_EQ(st.queries.size(), drawn);
 }
 
 TEST_F(HoqStrategyTest, ABlockSizeChangeRebuildsTheBlocks) {

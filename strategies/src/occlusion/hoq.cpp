@@ -153,6 +153,10 @@ HoqStrategy::HoqStrategy()
            false},
           {"block_size", "leaves per HLOD leaf block (the unit of one occlusion query)",
            double(kDefaultBlockSize), 1.0, 1e8, true},
+          {"assume_visible",
+           "1: a block new in the traversal is refined by its SSE alone (as if visible) until its "
+           "first answer; 0: it keeps its level until then",
+           1.0, 0.0, 1.0, true},
       }) {}
 
 void HoqStrategy::build_blocks(const Hierarchy& h) {
@@ -253,7 +257,9 @@ void HoqStrategy::visit(BlockId b, const IterationInput& input, IterationOutput&
   const ViewSnapshot& view = input.view;
   const float tau = static_cast<float>(param_at(kTheta));
   BlockState& s = state_[b];
-  const bool was_visited = s.visited != 0 && s.visited + 1 == iteration_;
+  // A block the frustum culled has no occlusion answer to go by: back in
+  // view it is new to the traversal, as the paper's not-visited node.
+  const bool was_visited = s.visited != 0 && s.visited + 1 == iteration_ && !s.outside;
   const bool was_refined = was_visited && !s.stop;
   const bool was_terminal = was_visited && s.stop;
   if (!was_visited) {
@@ -269,6 +275,7 @@ void HoqStrategy::visit(BlockId b, const IterationInput& input, IterationOutput&
   ++output.result.visited;
 
   auto refine = [&] {
+    if (!was_refined) ++last_.refined;
     s.stop = false;
     const BlockId first = blocks_.first_child(b);
     bool any = false;
@@ -287,9 +294,11 @@ void HoqStrategy::visit(BlockId b, const IterationInput& input, IterationOutput&
     s.visible = false;
     s.bias = 0.0f;
     s.delay = Delay::None;
+    s.outside = true;
     terminal(b, true);
     return;
   }
+  s.outside = false;
   if (blocks_.is_leaf(b)) {
     // Full detail: the refinement stops here whatever the answer; the query
     // still gives its parent the bias the shift-up test reads.
@@ -315,11 +324,12 @@ void HoqStrategy::visit(BlockId b, const IterationInput& input, IterationOutput&
         query(b, input, output);
         return;
       }
-      if (kind == Delay::Front) {
-        // Kept at its level while it waited: drawn too coarse since then.
+      if (kind != Delay::ShiftUp) {
+        // Kept at its level while it waited: drawn too coarse since it
+        // entered, or since the answer that found it visible was issued.
         ++last_.late_refined;
-        last_.late_frames += frame_ + 1 - s.delay_frame;
-        ++last_.refined;
+        last_.late_frames +=
+            frame_ + 1 - (kind == Delay::Front ? s.delay_frame : std::min(s.answer_frame, frame_));
       }
       refine();
       return;
@@ -359,7 +369,6 @@ void HoqStrategy::visit(BlockId b, const IterationInput& input, IterationOutput&
       return;
     case hoq::Prediction::Refine:
       if (was_terminal) {
-        ++last_.refined;
         // Refined because a newer answer raised the bias (the old one would
         // still stop): the paper's RARN, drawn too coarse from the frame the
         // answer was issued in to the frame its refinement can be drawn.
@@ -382,12 +391,26 @@ void HoqStrategy::visit(BlockId b, const IterationInput& input, IterationOutput&
         refine();
         return;
       }
-      // New in the traversal (any answer issued from now on will do) or
-      // invisible last frame (the next answer will do).
-      s.delay = Delay::Front;
-      s.delay_after = was_visited ? s.answer_frame : frame_;
-      if (s.visible) ++last_.delayed;
-      terminal(b, !s.visible);
+      if (!was_visited) {
+        // New in the traversal: any answer issued from now on will do. With
+        // assume_visible it is drawn as if visible and unmodulated (bias 1,
+        // VMSSE = SSE: never too coarse) while it waits, so a block whose
+        // SSE exceeds tau is refined now instead of a round trip per level.
+        if (param_at(kAssumeVisible) != 0.0 && sse > tau) {
+          refine();
+          return;
+        }
+        s.delay = Delay::Front;
+        s.delay_after = frame_;
+        ++last_.delayed;
+        terminal(b, false);
+        query(b, input, output);
+        return;
+      }
+      // Invisible last frame: the next answer will do; culled until then.
+      s.delay = Delay::Hidden;
+      s.delay_after = s.answer_frame;
+      terminal(b, true);
       query(b, input, output);
       return;
   }

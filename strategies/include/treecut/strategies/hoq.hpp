@@ -138,7 +138,7 @@ struct HoqCounters {
   /// refine: drawn too coarse while waiting (late_frames sums the frames).
   std::uint64_t late_refined = 0;
   std::uint64_t late_frames = 0;
-  std::uint64_t refined = 0;    ///< blocks replaced by their children
+  std::uint64_t refined = 0;    ///< blocks refined now that were not refined in the last iteration
   std::uint64_t coarsened = 0;  ///< blocks that replaced their subtree's blocks
   std::uint64_t queries = 0;    ///< query requests posted
   std::uint64_t answers = 0;    ///< answers taken in (of this strategy's blocks)
@@ -159,6 +159,10 @@ class HoqStrategy final : public Strategy {
     kS,          ///< smoothness of the bias
     kT,          ///< turn-over of the bias
     kBlockSize,  ///< leaves per leaf block (HlodBlocks::build)
+    /// 1: a block new in the traversal (the paper's Delay for "not visited
+    /// last frame") is refined by SSE alone, as if visible, while its first
+    /// answer is on its way; 0: it keeps its level until then.
+    kAssumeVisible,
   };
 
   HoqStrategy();
@@ -177,7 +181,9 @@ class HoqStrategy final : public Strategy {
   [[nodiscard]] std::span<const BlockId> block_cut() const { return cut_; }
 
  private:
-  enum class Delay : std::uint8_t { None, Front, ShiftUp };
+  // Front: new in the traversal, drawn at its level; Hidden: invisible last
+  // frame, culled; ShiftUp: refined, a candidate to move the front up.
+  enum class Delay : std::uint8_t { None, Front, Hidden, ShiftUp };
   struct BlockState {
     std::uint64_t visited = 0;       // iteration it was last traversed in (0: never)
     std::uint64_t answer_frame = 0;  // frame_issued of the newest answer taken in
@@ -187,6 +193,7 @@ class HoqStrategy final : public Strategy {
     float stop_bias = 1.0f;          // the bias its last Stop was predicted with
     bool visible = true;             // newest answer (terminal) or pulled up (refined)
     bool stop = false;               // a termination block (in the cut) at its last visit
+    bool outside = false;            // culled by the frustum at its last visit
     Delay delay = Delay::None;
   };
 
