@@ -1,6 +1,8 @@
 // treecut bench build: PLY (or generated) -> ready hierarchy, timed per stage.
 // Every repetition runs in a child process, so each one starts cold and its
 // peak resident memory (ru_maxrss from wait4) belongs to that build alone.
+// treecut bench occlusion: the occlusion papers' tables on a walkthrough,
+// headless (docs/occlusion.md); one function per table.
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -22,6 +24,13 @@
 #include "treecut/file_io.hpp"
 #include "treecut/generate.hpp"
 #include "treecut/model_io.hpp"
+#include "treecut/splat/camera_path.hpp"
+#include "treecut/splat/context.hpp"
+#include "treecut/splat/occlusion_device_gl.hpp"
+#include "treecut/splat/renderer.hpp"
+#include "treecut/strategies/chc.hpp"
+#include "treecut/strategies/hlod_blocks.hpp"
+#include "viewer.hpp"
 
 namespace treecut::cli {
 
@@ -155,6 +164,146 @@ double median(std::vector<double> v) {
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
+double mean(const std::vector<double>& v) {
+  double sum = 0.0;
+  for (const double x : v) sum += x;
+  return v.empty() ? 0.0 : sum / static_cast<double>(v.size());
+}
+
+// ---------------------------------------------------------------------------
+// bench occlusion: CHC (Bittner et al. 2004) and its baselines on one path.
+
+struct OcclusionArgs {
+  std::string scene;
+  std::string path;
+  double fps = 10.0;
+  int frames = 0;  // > 0: that many frames evenly spaced instead of every 1 / fps s
+  int width = 1280;
+  int height = 720;
+  std::uint32_t block_size = strategies::kDefaultBlockSize;
+};
+
+// One method of the CHC table and what each frame of the path did.
+struct ChcRun {
+  std::string method;
+  strategies::ChcOptions options;
+  std::vector<strategies::ChcFrameStats> frames;
+};
+
+// The paper's table 1 (+ its table 2 rows): means over the frames of the path.
+void print_chc_table(const std::vector<ChcRun>& runs) {
+  const auto column = [](const ChcRun& r, auto field) {
+    std::vector<double> v;
+    for (const auto& f : r.frames) v.push_back(static_cast<double>(field(f)));
+    return v;
+  };
+  const auto frame_ms = [](const strategies::ChcFrameStats& f) { return f.frame_ms; };
+  double vfc_ms = 0.0;
+  for (const ChcRun& r : runs) {
+    if (r.options.mode == strategies::OcclusionMode::Vfc) vfc_ms = mean(column(r, frame_ms));
+  }
+  std::printf(
+      "| method | t_av | n_vp | queries | blocking reads | wait ms | of it, end-of-frame drain ms "
+      "| "
+      "leaf blocks drawn | splats rendered | frame ms (mean) | frame ms (median) | speed-up vs "
+      "VFC |\n");
+  std::printf("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+  for (const ChcRun& r : runs) {
+    const bool queries = r.options.mode == strategies::OcclusionMode::StopAndWait ||
+                         r.options.mode == strategies::OcclusionMode::Chc;
+    const double ms = mean(column(r, frame_ms));
+    char q[32] = "---", b[32] = "---", w[32] = "---", dr[32] = "---";
+    if (queries) {
+      std::snprintf(q, sizeof q, "%.1f", mean(column(r, [](const auto& f) { return f.queries; })));
+      std::snprintf(b, sizeof b, "%.1f",
+                    mean(column(r, [](const auto& f) { return f.blocking_reads; })));
+      std::snprintf(w, sizeof w, "%.3f", mean(column(r, [](const auto& f) { return f.wait_ms; })));
+      std::snprintf(dr, sizeof dr, "%.3f",
+                    mean(column(r, [](const auto& f) { return f.drain_wait_ms; })));
+    }
+    std::printf("| %s | %u | %llu | %s | %s | %s | %s | %.1f | %.0f | %.2f | %.2f | %.2f |\n",
+                r.method.c_str(), r.options.assume_visible_frames,
+                static_cast<unsigned long long>(r.options.min_visible_samples), q, b, w, dr,
+                mean(column(r, [](const auto& f) { return f.blocks_drawn; })),
+                mean(column(r, [](const auto& f) { return f.splats_drawn; })), ms,
+                median(column(r, frame_ms)), ms > 0.0 ? vfc_ms / ms : 0.0);
+  }
+  std::fflush(stdout);
+}
+
+void run_bench_occlusion(const OcclusionArgs& a) {
+  if (a.frames < 0) throw InputError("--frames must not be negative");
+  if (!(a.fps > 0.0) || a.fps > 1000.0) throw InputError("--fps must be in (0, 1000]");
+  if (a.block_size < 1) throw InputError("--block-size must be at least 1");
+  const splat::CameraPath path = splat::load_camera_path(a.path);  // exit 2 before any work
+  if (path.empty()) throw InputError(a.path + ": the camera path has no keys");
+  SceneArgs scene_args;
+  scene_args.model = a.scene;
+  if (!a.scene.empty()) require_regular_file(a.scene);
+  const Scene scene = load_scene(scene_args);
+  const Hierarchy& h = *scene.hierarchy;
+  const double t0 = now_seconds();
+  const strategies::HlodBlocks blocks = strategies::HlodBlocks::build(h, a.block_size);
+  const double block_seconds = now_seconds() - t0;
+
+  const glm::ivec2 size(a.width, a.height);
+  splat::OsmesaContext context(a.width, a.height);
+  splat::Renderer renderer(h, size);
+  splat::GlOcclusionDevice device(renderer, blocks);
+  splat::RenderSettings settings;  // fast splats: the one-pass mode of in-frame draws
+
+  // The path at 1 / fps steps (a walk at that frame rate), or `frames` evenly
+  // spaced times; the first and last key included.
+  const int frames = a.frames > 0 ? a.frames : 1 + static_cast<int>(path.duration() * a.fps);
+  std::vector<splat::Camera> cameras;
+  for (int f = 0; f < frames; ++f) {
+    const double t = frames == 1 ? 0.0 : path.duration() * f / (frames - 1);
+    splat::Camera c = path.at(t);
+    splat::fit_clip_planes(c, scene.center, scene.radius);
+    cameras.push_back(c);
+  }
+  std::printf(
+      "scene     %s: %u points, %u nodes; %u blocks (%u leaf blocks) of <= %u splats, "
+      "built in %.3f s\n",
+      scene.label.c_str(), h.leaf_count(), h.node_count(), blocks.block_count(),
+      blocks.leaf_block_count(), blocks.block_size(), block_seconds);
+  std::printf("renderer  %s, %dx%d, fast splats, full detail (leaf blocks)\n",
+              splat::GlContext::renderer_string().c_str(), a.width, a.height);
+  std::printf(
+      "path      %s: %d frames over %.1f s; means over the frames (frame ms: glFinish-ed "
+      "wall time; wait ms: CPU blocked in query reads)\n",
+      a.path.c_str(), a.frames, path.duration());
+  std::fflush(stdout);
+
+  using strategies::OcclusionMode;
+  std::vector<ChcRun> runs = {
+      {"VFC", {OcclusionMode::Vfc, 0, 0}, {}}, {"S&W", {OcclusionMode::StopAndWait, 0, 0}, {}},
+      {"CHC", {OcclusionMode::Chc, 0, 0}, {}}, {"Ideal", {OcclusionMode::Ideal, 0, 0}, {}},
+      {"CHC", {OcclusionMode::Chc, 2, 0}, {}}, {"CHC", {OcclusionMode::Chc, 0, 25}, {}},
+  };
+  // Ideal replays, frame by frame, the leaf blocks S&W found visible for the
+  // same camera (recorded in the S&W run, which comes first).
+  std::vector<std::vector<strategies::BlockId>> sw_sets(cameras.size());
+  for (ChcRun& run : runs) {
+    strategies::ChcTraversal traversal(blocks, run.options);
+    const bool sw = run.options.mode == OcclusionMode::StopAndWait;
+    const bool ideal = run.options.mode == OcclusionMode::Ideal;
+    auto frame = [&](std::size_t f) {
+      device.set_view_render_thread(cameras[f], settings);
+      if (ideal) traversal.set_ideal_leaves(sw_sets[f]);
+      const auto stats =
+          traversal.frame_render_thread(device, splat::occlusion_view(cameras[f], size), true);
+      if (sw) sw_sets[f] = traversal.drawn();
+      return stats;
+    };
+    // One untimed frame at the first camera: the GPU's caches warm, and CHC
+    // starts the path with a previous frame as it would in a walk.
+    (void)frame(0);
+    for (std::size_t f = 0; f < cameras.size(); ++f) run.frames.push_back(frame(f));
+  }
+  print_chc_table(runs);
+}
+
 }  // namespace
 
 void add_bench_commands(CLI::App& app) {
@@ -216,6 +365,23 @@ void add_bench_commands(CLI::App& app) {
       std::fflush(stdout);
     }
   });
+
+  auto occ = std::make_shared<OcclusionArgs>();
+  auto* occlusion = bench->add_subcommand(
+      "occlusion",
+      "Occlusion culling on a walkthrough, headless: the CHC table (VFC, S&W, CHC, Ideal, CHC "
+      "t_av=2, CHC n_vp=25; docs/occlusion.md)");
+  occlusion->add_option("SCENE", occ->scene, "PLY or .tch (e.g. one made by treecut gen city)")
+      ->required();
+  occlusion->add_option("--path", occ->path, "Camera path (assets/paths/*_walk.campath)")
+      ->required();
+  occlusion->add_option("--fps", occ->fps, "Frames per second of path time (default 10)");
+  occlusion->add_option("--frames", occ->frames,
+                        "Frames evenly spaced over the path instead (0: every 1 / fps s)");
+  occlusion->add_option("--width", occ->width, "Width in pixels")->check(CLI::Range(16, 8192));
+  occlusion->add_option("--height", occ->height, "Height in pixels")->check(CLI::Range(16, 8192));
+  occlusion->add_option("--block-size", occ->block_size, "HLOD block size (splats per block)");
+  occlusion->callback([occ] { run_bench_occlusion(*occ); });
 }
 
 }  // namespace treecut::cli

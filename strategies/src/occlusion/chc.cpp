@@ -97,6 +97,7 @@ bool ChcTraversal::answer_visible(std::uint64_t samples) const {
 }
 
 void ChcTraversal::push(BlockId b, const OcclusionView& view) {
+  wait_at_push_ = device_->frame_stats().wait_ms;
   heap_.push_back({box_distance(blocks_->box(b), view.eye), b});
   std::push_heap(heap_.begin(), heap_.end(),
                  [](const Entry& x, const Entry& y) { return heap_less(x, y); });
@@ -146,6 +147,7 @@ ChcFrameStats ChcTraversal::frame_render_thread(OcclusionDeviceRenderThread& dev
   auto heap_cmp = [](const Entry& x, const Entry& y) { return heap_less(x, y); };
 
   device.begin_frame_render_thread();
+  device_ = &device;
   push(0, view);
   while (!heap_.empty() || pending_head_ < pending_.size()) {
     // Part 1: answers. Stop-and-wait always waits; CHC reads an answer only
@@ -225,6 +227,8 @@ ChcFrameStats ChcTraversal::frame_render_thread(OcclusionDeviceRenderThread& dev
   const DeviceFrameStats& d = device.frame_stats();
   stats.blocking_reads = d.blocking_reads;
   stats.wait_ms = d.wait_ms;
+  stats.drain_wait_ms = d.wait_ms - wait_at_push_;
+  device_ = nullptr;
   stats.blocks_drawn = drawn_.size();
   stats.splats_drawn = d.splats_drawn;
   for (const BlockId b : classified_) stats.leaves_visible += visible_[b];

@@ -80,6 +80,10 @@ struct ChcFrameStats {
   std::uint64_t queries = 0;         ///< occlusion queries issued
   std::uint64_t blocking_reads = 0;  ///< answers read before they were available
   double wait_ms = 0.0;              ///< CPU time blocked in those reads (the device's)
+  /// The part of wait_ms after the traversal queue got its last block of the
+  /// frame: the drain of the last answers, which waits for the frame's GPU
+  /// work (what the final glFinish would wait for otherwise).
+  double drain_wait_ms = 0.0;
   std::uint64_t blocks_drawn = 0;    ///< leaf blocks drawn
   std::uint64_t splats_drawn = 0;    ///< their splats
   std::uint64_t leaves_visible = 0;  ///< leaf blocks classified visible at the end of the frame
@@ -147,7 +151,9 @@ class ChcTraversal {
   std::size_t pending_head_ = 0;
   std::vector<BlockId> drawn_;
   std::vector<BlockId> classified_;  // leaves visited this frame
-  glm::vec4 planes_[6]{};            // this frame's frustum planes
+  double wait_at_push_ = 0.0;        // the device's wait_ms when the last block was queued
+  const OcclusionDeviceRenderThread* device_ = nullptr;  // during a frame
+  glm::vec4 planes_[6]{};                                // this frame's frustum planes
 };
 
 }  // namespace treecut::strategies
