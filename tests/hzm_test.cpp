@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <glm/geometric.hpp>
+#include <limits>
 #include <numbers>
 #include <random>
 #include <vector>
@@ -110,7 +111,8 @@ TEST(Hzm, hzm_culling_is_conservative) {
           ViewSnapshot::look_at(eye, glm::vec3(0.0f), {320, 200}, 0.9f, 0.05f, 500.0f);
       HzmParams params;
       params.active = 16;
-      params.depth_width = seed % 2 ? 64 : 320;  // cells of 5 pixels, and of one
+      params.depth_width = seed % 2 ? 64 : 320;                    // cells of 5 pixels, and of one
+      params.finer_levels = v % 3 == 0 ? 0 : v % 3 == 1 ? 2 : 10;  // the paper's test, finer
       culled_total += expect_conservative(objects, snap, params, &pool);
     }
   }
@@ -122,7 +124,8 @@ TEST(Hzm, hzm_culling_is_conservative) {
           ViewSnapshot::look_at(eye, {0.0f, 4.0f, -10.0f}, {400, 300}, 0.9f, 0.05f, 500.0f);
       HzmParams params;
       params.active = 24;
-      params.depth_width = 100;
+      params.depth_width = seed % 2 ? 100 : 400;
+      params.finer_levels = static_cast<int>(seed) - 1;
       culled_total += expect_conservative(objects, snap, params, &pool);
     }
   }
@@ -135,7 +138,12 @@ TEST(Hzm, wall_culls_what_it_hides) {
   const auto snap = ViewSnapshot::look_at({0.0f, 4.0f, 12.0f}, {0.0f, 4.0f, -10.0f}, {400, 300},
                                           0.9f, 0.05f, 500.0f);
   const FrameView view(snap);
-  HzmCuller culler({400, 24, 0.5f});
+  HzmParams params;
+  params.depth_width = 400;
+  params.active = 24;
+  params.compactness_threshold = 0.5f;
+  params.finer_levels = 0;  // the paper's test
+  HzmCuller culler(params);
   culler.preprocess(objects);
   culler.cull(objects, view, nullptr);
   std::vector<std::uint8_t> seen;
@@ -148,6 +156,58 @@ TEST(Hzm, wall_culls_what_it_hides) {
   // The 24 wall boxes are the active occluders (the largest, nearest, facing).
   EXPECT_EQ(culler.active().size(), 24u);
   for (const std::uint32_t i : culler.active()) EXPECT_LT(i, 24u);
+}
+
+// The depth image against ray casting of the active occluders' inner boxes:
+// one cell a pixel, the front surface at the pixel center; larger cells,
+// never nearer than the front surface at any pixel center under them, and
+// empty where a pixel center sees no occluder.
+TEST(Hzm, depth_image_bounds_the_occluders_front_surface) {
+  const auto objects = random_boxes(300, 17);
+  const auto snap =
+      ViewSnapshot::look_at({30.0f, 8.0f, 35.0f}, glm::vec3(0.0f), {160, 120}, 0.9f, 0.05f, 500.0f);
+  const FrameView view(snap);
+  for (const unsigned width : {160u, 40u, 23u}) {
+    HzmParams params;
+    params.depth_width = width;
+    params.active = 20;
+    HzmCuller culler(params);
+    culler.preprocess(objects);
+    culler.cull(objects, view, nullptr);
+    ASSERT_EQ(culler.active().size(), 20u);
+    const int s = culler.cell_pixels();
+    EXPECT_EQ(s, (160 + static_cast<int>(width) - 1) / static_cast<int>(width));
+    const glm::ivec2 dims = culler.depth_size();
+    std::size_t exact_cells = 0;
+    for (int cy = 0; cy < dims.y; ++cy) {
+      for (int cx = 0; cx < dims.x; ++cx) {
+        const float cell = culler.depth_image()[static_cast<std::size_t>(cy * dims.x + cx)];
+        float farthest = 0.0f;  // the largest front depth over the cell's pixel centers
+        for (int py = cy * s; py < std::min(120, (cy + 1) * s); ++py) {
+          for (int px = cx * s; px < std::min(160, (cx + 1) * s); ++px) {
+            const glm::vec3 d =
+                view.ray_direction(static_cast<float>(px) + 0.5f, static_cast<float>(py) + 0.5f);
+            float front = std::numeric_limits<float>::infinity();
+            for (const std::uint32_t i : culler.active()) {
+              const RayHit h = ray_box(objects[i].inner, view.eye(), d);
+              if (h.hit() && h.t_in > 0.0f) front = std::min(front, h.t_in);
+            }
+            farthest = std::max(farthest, front);
+          }
+        }
+        if (std::isinf(cell)) continue;  // nothing written: never wrong
+        EXPECT_GE(cell, farthest * (1.0f - 1e-5f))
+            << "cell " << cx << "," << cy << " width " << width;
+        if (s == 1) {
+          EXPECT_NEAR(cell, farthest, 1e-4f * farthest);
+          ++exact_cells;
+        }
+      }
+    }
+    if (s == 1) {
+      EXPECT_GT(exact_cells, 1000u);  // the occluders cover much of the view
+    }
+  }
 }
 
 TEST(Hzm, max_reduction_levels) {

@@ -38,7 +38,8 @@ double eq1_term(const BudgetItem& item, const BudgetParams& params) {
   const double depth = std::max(static_cast<double>(item.depth), kMinDepth);
   // w^(1/alpha) = (A / D)^(1/alpha) * P^(beta/alpha), in logarithms so that a
   // large P^beta cannot overflow.
-  const double log_w = std::log(item.area / depth) + beta * std::log(static_cast<double>(item.points));
+  const double log_w =
+      std::log(item.area / depth) + beta * std::log(static_cast<double>(item.points));
   return std::exp(log_w / params.alpha);
 }
 
@@ -64,99 +65,87 @@ BudgetStats allocate_budget(std::span<const BudgetItem> items, const BudgetParam
   const std::size_t m = items.size();
   BudgetStats stats;
   shares.assign(m, 0);
-  if (m == 0) return stats;
-  const std::size_t chunks = WorkerPool::chunk_count(m, kGrain);
+  if (m == 0 || params.total == 0) return stats;
 
-  // The terms t_i = w_i^(1/alpha); per-chunk sums, added in chunk order so
-  // that the result does not depend on the schedule.
-  std::vector<double> term(m);
-  std::vector<double> chunk_sum(chunks);
+  // Pass 1 over all objects: the terms t_i = w_i^(1/alpha), keeping the
+  // objects with t_i > 0 (most of a large scene is culled or below PET);
+  // the rest works on that list. Per-chunk lists and sums are joined in
+  // chunk order, so nothing depends on the schedule.
+  struct Active {
+    std::uint32_t index;
+    std::uint32_t points;
+    double term;
+  };
+  const std::size_t chunks = WorkerPool::chunk_count(m, kGrain);
+  std::vector<std::vector<Active>> found(chunks);
   std::vector<std::size_t> chunk_pet(chunks);
   for_chunks(pool, m, [&](std::size_t b, std::size_t e, std::size_t c) {
-    double s = 0.0;
     std::size_t pet = 0;
     for (std::size_t i = b; i < e; ++i) {
-      term[i] = eq1_term(items[i], params);
-      s += term[i];
-      if (items[i].area > 0.0f && items[i].area < params.pet) ++pet;
+      const BudgetItem& it = items[i];
+      if (!(it.area > 0.0f)) continue;
+      if (it.area < params.pet) {
+        ++pet;
+        continue;
+      }
+      const double t = eq1_term(it, params);
+      if (t > 0.0) found[c].push_back({static_cast<std::uint32_t>(i), it.points, t});
     }
-    chunk_sum[c] = s;
     chunk_pet[c] = pet;
   });
-  double sum = 0.0;
+  std::vector<Active> act;
   for (std::size_t c = 0; c < chunks; ++c) {
-    sum += chunk_sum[c];
+    act.insert(act.end(), found[c].begin(), found[c].end());
     stats.below_pet += chunk_pet[c];
   }
-  if (!(sum > 0.0) || params.total == 0) return stats;
+  const std::size_t a = act.size();
+  if (a == 0) return stats;
+  double sum = 0.0;
+  for (const Active& x : act) sum += x.term;
 
-  // Water filling: an item is capped when lambda * t_i >= P_i; the capped
+  // Water filling: an object is capped when lambda * t_i >= P_i; the capped
   // points leave the budget and their terms the sum. Every round caps all
-  // items above the current lambda, which only grows, so the capped set only
-  // grows and the rounds end.
-  std::vector<std::uint8_t> capped(m, 0);
-  std::vector<std::uint64_t> chunk_points(chunks);
-  std::vector<std::size_t> chunk_count(chunks);
+  // objects above the current lambda, which only grows, so the capped set
+  // only grows and the rounds end.
+  std::vector<std::uint8_t> capped(a, 0);
   double remaining = static_cast<double>(params.total);
   std::uint64_t capped_points = 0;
   double lambda = remaining / sum;
   bool settled = false;
   for (stats.rounds = 1; stats.rounds <= kMaxRounds; ++stats.rounds) {
-    std::fill(chunk_sum.begin(), chunk_sum.end(), 0.0);
-    std::fill(chunk_points.begin(), chunk_points.end(), 0);
-    std::fill(chunk_count.begin(), chunk_count.end(), 0);
-    for_chunks(pool, m, [&](std::size_t b, std::size_t e, std::size_t c) {
-      double s = 0.0;
-      std::uint64_t p = 0;
-      std::size_t n = 0;
-      for (std::size_t i = b; i < e; ++i) {
-        if (capped[i] || term[i] == 0.0) continue;
-        if (lambda * term[i] >= static_cast<double>(items[i].points)) {
-          capped[i] = 1;
-          s += term[i];
-          p += items[i].points;
-          ++n;
-        }
-      }
-      chunk_sum[c] = s;
-      chunk_points[c] = p;
-      chunk_count[c] = n;
-    });
     std::size_t newly = 0;
-    for (std::size_t c = 0; c < chunks; ++c) {
-      sum -= chunk_sum[c];
-      capped_points += chunk_points[c];
-      newly += chunk_count[c];
+    for (std::size_t k = 0; k < a; ++k) {
+      if (capped[k] || lambda * act[k].term < static_cast<double>(act[k].points)) continue;
+      capped[k] = 1;
+      sum -= act[k].term;
+      capped_points += act[k].points;
+      ++newly;
     }
     stats.capped += newly;
     remaining = static_cast<double>(params.total) - static_cast<double>(capped_points);
-    if (newly == 0) {
-      settled = true;
-      break;
-    }
-    if (!(sum > 1e-300) || remaining <= 0.0) {
+    if (newly == 0 || !(sum > 1e-300) || remaining <= 0.0) {
       settled = true;
       break;
     }
     lambda = remaining / sum;
   }
   if (!settled) {
-    // The worst case: uncapped items in ascending P_i / t_i are capped in that
-    // order while lambda * t_i >= P_i.
+    // The worst case: uncapped objects in ascending P_i / t_i are capped in
+    // that order while lambda * t_i >= P_i.
     std::vector<std::size_t> order;
-    for (std::size_t i = 0; i < m; ++i)
-      if (!capped[i] && term[i] > 0.0) order.push_back(i);
-    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-      return static_cast<double>(items[a].points) / term[a] <
-             static_cast<double>(items[b].points) / term[b];
+    for (std::size_t k = 0; k < a; ++k)
+      if (!capped[k]) order.push_back(k);
+    std::sort(order.begin(), order.end(), [&](std::size_t x, std::size_t y) {
+      return static_cast<double>(act[x].points) / act[x].term <
+             static_cast<double>(act[y].points) / act[y].term;
     });
-    for (const std::size_t i : order) {
+    for (const std::size_t k : order) {
       lambda = remaining / sum;
-      if (lambda * term[i] < static_cast<double>(items[i].points)) break;
-      capped[i] = 1;
+      if (lambda * act[k].term < static_cast<double>(act[k].points)) break;
+      capped[k] = 1;
       ++stats.capped;
-      sum -= term[i];
-      capped_points += items[i].points;
+      sum -= act[k].term;
+      capped_points += act[k].points;
       remaining = static_cast<double>(params.total) - static_cast<double>(capped_points);
       if (!(sum > 1e-300)) break;
     }
@@ -165,69 +154,64 @@ BudgetStats allocate_budget(std::span<const BudgetItem> items, const BudgetParam
   stats.lambda = lambda;
 
   // Integer shares: floors, then the points left to the largest fractions.
-  std::vector<float> fraction(m, -1.0f);
-  std::vector<std::uint64_t> chunk_total(chunks);
-  for_chunks(pool, m, [&](std::size_t b, std::size_t e, std::size_t c) {
-    std::uint64_t t = 0;
-    for (std::size_t i = b; i < e; ++i) {
-      if (term[i] == 0.0) continue;
-      if (capped[i]) {
-        shares[i] = items[i].points;
-      } else {
-        const double x = std::min(lambda * term[i], static_cast<double>(items[i].points));
-        const double f = std::floor(x);
-        shares[i] = static_cast<std::uint32_t>(f);
-        if (shares[i] < items[i].points) fraction[i] = static_cast<float>(x - f);
+  std::vector<std::uint32_t> share(a);
+  std::vector<float> fraction(a, -1.0f);  // -1: full (capped or at P_i)
+  std::uint64_t total = 0, room = 0;
+  for (std::size_t k = 0; k < a; ++k) {
+    if (capped[k]) {
+      share[k] = act[k].points;
+    } else {
+      const double x = std::min(lambda * act[k].term, static_cast<double>(act[k].points));
+      const double f = std::floor(x);
+      share[k] = static_cast<std::uint32_t>(f);
+      if (share[k] < act[k].points) {
+        fraction[k] = static_cast<float>(x - f);
+        room += act[k].points - share[k];
       }
-      t += shares[i];
     }
-    chunk_total[c] = t;
-  });
-  std::uint64_t total = std::accumulate(chunk_total.begin(), chunk_total.end(), std::uint64_t{0});
+    total += share[k];
+  }
   // The target: N, or every point when the objects have fewer.
-  const std::uint64_t target = std::min<std::uint64_t>(
-      params.total, total + [&] {
-        std::uint64_t room = 0;
-        for (std::size_t i = 0; i < m; ++i)
-          if (fraction[i] >= 0.0f) room += items[i].points - shares[i];
-        return room;
-      }());
+  const std::uint64_t target = std::min<std::uint64_t>(params.total, total + room);
   if (total < target) {
     std::vector<std::size_t> open;
-    for (std::size_t i = 0; i < m; ++i)
-      if (fraction[i] >= 0.0f) open.push_back(i);
-    const auto larger = [&](std::size_t a, std::size_t b) {
-      return fraction[a] != fraction[b] ? fraction[a] > fraction[b] : a < b;
+    for (std::size_t k = 0; k < a; ++k)
+      if (fraction[k] >= 0.0f) open.push_back(k);
+    const auto larger = [&](std::size_t x, std::size_t y) {
+      return fraction[x] != fraction[y] ? fraction[x] > fraction[y] : x < y;
     };
-    // Rounding leaves fewer points than there are uncapped items (sum of
-    // fractions < count), but float rounding of lambda may leave a few more:
-    // then go round again.
+    // Rounding leaves fewer points than there are uncapped objects (the
+    // fractions sum to less than their count), but float rounding of lambda
+    // may leave a few more: then go round again, by index.
     while (total < target && !open.empty()) {
       const std::size_t give =
           static_cast<std::size_t>(std::min<std::uint64_t>(target - total, open.size()));
       std::nth_element(open.begin(), open.begin() + static_cast<std::ptrdiff_t>(give - 1),
                        open.end(), larger);
-      for (std::size_t k = 0; k < give; ++k) ++shares[open[k]];
+      for (std::size_t k = 0; k < give; ++k) ++share[open[k]];
       total += give;
-      std::erase_if(open, [&](std::size_t i) { return shares[i] >= items[i].points; });
-      for (const std::size_t i : open) fraction[i] = 0.0f;  // a second round: by index
+      std::erase_if(open, [&](std::size_t k) { return share[k] >= act[k].points; });
+      for (const std::size_t k : open) fraction[k] = 0.0f;
     }
   }
   while (total > params.total) {
     // lambda's float rounding overshot: take back from the smallest
-    // fractional parts (never happens in the tests; kept for the guarantee).
-    std::size_t worst = m;
-    for (std::size_t i = 0; i < m; ++i) {
-      if (shares[i] == 0 || capped[i]) continue;
-      if (worst == m || fraction[i] < fraction[worst]) worst = i;
+    // fractional parts (kept for the guarantee).
+    std::size_t worst = a;
+    for (std::size_t k = 0; k < a; ++k) {
+      if (share[k] == 0 || capped[k]) continue;
+      if (worst == a || fraction[k] < fraction[worst]) worst = k;
     }
-    if (worst == m) break;
-    --shares[worst];
+    if (worst == a) break;
+    --share[worst];
     fraction[worst] = 2.0f;
     --total;
   }
+  for (std::size_t k = 0; k < a; ++k) {
+    shares[act[k].index] = share[k];
+    stats.receiving += share[k] > 0;
+  }
   stats.total = total;
-  for (std::size_t i = 0; i < m; ++i) stats.receiving += shares[i] > 0;
   return stats;
 }
 

@@ -6,6 +6,7 @@
 #include "treecut/strategies/hzm.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <glm/geometric.hpp>
 #include <glm/matrix.hpp>
@@ -40,6 +41,72 @@ struct BoxRays {
   }
   [[nodiscard]] RayHit at(float nx, float ny) const {
     return ray_box_local(o, q0 + qy * ny + qx * nx, half);
+  }
+};
+
+// An occluder box's front surface over the screen, as linear functions of
+// NDC. Along the ray o + t d (box frame, d affine in NDC, t the eye depth)
+// a slab plane x_k = p is met at t = (p - o_k) / d_k, so u = 1 / t =
+// d_k / (p - o_k) is linear in NDC. Entry t = the largest t of the near
+// planes of the slabs the eye is outside of (u_in = the smallest of their
+// u, all > 0 or the ray misses); exit t = the smallest positive t of the
+// other planes (u_out = the largest of their u). Hit iff u_in > 0 and
+// u_out <= u_in; depth 1 / u_in. Up to 3 entry and 6 exit functions, padded
+// with functions that never decide, so that a row is one loop the compiler
+// can vectorize.
+struct OccluderRaster {
+  // u = c0 + cx * nx + cy * ny.
+  std::array<glm::vec3, 3> entry{};
+  std::array<glm::vec3, 6> exit{};
+  float near_depth = 0.0f;
+  int x0 = 0, y0 = 0, x1 = -1, y1 = -1;  // cell range
+
+  OccluderRaster(const Obb& box, const FrameView& v) {
+    const glm::mat3 t = glm::transpose(box.axes);
+    const glm::vec3 o = t * (v.eye() - box.center);
+    const glm::vec3 qx = t * v.ray_x(), qy = t * v.ray_y(), q0 = t * v.ray_0();
+    std::size_t ne = 0, nx = 0;
+    for (int k = 0; k < 3; ++k) {
+      float h = box.half[k];
+      // The eye exactly on a face plane would divide by 0: a slightly
+      // smaller box is still inside the object.
+      if (std::abs(std::abs(o[k]) - h) <= 1e-6f * h) h *= 1.0f - 1e-5f;
+      const glm::vec3 d(q0[k], qx[k], qy[k]);
+      if (std::abs(o[k]) > h) {
+        const float sign = o[k] > 0.0f ? 1.0f : -1.0f;
+        entry[ne++] = d / (sign * h - o[k]);
+        exit[nx++] = d / (-sign * h - o[k]);
+      } else {
+        exit[nx++] = d / (h - o[k]);
+        exit[nx++] = d / (-h - o[k]);
+      }
+    }
+    for (; ne < 3; ++ne) entry[ne] = glm::vec3(3e38f, 0.0f, 0.0f);
+    for (; nx < 6; ++nx) exit[nx] = glm::vec3(0.0f);
+  }
+  /// Depths (or +inf where the box is missed) at (nx[k], ny).
+  void row(float ny, const std::vector<float>& nx, std::vector<float>& out) const {
+    float e0[3], ex[3], x0v[6], xx[6];
+    for (std::size_t i = 0; i < 3; ++i) {
+      e0[i] = entry[i].x + entry[i].z * ny;
+      ex[i] = entry[i].y;
+    }
+    for (std::size_t i = 0; i < 6; ++i) {
+      x0v[i] = exit[i].x + exit[i].z * ny;
+      xx[i] = exit[i].y;
+    }
+    const std::size_t n = nx.size();
+    const float* in = nx.data();
+    float* o = out.data();
+    for (std::size_t k = 0; k < n; ++k) {
+      const float x = in[k];
+      const float u_in =
+          std::min(std::min(e0[0] + ex[0] * x, e0[1] + ex[1] * x), e0[2] + ex[2] * x);
+      const float u_out = std::max(std::max(std::max(x0v[0] + xx[0] * x, x0v[1] + xx[1] * x),
+                                            std::max(x0v[2] + xx[2] * x, x0v[3] + xx[3] * x)),
+                                   std::max(x0v[4] + xx[4] * x, x0v[5] + xx[5] * x));
+      o[k] = u_in > 0.0f && u_out <= u_in ? 1.0f / u_in : kInf;
+    }
   }
 };
 
@@ -194,6 +261,11 @@ int HierarchicalZMap::level_for(int r) const {
 float HierarchicalZMap::max_over(int x0, int y0, int x1, int y1, int* level) const {
   const int l = level_for(std::max(x1 - x0 + 1, y1 - y0 + 1));
   if (level != nullptr) *level = l;
+  return max_over_at(l, x0, y0, x1, y1);
+}
+
+float HierarchicalZMap::max_over_at(int level, int x0, int y0, int x1, int y1) const {
+  const int l = std::clamp(level, 0, levels() - 1);
   float m = -kInf;
   for (int y = y0 >> l; y <= (y1 >> l); ++y) {
     for (int x = x0 >> l; x <= (x1 >> l); ++x) m = std::max(m, at(l, x, y));
@@ -202,7 +274,7 @@ float HierarchicalZMap::max_over(int x0, int y0, int x1, int y1, int* level) con
 }
 
 float occluder_weight(const SceneObject& object, glm::vec3 normal, const ScreenRect& rect,
-                      const FrameView& view) {
+                      const FrameView& view, Facing facing) {
   if (!rect.in_frustum || rect.crosses_near || !object.has_inner) return 0.0f;
   const glm::vec3 e = view.eye();
   const glm::vec3 outside =
@@ -211,7 +283,10 @@ float occluder_weight(const SceneObject& object, glm::vec3 normal, const ScreenR
   if (!(distance > 0.0f)) return 0.0f;
   const glm::vec3 size = object.bounds.max - object.bounds.min;
   const float volume = size.x * size.y * size.z;
-  return volume * std::abs(glm::dot(normal, view.forward())) / distance;
+  const glm::vec3 e_dir = facing == Facing::ViewDirection
+                              ? view.forward()
+                              : glm::normalize(0.5f * (object.bounds.min + object.bounds.max) - e);
+  return volume * std::abs(glm::dot(normal, e_dir)) / distance;
 }
 
 void HzmCuller::preprocess(std::span<const SceneObject> objects) {
@@ -263,7 +338,7 @@ void HzmCuller::select_occluders(std::span<const SceneObject> objects, const Fra
     std::vector<Pick>& mine = best[c];
     for (std::size_t j = b; j < e; ++j) {
       const std::uint32_t i = cos_[j];
-      weight_[j] = occluder_weight(objects[i], normal_[j], rects_[i], view);
+      weight_[j] = occluder_weight(objects[i], normal_[j], rects_[i], view, params_.facing);
       if (weight_[j] > 0.0f) mine.push_back({weight_[j], i});
     }
     if (mine.size() > k) {
@@ -290,51 +365,73 @@ void HzmCuller::build_hzm(std::span<const SceneObject> objects, const FrameView&
   depth_.assign(static_cast<std::size_t>(depth_dims_.x) * static_cast<std::size_t>(depth_dims_.y),
                 kInf);
 
-  struct Occluder {
-    BoxRays rays;
-    int x0, y0, x1, y1;  // cell range
-  };
-  std::vector<Occluder> occ;
+  // Occluders front to back (by their nearest depth): a cell an earlier one
+  // covered nearer than a later one's nearest point needs no test of it.
+  std::vector<OccluderRaster> occ;
   occ.reserve(aos_.size());
   const float s = static_cast<float>(cell_);
   for (const std::uint32_t i : aos_) {
     const SceneObject& o = objects[i];
     const ScreenRect r = view.project(bounds_of(o.inner));
     if (!r.in_frustum || r.crosses_near) continue;
-    occ.push_back({BoxRays(o.inner, view), static_cast<int>(r.x0 / s), static_cast<int>(r.y0 / s),
-                   std::min(depth_dims_.x - 1, static_cast<int>(r.x1 / s)),
-                   std::min(depth_dims_.y - 1, static_cast<int>(r.y1 / s))});
+    OccluderRaster raster(o.inner, view);
+    raster.near_depth = r.depth;
+    raster.x0 = static_cast<int>(r.x0 / s);
+    raster.y0 = static_cast<int>(r.y0 / s);
+    raster.x1 = std::min(depth_dims_.x - 1, static_cast<int>(r.x1 / s));
+    raster.y1 = std::min(depth_dims_.y - 1, static_cast<int>(r.y1 / s));
+    occ.push_back(raster);
   }
+  std::stable_sort(occ.begin(), occ.end(), [](const OccluderRaster& a, const OccluderRaster& b) {
+    return a.near_depth < b.near_depth;
+  });
   const float vw = static_cast<float>(vp.x), vh = static_cast<float>(vp.y);
   const float to_ndc_x = 2.0f / vw, to_ndc_y = 2.0f / vh;
+  const std::size_t row_stride = static_cast<std::size_t>(depth_dims_.x);
+  // The sample points: with one pixel a cell, its center (exact); with
+  // larger cells, the cell corners (the corner x = i * s, kept within the
+  // extreme pixel centers of the viewport), shared by neighbouring cells:
+  // the square they span holds every pixel center of the cell.
+  const bool exact = cell_ == 1;
+  const auto sample_x = [&](int i) {
+    return exact ? static_cast<float>(i) + 0.5f
+                 : std::clamp(static_cast<float>(i) * s, 0.5f, vw - 0.5f);
+  };
+  const auto sample_y = [&](int j) {
+    return exact ? static_cast<float>(j) + 0.5f
+                 : std::clamp(static_cast<float>(j) * s, 0.5f, vh - 0.5f);
+  };
   // Rows of cells in chunks: each chunk writes only its own rows.
   for_chunks(pool, static_cast<std::size_t>(depth_dims_.y), 4,
              [&](std::size_t b, std::size_t e, std::size_t) {
-               for (const Occluder& oc : occ) {
+               std::vector<float> below, above, nx;
+               for (const OccluderRaster& oc : occ) {
                  const int y_begin = std::max(oc.y0, static_cast<int>(b));
                  const int y_end = std::min(oc.y1 + 1, static_cast<int>(e));
+                 if (y_begin >= y_end) continue;
+                 const int samples = oc.x1 - oc.x0 + (exact ? 1 : 2);
+                 nx.resize(static_cast<std::size_t>(samples));
+                 below.resize(nx.size());
+                 above.resize(nx.size());
+                 for (int k = 0; k < samples; ++k) {
+                   nx[static_cast<std::size_t>(k)] = sample_x(oc.x0 + k) * to_ndc_x - 1.0f;
+                 }
+                 if (!exact) oc.row(sample_y(y_begin) * to_ndc_y - 1.0f, nx, below);
                  for (int y = y_begin; y < y_end; ++y) {
-                   // The cell's extreme pixel centers.
-                   const float ya = static_cast<float>(y) * s + 0.5f;
-                   const float yb = std::min(static_cast<float>(y + 1) * s, vh) - 0.5f;
-                   const float na = ya * to_ndc_y - 1.0f, nb = yb * to_ndc_y - 1.0f;
-                   float* row = depth_.data() + static_cast<std::size_t>(y) *
-                                                    static_cast<std::size_t>(depth_dims_.x);
-                   for (int x = oc.x0; x <= oc.x1; ++x) {
-                     const float xa = static_cast<float>(x) * s + 0.5f;
-                     const float xb = std::min(static_cast<float>(x + 1) * s, vw) - 0.5f;
-                     const float ma = xa * to_ndc_x - 1.0f, mb = xb * to_ndc_x - 1.0f;
-                     const RayHit h0 = oc.rays.at(ma, na);
-                     if (!h0.hit()) continue;
-                     const RayHit h1 = oc.rays.at(mb, na);
-                     if (!h1.hit()) continue;
-                     const RayHit h2 = oc.rays.at(ma, nb);
-                     if (!h2.hit()) continue;
-                     const RayHit h3 = oc.rays.at(mb, nb);
-                     if (!h3.hit()) continue;
-                     const float d =
-                         std::max(std::max(h0.t_in, h1.t_in), std::max(h2.t_in, h3.t_in));
-                     row[x] = std::min(row[x], d);
+                   oc.row(sample_y(exact ? y : y + 1) * to_ndc_y - 1.0f, nx, above);
+                   float* row = depth_.data() + static_cast<std::size_t>(y) * row_stride;
+                   if (exact) {
+                     for (int x = oc.x0; x <= oc.x1; ++x) {
+                       row[x] = std::min(row[x], above[static_cast<std::size_t>(x - oc.x0)]);
+                     }
+                   } else {
+                     for (int x = oc.x0; x <= oc.x1; ++x) {
+                       const std::size_t k = static_cast<std::size_t>(x - oc.x0);
+                       const float d = std::max(std::max(below[k], below[k + 1]),
+                                                std::max(above[k], above[k + 1]));
+                       row[x] = std::min(row[x], d);
+                     }
+                     std::swap(below, above);
                    }
                  }
                }
@@ -357,8 +454,14 @@ void HzmCuller::test(std::span<const SceneObject> objects, WorkerPool* pool) {
           const int y0 = static_cast<int>(r.y0) / cell_;
           const int x1 = std::min(depth_dims_.x - 1, static_cast<int>(r.x1) / cell_);
           const int y1 = std::min(depth_dims_.y - 1, static_cast<int>(r.y1) / cell_);
-          const float m = hzm_.max_over(x0, y0, x1, y1);
-          if (r.depth > m * (1.0f + kDepthMargin)) st = ObjectState::Occluded;
+          int level = 0;
+          const float m = hzm_.max_over(x0, y0, x1, y1, &level);
+          if (r.depth > m * (1.0f + kDepthMargin)) {
+            st = ObjectState::Occluded;
+          } else if (params_.finer_levels > 0 && level > 0) {
+            const float f = hzm_.max_over_at(level - params_.finer_levels, x0, y0, x1, y1);
+            if (r.depth > f * (1.0f + kDepthMargin)) st = ObjectState::Occluded;
+          }
         }
       }
       states_[i] = st;

@@ -93,10 +93,22 @@ float compactness(std::span<const glm::vec3> points, const Obb& box);
 /// (Jacobi eigenvectors), extents from the points along them.
 Obb fit_obb(std::span<const glm::vec3> points);
 
+/// E of Eq. 3. The paper: "E is the direction vector of the viewpoint", the
+/// viewing direction; the direction from the eye to the object's center is
+/// the other reading (it favours the street's side walls over the viewing
+/// direction; measured in docs/many-objects.md).
+enum class Facing : std::uint8_t { ViewDirection, EyeToObject };
+
 struct HzmParams {
-  unsigned depth_width = 256;           ///< cells across the viewport's larger side
-  std::size_t active = 32;              ///< size of the AOS (the paper: 15 and 20)
-  float compactness_threshold = 0.55f;  ///< CT (the paper: 0.55 and 0.88)
+  unsigned depth_width = 256;             ///< cells across the viewport's larger side
+  std::size_t active = 32;                ///< size of the AOS (the paper: 15 and 20)
+  float compactness_threshold = 0.55f;    ///< CT (the paper: 0.55 and 0.88)
+  Facing facing = Facing::ViewDirection;  ///< E of Eq. 3
+  /// Added to the paper: an object the Eq. 5 level keeps is tested again
+  /// this many levels finer (up to 2^(k+1) x 2^(k+1) cells; 0 = the paper's
+  /// test only; default 2, docs/many-objects.md). A finer level's cells bound fewer pixels, so it
+  /// culls at least what the coarser one does, and is as conservative.
+  int finer_levels = 2;
 };
 
 /// Max-reduction pyramid over a depth image (eye depths, +inf = empty).
@@ -119,6 +131,9 @@ class HierarchicalZMap {
   /// The largest value over the level-0 cell range [x0, x1] x [y0, y1]
   /// (inclusive) read at level_for(): at most 2 x 2 cells.
   [[nodiscard]] float max_over(int x0, int y0, int x1, int y1, int* level = nullptr) const;
+  /// The largest value over the same range read at `level` (clamped to
+  /// [0, levels() - 1]).
+  [[nodiscard]] float max_over_at(int level, int x0, int y0, int x1, int y1) const;
 
  private:
   std::vector<std::vector<float>> levels_;
@@ -145,7 +160,7 @@ struct CullStats {
 /// one this frame: outside, crossing the near plane, eye inside its AABB).
 /// `normal`: the unit normal of its OBB's largest face.
 float occluder_weight(const SceneObject& object, glm::vec3 normal, const ScreenRect& rect,
-                      const FrameView& view);
+                      const FrameView& view, Facing facing = Facing::ViewDirection);
 
 class HzmCuller {
  public:
