@@ -100,6 +100,9 @@ TEST(SceneFile, EveryMalformedLineNamesFileAndLine) {
       {"model m m.ply\nobject m matrix 1 0 0 0 0 1 0 0 0 0 1\n", "3: matrix: expected 12 numbers"},
       {"model m m.ply\nobject m translate 1 2x 3\n", "3: translate: '2x' is not a number"},
       {"model m m.ply\nobject m translate 1 nan 3\n", "3: translate: 'nan' is not a finite number"},
+      {"model m m.ply\nobject m translate +1 2 3\n", "3: translate: '+1' is not a number"},
+      {"model m m.ply\nobject m turn -x\n", "3: turn: '-x' is not a number"},
+      {"model m m.ply\nobject m turn Infinity\n", "3: turn: 'Infinity' is not a finite number"},
       {"model m m.ply\nobject m scale inf\n", "3: scale: 'inf' is not a finite number"},
       {"model m m.ply\nobject m translate 1e400 0 0\n", "3: translate: '1e400' is out of range"},
       {"model m m.ply\nobject m translate 1e39 0 0\n",
@@ -139,12 +142,20 @@ TEST(SceneFile, EveryMalformedLineNamesFileAndLine) {
         << "case " << c.body << "\ngot:      " << got << "\nexpected: " << want;
   }
   // The model's own problem, after the FILE:LINE and the model's name.
+  auto error_of = [&](const char* body) {
+    const fs::path file = dir / "own.scene";
+    write(file, "treecut-scene 1\n" + std::string(body));
+    return parse_error(file);
+  };
   EXPECT_NE(
-      parse_error(dir / "case31.scene").find((dir / "missing.ply").string() + ": no such file"),
+      error_of("model m missing.ply\n").find((dir / "missing.ply").string() + ": no such file"),
       std::string::npos);
-  EXPECT_NE(parse_error(dir / "case32.scene").find("is a directory"), std::string::npos);
-  EXPECT_NE(parse_error(dir / "case33.scene").find((dir / "missing.scene").string()),
-            std::string::npos);
+  EXPECT_NE(
+      error_of("model m folder.ply\n").find((dir / "folder.ply").string() + ": is a directory"),
+      std::string::npos);
+  EXPECT_NE(
+      error_of("include missing.scene\n").find((dir / "missing.scene").string() + ": no such file"),
+      std::string::npos);
 }
 
 TEST(SceneFile, HeaderAndFileProblems) {

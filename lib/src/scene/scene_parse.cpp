@@ -47,11 +47,18 @@ std::vector<std::string_view> split(std::string_view line) {
 }
 
 bool is_number_token(std::string_view t) {
-  double v = 0.0;
-  const auto [ptr, ec] = std::from_chars(t.data(), t.data() + t.size(), v);
-  // A token that starts like a number counts as one (so "1e400" is reported
-  // as out of range, not as an unknown keyword); so do nan and inf.
-  return ptr != t.data() || ec == std::errc::result_out_of_range;
+  // A token that starts like a number counts as one, so "1e400", "+1",
+  // "2x", "nan" and "inf" are reported as bad numbers, not as unknown
+  // transform steps.
+  if (t.empty()) return false;
+  if (std::string_view("+-.0123456789").find(t[0]) != std::string_view::npos) return true;
+  auto starts = [&](std::string_view w) {
+    if (t.size() < w.size()) return false;
+    for (std::size_t i = 0; i < w.size(); ++i)
+      if ((t[i] | 0x20) != w[i]) return false;
+    return true;
+  };
+  return starts("nan") || starts("inf");
 }
 
 // A transform number: finite and within float range, since the matrices are
