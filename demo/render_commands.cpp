@@ -20,6 +20,7 @@
 #include "treecut/splat/frame.hpp"
 #include "treecut/splat/frame_rate.hpp"
 #include "treecut/splat/image.hpp"
+#include "treecut/strategies/hoq.hpp"
 #include "view_script.hpp"
 #include "viewer.hpp"
 
@@ -94,6 +95,11 @@ void run_render(const RenderArgs& a) {
     stage_options.priority = StagePriority::Idle;
     configure_stage(stage_options, a.scene);
     std::unique_ptr<Strategy> strategy = make_strategy(registry, name, a.scene.params);
+    // The hoq strategy's block counters go into stats.csv with --sync only:
+    // then its iterations run on this thread (step()), so reading them races
+    // nothing.
+    const auto* hoq =
+        a.sync ? dynamic_cast<const strategies::HoqStrategy*>(strategy.get()) : nullptr;
     // The viewer's governor (--target-fps), fed the same way: frame time and
     // the splats that frame drew.
     std::optional<splat::FrameRateGovernor> governor;
@@ -153,6 +159,18 @@ void run_render(const RenderArgs& a) {
         row.query_latency_frames_max = q.latency_frames_max_last;
       }
       row.query_cpu_us = double(q.cpu_ns_total - before.cpu_ns_total) * 1e-3;
+      if (hoq != nullptr) {
+        const strategies::HoqCounters& c = hoq->last();
+        row.has_hoq = true;
+        row.hoq_blocks = c.blocks;
+        row.hoq_dn = c.drawn;
+        row.hoq_culled = c.culled;
+        row.hoq_delayed = c.delayed;
+        row.hoq_rarn = c.rarn;
+        row.hoq_rarn_frames = c.rarn_frames;
+        row.hoq_late = c.late_refined;
+        row.hoq_late_frames = c.late_frames;
+      }
       if (!a.no_png || a.psnr) {
         const splat::Image lod = grab();
         if (!a.no_png) {
@@ -162,7 +180,9 @@ void run_render(const RenderArgs& a) {
         }
         if (a.psnr) {
           renderer.draw(full, cam, settings, true);
-          row.psnr_db = splat::psnr(lod, grab());
+          const splat::Image reference = grab();
+          row.psnr_db = splat::psnr(lod, reference);
+          row.psnr_luma_db = luma_psnr(lod, reference);
         }
       }
       run.rows.push_back(row);
@@ -210,6 +230,7 @@ void run_render(const RenderArgs& a) {
         std::printf(", PSNR %.2f dB", mean);
       else
         std::printf(", PSNR %s dB (identical to full detail)", psnr_text(mean).c_str());
+      std::printf(", luma PSNR %.2f dB", mean_of(run.rows, &FrameRow::psnr_luma_db));
     }
     if (a.stability > 0) {
       std::printf(", stability %.5f changed (max %.5f)%s", run.stability_changed, run.stability_max,
@@ -226,6 +247,23 @@ void run_render(const RenderArgs& a) {
           q.pending, static_cast<unsigned long long>(q.dropped), q.latency_frames_mean(),
           static_cast<unsigned long long>(q.latency_frames_max),
           double(q.cpu_ns_total) * 1e-6 / double(std::max<std::uint64_t>(controller.frame(), 1)));
+    }
+    if (hoq != nullptr && !run.rows.empty()) {
+      double dn = 0, d = 0, rarn = 0, rarn_frames = 0, late = 0, late_frames = 0;
+      for (const FrameRow& r : run.rows) {
+        dn += double(r.hoq_dn);
+        d += double(r.hoq_delayed);
+        rarn += double(r.hoq_rarn);
+        rarn_frames += double(r.hoq_rarn_frames);
+        late += double(r.hoq_late);
+        late_frames += double(r.hoq_late_frames);
+      }
+      const double n = double(run.rows.size());
+      std::printf(
+          "hlod      %s: per frame DN %.1f blocks, D %.2f (%.2f%% of DN), RARN %.3f (%.2f frames "
+          "each), late %.3f (%.2f frames each)\n",
+          name.c_str(), dn / n, d / n, dn > 0 ? 100.0 * d / dn : 0.0, rarn / n,
+          rarn > 0 ? rarn_frames / rarn : 0.0, late / n, late > 0 ? late_frames / late : 0.0);
     }
     // Fewer iterations than the path needed: say so (the frames lag or show the root).
     if (const std::string late =

@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 #include <set>
 #include <sstream>
+#include <stdexcept>
 #include <string_view>
 #include <system_error>
 
@@ -130,18 +131,46 @@ double mean_psnr(const std::vector<FrameRow>& rows) {
                        : std::numeric_limits<double>::quiet_NaN();
 }
 
+double luma_psnr(const splat::Image& a, const splat::Image& b) {
+  if (a.width != b.width || a.height != b.height || a.rgba.size() != b.rgba.size())
+    throw std::invalid_argument("luma_psnr: images of different sizes");
+  const std::size_t pixels = a.rgba.size() / 4;
+  double sum = 0.0;
+  for (std::size_t i = 0; i < pixels; ++i) {
+    const std::uint8_t* p = &a.rgba[i * 4];
+    const std::uint8_t* q = &b.rgba[i * 4];
+    const double d = 0.299 * (double(p[0]) - q[0]) + 0.587 * (double(p[1]) - q[1]) +
+                     0.114 * (double(p[2]) - q[2]);
+    sum += d * d;
+  }
+  if (pixels == 0 || sum == 0.0) return kLumaPsnrCap;
+  return std::min(kLumaPsnrCap, 10.0 * std::log10(255.0 * 255.0 * double(pixels) / sum));
+}
+
 void write_stats_csv(const std::filesystem::path& file, const std::vector<FrameRow>& rows) {
   std::ostringstream out;
-  // The query columns last: an older reader of the first ten still works.
+  // The query columns, then the luminance PSNR and the hoq counters last: an
+  // older reader of the first ones still works.
   out << "frame,time_s,frame_ms,splats_drawn,points_represented,iteration_ms,exchanges,iterations,"
          "converged,psnr_db,queries_issued,queries_answered,queries_pending,"
-         "query_latency_frames_mean,query_latency_frames_max,query_cpu_us\n";
+         "query_latency_frames_mean,query_latency_frames_max,query_cpu_us,psnr_luma_db,"
+         "hoq_blocks,hoq_dn,hoq_culled,hoq_delayed,hoq_rarn,hoq_rarn_frames,hoq_late,"
+         "hoq_late_frames\n";
   for (const FrameRow& r : rows) {
     out << r.frame << ',' << r.time_s << ',' << r.frame_ms << ',' << r.cut_size << ',' << r.points
         << ',' << r.iteration_ms << ',' << r.exchanges << ',' << r.iterations << ','
         << (r.converged ? 1 : 0) << ',' << psnr_text(r.psnr_db) << ',' << r.queries_issued << ','
         << r.queries_answered << ',' << r.queries_pending << ',' << r.query_latency_frames_mean
-        << ',' << r.query_latency_frames_max << ',' << r.query_cpu_us << '\n';
+        << ',' << r.query_latency_frames_max << ',' << r.query_cpu_us << ','
+        << (std::isfinite(r.psnr_luma_db) ? json_number(r.psnr_luma_db) : std::string());
+    if (r.has_hoq) {
+      out << ',' << r.hoq_blocks << ',' << r.hoq_dn << ',' << r.hoq_culled << ',' << r.hoq_delayed
+          << ',' << r.hoq_rarn << ',' << r.hoq_rarn_frames << ',' << r.hoq_late << ','
+          << r.hoq_late_frames;
+    } else {
+      out << ",,,,,,,,";
+    }
+    out << '\n';
   }
   write_file_atomically(file, out.str());
 }
@@ -166,12 +195,37 @@ std::string summary_json(const RunSummary& s) {
   j["exchanges"] = s.rows.empty() ? 0 : s.rows.back().exchanges;
   j["mean_psnr_db"] = psnr_json(mean_psnr(s.rows));
   j["psnr_identical_frames"] = identical_frames(s.rows);
+  j["mean_psnr_luma_db"] = number_json(mean_of(s.rows, &FrameRow::psnr_luma_db));
   j["stability"] = {{"frames", s.stability_frames},
                     {"converged", s.stability_converged},
                     {"mean_changed_fraction", number_json(s.stability_changed)},
                     {"max_changed_fraction", number_json(s.stability_max)},
                     {"splats_drawn", s.converged_cut},
                     {"psnr_db", psnr_json(s.converged_psnr)}};
+  // The hoq strategy's counters, per frame (only with them: --sync and -s hoq).
+  if (!s.rows.empty() && s.rows.front().has_hoq) {
+    double blocks = 0, dn = 0, culled = 0, delayed = 0, rarn = 0, rarn_frames = 0, late = 0,
+           late_frames = 0;
+    for (const FrameRow& r : s.rows) {
+      blocks += double(r.hoq_blocks);
+      dn += double(r.hoq_dn);
+      culled += double(r.hoq_culled);
+      delayed += double(r.hoq_delayed);
+      rarn += double(r.hoq_rarn);
+      rarn_frames += double(r.hoq_rarn_frames);
+      late += double(r.hoq_late);
+      late_frames += double(r.hoq_late_frames);
+    }
+    j["hoq"] = {{"mean_blocks", number_json(blocks / n)},
+                {"mean_dn", number_json(dn / n)},
+                {"mean_culled", number_json(culled / n)},
+                {"mean_delayed", number_json(delayed / n)},
+                {"delayed_per_dn", number_json(dn > 0 ? delayed / dn : 0.0)},
+                {"rarn_per_frame", number_json(rarn / n)},
+                {"rarn_frames_mean", number_json(rarn > 0 ? rarn_frames / rarn : 0.0)},
+                {"late_per_frame", number_json(late / n)},
+                {"late_frames_mean", number_json(late > 0 ? late_frames / late : 0.0)}};
+  }
   // The executor's totals (zeros for a strategy that posts no queries).
   const splat::QueryStats& q = s.queries;
   j["queries"] = {

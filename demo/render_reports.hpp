@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "treecut/splat/image.hpp"
 #include "treecut/splat/query_executor.hpp"
 
 namespace treecut::cli {
@@ -34,7 +35,21 @@ struct FrameRow {
   double query_latency_frames_mean = 0.0;  // of this frame's answers (0: none)
   std::uint64_t query_latency_frames_max = 0;
   double query_cpu_us = 0.0;  // the executor's render-thread CPU time
+  // --psnr: luminance PSNR against full detail, capped at kLumaPsnrCap (never
+  // inf); NaN when not measured.
+  double psnr_luma_db = std::numeric_limits<double>::quiet_NaN();
+  // The `hoq` strategy's counters of the iteration after the frame (--sync
+  // only: read on the thread that ran it); has_hoq false otherwise.
+  bool has_hoq = false;
+  std::uint64_t hoq_blocks = 0, hoq_dn = 0, hoq_culled = 0, hoq_delayed = 0;
+  std::uint64_t hoq_rarn = 0, hoq_rarn_frames = 0, hoq_late = 0, hoq_late_frames = 0;
 };
+
+/// Luminance PSNR (Y = 0.299 R + 0.587 G + 0.114 B, BT.601, peak 255) of two
+/// images of the same size, capped: identical images give kLumaPsnrCap, so
+/// the column and its mean stay finite.
+inline constexpr double kLumaPsnrCap = 99.0;
+double luma_psnr(const splat::Image& a, const splat::Image& b);
 
 struct RunSummary {
   std::string strategy;
