@@ -39,6 +39,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <glm/gtc/matrix_transform.hpp>
 #include <limits>
 #include <map>
 #include <memory>
@@ -51,6 +52,7 @@
 #include "test_support.hpp"
 #include "treecut/controller.hpp"
 #include "treecut/file_io.hpp"
+#include "treecut/generate.hpp"
 #include "treecut/model.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/registry.hpp"
@@ -59,7 +61,9 @@
 #include "treecut/splat/frame.hpp"
 #include "treecut/splat/image.hpp"
 #include "treecut/splat/renderer.hpp"
+#include "treecut/splat/scene_draw.hpp"
 #include "treecut/strategies/builtin.hpp"
+#include "treecut/tree_cut.hpp"
 
 namespace {
 
@@ -563,5 +567,81 @@ BENCHMARK(FadeStability)
     ->UseManualTime();
 
 }  // namespace
+
+// Scenes of many objects (issue 13): arg0 objects on a grid, instances of two
+// generated models (a sphere and a small city, 2,000 points each), every
+// object's cut its 16 coarsest nodes. Per frame: the scene cut's upload
+// (SceneCutBuffer::upload: the element list and a command per object), the
+// draw's issue on the render thread (draw_scene without glFinish: GL calls,
+// and llvmpipe's vertex and geometry stages, which run on the calling
+// thread) and the whole frame (+ glFinish). draw_calls is per frame: one per
+// pass whatever the objects.
+void SceneObjects(benchmark::State& state) {
+  context();
+  static const Hierarchy sphere = build_from_points(generate_model(ModelKind::Sphere, 2000, 1));
+  static const Hierarchy city = build_from_points(generate_model(ModelKind::City, 2000, 2));
+  const Hierarchy* models[] = {&sphere, &city};
+  const auto objects = static_cast<std::size_t>(state.range(0));
+  const auto side = static_cast<std::size_t>(std::ceil(std::sqrt(double(objects))));
+  std::vector<SceneObjectDraw> draws;
+  for (std::size_t i = 0; i < objects; ++i) {
+    const glm::vec3 at(3.0f * float(i % side), 3.0f * float(i / side), 0.0f);
+    draws.push_back({static_cast<std::uint32_t>(i % 2), glm::translate(glm::mat4(1.0f), at)});
+  }
+  const auto coarse = [](const Hierarchy& h) {
+    TreeCut cut = TreeCut::root_cut(h);
+    for (NodeId n = 0; n < h.node_count() && cut.size() < 16; ++n) {
+      if (cut.contains(n) && !h.is_leaf(n)) cut.refine(h, n);
+    }
+    std::vector<NodeId> v(cut.nodes().begin(), cut.nodes().end());
+    std::sort(v.begin(), v.end());
+    return v;
+  };
+  const std::vector<NodeId> cuts_of[] = {coarse(sphere), coarse(city)};
+  std::vector<std::span<const NodeId>> cuts;
+  for (std::size_t i = 0; i < objects; ++i) cuts.emplace_back(cuts_of[i % 2]);
+  Renderer renderer(sphere, kSize);
+  renderer.set_models(models);
+  SceneCutBuffer buffer;
+  buffer.set_objects(renderer, draws);
+  const float extent = 3.0f * float(side);
+  const Camera cam = fit_camera(glm::vec3(-1.0f), glm::vec3(extent, extent, 2.0f), kAspect,
+                                glm::vec3(0.0f, -0.6f, 1.0f), glm::vec3(0, 0, 1));
+  const RenderSettings settings;
+  // The baseline: as many splats in one cut of one model, drawn plainly (what
+  // the splats cost without objects), in the same run.
+  static const Hierarchy big = build_from_points(generate_model(ModelKind::City, 2'400'000, 3));
+  Renderer plain_renderer(big, kSize);
+  CutBuffer plain_cut;
+  {
+    TreeCut cut = TreeCut::root_cut(big);
+    for (NodeId n = 0; n < big.node_count() && cut.size() < 16 * objects; ++n) {
+      if (cut.contains(n) && !big.is_leaf(n)) cut.refine(big, n);
+    }
+    plain_cut.upload(big, cut.nodes());
+  }
+  const Camera plain_cam = default_camera(big.bounds_min(), big.bounds_max(), kAspect);
+  FrameTimes upload, issue, frame, plain_issue;
+  std::size_t calls = 0;
+  for (auto _ : state) {
+    const double ms = frame.measure([&] {
+      upload.measure([&] { buffer.upload(models, cuts); });
+      issue.measure([&] { calls = renderer.draw_scene(buffer, cam, settings, false).draw_calls; });
+      gl::Finish();
+    });
+    plain_issue.measure([&] { plain_renderer.draw(plain_cut, plain_cam, settings, false); });
+    gl::Finish();
+    state.SetIterationTime(ms * 1e-3);
+  }
+  state.counters["plain_splats"] = double(plain_cut.size());
+  state.counters["plain_issue_render_thread_ms"] = plain_issue.mean_thread();
+  state.counters["objects"] = double(objects);
+  state.counters["splats"] = double(buffer.size());
+  state.counters["draw_calls"] = double(calls);
+  state.counters["upload_render_thread_ms"] = upload.mean_thread();
+  state.counters["issue_render_thread_ms"] = issue.mean_thread();
+  state.counters["frame_ms"] = frame.median();
+}
+BENCHMARK(SceneObjects)->Arg(1000)->Arg(100000)->Unit(benchmark::kMillisecond)->UseManualTime();
 
 BENCHMARK_MAIN();

@@ -21,6 +21,7 @@
 #include "shaders.hpp"
 #include "treecut/error.hpp"
 #include "treecut/splat/frame.hpp"
+#include "treecut/splat/scene_draw.hpp"
 #include "treecut/tree_cut.hpp"
 
 namespace treecut::splat {
@@ -160,10 +161,14 @@ gl::Program make_program(std::initializer_list<std::pair<GLenum, const char*>> s
   std::vector<gl::Shader> shaders;
   shaders.reserve(stages.size());
   for (const auto& [stage, body] : stages) {
-    // Fragment stages also get the fade's dither (it reads gl_FragCoord).
-    const char* fragment = stage == GL_FRAGMENT_SHADER ? shaders::kFragmentCommon : "";
+    // Fragment stages also get the fade's dither (it reads gl_FragCoord),
+    // vertex stages the object's transform (a stage that does not use it
+    // leaves the attributes unused).
+    const char* prefix = stage == GL_FRAGMENT_SHADER ? shaders::kFragmentCommon
+                         : stage == GL_VERTEX_SHADER ? shaders::kObjectVertex
+                                                     : "";
     shaders.push_back(gl::Shader::compile(
-        stage, std::string(shaders::kCommon) + std::string(defines) + fragment + body, label));
+        stage, std::string(shaders::kCommon) + std::string(defines) + prefix + body, label));
   }
   std::vector<const gl::Shader*> pointers;
   for (const auto& s : shaders) pointers.push_back(&s);
@@ -204,6 +209,18 @@ Renderer::Uniforms Renderer::lookup_uniforms(const gl::Program& p) {
 Renderer::Renderer(const Hierarchy& h, glm::ivec2 size) {
   if (!gl::loaded()) throw gl::GlError("Renderer: no GL context is current");
   vao_ = gl::VertexArray::create();
+  // The object attributes (kObjectVertex) of a single model: one identity
+  // record for instance 0 (draw_scene binds its objects' records instead).
+  const ObjectRecord identity = object_record(glm::mat4(1.0f));
+  identity_object_ = gl::Buffer::create(sizeof identity, &identity, 0);
+  for (GLuint i = 0; i < 4; ++i) {
+    gl::VertexArrayAttribFormat(vao_.id(), 3 + i, 4, GL_FLOAT, GL_FALSE,
+                                static_cast<GLuint>(i * sizeof(glm::vec4)));
+    gl::VertexArrayAttribBinding(vao_.id(), 3 + i, kObjectBinding);
+    gl::EnableVertexArrayAttrib(vao_.id(), 3 + i);
+  }
+  gl::VertexArrayBindingDivisor(vao_.id(), kObjectBinding, 1);
+  bind_objects(identity_object_);
   set_hierarchy(h);
   empty_vao_ = gl::VertexArray::create();
 
@@ -235,17 +252,42 @@ Renderer::Renderer(const Hierarchy& h, glm::ivec2 size) {
 }
 
 void Renderer::set_hierarchy(const Hierarchy& h) {
-  if (h.empty()) throw std::invalid_argument("Renderer: empty hierarchy");
-  const HierarchyArrays& a = h.arrays();
-  const std::size_t n = h.node_count();
+  const Hierarchy* one = &h;
+  set_models(std::span<const Hierarchy* const>(&one, 1));
+}
+
+void Renderer::set_models(std::span<const Hierarchy* const> models) {
+  if (models.empty()) throw std::invalid_argument("Renderer: no model");
+  std::size_t n = 0;
+  for (const Hierarchy* h : models) {
+    if (h == nullptr || h->empty()) throw std::invalid_argument("Renderer: empty hierarchy");
+    n += h->node_count();
+  }
+  // baseVertex of an indirect command is a GLint.
+  if (n > std::size_t{0x7fffffff}) {
+    throw std::invalid_argument("Renderer: the models hold " + std::to_string(n) +
+                                " nodes, more than one vertex buffer can address");
+  }
   const std::size_t cr_bytes = n * sizeof(glm::vec4);
   const std::size_t nc_bytes = n * sizeof(glm::i16vec4);
   const std::size_t co_bytes = n * sizeof(glm::u8vec4);
-  // One static buffer holding the three node arrays back to back.
+  // One static buffer holding the three node arrays back to back, each the
+  // models' arrays one after the other (a model's nodes start at its base).
   nodes_ = gl::Buffer::create(cr_bytes + nc_bytes + co_bytes, nullptr, GL_DYNAMIC_STORAGE_BIT);
-  nodes_.sub_data(0, std::as_bytes(a.center_radius));
-  nodes_.sub_data(cr_bytes, std::as_bytes(a.normal_cone));
-  nodes_.sub_data(cr_bytes + nc_bytes, std::as_bytes(a.color));
+  model_base_.clear();
+  model_nodes_.clear();
+  model_ids_.clear();
+  std::size_t base = 0;
+  for (const Hierarchy* h : models) {
+    const HierarchyArrays& a = h->arrays();
+    nodes_.sub_data(base * sizeof(glm::vec4), std::as_bytes(a.center_radius));
+    nodes_.sub_data(cr_bytes + base * sizeof(glm::i16vec4), std::as_bytes(a.normal_cone));
+    nodes_.sub_data(cr_bytes + nc_bytes + base * sizeof(glm::u8vec4), std::as_bytes(a.color));
+    model_base_.push_back(static_cast<std::uint32_t>(base));
+    model_nodes_.push_back(static_cast<std::uint32_t>(h->node_count()));
+    model_ids_.push_back(h);
+    base += h->node_count();
+  }
 
   const GLuint vao = vao_.id();
   gl::VertexArrayVertexBuffer(vao, 0, nodes_.id(), 0, sizeof(glm::vec4));
@@ -260,8 +302,8 @@ void Renderer::set_hierarchy(const Hierarchy& h) {
     gl::VertexArrayAttribBinding(vao, i, i);
     gl::EnableVertexArrayAttrib(vao, i);
   }
-  node_count_ = static_cast<std::uint32_t>(n);
-  hierarchy_ = &h;
+  node_count_ = model_nodes_.front();
+  hierarchy_ = models.front();
   ++hierarchy_uploads_;
   gl::check("Renderer vertex buffer");
 }
@@ -361,23 +403,31 @@ void Renderer::plan_runs(const CutBuffer& cut, std::span<const CutRange> ranges,
   if (fading) add(count, static_cast<std::uint32_t>(cut.leaving()), 2);
 }
 
-void Renderer::draw_runs(const CutBuffer& cut, const gl::Program& program, const Uniforms& u,
+void Renderer::draw_runs(GLuint elements, const gl::Program& program, const Uniforms& u,
                          RangeHook* hook, const FrameView& frame, GLuint fbo, bool depth_writes) {
   // The exchange point: the cut is just the element buffer of the node VAO.
-  gl::VertexArrayElementBuffer(vao_.id(), cut.buffer().id());
+  gl::VertexArrayElementBuffer(vao_.id(), elements);
   gl::BindVertexArray(vao_.id());
   gl::UseProgram(program.id());
   int fade = 0;
   gl::ProgramUniform1i(program.id(), u.fade_mode, 0);
   for (std::size_t r = 0; r < runs_.size(); ++r) {
     const Run& run = runs_[r];
-    if (run.count > 0) {
+    if (run.indirect) {
+      // A scene: every object's run, one command each, in one call.
+      gl::BindBuffer(GL_DRAW_INDIRECT_BUFFER, indirect_);
+      gl::MultiDrawElementsIndirect(GL_POINTS, GL_UNSIGNED_INT, nullptr,
+                                    static_cast<GLsizei>(run.count), 0);
+      gl::BindBuffer(GL_DRAW_INDIRECT_BUFFER, 0);
+      ++draw_calls_;
+    } else if (run.count > 0) {
       if (run.fade != fade) {
         fade = run.fade;
         gl::ProgramUniform1i(program.id(), u.fade_mode, fade);
       }
       gl::DrawElements(GL_POINTS, static_cast<GLsizei>(run.count), GL_UNSIGNED_INT,
                        reinterpret_cast<const void*>(std::uintptr_t{run.first} * sizeof(NodeId)));
+      ++draw_calls_;
     }
     if (hook != nullptr && run_hook_[r] != SIZE_MAX) {
       gl::ColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
@@ -395,13 +445,19 @@ void Renderer::draw_runs(const CutBuffer& cut, const gl::Program& program, const
 FrameStats Renderer::draw(const CutBuffer& cut, const Camera& camera,
                           const RenderSettings& settings, bool finish) {
   const CutRange all{0, static_cast<std::uint32_t>(cut.size())};
-  return render(cut, std::span<const CutRange>(&all, 1), true, camera, settings, nullptr, finish);
+  return render(&cut, nullptr, std::span<const CutRange>(&all, 1), true, camera, settings, nullptr,
+                finish);
+}
+
+FrameStats Renderer::draw_scene(const SceneCutBuffer& scene, const Camera& camera,
+                                const RenderSettings& settings, bool finish) {
+  return render(nullptr, &scene, {}, true, camera, settings, nullptr, finish);
 }
 
 FrameStats Renderer::draw_ranges(const CutBuffer& cut, std::span<const CutRange> ranges,
                                  const Camera& camera, const RenderSettings& settings,
                                  RangeHook* hook, bool finish) {
-  return render(cut, ranges, false, camera, settings, hook, finish);
+  return render(&cut, nullptr, ranges, false, camera, settings, hook, finish);
 }
 
 void Renderer::set_common_uniforms(const gl::Program& program, const Uniforms& u,
@@ -424,11 +480,38 @@ void Renderer::set_common_uniforms(const gl::Program& program, const Uniforms& u
   gl::ProgramUniform1f(p, u.fade, fade);
 }
 
-FrameStats Renderer::render(const CutBuffer& cut, std::span<const CutRange> ranges, bool whole,
-                            const Camera& camera, const RenderSettings& settings, RangeHook* hook,
-                            bool finish) {
-  check_cut(cut);
+FrameStats Renderer::render(const CutBuffer* cut, const SceneCutBuffer* scene,
+                            std::span<const CutRange> ranges, bool whole, const Camera& camera,
+                            const RenderSettings& settings, RangeHook* hook, bool finish) {
   const auto start = std::chrono::steady_clock::now();
+  // What is drawn: a model's cut (its runs: one, or three while it fades;
+  // ranges for draw_ranges) or a scene's objects (one indirect run).
+  GLuint elements = 0;
+  float fade_weight = 1.0f;
+  std::size_t splats = 0;
+  std::uint64_t points = 0;
+  if (scene != nullptr) {
+    check_scene(*scene);
+    runs_.clear();
+    run_hook_.clear();
+    if (scene->commands() > 0) {
+      runs_.push_back(Run{0, static_cast<std::uint32_t>(scene->commands()), 0, true});
+      run_hook_.push_back(SIZE_MAX);
+    }
+    elements = scene->elements().id();
+    indirect_ = scene->indirect().id();
+    bind_objects(scene->objects());
+    splats = scene->size();
+    points = scene->points();
+  } else {
+    check_cut(*cut);
+    plan_runs(*cut, ranges, whole);
+    for (const Run& r : runs_) splats += r.fade == 2 ? 0 : r.count;
+    elements = cut->buffer().id();
+    fade_weight = cut->fade();
+    points = whole ? cut->points() : 0;
+  }
+  draw_calls_ = 0;
   const float aspect = static_cast<float>(size_.x) / static_cast<float>(size_.y);
   FrameView frame;
   frame.view = camera.view_matrix();
@@ -437,7 +520,7 @@ FrameStats Renderer::render(const CutBuffer& cut, std::span<const CutRange> rang
   frame.size = size_;
 
   auto set_common = [&](const gl::Program& program, const Uniforms& u) {
-    set_common_uniforms(program, u, frame, settings, cut.fade());
+    set_common_uniforms(program, u, frame, settings, fade_weight);
   };
 
   gl::Viewport(0, 0, size_.x, size_.y);
@@ -457,11 +540,6 @@ FrameStats Renderer::render(const CutBuffer& cut, std::span<const CutRange> rang
     gl::DepthMask(GL_TRUE);
   };
 
-  // The whole cut is one run (one call), unless it fades (three).
-  plan_runs(cut, ranges, whole);
-  std::size_t splats = 0;
-  for (const Run& r : runs_) splats += r.fade == 2 ? 0 : r.count;
-
   switch (settings.mode) {
     case SplatMode::Fast: {
       clear_color(scene_fbo_, 0, background);
@@ -470,7 +548,7 @@ FrameStats Renderer::render(const CutBuffer& cut, std::span<const CutRange> rang
       gl::DepthFunc(GL_LESS);
       set_common(fast_, fast_u_);
       gl::ProgramUniform1f(fast_.id(), fast_u_.depth_offset, 0.0f);
-      draw_runs(cut, fast_, fast_u_, hook, frame, scene_fbo_.id(), true);
+      draw_runs(elements, fast_, fast_u_, hook, frame, scene_fbo_.id(), true);
       run_hook(scene_fbo_.id());
       break;
     }
@@ -483,13 +561,14 @@ FrameStats Renderer::render(const CutBuffer& cut, std::span<const CutRange> rang
       set_common(hq_visibility_, hq_visibility_u_);
       gl::ProgramUniform1f(hq_visibility_.id(), hq_visibility_u_.depth_offset,
                            settings.depth_offset);
-      draw_runs(cut, hq_visibility_, hq_visibility_u_, hook, frame, visibility_fbo_.id(), true);
+      draw_runs(elements, hq_visibility_, hq_visibility_u_, hook, frame, visibility_fbo_.id(),
+                true);
       run_hook(visibility_fbo_.id());
 
       // Pass 2: attributes of every splat in front of the offset surface.
       // Additive blending in half floats depends on the order, so the ranges
       // go in buffer order: the primitive order of the one-call draw.
-      if (!whole) plan_runs(cut, ranges, true);
+      if (!whole) plan_runs(*cut, ranges, true);
       clear_color(accum_fbo_, 0, glm::vec4(0.0f));
       clear_color(accum_fbo_, 1, glm::vec4(0.0f));
       gl::BindFramebuffer(GL_FRAMEBUFFER, accum_fbo_.id());
@@ -500,7 +579,7 @@ FrameStats Renderer::render(const CutBuffer& cut, std::span<const CutRange> rang
       gl::BlendFunc(GL_ONE, GL_ONE);
       set_common(hq_attributes_, hq_attributes_u_);
       gl::ProgramUniform1f(hq_attributes_.id(), hq_attributes_u_.depth_offset, 0.0f);
-      draw_runs(cut, hq_attributes_, hq_attributes_u_, nullptr, frame, accum_fbo_.id(), false);
+      draw_runs(elements, hq_attributes_, hq_attributes_u_, nullptr, frame, accum_fbo_.id(), false);
       gl::Disable(GL_BLEND);
       gl::DepthMask(GL_TRUE);
 
@@ -533,7 +612,7 @@ FrameStats Renderer::render(const CutBuffer& cut, std::span<const CutRange> rang
       set_common(fixed_, fixed_u_);
       gl::ProgramUniform1f(fixed_.id(), fixed_u_.point_size,
                            std::max(settings.point_size_px, 1.0f));
-      draw_runs(cut, fixed_, fixed_u_, hook, frame, scene_fbo_.id(), true);
+      draw_runs(elements, fixed_, fixed_u_, hook, frame, scene_fbo_.id(), true);
       gl::Disable(GL_PROGRAM_POINT_SIZE);
       run_hook(scene_fbo_.id());
       break;
@@ -542,11 +621,14 @@ FrameStats Renderer::render(const CutBuffer& cut, std::span<const CutRange> rang
   gl::BindVertexArray(0);
   gl::UseProgram(0);
   gl::BindFramebuffer(GL_FRAMEBUFFER, 0);
+  // Instance 0 of every other draw is the identity again.
+  if (scene != nullptr) bind_objects(identity_object_);
   if (finish) gl::Finish();
 
   FrameStats stats;
   stats.splats = splats;
-  stats.points = whole ? cut.points() : 0;
+  stats.points = points;
+  stats.draw_calls = draw_calls_;
   stats.finished = finish;
   stats.cpu_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
@@ -569,6 +651,7 @@ void Renderer::begin_frame_ranges(const gl::Buffer& elements, NodeId max_id, con
   in_frame_view_.eye = camera.eye;
   in_frame_view_.size = size_;
   in_frame_splats_ = 0;
+  draw_calls_ = 0;
   const bool fixed = settings.mode == SplatMode::FixedSize;
   in_frame_program_ = fixed ? &fixed_ : &fast_;
   const Uniforms& u = fixed ? fixed_u_ : fast_u_;
@@ -603,6 +686,7 @@ void Renderer::draw_frame_range(std::uint32_t first, std::uint32_t count) {
   gl::DrawElements(GL_POINTS, static_cast<GLsizei>(count), GL_UNSIGNED_INT,
                    reinterpret_cast<const void*>(std::uintptr_t{first} * sizeof(NodeId)));
   in_frame_splats_ += count;
+  ++draw_calls_;
 }
 
 FrameStats Renderer::end_frame_ranges(bool finish) {
@@ -617,10 +701,11 @@ FrameStats Renderer::end_frame_ranges(bool finish) {
   if (finish) gl::Finish();
   FrameStats stats;
   stats.splats = in_frame_splats_;
+  stats.draw_calls = draw_calls_;
   stats.finished = finish;
-  stats.cpu_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() -
-                                                           in_frame_start_)
-                     .count();
+  stats.cpu_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - in_frame_start_)
+          .count();
   return stats;
 }
 

@@ -65,7 +65,41 @@ bool faded_out() {
 }
 )";
 
-// Vertex stage of the disc modes: passes the node through.
+// The object a node belongs to (one vertex attribute per instance: the
+// renderer's identity for a single model, a scene object's record for
+// Renderer::draw_scene, whose indirect commands set baseInstance to the
+// object). Rows 0-2 of the affine model -> world matrix, and what a splat
+// needs besides: the largest singular value of its linear part (a sphere of
+// radius r becomes an ellipsoid within radius sigma r: the splat grows to
+// cover it) and a bound on how much it widens a normal cone (1 for a
+// similarity, whose cones keep their angle).
+inline constexpr const char* kObjectVertex = R"(
+layout(location = 3) in vec4 a_world_row0;
+layout(location = 4) in vec4 a_world_row1;
+layout(location = 5) in vec4 a_world_row2;
+layout(location = 6) in vec4 a_object;  // sigma_max, cone widening, det sign, 0
+vec3 object_point(vec3 p) {
+  vec4 q = vec4(p, 1.0);
+  return vec3(dot(a_world_row0, q), dot(a_world_row1, q), dot(a_world_row2, q));
+}
+// Normals transform with the cofactor matrix (det * inverse transpose): the
+// cross products of the linear part's columns, times the determinant's sign.
+vec3 object_normal(vec3 n) {
+  vec3 c0 = vec3(a_world_row0.x, a_world_row1.x, a_world_row2.x);
+  vec3 c1 = vec3(a_world_row0.y, a_world_row1.y, a_world_row2.y);
+  vec3 c2 = vec3(a_world_row0.z, a_world_row1.z, a_world_row2.z);
+  return a_object.z * (cross(c1, c2) * n.x + cross(c2, c0) * n.y + cross(c0, c1) * n.z);
+}
+// A cone of cosine cc after the transform: sin grows by at most the factor
+// (1 for a similarity: the cone as is). Past 72 degrees it no longer culls.
+float object_cone(float cc) {
+  if (a_object.y == 1.0 || cc <= 0.0) return cc;
+  float s = a_object.y * sqrt(max(1.0 - cc * cc, 0.0));
+  return s < 0.95 ? sqrt(1.0 - s * s) : 0.0;
+}
+)";
+
+// Vertex stage of the disc modes: passes the node through (in world space).
 inline constexpr const char* kSplatVertex = R"(
 layout(location = 0) in vec4 a_center_radius;
 layout(location = 1) in vec4 a_normal_cone;  // snorm16, normalized by the VAO
@@ -78,10 +112,10 @@ out Node {
   vec3 color;
 } v_node;
 void main() {
-  v_node.center = a_center_radius.xyz;
-  v_node.radius = a_center_radius.w * u_radius_scale;
-  v_node.normal = a_normal_cone.xyz;
-  v_node.cone_cos = a_normal_cone.w;
+  v_node.center = object_point(a_center_radius.xyz);
+  v_node.radius = a_center_radius.w * a_object.x * u_radius_scale;
+  v_node.normal = object_normal(a_normal_cone.xyz);
+  v_node.cone_cos = object_cone(a_normal_cone.w);
   v_node.color = srgb_to_linear(a_color.rgb);
 }
 )";
@@ -250,16 +284,17 @@ out vec3 f_pos;
 flat out vec3 f_normal;
 flat out vec3 f_color;
 void main() {
-  vec3 c = a_center_radius.xyz;
+  vec3 c = object_point(a_center_radius.xyz);
   vec3 e = normalize(u_eye - c);
-  float nl = length(a_normal_cone.xyz);
-  vec3 n = nl > 1e-4 ? a_normal_cone.xyz / nl : e;
+  vec3 normal = object_normal(a_normal_cone.xyz);
+  float nl = length(normal);
+  vec3 n = nl > 1e-4 ? normal / nl : e;
   f_pos = c;
   f_normal = n;
   f_color = srgb_to_linear(a_color.rgb);
   gl_PointSize = u_point_size;
   // Outside the clip volume = not drawn.
-  gl_Position = cone_faces_away(n, a_normal_cone.w, e) ? vec4(2.0, 2.0, 2.0, 1.0)
+  gl_Position = cone_faces_away(n, object_cone(a_normal_cone.w), e) ? vec4(2.0, 2.0, 2.0, 1.0)
                                                         : u_proj * u_view * vec4(c, 1.0);
 }
 )";

@@ -35,6 +35,12 @@ namespace treecut::gl {
   X(PFNGLCLIENTWAITSYNCPROC, ClientWaitSync)                   \
   X(PFNGLDELETESYNCPROC, DeleteSync)
 
+// Scenes of many objects: every object's cut in one call per pass, one
+// indirect command per object (GL 4.3+ core).
+#define TREECUT_GL_MULTI_DRAW(X)     \
+  X(PFNGLBINDBUFFERPROC, BindBuffer) \
+  X(PFNGLMULTIDRAWELEMENTSINDIRECTPROC, MultiDrawElementsIndirect)
+
 // X(type, name): every function here is called as treecut::gl::name(...), and
 // is loaded from "gl" #name.
 #define TREECUT_GL_FUNCTIONS(X)                                        \
@@ -112,6 +118,7 @@ namespace treecut::gl {
   X(PFNGLGETQUERYOBJECTUI64VPROC, GetQueryObjectui64v)                 \
   X(PFNGLGETQUERYOBJECTUIVPROC, GetQueryObjectuiv)                     \
   TREECUT_GL_INSTANCING(X)                                             \
+  TREECUT_GL_MULTI_DRAW(X)                                             \
   TREECUT_GL_SAMPLE_COUNTERS(X)
 
 // The pointers are plain variables on purpose: a test may interpose an entry

@@ -71,10 +71,11 @@ struct RenderSettings {
 
 /// What one draw() did (feeds the HUD, the CSV of `treecut render` and tests).
 struct FrameStats {
-  std::size_t splats = 0;    ///< nodes in the drawn cut
-  std::uint64_t points = 0;  ///< input points those nodes stand for
-  double cpu_ms = 0.0;       ///< time to issue the frame (+ glFinish if asked)
-  bool finished = false;     ///< cpu_ms includes glFinish (the GPU work is done)
+  std::size_t splats = 0;      ///< nodes in the drawn cut
+  std::uint64_t points = 0;    ///< input points those nodes stand for
+  double cpu_ms = 0.0;         ///< time to issue the frame (+ glFinish if asked)
+  std::size_t draw_calls = 0;  ///< splat draw calls issued (per pass; a scene's is one per pass)
+  bool finished = false;       ///< cpu_ms includes glFinish (the GPU work is done)
 };
 
 /// One index list on the GPU. upload() replaces the content, writing into the
@@ -191,6 +192,8 @@ class RangeHook {
   virtual void after_range(std::size_t index, const FrameView& view) = 0;
 };
 
+class SceneCutBuffer;
+
 class Renderer {
  public:
   /// Uploads all nodes of `h` into the static vertex buffer and creates the
@@ -212,6 +215,20 @@ class Renderer {
   /// constructor, it copies what it needs: `h` need not outlive the call.
   /// Throws std::invalid_argument for an empty hierarchy (the old one stays).
   void set_hierarchy(const Hierarchy& h);
+  /// The nodes of several hierarchies in the one vertex buffer (a scene's
+  /// distinct models, each once however many objects use it): model i's
+  /// nodes start at model_base(i). draw() draws cuts of models[0]
+  /// (hierarchy()); draw_scene() any object of any model. set_hierarchy(h)
+  /// is set_models({&h}). Throws std::invalid_argument for no model, an
+  /// empty one, or more than 2^31 - 1 nodes in all.
+  void set_models(std::span<const Hierarchy* const> models);
+  [[nodiscard]] std::size_t model_count() const { return model_base_.size(); }
+  [[nodiscard]] std::uint32_t model_base(std::size_t model) const { return model_base_[model]; }
+  [[nodiscard]] std::uint32_t model_nodes(std::size_t model) const { return model_nodes_[model]; }
+  /// The hierarchy set_models() was given at `model` (identity only).
+  [[nodiscard]] const Hierarchy* model_identity(std::size_t model) const {
+    return model_ids_[model];
+  }
   /// The hierarchy whose nodes are in the vertex buffer: an identity to
   /// compare a list's FrontList::hierarchy with, never dereferenced. It
   /// cannot be mistaken for a newer hierarchy at the same address: a list's
@@ -231,6 +248,14 @@ class Renderer {
   /// are never drawn against old vertices (O(1): CutBuffer keeps its max).
   FrameStats draw(const CutBuffer& cut, const Camera& camera, const RenderSettings& settings,
                   bool finish = false);
+
+  /// Draws a scene: every object's cut, each node moved by its object's
+  /// transform, in one draw call per pass whatever the number of objects
+  /// (glMultiDrawElementsIndirect, a command per object; scene_draw.hpp).
+  /// Every mode. Throws std::logic_error, before any GL call, for a buffer
+  /// uploaded for other models than set_models() holds.
+  FrameStats draw_scene(const SceneCutBuffer& scene, const Camera& camera,
+                        const RenderSettings& settings, bool finish = false);
 
   /// Draws only `ranges` of `cut`, in the given order (CHC: front to back),
   /// calling `hook` (if any) after each range. The image of ranges that
@@ -279,9 +304,11 @@ class Renderer {
   // A run of the element buffer and how it fades (0 none, 1 in, 2 out).
   struct Run {
     std::uint32_t first = 0;
-    std::uint32_t count = 0;
+    std::uint32_t count = 0;  // elements; commands when indirect
     int fade = 0;
+    bool indirect = false;  // a scene's commands (indirect_)
   };
+  static constexpr GLuint kObjectBinding = 3;  // the per-object records (divisor 1)
   // Uniform locations of one program, looked up once after linking (-1: the
   // linker dropped it; glProgramUniform ignores -1).
   struct Uniforms {
@@ -296,21 +323,30 @@ class Renderer {
 
   void create_targets();
   void check_cut(const CutBuffer& cut);
-  FrameStats render(const CutBuffer& cut, std::span<const CutRange> ranges, bool whole,
-                    const Camera& camera, const RenderSettings& settings, RangeHook* hook,
-                    bool finish);
+  void check_scene(const SceneCutBuffer& scene) const;
+  void bind_objects(const gl::Buffer& records);
+  // `cut` or `scene` (the other null).
+  FrameStats render(const CutBuffer* cut, const SceneCutBuffer* scene,
+                    std::span<const CutRange> ranges, bool whole, const Camera& camera,
+                    const RenderSettings& settings, RangeHook* hook, bool finish);
   // Splits `ranges` at the cut's stable/entering boundary (fading) and adds
   // the leaving run; `sorted`: in buffer order (hq's additive pass).
   void plan_runs(const CutBuffer& cut, std::span<const CutRange> ranges, bool sorted);
-  void draw_runs(const CutBuffer& cut, const gl::Program& program, const Uniforms& u,
-                 RangeHook* hook, const FrameView& frame, GLuint fbo, bool depth_writes);
+  void draw_runs(GLuint elements, const gl::Program& program, const Uniforms& u, RangeHook* hook,
+                 const FrameView& frame, GLuint fbo, bool depth_writes);
 
   glm::ivec2 size_{0};
   std::uint32_t node_count_ = 0;
   const Hierarchy* hierarchy_ = nullptr;  // identity only (see hierarchy())
   std::uint64_t hierarchy_uploads_ = 0;
   NodeId last_max_id_ = 0;
-  gl::Buffer nodes_;  // center_radius | normal_cone | color, one region each
+  gl::Buffer nodes_;  // center_radius | normal_cone | color, one region each, models in order
+  std::vector<std::uint32_t> model_base_;    // first vertex of each model
+  std::vector<std::uint32_t> model_nodes_;   // its node count
+  std::vector<const Hierarchy*> model_ids_;  // identity only
+  gl::Buffer identity_object_;               // the object record of a single model
+  GLuint indirect_ = 0;                      // the scene's commands while it is drawn
+  std::size_t draw_calls_ = 0;               // of the frame being drawn
   gl::VertexArray vao_;
   gl::VertexArray empty_vao_;  // for the full-screen pass (core profile needs a VAO)
   gl::Program fast_;
