@@ -337,6 +337,50 @@ TEST(Hzm, compactness_eq2) {
   EXPECT_EQ(culler.candidates()[1], 1u);
 }
 
+TEST(Hzm, inner_box_lies_inside_a_closed_surface) {
+  std::mt19937 rng(4);
+  std::normal_distribution<float> g(0.0f, 1.0f);
+  // A sphere of radius 2 at (1, 2, 3): the inner box's corners are inside it,
+  // and it is not tiny.
+  std::vector<glm::vec3> sphere;
+  for (int k = 0; k < 100000; ++k) {
+    sphere.push_back(glm::vec3(1.0f, 2.0f, 3.0f) +
+                     2.0f * glm::normalize(glm::vec3(g(rng), g(rng), g(rng))));
+  }
+  const Obb fit = fit_obb(sphere);
+  const auto inner = inner_box(sphere, fit);
+  ASSERT_TRUE(inner.has_value());
+  for (int c = 0; c < 8; ++c) {
+    const glm::vec3 l((c & 1) ? inner->half.x : -inner->half.x,
+                      (c & 2) ? inner->half.y : -inner->half.y,
+                      (c & 4) ? inner->half.z : -inner->half.z);
+    EXPECT_LT(glm::length(inner->center + inner->axes * l - glm::vec3(1.0f, 2.0f, 3.0f)), 2.0f);
+  }
+  // At most the inscribed cube, (4 / sqrt 3)^3 = 12.3; the greedy growth gets most of it.
+  EXPECT_GT(8.0f * inner->half.x * inner->half.y * inner->half.z, 0.6f * 12.3f);
+  // The surface of a box: nearly the box.
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  const glm::vec3 h(3.0f, 1.0f, 2.0f);
+  std::vector<glm::vec3> box_points;
+  for (int k = 0; k < 100000; ++k) {
+    glm::vec3 l(u(rng) * h.x, u(rng) * h.y, u(rng) * h.z);
+    const int face = k % 3;
+    l[face] = (k / 3) % 2 ? h[face] : -h[face];
+    box_points.push_back(l);
+  }
+  const auto bi = inner_box(box_points, axis_box(glm::vec3(0.0f), h));
+  ASSERT_TRUE(bi.has_value());
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_LE(bi->half[k], h[k]);
+    EXPECT_GE(bi->half[k], h[k] * (1.0f - 4.0f / 32.0f));
+  }
+  // An open surface (a hemisphere's shell) encloses nothing: no inner box.
+  std::vector<glm::vec3> open;
+  for (const glm::vec3& p : sphere)
+    if (p.y > 2.0f) open.push_back(p);
+  EXPECT_FALSE(inner_box(open, fit_obb(open)).has_value());
+}
+
 TEST(Hzm, occluders_are_the_top_weights_of_eq3) {
   const auto objects = random_boxes(500, 11);
   const auto snap =

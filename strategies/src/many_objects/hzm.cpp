@@ -164,9 +164,9 @@ float compactness(std::span<const glm::vec3> points, const Obb& box) {
   }
   const auto cell = [&](float x, int axis) {
     if (!(h[axis] > 0.0f)) return 0;
-    const int c = static_cast<int>(
-        std::floor((x + h[axis]) / (2.0f * h[axis]) * static_cast<float>(n[axis])));
-    return std::clamp(c, 0, n[axis] - 1);
+    // Clamped as a float: a point outside the box must not overflow the cast.
+    const float f = std::floor((x + h[axis]) / (2.0f * h[axis]) * static_cast<float>(n[axis]));
+    return static_cast<int>(std::clamp(f, 0.0f, static_cast<float>(n[axis] - 1)));
   };
   for (const glm::vec3& p : points) {
     const glm::vec3 l = to_local * (p - box.center);
@@ -213,6 +213,91 @@ Obb fit_obb(std::span<const glm::vec3> points) {
   box.half = 0.5f * (hi - lo);
   box.center = axes * (0.5f * (hi + lo));
   return box;
+}
+
+std::optional<Obb> inner_box(std::span<const glm::vec3> points, const Obb& box, int cells) {
+  const int n = std::max(cells, 3);
+  const auto at = [n](int x, int y, int z) {
+    return (static_cast<std::size_t>(z) * static_cast<std::size_t>(n) +
+            static_cast<std::size_t>(y)) *
+               static_cast<std::size_t>(n) +
+           static_cast<std::size_t>(x);
+  };
+  if (!(box.half.x > 0.0f && box.half.y > 0.0f && box.half.z > 0.0f)) return std::nullopt;
+  enum : std::uint8_t { kEmpty, kSurface, kOutside };
+  std::vector<std::uint8_t> grid(
+      static_cast<std::size_t>(n) * static_cast<std::size_t>(n) * static_cast<std::size_t>(n),
+      kEmpty);
+  const glm::mat3 to_local = glm::transpose(box.axes);
+  const glm::vec3 scale = static_cast<float>(n) / (2.0f * box.half);
+  for (const glm::vec3& p : points) {
+    const glm::vec3 l = (to_local * (p - box.center) + box.half) * scale;
+    // Clamped as floats: a point outside the box must not overflow the cast.
+    const glm::ivec3 c(
+        glm::clamp(glm::floor(l), glm::vec3(0.0f), glm::vec3(static_cast<float>(n - 1))));
+    grid[at(c.x, c.y, c.z)] = kSurface;
+  }
+  // Flood the outside from every empty border cell (6-connected).
+  std::vector<glm::ivec3> stack;
+  const auto push = [&](int x, int y, int z) {
+    if (x < 0 || y < 0 || z < 0 || x >= n || y >= n || z >= n) return;
+    std::uint8_t& g = grid[at(x, y, z)];
+    if (g != kEmpty) return;
+    g = kOutside;
+    stack.push_back({x, y, z});
+  };
+  for (int a = 0; a < n; ++a) {
+    for (int b = 0; b < n; ++b) {
+      push(0, a, b), push(n - 1, a, b), push(a, 0, b), push(a, n - 1, b), push(a, b, 0),
+          push(a, b, n - 1);
+    }
+  }
+  while (!stack.empty()) {
+    const glm::ivec3 c = stack.back();
+    stack.pop_back();
+    push(c.x - 1, c.y, c.z), push(c.x + 1, c.y, c.z), push(c.x, c.y - 1, c.z),
+        push(c.x, c.y + 1, c.z), push(c.x, c.y, c.z - 1), push(c.x, c.y, c.z + 1);
+  }
+  // Inside = still empty. Seed: the inside cell nearest the center.
+  glm::ivec3 seed(-1);
+  float best = 3e38f;
+  for (int z = 0; z < n; ++z)
+    for (int y = 0; y < n; ++y)
+      for (int x = 0; x < n; ++x) {
+        if (grid[at(x, y, z)] != kEmpty) continue;
+        const glm::vec3 d = glm::vec3(x, y, z) + 0.5f - 0.5f * static_cast<float>(n);
+        if (glm::dot(d, d) < best) {
+          best = glm::dot(d, d);
+          seed = {x, y, z};
+        }
+      }
+  if (seed.x < 0) return std::nullopt;
+  glm::ivec3 lo = seed, hi = seed;  // inclusive cell range
+  const auto layer_inside = [&](int axis, int at_index) {
+    glm::ivec3 a = lo, b = hi;
+    a[axis] = b[axis] = at_index;
+    if (at_index < 0 || at_index >= n) return false;
+    for (int z = a.z; z <= b.z; ++z)
+      for (int y = a.y; y <= b.y; ++y)
+        for (int x = a.x; x <= b.x; ++x)
+          if (grid[at(x, y, z)] != kEmpty) return false;
+    return true;
+  };
+  for (bool grew = true; grew;) {
+    grew = false;
+    for (int axis = 0; axis < 3; ++axis) {
+      if (layer_inside(axis, lo[axis] - 1)) --lo[axis], grew = true;
+      if (layer_inside(axis, hi[axis] + 1)) ++hi[axis], grew = true;
+    }
+  }
+  Obb r;
+  r.axes = box.axes;
+  const glm::vec3 cell = 2.0f * box.half / static_cast<float>(n);
+  const glm::vec3 l0 = glm::vec3(lo) * cell - box.half;
+  const glm::vec3 l1 = glm::vec3(hi + 1) * cell - box.half;
+  r.half = 0.5f * (l1 - l0);
+  r.center = box.center + box.axes * (0.5f * (l0 + l1));
+  return r;
 }
 
 void HierarchicalZMap::build(std::span<const float> base, int width, int height, WorkerPool* pool) {

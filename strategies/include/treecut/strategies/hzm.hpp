@@ -70,6 +70,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <glm/vec3.hpp>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -98,6 +99,20 @@ Obb fit_obb(std::span<const glm::vec3> points);
 /// the other reading (it favours the street's side walls over the viewing
 /// direction; measured in docs/many-objects.md).
 enum class Facing : std::uint8_t { ViewDirection, EyeToObject };
+
+/// A box inside the solid that a closed surface of points bounds, for an
+/// object that is not a box (SceneObject::inner; nullopt: none found, the
+/// object does not occlude). On a grid of `cells` a side over `box`: the
+/// cells holding points are the surface, the empty cells reached from the
+/// grid's border through empty cells are outside, the empty cells left are
+/// inside; the result is a box of inside cells, grown from the inside cell
+/// nearest the center while a whole layer of inside cells can be added.
+/// Every path from outside to it crosses a surface cell first. Conservative
+/// when the surface is closed and its splats cover every surface cell they
+/// are in (points denser than the grid); a scan with holes larger than a
+/// cell leaks the outside in, and there is no inside: no inner box, the
+/// safe failure. For a box object use the box itself (box_object()).
+std::optional<Obb> inner_box(std::span<const glm::vec3> points, const Obb& box, int cells = 32);
 
 struct HzmParams {
   unsigned depth_width = 256;             ///< cells across the viewport's larger side
