@@ -115,7 +115,7 @@ enum class Facing : std::uint8_t { ViewDirection, EyeToObject };
 std::optional<Obb> inner_box(std::span<const glm::vec3> points, const Obb& box, int cells = 32);
 
 struct HzmParams {
-  unsigned depth_width = 256;             ///< cells across the viewport's larger side
+  unsigned depth_width = 320;             ///< cells across the viewport's larger side
   std::size_t active = 32;                ///< size of the AOS (the paper: 15 and 20)
   float compactness_threshold = 0.55f;    ///< CT (the paper: 0.55 and 0.88)
   Facing facing = Facing::ViewDirection;  ///< E of Eq. 3
