@@ -166,6 +166,7 @@ void run_render(const RenderArgs& a) {
         row.hoq_dn = c.drawn;
         row.hoq_culled = c.culled;
         row.hoq_delayed = c.delayed;
+        row.hoq_shift_up = c.delayed_shift_up;
         row.hoq_rarn = c.rarn;
         row.hoq_rarn_frames = c.rarn_frames;
         row.hoq_late = c.late_refined;

@@ -204,13 +204,14 @@ std::string summary_json(const RunSummary& s) {
                     {"psnr_db", psnr_json(s.converged_psnr)}};
   // The hoq strategy's counters, per frame (only with them: --sync and -s hoq).
   if (!s.rows.empty() && s.rows.front().has_hoq) {
-    double blocks = 0, dn = 0, culled = 0, delayed = 0, rarn = 0, rarn_frames = 0, late = 0,
-           late_frames = 0;
+    double blocks = 0, dn = 0, culled = 0, delayed = 0, shift_up = 0, rarn = 0, rarn_frames = 0,
+           late = 0, late_frames = 0;
     for (const FrameRow& r : s.rows) {
       blocks += double(r.hoq_blocks);
       dn += double(r.hoq_dn);
       culled += double(r.hoq_culled);
       delayed += double(r.hoq_delayed);
+      shift_up += double(r.hoq_shift_up);
       rarn += double(r.hoq_rarn);
       rarn_frames += double(r.hoq_rarn_frames);
       late += double(r.hoq_late);
@@ -221,6 +222,7 @@ std::string summary_json(const RunSummary& s) {
                 {"mean_culled", number_json(culled / n)},
                 {"mean_delayed", number_json(delayed / n)},
                 {"delayed_per_dn", number_json(dn > 0 ? delayed / dn : 0.0)},
+                {"mean_delayed_shift_up", number_json(shift_up / n)},
                 {"rarn_per_frame", number_json(rarn / n)},
                 {"rarn_frames_mean", number_json(rarn > 0 ? rarn_frames / rarn : 0.0)},
                 {"late_per_frame", number_json(late / n)},

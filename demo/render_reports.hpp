@@ -41,7 +41,7 @@ struct FrameRow {
   // The `hoq` strategy's counters of the iteration after the frame (--sync
   // only: read on the thread that ran it); has_hoq false otherwise.
   bool has_hoq = false;
-  std::uint64_t hoq_blocks = 0, hoq_dn = 0, hoq_culled = 0, hoq_delayed = 0;
+  std::uint64_t hoq_blocks = 0, hoq_dn = 0, hoq_culled = 0, hoq_delayed = 0, hoq_shift_up = 0;
   std::uint64_t hoq_rarn = 0, hoq_rarn_frames = 0, hoq_late = 0, hoq_late_frames = 0;
 };
 

@@ -131,6 +131,7 @@ void HoqCounters::add(const HoqCounters& o) {
   drawn += o.drawn;
   culled += o.culled;
   delayed += o.delayed;
+  delayed_shift_up += o.delayed_shift_up;
   rarn += o.rarn;
   rarn_frames += o.rarn_frames;
   late_refined += o.late_refined;
@@ -342,6 +343,7 @@ void HoqStrategy::visit(BlockId b, const IterationInput& input, IterationOutput&
         s.delay = Delay::None;
       } else {
         ++last_.delayed;
+        ++last_.delayed_shift_up;
         query(b, input, output);
       }
       refine();
@@ -387,6 +389,7 @@ void HoqStrategy::visit(BlockId b, const IterationInput& input, IterationOutput&
         s.delay = Delay::ShiftUp;
         s.delay_after = frame_;
         ++last_.delayed;
+        ++last_.delayed_shift_up;
         query(b, input, output);
         refine();
         return;

@@ -126,8 +126,12 @@ struct HoqCounters {
   std::uint64_t blocks = 0;  ///< blocks in the block cut
   std::uint64_t drawn = 0;   ///< DN: cut blocks not known invisible
   std::uint64_t culled = 0;  ///< cut blocks known invisible (frustum, or 0 samples)
-  std::uint64_t delayed =
-      0;  ///< D: blocks whose decision waits for an answer (not known invisible)
+  /// D: blocks whose decision waits for an answer (not known invisible); of
+  /// them `delayed_shift_up` are refined blocks, candidates to shift up (their
+  /// children drawn meanwhile), the rest termination blocks waiting for a
+  /// first answer (drawn at their level meanwhile).
+  std::uint64_t delayed = 0;
+  std::uint64_t delayed_shift_up = 0;
   /// RARN in the stage form: a block the prediction drew (Stop) whose newer
   /// answer showed VMSSE > tau: it was drawn too coarse from the frame that
   /// answer was issued in until its refinement is drawn (rarn_frames sums
