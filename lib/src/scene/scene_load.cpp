@@ -162,7 +162,8 @@ Scene load_scene(const std::filesystem::path& file, const SceneLoadOptions& opti
   //    would not).
   const std::size_t count = decl_of_model.size();
   std::vector<std::shared_ptr<const Hierarchy>> loaded(count);
-  std::vector<bool> cached(count, false);
+  // char, not bool: the workers write neighbouring elements at once.
+  std::vector<char> cached(count, 0);
   std::vector<std::exception_ptr> errors(count);
   std::mutex warn_mutex;
   OpenOptions open = options.open;
@@ -181,7 +182,7 @@ Scene load_scene(const std::filesystem::path& file, const SceneLoadOptions& opti
       try {
         if (decl.source.type == SceneModelSource::Type::File) {
           OpenedModel opened = open_model(decl.source.file, open);
-          cached[i] = opened.from_cache;
+          cached[i] = opened.from_cache ? 1 : 0;
           loaded[i] = std::make_shared<const Hierarchy>(std::move(opened.hierarchy));
         } else {
           loaded[i] = std::make_shared<const Hierarchy>(build_from_points(
@@ -216,7 +217,7 @@ Scene load_scene(const std::filesystem::path& file, const SceneLoadOptions& opti
     m.source = decl.source;
     m.declared_at = scene.files[decl.file].string() + ":" + std::to_string(decl.line);
     m.hierarchy = std::move(loaded[i]);
-    m.from_cache = cached[i];
+    m.from_cache = cached[i] != 0;
     splat_box(*m.hierarchy, m.box_min, m.box_max);
   }
 
