@@ -8,6 +8,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <glm/geometric.hpp>
@@ -547,5 +548,61 @@ TEST(SceneFile, TheCommittedWalksAreWhatTheGeneratorMakes) {
       ASSERT_LT(glm::length(c.eye - w.keys[i].eye), 1e-3f) << w.file << " " << i;
       ASSERT_LT(glm::length(c.target - w.keys[i].target), 1e-3f) << w.file << " " << i;
     }
+  }
+}
+
+TEST(SceneFile, EveryTruncationAndByteFlipParsesOrIsAnInputError) {
+  const fs::path dir = treecut::test::scratch_dir("scene_truncations");
+  const std::string text =
+      "treecut-scene 1\n# all the steps\ngenerate g sphere 12 300\ngenerate b building 3 200\n"
+      "object g translate 1 2 3 rotate 0 1 0 30 turn -45 scale 2 scale 1 2 3\n"
+      "object b matrix 1 0 0 5  0 1 0 5  0 0 1 0 translate 0 0 1\n";
+  std::size_t parsed = 0, refused = 0;
+  auto attempt = [&](const std::string& t) {
+    try {
+      (void)treecut::parse_scene_text(t, dir / "t.scene");
+      ++parsed;
+    } catch (const treecut::InputError& e) {
+      ++refused;
+      EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos) << "one line";
+    }
+  };
+  for (std::size_t n = 0; n <= text.size(); ++n) attempt(text.substr(0, n));
+  for (std::size_t i = 0; i < text.size(); ++i)
+    for (const char c : {'\0', '\n', ' ', '#', '9', '-', 'x', '\xff'}) {
+      std::string t = text;
+      t[i] = c;
+      attempt(t);
+    }
+  EXPECT_GT(parsed, 0u);
+  EXPECT_GT(refused, 0u);
+}
+
+TEST(SceneFile, LoadingIsTheSameOnOneThreadOrMany) {
+  const fs::path dir = treecut::test::scratch_dir("scene_threads");
+  write(dir / "s.scene",
+        "treecut-scene 1\ngenerate a building 1 2000\ngenerate b building 2 2500\n"
+        "generate c ground 1 1000\ngenerate d sphere 4 1500\n"
+        "object a\nobject b turn 90\nobject c scale 10\nobject d translate 3 0 0\nobject a scale "
+        "2\n");
+  treecut::SceneLoadOptions one = no_cache(), many = no_cache();
+  one.threads = 1;
+  many.threads = 4;
+  const treecut::Scene s1 = treecut::load_scene(dir / "s.scene", one);
+  const treecut::Scene s2 = treecut::load_scene(dir / "s.scene", many);
+  ASSERT_EQ(s1.models.size(), 4u);
+  ASSERT_EQ(s2.models.size(), 4u);
+  for (std::size_t m = 0; m < 4; ++m) {
+    const auto& h1 = *s1.models[m].hierarchy;
+    const auto& h2 = *s2.models[m].hierarchy;
+    ASSERT_EQ(h1.node_count(), h2.node_count());
+    EXPECT_TRUE(std::equal(h1.arrays().center_radius.begin(), h1.arrays().center_radius.end(),
+                           h2.arrays().center_radius.begin()));
+  }
+  for (std::size_t i = 0; i < s1.objects.size(); ++i) {
+    EXPECT_EQ(s1.objects[i].model, s2.objects[i].model);
+    EXPECT_EQ(s1.objects[i].aabb_min, s2.objects[i].aabb_min);
+    EXPECT_EQ(s1.objects[i].aabb_max, s2.objects[i].aabb_max);
+    EXPECT_EQ(s1.objects[i].sphere, s2.objects[i].sphere);
   }
 }
