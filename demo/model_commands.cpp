@@ -276,8 +276,7 @@ void generate_scene_file(const SceneGenArgs& a) {
   if (!a.walk.empty()) {
     const splat::CameraPath path = walk_path(walk);
     save_camera_path(a.walk, path);
-    std::printf("wrote %s (%zu keys, %.1f s)\n", a.walk.c_str(), path.keys.size(),
-                path.duration());
+    std::printf("wrote %s (%zu keys, %.1f s)\n", a.walk.c_str(), path.keys.size(), path.duration());
   }
 }
 
@@ -343,11 +342,14 @@ void add_model_commands(CLI::App& app) {
       "gen",
       "Write a procedural model (sphere, terrain, city, field, plant) as PLY, or a scene "
       "(city-block, hall) as a scene file");
-  gen->add_option("KIND", gen_args->kind, "sphere | terrain | city | field | plant | city-block | hall")
+  gen->add_option("KIND", gen_args->kind,
+                  "sphere | terrain | city | field | plant | city-block | hall")
       ->required();
-  gen->add_option("-n,--points", gen_args->points, "Number of points")
+  gen->add_option("-n,--points", gen_args->points,
+                  "Number of points (city-block, hall: of each generated model, default 20000)")
       ->check(CLI::Range(1ull, 1ull << 31));
-  gen->add_option("-o,--output", gen_args->out, "Output PLY (default: assets/KIND.ply)");
+  gen->add_option("-o,--output", gen_args->out,
+                  "Output PLY (default: assets/KIND.ply; a scene: assets/KIND.scene)");
   gen->add_option("--seed", gen_args->seed, "Random seed");
   gen->add_option("--source", gen_args->source,
                   "field: the scanned model (PLY) whose copies fill the field; hall: the models "
@@ -355,9 +357,10 @@ void add_model_commands(CLI::App& app) {
   gen->add_option("--objects", gen_args->objects,
                   "city-block (default 20000 buildings), hall (default 1000 copies): objects")
       ->check(CLI::Range(std::size_t{1}, kMaxSceneObjects / 2));
-  gen->add_option("--walk", gen_args->walk,
-                  "city, field, plant: also write the scene's walkthrough camera path "
-                  "(assets/paths/KIND_walk.campath is made this way)");
+  gen->add_option(
+      "--walk", gen_args->walk,
+      "city, field, plant, city-block, hall: also write the scene's walkthrough camera path "
+      "(assets/paths/KIND_walk.campath is made this way)");
   gen->callback([gen_args, gen] {
     if (gen_args->kind == "city-block" || gen_args->kind == "hall") {
       SceneGenArgs a;
