@@ -87,7 +87,8 @@ std::vector<double> eq1_shares(std::span<const BudgetItem> items, const BudgetPa
 /// zeroed where `visible` is 0 (culled objects give their share to the
 /// others); `visible` empty = all.
 void budget_items(std::span<const SceneObject> objects, std::span<const ScreenRect> rects,
-                  std::span<const std::uint8_t> visible, std::vector<BudgetItem>& items);
+                  std::span<const std::uint8_t> visible, std::vector<BudgetItem>& items,
+                  WorkerPool* pool = nullptr);
 
 struct CutParams {
   float curvature_weight = 0.5f;  ///< as the optimization strategy's parameter

@@ -183,7 +183,8 @@ class HzmCuller {
   [[nodiscard]] const HzmParams& params() const { return params_; }
 
   /// Section 6.1: the COS of `objects` (their compactness must be set) and
-  /// each candidate's largest-face normal. Call again when objects change.
+  /// each candidate's largest-face normal; a copy of the AABBs for the
+  /// projection. Call again when objects change or move.
   void preprocess(std::span<const SceneObject> objects);
   /// COS: object indices, compactness descending (ties by index).
   [[nodiscard]] std::span<const std::uint32_t> candidates() const { return cos_; }
@@ -215,6 +216,7 @@ class HzmCuller {
 
  private:
   HzmParams params_;
+  std::vector<Aabb> bounds_;  // the objects' AABBs at preprocess()
   std::vector<std::uint32_t> cos_;
   std::vector<glm::vec3> normal_;  // per COS member
   std::vector<ScreenRect> rects_;
