@@ -606,3 +606,34 @@ TEST(SceneFile, LoadingIsTheSameOnOneThreadOrMany) {
     EXPECT_EQ(s1.objects[i].sphere, s2.objects[i].sphere);
   }
 }
+
+TEST(SceneFile, TheCommittedWalksKeepOutOfEveryObject) {
+  // City block: below the roofs, the eye is never over a building's footprint
+  // (plus 1 m); the footprints are the layout's, the buildings' own extent.
+  const auto city = treecut::city_block_layout(20000, 1);
+  const auto walk = treecut::city_block_walkthrough(city);
+  std::size_t street_level = 0;
+  for (const auto& k : walk) {
+    if (k.eye.z > 90.0f) continue;
+    ++street_level;
+    for (const auto& b : city.buildings) {
+      const glm::vec2 half = 0.5f * (b.quarter_turns % 2 ? glm::vec2(b.size.y, b.size.x)
+                                                         : glm::vec2(b.size.x, b.size.y));
+      const glm::vec2 d = glm::abs(glm::vec2(k.eye) - b.centre);
+      ASSERT_FALSE(d.x < half.x + 1.0f && d.y < half.y + 1.0f && k.eye.z < b.size.z + 1.0f)
+          << "key at " << k.time << " s";
+    }
+  }
+  EXPECT_GT(street_level, 900u) << "the walk is at street level most of the time";
+  // Hall: at eye level the eye is more than 1.2 m (a copy's largest reach
+  // from its place) plus 0.5 m from every place.
+  const auto hall = treecut::hall_layout(1000, 2, 1);
+  std::size_t aisle = 0;
+  for (const auto& k : treecut::hall_walkthrough(hall)) {
+    if (k.eye.z > 2.5f) continue;
+    ++aisle;
+    for (const auto& c : hall.copies)
+      ASSERT_GT(glm::length(glm::vec2(k.eye) - c.centre), 1.7f) << "key at " << k.time << " s";
+  }
+  EXPECT_GT(aisle, 500u);
+}
