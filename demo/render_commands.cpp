@@ -1,6 +1,9 @@
 // treecut render (headless, OSMesa) | treecut view (GLFW window): the run
 // loop and the command lines; what render writes (stats.csv, summary.json,
 // plot.svg, the output folder guard) is in render_reports.cpp.
+#include <sys/resource.h>
+#include <time.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -27,6 +30,14 @@
 namespace treecut::cli {
 
 namespace {
+
+// The calling thread's CPU time (the render thread's: llvmpipe rasterizes on
+// threads of its own, and --sync runs the stage's step() outside it).
+double thread_cpu_ms() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
+}
 
 struct RenderArgs {
   SceneArgs scene;
@@ -62,10 +73,20 @@ void run_render(const RenderArgs& a) {
 
   const Scene scene = load_scene(a.scene);
   const Hierarchy& h = *scene.hierarchy;
+  // A scene file: its objects go through the stage (per object, or a
+  // scene-level strategy) and are drawn by draw_scene in one call per pass.
+  const std::shared_ptr<const StageScene>& world = scene.world;
   if (a.path.empty())
-    path = splat::orbit_path(h.bounds_min(), h.bounds_max(), aspect, a.orbit_seconds, 73, scene.up);
-  std::printf("model     %s: %u points, %u nodes\n", scene.label.c_str(), h.leaf_count(),
-              h.node_count());
+    path = splat::orbit_path(scene.bounds_min, scene.bounds_max, aspect, a.orbit_seconds, 73,
+                             scene.up);
+  if (world) {
+    std::printf("scene     %s: %zu objects of %zu models, %llu points at full detail\n",
+                scene.label.c_str(), world->objects.size(), world->models.size(),
+                static_cast<unsigned long long>(scene.instanced_points));
+  } else {
+    std::printf("model     %s: %u points, %u nodes\n", scene.label.c_str(), h.leaf_count(),
+                h.node_count());
+  }
 
   splat::OsmesaContext context(a.width, a.height);
   std::printf("renderer  %s, %dx%d, %s splats\n", splat::GlContext::renderer_string().c_str(),
@@ -73,7 +94,36 @@ void run_render(const RenderArgs& a) {
   splat::Renderer renderer(h, {a.width, a.height});
   const glm::ivec2 size(a.width, a.height);
   splat::CutBuffer full;
-  if (a.psnr || a.stability > 0) full.upload(h, TreeCut::leaf_cut(h).nodes());
+  splat::SceneCutBuffer full_scene;
+  if ((a.psnr || a.stability > 0) && world) {
+    // Full detail of a scene: every object at its model's leaves (one leaf
+    // list per model, shared by its instances).
+    std::vector<const Hierarchy*> models;
+    std::vector<std::vector<NodeId>> leaves;
+    for (const auto& m : world->models) {
+      models.push_back(m.get());
+      const TreeCut all = TreeCut::leaf_cut(*m);
+      leaves.emplace_back(all.nodes().begin(), all.nodes().end());
+    }
+    renderer.set_models(models);
+    std::vector<splat::SceneObjectDraw> draws;
+    std::vector<std::span<const NodeId>> lists;
+    for (const StageScene::Object& o : world->objects) {
+      draws.push_back({o.model, o.world});
+      lists.emplace_back(leaves[o.model]);
+    }
+    full_scene.set_objects(renderer, draws);
+    full_scene.upload(models, lists);
+  } else if (a.psnr || a.stability > 0) {
+    full.upload(h, TreeCut::leaf_cut(h).nodes());
+  }
+  auto draw_full = [&](const splat::Camera& c) {
+    if (world) {
+      renderer.draw_scene(full_scene, c, settings, true);
+    } else {
+      renderer.draw(full, c, settings, true);
+    }
+  };
   auto grab = [&] { return splat::Image{a.width, a.height, renderer.read_pixels()}; };
 
   const std::filesystem::path out(a.out);
@@ -94,34 +144,51 @@ void run_render(const RenderArgs& a) {
     // llvmpipe keeps both cores busy while it draws: the stage takes what is left.
     stage_options.priority = StagePriority::Idle;
     configure_stage(stage_options, a.scene);
-    std::unique_ptr<Strategy> strategy = make_strategy(registry, name, a.scene.params);
+    // A scene's per-object instances come from this factory (make_strategy
+    // with the same parameters); a model's one instance too.
+    const StrategyFactory factory = [&registry, &name, &a] {
+      return make_strategy(registry, name, a.scene.params);
+    };
+    std::unique_ptr<Strategy> strategy = world ? nullptr : factory();
     // The hoq strategy's block counters go into stats.csv with --sync only:
     // then its iterations run on this thread (step()), so reading them races
     // nothing.
     const auto* hoq =
-        a.sync ? dynamic_cast<const strategies::HoqStrategy*>(strategy.get()) : nullptr;
+        a.sync && strategy ? dynamic_cast<const strategies::HoqStrategy*>(strategy.get()) : nullptr;
     // The viewer's governor (--target-fps), fed the same way: frame time and
     // the splats that frame drew.
     std::optional<splat::FrameRateGovernor> governor;
     if (a.target_fps > 0.0) {
-      governor = splat::FrameRateGovernor::for_strategy(*strategy, h.node_count());
+      governor = splat::FrameRateGovernor::for_strategy(
+          *factory(), world ? static_cast<std::size_t>(world->object_nodes()) : h.node_count());
     }
     // The scene's hierarchy itself (no copy): the renderer's vertex buffer is
     // of the hierarchy in the stage's lists, so it is never uploaded again.
-    Controller controller(Model{scene.hierarchy, TreeCut::root_cut(h)}, std::move(strategy),
-                          splat::view_snapshot(cam, size, settings.light), stage_options);
+    std::optional<Controller> controller_storage;
+    if (world) {
+      controller_storage.emplace(world, factory, splat::view_snapshot(cam, size, settings.light),
+                                 stage_options);
+    } else {
+      controller_storage.emplace(Model{scene.hierarchy, TreeCut::root_cut(h)}, std::move(strategy),
+                                 splat::view_snapshot(cam, size, settings.light), stage_options);
+    }
+    Controller& controller = *controller_storage;
     splat::QueryExecutor queries;
     splat::RenderThreadFrame frame_loop(controller, renderer, &queries);
     const splat::CutBuffer& cut = frame_loop.cut();
-    splat::QueryStats before;  // the executor's totals before the frame
+    splat::QueryStats before;       // the executor's totals before the frame
+    splat::FrameResult last_frame;  // of the last frame() call
+    double last_cpu_ms = 0.0;       // its render-thread CPU time
     auto frame = [&](const splat::Camera& c) {
       before = queries.stats();
+      const double cpu0 = thread_cpu_ms();
       const auto t0 = std::chrono::steady_clock::now();
-      frame_loop.run_render_thread(c, settings, true);
+      last_frame = frame_loop.run_render_thread(c, settings, true);
       const double ms =
           std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      last_cpu_ms = thread_cpu_ms() - cpu0;
       if (governor) {
-        if (auto v = governor->update(ms, cut.size(), a.target_fps)) {
+        if (auto v = governor->update(ms, last_frame.stats.splats, a.target_fps)) {
           controller.set_param(governor->param(), *v);
         }
       }
@@ -141,8 +208,11 @@ void run_render(const RenderArgs& a) {
       row.time_s = t;
       row.frame_ms = frame(cam);
       const StageCounters& counters = controller.stage().counters();
-      row.cut_size = cut.size();
-      row.points = cut.points();
+      row.cut_size = world ? frame_loop.scene_cut().size() : cut.size();
+      row.points = world ? frame_loop.scene_cut().points() : cut.points();
+      row.objects = last_frame.objects;
+      row.draw_calls = last_frame.stats.draw_calls;
+      row.render_cpu_ms = last_cpu_ms;
       row.iteration_ms = double(counters.iteration_ns_last) * 1e-6;
       row.exchanges = counters.exchanges;
       row.iterations = counters.iterations;
@@ -180,7 +250,7 @@ void run_render(const RenderArgs& a) {
           splat::write_png(dir / file, lod);
         }
         if (a.psnr) {
-          renderer.draw(full, cam, settings, true);
+          draw_full(cam);
           const splat::Image reference = grab();
           row.psnr_db = splat::psnr(lod, reference);
           row.psnr_luma_db = luma_psnr(lod, reference);
@@ -207,13 +277,21 @@ void run_render(const RenderArgs& a) {
       run.stability_frames = a.stability;
       run.stability_changed = sum / a.stability;
       run.stability_max = worst;
-      run.converged_cut = cut.size();
-      renderer.draw(full, cam, settings, true);
+      run.converged_cut = world ? frame_loop.scene_cut().size() : cut.size();
+      draw_full(cam);
       run.converged_psnr = splat::psnr(previous, grab());
     }
 
     run.queries = queries.stats();
     run.query_frames = controller.frame();
+    if (world) {
+      run.objects = world->objects.size();
+      run.models = world->models.size();
+      run.object_nodes = world->object_nodes();
+      rusage usage{};
+      getrusage(RUSAGE_SELF, &usage);
+      run.peak_rss_mib = double(usage.ru_maxrss) / 1024.0;  // Linux: KiB
+    }
     write_stats_csv(dir / "stats.csv", run.rows);
     write_file_atomically(dir / "summary.json", summary_json(run));
     std::printf(
@@ -238,6 +316,17 @@ void run_render(const RenderArgs& a) {
                   run.stability_converged ? "" : " [not converged]");
     }
     std::printf("\n");
+    if (world) {
+      std::printf(
+          "scene     %s: %zu objects, %.1f draw calls per frame, render thread %.3f ms CPU per "
+          "frame, stage iteration %.2f ms, peak RSS %.0f MiB\n",
+          name.c_str(), run.objects,
+          std::accumulate(run.rows.begin(), run.rows.end(), 0.0,
+                          [](double s, const FrameRow& r) { return s + double(r.draw_calls); }) /
+              double(run.rows.size()),
+          mean_of(run.rows, &FrameRow::render_cpu_ms), mean_of(run.rows, &FrameRow::iteration_ms),
+          run.peak_rss_mib);
+    }
     // Only a strategy that posts GPU queries gets this line.
     if (const splat::QueryStats& q = queries.stats(); q.issued > 0 || q.answered > 0) {
       std::printf(

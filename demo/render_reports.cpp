@@ -228,6 +228,23 @@ std::string summary_json(const RunSummary& s) {
                 {"late_per_frame", number_json(late / n)},
                 {"late_frames_mean", number_json(late > 0 ? late_frames / late : 0.0)}};
   }
+  // A scene's block: objects, draw calls and render-thread CPU per frame.
+  if (s.objects > 0) {
+    double calls = 0, cpu = 0;
+    std::size_t calls_max = 0;
+    for (const FrameRow& r : s.rows) {
+      calls += double(r.draw_calls);
+      calls_max = std::max(calls_max, r.draw_calls);
+      cpu += r.render_cpu_ms;
+    }
+    j["scene"] = {{"objects", s.objects},
+                  {"models", s.models},
+                  {"object_nodes", s.object_nodes},
+                  {"mean_draw_calls", number_json(calls / n)},
+                  {"max_draw_calls", calls_max},
+                  {"mean_render_cpu_ms", number_json(cpu / n)},
+                  {"peak_rss_mib", number_json(s.peak_rss_mib)}};
+  }
   // The executor's totals (zeros for a strategy that posts no queries).
   const splat::QueryStats& q = s.queries;
   j["queries"] = {

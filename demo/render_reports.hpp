@@ -43,6 +43,11 @@ struct FrameRow {
   bool has_hoq = false;
   std::uint64_t hoq_blocks = 0, hoq_dn = 0, hoq_culled = 0, hoq_delayed = 0, hoq_shift_up = 0;
   std::uint64_t hoq_rarn = 0, hoq_rarn_frames = 0, hoq_late = 0, hoq_late_frames = 0;
+  // A scene (objects > 0): draw calls of the frame and the render thread's
+  // CPU time for it (summary.json's "scene" block).
+  std::size_t objects = 0;
+  std::size_t draw_calls = 0;
+  double render_cpu_ms = 0.0;
 };
 
 /// Luminance PSNR (Y = 0.299 R + 0.587 G + 0.114 B, BT.601, peak 255) of two
@@ -64,6 +69,12 @@ struct RunSummary {
   // included), over `query_frames` frames.
   splat::QueryStats queries;
   std::uint64_t query_frames = 0;
+  // A scene: its objects and distinct models, the per-object state's nodes,
+  // the peak resident memory at the end of the run (summary.json "scene").
+  std::size_t objects = 0;
+  std::size_t models = 0;
+  std::uint64_t object_nodes = 0;
+  double peak_rss_mib = 0.0;
 };
 
 /// The mean of a field over the rows where it is finite; NaN if none is.

@@ -50,10 +50,17 @@ struct Scene {
   float radius = 1.0f;
   glm::vec3 up{0.0f, 1.0f, 0.0f};  ///< the model's up axis (orbits turn about it)
   UpAxis up_axis;                  ///< the same, named; reason set when --up auto chose it
+  glm::vec3 bounds_min{0.0f}, bounds_max{0.0f};  ///< the model's, or the scene's (Scene::bounds)
+  /// A scene file (looks_like_scene): its objects for the stage; `hierarchy`
+  /// is then its first model's. Null for a model.
+  std::shared_ptr<const StageScene> world;
+  std::uint64_t instanced_points = 0;  ///< a scene: points of all objects at full detail
 };
 
-/// Opens the model (through its cache) or generates the default one.
-/// Throws InputError for a bad model file.
+/// Opens the model (through its cache) or generates the default one, or
+/// loads a scene file (treecut::load_scene: the camera fits Scene::bounds,
+/// up is +z unless --up says otherwise). Throws InputError for a bad model
+/// or scene file.
 Scene load_scene(const SceneArgs& args);
 /// The same, reporting the stages of opening a model file (OpenOptions::progress:
 /// "read", "attributes", "hierarchy", "cache"; on the calling thread).

@@ -11,6 +11,7 @@
 #include "treecut/error.hpp"
 #include "treecut/generate.hpp"
 #include "treecut/model_io.hpp"
+#include "treecut/scene.hpp"
 #include "treecut/strategies/builtin.hpp"
 #include "viewer.hpp"
 
@@ -110,6 +111,25 @@ Scene load_scene(const SceneArgs& args) {
 
 Scene load_scene(const SceneArgs& args, const LoadProgressFn& progress) {
   Scene s;
+  if (!args.model.empty() && looks_like_scene(args.model)) {
+    SceneLoadOptions so;
+    so.open.attributes.k = args.k;
+    so.open.warn = [](const std::string& w) { std::fprintf(stderr, "warning: %s\n", w.c_str()); };
+    const treecut::Scene scene = treecut::load_scene(std::filesystem::path(args.model), so);
+    s.world = stage_scene(scene);
+    s.hierarchy = scene.models.front().hierarchy;
+    s.instanced_points = scene.instanced_points();
+    s.label = std::filesystem::path(args.model).filename().string();
+    // The generated scenes are z up (docs/scene-files.md); --up may say otherwise.
+    const std::optional<UpAxis> chosen = parse_up_axis(args.up);
+    s.up_axis = chosen ? *chosen : UpAxis{2, false, "a scene (z up)"};
+    s.up = s.up_axis.vector();
+    s.bounds_min = scene.bounds_min;
+    s.bounds_max = scene.bounds_max;
+    s.center = 0.5f * (s.bounds_min + s.bounds_max);
+    s.radius = std::max(0.5f * glm::length(s.bounds_max - s.bounds_min), 1e-6f);
+    return s;
+  }
   if (args.model.empty()) {
     const ModelKind kind = parse_model_kind(args.default_kind);
     s.hierarchy = std::make_shared<const Hierarchy>(
@@ -129,6 +149,8 @@ Scene load_scene(const SceneArgs& args, const LoadProgressFn& progress) {
   const std::optional<UpAxis> chosen = parse_up_axis(args.up);
   s.up_axis = chosen ? *chosen : detect_up_axis(h);
   s.up = s.up_axis.vector();
+  s.bounds_min = h.bounds_min();
+  s.bounds_max = h.bounds_max();
   s.center = 0.5f * (h.bounds_min() + h.bounds_max());
   s.radius = std::max(0.5f * glm::length(h.bounds_max() - h.bounds_min()), 1e-6f);
   return s;

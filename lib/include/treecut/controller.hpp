@@ -21,6 +21,10 @@ class Controller {
  public:
   Controller(Model model, std::unique_ptr<Strategy> strategy, const ViewSnapshot& initial_view,
              StageOptions options = {});
+  /// A scene (FeedbackStage's scene constructor): the view stays in world
+  /// space; the stage folds each object's transform in.
+  Controller(std::shared_ptr<const StageScene> scene, const StrategyFactory& factory,
+             const ViewSnapshot& initial_view, StageOptions options = {});
 
   /// Camera input; bumps the view version only when something changed.
   void set_camera(const glm::mat4& view, const glm::mat4& projection, glm::ivec2 viewport);
@@ -28,6 +32,8 @@ class Controller {
   void set_strategy(std::unique_ptr<Strategy> strategy) {
     stage_.set_strategy(std::move(strategy));
   }
+  /// Both a model and a scene (per-object instances come from the factory).
+  void set_strategy(StrategyFactory factory) { stage_.set_strategy(std::move(factory)); }
   void set_param(std::string_view name, double value) { stage_.set_param(name, value); }
 
   /// Call at the start of every frame: hands the view to the stage and polls

@@ -35,6 +35,7 @@
 #include <cstdint>
 #include <exception>
 #include <functional>
+#include <glm/mat4x4.hpp>
 #include <memory>
 #include <optional>
 #include <span>
@@ -48,6 +49,33 @@
 #include "treecut/view_snapshot.hpp"
 
 namespace treecut {
+
+struct Scene;
+
+/// A scene as the stage carries it: the distinct hierarchies and, per
+/// object, which one and its transform. Shared and immutable once handed to
+/// a stage (the lists the renderer draws keep it alive, as a model's
+/// hierarchy). docs/architecture.md, "Scenes through the stage".
+struct StageScene {
+  struct Object {
+    std::uint32_t model = 0;        ///< index into `models`
+    glm::mat4 world{1.0f};          ///< model -> world
+    glm::mat4 world_inverse{1.0f};  ///< world -> model
+  };
+  std::vector<std::shared_ptr<const Hierarchy>> models;
+  std::vector<Object> objects;
+  /// The sum over objects of their model's node count (what per-object state costs).
+  [[nodiscard]] std::uint64_t object_nodes() const;
+};
+/// The stage's view of a loaded scene (treecut/scene.hpp): its models'
+/// hierarchies (shared, not copied) and its objects' transforms.
+std::shared_ptr<const StageScene> stage_scene(const Scene& scene);
+
+/// Makes a strategy instance. A stage on a scene calls it once per object for
+/// a per-object strategy (on the thread that constructs the stage, or on the
+/// stage thread after set_strategy): it must stay callable until the stage
+/// is destroyed or given another factory.
+using StrategyFactory = std::function<std::unique_ptr<Strategy>()>;
 
 enum class Launch {
   Thread,  ///< the stage runs its own thread
@@ -138,6 +166,14 @@ struct FrontList {
   /// GPU queries the strategy asked for with this list; execute and answer
   /// them with FeedbackStage::post_visibility().
   std::span<const QueryRequest> queries;
+  /// A scene's list (the stage was made on a StageScene; `hierarchy` is then
+  /// null): the objects' lists back to back, object i's ids, ascending, of
+  /// scene->models[scene->objects[i].model], at nodes[object_offsets[i] ..
+  /// object_offsets[i + 1]) (objects + 1 offsets, the first 0). Empty and
+  /// null for a single model. Published in the same back buffer as the
+  /// nodes: the exchange stays one swap of indices.
+  std::span<const std::uint32_t> object_offsets;
+  const StageScene* scene = nullptr;
 };
 
 /// What poll() tells the renderer for this frame.
@@ -173,6 +209,9 @@ struct StageCounters {
   std::uint64_t errors = 0;
   std::uint64_t invalid_cuts = 0;
   std::string last_error;  ///< what() of the last StrategyError
+  /// A scene: objects whose strategy ran in the last iteration (all of them
+  /// unless cancelled; 0 for a single model).
+  std::uint64_t objects_last = 0;
   bool converged = false;
   IterationResult last;  ///< counters of the last completed iteration
 };
@@ -183,6 +222,14 @@ class FeedbackStage {
   /// std::invalid_argument for a null hierarchy or strategy, an invalid cut or
   /// fewer than 2 buffers.
   FeedbackStage(Model model, std::unique_ptr<Strategy> strategy, StageOptions options = {});
+  /// A stage on a scene: every object starts at its model's root cut. For a
+  /// scene-level strategy (one that derives from SceneStrategy) `factory` is
+  /// called once; otherwise once per object, here. Throws InputError when a
+  /// per-object strategy would exceed kMaxPerObjectNodes, naming the scene
+  /// size and the way out; std::invalid_argument for an empty scene, a model
+  /// index out of range or no factory.
+  FeedbackStage(std::shared_ptr<const StageScene> scene, const StrategyFactory& factory,
+                StageOptions options = {});
   /// Cancels a running iteration, waits for it and joins the thread.
   ~FeedbackStage();
   FeedbackStage(const FeedbackStage&) = delete;
@@ -205,10 +252,17 @@ class FeedbackStage {
   /// Replaces the strategy at the next request; a running iteration is asked
   /// to stop early. The old strategy is destroyed on the stage's thread.
   void set_strategy(std::unique_ptr<Strategy> strategy);
+  /// A scene's strategy switch (a stage on a model takes one instance from
+  /// `factory`). Checks the limit as the constructor does (InputError); the
+  /// instances are made on the stage thread at the next request.
+  void set_strategy(StrategyFactory factory);
+  /// The scene the stage runs on (null for a single model).
+  [[nodiscard]] const std::shared_ptr<const StageScene>& scene() const { return scene_; }
   /// Changes a parameter of the current (or pending) strategy at the next
   /// request. Throws InputError at once for an unknown name or bad value.
   void set_param(std::string_view name, double value);
   /// Replaces hierarchy and cut at the next request (the strategy is reset).
+  /// Not on a scene (std::logic_error): a stage keeps what it was made on.
   /// Query answers posted from now until the new model's first list is
   /// exchanged are dropped: they answer queries about the old model.
   void set_model(Model model);
@@ -243,6 +297,7 @@ class FeedbackStage {
 
   struct ListBuffer {
     std::vector<NodeId> nodes;
+    std::vector<std::uint32_t> offsets;  // a scene's object layout (else empty)
     std::vector<QueryRequest> queries;
     std::shared_ptr<const Hierarchy> hierarchy;
     std::uint64_t generation = 0;
@@ -252,6 +307,7 @@ class FeedbackStage {
   struct Inbox {
     ViewSnapshot view;
     std::unique_ptr<Strategy> strategy;
+    StrategyFactory factory;  // a scene's: the rest of the per-object instances
     std::vector<std::pair<std::string, double>> params;
     std::optional<Model> model;
     std::uint32_t back = 0;
@@ -267,6 +323,7 @@ class FeedbackStage {
     std::uint64_t iteration_ns = 0;
     std::uint64_t extract_ns = 0;
     std::uint64_t publish_ns = 0;
+    std::uint64_t objects = 0;  // a scene: objects iterated
     std::exception_ptr error;
   };
   // Render-thread inputs not yet handed over.
@@ -274,6 +331,7 @@ class FeedbackStage {
     ViewSnapshot view;
     bool view_changed = true;
     std::unique_ptr<Strategy> strategy;
+    StrategyFactory factory;
     std::vector<std::pair<std::string, double>> params;
     std::optional<Model> model;
     std::vector<ParamSpec> specs;                      // of the strategy the next iteration runs
@@ -283,6 +341,10 @@ class FeedbackStage {
   void run();
   [[nodiscard]] State await_request();
   void process();
+  void process_scene(Outbox& out);
+  void fail(Outbox& out);
+  void make_object_strategies(std::unique_ptr<Strategy> first, const StrategyFactory& factory);
+  void check_scene_strategy(const Strategy& probe) const;
   void exchange();
   void retire(std::uint32_t index);
   bool request();
@@ -290,6 +352,7 @@ class FeedbackStage {
   [[nodiscard]] FrontList list_of(std::uint32_t index) const;
   void set_boost(bool on);
   [[nodiscard]] std::string check_cut(std::span<const NodeId> nodes) const;
+  [[nodiscard]] std::string check_cut(const Hierarchy& h, std::span<const NodeId> nodes) const;
 
   StageOptions options_;
   std::atomic<State> state_{State::Wait};
@@ -335,6 +398,18 @@ class FeedbackStage {
   std::vector<NodeId> sort_scratch_;
   std::unique_ptr<Strategy> strategy_;
   ViewSnapshot view_;
+  // A scene (the pointer is set at construction and never changes, so both
+  // threads may read it). Stage thread only: per object a strategy (all
+  // null but the first for a scene-level strategy) and a cut, whether the
+  // cuts must be rebuilt from the front list, the object's view scratch.
+  std::shared_ptr<const StageScene> scene_;
+  std::vector<SceneObjectInput> scene_inputs_;
+  std::vector<std::unique_ptr<Strategy>> object_strategies_;
+  SceneStrategy* scene_strategy_ = nullptr;
+  std::vector<TreeCut> object_cuts_;
+  std::vector<float> object_size_factor_[2];  // pixel_scale factors: [0] ortho, [1] perspective
+  std::vector<NodeId> object_nodes_;
+  ViewSnapshot object_view_;
 
   std::thread thread_;  // last: started after everything above exists
 };

@@ -58,7 +58,9 @@
 #include <atomic>
 #include <cstddef>
 #include <cstdint>
+#include <glm/mat4x4.hpp>
 #include <memory>
+#include <span>
 #include <string>
 #include <string_view>
 #include <utility>
@@ -170,6 +172,82 @@ class Strategy {
   std::uint64_t params_version_ = 0;
   std::string origin_;
 };
+
+// ---------------------------------------------------------------------------
+// Scenes (many objects; docs/architecture.md, "Scenes through the stage").
+//
+// A FeedbackStage on a scene runs an ordinary Strategy once per object: one
+// instance and one TreeCut per object, iterated with IterationInput{the
+// object's hierarchy, object = its index, view = the snapshot with the
+// object's world matrix folded in (model space)}. Nothing changes in the
+// strategy. That costs per-node state for every object (a TreeCut alone is 4
+// bytes per node of the object's model), so the stage refuses it above
+// kMaxPerObjectNodes nodes in all (FeedbackStage's constructor says so).
+//
+// A strategy that also derives from SceneStrategy is a scene-level strategy:
+// the stage makes one instance and calls iterate_scene() once per iteration
+// for all objects (the budget of Eq. 1 is one: a share per object from the
+// whole view). It keeps what per-object state it wants; the stage keeps no
+// TreeCut per object for it. Its iterate() is what runs on a single model.
+
+/// One object of a scene as a SceneStrategy sees it.
+struct SceneObjectInput {
+  const Hierarchy* hierarchy = nullptr;  ///< its model's, shared by every instance of the model
+  glm::mat4 world{1.0f};                 ///< model -> world
+  glm::mat4 world_inverse{1.0f};         ///< world -> model
+  std::uint32_t model = 0;               ///< which distinct model (index into the stage's scene)
+};
+
+/// What one scene iteration may read; valid for the duration of the call.
+struct SceneIterationInput {
+  std::span<const SceneObjectInput> objects;
+  const ViewSnapshot& view;  ///< world space (the camera's view, no model matrix folded in)
+  const std::atomic<bool>* cancel = nullptr;
+  std::uint64_t params_version = 0;
+  /// Every object's list of the previous iteration, back to back: object i's
+  /// ids are previous[previous_offsets[i] .. previous_offsets[i + 1]).
+  std::span<const NodeId> previous;
+  std::span<const std::uint32_t> previous_offsets;
+  [[nodiscard]] bool cancelled() const {
+    return cancel != nullptr && cancel->load(std::memory_order_relaxed);
+  }
+};
+
+/// Where a scene iteration writes: every object's list, in object order,
+/// back to back into `*nodes`, and `*offsets` (objects + 1 entries, the first
+/// 0, ascending) where each starts. An object's list is either empty (the
+/// object is not drawn: culled, below the PET) or a cut of its model (every
+/// leaf under exactly one node: the stage checks it as any cut); the stage
+/// sorts each list. Both vectors are empty on entry (capacity kept).
+struct SceneIterationOutput {
+  std::vector<NodeId>* nodes = nullptr;
+  std::vector<std::uint32_t>* offsets = nullptr;
+  std::vector<QueryRequest>* queries = nullptr;  ///< refused on a scene for now (see FrontList)
+  IterationResult result;
+};
+
+/// The hook for scene-level strategies (see above). Implemented by a class
+/// that also derives from Strategy; the stage finds it by dynamic_cast.
+class SceneStrategy {
+ public:
+  virtual ~SceneStrategy() = default;
+  /// Drops per-object state and sizes it for these objects. Called before the
+  /// first scene iteration and whenever the scene changes.
+  virtual void reset_scene(std::span<const SceneObjectInput> objects) = 0;
+  /// One iteration over all objects.
+  virtual void iterate_scene(const SceneIterationInput& input, SceneIterationOutput& output) = 0;
+
+ protected:
+  SceneStrategy() = default;
+  SceneStrategy(const SceneStrategy&) = default;
+  SceneStrategy& operator=(const SceneStrategy&) = default;
+};
+
+/// Per-object strategies on a scene keep state for every node of every
+/// object: at most this many nodes in all (the sum over objects of their
+/// model's node count; 2^28: about 1 GiB in TreeCuts alone, as much again in
+/// a strategy's own per-node arrays).
+inline constexpr std::uint64_t kMaxPerObjectNodes = std::uint64_t{1} << 28;
 
 /// Checks `value` against `spec`; returns an empty string or the problem.
 std::string check_param(const ParamSpec& spec, double value);

@@ -9,6 +9,13 @@ Controller::Controller(Model model, std::unique_ptr<Strategy> strategy,
   view_.finalize();
 }
 
+Controller::Controller(std::shared_ptr<const StageScene> scene, const StrategyFactory& factory,
+                       const ViewSnapshot& initial_view, StageOptions options)
+    : view_(initial_view), stage_(std::move(scene), factory, options) {
+  view_.visibility.clear();
+  view_.finalize();
+}
+
 void Controller::set_camera(const glm::mat4& view, const glm::mat4& projection,
                             glm::ivec2 viewport) {
   if (view == view_.view && projection == view_.projection && viewport == view_.viewport) return;

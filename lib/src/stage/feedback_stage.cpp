@@ -13,6 +13,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <limits>
 #include <stdexcept>
 #include <typeinfo>
 #include <utility>
@@ -25,7 +26,12 @@
 #include <unistd.h>
 #endif
 
+#include <glm/geometric.hpp>
+#include <glm/mat3x3.hpp>
+#include <glm/matrix.hpp>
+
 #include "treecut/error.hpp"
+#include "treecut/scene.hpp"
 
 namespace treecut {
 namespace {
@@ -83,7 +89,52 @@ std::uint64_t ns_between(std::chrono::steady_clock::time_point a,
       std::chrono::duration_cast<std::chrono::nanoseconds>(b - a).count());
 }
 
+// The largest and smallest singular values of the linear part of `world`
+// (square roots of the eigenvalues of L^T L, closed form for a symmetric 3x3,
+// Smith 1961). Exact 1 and 1 for the identity.
+std::pair<double, double> singular_range(const glm::mat4& world) {
+  const glm::dmat3 l{glm::mat3(world)};
+  const glm::dmat3 a = glm::transpose(l) * l;
+  const double p1 = a[0][1] * a[0][1] + a[0][2] * a[0][2] + a[1][2] * a[1][2];
+  double hi = 0.0, lo = 0.0;
+  if (p1 == 0.0) {
+    hi = std::max({a[0][0], a[1][1], a[2][2]});
+    lo = std::min({a[0][0], a[1][1], a[2][2]});
+  } else {
+    const double q = (a[0][0] + a[1][1] + a[2][2]) / 3.0;
+    const double p2 = (a[0][0] - q) * (a[0][0] - q) + (a[1][1] - q) * (a[1][1] - q) +
+                      (a[2][2] - q) * (a[2][2] - q) + 2.0 * p1;
+    const double p = std::sqrt(p2 / 6.0);
+    const glm::dmat3 b = (a - q * glm::dmat3(1.0)) * (1.0 / p);
+    const double r = std::clamp(glm::determinant(b) / 2.0, -1.0, 1.0);
+    const double phi = std::acos(r) / 3.0;
+    constexpr double kThird = 2.0943951023931954923;  // 2 pi / 3
+    hi = q + 2.0 * p * std::cos(phi);
+    lo = q + 2.0 * p * std::cos(phi + kThird);
+  }
+  return {std::sqrt(std::max(hi, 0.0)), std::sqrt(std::max(lo, 0.0))};
+}
+
 }  // namespace
+
+std::uint64_t StageScene::object_nodes() const {
+  std::uint64_t n = 0;
+  for (const Object& o : objects) {
+    if (o.model < models.size() && models[o.model]) n += models[o.model]->node_count();
+  }
+  return n;
+}
+
+std::shared_ptr<const StageScene> stage_scene(const Scene& scene) {
+  auto s = std::make_shared<StageScene>();
+  s->models.reserve(scene.models.size());
+  for (const SceneModel& m : scene.models) s->models.push_back(m.hierarchy);
+  s->objects.reserve(scene.objects.size());
+  for (const SceneObject& o : scene.objects) {
+    s->objects.push_back(StageScene::Object{o.model, o.world, o.world_inverse});
+  }
+  return s;
+}
 
 bool validate_cuts_by_default() {
   return kCheckedBuild;
@@ -132,6 +183,110 @@ FeedbackStage::FeedbackStage(Model model, std::unique_ptr<Strategy> strategy, St
   running_ = strategy_.get();
   strategy_->reset(*hierarchy_);
   if (options_.launch == Launch::Thread) thread_ = std::thread([this] { run(); });
+}
+
+FeedbackStage::FeedbackStage(std::shared_ptr<const StageScene> scene,
+                             const StrategyFactory& factory, StageOptions options)
+    : options_(options), scene_(std::move(scene)) {
+  if (!scene_ || scene_->objects.empty()) {
+    throw std::invalid_argument("FeedbackStage: the scene has no objects");
+  }
+  if (!factory) throw std::invalid_argument("FeedbackStage: no strategy factory");
+  if (options_.list_buffers < 2) throw std::invalid_argument("FeedbackStage: fewer than 2 buffers");
+  for (const auto& m : scene_->models) {
+    if (!m || m->empty()) throw std::invalid_argument("FeedbackStage: a model has no hierarchy");
+  }
+  const std::size_t n = scene_->objects.size();
+  if (n >= std::numeric_limits<std::uint32_t>::max()) {
+    throw std::invalid_argument("FeedbackStage: too many objects");
+  }
+  scene_inputs_.reserve(n);
+  object_size_factor_[0].reserve(n);
+  object_size_factor_[1].reserve(n);
+  for (const StageScene::Object& o : scene_->objects) {
+    if (o.model >= scene_->models.size()) {
+      throw std::invalid_argument("FeedbackStage: an object's model index is out of range");
+    }
+    scene_inputs_.push_back(
+        SceneObjectInput{scene_->models[o.model].get(), o.world, o.world_inverse, o.model});
+    // A strategy sizes a node by its model-space radius over its model-space
+    // distance. Under a stretch that ratio is no bound of the world's: the
+    // radius grows by up to sigma_max, the distance shrinks by down to
+    // sigma_min. The pixel scale takes their ratio (perspective) or sigma_max
+    // (orthographic), so the projected radius stays an upper bound; a
+    // similarity's ratio is exactly 1 (the identity changes nothing).
+    const auto [hi, lo] = singular_range(o.world);
+    object_size_factor_[0].push_back(static_cast<float>(hi));
+    object_size_factor_[1].push_back(lo > 0.0 ? static_cast<float>(hi / lo) : 1.0f);
+  }
+  std::unique_ptr<Strategy> first = factory();
+  if (!first) throw std::invalid_argument("FeedbackStage: the factory made no strategy");
+  check_scene_strategy(*first);
+
+  buffers_.resize(options_.list_buffers);
+  ListBuffer& list = buffers_[0];
+  list.nodes.reserve(n);
+  list.offsets.reserve(n + 1);
+  list.offsets.push_back(0);
+  for (std::size_t i = 0; i < n; ++i) {
+    list.nodes.push_back(scene_->models[scene_->objects[i].model]->root());
+    list.offsets.push_back(static_cast<std::uint32_t>(i + 1));
+  }
+  list.generation = 1;
+  list.use = BufferUse::Front;
+  front_ = 0;
+  front_view_ = list_of(front_);
+
+  strategy_name_ = std::string(first->name());
+  pending_.specs = first->param_specs();
+  make_object_strategies(std::move(first), factory);
+  if (!scene_strategy_ && object_strategies_[0]->mode() == Strategy::Mode::Evolve) {
+    object_cuts_.reserve(n);
+    for (const SceneObjectInput& o : scene_inputs_) {
+      object_cuts_.push_back(TreeCut::root_cut(*o.hierarchy));
+    }
+  } else {
+    cut_stale_ = true;
+  }
+  running_ = object_strategies_[0].get();
+  if (options_.launch == Launch::Thread) thread_ = std::thread([this] { run(); });
+}
+
+// Render thread (constructor, set_strategy): per-object instances are state
+// for every node of every object; refused past the limit, before any is made.
+void FeedbackStage::check_scene_strategy(const Strategy& probe) const {
+  if (dynamic_cast<const SceneStrategy*>(&probe) != nullptr) return;
+  const std::uint64_t nodes = scene_->object_nodes();
+  if (nodes <= kMaxPerObjectNodes) return;
+  throw InputError("a scene of " + std::to_string(scene_->objects.size()) + " objects and " +
+                   std::to_string(nodes) +
+                   " nodes in all: " + describe_strategy(probe.name(), probe.origin()) +
+                   " runs once per object, at most " + std::to_string(kMaxPerObjectNodes) +
+                   " nodes in all; use a scene-level strategy (SceneStrategy, e.g. 'budget') "
+                   "or models of fewer points");
+}
+
+// The instances a scene runs: `first` and, for a per-object strategy, one
+// more from `factory` per further object, each reset for its model.
+void FeedbackStage::make_object_strategies(std::unique_ptr<Strategy> first,
+                                           const StrategyFactory& factory) {
+  object_strategies_.clear();
+  scene_strategy_ = dynamic_cast<SceneStrategy*>(first.get());
+  object_strategies_.push_back(std::move(first));
+  if (scene_strategy_ != nullptr) {
+    scene_strategy_->reset_scene(scene_inputs_);
+    return;
+  }
+  const std::size_t n = scene_inputs_.size();
+  object_strategies_.reserve(n);
+  for (std::size_t i = 1; i < n; ++i) {
+    std::unique_ptr<Strategy> s = factory ? factory() : nullptr;
+    if (!s)
+      throw std::runtime_error("the strategy factory made no instance for object " +
+                               std::to_string(i));
+    object_strategies_.push_back(std::move(s));
+  }
+  for (std::size_t i = 0; i < n; ++i) object_strategies_[i]->reset(*scene_inputs_[i].hierarchy);
 }
 
 FeedbackStage::~FeedbackStage() {
@@ -235,6 +390,17 @@ void FeedbackStage::process() {
   using Clock = std::chrono::steady_clock;
   Outbox out;
   out.started = Clock::now();
+  if (scene_) {
+    try {
+      process_scene(out);
+    } catch (...) {
+      fail(out);
+    }
+    outbox_ = std::move(out);
+    state_.store(State::Wait, std::memory_order_release);
+    state_.notify_all();
+    return;
+  }
   try {
     const Clock::time_point t0 = out.started;
     // Extract (figure 2): take the inputs the render thread handed over.
@@ -308,27 +474,7 @@ void FeedbackStage::process() {
     out.iteration_ns = ns_between(t1, t2);
     out.publish_ns = ns_between(t2, t3);
   } catch (...) {
-    // Whatever the strategy threw (also `throw 42`) becomes one StrategyError
-    // naming it and its plugin; nothing escapes this thread (no terminate).
-    std::string problem;
-    try {
-      throw;
-    } catch (const std::exception& e) {
-      problem = out.invalid_cut ? e.what() : "threw " + current_exception_type() + ": " + e.what();
-    } catch (...) {
-      problem = "threw an exception of type " + current_exception_type();
-    }
-    const std::string_view name = strategy_ ? strategy_->name() : std::string_view("?");
-    const std::string origin = strategy_ ? strategy_->origin() : std::string();
-    try {
-      out.error = std::make_exception_ptr(StrategyError(std::string(name), origin, problem));
-    } catch (...) {
-      out.error = std::current_exception();  // bad_alloc while describing it
-    }
-    out.ready = false;
-    // An Evolve strategy may have left its cut half-changed: the next
-    // iteration starts again from the front list.
-    cut_stale_ = true;
+    fail(out);
   }
   outbox_ = std::move(out);
   // Back to Wait with release: the render thread that sees Wait sees the
@@ -337,11 +483,220 @@ void FeedbackStage::process() {
   state_.notify_all();
 }
 
+// Stage thread, Process, on a scene: Extract as for a model, then the
+// objects one after the other into the back list, each list sorted, with
+// the object offsets beside them in the same buffer.
+void FeedbackStage::process_scene(Outbox& out) {
+  using Clock = std::chrono::steady_clock;
+  const Clock::time_point t0 = out.started;
+  const std::size_t n = scene_inputs_.size();
+  if (inbox_.strategy) {
+    make_object_strategies(std::move(inbox_.strategy), inbox_.factory);
+    inbox_.factory = nullptr;
+    cut_stale_ = true;
+  }
+  for (const auto& [name, value] : inbox_.params) {
+    for (const auto& s : object_strategies_) s->set_param(name, value);
+  }
+  inbox_.params.clear();
+  std::swap(view_, inbox_.view);
+  const ListBuffer& front = buffers_[inbox_.front];
+  const bool whole_front = front.offsets.size() == n + 1;
+  const auto front_list = [&](std::size_t i) {
+    return whole_front ? std::span<const NodeId>(front.nodes)
+                             .subspan(front.offsets[i], front.offsets[i + 1] - front.offsets[i])
+                       : std::span<const NodeId>();
+  };
+  const bool evolve =
+      scene_strategy_ == nullptr && object_strategies_[0]->mode() == Strategy::Mode::Evolve;
+  if (evolve && (cut_stale_ || object_cuts_.size() != n)) {
+    // As for a model: the front lists are the cuts to evolve (an object
+    // whose list is empty, drawn by a scene-level strategy, starts at its root).
+    object_cuts_.resize(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::span<const NodeId> list = front_list(i);
+      object_cuts_[i] = list.empty() ? TreeCut::root_cut(*scene_inputs_[i].hierarchy)
+                                     : TreeCut::from_nodes(*scene_inputs_[i].hierarchy, list);
+    }
+    cut_stale_ = false;
+  }
+  const Clock::time_point t1 = Clock::now();
+
+  ListBuffer& back = buffers_[inbox_.back];
+  back.nodes.clear();
+  back.offsets.clear();
+  back.queries.clear();
+  const auto no_queries = [&] {
+    // The query executor places a node of the one model it draws; on a
+    // scene it would test the wrong place. Refused, not answered wrongly.
+    if (!back.queries.empty()) {
+      throw std::runtime_error("asked for " + std::to_string(back.queries.size()) +
+                               " GPU queries on a scene: queries are answered for single models "
+                               "only (docs/architecture.md, \"Scenes through the stage\")");
+    }
+  };
+  const auto invalid = [&](std::size_t i, const std::string& why) {
+    out.invalid_cut = true;
+    throw std::runtime_error("object " + std::to_string(i) + ": returned an invalid cut: " + why);
+  };
+  std::uint64_t publish_ns = 0;
+  std::uint64_t objects = 0;
+  IterationResult total;
+  if (scene_strategy_ != nullptr) {
+    const SceneIterationInput input{scene_inputs_, view_,
+                                    &cancel_,      object_strategies_[0]->params_version(),
+                                    front.nodes,   front.offsets};
+    SceneIterationOutput output;
+    output.nodes = &back.nodes;
+    output.offsets = &back.offsets;
+    output.queries = &back.queries;
+    scene_strategy_->iterate_scene(input, output);
+    const Clock::time_point t2 = Clock::now();
+    no_queries();
+    std::vector<std::uint32_t>& off = back.offsets;
+    if (off.size() != n + 1 || off.front() != 0 || off.back() != back.nodes.size() ||
+        !std::is_sorted(off.begin(), off.end())) {
+      out.invalid_cut = true;
+      throw std::runtime_error("returned an invalid scene list: " + std::to_string(off.size()) +
+                               " offsets for " + std::to_string(n) + " objects and " +
+                               std::to_string(back.nodes.size()) + " nodes");
+    }
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto first = back.nodes.begin() + off[i], last = back.nodes.begin() + off[i + 1];
+      if (first == last) continue;  // not drawn
+      if (std::string why = check_cut(*scene_inputs_[i].hierarchy, {first, last}); !why.empty()) {
+        invalid(i, why);
+      }
+      if (!std::is_sorted(first, last)) std::sort(first, last);
+    }
+    total = output.result;
+    objects = n;
+    cut_stale_ = true;
+    publish_ns = ns_between(t2, Clock::now());
+  } else {
+    back.offsets.reserve(n + 1);
+    back.offsets.push_back(0);
+    total.converged = true;
+    for (std::size_t i = 0; i < n; ++i) {
+      const SceneObjectInput& o = scene_inputs_[i];
+      const Hierarchy& h = *o.hierarchy;
+      if (!total.cancelled && !cancel_.load(std::memory_order_relaxed)) {
+        // The object's model space: the view with its world matrix folded
+        // in, so an unchanged strategy sees what it sees on a model.
+        ViewSnapshot& v = object_view_;
+        v.view = view_.view * o.world;
+        v.projection = view_.projection;
+        v.viewport = view_.viewport;
+        const glm::vec3 light = glm::mat3(o.world_inverse) * view_.light_dir;
+        const float len = glm::length(light);
+        v.light_dir = len > 0.0f ? light / len : view_.light_dir;
+        v.frame = view_.frame;
+        v.version = view_.version;
+        v.visibility.clear();  // no queries on a scene (see no_queries)
+        v.finalize();
+        v.derived.pixel_scale *= object_size_factor_[v.derived.perspective ? 1 : 0][i];
+        Strategy& s = *object_strategies_[i];
+        object_nodes_.clear();
+        const IterationInput input{h, v, static_cast<std::uint32_t>(i), &cancel_,
+                                   s.params_version()};
+        IterationOutput output;
+        output.cut = evolve ? &object_cuts_[i] : &cut_;  // a Rebuild strategy ignores it
+        output.nodes = &object_nodes_;
+        output.queries = &back.queries;
+        s.iterate(input, output);
+        no_queries();
+        const Clock::time_point p0 = Clock::now();
+        if (evolve) {
+          TreeCut& cut = object_cuts_[i];
+          if (std::string why = check_cut(h, cut.nodes()); !why.empty()) invalid(i, why);
+          if (cut.disorder() > 0) cut.sort(sort_scratch_);
+          back.nodes.insert(back.nodes.end(), cut.nodes().begin(), cut.nodes().end());
+        } else {
+          if (std::string why = check_cut(h, object_nodes_); !why.empty()) invalid(i, why);
+          if (!std::is_sorted(object_nodes_.begin(), object_nodes_.end())) {
+            sort_node_ids(object_nodes_, h.node_count(), sort_scratch_);
+          }
+          back.nodes.insert(back.nodes.end(), object_nodes_.begin(), object_nodes_.end());
+        }
+        publish_ns += ns_between(p0, Clock::now());
+        const IterationResult& r = output.result;
+        total.visited += r.visited;
+        total.refined += r.refined;
+        total.coarsened += r.coarsened;
+        total.culled += r.culled;
+        total.backfacing += r.backfacing;
+        total.too_small += r.too_small;
+        total.blocked += r.blocked;
+        total.converged = total.converged && r.converged;
+        total.cancelled = total.cancelled || r.cancelled;
+        ++objects;
+      } else {
+        // Cancelled: the objects not reached keep the lists they have.
+        total.cancelled = true;
+        if (evolve) {
+          const TreeCut& cut = object_cuts_[i];
+          back.nodes.insert(back.nodes.end(), cut.nodes().begin(), cut.nodes().end());
+        } else if (const std::span<const NodeId> list = front_list(i); !list.empty()) {
+          back.nodes.insert(back.nodes.end(), list.begin(), list.end());
+        } else {
+          back.nodes.push_back(h.root());
+        }
+      }
+      if (back.nodes.size() >= std::numeric_limits<std::uint32_t>::max()) {
+        throw std::runtime_error("the scene's cut has more than 2^32 - 1 nodes");
+      }
+      back.offsets.push_back(static_cast<std::uint32_t>(back.nodes.size()));
+    }
+    if (!evolve) cut_stale_ = true;
+  }
+  back.generation = inbox_.generation;
+  const Clock::time_point t3 = Clock::now();
+  out.ready = true;
+  out.result = total;
+  out.result.converged = total.converged && !total.cancelled;
+  out.result.cut_size = back.nodes.size();
+  out.objects = objects;
+  out.extract_ns = ns_between(t0, t1);
+  const std::uint64_t all = ns_between(t1, t3);
+  out.iteration_ns = all > publish_ns ? all - publish_ns : 0;
+  out.publish_ns = publish_ns;
+}
+
+// Stage thread, inside a catch handler: whatever the strategy threw (also
+// `throw 42`) becomes one StrategyError naming it and its plugin; nothing
+// escapes this thread (no terminate).
+void FeedbackStage::fail(Outbox& out) {
+  std::string problem;
+  try {
+    throw;
+  } catch (const std::exception& e) {
+    problem = out.invalid_cut ? e.what() : "threw " + current_exception_type() + ": " + e.what();
+  } catch (...) {
+    problem = "threw an exception of type " + current_exception_type();
+  }
+  const Strategy* s = scene_ ? (object_strategies_.empty() ? nullptr : object_strategies_[0].get())
+                             : strategy_.get();
+  const std::string_view name = s != nullptr ? s->name() : std::string_view("?");
+  const std::string origin = s != nullptr ? s->origin() : std::string();
+  try {
+    out.error = std::make_exception_ptr(StrategyError(std::string(name), origin, problem));
+  } catch (...) {
+    out.error = std::current_exception();  // bad_alloc while describing it
+  }
+  out.ready = false;
+  // An Evolve strategy may have left its cut half-changed: the next
+  // iteration starts again from the front list.
+  cut_stale_ = true;
+}
+
 // Stage thread. Always: ids in range and the cut's points add up to the
 // leaf count (O(cut): catches an empty cut and a missing node). With
 // options_.validate: every leaf exactly once (TreeCut::validate).
 std::string FeedbackStage::check_cut(std::span<const NodeId> nodes) const {
-  const Hierarchy& h = *hierarchy_;
+  return check_cut(*hierarchy_, nodes);
+}
+
+std::string FeedbackStage::check_cut(const Hierarchy& h, std::span<const NodeId> nodes) const {
   if (nodes.empty()) return "the cut is empty";
   const std::uint32_t m = h.node_count();
   const auto counts = h.arrays().point_count;
@@ -379,7 +734,7 @@ void FeedbackStage::set_boost(bool on) {
 
 FrontList FeedbackStage::list_of(std::uint32_t index) const {
   const ListBuffer& b = buffers_[index];
-  return FrontList{b.nodes, b.generation, b.hierarchy.get(), b.queries};
+  return FrontList{b.nodes, b.generation, b.hierarchy.get(), b.queries, b.offsets, scene_.get()};
 }
 
 std::optional<std::uint32_t> FeedbackStage::free_buffer() const {
@@ -391,7 +746,9 @@ std::optional<std::uint32_t> FeedbackStage::free_buffer() const {
 
 // A list the renderer no longer draws: it was copied in the frame of its
 // exchange (CutBuffer::follow), so the stage may write it again at once.
-void FeedbackStage::retire(std::uint32_t index) { buffers_[index].use = BufferUse::Free; }
+void FeedbackStage::retire(std::uint32_t index) {
+  buffers_[index].use = BufferUse::Free;
+}
 
 // The Exchange: O(1), swaps which buffer is the front; no list is copied.
 void FeedbackStage::exchange() {
@@ -425,6 +782,8 @@ bool FeedbackStage::request() {
   pending_.view_changed = false;
   if (pending_.strategy) running_ = pending_.strategy.get();
   inbox_.strategy = std::move(pending_.strategy);
+  inbox_.factory = std::move(pending_.factory);
+  pending_.factory = nullptr;
   inbox_.params.swap(pending_.params);
   if (pending_.model) {
     inbox_.model = std::move(pending_.model);
@@ -500,6 +859,7 @@ FrameLists FeedbackStage::poll() {
       counters_.extract_ns_last = outbox_.extract_ns;
       counters_.extract_ns_total += outbox_.extract_ns;
       counters_.publish_ns_last = outbox_.publish_ns;
+      counters_.objects_last = outbox_.objects;
       counters_.last = outbox_.result;
       converged_ = outbox_.result.converged && !outbox_.result.cancelled;
       counters_.converged = converged_;
@@ -544,10 +904,35 @@ void FeedbackStage::post_visibility(std::span<const VisibilityResult> results) {
 
 void FeedbackStage::set_strategy(std::unique_ptr<Strategy> strategy) {
   if (!strategy) throw std::invalid_argument("FeedbackStage: no strategy");
+  if (scene_ && dynamic_cast<const SceneStrategy*>(strategy.get()) == nullptr) {
+    throw std::invalid_argument(
+        "FeedbackStage: a per-object strategy on a scene needs a StrategyFactory");
+  }
+  pending_.factory = nullptr;
   strategy_name_ = std::string(strategy->name());
   pending_.specs = strategy->param_specs();
   pending_.strategy = std::move(strategy);
   pending_.params.clear();  // they were meant for the strategy being replaced
+  converged_ = false;
+  if (state_.load(std::memory_order_relaxed) == State::Process) {
+    cancel_.store(true, std::memory_order_relaxed);
+  }
+}
+
+void FeedbackStage::set_strategy(StrategyFactory factory) {
+  if (!factory) throw std::invalid_argument("FeedbackStage: no strategy factory");
+  std::unique_ptr<Strategy> first = factory();
+  if (!first) throw std::invalid_argument("FeedbackStage: the factory made no strategy");
+  if (!scene_) {
+    set_strategy(std::move(first));
+    return;
+  }
+  check_scene_strategy(*first);
+  strategy_name_ = std::string(first->name());
+  pending_.specs = first->param_specs();
+  pending_.strategy = std::move(first);
+  pending_.factory = std::move(factory);
+  pending_.params.clear();
   converged_ = false;
   if (state_.load(std::memory_order_relaxed) == State::Process) {
     cancel_.store(true, std::memory_order_relaxed);
@@ -568,6 +953,7 @@ void FeedbackStage::set_param(std::string_view name, double value) {
 }
 
 void FeedbackStage::set_model(Model model) {
+  if (scene_) throw std::logic_error("FeedbackStage: set_model on a stage made on a scene");
   if (!model.hierarchy || model.hierarchy->empty()) {
     throw std::invalid_argument("FeedbackStage: the model has no hierarchy");
   }

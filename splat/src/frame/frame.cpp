@@ -4,6 +4,7 @@
 #include <glm/geometric.hpp>
 #include <glm/mat3x3.hpp>
 #include <glm/matrix.hpp>
+#include <stdexcept>
 
 namespace treecut::splat {
 
@@ -61,6 +62,8 @@ FrameResult RenderThreadFrame::begin_render_thread(const Camera& camera, const L
       size);
   controller_->set_light(world_light_dir(light, view));
   const FrameLists lists = controller_->begin_frame();
+  if (lists.current.scene != nullptr) return begin_scene(lists);
+  scene_ = nullptr;
   // Another model (FeedbackStage::set_model): its vertices go up before its
   // first list, so no id of one hierarchy is drawn against the other's
   // vertices. follow() then uploads that list plainly: a fade never mixes two
@@ -86,8 +89,58 @@ FrameResult RenderThreadFrame::begin_render_thread(const Camera& camera, const L
   return current_;
 }
 
+FrameResult RenderThreadFrame::begin_scene(const FrameLists& lists) {
+  const StageScene& scene = *lists.current.scene;
+  bool switched = false;
+  if (&scene != scene_) {
+    // Once per scene: the distinct models into the one vertex buffer (unless
+    // the renderer holds exactly these already), the objects' records.
+    models_.clear();
+    for (const auto& m : scene.models) models_.push_back(m.get());
+    bool held = renderer_->model_count() == models_.size();
+    for (std::size_t i = 0; held && i < models_.size(); ++i) {
+      held = renderer_->model_identity(i) == models_[i];
+    }
+    if (!held) renderer_->set_models(models_);
+    std::vector<SceneObjectDraw> draws;
+    draws.reserve(scene.objects.size());
+    for (const StageScene::Object& o : scene.objects) draws.push_back({o.model, o.world});
+    scene_cut_.set_objects(*renderer_, draws);
+    scene_ = &scene;
+    switched = true;
+  }
+  if (switched || lists.current.generation != scene_generation_) {
+    // A new generation: the objects' lists, copied into the GPU buffers now
+    // (the stage may reuse the list after the next exchange).
+    const std::span<const std::uint32_t> off = lists.current.object_offsets;
+    const std::size_t n = scene.objects.size();
+    if (off.size() != n + 1) {
+      throw std::logic_error("a scene list without the layout of its objects");
+    }
+    object_lists_.resize(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      object_lists_[i] = lists.current.nodes.subspan(off[i], off[i + 1] - off[i]);
+    }
+    scene_cut_.upload(models_, object_lists_);
+    scene_generation_ = lists.current.generation;
+  }
+  current_ = FrameResult{};
+  current_.model_switched = switched;
+  if (switched) model_frame_ = controller_->frame();
+  current_.frame = controller_->frame();
+  current_.generation = lists.current.generation;
+  current_.exchanged = lists.exchanged;
+  current_.requested = lists.requested;
+  current_.objects = scene.objects.size();
+  return current_;
+}
+
 FrameResult RenderThreadFrame::draw_render_thread(const Camera& camera,
                                                   const RenderSettings& settings, bool finish) {
+  if (scene_ != nullptr) {
+    current_.stats = renderer_->draw_scene(scene_cut_, camera, settings, finish);
+    return current_;
+  }
   if (executor_ != nullptr) renderer_->set_query_hook(executor_);
   current_.stats = renderer_->draw(cut_, camera, settings, finish);
   if (executor_ != nullptr) {

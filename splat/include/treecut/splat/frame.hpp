@@ -24,6 +24,7 @@
 #include "treecut/splat/gl.hpp"
 #include "treecut/splat/query_executor.hpp"
 #include "treecut/splat/renderer.hpp"
+#include "treecut/splat/scene_draw.hpp"
 #include "treecut/view_snapshot.hpp"
 
 namespace treecut::splat {
@@ -55,6 +56,8 @@ struct FrameResult {
   /// The list drawn this frame is the first of another hierarchy: its
   /// vertices were uploaded (Renderer::set_hierarchy) before it.
   bool model_switched = false;
+  /// A scene's list (FrontList::scene): its objects; 0 for a single model.
+  std::size_t objects = 0;
 };
 
 /// Runs frames of one Controller with one Renderer (render thread only).
@@ -90,6 +93,10 @@ class RenderThreadFrame {
                                 bool finish = false);
 
   [[nodiscard]] const CutBuffer& cut() const { return cut_; }
+  /// A scene's lists on the GPU (empty before a scene's first frame).
+  [[nodiscard]] const SceneCutBuffer& scene_cut() const { return scene_cut_; }
+  /// Whether the current list is a scene's.
+  [[nodiscard]] bool drawing_scene() const { return scene_ != nullptr; }
   [[nodiscard]] Controller& controller() { return *controller_; }
   [[nodiscard]] Renderer& renderer() { return *renderer_; }
   [[nodiscard]] QueryExecutor* executor() { return executor_; }
@@ -97,10 +104,17 @@ class RenderThreadFrame {
   [[nodiscard]] std::uint64_t stale_results() const { return stale_results_; }
 
  private:
+  FrameResult begin_scene(const FrameLists& lists);
+
   Controller* controller_;
   Renderer* renderer_;
   QueryExecutor* executor_;
   CutBuffer cut_;
+  SceneCutBuffer scene_cut_;
+  const StageScene* scene_ = nullptr;                  // the scene set up for (identity only)
+  std::uint64_t scene_generation_ = 0;                 // of the lists in scene_cut_
+  std::vector<const Hierarchy*> models_;               // the scene's models, for upload()
+  std::vector<std::span<const NodeId>> object_lists_;  // reused
   FrameResult current_;
   std::uint64_t model_frame_ = 0;  // the frame that first drew the current model (0: the first)
   std::uint64_t stale_results_ = 0;
