@@ -26,16 +26,19 @@
 //      last 1 x 1).
 //   4. test: every other object in the frustum is occluded when its nearest
 //      depth D_i lies behind every HZM cell its rectangle touches at the
-//      level of Eq. 5 (below), else potentially visible.
+//      level of Eq. 5 (below), else potentially visible; added: one that
+//      test keeps is tested again `finer_levels` levels finer.
 //
 // Why it is conservative (an object the exact reference sees is never
 // culled). The reference: every object's box drawn at full resolution,
 // sampled at pixel centers, front-most wins (reference_visibility()). An
-// occluder writes a cell only where its inner box covers the four corner
-// samples of the cell (the extreme pixel centers in it), and writes the
-// largest eye depth of the inner box's front surface at those samples.
-//   - Covered: the box's silhouette is convex, so it contains every pixel
-//     center of the cell.
+// occluder writes a cell only where its inner box covers the cell's sample
+// points, and writes the largest eye depth of the inner box's front surface
+// at them. One pixel a cell: the sample is the pixel center (exact). Larger
+// cells: the four corners of the cell (kept within the viewport's extreme
+// pixel centers), shared with the neighbours.
+//   - Covered: the box's silhouette is convex, so it contains the square the
+//     corners span and every pixel center of the cell in it.
 //   - Depth: the front surface of a convex body, as eye depth over the
 //     screen, is a monotone function of a convex function (the projective
 //     map (x, y, z) -> (x/z, y/z, -1/z) keeps the body convex and the entry
