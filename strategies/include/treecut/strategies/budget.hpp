@@ -73,9 +73,12 @@ struct BudgetStats {
 };
 
 /// The per-object shares (Eq. 1 with the cap and the integer rounding above)
-/// into `shares` (resized to items.size()). Data-parallel over the objects
-/// on `pool` (nullptr: the calling thread only); the result does not depend
-/// on the thread count.
+/// into `shares` (resized to items.size()). The pass over all objects (the
+/// terms, PET) is data-parallel on `pool` (nullptr: the calling thread
+/// only) and keeps the objects with a term > 0 in index order; the water
+/// filling and the rounding run on that list (the visible objects, a few
+/// thousand of 100,000 in a street view). The result does not depend on the
+/// thread count.
 BudgetStats allocate_budget(std::span<const BudgetItem> items, const BudgetParams& params,
                             std::vector<std::uint32_t>& shares, WorkerPool* pool = nullptr);
 
