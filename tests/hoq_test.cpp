@@ -347,6 +347,39 @@ TEST_F(HoqStrategyTest, FullyVisibleAnswersConvergeToTheSseCut) {
   EXPECT_EQ(s.last().culled + s.last().drawn, got.size());
 }
 
+TEST_F(HoqStrategyTest, BarelyVisibleBlocksStopEarlyUnderVmsseButNotUnderBool) {
+  // 2 % of every proxy unoccluded: B(0.02) = 0.5 * 0.02 + 0.5 * 0.0008 ~ 0.01.
+  auto converge = [&](HoqStrategy& strategy) {
+    FakeExecutor gpu(*h, [](NodeId) { return 0.02f; });
+    const ViewSnapshot fixed = street_view(*h, 0.4f);
+    bool converged = false;
+    for (std::uint64_t frame = 1; frame <= 300 && !converged; ++frame) {
+      ViewSnapshot view = fixed;
+      view.frame = frame;
+      view.version = 1;
+      view.visibility = gpu.due(frame);
+      Step st = iterate(strategy, *h, view);
+      gpu.post(st.queries, frame, view, 2);
+      converged = st.result.converged;
+    }
+    EXPECT_TRUE(converged);
+    return std::vector<BlockId>(strategy.block_cut().begin(), strategy.block_cut().end());
+  };
+  HoqStrategy boolean;
+  boolean.set_param("block_size", 200);
+  boolean.set_param("theta", 2.0);
+  boolean.set_param("bias", 0);
+  boolean.reset(*h);
+  std::vector<BlockId> got = converge(boolean);
+  std::vector<BlockId> expected;
+  sse_cut(boolean.blocks(), *h, street_view(*h, 0.4f), error_radii(boolean.blocks(), *h), 0, 2.0f,
+          expected);
+  std::sort(got.begin(), got.end());
+  std::sort(expected.begin(), expected.end());
+  EXPECT_EQ(got, expected);                        // Bool: the SSE cut, visibility only culls
+  EXPECT_LT(converge(s).size(), expected.size());  // VMSSE: fewer, coarser blocks
+}
+
 TEST_F(HoqStrategyTest, OccludedBlocksStayCoarserThanTheSseCut) {
   // Everything hidden.
   FakeExecutor gpu(*h, [](NodeId) { return 0.0f; });

@@ -158,6 +158,10 @@ HoqStrategy::HoqStrategy()
            "1: a block new in the traversal is refined by its SSE alone (as if visible) until its "
            "first answer; 0: it keeps its level until then",
            1.0, 0.0, 1.0, true},
+          {"bias",
+           "1: VMSSE = B_{s,t}(mu) * SSE; 0: Bool, SSE alone with the answers as visible or not "
+           "(the paper's image reference)",
+           1.0, 0.0, 1.0, true},
       }) {}
 
 void HoqStrategy::build_blocks(const Hierarchy& h) {
@@ -220,7 +224,8 @@ void HoqStrategy::take_answers(const IterationInput& input) {
     const double pixels =
         hoq::proxy_pixels(cam != nullptr ? *cam : current, glm::vec3(sphere), sphere.w);
     const float mu = hoq::relative_visibility(r.samples_passed, pixels);
-    st.bias = hoq::sigmoid_bias(mu, s, t);
+    // Bool (the paper's image reference): the answer only as visible or not.
+    st.bias = param_at(kBias) != 0.0 ? hoq::sigmoid_bias(mu, s, t) : (mu > 0.0f ? 1.0f : 0.0f);
     st.visible = r.samples_passed > 0;
     st.answer_frame = r.frame_issued;
   }

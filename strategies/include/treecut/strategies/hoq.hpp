@@ -167,6 +167,9 @@ class HoqStrategy final : public Strategy {
     /// last frame") is refined by SSE alone, as if visible, while its first
     /// answer is on its way; 0: it keeps its level until then.
     kAssumeVisible,
+    /// 1: VMSSE with the bias; 0: Bool (the paper's scenario and image
+    /// reference): SSE alone, the answers used only as visible or not.
+    kBias,
   };
 
   HoqStrategy();
