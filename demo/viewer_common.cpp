@@ -4,9 +4,11 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <glm/common.hpp>
 #include <glm/geometric.hpp>
 #include <glm/mat3x3.hpp>
 #include <glm/matrix.hpp>
+#include <limits>
 
 #include "treecut/error.hpp"
 #include "treecut/generate.hpp"
@@ -124,8 +126,23 @@ Scene load_scene(const SceneArgs& args, const LoadProgressFn& progress) {
     const std::optional<UpAxis> chosen = parse_up_axis(args.up);
     s.up_axis = chosen ? *chosen : UpAxis{2, false, "a scene (z up)"};
     s.up = s.up_axis.vector();
-    s.bounds_min = scene.bounds_min;
-    s.bounds_max = scene.bounds_max;
+    // The camera fits the objects' points as it fits a model's (its points'
+    // bounds, not Scene::bounds, which adds the splats' reach): the world box
+    // of each model's point bounds, so one object with the identity frames
+    // exactly as its model does.
+    s.bounds_min = glm::vec3(std::numeric_limits<float>::max());
+    s.bounds_max = glm::vec3(std::numeric_limits<float>::lowest());
+    for (const SceneObject& o : scene.objects) {
+      const Hierarchy& m = *scene.models[o.model].hierarchy;
+      for (int c = 0; c < 8; ++c) {
+        const glm::vec3 corner((c & 1) ? m.bounds_max().x : m.bounds_min().x,
+                               (c & 2) ? m.bounds_max().y : m.bounds_min().y,
+                               (c & 4) ? m.bounds_max().z : m.bounds_min().z);
+        const glm::vec3 w(o.world * glm::vec4(corner, 1.0f));
+        s.bounds_min = glm::min(s.bounds_min, w);
+        s.bounds_max = glm::max(s.bounds_max, w);
+      }
+    }
     s.center = 0.5f * (s.bounds_min + s.bounds_max);
     s.radius = std::max(0.5f * glm::length(s.bounds_max - s.bounds_min), 1e-6f);
     return s;

@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <limits>
@@ -587,9 +588,14 @@ void FeedbackStage::process_scene(Outbox& out) {
         v.view = view_.view * o.world;
         v.projection = view_.projection;
         v.viewport = view_.viewport;
+        // The light into model space (a direction: the inverse's linear
+        // part), renormalized only where that changed its length (a rotation
+        // or the identity leaves it bit for bit as the model would see it).
         const glm::vec3 light = glm::mat3(o.world_inverse) * view_.light_dir;
         const float len = glm::length(light);
-        v.light_dir = len > 0.0f ? light / len : view_.light_dir;
+        v.light_dir = !(len > 0.0f)                  ? view_.light_dir
+                      : std::abs(len - 1.0f) > 1e-6f ? light / len
+                                                     : light;
         v.frame = view_.frame;
         v.version = view_.version;
         v.visibility.clear();  // no queries on a scene (see no_queries)
