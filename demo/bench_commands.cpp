@@ -181,6 +181,8 @@ struct OcclusionArgs {
   int width = 1280;
   int height = 720;
   std::uint32_t block_size = strategies::kDefaultBlockSize;
+  bool flush_row = false;
+  std::uint32_t poll_every = 0;  // > 0: a CHC row polling every that many blocks
 };
 
 // One method of the CHC table and what each frame of the path did.
@@ -188,6 +190,7 @@ struct ChcRun {
   std::string method;
   strategies::ChcOptions options;
   std::vector<strategies::ChcFrameStats> frames;
+  bool flush_per_block = false;  // diagnostics: GlOcclusionDevice::set_flush_after_draw
 };
 
 // The paper's table 1 (+ its table 2 rows): means over the frames of the path.
@@ -272,7 +275,7 @@ void run_bench_occlusion(const OcclusionArgs& a) {
   std::printf(
       "path      %s: %d frames over %.1f s; means over the frames (frame ms: glFinish-ed "
       "wall time; wait ms: CPU blocked in query reads)\n",
-      a.path.c_str(), a.frames, path.duration());
+      a.path.c_str(), frames, path.duration());
   std::fflush(stdout);
 
   using strategies::OcclusionMode;
@@ -281,11 +284,22 @@ void run_bench_occlusion(const OcclusionArgs& a) {
       {"CHC", {OcclusionMode::Chc, 0, 0}, {}}, {"Ideal", {OcclusionMode::Ideal, 0, 0}, {}},
       {"CHC", {OcclusionMode::Chc, 2, 0}, {}}, {"CHC", {OcclusionMode::Chc, 0, 25}, {}},
   };
+  // Diagnostics: Ideal with a glFlush after every block, the batches CHC's
+  // polls cut llvmpipe's work into, without any query or wait.
+  if (a.flush_row) {
+    runs.push_back({"Ideal, glFlush per block", {OcclusionMode::Ideal, 0, 0}, {}, true});
+  }
+  if (a.poll_every > 0) {
+    runs.push_back({"CHC, poll every " + std::to_string(a.poll_every) + " blocks",
+                    {OcclusionMode::Chc, 0, 0, a.poll_every},
+                    {}});
+  }
   // Ideal replays, frame by frame, the leaf blocks S&W found visible for the
   // same camera (recorded in the S&W run, which comes first).
   std::vector<std::vector<strategies::BlockId>> sw_sets(cameras.size());
   for (ChcRun& run : runs) {
     strategies::ChcTraversal traversal(blocks, run.options);
+    device.set_flush_after_draw(run.flush_per_block);
     const bool sw = run.options.mode == OcclusionMode::StopAndWait;
     const bool ideal = run.options.mode == OcclusionMode::Ideal;
     auto frame = [&](std::size_t f) {
@@ -381,6 +395,11 @@ void add_bench_commands(CLI::App& app) {
   occlusion->add_option("--width", occ->width, "Width in pixels")->check(CLI::Range(16, 8192));
   occlusion->add_option("--height", occ->height, "Height in pixels")->check(CLI::Range(16, 8192));
   occlusion->add_option("--block-size", occ->block_size, "HLOD block size (splats per block)");
+  occlusion->add_flag("--flush-row", occ->flush_row,
+                      "Add a diagnostic row: Ideal with a glFlush after every block");
+  occlusion->add_option(
+      "--poll-every", occ->poll_every,
+      "Add a CHC row that polls answers every N blocks (ChcOptions::poll_interval)");
   occlusion->callback([occ] { run_bench_occlusion(*occ); });
 }
 

@@ -120,7 +120,9 @@ class FakeDevice final : public OcclusionDeviceRenderThread {
     const Rect r = rect(b);
     std::uint64_t samples = 0;
     for (int i = r.i0; i <= r.i1; ++i)
-      for (int j = r.j0; j <= r.j1; ++j) samples += r.depth <= depth_[i * kRes + j] ? 1 : 0;  // GL_LEQUAL, as the GL device's proxies
+      for (int j = r.j0; j <= r.j1; ++j)
+        samples +=
+            r.depth <= depth_[i * kRes + j] ? 1 : 0;  // GL_LEQUAL, as the GL device's proxies
     return issue(b, samples);
   }
   QueryHandle query_draw_render_thread(BlockId b) override {
@@ -313,21 +315,42 @@ TEST_F(Chc, ChcIsConservativeEveryFrameAndExactOnceTheViewStops) {
 }
 
 TEST_F(Chc, ChcNeverBlocksWhileTheTraversalQueueHasWork) {
-  for (const int latency : {0, 1, 3, 8, 50}) {
-    FakeDevice d(blocks_, latency);
-    ChcTraversal t(blocks_, {OcclusionMode::Chc});
-    d.watch(&t);
-    for (int f = 0; f < 20; ++f) {
-      const glm::vec3 eye(-3, -1.0f + 0.1f * f, 0);
-      d.set_eye(eye);
-      t.frame_render_thread(d, view_from(eye));
+  for (const std::uint32_t interval : {1u, 4u}) {
+    for (const int latency : {0, 1, 3, 8, 50}) {
+      FakeDevice d(blocks_, latency);
+      ChcOptions o;
+      o.poll_interval = interval;
+      ChcTraversal t(blocks_, o);
+      d.watch(&t);
+      for (int f = 0; f < 20; ++f) {
+        const glm::vec3 eye(-3, -1.0f + 0.1f * f, 0);
+        d.set_eye(eye);
+        t.frame_render_thread(d, view_from(eye));
+      }
+      EXPECT_EQ(d.blocked_with_work, 0u) << "latency " << latency << " interval " << interval;
+      if (latency >= 8) {
+        EXPECT_GT(d.blocking_total, 0u) << "the queue ran dry: some reads block";
+      }
+      EXPECT_GT(d.polls, 0u);
     }
-    EXPECT_EQ(d.blocked_with_work, 0u) << "latency " << latency;
-    if (latency >= 8) {
-      EXPECT_GT(d.blocking_total, 0u) << "the queue ran dry: some reads block";
-    }
-    EXPECT_GT(d.polls, 0u);
   }
+}
+
+TEST_F(Chc, APollIntervalPollsLessAndClassifiesTheSameOnAStillView) {
+  std::uint64_t polls[2];
+  std::set<BlockId> drawn[2];
+  const std::uint32_t intervals[2] = {1, 6};
+  for (int i = 0; i < 2; ++i) {
+    FakeDevice d(blocks_, 3);
+    ChcOptions o;
+    o.poll_interval = intervals[i];
+    ChcTraversal t(blocks_, o);
+    for (int f = 0; f < 5; ++f) t.frame_render_thread(d, view_from({-3, 0.2f, 0}));
+    polls[i] = d.polls;
+    drawn[i] = as_set(t.drawn());
+    EXPECT_EQ(drawn[i], truth(d));
+  }
+  EXPECT_LT(polls[1], polls[0]);
 }
 
 TEST_F(Chc, ChcIssuesFewerQueriesThanStopAndWaitOnACoherentSequence) {

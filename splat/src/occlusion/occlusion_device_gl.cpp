@@ -185,6 +185,7 @@ void GlOcclusionDevice::draw_render_thread(strategies::BlockId b) {
   leave_proxy_state();
   const auto count = static_cast<std::uint32_t>(blocks_->representation(b).size());
   renderer_->draw_frame_range(first_[b], count);
+  if (flush_after_draw_) gl::Flush();
   ++stats_.blocks_drawn;
   stats_.splats_drawn += count;
 }

@@ -146,15 +146,21 @@ ChcFrameStats ChcTraversal::frame_render_thread(OcclusionDeviceRenderThread& dev
   ChcFrameStats stats;
   auto heap_cmp = [](const Entry& x, const Entry& y) { return heap_less(x, y); };
 
+  const std::uint32_t interval = std::max<std::uint32_t>(options_.poll_interval, 1);
+  std::uint32_t since_poll = interval;
   device.begin_frame_render_thread();
   device_ = &device;
   push(0, view);
   while (!heap_.empty() || pending_head_ < pending_.size()) {
     // Part 1: answers. Stop-and-wait always waits; CHC reads an answer only
     // when it is available, or when there is nothing else to do.
-    while (pending_head_ < pending_.size() &&
-           (mode == OcclusionMode::StopAndWait || heap_.empty() ||
-            device.result_available_render_thread(pending_[pending_head_].query))) {
+    while (pending_head_ < pending_.size()) {
+      bool read = mode == OcclusionMode::StopAndWait || heap_.empty();
+      if (!read && since_poll >= interval) {
+        read = device.result_available_render_thread(pending_[pending_head_].query);
+        if (!read) since_poll = 0;  // not there: the next poll after `interval` blocks
+      }
+      if (!read) break;
       const Pending p = pending_[pending_head_++];
       const std::uint64_t samples = device.result_render_thread(p.query);
       if (answer_visible(samples)) {
@@ -168,6 +174,7 @@ ChcFrameStats ChcTraversal::frame_render_thread(OcclusionDeviceRenderThread& dev
     std::pop_heap(heap_.begin(), heap_.end(), heap_cmp);
     const Entry e = heap_.back();
     heap_.pop_back();
+    ++since_poll;
     const BlockId b = e.block;
     const Box& box = blocks_->box(b);
     if (!box_in_frustum(box, planes_)) {

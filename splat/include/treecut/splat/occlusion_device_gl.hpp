@@ -66,6 +66,13 @@ class GlOcclusionDevice final : public strategies::OcclusionDeviceRenderThread {
   void end_frame_render_thread(bool finish) override;
   [[nodiscard]] const strategies::DeviceFrameStats& frame_stats() const override { return stats_; }
 
+  /// Diagnostics: a glFlush after every block draw. On llvmpipe the first
+  /// availability poll of a query flushes the batched work (Mesa starts
+  /// rasterizing at a flush), so CHC's polling cuts a frame into many small
+  /// batches; this gives a query-free mode (Ideal) the same cuts, to measure
+  /// what they cost (`treecut bench occlusion`, docs/occlusion.md).
+  void set_flush_after_draw(bool flush) { flush_after_draw_ = flush; }
+
   /// The renderer's stats of the last frame.
   [[nodiscard]] const FrameStats& last_frame() const { return last_frame_; }
   /// Query objects made so far (the pool).
@@ -95,6 +102,7 @@ class GlOcclusionDevice final : public strategies::OcclusionDeviceRenderThread {
   std::vector<std::uint8_t> seen_available_;  // per handle, since its issue
   std::uint64_t pool_growths_ = 0;
   bool proxy_state_ = false;
+  bool flush_after_draw_ = false;
   bool in_frame_ = false;
   strategies::DeviceFrameStats stats_;
   FrameStats last_frame_;

@@ -63,6 +63,11 @@ struct ChcOptions {
   std::uint32_t assume_visible_frames = 0;
   /// n_vp: answers below this many samples count as occluded (0 or 1: exact).
   std::uint64_t min_visible_samples = 0;
+  /// Chc: blocks taken from the traversal queue between two polls of a
+  /// pending answer (1: before every block, the paper's basic form). The
+  /// paper's section 3.6: where the check is costly, ask later. On llvmpipe
+  /// the first poll of a query flushes the batched draws (docs/occlusion.md).
+  std::uint32_t poll_interval = 1;
 };
 
 /// The camera of a frame, as the traversal needs it.
