@@ -233,6 +233,7 @@ void HoqStrategy::take_answers(const IterationInput& input) {
 
 void HoqStrategy::terminal(BlockId b, bool known_invisible) {
   state_[b].stop = true;
+  state_[b].culled = known_invisible;
   cut_.push_back(b);
   ++last_.blocks;
   if (known_invisible) {
@@ -375,14 +376,19 @@ void HoqStrategy::visit(BlockId b, const IterationInput& input, IterationOutput&
       query(b, input, output);
       return;
     case hoq::Prediction::Refine:
-      if (was_terminal) {
-        // Refined because a newer answer raised the bias (the old one would
-        // still stop): the paper's RARN, drawn too coarse from the frame the
-        // answer was issued in to the frame its refinement can be drawn.
-        if (hoq::vmsse(s.stop_bias, sse) <= tau) {
-          ++last_.rarn;
-          last_.rarn_frames += frame_ + 1 - std::min(s.answer_frame, frame_);
-        }
+      if (was_terminal && s.culled) {
+        // Culled (hidden) at its last visit, visible in the newer answer and
+        // needing refinement: a disocclusion, drawn too coarse since that
+        // answer was issued (the same as a Hidden delay resolved to refine).
+        ++last_.late_refined;
+        last_.late_frames += frame_ + 1 - std::min(s.answer_frame, frame_);
+      } else if (was_terminal && hoq::vmsse(s.stop_bias, sse) <= tau) {
+        // Drawn (Stop) and refined because a newer answer raised the bias
+        // (the old one would still stop): the paper's RARN, drawn too coarse
+        // from the frame the answer was issued in to the frame its
+        // refinement can be drawn.
+        ++last_.rarn;
+        last_.rarn_frames += frame_ + 1 - std::min(s.answer_frame, frame_);
       }
       refine();
       return;

@@ -138,8 +138,10 @@ struct HoqCounters {
   /// those frames).
   std::uint64_t rarn = 0;
   std::uint64_t rarn_frames = 0;
-  /// A delayed block (kept at its level while it waited) whose answer said
-  /// refine: drawn too coarse while waiting (late_frames sums the frames).
+  /// A block kept at its level while it waited (delayed) or while it was
+  /// hidden (culled) whose answer said visible and refine: drawn too coarse
+  /// since it entered or since that answer was issued (late_frames sums the
+  /// frames).
   std::uint64_t late_refined = 0;
   std::uint64_t late_frames = 0;
   std::uint64_t refined = 0;    ///< blocks refined now that were not refined in the last iteration
@@ -201,6 +203,7 @@ class HoqStrategy final : public Strategy {
     bool visible = true;             // newest answer (terminal) or pulled up (refined)
     bool stop = false;               // a termination block (in the cut) at its last visit
     bool outside = false;            // culled by the frustum at its last visit
+    bool culled = false;             // a termination block known invisible at its last visit
     Delay delay = Delay::None;
   };
 
