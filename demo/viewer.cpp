@@ -46,15 +46,24 @@ Viewer::Viewer(const ViewArgs& args)
   fit();
   auto strategy = make_strategy(registry_, strategy_, args.scene.params);
   read_params(*strategy);
+  if (scene_.world) strategy.reset();  // a scene makes its own from the factory
   StageOptions stage_options;
   // The stage takes the cycles the render thread and the GL driver leave.
   stage_options.priority = StagePriority::Idle;
   configure_stage(stage_options, args.scene);
   // The stage shares the scene's hierarchy (no copy): the renderer sees the
   // same one in the lists and keeps its vertex buffer.
-  controller_ = std::make_unique<Controller>(
-      Model{scene_.hierarchy, TreeCut::root_cut(*scene_.hierarchy)}, std::move(strategy),
-      splat::view_snapshot(camera_, window_.framebuffer_size(), settings_.light), stage_options);
+  const ViewSnapshot initial =
+      splat::view_snapshot(camera_, window_.framebuffer_size(), settings_.light);
+  if (scene_.world) {
+    // A scene: the stage runs the strategy per object (or a scene-level one).
+    controller_ = std::make_unique<Controller>(scene_.world, strategy_factory(strategy_, true),
+                                               initial, stage_options);
+  } else {
+    controller_ =
+        std::make_unique<Controller>(Model{scene_.hierarchy, TreeCut::root_cut(*scene_.hierarchy)},
+                                     std::move(strategy), initial, stage_options);
+  }
   queries_ = std::make_unique<splat::QueryExecutor>();
   frame_loop_ =
       std::make_unique<splat::RenderThreadFrame>(*controller_, *renderer_, queries_.get());
@@ -145,7 +154,15 @@ int Viewer::run() {
 void Viewer::read_params(const Strategy& s) {
   params_.clear();
   for (const ParamSpec& spec : s.param_specs()) params_.push_back({spec, s.param(spec.name)});
-  governor_ = splat::FrameRateGovernor::for_strategy(s, scene_.hierarchy->node_count());
+  governor_ = splat::FrameRateGovernor::for_strategy(
+      s, scene_.world ? static_cast<std::size_t>(scene_.world->object_nodes())
+                      : scene_.hierarchy->node_count());
+}
+
+StrategyFactory Viewer::strategy_factory(const std::string& name, bool with_params) const {
+  const StrategyRegistry* registry = &registry_;
+  std::vector<std::string> params = with_params ? args_.scene.params : std::vector<std::string>{};
+  return [registry, name, params] { return make_strategy(*registry, name, params); };
 }
 
 void Viewer::set_param_value(const std::string& name, double v) {
@@ -158,7 +175,11 @@ void Viewer::switch_strategy(const std::string& name) {
   auto s = make_strategy(registry_, name, {});
   read_params(*s);
   strategy_ = name;
-  controller_->set_strategy(std::move(s));
+  if (scene_.world) {
+    controller_->set_strategy(strategy_factory(name, false));
+  } else {
+    controller_->set_strategy(std::move(s));
+  }
 }
 
 void Viewer::open_model(const std::string& file) {
@@ -195,6 +216,10 @@ void Viewer::poll_loader() {
                  done->input_error ? "" : "error: ", done->error.c_str());
     return;
   }
+  if (done->scene->world || scene_.world) {
+    replace_stage(std::move(*done->scene));
+    return;
+  }
   const std::shared_ptr<const Hierarchy> h = done->scene->hierarchy;
   // The stage switches at its next request; the window draws the old model
   // until the exchange (RenderThreadFrame uploads the new vertices then).
@@ -220,6 +245,47 @@ void Viewer::adopt_scene() {
   std::printf("opened %s (%zu nodes) after %llu frames of the old model\n", scene_.label.c_str(),
               static_cast<std::size_t>(scene_.hierarchy->node_count()),
               static_cast<unsigned long long>(frame_ - open_frame_));
+  script_opening_ = false;
+}
+
+void Viewer::replace_stage(Scene loaded) {
+  // The stage is made on a model or on a scene for good (set_model refuses a
+  // scene): a new one, and a new frame loop and executor with it. The old
+  // one cancels its iteration and joins its thread here. The HUD's fade
+  // setting carries over.
+  const unsigned blend = controller_->stage().blend_frames();
+  frame_loop_.reset();
+  controller_.reset();
+  queries_.reset();
+  incoming_.reset();
+  scene_ = std::move(loaded);
+  fit();
+  StageOptions stage_options;
+  stage_options.priority = StagePriority::Idle;
+  configure_stage(stage_options, args_.scene);
+  const ViewSnapshot initial =
+      splat::view_snapshot(camera_, window_.framebuffer_size(), settings_.light);
+  if (scene_.world) {
+    controller_ = std::make_unique<Controller>(scene_.world, strategy_factory(strategy_, false),
+                                               initial, stage_options);
+  } else {
+    controller_ = std::make_unique<Controller>(
+        Model{scene_.hierarchy, TreeCut::root_cut(*scene_.hierarchy)},
+        make_strategy(registry_, strategy_, {}), initial, stage_options);
+  }
+  controller_->stage().set_blend_frames(blend);
+  queries_ = std::make_unique<splat::QueryExecutor>();
+  frame_loop_ =
+      std::make_unique<splat::RenderThreadFrame>(*controller_, *renderer_, queries_.get());
+  read_params(*make_strategy(registry_, strategy_, {}));
+  glfwSetWindowTitle(window_.handle(), ("treecut - " + scene_.label).c_str());
+  status_ = "opened " + scene_.label;
+  if (scene_.world) {
+    std::printf("opened %s (%zu objects)\n", scene_.label.c_str(), scene_.world->objects.size());
+  } else {
+    std::printf("opened %s (%zu nodes)\n", scene_.label.c_str(),
+                static_cast<std::size_t>(scene_.hierarchy->node_count()));
+  }
   script_opening_ = false;
 }
 

@@ -79,6 +79,14 @@ class Viewer {
   void poll_loader();
   /// After the frame that first drew the new model: the scene is its.
   void adopt_scene();
+  /// A new stage for `loaded`: a scene file (its own stage, strategy
+  /// instances per object) or a model after a scene. Blocks this frame.
+  void replace_stage(Scene loaded);
+  /// Instances of strategy `name` with the command line's parameters (a
+  /// scene's stage calls it per object, on its thread; it reads only what
+  /// never changes after construction).
+  [[nodiscard]] StrategyFactory strategy_factory(const std::string& name,
+                                                 bool with_params) const;
 
   // viewer_input.cpp: camera controls.
   void fit();

@@ -17,6 +17,10 @@ void Viewer::hud(const splat::FrameStats& stats) {
   ImGui::Begin("treecut", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
   const StageCounters& c = controller_->stage().counters();
   ImGui::Text("%s", scene_.label.c_str());
+  if (scene_.world) {
+    ImGui::Text("scene: %zu objects of %zu models, %zu draw calls", scene_.world->objects.size(),
+                scene_.world->models.size(), stats.draw_calls);
+  }
   models_panel();
   if (scene_.up_axis.reason.empty()) {
     ImGui::Text("up %s  (U: next axis)", scene_.up_axis.name().c_str());

@@ -12,7 +12,8 @@ namespace treecut::cli {
 
 void Viewer::fit() {
   const glm::ivec2 size = window_.framebuffer_size();
-  camera_ = splat::default_camera(scene_.hierarchy->bounds_min(), scene_.hierarchy->bounds_max(),
+  // A model's bounds, or a scene's (load_scene fills both).
+  camera_ = splat::default_camera(scene_.bounds_min, scene_.bounds_max,
                                   float(size.x) / float(std::max(size.y, 1)), scene_.up);
 }
 
