@@ -295,25 +295,30 @@ void run_bench_occlusion(const OcclusionArgs& a) {
                     {}});
   }
   // Ideal replays, frame by frame, the leaf blocks S&W found visible for the
-  // same camera (recorded in the S&W run, which comes first).
-  std::vector<std::vector<strategies::BlockId>> sw_sets(cameras.size());
-  for (ChcRun& run : runs) {
-    strategies::ChcTraversal traversal(blocks, run.options);
+  // same camera (S&W's frame runs just before).
+  std::vector<strategies::BlockId> sw_set;
+  // Each method has its own traversal (its own previous frames), and the
+  // methods take turns frame by frame: every method sees the path in order,
+  // and a change of the machine's load (other processes on the 2 cores)
+  // falls on all of them alike instead of on whichever ran then.
+  std::vector<strategies::ChcTraversal> traversals;
+  for (const ChcRun& run : runs) traversals.emplace_back(blocks, run.options);
+  auto frame = [&](std::size_t r, std::size_t f) {
+    const ChcRun& run = runs[r];
     device.set_flush_after_draw(run.flush_per_block);
-    const bool sw = run.options.mode == OcclusionMode::StopAndWait;
-    const bool ideal = run.options.mode == OcclusionMode::Ideal;
-    auto frame = [&](std::size_t f) {
-      device.set_view_render_thread(cameras[f], settings);
-      if (ideal) traversal.set_ideal_leaves(sw_sets[f]);
-      const auto stats =
-          traversal.frame_render_thread(device, splat::occlusion_view(cameras[f], size), true);
-      if (sw) sw_sets[f] = traversal.drawn();
-      return stats;
-    };
-    // One untimed frame at the first camera: the GPU's caches warm, and CHC
-    // starts the path with a previous frame as it would in a walk.
-    (void)frame(0);
-    for (std::size_t f = 0; f < cameras.size(); ++f) run.frames.push_back(frame(f));
+    device.set_view_render_thread(cameras[f], settings);
+    if (run.options.mode == OcclusionMode::Ideal) traversals[r].set_ideal_leaves(sw_set);
+    const auto stats =
+        traversals[r].frame_render_thread(device, splat::occlusion_view(cameras[f], size), true);
+    if (run.options.mode == OcclusionMode::StopAndWait) sw_set = traversals[r].drawn();
+    return stats;
+  };
+  // One untimed frame at the first camera: the GPU's caches warm, and CHC
+  // starts the path with a previous frame as it would in a walk. S&W comes
+  // before Ideal in `runs`: Ideal replays the set S&W found for this camera.
+  for (std::size_t r = 0; r < runs.size(); ++r) (void)frame(r, 0);
+  for (std::size_t f = 0; f < cameras.size(); ++f) {
+    for (std::size_t r = 0; r < runs.size(); ++r) runs[r].frames.push_back(frame(r, f));
   }
   print_chc_table(runs);
 }

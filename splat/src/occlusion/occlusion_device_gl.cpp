@@ -14,16 +14,26 @@ namespace treecut::splat {
 
 namespace {
 
-// The unit cube as one triangle strip of 14 vertices, every face covered.
+// The unit cube's six faces as 12 triangles, counter-clockwise seen from
+// outside: with back faces culled, a box the eye is outside of covers each
+// pixel of its projection once, so its samples are its unoccluded pixels (the
+// paper's n_vp counts pixels) and it costs one fill, not two.
 constexpr const char* kProxyVertex = R"(#version 450 core
 uniform mat4 u_view_proj;
 uniform vec3 u_lo;
 uniform vec3 u_hi;
-const vec3 k_strip[14] = vec3[](
-    vec3(0, 1, 1), vec3(1, 1, 1), vec3(0, 0, 1), vec3(1, 0, 1), vec3(1, 0, 0), vec3(1, 1, 1),
-    vec3(1, 1, 0), vec3(0, 1, 1), vec3(0, 1, 0), vec3(0, 0, 1), vec3(0, 0, 0), vec3(1, 0, 0),
-    vec3(0, 1, 0), vec3(1, 1, 0));
-void main() { gl_Position = u_view_proj * vec4(mix(u_lo, u_hi, k_strip[gl_VertexID]), 1.0); }
+const vec3 k_quads[24] = vec3[](
+    vec3(1, 0, 0), vec3(1, 1, 0), vec3(1, 1, 1), vec3(1, 0, 1),   // +x
+    vec3(0, 0, 0), vec3(0, 0, 1), vec3(0, 1, 1), vec3(0, 1, 0),   // -x
+    vec3(0, 1, 0), vec3(0, 1, 1), vec3(1, 1, 1), vec3(1, 1, 0),   // +y
+    vec3(0, 0, 0), vec3(1, 0, 0), vec3(1, 0, 1), vec3(0, 0, 1),   // -y
+    vec3(0, 0, 1), vec3(1, 0, 1), vec3(1, 1, 1), vec3(0, 1, 1),   // +z
+    vec3(0, 0, 0), vec3(0, 1, 0), vec3(1, 1, 0), vec3(1, 0, 0));  // -z
+const int k_corner[6] = int[](0, 1, 2, 0, 2, 3);
+void main() {
+  const vec3 k = k_quads[4 * (gl_VertexID / 6) + k_corner[gl_VertexID % 6]];
+  gl_Position = u_view_proj * vec4(mix(u_lo, u_hi, k), 1.0);
+}
 )";
 
 constexpr const char* kProxyFragment = R"(#version 450 core
@@ -112,6 +122,8 @@ void GlOcclusionDevice::enter_proxy_state() {
   gl::DepthMask(GL_FALSE);
   gl::DepthFunc(GL_LEQUAL);
   gl::Enable(GL_DEPTH_CLAMP);
+  gl::Enable(
+      GL_CULL_FACE);  // GL's defaults: back faces culled, CCW front (nothing here changes them)
   gl::BindVertexArray(proxy_vao_.id());
   gl::UseProgram(proxy_.id());
   proxy_state_ = true;
@@ -121,6 +133,7 @@ void GlOcclusionDevice::leave_proxy_state() {
   if (!proxy_state_) return;
   // Masks, depth function, program and vertex array: draw_frame_range sets its own.
   gl::Disable(GL_DEPTH_CLAMP);
+  gl::Disable(GL_CULL_FACE);
   proxy_state_ = false;
 }
 
@@ -142,7 +155,7 @@ strategies::QueryHandle GlOcclusionDevice::query_box_render_thread(strategies::B
   gl::ProgramUniform3f(proxy_.id(), u_hi_, box.hi.x, box.hi.y, box.hi.z);
   const strategies::QueryHandle q = acquire();
   pool_[q].begin();
-  gl::DrawArrays(GL_TRIANGLE_STRIP, 0, 14);
+  gl::DrawArrays(GL_TRIANGLES, 0, 36);
   pool_[q].end();
   ++stats_.queries;
   return q;

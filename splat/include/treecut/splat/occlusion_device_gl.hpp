@@ -7,11 +7,13 @@
 // - One element buffer holds every block's representation (the HlodBlocks'
 //   concatenated ranges), uploaded once: drawing a block is one
 //   glDrawElements of its range, no per-frame upload.
-// - Box proxies: one empty vertex array and a 14-vertex triangle strip of the
-//   unit cube made in the vertex shader (gl_VertexID), scaled to the box by
-//   two uniforms; color and depth writes off, GL_LEQUAL, depth clamping on (a
-//   box crossing the far plane still counts its pixels; boxes at the near
-//   plane never get here: the traversal takes them as visible).
+// - Box proxies: one empty vertex array and the unit cube's 12 triangles made
+//   in the vertex shader (gl_VertexID), scaled to the box by two uniforms;
+//   back faces culled (the eye is outside every queried box: boxes at the
+//   near plane never get here, the traversal takes them as visible), so the
+//   samples are the box's unoccluded pixels; color and depth writes off,
+//   GL_LEQUAL, depth clamping on (a box crossing the far plane still counts
+//   its pixels).
 // - A pool of GL_SAMPLES_PASSED query objects made once (grown only if a
 //   frame has more queries in flight than ever before): no GL object is
 //   created per frame in a steady state.
