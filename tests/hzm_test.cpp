@@ -492,6 +492,14 @@ TEST(Hzm, worker_pool_runs_every_chunk_once_and_rethrows) {
   std::atomic<int> n{0};
   pool.run(100, 1, [&](std::size_t, std::size_t, std::size_t) { ++n; });
   EXPECT_EQ(n.load(), 100);
+  // Many small jobs in a row: a worker that wakes after its job is done
+  // must not run a chunk of the next one with the old body.
+  for (int round = 0; round < 5000; ++round) {
+    std::vector<int> hits(3, 0);
+    // (An old body would bump a destroyed vector: ASan; and leave these at 0.)
+    pool.run(3, 1, [&hits](std::size_t b, std::size_t, std::size_t) { ++hits[b]; });
+    ASSERT_EQ(hits, (std::vector<int>{1, 1, 1})) << "round " << round;
+  }
 }
 
 }  // namespace

@@ -155,17 +155,17 @@ WorkerPool::WorkerPool(unsigned threads) {
   workers_.reserve(n - 1);
   for (unsigned i = 1; i < n; ++i) {
     workers_.emplace_back([this] {
-      std::uint64_t seen = 0;
+      std::uint32_t seen = 0;
       for (;;) {
+        Job job;
         {
           std::unique_lock lock(mutex_);
-          wake_.wait(lock, [&] { return stop_ || generation_ != seen; });
+          wake_.wait(lock, [&] { return stop_ || job_.generation != seen; });
           if (stop_) return;
-          seen = generation_;
+          job = job_;
+          seen = job.generation;
         }
-        take_chunks();
-        std::lock_guard lock(mutex_);
-        if (--busy_ == 0) done_.notify_one();
+        take_chunks(job);
       }
     });
   }
@@ -180,36 +180,49 @@ WorkerPool::~WorkerPool() {
   for (std::thread& t : workers_) t.join();
 }
 
-void WorkerPool::take_chunks() {
+void WorkerPool::take_chunks(const Job& job) {
+  const std::uint64_t tag = std::uint64_t{job.generation} << 32;
   for (;;) {
-    const std::size_t c = next_.fetch_add(1, std::memory_order_relaxed);
-    if (c >= chunks_) return;
+    std::uint64_t v = next_.load(std::memory_order_relaxed);
+    std::uint32_t c = 0;
+    do {
+      if ((v & ~std::uint64_t{0xffffffffu}) != tag) return;  // a newer job
+      c = static_cast<std::uint32_t>(v);
+      if (c >= job.chunks) return;
+    } while (!next_.compare_exchange_weak(v, v + 1, std::memory_order_relaxed));
     try {
-      fn_(ctx_, c);
+      job.fn(job.ctx, c);
     } catch (...) {
       std::lock_guard lock(mutex_);
       if (!error_) error_ = std::current_exception();
+    }
+    // The last chunk wakes the caller; release: its results are visible.
+    if (completed_.fetch_add(1, std::memory_order_acq_rel) + 1 == job.chunks) {
+      std::lock_guard lock(mutex_);
+      done_.notify_all();
     }
   }
 }
 
 void WorkerPool::dispatch(std::size_t chunks, ChunkFn fn, void* ctx) {
+  Job job;
   {
     std::lock_guard lock(mutex_);
-    fn_ = fn;
-    ctx_ = ctx;
-    chunks_ = chunks;
-    next_.store(0, std::memory_order_relaxed);
-    busy_ = static_cast<unsigned>(workers_.size());
+    job.fn = fn;
+    job.ctx = ctx;
+    job.chunks = static_cast<std::uint32_t>(chunks);
+    job.generation = job_.generation + 1;
+    completed_.store(0, std::memory_order_relaxed);
+    next_.store(std::uint64_t{job.generation} << 32, std::memory_order_relaxed);
     error_ = nullptr;
-    ++generation_;
+    job_ = job;
   }
   wake_.notify_all();
-  take_chunks();
+  take_chunks(job);
   std::exception_ptr error;
   {
     std::unique_lock lock(mutex_);
-    done_.wait(lock, [&] { return busy_ == 0; });
+    done_.wait(lock, [&] { return completed_.load(std::memory_order_acquire) == job.chunks; });
     error = error_;
     error_ = nullptr;
   }

@@ -238,22 +238,28 @@ class WorkerPool {
 
  private:
   using ChunkFn = void (*)(void*, std::size_t);
+  struct Job {
+    ChunkFn fn = nullptr;
+    void* ctx = nullptr;
+    std::uint32_t chunks = 0;
+    std::uint32_t generation = 0;
+  };
   void dispatch(std::size_t chunks, ChunkFn fn, void* ctx);
-  void work(std::uint64_t generation);
-  void take_chunks();
+  // Claims and runs chunks of `job` until none is left or a newer job began.
+  void take_chunks(const Job& job);
 
   std::vector<std::thread> workers_;
   std::mutex mutex_;
   std::condition_variable wake_;
   std::condition_variable done_;
-  std::uint64_t generation_ = 0;  // guarded by mutex_
-  unsigned busy_ = 0;             // workers still in the current job, guarded
-  bool stop_ = false;             // guarded
-  // The current job; written under mutex_ before the generation is bumped.
-  ChunkFn fn_ = nullptr;
-  void* ctx_ = nullptr;
-  std::size_t chunks_ = 0;
-  std::atomic<std::size_t> next_{0};
+  bool stop_ = false;  // guarded by mutex_
+  Job job_;            // the current job, guarded (workers copy it)
+  // generation << 32 | next chunk: a worker that wakes late cannot claim a
+  // chunk of a newer job with an older job's function.
+  std::atomic<std::uint64_t> next_{0};
+  // Chunks of the current job finished; the caller returns when all are,
+  // without waiting for workers that never woke (a loaded machine).
+  std::atomic<std::uint32_t> completed_{0};
   std::exception_ptr error_;  // guarded
 };
 
