@@ -1,7 +1,8 @@
 // A plugin with a strategy that posts GPU queries (built by
-// tests/plugin.cmake): none of the built-in strategies does, and
-// render_command_test needs one to see the query columns of stats.csv and the
-// queries block of summary.json filled in by a real run.
+// tests/plugin.cmake): render_command_test needs one with a fixed, known set
+// of requests to see the query columns of stats.csv and the queries block of
+// summary.json filled in by a real run (the built-in `hoq` queries too, but
+// what it asks depends on its answers).
 #include <cstdint>
 #include <memory>
 #include <string>
