@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "strategy_fixtures.hpp"
+#include "treecut/feedback_stage.hpp"
 #include "treecut/tree_cut.hpp"
 
 namespace {
@@ -493,6 +494,67 @@ TEST_F(HoqStrategyTest, AssumingVisibleTheFirstIterationIsTheSseCutWithEveryBloc
   EXPECT_EQ(s.last().drawn, drawn);
   EXPECT_EQ(s.last().delayed, drawn_interior);
   EXPECT_EQ(st.queries.size(), drawn);
+}
+
+TEST(HoqStage, AnswersPostedToTheStageReachTheStrategyAndEveryListIsValid) {
+  // The Feedback Stage driven synchronously, the test as the render thread:
+  // each new list's queries are answered one frame after it is first drawn
+  // (western half hidden), through post_visibility, as the executor does.
+  const auto h = treecut::test::small_hierarchy(ModelKind::City, 20000);
+  auto owned = std::make_unique<HoqStrategy>();
+  owned->set_param("block_size", 200);
+  owned->set_param("theta", 2.0);
+  const HoqStrategy* hoq_strategy = owned.get();
+  treecut::StageOptions options;
+  options.launch = treecut::Launch::Manual;
+  treecut::FeedbackStage stage(treecut::Model{h, TreeCut::root_cut(*h)}, std::move(owned), options);
+  const float mid = 0.5f * (h->bounds_min().x + h->bounds_max().x);
+  std::vector<VisibilityResult> next;
+  std::uint64_t generation = 0, lists = 0;
+  for (int frame = 0; frame < 150; ++frame) {
+    ViewSnapshot view = street_view(*h, float(frame) / 80.0f);
+    view.version = std::uint64_t(frame) + 1;
+    stage.set_view(view);
+    const treecut::FrameLists f = stage.poll();
+    if (!next.empty()) {
+      stage.post_visibility(next);  // read in this frame: issued in the last one
+      next.clear();
+    }
+    if (f.current.generation != generation) {
+      generation = f.current.generation;
+      ASSERT_EQ(TreeCut::validate(*h, f.current.nodes), "") << "generation " << generation;
+      ++lists;
+      const hoq::QueryCamera cam{view.view, view.projection, view.viewport};
+      for (const QueryRequest& q : f.current.queries) {
+        const glm::vec4 sp = h->arrays().center_radius[q.node];
+        const double pixels = hoq::proxy_pixels(cam, glm::vec3(sp), sp.w);
+        const bool hidden = sp.x < mid;
+        VisibilityResult r;
+        r.object = q.object;
+        r.node = q.node;
+        r.tag = q.tag;
+        r.samples_passed =
+            hidden ? 0u : std::uint32_t(pixels < 0.0 ? 640.0 * 360.0 : std::max(1.0, pixels));
+        r.frame_issued = stage.frame();
+        r.frame_read = stage.frame() + 1;
+        r.kind = q.kind;
+        next.push_back(r);
+      }
+    }
+    stage.step();
+  }
+  EXPECT_EQ(stage.counters().errors, 0u) << stage.counters().last_error;
+  EXPECT_GT(lists, 50u);
+  const treecut::strategies::HoqCounters& t = hoq_strategy->totals();
+  EXPECT_GT(t.queries, 0u);
+  EXPECT_GT(t.answers, 0u);
+  EXPECT_LE(t.answers, t.queries);
+  EXPECT_GT(t.culled, 0u);  // the hidden half
+  EXPECT_GT(t.drawn, 0u);
+  // Each answer is at least the two frames old the stage makes it: issued
+  // in frame X, posted in X + 1 after that frame's request, taken by the
+  // iteration requested in X + 2.
+  EXPECT_GE(t.answer_age_frames, 2 * t.answers);
 }
 
 TEST_F(HoqStrategyTest, ABlockSizeChangeRebuildsTheBlocks) {
