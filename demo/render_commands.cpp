@@ -80,6 +80,14 @@ void run_render(const RenderArgs& a) {
     path = splat::orbit_path(scene.bounds_min, scene.bounds_max, aspect, a.orbit_seconds, 73,
                              scene.up);
   if (world) {
+    // Past the per-object limit: refused before any output, naming the file.
+    for (const std::string& name : a.scene.strategies) {
+      if (const std::string why =
+              per_object_limit_problem(*world, *make_strategy(registry, name, {}));
+          !why.empty()) {
+        throw InputError(a.scene.model + ": " + why);
+      }
+    }
     std::printf("scene     %s: %zu objects of %zu models, %llu points at full detail\n",
                 scene.label.c_str(), world->objects.size(), world->models.size(),
                 static_cast<unsigned long long>(scene.instanced_points));

@@ -46,7 +46,12 @@ Viewer::Viewer(const ViewArgs& args)
   fit();
   auto strategy = make_strategy(registry_, strategy_, args.scene.params);
   read_params(*strategy);
-  if (scene_.world) strategy.reset();  // a scene makes its own from the factory
+  if (scene_.world) {
+    if (const std::string why = per_object_limit_problem(*scene_.world, *strategy); !why.empty()) {
+      throw InputError(args.scene.model + ": " + why);
+    }
+    strategy.reset();  // a scene makes its own from the factory
+  }
   StageOptions stage_options;
   // The stage takes the cycles the render thread and the GL driver leave.
   stage_options.priority = StagePriority::Idle;
@@ -215,6 +220,22 @@ void Viewer::poll_loader() {
     std::fprintf(stderr, "treecut: %s%s\n",
                  done->input_error ? "" : "error: ", done->error.c_str());
     return;
+  }
+  if (done->scene->world) {
+    // A scene too large for per-object instances of this strategy: a failed
+    // open like any other (the old model or scene stays).
+    if (std::string why =
+            per_object_limit_problem(*done->scene->world, *make_strategy(registry_, strategy_, {}));
+        !why.empty()) {
+      done->error = done->file + ": " + why;
+      done->input_error = true;
+      done->scene.reset();
+      load_error_ = done->error;
+      script_opening_ = false;
+      if (!script_.empty()) throw InputError(done->error);
+      std::fprintf(stderr, "treecut: %s\n", done->error.c_str());
+      return;
+    }
   }
   if (done->scene->world || scene_.world) {
     replace_stage(std::move(*done->scene));

@@ -7,7 +7,8 @@
 //    union cut and the points of every object, summary.json counts the
 //    objects and one draw call per pass, however many objects;
 //  - a generated city block along its walk renders;
-//  - a malformed scene is exit code 2 and one line naming FILE:LINE.
+//  - a malformed scene is exit code 2 and one line naming FILE:LINE, and so
+//    is a per-object strategy past its limit (before any output).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -213,6 +214,22 @@ TEST(SceneRender, AMalformedSceneIsExitTwoAndOneLineNamingFileAndLine) {
   EXPECT_EQ(r2.code, 2) << r2.out;
   EXPECT_EQ(count_lines(r2.out), 1u) << r2.out;
   EXPECT_NE(r2.out.find("bad2.scene:2: "), std::string::npos) << r2.out;
+}
+
+TEST(SceneRender, PerObjectStrategiesPastTheLimitAreRefusedBeforeAnyOutput) {
+  // 1,900 instances of a model of 100,000 points: more than 2^28 nodes of
+  // per-object state in all (kMaxPerObjectNodes).
+  const fs::path dir = treecut::test::scratch_dir("scene_render_limit");
+  std::string text = "treecut-scene 1\ngenerate big building 3 100000\n";
+  for (int i = 0; i < 1900; ++i) text += "object big translate " + std::to_string(i) + " 0 0\n";
+  write_text(dir / "big.scene", text);
+  const fs::path out = dir / "out";
+  const auto r = run_treecut("render " + quote(dir / "big.scene") + " --frames 2 -o " + quote(out));
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_EQ(count_lines(r.out), 1u) << r.out;
+  EXPECT_NE(r.out.find("big.scene: a scene of 1900 objects"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("use a scene-level strategy"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(out));
 }
 
 }  // namespace

@@ -77,6 +77,13 @@ std::shared_ptr<const StageScene> stage_scene(const Scene& scene);
 /// is destroyed or given another factory.
 using StrategyFactory = std::function<std::unique_ptr<Strategy>()>;
 
+/// Why `strategy` cannot run on `scene`, or empty: a per-object strategy
+/// (one that is not a SceneStrategy) past kMaxPerObjectNodes nodes in all.
+/// One line, naming the scene's size and the way out; the stage throws it
+/// as an InputError, a program may check it before any work.
+[[nodiscard]] std::string per_object_limit_problem(const StageScene& scene,
+                                                   const Strategy& strategy);
+
 enum class Launch {
   Thread,  ///< the stage runs its own thread
   Manual,  ///< no thread: the owner calls step() (synchronous tests)

@@ -256,15 +256,21 @@ FeedbackStage::FeedbackStage(std::shared_ptr<const StageScene> scene,
 // Render thread (constructor, set_strategy): per-object instances are state
 // for every node of every object; refused past the limit, before any is made.
 void FeedbackStage::check_scene_strategy(const Strategy& probe) const {
-  if (dynamic_cast<const SceneStrategy*>(&probe) != nullptr) return;
-  const std::uint64_t nodes = scene_->object_nodes();
-  if (nodes <= kMaxPerObjectNodes) return;
-  throw InputError("a scene of " + std::to_string(scene_->objects.size()) + " objects and " +
-                   std::to_string(nodes) +
-                   " nodes in all: " + describe_strategy(probe.name(), probe.origin()) +
-                   " runs once per object, at most " + std::to_string(kMaxPerObjectNodes) +
-                   " nodes in all; use a scene-level strategy (SceneStrategy, e.g. 'budget') "
-                   "or models of fewer points");
+  if (std::string why = per_object_limit_problem(*scene_, probe); !why.empty()) {
+    throw InputError(why);
+  }
+}
+
+std::string per_object_limit_problem(const StageScene& scene, const Strategy& probe) {
+  if (dynamic_cast<const SceneStrategy*>(&probe) != nullptr) return {};
+  const std::uint64_t nodes = scene.object_nodes();
+  if (nodes <= kMaxPerObjectNodes) return {};
+  return ("a scene of " + std::to_string(scene.objects.size()) + " objects and " +
+          std::to_string(nodes) +
+          " nodes in all: " + describe_strategy(probe.name(), probe.origin()) +
+          " runs once per object, at most " + std::to_string(kMaxPerObjectNodes) +
+          " nodes in all; use a scene-level strategy (SceneStrategy, e.g. 'budget') "
+          "or models of fewer points");
 }
 
 // The instances a scene runs: `first` and, for a per-object strategy, one
