@@ -12,7 +12,9 @@
 //  - the per-object limit (kMaxPerObjectNodes) is an InputError naming the
 //    way out, a scene-level strategy on the same scene is accepted;
 //  - a strategy that asks for GPU queries on a scene fails with a
-//    StrategyError saying so (never answered for the wrong place).
+//    StrategyError saying so (never answered for the wrong place);
+//  - a strategy switch whose factory fails midway is a StrategyError and
+//    the strategy before goes on.
 // Runs under TSan in CI (the name ends in _threaded_test).
 #include <gtest/gtest.h>
 
@@ -22,6 +24,7 @@
 #include <cmath>
 #include <glm/gtc/matrix_transform.hpp>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <thread>
 #include <vector>
@@ -313,6 +316,40 @@ TEST(SceneStage, AStrategySwitchMakesItsInstancesOnTheStageAndKeepsTheLayout) {
   EXPECT_EQ(controller.stage().counters().errors, 0u) << controller.stage().counters().last_error;
   // set_param reaches every instance: a parameter of the recursive strategy.
   EXPECT_THROW(controller.set_param("no_such_parameter", 1.0), InputError);
+}
+
+TEST(SceneStage, AFactoryFailingMidwayLeavesTheStrategyBefore) {
+  const std::shared_ptr<const StageScene> scene = row_scene(8);
+  StageOptions options;
+  options.launch = Launch::Manual;
+  FeedbackStage stage(
+      scene, [] { return std::make_unique<strategies::OptimizationStrategy>(); }, options);
+  converge(stage, camera_at(0.2f));
+  int calls = 0;
+  // The probe (render thread) and two more on the stage, then a throw.
+  stage.set_strategy(StrategyFactory([&]() -> std::unique_ptr<Strategy> {
+    if (++calls > 3) throw std::runtime_error("no more instances");
+    return std::make_unique<strategies::RecursiveStrategy>();
+  }));
+  ViewSnapshot v = camera_at(0.4f);
+  v.version = 7;
+  stage.set_view(v);
+  (void)stage.poll();
+  ASSERT_TRUE(stage.step());
+  EXPECT_THROW((void)stage.poll(), StrategyError);
+  EXPECT_EQ(layout_problem(stage.front(), *scene, true), "");
+  // The optimization instances go on: the next iterations succeed.
+  for (int i = 0; i < 5; ++i) {
+    v = camera_at(0.4f + 0.05f * float(i));
+    v.version = 8 + static_cast<std::uint64_t>(i);
+    stage.set_view(v);
+    (void)stage.poll();
+    (void)stage.step();
+  }
+  (void)stage.poll();
+  EXPECT_EQ(stage.counters().errors, 1u) << stage.counters().last_error;
+  EXPECT_EQ(layout_problem(stage.front(), *scene, true), "");
+  EXPECT_EQ(stage.counters().objects_last, 8u);
 }
 
 }  // namespace

@@ -413,6 +413,7 @@ class FeedbackStage {
   std::vector<SceneObjectInput> scene_inputs_;
   std::vector<std::unique_ptr<Strategy>> object_strategies_;
   SceneStrategy* scene_strategy_ = nullptr;
+  std::unique_ptr<Strategy> failed_first_;  // see make_object_strategies
   std::vector<TreeCut> object_cuts_;
   std::vector<float> object_size_factor_[2];  // pixel_scale factors: [0] ortho, [1] perspective
   std::vector<NodeId> object_nodes_;

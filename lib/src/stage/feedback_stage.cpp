@@ -277,23 +277,35 @@ std::string per_object_limit_problem(const StageScene& scene, const Strategy& pr
 // more from `factory` per further object, each reset for its model.
 void FeedbackStage::make_object_strategies(std::unique_ptr<Strategy> first,
                                            const StrategyFactory& factory) {
-  object_strategies_.clear();
-  scene_strategy_ = dynamic_cast<SceneStrategy*>(first.get());
-  object_strategies_.push_back(std::move(first));
-  if (scene_strategy_ != nullptr) {
-    scene_strategy_->reset_scene(scene_inputs_);
-    return;
+  // Made aside and swapped in whole: a factory or reset that throws leaves
+  // the instances of the strategy before (the iteration fails, the next
+  // one runs them). The first instance outlives such a failure: the render
+  // thread names it if the destructor waits for an iteration (running_).
+  std::vector<std::unique_ptr<Strategy>> made;
+  SceneStrategy* scene_level = dynamic_cast<SceneStrategy*>(first.get());
+  made.push_back(std::move(first));
+  try {
+    if (scene_level != nullptr) {
+      scene_level->reset_scene(scene_inputs_);
+    } else {
+      const std::size_t n = scene_inputs_.size();
+      made.reserve(n);
+      for (std::size_t i = 1; i < n; ++i) {
+        std::unique_ptr<Strategy> s = factory ? factory() : nullptr;
+        if (!s) {
+          throw std::runtime_error("the strategy factory made no instance for object " +
+                                   std::to_string(i));
+        }
+        made.push_back(std::move(s));
+      }
+      for (std::size_t i = 0; i < n; ++i) made[i]->reset(*scene_inputs_[i].hierarchy);
+    }
+  } catch (...) {
+    failed_first_ = std::move(made.front());
+    throw;
   }
-  const std::size_t n = scene_inputs_.size();
-  object_strategies_.reserve(n);
-  for (std::size_t i = 1; i < n; ++i) {
-    std::unique_ptr<Strategy> s = factory ? factory() : nullptr;
-    if (!s)
-      throw std::runtime_error("the strategy factory made no instance for object " +
-                               std::to_string(i));
-    object_strategies_.push_back(std::move(s));
-  }
-  for (std::size_t i = 0; i < n; ++i) object_strategies_[i]->reset(*scene_inputs_[i].hierarchy);
+  object_strategies_.swap(made);
+  scene_strategy_ = scene_level;
 }
 
 FeedbackStage::~FeedbackStage() {
