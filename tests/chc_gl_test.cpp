@@ -8,8 +8,11 @@
 //    GL_QUERY_RESULT_AVAILABLE said true for that query, or in a read the
 //    device counts as a blocking wait (interposed entry points; availability
 //    is hidden from the device for a while to make the check live);
-//  - no GL object is made per frame once the pool is warm.
+//  - no GL object is made per frame once the pool is warm;
+//  - `treecut bench occlusion`: the table's rows, and bad input refused with
+//    one line and exit code 2.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <algorithm>
 #include <cmath>
@@ -19,6 +22,7 @@
 #include <utility>
 #include <vector>
 
+#include "test_support.hpp"
 #include "treecut/attributes.hpp"
 #include "treecut/generate.hpp"
 #include "treecut/hierarchy.hpp"
@@ -265,6 +269,50 @@ TEST_P(ChcGlQueries, NeverReadsAResultBeforeItWasSeenAvailableUnlessItCountsTheW
 
 INSTANTIATE_TEST_SUITE_P(Scenes, ChcGlQueries, ::testing::Values(SceneCase{ModelKind::City, 60000}),
                          [](const auto&) { return "city"; });
+
+int count(const std::string& text, const std::string& what) {
+  int n = 0;
+  for (std::size_t at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
+  return n;
+}
+
+TEST(BenchOcclusion, PrintsTheChcTableOfAWalk) {
+  const auto dir = test::scratch_dir("bench_occlusion");
+  const auto model = dir / "city.ply";
+  ASSERT_EQ(test::run_treecut("gen city -n 20000 -o " + test::quote(model)).code, 0);
+  const std::string walk =
+      test::quote(std::filesystem::path(TREECUT_SOURCE_DIR) / "assets/paths/city_walk.campath");
+  const auto r = test::run_treecut("bench occlusion " + test::quote(model) + " --path " + walk +
+                                   " --frames 3 --width 160 --height 90 --block-size 200");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_EQ(count(r.out, "| VFC | 0 | 0 |"), 1) << r.out;
+  EXPECT_EQ(count(r.out, "| S&W | 0 | 0 |"), 1);
+  EXPECT_EQ(count(r.out, "| CHC | 0 | 0 |"), 1);
+  EXPECT_EQ(count(r.out, "| Ideal | 0 | 0 |"), 1);
+  EXPECT_EQ(count(r.out, "| CHC | 2 | 0 |"), 1);
+  EXPECT_EQ(count(r.out, "| CHC | 0 | 25 |"), 1);
+  EXPECT_NE(r.out.find("3 frames"), std::string::npos) << r.out;
+}
+
+TEST(BenchOcclusion, RefusesBadInputWithOneLineAndExitCode2) {
+  const auto dir = test::scratch_dir("bench_occlusion_bad");
+  const std::string walk =
+      test::quote(std::filesystem::path(TREECUT_SOURCE_DIR) / "assets/paths/city_walk.campath");
+  const auto missing =
+      test::run_treecut("bench occlusion " + test::quote(dir / "none.ply") + " --path " + walk);
+  EXPECT_EQ(missing.code, 2);
+  EXPECT_EQ(missing.out, "treecut: " + (dir / "none.ply").string() + ": no such file\n");
+  const auto fifo = dir / "fifo";
+  ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
+  const auto r = test::run_treecut("bench occlusion " + test::quote(fifo) + " --path " + walk, 20);
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out, "treecut: " + fifo.string() + ": is a FIFO, not a regular file\n");
+  const auto no_path = test::run_treecut("bench occlusion " + test::quote(dir / "none.ply") +
+                                         " --path " + test::quote(dir / "none.campath"));
+  EXPECT_EQ(no_path.code, 2);
+  EXPECT_EQ(count(no_path.out, "\n"), 1) << no_path.out;
+  EXPECT_NE(no_path.out.find("none.campath"), std::string::npos) << no_path.out;
+}
 
 }  // namespace
 }  // namespace treecut::splat
