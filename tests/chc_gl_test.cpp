@@ -167,8 +167,8 @@ TEST_P(ChcGl, StopAndWaitAndIdealDrawTheSameSetAndChcConvergesToIt) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Scenes, ChcGl,
-                         ::testing::Values(SceneCase{ModelKind::City, 60000},
-                                           SceneCase{ModelKind::Plant, 60000}),
+                         ::testing::Values(SceneCase{ModelKind::City, 40000},
+                                           SceneCase{ModelKind::Plant, 40000}),
                          [](const auto& p) {
                            return p.param.kind == ModelKind::City ? "city" : "plant";
                          });
@@ -267,7 +267,7 @@ TEST_P(ChcGlQueries, NeverReadsAResultBeforeItWasSeenAvailableUnlessItCountsTheW
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(Scenes, ChcGlQueries, ::testing::Values(SceneCase{ModelKind::City, 60000}),
+INSTANTIATE_TEST_SUITE_P(Scenes, ChcGlQueries, ::testing::Values(SceneCase{ModelKind::City, 40000}),
                          [](const auto&) { return "city"; });
 
 int count(const std::string& text, const std::string& what) {
