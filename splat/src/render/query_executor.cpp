@@ -8,6 +8,8 @@
 #include <glm/gtc/type_ptr.hpp>
 #include <string>
 
+#include "treecut/query_proxy.hpp"
+
 namespace treecut::splat {
 
 namespace {
@@ -89,25 +91,6 @@ gl::VertexArray vec4_attribute(GLuint divisor) {
   gl::VertexArrayBindingDivisor(vao.id(), 0, divisor);
   gl::EnableVertexArrayAttrib(vao.id(), 0);
   return vao;
-}
-
-// A perspective frustum (glm::perspective / glm::frustum): clip w = -z_eye,
-// x and y of clip space from x and y of the eye only. The point proxies'
-// bounds assume it; another projection takes the quad path.
-bool is_frustum(const glm::mat4& p) {
-  return p[0][1] == 0.0f && p[0][2] == 0.0f && p[0][3] == 0.0f && p[1][0] == 0.0f &&
-         p[1][2] == 0.0f && p[1][3] == 0.0f && p[2][3] == -1.0f && p[3][0] == 0.0f &&
-         p[3][1] == 0.0f && p[3][3] == 0.0f && p[0][0] > 0.0f && p[1][1] > 0.0f;
-}
-
-// The slopes x / depth of the two planes through the eye tangent to a circle
-// at (x, depth) of radius r, depth > r (the circle in front of the eye's
-// plane): tan(theta -+ alpha), theta the center's angle, sin(alpha) = r / |c|.
-// Both denominators are > 0 exactly when depth > r.
-void tangent_slopes(float x, float depth, float r, float& lo, float& hi) {
-  const float t = std::sqrt(std::max(x * x + depth * depth - r * r, 0.0f));
-  lo = (x * t - r * depth) / (depth * t + x * r);
-  hi = (x * t + r * depth) / (depth * t - x * r);
 }
 
 }  // namespace
@@ -210,29 +193,13 @@ bool QueryExecutor::answer_on_host(const Queued& q, const FrameView& view) {
 
 bool QueryExecutor::point_proxy(glm::vec4 sphere, const FrameView& view, glm::vec4& out) const {
   const glm::mat4& p = view.projection;
-  const glm::vec3 c = glm::vec3(view.view * glm::vec4(glm::vec3(sphere), 1.0f));
-  const float r = sphere.w;
-  const float depth = -c.z;
-  // Not entirely in front of the eye's plane (with a margin: near it the
-  // bounds grow without limit anyway): the quad path.
-  if (!(depth > r * 1.001f + 1e-6f)) return false;
-  float sx0 = 0.0f, sx1 = 0.0f, sy0 = 0.0f, sy1 = 0.0f;
-  tangent_slopes(c.x, depth, r, sx0, sx1);
-  tangent_slopes(c.y, depth, r, sy0, sy1);
   const float w = float(view.size.x), h = float(view.size.y);
-  // ndc = p00 * x / depth - p20 (clip w = depth); to window coordinates,
-  // kMargin wider on each side: more than float rounding and the
-  // rasterizer's snapping of the point's position and size to its subpixel
-  // grid (1/256 pixel on llvmpipe, at least 1/16 on any GL 4.5 driver's
-  // 4 bits), so every pixel center inside the sphere's exact rectangle lies
-  // strictly inside the sprite. A whole pixel more would add 20 to 40 % to
-  // the fragments of the typical proxy of 5 to 10 pixels.
-  constexpr float kMargin = 0.125f;
-  const float x0 = (p[0][0] * sx0 - p[2][0] + 1.0f) * 0.5f * w - kMargin;
-  const float x1 = (p[0][0] * sx1 - p[2][0] + 1.0f) * 0.5f * w + kMargin;
-  const float y0 = (p[1][1] * sy0 - p[2][1] + 1.0f) * 0.5f * h - kMargin;
-  const float y1 = (p[1][1] * sy1 - p[2][1] + 1.0f) * 0.5f * h + kMargin;
-  if (!(x0 <= x1 && y0 <= y1)) return false;  // NaN: leave it to the quad
+  // Not entirely in front of the eye's plane, or NaN: the quad path.
+  SphereWindowRect rect;
+  if (!sphere_window_rect(view.view, p, glm::vec2(w, h), sphere, rect)) return false;
+  const glm::vec3 c = rect.eye_center;
+  const float r = sphere.w;
+  const float x0 = rect.x0, x1 = rect.x1, y0 = rect.y0, y1 = rect.y1;
   // Clipped to the viewport: a point whose center lies outside the clip
   // volume is discarded whole, so the sprite is centered on the visible part.
   const float cx0 = std::max(x0, 0.0f), cx1 = std::min(x1, w);
@@ -311,7 +278,7 @@ void QueryExecutor::issue_render_thread(const FrameView& view, std::size_t end) 
   staging_.clear();
   staging_quads_.clear();
   quad_requests_.clear();
-  const bool points = options_.point_proxies && is_frustum(view.projection);
+  const bool points = options_.point_proxies && is_perspective_frustum(view.projection);
   for (std::size_t i = queue_next_; i < end; ++i) {
     const Queued& q = queue_[i];
     stats_.deferral_frames_total += frame_ - q.frame_requested;

@@ -11,6 +11,8 @@
 #include <glm/geometric.hpp>
 #include <glm/vec4.hpp>
 
+#include "treecut/query_proxy.hpp"
+
 namespace treecut::strategies {
 
 namespace hoq {
@@ -44,42 +46,17 @@ float block_sse(const ViewSnapshot& view, const Box& box, float error_radius) {
   return error_radius * view.derived.pixel_scale / dist;
 }
 
-namespace {
-
-// The executor's test for a perspective frustum (query_executor.cpp): its
-// point proxies, whose pixels are counted here, assume one.
-bool is_frustum(const glm::mat4& p) {
-  return p[0][1] == 0.0f && p[0][2] == 0.0f && p[0][3] == 0.0f && p[1][0] == 0.0f &&
-         p[1][2] == 0.0f && p[1][3] == 0.0f && p[2][3] == -1.0f && p[3][0] == 0.0f &&
-         p[3][1] == 0.0f && p[3][3] == 0.0f && p[0][0] > 0.0f && p[1][1] > 0.0f;
-}
-
-// The executor's tangent slopes (query_executor.cpp): x / depth of the two
-// planes through the eye tangent to a circle at (x, depth) of radius r.
-void tangent_slopes(float x, float depth, float r, float& lo, float& hi) {
-  const float t = std::sqrt(std::max(x * x + depth * depth - r * r, 0.0f));
-  lo = (x * t - r * depth) / (depth * t + x * r);
-  hi = (x * t + r * depth) / (depth * t - x * r);
-}
-
-}  // namespace
-
 double proxy_pixels(const QueryCamera& camera, glm::vec3 center, float radius) {
-  const glm::mat4& p = camera.projection;
-  if (!is_frustum(p)) return -1.0;
-  const glm::vec3 c = glm::vec3(camera.view * glm::vec4(center, 1.0f));
-  const float depth = -c.z;
-  if (!(depth > radius * 1.001f + 1e-6f)) return -1.0;  // the executor's quad path or host answer
-  float sx0 = 0.0f, sx1 = 0.0f, sy0 = 0.0f, sy1 = 0.0f;
-  tangent_slopes(c.x, depth, radius, sx0, sx1);
-  tangent_slopes(c.y, depth, radius, sy0, sy1);
+  // The rectangle the executor rasterizes (treecut/query_proxy.hpp); not
+  // wholly in front of the eye: the executor's quad path or host answer.
+  if (!is_perspective_frustum(camera.projection)) return -1.0;
   const float w = float(camera.viewport.x), h = float(camera.viewport.y);
-  constexpr float kMargin = 0.125f;  // the executor's margin
-  const float x0 = (p[0][0] * sx0 - p[2][0] + 1.0f) * 0.5f * w - kMargin;
-  const float x1 = (p[0][0] * sx1 - p[2][0] + 1.0f) * 0.5f * w + kMargin;
-  const float y0 = (p[1][1] * sy0 - p[2][1] + 1.0f) * 0.5f * h - kMargin;
-  const float y1 = (p[1][1] * sy1 - p[2][1] + 1.0f) * 0.5f * h + kMargin;
-  if (!(x0 <= x1 && y0 <= y1)) return -1.0;
+  SphereWindowRect rect;
+  if (!sphere_window_rect(camera.view, camera.projection, glm::vec2(w, h),
+                          glm::vec4(center, radius), rect)) {
+    return -1.0;
+  }
+  const float x0 = rect.x0, x1 = rect.x1, y0 = rect.y0, y1 = rect.y1;
   const float cx0 = std::max(x0, 0.0f), cx1 = std::min(x1, w);
   const float cy0 = std::max(y0, 0.0f), cy1 = std::min(y1, h);
   if (cx0 >= cx1 || cy0 >= cy1) return 0.0;
