@@ -88,11 +88,18 @@ class FakeDevice final : public OcclusionDeviceRenderThread {
 
   Rect rect(BlockId b) const {
     const Box& box = blocks_->box(b);
+    // Depth: the distance from the eye to the box, the traversal's order, so
+    // front to back is an occlusion order and S&W is exact on this device.
+    const glm::vec3 d = glm::max(glm::max(box.lo - eye_, eye_ - box.hi), glm::vec3(0.0f));
+    const float depth = glm::length(d);
     float umin = 1e30f, umax = -1e30f, vmin = 1e30f, vmax = -1e30f;
     for (int c = 0; c < 8; ++c) {
       const glm::vec3 p((c & 1) ? box.hi.x : box.lo.x, (c & 2) ? box.hi.y : box.lo.y,
                         (c & 4) ? box.hi.z : box.lo.z);
-      const float w = p.x - eye_.x;  // > 0: every box lies ahead of the eye
+      const float w = p.x - eye_.x;
+      // A box reaching to or behind the eye's plane (an interior block's
+      // box of large coarse splats) may cover any pixel: the whole screen.
+      if (w < 1e-3f) return Rect{0, kRes - 1, 0, kRes - 1, depth};
       umin = std::min(umin, (p.y - eye_.y) / w), umax = std::max(umax, (p.y - eye_.y) / w);
       vmin = std::min(vmin, (p.z - eye_.z) / w), vmax = std::max(vmax, (p.z - eye_.z) / w);
     }
@@ -101,10 +108,9 @@ class FakeDevice final : public OcclusionDeviceRenderThread {
     auto last = [](float a) {
       return std::min(kRes - 1, int(std::floor((a + 1.0f) * kRes / 2 - 0.5f)));
     };
-    // Depth: the distance from the eye to the box, the traversal's order, so
-    // front to back is an occlusion order and S&W is exact on this device.
-    const glm::vec3 d = glm::max(glm::max(box.lo - eye_, eye_ - box.hi), glm::vec3(0.0f));
-    Rect r{first(umin), last(umax), first(vmin), last(vmax), glm::length(d)};
+    umin = std::clamp(umin, -2.0f, 2.0f), umax = std::clamp(umax, -2.0f, 2.0f);
+    vmin = std::clamp(vmin, -2.0f, 2.0f), vmax = std::clamp(vmax, -2.0f, 2.0f);
+    Rect r{first(umin), last(umax), first(vmin), last(vmax), depth};
     return r;
   }
 
