@@ -1,0 +1,375 @@
+// HOQ-coherent HLOD refinement, in-frame: J. P. Charalambos, J. Bittner,
+// M. Wimmer, E. Romero, "Optimized HLOD Refinement Driven by Hardware
+// Occlusion Queries", ISVC 2007 (../shared/papers/hoq-driven-hlod-refinement.txt,
+// figure 2: the traversal; figure 3: hoq::predict_refinement), with the
+// paper's scenarios Bool, SW(B), Simp(B) and Coh(B) as modes of one loop.
+#include "treecut/strategies/hlod_traversal.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <glm/geometric.hpp>
+#include <glm/vec4.hpp>
+
+namespace treecut::strategies {
+
+std::string_view hlod_mode_name(HlodMode mode) {
+  switch (mode) {
+    case HlodMode::Bool:
+      return "Bool";
+    case HlodMode::SwB:
+      return "SW(B)";
+    case HlodMode::SimpB:
+      return "Simp(B)";
+    case HlodMode::CohB:
+      return "Coh(B)";
+  }
+  return "?";
+}
+
+HlodView hlod_view(const glm::mat4& view, const glm::mat4& projection, glm::ivec2 viewport,
+                   float near_radius) {
+  HlodView v;
+  v.snapshot.view = view;
+  v.snapshot.projection = projection;
+  v.snapshot.viewport = viewport;
+  v.snapshot.finalize();
+  v.viewport = viewport;
+  v.occlusion.view_projection = projection * view;
+  v.occlusion.eye = v.snapshot.derived.eye;
+  v.occlusion.near_radius = near_radius;
+  return v;
+}
+
+namespace {
+
+struct P2 {
+  double x, y;
+};
+
+double cross(P2 o, P2 a, P2 b) {
+  return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x);
+}
+
+// Sutherland-Hodgman against one axis-aligned edge: keep the points with
+// sign * (coord - bound) >= 0.
+std::vector<P2> clip(const std::vector<P2>& in, bool use_x, double bound, double sign) {
+  std::vector<P2> out;
+  const std::size_t n = in.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    const P2 a = in[i], b = in[(i + 1) % n];
+    const double da = sign * ((use_x ? a.x : a.y) - bound);
+    const double db = sign * ((use_x ? b.x : b.y) - bound);
+    if (da >= 0) out.push_back(a);
+    if ((da >= 0) != (db >= 0)) {
+      const double f = da / (da - db);
+      out.push_back({a.x + f * (b.x - a.x), a.y + f * (b.y - a.y)});
+    }
+  }
+  return out;
+}
+
+// Gribb and Hartmann, as chc.cpp: the six planes of clip = m * world.
+void frustum_planes(const glm::mat4& m, glm::vec4 (&planes)[6]) {
+  const glm::vec4 r0(m[0][0], m[1][0], m[2][0], m[3][0]);
+  const glm::vec4 r1(m[0][1], m[1][1], m[2][1], m[3][1]);
+  const glm::vec4 r2(m[0][2], m[1][2], m[2][2], m[3][2]);
+  const glm::vec4 r3(m[0][3], m[1][3], m[2][3], m[3][3]);
+  planes[0] = r3 + r0;
+  planes[1] = r3 - r0;
+  planes[2] = r3 + r1;
+  planes[3] = r3 - r1;
+  planes[4] = r3 + r2;
+  planes[5] = r3 - r2;
+}
+
+bool box_in_frustum(const Box& box, const glm::vec4 (&planes)[6]) {
+  for (const glm::vec4& p : planes) {
+    const glm::vec3 corner(p.x >= 0.0f ? box.hi.x : box.lo.x, p.y >= 0.0f ? box.hi.y : box.lo.y,
+                           p.z >= 0.0f ? box.hi.z : box.lo.z);
+    if (p.x * corner.x + p.y * corner.y + p.z * corner.z + p.w < 0.0f) return false;
+  }
+  return true;
+}
+
+bool heap_less(const auto& a, const auto& b) {
+  return a.distance > b.distance || (a.distance == b.distance && a.block > b.block);
+}
+
+}  // namespace
+
+double box_projected_pixels(const glm::mat4& view_projection, glm::ivec2 viewport, const Box& box) {
+  std::vector<P2> pts;
+  for (int c = 0; c < 8; ++c) {
+    const glm::vec4 p((c & 1) ? box.hi.x : box.lo.x, (c & 2) ? box.hi.y : box.lo.y,
+                      (c & 4) ? box.hi.z : box.lo.z, 1.0f);
+    const glm::vec4 q = view_projection * p;
+    if (!(q.w > 1e-6f)) return -1.0;
+    pts.push_back({(double(q.x) / q.w + 1.0) * 0.5 * viewport.x,
+                   (double(q.y) / q.w + 1.0) * 0.5 * viewport.y});
+  }
+  // Monotone chain: the silhouette of a convex box is the hull of its corners
+  // (with back faces culled and depth clamped, what the proxy rasterizes).
+  std::sort(pts.begin(), pts.end(),
+            [](P2 a, P2 b) { return a.x < b.x || (a.x == b.x && a.y < b.y); });
+  std::vector<P2> hull(2 * pts.size());
+  std::size_t k = 0;
+  for (const P2& p : pts) {
+    while (k >= 2 && cross(hull[k - 2], hull[k - 1], p) <= 0) --k;
+    hull[k++] = p;
+  }
+  for (std::size_t i = pts.size() - 1, lower = k + 1; i-- > 0;) {
+    while (k >= lower && cross(hull[k - 2], hull[k - 1], pts[i]) <= 0) --k;
+    hull[k++] = pts[i];
+  }
+  hull.resize(k > 1 ? k - 1 : k);
+  hull = clip(hull, true, 0.0, 1.0);
+  hull = clip(hull, true, double(viewport.x), -1.0);
+  hull = clip(hull, false, 0.0, 1.0);
+  hull = clip(hull, false, double(viewport.y), -1.0);
+  double area = 0.0;
+  for (std::size_t i = 0; i < hull.size(); ++i) {
+    const P2 a = hull[i], b = hull[(i + 1) % hull.size()];
+    area += a.x * b.y - b.x * a.y;
+  }
+  return 0.5 * std::abs(area);
+}
+
+HlodTraversal::HlodTraversal(const Hierarchy& hierarchy, const HlodBlocks& blocks,
+                             HlodOptions options)
+    : hierarchy_(&hierarchy), blocks_(&blocks), options_(options) {
+  const auto& a = hierarchy.arrays();
+  error_radius_.assign(blocks.block_count(), 0.0f);
+  for (BlockId b = 0; b < blocks.block_count(); ++b) {
+    // As HoqStrategy: a leaf block is full detail, no error left to refine.
+    if (blocks.is_leaf(b)) continue;
+    float r = 0.0f;
+    for (const NodeId n : blocks.representation(b)) r = std::max(r, a.center_radius[n].w);
+    error_radius_[b] = r;
+  }
+  reset();
+}
+
+void HlodTraversal::reset() {
+  const std::size_t n = blocks_->block_count();
+  frame_ = 0;
+  last_visited_.assign(n, 0);
+  visible_.assign(n, 0);
+  stop_.assign(n, 0);
+  outside_.assign(n, 0);
+  bias_.assign(n, 1.0f);
+  drawn_frame_.assign(n, 0);
+  drawn_.clear();
+}
+
+float HlodTraversal::sse(BlockId b) const {
+  return hoq::block_sse(view_->snapshot, blocks_->box(b), error_radius_[b]);
+}
+
+void HlodTraversal::push(BlockId b) {
+  heap_.push_back({hoq::distance_to_box(view_->occlusion.eye, blocks_->box(b)), b});
+  std::push_heap(heap_.begin(), heap_.end(),
+                 [](const Entry& x, const Entry& y) { return heap_less(x, y); });
+}
+
+void HlodTraversal::push_children(BlockId b) {
+  stop_[b] = 0;
+  const BlockId first = blocks_->first_child(b);
+  for (unsigned i = 0; i < blocks_->child_count(b); ++i) push(first + i);
+}
+
+void HlodTraversal::draw(BlockId b) {
+  stop_[b] = 1;
+  if (drawn_frame_[b] == frame_) return;
+  drawn_frame_[b] = frame_;
+  device_->draw_render_thread(b);
+  drawn_.push_back(b);
+}
+
+// Every block visited this frame starts invisible; a visible answer (or a
+// block the eye is at) marks it and its ancestors up to the first already
+// visible, so a refined block is visible when one of its children is.
+void HlodTraversal::pull_up(BlockId b) {
+  for (; b != kNoBlock && visible_[b] == 0; b = blocks_->parent(b)) visible_[b] = 1;
+}
+
+void HlodTraversal::query(BlockId b, Kind kind, float block_sse) {
+  pending_.push_back({b, device_->query_box_render_thread(b), kind, block_sse});
+  ++stats_.queries;
+}
+
+void HlodTraversal::answer(const Pending& p, std::uint64_t samples) {
+  const BlockId b = p.block;
+  const bool visible = samples > 0;
+  if (options_.mode == HlodMode::Bool) {
+    bias_[b] = visible ? 1.0f : 0.0f;  // the answer only as visible or not
+  } else {
+    const double pixels =
+        box_projected_pixels(view_->occlusion.view_projection, view_->viewport, blocks_->box(b));
+    const float mu = hoq::relative_visibility(
+        static_cast<std::uint32_t>(std::min<std::uint64_t>(samples, 0xffffffffu)), pixels);
+    bias_[b] = hoq::sigmoid_bias(mu, options_.s, options_.t);
+  }
+  if (visible) pull_up(b);
+  const bool leaf = blocks_->is_leaf(b);
+  const bool stops = leaf || hoq::vmsse(bias_[b], p.sse) <= options_.tau;
+  switch (p.kind) {
+    case Kind::Delayed:
+      // The decision waited for this answer: cull, stop and draw, or refine.
+      if (!visible) {
+        stop_[b] = 1;
+        ++stats_.culled;
+      } else if (stops) {
+        draw(b);
+      } else {
+        push_children(b);
+      }
+      break;
+    case Kind::Drawn:
+      // Drawn when predicted to stop; a visible answer that says refine
+      // makes it a RARN: its children are drawn over it in this frame.
+      if (visible && !stops) {
+        ++stats_.rarn;
+        push_children(b);
+      }
+      break;
+    case Kind::Refined:
+      break;  // its children are traversed already; the answer keeps its bias current
+  }
+}
+
+void HlodTraversal::visit(const Entry& e) {
+  const BlockId b = e.block;
+  const std::uint64_t frame = frame_;
+  const bool visited_last = last_visited_[b] + 1 == frame;
+  const bool was_visible = visited_last && visible_[b] != 0;
+  const bool was_stopped = stop_[b] != 0;
+  last_visited_[b] = frame;
+  visible_[b] = 0;
+  outside_[b] = 0;
+  if (!box_in_frustum(blocks_->box(b), planes_)) {
+    outside_[b] = 1;
+    // Nothing to query against: next frame it is invisible last frame (Delay).
+    ++stats_.frustum_culled;
+    stop_[b] = 1;
+    return;
+  }
+  const bool leaf = blocks_->is_leaf(b);
+  const float block_sse = sse(b);
+  const float tau = options_.tau;
+  if (e.distance <= view_->occlusion.near_radius) {
+    // The eye is at the box: its proxy would be clipped. Visible, mu = 1.
+    bias_[b] = 1.0f;
+    pull_up(b);
+    if (leaf || block_sse <= tau) {
+      draw(b);
+    } else {
+      push_children(b);
+    }
+    return;
+  }
+  switch (options_.mode) {
+    case HlodMode::SwB:
+      query(b, Kind::Delayed, block_sse);
+      return;
+    case HlodMode::Bool: {
+      const bool terminal = leaf || block_sse <= tau;
+      if (was_visible && !was_stopped && !terminal) {
+        push_children(b);  // an opened block: no query, its children decide
+      } else if (was_visible) {
+        // Last frame's visible termination block: traversed at once, its
+        // answer not waited for.
+        query(b, terminal ? Kind::Drawn : Kind::Refined, block_sse);
+        if (terminal) {
+          draw(b);
+        } else {
+          push_children(b);
+        }
+      } else {
+        query(b, Kind::Delayed, block_sse);
+      }
+      return;
+    }
+    case HlodMode::SimpB: {
+      if (!was_visible) {
+        query(b, Kind::Delayed, block_sse);
+      } else if (leaf || hoq::vmsse(bias_[b], block_sse) <= tau) {
+        query(b, Kind::Drawn, block_sse);
+        draw(b);
+      } else {
+        query(b, Kind::Refined, block_sse);
+        push_children(b);
+      }
+      return;
+    }
+    case HlodMode::CohB: {
+      children_.clear();
+      if (visited_last && !was_stopped && !leaf) {
+        const BlockId first = blocks_->first_child(b);
+        for (BlockId c = first; c < first + blocks_->child_count(b); ++c) {
+          children_.push_back({stop_[c] != 0, bias_[c], sse(c)});
+        }
+      }
+      const hoq::NodeState ns{visited_last, was_visible, was_stopped, bias_[b]};
+      switch (hoq::predict_refinement(ns, block_sse, children_, tau)) {
+        case hoq::Prediction::Refine:
+          push_children(b);
+          return;
+        case hoq::Prediction::Stop:
+          query(b, Kind::Drawn, block_sse);
+          draw(b);
+          return;
+        case hoq::Prediction::Delay:
+          ++stats_.delayed;
+          if (visited_last && was_visible && !was_stopped) ++stats_.delayed_shift_up;
+          query(b, Kind::Delayed, block_sse);
+          return;
+      }
+      return;
+    }
+  }
+}
+
+HlodFrameStats HlodTraversal::frame_render_thread(OcclusionDeviceRenderThread& device,
+                                                  const HlodView& view, bool finish) {
+  const auto start = std::chrono::steady_clock::now();
+  ++frame_;
+  device_ = &device;
+  view_ = &view;
+  stats_ = {};
+  frustum_planes(view.occlusion.view_projection, planes_);
+  heap_.clear();
+  pending_.clear();
+  pending_head_ = 0;
+  drawn_.clear();
+  auto heap_cmp = [](const Entry& x, const Entry& y) { return heap_less(x, y); };
+  device.begin_frame_render_thread();
+  push(0);
+  while (!heap_.empty() || pending_head_ < pending_.size()) {
+    while (pending_head_ < pending_.size()) {
+      const bool read = options_.mode == HlodMode::SwB || heap_.empty() ||
+                        device.result_available_render_thread(pending_[pending_head_].query);
+      if (!read) break;
+      const Pending p = pending_[pending_head_++];
+      answer(p, device.result_render_thread(p.query));
+    }
+    if (heap_.empty()) continue;
+    std::pop_heap(heap_.begin(), heap_.end(), heap_cmp);
+    const Entry e = heap_.back();
+    heap_.pop_back();
+    visit(e);
+  }
+  device.end_frame_render_thread(finish);
+  const DeviceFrameStats& d = device.frame_stats();
+  stats_.drawn = drawn_.size();
+  stats_.splats = d.splats_drawn;
+  stats_.blocking_reads = d.blocking_reads;
+  stats_.wait_ms = d.wait_ms;
+  device_ = nullptr;
+  view_ = nullptr;
+  stats_.frame_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  return stats_;
+}
+
+}  // namespace treecut::strategies
