@@ -19,6 +19,7 @@
 #include <utility>
 #include <vector>
 
+#include "bench_hlod.hpp"
 #include "commands.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
@@ -182,6 +183,11 @@ struct OcclusionArgs {
   int height = 720;
   std::uint32_t block_size = strategies::kDefaultBlockSize;
   bool flush_row = false;
+  // The HLOD table (bench_hlod.hpp): tau, PSNR frames, per-frame CSV folder.
+  float hlod_tau = 1.0f;
+  int psnr_frames = 20;
+  std::string csv_dir;
+  bool no_hlod = false;
   std::uint32_t poll_every = 0;  // > 0: a CHC row polling every that many blocks
 };
 
@@ -239,6 +245,7 @@ void run_bench_occlusion(const OcclusionArgs& a) {
   if (!(a.fps > 0.0) || a.fps > 1000.0) throw InputError("--fps must be in (0, 1000]");
   if (a.block_size < 1) throw InputError("--block-size must be at least 1");
   const splat::CameraPath path = splat::load_camera_path(a.path);  // exit 2 before any work
+  if (!a.no_hlod && !a.csv_dir.empty()) check_hlod_csv(hlod_csv_path(a.csv_dir, a.scene));
   if (path.empty()) throw InputError(a.path + ": the camera path has no keys");
   SceneArgs scene_args;
   scene_args.model = a.scene;
@@ -321,6 +328,20 @@ void run_bench_occlusion(const OcclusionArgs& a) {
     for (std::size_t r = 0; r < runs.size(); ++r) runs[r].frames.push_back(frame(r, f));
   }
   print_chc_table(runs);
+  if (!a.no_hlod) {
+    HlodBenchInput hlod;
+    hlod.hierarchy = scene.hierarchy;
+    hlod.blocks = &blocks;
+    hlod.renderer = &renderer;
+    hlod.device = &device;
+    hlod.cameras = cameras;
+    hlod.settings = settings;
+    hlod.size = size;
+    hlod.tau = a.hlod_tau;
+    hlod.psnr_frames = a.psnr_frames;
+    if (!a.csv_dir.empty()) hlod.csv = hlod_csv_path(a.csv_dir, a.scene);
+    run_hlod_table(hlod);
+  }
 }
 
 }  // namespace
@@ -405,6 +426,15 @@ void add_bench_commands(CLI::App& app) {
   occlusion->add_option(
       "--poll-every", occ->poll_every,
       "Add a CHC row that polls answers every N blocks (ChcOptions::poll_interval)");
+  occlusion->add_option("--tau", occ->hlod_tau, "HLOD table: tau, pixels of error (default 1)")
+      ->check(CLI::Range(0.0, 1e6));
+  occlusion
+      ->add_option("--psnr-frames", occ->psnr_frames,
+                   "HLOD table: frames of the path the PSNR against Bool is taken on")
+      ->check(CLI::Range(0, 100000));
+  occlusion->add_option("--csv", occ->csv_dir,
+                        "Folder for the HLOD table's per-frame CSV (occlusion_SCENE.csv)");
+  occlusion->add_flag("--no-hlod", occ->no_hlod, "Print the CHC table only");
   occlusion->callback([occ] { run_bench_occlusion(*occ); });
 }
 

@@ -1,0 +1,238 @@
+// treecut bench occlusion, the HLOD table: J. P. Charalambos, J. Bittner,
+// M. Wimmer, E. Romero, "Optimized HLOD Refinement Driven by Hardware
+// Occlusion Queries", ISVC 2007 (../shared/papers/hoq-driven-hlod-refinement.txt,
+// table 1 and the PSNR of section 5.2), on the walkthrough bench occlusion
+// runs (docs/occlusion.md, "HLOD in-frame").
+#include "bench_hlod.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+
+#include "render_reports.hpp"
+#include "treecut/controller.hpp"
+#include "treecut/error.hpp"
+#include "treecut/file_io.hpp"
+#include "treecut/model.hpp"
+#include "treecut/splat/frame.hpp"
+#include "treecut/splat/image.hpp"
+#include "treecut/splat/query_executor.hpp"
+#include "treecut/strategies/hlod_traversal.hpp"
+#include "treecut/strategies/hoq.hpp"
+
+namespace treecut::cli {
+
+namespace {
+
+constexpr const char* kCsvHeader =
+    "frame,method,frame_ms,drawn_blocks,splats,rarn,delayed,queries,wait_ms,psnr_luma_db";
+
+struct Row {
+  double frame_ms = 0.0;
+  double drawn = 0, splats = 0, rarn = 0, delayed = 0, queries = 0, wait_ms = 0;
+  double psnr = std::numeric_limits<double>::quiet_NaN();
+};
+
+struct Method {
+  std::string name;
+  std::vector<Row> rows;
+};
+
+double mean_of(const std::vector<Row>& rows, double Row::*field) {
+  double sum = 0.0;
+  for (const Row& r : rows) sum += r.*field;
+  return rows.empty() ? 0.0 : sum / double(rows.size());
+}
+
+double median_of(const std::vector<Row>& rows, double Row::*field) {
+  std::vector<double> v;
+  for (const Row& r : rows) v.push_back(r.*field);
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+}  // namespace
+
+std::filesystem::path hlod_csv_path(const std::filesystem::path& dir, const std::string& scene) {
+  return dir / ("occlusion_" + std::filesystem::path(scene).stem().string() + ".csv");
+}
+
+void check_hlod_csv(const std::filesystem::path& csv) {
+  const std::filesystem::path dir = csv.parent_path();
+  if (!dir.empty()) {
+    const FileKind k = file_kind(dir);
+    if (k != FileKind::Missing && k != FileKind::Directory) {
+      throw InputError(dir.string() + ": " + std::string(describe(k)) + ", not a folder for --csv");
+    }
+  }
+  const FileKind k = file_kind(csv);
+  if (k == FileKind::Missing) return;
+  if (k != FileKind::Regular) throw InputError(csv.string() + ": " + std::string(describe(k)));
+  // Ours from an earlier run (its header) may be replaced; anything else is
+  // the user's and is left alone.
+  const std::string text = read_text_file(csv);
+  if (text.rfind(std::string(kCsvHeader) + "\n", 0) != 0) {
+    throw InputError(csv.string() + ": exists and is not a bench occlusion CSV; not overwritten");
+  }
+}
+
+void run_hlod_table(const HlodBenchInput& in) {
+  using strategies::HlodMode;
+  const Hierarchy& h = *in.hierarchy;
+  splat::Renderer& renderer = *in.renderer;
+  splat::GlOcclusionDevice& device = *in.device;
+  const glm::ivec2 size = in.size;
+  const float aspect = float(size.x) / float(std::max(size.y, 1));
+  const HlodMode modes[] = {HlodMode::Bool, HlodMode::SwB, HlodMode::SimpB, HlodMode::CohB};
+  std::vector<Method> methods;
+  std::vector<strategies::HlodTraversal> traversals;
+  for (const HlodMode m : modes) {
+    strategies::HlodOptions o;
+    o.mode = m;
+    o.tau = in.tau;
+    traversals.emplace_back(h, *in.blocks, o);
+    methods.push_back({std::string(strategies::hlod_mode_name(m)), {}});
+  }
+  methods.push_back({"hoq (stage, --sync)", {}});
+  const std::size_t kBool = 0, kCoh = 3, kHoq = 4;
+
+  // The stage strategy through the frame layer, as `treecut render --sync`:
+  // its queries go through the executor, its iteration runs after the frame.
+  auto hoq_owned = std::make_unique<strategies::HoqStrategy>();
+  strategies::HoqStrategy* hoq = hoq_owned.get();
+  hoq->set_param("theta", in.tau);
+  StageOptions stage_options;
+  stage_options.launch = Launch::Manual;
+  Controller controller(Model{in.hierarchy, TreeCut::root_cut(h)}, std::move(hoq_owned),
+                        splat::view_snapshot(in.cameras.front(), size, in.settings.light),
+                        stage_options);
+  splat::QueryExecutor queries;
+  splat::RenderThreadFrame frame_loop(controller, renderer, &queries);
+
+  auto run = [&](std::size_t m, const splat::Camera& cam) {
+    Row row;
+    if (m == kHoq) {
+      const std::uint64_t issued = queries.stats().issued;
+      const auto t0 = std::chrono::steady_clock::now();
+      const splat::FrameResult fr = frame_loop.run_render_thread(cam, in.settings, true);
+      row.frame_ms =
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      controller.stage().step();  // outside the frame time, as render --sync
+      const strategies::HoqCounters& c = hoq->last();
+      row.drawn = double(c.drawn);
+      row.splats = double(fr.stats.splats);
+      row.rarn = double(c.rarn);
+      row.delayed = double(c.delayed);
+      row.queries = double(queries.stats().issued - issued);
+      return row;
+    }
+    device.set_view_render_thread(cam, in.settings);
+    const strategies::HlodView view =
+        strategies::hlod_view(cam.view_matrix(), cam.projection_matrix(aspect), size,
+                              splat::occlusion_view(cam, size).near_radius);
+    const strategies::HlodFrameStats s = traversals[m].frame_render_thread(device, view, true);
+    row.frame_ms = s.frame_ms;
+    row.drawn = double(s.drawn);
+    row.splats = double(s.splats);
+    row.rarn = double(s.rarn);
+    row.delayed = double(s.delayed);
+    row.queries = double(s.queries);
+    row.wait_ms = s.wait_ms;
+    return row;
+  };
+  auto grab = [&] { return splat::Image{size.x, size.y, renderer.read_pixels()}; };
+
+  // Untimed frames at the first camera: caches warm, and every method starts
+  // the path with previous frames (the stage strategy with its answers).
+  constexpr int kWarmup = 5;
+  for (int i = 0; i < kWarmup; ++i) {
+    for (std::size_t m = 0; m < methods.size(); ++m) (void)run(m, in.cameras.front());
+  }
+  // PSNR frames: `psnr_frames` evenly spread over the path.
+  const std::size_t n = in.cameras.size();
+  std::vector<std::uint8_t> psnr_frame(n, 0);
+  const std::size_t k = std::min<std::size_t>(std::max(in.psnr_frames, 0), n);
+  for (std::size_t i = 0; i < k; ++i) psnr_frame[k == 1 ? 0 : i * (n - 1) / (k - 1)] = 1;
+  for (std::size_t f = 0; f < n; ++f) {
+    splat::Image reference;
+    for (std::size_t m = 0; m < methods.size(); ++m) {
+      Row row = run(m, in.cameras[f]);
+      if (psnr_frame[f] != 0 && (m == kBool || m == kCoh || m == kHoq)) {
+        splat::Image image = grab();
+        if (m == kBool) {
+          reference = std::move(image);
+        } else {
+          row.psnr = luma_psnr(image, reference);
+        }
+      }
+      methods[m].rows.push_back(row);
+    }
+  }
+
+  const double coh_ms = mean_of(methods[kCoh].rows, &Row::frame_ms);
+  std::printf(
+      "\nHLOD refinement (Charalambos et al. 2007), tau = %.2f px, s = t = 0.5; DN = HLOD blocks "
+      "drawn; speed-up = method's frame ms / Coh(B)'s\n",
+      double(in.tau));
+  std::printf(
+      "| method | DN | splats | RARN | D | D / DN | queries | wait ms | frame ms (mean) | frame ms "
+      "(median) | speed-up of Coh(B) |\n");
+  std::printf("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+  for (const Method& m : methods) {
+    const double dn = mean_of(m.rows, &Row::drawn);
+    const double d = mean_of(m.rows, &Row::delayed);
+    const double ms = mean_of(m.rows, &Row::frame_ms);
+    std::printf("| %s | %.1f | %.0f | %.2f | %.2f | %.2f%% | %.1f | %.3f | %.2f | %.2f | %.2f |\n",
+                m.name.c_str(), dn, mean_of(m.rows, &Row::splats), mean_of(m.rows, &Row::rarn), d,
+                dn > 0 ? 100.0 * d / dn : 0.0, mean_of(m.rows, &Row::queries),
+                mean_of(m.rows, &Row::wait_ms), ms, median_of(m.rows, &Row::frame_ms),
+                coh_ms > 0 ? ms / coh_ms : 0.0);
+  }
+  for (const std::size_t m : {kCoh, kHoq}) {
+    double sum = 0.0, low = std::numeric_limits<double>::infinity();
+    int count = 0, capped = 0;
+    for (const Row& r : methods[m].rows) {
+      if (!std::isfinite(r.psnr)) continue;
+      sum += r.psnr;
+      low = std::min(low, r.psnr);
+      ++count;
+      capped += r.psnr >= kLumaPsnrCap ? 1 : 0;
+    }
+    std::printf(
+        "PSNR (luma) of %s against Bool on %d frames: mean %.2f dB, min %.2f dB (%d frames "
+        "identical, counted as %.0f dB)\n",
+        methods[m].name.c_str(), count, count > 0 ? sum / count : 0.0, count > 0 ? low : 0.0,
+        capped, kLumaPsnrCap);
+  }
+  std::fflush(stdout);
+
+  if (!in.csv.empty()) {
+    std::ostringstream o;
+    o << kCsvHeader << "\n";
+    for (std::size_t f = 0; f < n; ++f) {
+      for (const Method& m : methods) {
+        const Row& r = m.rows[f];
+        char line[256];
+        std::snprintf(line, sizeof line, "%zu,%s,%.4f,%.0f,%.0f,%.0f,%.0f,%.0f,%.4f,", f,
+                      m.name.c_str(), r.frame_ms, r.drawn, r.splats, r.rarn, r.delayed, r.queries,
+                      r.wait_ms);
+        o << line;
+        if (std::isfinite(r.psnr)) o << r.psnr;
+        o << "\n";
+      }
+    }
+    if (!in.csv.parent_path().empty()) {
+      std::error_code ec;
+      std::filesystem::create_directories(in.csv.parent_path(), ec);
+      if (ec) throw std::runtime_error(in.csv.parent_path().string() + ": " + ec.message());
+    }
+    write_file_atomically(in.csv, o.str());
+    std::printf("csv       %s\n", in.csv.string().c_str());
+  }
+}
+
+}  // namespace treecut::cli
