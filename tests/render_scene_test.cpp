@@ -301,6 +301,72 @@ TEST_F(RenderSceneChecks, BadTransformsModelsAndIdsAreRefused) {
   EXPECT_THROW(r.draw_scene(buffer, cam, RenderSettings{}), std::logic_error);
 }
 
+// The ObjectId mode, the exact visibility reference of occlusion culling:
+// every pixel holds the index of the object in front, and an object's
+// pixels are exactly those fast mode covers with it in front.
+TEST_F(RenderSceneChecks, ObjectIdPixelsAreTheObjectInFront) {
+  Renderer r(h_, {kWidth, kHeight});
+  const Hierarchy* models[] = {&h_, &other_};
+  r.set_models(models);
+  // Object 1 half behind object 0, object 2 apart; all three in view.
+  const SceneObjectDraw objects[] = {
+      {0, glm::mat4(1.0f)},
+      {1, glm::translate(glm::mat4(1.0f), glm::vec3(0.8f, 0.0f, -2.0f))},
+      {0, glm::translate(glm::mat4(1.0f), glm::vec3(-2.6f, 0.0f, 0.0f))}};
+  const TreeCut a = TreeCut::leaf_cut(h_), b = TreeCut::leaf_cut(other_);
+  const std::span<const NodeId> none;
+  const Camera cam = fit_camera(glm::vec3(-4.0f, -1.5f, -3.5f), glm::vec3(2.5f, 1.5f, 1.5f),
+                                kAspect, glm::vec3(0.0f, 0.0f, 1.0f));
+  RenderSettings fast;
+  fast.background = {1.0f, 0.0f, 1.0f};  // magenta: no lit splat has it
+  RenderSettings ids;
+  ids.mode = SplatMode::ObjectId;
+  const auto draw = [&](std::span<const std::span<const NodeId>> cuts, const RenderSettings& s) {
+    SceneCutBuffer buffer;
+    buffer.set_objects(r, objects);
+    buffer.upload(models, cuts);
+    r.draw_scene(buffer, cam, s, true);
+    return r.read_pixels();
+  };
+  const std::span<const NodeId> all[] = {a.nodes(), b.nodes(), a.nodes()};
+  const std::vector<std::uint8_t> id = draw(all, ids);
+  std::size_t counts[4] = {0, 0, 0, 0};
+  for (std::size_t i = 0; i < id.size(); i += 4) {
+    const std::uint32_t v = id[i] | (id[i + 1] << 8) | (id[i + 2] << 16);
+    ASSERT_TRUE(v <= 2 || v == 0xffffff) << v;
+    ++counts[v == 0xffffff ? 3 : v];
+  }
+  EXPECT_GT(counts[0], 200u);
+  EXPECT_GT(counts[1], 200u);
+  EXPECT_GT(counts[2], 200u);
+  // Each object drawn alone: its id pixels are exactly the pixels fast mode
+  // covers (the same discs), and in the whole scene it shows nowhere else.
+  for (std::uint32_t k = 0; k < 3; ++k) {
+    std::span<const NodeId> alone[3] = {none, none, none};
+    alone[k] = all[k];
+    const std::vector<std::uint8_t> f = draw(alone, fast);
+    const std::vector<std::uint8_t> only = draw(alone, ids);
+    std::size_t mismatch = 0, hidden_but_covered = 0;
+    for (std::size_t i = 0; i < f.size(); i += 4) {
+      const bool covered = !(f[i] == 255 && f[i + 1] == 0 && f[i + 2] == 255);
+      const std::uint32_t v = only[i] | (only[i + 1] << 8) | (only[i + 2] << 16);
+      mismatch += covered != (v == k);
+      const std::uint32_t w = id[i] | (id[i + 1] << 8) | (id[i + 2] << 16);
+      hidden_but_covered += w == k && !covered;
+    }
+    EXPECT_EQ(mismatch, 0u) << "object " << k << " alone: id and fast coverage differ";
+    EXPECT_EQ(hidden_but_covered, 0u) << "object " << k;
+  }
+  // Object 1 is partly behind object 0: fewer of its pixels in the scene
+  // than alone.
+  std::span<const NodeId> only1[3] = {none, all[1], none};
+  const std::vector<std::uint8_t> alone1 = draw(only1, ids);
+  std::size_t alone1_count = 0;
+  for (std::size_t i = 0; i < alone1.size(); i += 4)
+    alone1_count += alone1[i] == 1 && alone1[i + 1] == 0;
+  EXPECT_LT(counts[1], alone1_count);
+}
+
 TEST(ObjectRecord, TheIdentityIsExactAndSimilaritiesKeepCones) {
   const ObjectRecord id = object_record(glm::mat4(1.0f));
   EXPECT_EQ(id.row0, glm::vec4(1, 0, 0, 0));

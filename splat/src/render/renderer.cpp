@@ -34,6 +34,8 @@ std::string_view splat_mode_name(SplatMode mode) {
       return "hq";
     case SplatMode::FixedSize:
       return "fixed";
+    case SplatMode::ObjectId:
+      return "id";
   }
   return "?";
 }
@@ -42,7 +44,9 @@ SplatMode parse_splat_mode(std::string_view name) {
   if (name == "fast") return SplatMode::Fast;
   if (name == "hq" || name == "high-quality") return SplatMode::HighQuality;
   if (name == "fixed") return SplatMode::FixedSize;
-  throw InputError("unknown splat mode '" + std::string(name) + "' (expected fast, hq or fixed)");
+  if (name == "id") return SplatMode::ObjectId;
+  throw InputError("unknown splat mode '" + std::string(name) +
+                   "' (expected fast, hq, fixed or id)");
 }
 
 void CutBuffer::write(std::span<const NodeId> ids) {
@@ -242,7 +246,12 @@ Renderer::Renderer(const Hierarchy& h, glm::ivec2 size) {
   fixed_ = make_program(
       {{GL_VERTEX_SHADER, shaders::kFixedVertex}, {GL_FRAGMENT_SHADER, shaders::kFixedFragment}},
       "splat fixed");
+  object_id_ = make_program({{GL_VERTEX_SHADER, shaders::kSplatVertex},
+                             {GL_GEOMETRY_SHADER, shaders::kSplatGeometry},
+                             {GL_FRAGMENT_SHADER, shaders::kObjectIdFragment}},
+                            "splat object id", "#define SPLAT_LIT 1\n#define SPLAT_ID 1\n");
   fast_u_ = lookup_uniforms(fast_);
+  object_id_u_ = lookup_uniforms(object_id_);
   hq_visibility_u_ = lookup_uniforms(hq_visibility_);
   hq_attributes_u_ = lookup_uniforms(hq_attributes_);
   hq_normalize_u_ = lookup_uniforms(hq_normalize_);
@@ -603,6 +612,18 @@ FrameStats Renderer::render(const CutBuffer* cut, const SceneCutBuffer* scene,
       gl::Enable(GL_DEPTH_TEST);
       break;
     }
+    case SplatMode::ObjectId: {
+      // White = no object: an index would need 2^24 - 1 objects to mean it.
+      clear_color(scene_fbo_, 0, glm::vec4(1.0f));
+      clear_depth(scene_fbo_);
+      gl::BindFramebuffer(GL_FRAMEBUFFER, scene_fbo_.id());
+      gl::DepthFunc(GL_LESS);
+      set_common(object_id_, object_id_u_);
+      gl::ProgramUniform1f(object_id_.id(), object_id_u_.depth_offset, 0.0f);
+      draw_runs(elements, object_id_, object_id_u_, hook, frame, scene_fbo_.id(), true);
+      run_hook(scene_fbo_.id());
+      break;
+    }
     case SplatMode::FixedSize: {
       clear_color(scene_fbo_, 0, background);
       clear_depth(scene_fbo_);
@@ -638,7 +659,8 @@ FrameStats Renderer::render(const CutBuffer* cut, const SceneCutBuffer* scene,
 void Renderer::begin_frame_ranges(const gl::Buffer& elements, NodeId max_id, const Camera& camera,
                                   const RenderSettings& settings) {
   if (settings.mode == SplatMode::HighQuality) {
-    throw std::invalid_argument("Renderer: in-frame ranges need a one-pass mode (fast or fixed)");
+    throw std::invalid_argument(
+        "Renderer: in-frame ranges need a one-pass mode (fast, fixed or id)");
   }
   if (max_id >= node_count_) {
     throw std::logic_error("Renderer: the ranges name node " + std::to_string(max_id) +
@@ -653,22 +675,23 @@ void Renderer::begin_frame_ranges(const gl::Buffer& elements, NodeId max_id, con
   in_frame_splats_ = 0;
   draw_calls_ = 0;
   const bool fixed = settings.mode == SplatMode::FixedSize;
-  in_frame_program_ = fixed ? &fixed_ : &fast_;
-  const Uniforms& u = fixed ? fixed_u_ : fast_u_;
+  const bool ids = settings.mode == SplatMode::ObjectId;
+  in_frame_program_ = fixed ? &fixed_ : ids ? &object_id_ : &fast_;
+  const Uniforms& u = fixed ? fixed_u_ : ids ? object_id_u_ : fast_u_;
   set_common_uniforms(*in_frame_program_, u, in_frame_view_, settings, 1.0f);
   gl::ProgramUniform1i(in_frame_program_->id(), u.fade_mode, 0);
   if (fixed) {
     gl::ProgramUniform1f(fixed_.id(), u.point_size, std::max(settings.point_size_px, 1.0f));
     gl::Enable(GL_PROGRAM_POINT_SIZE);
   } else {
-    gl::ProgramUniform1f(fast_.id(), u.depth_offset, 0.0f);
+    gl::ProgramUniform1f(in_frame_program_->id(), u.depth_offset, 0.0f);
   }
   gl::VertexArrayElementBuffer(vao_.id(), elements.id());
   gl::Viewport(0, 0, size_.x, size_.y);
   gl::Disable(GL_BLEND);
   gl::Enable(GL_DEPTH_TEST);
   gl::DepthFunc(GL_LESS);
-  clear_color(scene_fbo_, 0, glm::vec4(settings.background, 1.0f));
+  clear_color(scene_fbo_, 0, ids ? glm::vec4(1.0f) : glm::vec4(settings.background, 1.0f));
   clear_depth(scene_fbo_);
   gl::BindFramebuffer(GL_FRAMEBUFFER, scene_fbo_.id());
   last_max_id_ = max_id;

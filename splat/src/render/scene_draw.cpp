@@ -95,6 +95,10 @@ ObjectRecord object_record(const glm::mat4& world) {
 
 void SceneCutBuffer::set_objects(const Renderer& renderer,
                                  std::span<const SceneObjectDraw> objects) {
+  if (objects.size() >= kMaxSceneDrawObjects) {
+    throw std::invalid_argument("SceneCutBuffer: " + std::to_string(objects.size()) +
+                                " objects, at most " + std::to_string(kMaxSceneDrawObjects - 1));
+  }
   std::vector<ObjectRecord> records;
   records.reserve(objects.size());
   for (std::size_t i = 0; i < objects.size(); ++i) {
@@ -105,6 +109,8 @@ void SceneCutBuffer::set_objects(const Renderer& renderer,
     }
     try {
       records.push_back(object_record(objects[i].world));
+      // The index the ObjectId mode writes (exact in a float below 2^24).
+      records.back().extra.w = static_cast<float>(i);
     } catch (const std::invalid_argument& e) {
       throw std::invalid_argument("object " + std::to_string(i) + ": " + e.what());
     }

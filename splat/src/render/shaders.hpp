@@ -77,7 +77,7 @@ inline constexpr const char* kObjectVertex = R"(
 layout(location = 3) in vec4 a_world_row0;
 layout(location = 4) in vec4 a_world_row1;
 layout(location = 5) in vec4 a_world_row2;
-layout(location = 6) in vec4 a_object;  // sigma_max, cone widening, det sign, 0
+layout(location = 6) in vec4 a_object;  // sigma_max, cone widening, det sign, object index
 vec3 object_point(vec3 p) {
   vec4 q = vec4(p, 1.0);
   return vec3(dot(a_world_row0, q), dot(a_world_row1, q), dot(a_world_row2, q));
@@ -110,6 +110,7 @@ out Node {
   vec3 normal;
   float cone_cos;
   vec3 color;
+  float object;
 } v_node;
 void main() {
   v_node.center = object_point(a_center_radius.xyz);
@@ -117,6 +118,7 @@ void main() {
   v_node.normal = object_normal(a_normal_cone.xyz);
   v_node.cone_cos = object_cone(a_normal_cone.w);
   v_node.color = srgb_to_linear(a_color.rgb);
+  v_node.object = a_object.w;
 }
 )";
 
@@ -139,6 +141,7 @@ in Node {
   vec3 normal;
   float cone_cos;
   vec3 color;
+  float object;
 } g_node[];
 uniform float u_depth_offset;
 out vec2 f_uv;
@@ -148,6 +151,9 @@ flat out vec3 f_color;  // lit, sRGB: the fragment stage only tests the disc
 out vec3 f_pos;
 flat out vec3 f_normal;
 flat out vec3 f_color;
+#endif
+#ifdef SPLAT_ID
+flat out float f_object;
 #endif
 void main() {
   vec3 c = g_node[0].center;
@@ -196,6 +202,9 @@ void main() {
     f_normal = n;
     f_color = g_node[0].color;
 #endif
+#ifdef SPLAT_ID
+    f_object = g_node[0].object;
+#endif
     EmitVertex();
   }
   EndPrimitive();
@@ -210,6 +219,21 @@ layout(location = 0) out vec4 o_color;
 void main() {
   if (dot(f_uv, f_uv) > 1.0 || faded_out()) discard;
   o_color = vec4(f_color, 1.0);
+}
+)";
+
+// Object ids: the disc in the index of its object, 8 bits a channel (exact
+// in float up to 2^24 objects). The geometry stage is fast mode's
+// (SPLAT_LIT: the same triangle and disc test), so an object covers exactly
+// the pixels it covers there.
+inline constexpr const char* kObjectIdFragment = R"(
+in vec2 f_uv;
+flat in float f_object;
+layout(location = 0) out vec4 o_color;
+void main() {
+  if (dot(f_uv, f_uv) > 1.0 || faded_out()) discard;
+  uint id = uint(f_object);
+  o_color = vec4(float(id & 255u), float((id >> 8) & 255u), float((id >> 16) & 255u), 255.0) / 255.0;
 }
 )";
 

@@ -14,6 +14,9 @@
 //    the weight and shades per pixel (Phong).
 //  - FixedSize: screen-space points of a fixed pixel size (the stippling look
 //    of the bucket strategy).
+//  - ObjectId: the discs of Fast, unlit, each pixel the index of the scene
+//    object in front (r | g << 8 | b << 16; 0xffffff where nothing is; 0 for
+//    a single model): the exact visibility reference of occlusion culling.
 //
 // All methods: render thread only, with the renderer's context current.
 #pragma once
@@ -36,9 +39,9 @@
 
 namespace treecut::splat {
 
-enum class SplatMode { Fast, HighQuality, FixedSize };
+enum class SplatMode { Fast, HighQuality, FixedSize, ObjectId };
 
-/// "fast", "hq", "fixed".
+/// "fast", "hq", "fixed", "id".
 std::string_view splat_mode_name(SplatMode mode);
 /// Inverse of splat_mode_name (also accepts "high-quality"); throws InputError.
 SplatMode parse_splat_mode(std::string_view name);
@@ -354,7 +357,8 @@ class Renderer {
   gl::Program hq_attributes_;
   gl::Program hq_normalize_;
   gl::Program fixed_;
-  Uniforms fast_u_, hq_visibility_u_, hq_attributes_u_, hq_normalize_u_, fixed_u_;
+  gl::Program object_id_;
+  Uniforms fast_u_, hq_visibility_u_, hq_attributes_u_, hq_normalize_u_, fixed_u_, object_id_u_;
   std::vector<Run> runs_;              // reused by every draw
   std::vector<std::size_t> run_hook_;  // per run: the range it ends (SIZE_MAX: none)
   std::vector<CutRange> sorted_ranges_;

@@ -34,9 +34,14 @@ namespace treecut::splat {
 
 class Renderer;
 
+/// Objects a SceneCutBuffer takes: their index is a float in the object
+/// record, exact below 2^24, and 0xffffff is the ObjectId mode's background.
+inline constexpr std::size_t kMaxSceneDrawObjects = std::size_t{1} << 24;
+
 /// What the vertex stage reads per object (shaders.hpp, kObjectVertex):
 /// rows 0-2 of the affine model -> world matrix and `extra` = (sigma, cone
-/// widening, sign of the determinant, 0). sigma is the largest singular value
+/// widening, sign of the determinant, the object's index: 0 from
+/// object_record, set by SceneCutBuffer::set_objects). sigma is the largest singular value
 /// of the linear part (a splat of radius r covers its transformed disc at
 /// radius sigma r); the widening bounds how much the sine of a normal cone's
 /// half-angle grows (sigma_1 sigma_2 / sigma_3^2; exactly 1 for a
