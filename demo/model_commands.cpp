@@ -111,66 +111,41 @@ void check_cache_output(const std::filesystem::path& out, const std::filesystem:
                      ": exists and is not a treecut cache; refusing to overwrite it");
 }
 
-// `gen -o PATH` replaces PATH only when it is a PLY (regenerating a model is
-// what gen is for); a directory, a FIFO or any other file is refused.
+// `gen` replaces an output only when it is a file of the kind it writes
+// (regenerating is what gen is for): one that starts with `magic`. A
+// directory, a FIFO or any other file is refused, naming `written` (what
+// would go there) or `kind` (what the file is not).
+void check_replaceable_output(const std::filesystem::path& out, std::string_view magic,
+                              std::string_view written, std::string_view kind) {
+  const FileKind file = file_kind(out);
+  if (file == FileKind::Missing) return;
+  if (file != FileKind::Regular)
+    throw InputError(out.string() + ": is " + std::string(describe(file)) + "; refusing to write " +
+                     std::string(written) + " there");
+  bool same_kind = false;
+  try {
+    const int fd = open_regular_file(out);
+    std::string head(magic.size(), '\0');
+    same_kind =
+        ::read(fd, head.data(), head.size()) == static_cast<ssize_t>(head.size()) && head == magic;
+    ::close(fd);
+  } catch (const std::exception&) {
+    same_kind = false;
+  }
+  if (!same_kind)
+    throw InputError(out.string() + ": exists and is not " + std::string(kind) +
+                     "; refusing to overwrite it");
+}
+
+// `gen -o PATH` (a model), `gen --walk PATH`, `gen city-block | hall -o PATH`.
 void check_ply_output(const std::filesystem::path& out) {
-  const FileKind kind = file_kind(out);
-  if (kind == FileKind::Missing) return;
-  if (kind != FileKind::Regular)
-    throw InputError(out.string() + ": is " + std::string(describe(kind)) +
-                     "; refusing to write a model there");
-  bool ply = false;
-  try {
-    const int fd = open_regular_file(out);
-    char magic[4] = {};
-    ply = ::read(fd, magic, sizeof magic) == 4 && std::string_view(magic, 4) == "ply\n";
-    ::close(fd);
-  } catch (const std::exception&) {
-    ply = false;
-  }
-  if (!ply)
-    throw InputError(out.string() + ": exists and is not a PLY file; refusing to overwrite it");
+  check_replaceable_output(out, "ply\n", "a model", "a PLY file");
 }
-
-// `gen --walk PATH` replaces only a camera path (or writes a new file).
 void check_walk_output(const std::filesystem::path& out) {
-  const FileKind kind = file_kind(out);
-  if (kind == FileKind::Missing) return;
-  if (kind != FileKind::Regular)
-    throw InputError(out.string() + ": is " + std::string(describe(kind)) +
-                     "; refusing to write a camera path there");
-  bool campath = false;
-  try {
-    const int fd = open_regular_file(out);
-    char head[20] = {};
-    campath =
-        ::read(fd, head, sizeof head) == 20 && std::string_view(head, 19) == "treecut-camera-path";
-    ::close(fd);
-  } catch (const std::exception&) {
-    campath = false;
-  }
-  if (!campath)
-    throw InputError(out.string() + ": exists and is not a camera path; refusing to overwrite it");
+  check_replaceable_output(out, "treecut-camera-path", "a camera path", "a camera path");
 }
-
-// `gen city-block | hall -o PATH` replaces only an earlier scene file.
 void check_scene_output(const std::filesystem::path& out) {
-  const FileKind kind = file_kind(out);
-  if (kind == FileKind::Missing) return;
-  if (kind != FileKind::Regular)
-    throw InputError(out.string() + ": is " + std::string(describe(kind)) +
-                     "; refusing to write a scene there");
-  bool scene = false;
-  try {
-    const int fd = open_regular_file(out);
-    char head[13] = {};
-    scene = ::read(fd, head, sizeof head) == 13 && std::string_view(head, 13) == "treecut-scene";
-    ::close(fd);
-  } catch (const std::exception&) {
-    scene = false;
-  }
-  if (!scene)
-    throw InputError(out.string() + ": exists and is not a scene file; refusing to overwrite it");
+  check_replaceable_output(out, "treecut-scene", "a scene", "a scene file");
 }
 
 splat::CameraPath walk_path(const std::vector<WalkKey>& keys) {

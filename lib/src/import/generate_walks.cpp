@@ -4,6 +4,7 @@
 // moves the path with it.
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <glm/geometric.hpp>
 #include <numbers>
 
@@ -66,6 +67,66 @@ struct Polyline {
   }
 };
 
+// The five segments of a walkthrough along `line` (walk_length long, then
+// its target's run-out): the overview, an arc about the whole scene; over to
+// above the start of the walk; straight down to eye level; the walk at
+// `speed` looking `ahead` along the route; up again and back to the
+// overview. Keys every 0.1 s; `arc(deg)` is the overview's eye at an angle,
+// `centre` what it looks at, `high` the height above the route's ends.
+std::vector<WalkKey> five_segments(const Polyline& line, float walk_length, float ahead,
+                                   float speed, glm::vec3 centre, float high,
+                                   const std::function<glm::vec3(float)>& arc) {
+  std::vector<WalkKey> keys;
+  double t0 = 0.0;
+  // One segment: `seconds` long, keys every 0.1 s, the camera from f(0) to f(1).
+  auto segment = [&](double seconds, auto&& f) {
+    const int steps = std::max(1, static_cast<int>(std::lround(seconds * 10.0)));
+    for (int k = keys.empty() ? 0 : 1; k <= steps; ++k) {
+      WalkKey key;
+      key.time = t0 + seconds * k / steps;
+      f(static_cast<float>(k) / static_cast<float>(steps), key);
+      keys.push_back(key);
+    }
+    t0 += seconds;
+  };
+  const glm::vec3 start = line.at(0.0f), start_look = line.at(ahead);
+  const glm::vec3 end = line.at(walk_length), end_look = line.at(walk_length + ahead);
+  const glm::vec3 above_start(start.x, start.y, high), above_end(end.x, end.y, high);
+  // 1. The overview: an arc about the whole scene.
+  segment(4.0, [&](float t, WalkKey& k) {
+    k.eye = arc(-60.0f - 80.0f * t);
+    k.target = centre;
+  });
+  // 2. Over to above the start of the walk, looking down the first street.
+  segment(4.0, [&](float t, WalkKey& k) {
+    const float e = smooth(t);
+    k.eye = glm::mix(arc(-140.0f), above_start, e);
+    k.target = glm::mix(centre, start_look, e);
+  });
+  // 3. Straight down to eye level (over a lane: nothing in the way).
+  segment(3.0, [&](float t, WalkKey& k) {
+    k.eye = glm::mix(above_start, start, smooth(t));
+    k.target = start_look;
+  });
+  // 4. The walk, at constant speed, looking ahead along the route.
+  segment(walk_length / speed, [&](float t, WalkKey& k) {
+    const float d = t * walk_length;
+    k.eye = line.at(d);
+    k.target = line.at(d + ahead);
+  });
+  // 5. Up again, and back to the overview.
+  segment(3.0, [&](float t, WalkKey& k) {
+    k.eye = glm::mix(end, above_end, smooth(t));
+    k.target = end_look;
+  });
+  segment(4.0, [&](float t, WalkKey& k) {
+    const float e = smooth(t);
+    k.eye = glm::mix(above_end, arc(140.0f), e);
+    k.target = glm::mix(end_look, centre, e);
+  });
+  return keys;
+}
+
 }  // namespace
 
 float walk_eye_height(ModelKind kind) {
@@ -100,57 +161,8 @@ std::vector<WalkKey> scene_walkthrough(ModelKind kind) {
     const float a = deg * std::numbers::pi_v<float> / 180.0f;
     return glm::vec3(radius * std::cos(a), radius * std::sin(a), height);
   };
-  std::vector<WalkKey> keys;
-  double t0 = 0.0;
-  // One segment: `seconds` long, keys every 0.1 s, the camera from f(0) to f(1).
-  auto segment = [&](double seconds, auto&& f) {
-    const int steps = std::max(1, static_cast<int>(std::lround(seconds * 10.0)));
-    for (int k = keys.empty() ? 0 : 1; k <= steps; ++k) {
-      WalkKey key;
-      key.time = t0 + seconds * k / steps;
-      f(static_cast<float>(k) / static_cast<float>(steps), key);
-      keys.push_back(key);
-    }
-    t0 += seconds;
-  };
-  const glm::vec3 start = line.at(0.0f), start_look = line.at(r.ahead);
-  const glm::vec3 end = line.at(walk_length), end_look = line.at(walk_length + r.ahead);
-  const glm::vec3 above_start(start.x, start.y, high), above_end(end.x, end.y, high);
-  // 1. The overview: an arc about the whole scene.
-  segment(4.0, [&](float t, WalkKey& k) {
-    k.eye = arc(-60.0f - 80.0f * t);
-    k.target = centre;
-  });
-  // 2. Over to above the start of the walk, looking down the first street.
-  segment(4.0, [&](float t, WalkKey& k) {
-    const float e = smooth(t);
-    k.eye = glm::mix(arc(-140.0f), above_start, e);
-    k.target = glm::mix(centre, start_look, e);
-  });
-  // 3. Straight down to eye level (over a lane: nothing in the way).
-  segment(3.0, [&](float t, WalkKey& k) {
-    k.eye = glm::mix(above_start, start, smooth(t));
-    k.target = start_look;
-  });
-  // 4. The walk, at constant speed, looking ahead along the route.
-  segment(walk_length / r.speed, [&](float t, WalkKey& k) {
-    const float d = t * walk_length;
-    k.eye = line.at(d);
-    k.target = line.at(d + r.ahead);
-  });
-  // 5. Up again, and back to the overview.
-  segment(3.0, [&](float t, WalkKey& k) {
-    k.eye = glm::mix(end, above_end, smooth(t));
-    k.target = end_look;
-  });
-  segment(4.0, [&](float t, WalkKey& k) {
-    const float e = smooth(t);
-    k.eye = glm::mix(above_end, arc(140.0f), e);
-    k.target = glm::mix(end_look, centre, e);
-  });
-  return keys;
+  return five_segments(line, walk_length, r.ahead, r.speed, centre, high, arc);
 }
-
 
 std::vector<WalkKey> route_walkthrough(glm::vec2 lo, glm::vec2 hi, float top,
                                        const std::vector<glm::vec2>& route, float eye, float speed,
@@ -180,49 +192,7 @@ std::vector<WalkKey> route_walkthrough(glm::vec2 lo, glm::vec2 hi, float top,
     const float a = deg * std::numbers::pi_v<float> / 180.0f;
     return glm::vec3(mid.x + radius * std::cos(a), mid.y + radius * std::sin(a), height);
   };
-  std::vector<WalkKey> keys;
-  double t0 = 0.0;
-  auto segment = [&](double seconds, auto&& f) {
-    const int steps = std::max(1, static_cast<int>(std::lround(seconds * 10.0)));
-    for (int k = keys.empty() ? 0 : 1; k <= steps; ++k) {
-      WalkKey key;
-      key.time = t0 + seconds * k / steps;
-      f(static_cast<float>(k) / static_cast<float>(steps), key);
-      keys.push_back(key);
-    }
-    t0 += seconds;
-  };
-  const glm::vec3 start = line.at(0.0f), start_look = line.at(ahead);
-  const glm::vec3 end = line.at(walk_length), end_look = line.at(walk_length + ahead);
-  const glm::vec3 above_start(start.x, start.y, high), above_end(end.x, end.y, high);
-  segment(4.0, [&](float t, WalkKey& k) {
-    k.eye = arc(-60.0f - 80.0f * t);
-    k.target = centre;
-  });
-  segment(4.0, [&](float t, WalkKey& k) {
-    const float e = smooth(t);
-    k.eye = glm::mix(arc(-140.0f), above_start, e);
-    k.target = glm::mix(centre, start_look, e);
-  });
-  segment(3.0, [&](float t, WalkKey& k) {
-    k.eye = glm::mix(above_start, start, smooth(t));
-    k.target = start_look;
-  });
-  segment(walk_length / speed, [&](float t, WalkKey& k) {
-    const float d = t * walk_length;
-    k.eye = line.at(d);
-    k.target = line.at(d + ahead);
-  });
-  segment(3.0, [&](float t, WalkKey& k) {
-    k.eye = glm::mix(end, above_end, smooth(t));
-    k.target = end_look;
-  });
-  segment(4.0, [&](float t, WalkKey& k) {
-    const float e = smooth(t);
-    k.eye = glm::mix(above_end, arc(140.0f), e);
-    k.target = glm::mix(end_look, centre, e);
-  });
-  return keys;
+  return five_segments(line, walk_length, ahead, speed, centre, high, arc);
 }
 
 }  // namespace treecut
