@@ -16,13 +16,14 @@ namespace {
 TEST(StrategyRegistry, ListsTheBuiltInsSortedWithTheirParameters) {
   const StrategyRegistry r = strategies::builtin_registry();
   const auto list = r.list();
-  ASSERT_EQ(list.size(), 6u);
+  ASSERT_EQ(list.size(), 7u);
   EXPECT_EQ(list[0].name, "bucket");
-  EXPECT_EQ(list[1].name, "event_queue");
-  EXPECT_EQ(list[2].name, "hoq");
-  EXPECT_EQ(list[3].name, "optimization");
-  EXPECT_EQ(list[4].name, "recursive");
-  EXPECT_EQ(list[5].name, "topdown");
+  EXPECT_EQ(list[1].name, "budget");
+  EXPECT_EQ(list[2].name, "event_queue");
+  EXPECT_EQ(list[3].name, "hoq");
+  EXPECT_EQ(list[4].name, "optimization");
+  EXPECT_EQ(list[5].name, "recursive");
+  EXPECT_EQ(list[6].name, "topdown");
   for (const StrategyInfo& info : list) {
     EXPECT_EQ(info.origin, "built-in");
     EXPECT_FALSE(info.description.empty());
@@ -40,10 +41,10 @@ TEST(StrategyRegistry, AnUnknownNameIsAnInputErrorListingTheKnownOnes) {
     (void)r.create("qsplat");
     FAIL() << "no exception";
   } catch (const InputError& e) {
-    EXPECT_EQ(
-        std::string(e.what()),
-        "unknown strategy 'qsplat' (known: bucket, event_queue, hoq, optimization, recursive, "
-        "topdown)");
+    EXPECT_EQ(std::string(e.what()),
+              "unknown strategy 'qsplat' (known: bucket, budget, event_queue, hoq, optimization, "
+              "recursive, "
+              "topdown)");
   }
 }
 
@@ -56,7 +57,7 @@ TEST(StrategyRegistry, RefusesDuplicatesAndMismatchedFactories) {
                      [] { return std::make_unique<strategies::OptimizationStrategy>(); }),
                std::invalid_argument);
   EXPECT_THROW(r.add("", "empty", nullptr), std::invalid_argument);
-  EXPECT_EQ(r.names().size(), 6u);
+  EXPECT_EQ(r.names().size(), 7u);
 }
 
 TEST(StrategyParams, OutOfRangeNonIntegralAndUnknownValuesAreRefusedUnchanged) {

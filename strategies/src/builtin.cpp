@@ -3,6 +3,7 @@
 #include <memory>
 
 #include "treecut/strategies/bucket.hpp"
+#include "treecut/strategies/budget_strategy.hpp"
 #include "treecut/strategies/event_queue.hpp"
 #include "treecut/strategies/hoq.hpp"
 #include "treecut/strategies/optimization.hpp"
@@ -36,6 +37,11 @@ void register_builtin(StrategyRegistry& registry) {
                "HLOD blocks refined by VMSSE = B_{s,t}(mu) * SSE from occlusion queries, with "
                "refine/stop/delay predicted from cached bias [Charalambos et al. 2007, fig. 3]",
                [] { return std::make_unique<HoqStrategy>(); });
+  registry.add("budget",
+               "scene-level: Eq. 1 shares of N points over the objects left by frustum and "
+               "hierarchical Z-map culling, each share the best cut of its object "
+               "[Peng & Cao 2013, sections 5, 6]",
+               [] { return std::make_unique<BudgetStrategy>(); });
 }
 
 StrategyRegistry builtin_registry() {

@@ -1,0 +1,253 @@
+// The `budget` strategy (Peng & Cao, I3D 2013, sections 5 and 6, on the CPU
+// cores): what it does and what it adds, budget_strategy.hpp.
+#include "treecut/strategies/budget_strategy.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace treecut::strategies {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+std::uint64_t ns_since(Clock::time_point& t) {
+  const Clock::time_point now = Clock::now();
+  const auto ns = std::chrono::duration_cast<std::chrono::nanoseconds>(now - t).count();
+  t = now;
+  return static_cast<std::uint64_t>(ns);
+}
+
+// Objects per chunk of the LOD pass: best_cut is O(n log n) in the share, so
+// a few objects a chunk already balance the two threads.
+constexpr std::size_t kLodGrain = 4;
+
+std::vector<ParamSpec> budget_specs() {
+  return {
+      {"points", "N: points (splats) for the whole scene, shared by Eq. 1", 1'000'000.0, 0.0, 1e9,
+       true},
+      {"alpha", "exponent of Eq. 1 (> 1; the paper uses 3)", 3.0, 1.01, 16.0, false},
+      {"pet", "pixel error threshold: objects whose screen rectangle is smaller (px^2) get nothing",
+       1.0, 0.0, 1e7, false},
+      {"culling", "1: hierarchical Z-map occlusion culling, 0: frustum culling only", 1.0, 0.0, 1.0,
+       true},
+      {"occluders", "size of the active occluder set (Eq. 3 weights, highest first)", 32.0, 0.0,
+       4096.0, true},
+      {"ct", "compactness threshold CT of the candidate occluders (Eq. 2)", 0.55, 0.0, 1.0, false},
+      {"threads", "worker pool size, the stage thread included", 2.0, 1.0, 2.0, true},
+  };
+}
+
+}  // namespace
+
+BudgetStrategy::BudgetStrategy() : Strategy(budget_specs()) {}
+BudgetStrategy::~BudgetStrategy() = default;
+
+void BudgetStrategy::reset(const Hierarchy& /*hierarchy*/) {
+  // A single model keeps no state: iterate() is a function of the view.
+}
+
+void BudgetStrategy::iterate(const IterationInput& input, IterationOutput& output) {
+  // One object, no culling, no sharing: the whole budget is its share. At
+  // least the root, since a single model's list must be a cut.
+  const auto n = static_cast<std::size_t>(std::max(1.0, param_at(kPoints)));
+  *output.nodes = many::best_cut(input.hierarchy, input.view, n);
+  output.result.visited = output.nodes->size();
+  output.result.converged = true;  // a function of the view and parameters only
+}
+
+void BudgetStrategy::reset_scene(std::span<const SceneObjectInput> objects) {
+  // Section 6.1 per distinct model (instances share it): the points are the
+  // hierarchy's leaves, the box fitted to them, Eq. 2, and a box inside.
+  std::uint32_t models = 0;
+  for (const SceneObjectInput& o : objects) models = std::max(models, o.model + 1);
+  std::vector<ModelShape> shapes(models);
+  std::vector<glm::vec3> points;
+  for (const SceneObjectInput& o : objects) {
+    ModelShape& s = shapes[o.model];
+    if (s.hierarchy != nullptr) continue;
+    const Hierarchy& h = *o.hierarchy;
+    s.hierarchy = &h;
+    points.clear();
+    float radius = 0.0f;
+    for (NodeId n = 0; n < h.node_count(); ++n) {
+      if (h.is_leaf(n)) {
+        points.push_back(h.center(n));
+        radius = std::max(radius, h.radius(n));
+      }
+    }
+    // The splats' box (centres grown by the largest splat radius): what the
+    // renderer can cover, so what frustum culling and the HZM test must take.
+    s.splat_lo = h.bounds_min() - glm::vec3(radius);
+    s.splat_hi = h.bounds_max() + glm::vec3(radius);
+    // The principal axes are arbitrary for a model whose covariance is
+    // nearly isotropic (a cube): the model's own axis-aligned box is the
+    // other candidate, the smaller volume wins.
+    const many::Obb fitted = many::fit_obb(points);
+    const glm::vec3 lo = h.bounds_min(), hi = h.bounds_max();
+    const many::Obb aligned{0.5f * (lo + hi), glm::mat3(1.0f), 0.5f * (hi - lo)};
+    const auto volume = [](const many::Obb& b) { return b.half.x * b.half.y * b.half.z; };
+    s.box = volume(fitted) < 0.98f * volume(aligned) ? fitted : aligned;
+    s.compactness = many::compactness(points, s.box);
+    // A grid with about 16 points per surface cell (the six faces of n x n
+    // cells hold 6 n^2): random sampling then leaves no cell of a closed
+    // surface empty (e^-16), and an empty cell would read as a hole.
+    const int cells = std::clamp(
+        static_cast<int>(std::sqrt(static_cast<double>(points.size()) / (6.0 * 16.0))), 3, 32);
+    s.inner = many::inner_box(points, s.box, cells);
+  }
+  std::vector<many::SceneObject> made(objects.size());
+  hierarchies_.resize(objects.size());
+  worlds_.resize(objects.size());
+  for (std::size_t i = 0; i < objects.size(); ++i) {
+    const SceneObjectInput& o = objects[i];
+    const ModelShape& s = shapes[o.model];
+    many::SceneObject& x = made[i];
+    x.box = many::transformed(s.box, o.world);
+    // The fitted box holds the splat centres; the splats' box moved holds
+    // every pixel a splat can cover.
+    x.bounds = many::bounds_of(x.box);
+    const many::Obb aabb{0.5f * (s.splat_lo + s.splat_hi), glm::mat3(1.0f),
+                         0.5f * (s.splat_hi - s.splat_lo)};
+    const many::Aabb b = many::bounds_of(many::transformed(aabb, o.world));
+    x.bounds.min = glm::min(x.bounds.min, b.min);
+    x.bounds.max = glm::max(x.bounds.max, b.max);
+    x.has_inner = s.inner.has_value();
+    if (x.has_inner) x.inner = many::transformed(*s.inner, o.world);
+    x.points = o.hierarchy->leaf_count();
+    x.compactness = s.compactness;
+    hierarchies_[i] = o.hierarchy;
+    worlds_[i] = o.world;
+  }
+  shapes_.swap(shapes);
+  objects_.swap(made);
+  cuts_.assign(objects_.size(), {});
+  culler_.reset();  // preprocessed again for these objects
+}
+
+void BudgetStrategy::ensure_pool() {
+  const auto threads = static_cast<unsigned>(param_at(kThreads));
+  if (!pool_ || pool_->threads() != threads) {
+    pool_.reset();  // its workers joined before the new ones start
+    pool_ = std::make_unique<many::WorkerPool>(threads);
+  }
+}
+
+void BudgetStrategy::ensure_culler() {
+  many::HzmParams p;
+  p.active = static_cast<std::size_t>(param_at(kOccluders));
+  p.compactness_threshold = static_cast<float>(param_at(kCompactness));
+  if (!culler_ || culler_params_.active != p.active ||
+      culler_params_.compactness_threshold != p.compactness_threshold) {
+    culler_ = std::make_unique<many::HzmCuller>(p);
+    culler_->preprocess(objects_);
+    culler_params_ = p;
+  }
+}
+
+void BudgetStrategy::iterate_scene(const SceneIterationInput& input, SceneIterationOutput& output) {
+  const std::size_t n = objects_.size();
+  if (input.objects.size() != n) {
+    throw std::logic_error("budget: " + std::to_string(input.objects.size()) +
+                           " objects, reset_scene saw " + std::to_string(n));
+  }
+  ensure_pool();
+  ensure_culler();
+  many::WorkerPool* pool = pool_.get();
+  BudgetCounters c;
+  c.objects = n;
+  // The culler needs a perspective frustum (FrameView throws otherwise:
+  // the stage names it as this strategy's error).
+  const many::FrameView view(input.view);
+  Clock::time_point t = Clock::now();
+
+  const auto stop_with_previous = [&] {
+    // Cancelled: the lists before stay (a valid scene list by definition).
+    output.nodes->assign(input.previous.begin(), input.previous.end());
+    output.offsets->assign(input.previous_offsets.begin(), input.previous_offsets.end());
+    if (output.offsets->size() != n + 1) output.offsets->assign(n + 1, 0);
+    if (output.offsets->back() != output.nodes->size()) {
+      output.nodes->clear();
+      output.offsets->assign(n + 1, 0);
+    }
+    output.result.cancelled = true;
+  };
+
+  many::HzmCuller& culler = *culler_;
+  const bool culling = param_at(kCulling) != 0.0;
+  culler.project(objects_, view, pool);
+  c.project_ns = ns_since(t);
+  if (culling) {
+    culler.select_occluders(objects_, view, pool);
+    c.select_ns = ns_since(t);
+    culler.build_hzm(objects_, view, pool);
+    c.hzm_ns = ns_since(t);
+    culler.test(objects_, pool);
+    c.test_ns = ns_since(t);
+    visible_.assign(culler.visible().begin(), culler.visible().end());
+    const many::CullStats s = culler.stats();
+    c.occluders = s.occluders;
+    c.occlusion_culled = s.occluded;
+  } else {
+    visible_.resize(n);
+    const auto rects = culler.rects();
+    for (std::size_t i = 0; i < n; ++i) visible_[i] = rects[i].in_frustum ? 1 : 0;
+  }
+  const auto rects = culler.rects();
+  for (std::size_t i = 0; i < n; ++i) {
+    c.frustum_culled += rects[i].in_frustum ? 0 : 1;
+    c.visible += visible_[i];
+  }
+  if (input.cancelled()) return stop_with_previous();
+
+  // Eq. 1 over the visible set: a culled object's area is 0, its share goes
+  // to the others.
+  many::BudgetParams bp;
+  bp.total = static_cast<std::uint64_t>(param_at(kPoints));
+  bp.alpha = param_at(kAlpha);
+  bp.pet = param_at(kPet);
+  many::budget_items(objects_, rects, visible_, items_, pool);
+  const many::BudgetStats bs = many::allocate_budget(items_, bp, shares_, pool);
+  c.below_pet = bs.below_pet;
+  c.receiving = bs.receiving;
+  c.shares = bs.total;
+  c.budget_ns = ns_since(t);
+  if (input.cancelled()) return stop_with_previous();
+
+  // Each share a cut of its object's hierarchy, objects in parallel (each
+  // writes only its own list).
+  pool->run(n, kLodGrain, [&](std::size_t b, std::size_t e, std::size_t) {
+    for (std::size_t i = b; i < e; ++i) {
+      if (shares_[i] == 0) {
+        cuts_[i].clear();
+        continue;
+      }
+      const ViewSnapshot v = many::object_view(input.view, worlds_[i]);
+      cuts_[i] = many::best_cut(*hierarchies_[i], v, shares_[i]);
+    }
+  });
+  output.offsets->resize(n + 1);
+  (*output.offsets)[0] = 0;
+  std::size_t total = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    total += cuts_[i].size();
+    (*output.offsets)[i + 1] = static_cast<std::uint32_t>(total);
+  }
+  output.nodes->reserve(total);
+  for (std::size_t i = 0; i < n; ++i) {
+    output.nodes->insert(output.nodes->end(), cuts_[i].begin(), cuts_[i].end());
+  }
+  c.selected = total;
+  c.lod_ns = ns_since(t);
+
+  output.result.visited = n;
+  output.result.culled = c.frustum_culled + c.occlusion_culled;
+  output.result.too_small = c.below_pet;
+  output.result.converged = true;  // a function of the view and parameters only
+  last_ = c;
+}
+
+}  // namespace treecut::strategies
