@@ -509,15 +509,20 @@ void FeedbackStage::process_scene(Outbox& out) {
   using Clock = std::chrono::steady_clock;
   const Clock::time_point t0 = out.started;
   const std::size_t n = scene_inputs_.size();
-  if (inbox_.strategy) {
-    make_object_strategies(std::move(inbox_.strategy), inbox_.factory);
-    inbox_.factory = nullptr;
+  // Taken out of the inbox first: a failure below leaves nothing behind
+  // for the next request to find.
+  std::unique_ptr<Strategy> incoming = std::move(inbox_.strategy);
+  const StrategyFactory factory = std::move(inbox_.factory);
+  inbox_.factory = nullptr;
+  std::vector<std::pair<std::string, double>> params;
+  params.swap(inbox_.params);
+  if (incoming) {
+    make_object_strategies(std::move(incoming), factory);
     cut_stale_ = true;
   }
-  for (const auto& [name, value] : inbox_.params) {
+  for (const auto& [name, value] : params) {
     for (const auto& s : object_strategies_) s->set_param(name, value);
   }
-  inbox_.params.clear();
   std::swap(view_, inbox_.view);
   const ListBuffer& front = buffers_[inbox_.front];
   const bool whole_front = front.offsets.size() == n + 1;
