@@ -20,8 +20,9 @@
 namespace treecut::cli {
 
 void add_scene_options(CLI::App& cmd, SceneArgs& args) {
-  cmd.add_option("MODEL", args.model,
-                 "PLY model or .tch cache (default: a generated model, see --default-kind)");
+  cmd.add_option(
+      "MODEL", args.model,
+      "PLY model, .tch cache or .scene file (default: a generated model, see --default-kind)");
   cmd.add_option("--default-kind", args.default_kind,
                  "Procedural model used without MODEL: sphere | terrain | city | plant")
       ->capture_default_str();
