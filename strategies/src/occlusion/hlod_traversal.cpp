@@ -221,6 +221,7 @@ void HlodTraversal::answer(const Pending& p, std::uint64_t samples) {
         ++stats_.culled;
       } else if (stops) {
         draw(b);
+        if (options_.mode == HlodMode::CohB) ++stats_.delayed_drawn;
       } else {
         push_children(b);
       }

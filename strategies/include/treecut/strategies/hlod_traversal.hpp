@@ -90,7 +90,10 @@ struct HlodFrameStats {
   /// RARN: blocks drawn this frame (Stop) whose answer, read in the same
   /// frame, said VMSSE > tau, so their children were traversed and drawn too.
   std::uint64_t rarn = 0;
-  std::uint64_t delayed = 0;           ///< D: CohB's Delay predictions
+  std::uint64_t delayed = 0;  ///< CohB's Delay predictions (hidden blocks re-asked included)
+  /// D, the paper's "nodes delayed for rendering": of those, the blocks the
+  /// answer then drew (a stop found only after waiting for its answer).
+  std::uint64_t delayed_drawn = 0;
   std::uint64_t delayed_shift_up = 0;  ///< of them, refined blocks (candidates to shift up)
   std::uint64_t culled = 0;            ///< blocks an answer found invisible
   std::uint64_t frustum_culled = 0;    ///< blocks outside the frustum
