@@ -14,6 +14,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <vector>
 
 namespace treecut {
 
@@ -91,5 +92,11 @@ void write_file_atomically(const std::filesystem::path& target, std::string_view
 /// and non-ASCII bytes become '?' (a binary file must not garble the
 /// terminal), and anything past `max_chars` is cut to "...".
 std::string printable_excerpt(std::string_view text, std::size_t max_chars = 32);
+
+/// A line of a user's text file (campath, scene) without the blanks around it
+/// (spaces, tabs, a CR of a CRLF file).
+std::string_view trim_blanks(std::string_view line);
+/// The blank-separated tokens of a line (spaces and tabs), views into it.
+std::vector<std::string_view> split_blanks(std::string_view line);
 
 }  // namespace treecut

@@ -25,27 +25,6 @@ namespace {
 
 using Mat = glm::dmat4;
 
-std::string_view trim(std::string_view s) {
-  const auto first = s.find_first_not_of(" \t\r");
-  if (first == std::string_view::npos) return {};
-  const auto last = s.find_last_not_of(" \t\r");
-  return s.substr(first, last - first + 1);
-}
-
-std::vector<std::string_view> split(std::string_view line) {
-  std::vector<std::string_view> out;
-  std::size_t i = 0;
-  while (i < line.size()) {
-    while (i < line.size() && (line[i] == ' ' || line[i] == '\t')) ++i;
-    if (i >= line.size()) break;
-    std::size_t j = i;
-    while (j < line.size() && line[j] != ' ' && line[j] != '\t') ++j;
-    out.push_back(line.substr(i, j - i));
-    i = j;
-  }
-  return out;
-}
-
 bool is_number_token(std::string_view t) {
   // A token that starts like a number counts as one, so "1e400", "+1",
   // "2x", "nan" and "inf" are reported as bad numbers, not as unknown
@@ -207,7 +186,7 @@ struct Parser {
       std::string_view line = raw;
       if (const auto hash = line.find('#'); hash != std::string_view::npos)
         line = line.substr(0, hash);
-      line = trim(line);
+      line = trim_blanks(line);
       if (line.empty()) continue;
       const std::string where = name.string() + ":" + std::to_string(line_no) + ": ";
       try {
@@ -217,7 +196,7 @@ struct Parser {
           header = true;
           continue;
         }
-        const std::vector<std::string_view> t = split(line);
+        const std::vector<std::string_view> t = split_blanks(line);
         const std::string_view key = t[0];
         if (key == "model" || key == "generate") {
           if (key == "model" && t.size() != 3)

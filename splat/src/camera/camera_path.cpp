@@ -23,25 +23,12 @@ constexpr const char* kFields[11] = {"time",     "eye.x", "eye.y", "eye.z", "tar
 // the camera's roll undefined (lookAt's cross product vanishes: blank frames).
 constexpr float kMinUpAngleSin = 1.7453e-3f;
 
-std::string_view trim(std::string_view s) {
-  const auto first = s.find_first_not_of(" \t\r");
-  if (first == std::string_view::npos) return {};
-  const auto last = s.find_last_not_of(" \t\r");
-  return s.substr(first, last - first + 1);
-}
-
 // Splits on blanks and parses each token as a finite double. Returns the
 // problem ("" when every token is a finite number); a token that is not a
 // number, that overflows a double, or is inf/nan is named in the message.
 std::string parse_numbers(std::string_view line, std::vector<double>& out) {
   out.clear();
-  std::size_t i = 0;
-  while (i < line.size()) {
-    while (i < line.size() && (line[i] == ' ' || line[i] == '\t')) ++i;
-    if (i >= line.size()) break;
-    std::size_t j = i;
-    while (j < line.size() && line[j] != ' ' && line[j] != '\t') ++j;
-    const std::string_view token = line.substr(i, j - i);
+  for (const std::string_view token : split_blanks(line)) {
     double v = 0.0;
     const auto [ptr, ec] = std::from_chars(token.data(), token.data() + token.size(), v);
     const std::string what = out.size() < 11 ? std::string(kFields[out.size()]) + " " : "";
@@ -55,7 +42,6 @@ std::string parse_numbers(std::string_view line, std::vector<double>& out) {
     if (out.size() >= 1 && std::abs(v) > double(std::numeric_limits<float>::max()))
       return what + "'" + shown + "' is out of range (single precision)";
     out.push_back(v);
-    i = j;
   }
   return {};
 }
@@ -104,7 +90,7 @@ CameraPath parse_camera_path(std::string_view text, const std::string& name) {
     const std::string_view raw = text.substr(0, nl);
     text = nl == std::string_view::npos ? std::string_view{} : text.substr(nl + 1);
     ++line_no;
-    const std::string_view line = trim(raw);
+    const std::string_view line = trim_blanks(raw);
     if (line.empty() || line.front() == '#') continue;
     const auto where = name + ":" + std::to_string(line_no) + ": ";
     if (!header) {
