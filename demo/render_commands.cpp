@@ -23,6 +23,7 @@
 #include "treecut/splat/frame.hpp"
 #include "treecut/splat/frame_rate.hpp"
 #include "treecut/splat/image.hpp"
+#include "treecut/strategies/budget_strategy.hpp"
 #include "treecut/strategies/hoq.hpp"
 #include "view_script.hpp"
 #include "viewer.hpp"
@@ -173,9 +174,18 @@ void run_render(const RenderArgs& a) {
     // The scene's hierarchy itself (no copy): the renderer's vertex buffer is
     // of the hierarchy in the stage's lists, so it is never uploaded again.
     std::optional<Controller> controller_storage;
+    // The budget strategy's counters go into stats.csv as hoq's (--sync: its
+    // iterations run on this thread). On a scene the stage makes the one
+    // instance of a scene-level strategy: the factory notes it.
+    const strategies::BudgetStrategy* budget = nullptr;
+    const StrategyFactory stage_factory = [&factory, &budget, &a] {
+      std::unique_ptr<Strategy> s = factory();
+      if (a.sync) budget = dynamic_cast<const strategies::BudgetStrategy*>(s.get());
+      return s;
+    };
     if (world) {
-      controller_storage.emplace(world, factory, splat::view_snapshot(cam, size, settings.light),
-                                 stage_options);
+      controller_storage.emplace(world, stage_factory,
+                                 splat::view_snapshot(cam, size, settings.light), stage_options);
     } else {
       controller_storage.emplace(Model{scene.hierarchy, TreeCut::root_cut(h)}, std::move(strategy),
                                  splat::view_snapshot(cam, size, settings.light), stage_options);
@@ -249,6 +259,24 @@ void run_render(const RenderArgs& a) {
         row.hoq_rarn_frames = c.rarn_frames;
         row.hoq_late = c.late_refined;
         row.hoq_late_frames = c.late_frames;
+      }
+      if (budget != nullptr) {
+        const strategies::BudgetCounters& c = budget->last();
+        row.has_budget = true;
+        row.budget_visible = c.visible;
+        row.budget_frustum_culled = c.frustum_culled;
+        row.budget_occlusion_culled = c.occlusion_culled;
+        row.budget_below_pet = c.below_pet;
+        row.budget_receiving = c.receiving;
+        row.budget_occluders = c.occluders;
+        row.budget_shares = c.shares;
+        row.budget_selected = c.selected;
+        row.budget_project_ms = double(c.project_ns) * 1e-6;
+        row.budget_select_ms = double(c.select_ns) * 1e-6;
+        row.budget_hzm_ms = double(c.hzm_ns) * 1e-6;
+        row.budget_test_ms = double(c.test_ns) * 1e-6;
+        row.budget_eq1_ms = double(c.budget_ns) * 1e-6;
+        row.budget_lod_ms = double(c.lod_ns) * 1e-6;
       }
       if (!a.no_png || a.psnr) {
         const splat::Image lod = grab();

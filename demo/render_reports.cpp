@@ -155,7 +155,10 @@ void write_stats_csv(const std::filesystem::path& file, const std::vector<FrameR
          "converged,psnr_db,queries_issued,queries_answered,queries_pending,"
          "query_latency_frames_mean,query_latency_frames_max,query_cpu_us,psnr_luma_db,"
          "hoq_blocks,hoq_dn,hoq_culled,hoq_delayed,hoq_rarn,hoq_rarn_frames,hoq_late,"
-         "hoq_late_frames\n";
+         "hoq_late_frames,budget_visible,budget_frustum_culled,budget_occlusion_culled,"
+         "budget_below_pet,budget_receiving,budget_occluders,budget_shares,budget_selected,"
+         "budget_project_ms,budget_select_ms,budget_hzm_ms,budget_test_ms,budget_eq1_ms,"
+         "budget_lod_ms\n";
   for (const FrameRow& r : rows) {
     out << r.frame << ',' << r.time_s << ',' << r.frame_ms << ',' << r.cut_size << ',' << r.points
         << ',' << r.iteration_ms << ',' << r.exchanges << ',' << r.iterations << ','
@@ -169,6 +172,15 @@ void write_stats_csv(const std::filesystem::path& file, const std::vector<FrameR
           << r.hoq_late_frames;
     } else {
       out << ",,,,,,,,";
+    }
+    if (r.has_budget) {
+      out << ',' << r.budget_visible << ',' << r.budget_frustum_culled << ','
+          << r.budget_occlusion_culled << ',' << r.budget_below_pet << ',' << r.budget_receiving
+          << ',' << r.budget_occluders << ',' << r.budget_shares << ',' << r.budget_selected << ','
+          << r.budget_project_ms << ',' << r.budget_select_ms << ',' << r.budget_hzm_ms << ','
+          << r.budget_test_ms << ',' << r.budget_eq1_ms << ',' << r.budget_lod_ms;
+    } else {
+      out << ",,,,,,,,,,,,,";
     }
     out << '\n';
   }
@@ -227,6 +239,28 @@ std::string summary_json(const RunSummary& s) {
                 {"rarn_frames_mean", number_json(rarn > 0 ? rarn_frames / rarn : 0.0)},
                 {"late_per_frame", number_json(late / n)},
                 {"late_frames_mean", number_json(late > 0 ? late_frames / late : 0.0)}};
+  }
+  // The budget strategy's counters, means per frame (--sync, -s budget on a scene).
+  if (!s.rows.empty() && s.rows.front().has_budget) {
+    const auto mean = [&](auto member) {
+      double sum = 0;
+      for (const FrameRow& r : s.rows) sum += double(r.*member);
+      return number_json(sum / n);
+    };
+    j["budget"] = {{"mean_visible", mean(&FrameRow::budget_visible)},
+                   {"mean_frustum_culled", mean(&FrameRow::budget_frustum_culled)},
+                   {"mean_occlusion_culled", mean(&FrameRow::budget_occlusion_culled)},
+                   {"mean_below_pet", mean(&FrameRow::budget_below_pet)},
+                   {"mean_receiving", mean(&FrameRow::budget_receiving)},
+                   {"mean_occluders", mean(&FrameRow::budget_occluders)},
+                   {"mean_shares", mean(&FrameRow::budget_shares)},
+                   {"mean_selected", mean(&FrameRow::budget_selected)},
+                   {"mean_project_ms", mean(&FrameRow::budget_project_ms)},
+                   {"mean_select_ms", mean(&FrameRow::budget_select_ms)},
+                   {"mean_hzm_ms", mean(&FrameRow::budget_hzm_ms)},
+                   {"mean_test_ms", mean(&FrameRow::budget_test_ms)},
+                   {"mean_eq1_ms", mean(&FrameRow::budget_eq1_ms)},
+                   {"mean_lod_ms", mean(&FrameRow::budget_lod_ms)}};
   }
   // A scene's block: objects, draw calls and render-thread CPU per frame.
   if (s.objects > 0) {

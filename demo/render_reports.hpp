@@ -43,6 +43,14 @@ struct FrameRow {
   bool has_hoq = false;
   std::uint64_t hoq_blocks = 0, hoq_dn = 0, hoq_culled = 0, hoq_delayed = 0, hoq_shift_up = 0;
   std::uint64_t hoq_rarn = 0, hoq_rarn_frames = 0, hoq_late = 0, hoq_late_frames = 0;
+  // The `budget` strategy's counters of the iteration after the frame (--sync
+  // on a scene only, as hoq's); has_budget false otherwise. Phase times in ms.
+  bool has_budget = false;
+  std::uint64_t budget_visible = 0, budget_frustum_culled = 0, budget_occlusion_culled = 0;
+  std::uint64_t budget_below_pet = 0, budget_receiving = 0, budget_occluders = 0;
+  std::uint64_t budget_shares = 0, budget_selected = 0;
+  double budget_project_ms = 0, budget_select_ms = 0, budget_hzm_ms = 0, budget_test_ms = 0;
+  double budget_eq1_ms = 0, budget_lod_ms = 0;
   // A scene (objects > 0): draw calls of the frame and the render thread's
   // CPU time for it (summary.json's "scene" block).
   std::size_t objects = 0;

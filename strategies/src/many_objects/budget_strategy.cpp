@@ -98,8 +98,35 @@ void BudgetStrategy::reset_scene(std::span<const SceneObjectInput> objects) {
     const int cells = std::clamp(
         static_cast<int>(std::sqrt(static_cast<double>(points.size()) / (6.0 * 16.0))), 3, 32);
     s.inner = many::inner_box(points, s.box, cells);
+    // A surface open on one face (a building without a floor: the flood
+    // from outside leaks in through it): closed with points on that face,
+    // the box found is still inside the solid for every eye on the inner
+    // side of the face's plane (a ray from there cannot pass through the
+    // open face into the box without crossing the plane twice), so the
+    // object occludes exactly while the eye is there (iterate_scene).
+    for (int face = 0; !s.inner && face < 6 && !points.empty(); ++face) {
+      const int k = face / 2;
+      const float sign = face % 2 ? 1.0f : -1.0f;
+      const int a = (k + 1) % 3, b = (k + 2) % 3;
+      const int m = 4 * cells;
+      std::vector<glm::vec3> closed = points;
+      for (int i = 0; i < m; ++i) {
+        for (int j = 0; j < m; ++j) {
+          glm::vec3 l(0.0f);
+          l[k] = sign * s.box.half[k];
+          l[a] = s.box.half[a] * (2.0f * (static_cast<float>(i) + 0.5f) / float(m) - 1.0f);
+          l[b] = s.box.half[b] * (2.0f * (static_cast<float>(j) + 0.5f) / float(m) - 1.0f);
+          closed.push_back(s.box.center + s.box.axes * l);
+        }
+      }
+      s.inner = many::inner_box(closed, s.box, cells);
+      if (s.inner) {
+        s.open_face = face;
+      }
+    }
   }
   std::vector<many::SceneObject> made(objects.size());
+  open_.clear();
   hierarchies_.resize(objects.size());
   worlds_.resize(objects.size());
   for (std::size_t i = 0; i < objects.size(); ++i) {
@@ -119,6 +146,7 @@ void BudgetStrategy::reset_scene(std::span<const SceneObjectInput> objects) {
     if (x.has_inner) x.inner = many::transformed(*s.inner, o.world);
     x.points = o.hierarchy->leaf_count();
     x.compactness = s.compactness;
+    if (s.open_face >= 0) open_.push_back(static_cast<std::uint32_t>(i));
     hierarchies_[i] = o.hierarchy;
     worlds_[i] = o.world;
   }
@@ -155,7 +183,23 @@ void BudgetStrategy::iterate_scene(const SceneIterationInput& input, SceneIterat
                            " objects, reset_scene saw " + std::to_string(n));
   }
   ensure_pool();
+  // Objects open on one face occlude only while the eye is on its inner side.
+  const glm::vec3 eye = glm::vec3(glm::inverse(input.view.view)[3]);
+  bool moved = false;
+  for (const std::uint32_t i : open_) {
+    const ModelShape& s = shapes_[input.objects[i].model];
+    const int k = s.open_face / 2;
+    const float sign = s.open_face % 2 ? 1.0f : -1.0f;
+    const glm::vec3 local = glm::vec3(input.objects[i].world_inverse * glm::vec4(eye, 1.0f));
+    const bool inside = sign * glm::dot(local - s.box.center, s.box.axes[k]) < s.box.half[k];
+    if (objects_[i].has_inner != inside) {
+      objects_[i].has_inner = inside;
+      moved = true;
+    }
+  }
+  const bool made_culler = !culler_;
   ensure_culler();
+  if (moved && !made_culler) culler_->preprocess(objects_);
   many::WorkerPool* pool = pool_.get();
   BudgetCounters c;
   c.objects = n;

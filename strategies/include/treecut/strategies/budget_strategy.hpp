@@ -98,6 +98,7 @@ class BudgetStrategy final : public Strategy, public SceneStrategy {
     std::optional<many::Obb> inner;
     float compactness = 0.0f;
     glm::vec3 splat_lo{0.0f}, splat_hi{0.0f};  // model-space box of every splat
+    int open_face = -1;  // 2 * axis + (1: +side), the face closed to find `inner`; -1: none
   };
   void ensure_pool();
   void ensure_culler();
@@ -105,6 +106,7 @@ class BudgetStrategy final : public Strategy, public SceneStrategy {
   std::vector<ModelShape> shapes_;
   std::vector<many::SceneObject> objects_;
   std::vector<const Hierarchy*> hierarchies_;
+  std::vector<std::uint32_t> open_;  // objects whose model's inner box needs an open face
   std::vector<glm::mat4> worlds_;
   std::unique_ptr<many::WorkerPool> pool_;
   std::unique_ptr<many::HzmCuller> culler_;
