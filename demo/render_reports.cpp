@@ -180,7 +180,7 @@ void write_stats_csv(const std::filesystem::path& file, const std::vector<FrameR
           << r.budget_project_ms << ',' << r.budget_select_ms << ',' << r.budget_hzm_ms << ','
           << r.budget_test_ms << ',' << r.budget_eq1_ms << ',' << r.budget_lod_ms;
     } else {
-      out << ",,,,,,,,,,,,,";
+      out << std::string(14, ',');  // the 14 budget columns, empty
     }
     out << '\n';
   }
