@@ -10,13 +10,18 @@
 // must cull some objects.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdio>
+#include <filesystem>
+#include <fstream>
 #include <glm/gtc/matrix_transform.hpp>
 #include <memory>
 #include <random>
+#include <sstream>
 #include <string>
 #include <vector>
 
+#include "test_support.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/scene.hpp"
 #include "treecut/splat/camera.hpp"
@@ -187,6 +192,54 @@ TEST_F(HzmCulling, hzm_culling_is_conservative_on_random_layouts) {
                     "layout " + std::to_string(seed) + ", oblique");
   }
   std::printf("random layouts: %zu objects culled in all\n", culled);
+}
+
+// `treecut render SCENE -s budget --sync`: through the stage's scene path,
+// stats.csv gets the budget columns, filled, with the selected nodes never
+// above N; a bad parameter is one line and exit code 2.
+TEST(BudgetRender, RenderASceneWithTheBudgetStrategy) {
+  const std::filesystem::path dir = test::scratch_dir("budget_render");
+  const std::filesystem::path scene = dir / "city.scene", out = dir / "out";
+  ASSERT_EQ(test::run_treecut("gen city-block --objects 60 -n 3000 -o " + test::quote(scene)).code,
+            0);
+  const test::CommandResult r = test::run_treecut(
+      "render " + test::quote(scene) +
+      " -s budget -p points=20000 --sync --no-png -n 4 --width 160 --height 120 --out " +
+      test::quote(out));
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::ifstream csv(out / "stats.csv");
+  std::string header, line;
+  ASSERT_TRUE(std::getline(csv, header));
+  std::vector<std::string> names;
+  {
+    std::istringstream in(header);
+    for (std::string f; std::getline(in, f, ',');) names.push_back(f);
+  }
+  const auto column = [&](const std::string& name) {
+    const auto it = std::find(names.begin(), names.end(), name);
+    EXPECT_NE(it, names.end()) << name;
+    return static_cast<std::size_t>(it - names.begin());
+  };
+  const std::size_t selected = column("budget_selected"), visible = column("budget_visible"),
+                    splats = column("splats_drawn");
+  int rows = 0;
+  while (std::getline(csv, line)) {
+    std::vector<std::string> f;
+    std::istringstream in(line);
+    for (std::string x; std::getline(in, x, ',');) f.push_back(x);
+    ASSERT_GT(f.size(), selected) << line;
+    EXPECT_LE(std::stoull(f[selected]), 20000u) << line;
+    EXPECT_LE(std::stoull(f[splats]), 20000u) << line;
+    EXPECT_GT(std::stoull(f[visible]), 0u) << line;
+    ++rows;
+  }
+  EXPECT_EQ(rows, 4);
+
+  const test::CommandResult bad =
+      test::run_treecut("render " + test::quote(scene) +
+                        " -s budget -p threads=3 --sync -n 1 --out " + test::quote(dir / "bad"));
+  EXPECT_EQ(bad.code, 2) << bad.out;
+  EXPECT_NE(bad.out.find("threads = 3 is out of range"), std::string::npos) << bad.out;
 }
 
 }  // namespace
