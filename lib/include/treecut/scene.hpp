@@ -13,6 +13,7 @@
 // bounding sphere and the model's point count of every object.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
@@ -97,6 +98,13 @@ struct Scene {
   /// "FILE:LINE" of an object's line.
   [[nodiscard]] std::string where(const SceneObject& object) const;
 };
+
+/// The singular values of the linear part of an object's affine transform,
+/// largest first: how much it stretches a length at most and at least (a
+/// sphere of radius r becomes an ellipsoid with these semi-axes times r).
+/// Square roots of the eigenvalues of L^T L in double, closed form for a
+/// symmetric 3x3 (Smith 1961); exactly 1, 1, 1 for the identity.
+std::array<double, 3> singular_values(const glm::mat4& world);
 
 /// The memory of a loaded scene (what `treecut info` and the benchmarks print).
 struct SceneMemory {

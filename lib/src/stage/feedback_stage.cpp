@@ -90,32 +90,6 @@ std::uint64_t ns_between(std::chrono::steady_clock::time_point a,
       std::chrono::duration_cast<std::chrono::nanoseconds>(b - a).count());
 }
 
-// The largest and smallest singular values of the linear part of `world`
-// (square roots of the eigenvalues of L^T L, closed form for a symmetric 3x3,
-// Smith 1961). Exact 1 and 1 for the identity.
-std::pair<double, double> singular_range(const glm::mat4& world) {
-  const glm::dmat3 l{glm::mat3(world)};
-  const glm::dmat3 a = glm::transpose(l) * l;
-  const double p1 = a[0][1] * a[0][1] + a[0][2] * a[0][2] + a[1][2] * a[1][2];
-  double hi = 0.0, lo = 0.0;
-  if (p1 == 0.0) {
-    hi = std::max({a[0][0], a[1][1], a[2][2]});
-    lo = std::min({a[0][0], a[1][1], a[2][2]});
-  } else {
-    const double q = (a[0][0] + a[1][1] + a[2][2]) / 3.0;
-    const double p2 = (a[0][0] - q) * (a[0][0] - q) + (a[1][1] - q) * (a[1][1] - q) +
-                      (a[2][2] - q) * (a[2][2] - q) + 2.0 * p1;
-    const double p = std::sqrt(p2 / 6.0);
-    const glm::dmat3 b = (a - q * glm::dmat3(1.0)) * (1.0 / p);
-    const double r = std::clamp(glm::determinant(b) / 2.0, -1.0, 1.0);
-    const double phi = std::acos(r) / 3.0;
-    constexpr double kThird = 2.0943951023931954923;  // 2 pi / 3
-    hi = q + 2.0 * p * std::cos(phi);
-    lo = q + 2.0 * p * std::cos(phi + kThird);
-  }
-  return {std::sqrt(std::max(hi, 0.0)), std::sqrt(std::max(lo, 0.0))};
-}
-
 }  // namespace
 
 std::uint64_t StageScene::object_nodes() const {
@@ -216,7 +190,8 @@ FeedbackStage::FeedbackStage(std::shared_ptr<const StageScene> scene,
     // sigma_min. The pixel scale takes their ratio (perspective) or sigma_max
     // (orthographic), so the projected radius stays an upper bound; a
     // similarity's ratio is exactly 1 (the identity changes nothing).
-    const auto [hi, lo] = singular_range(o.world);
+    const std::array<double, 3> sv = singular_values(o.world);
+    const double hi = sv[0], lo = sv[2];
     object_size_factor_[0].push_back(static_cast<float>(hi));
     object_size_factor_[1].push_back(lo > 0.0 ? static_cast<float>(hi / lo) : 1.0f);
   }

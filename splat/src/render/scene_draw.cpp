@@ -8,39 +8,11 @@
 #include <stdexcept>
 #include <string>
 
+#include "treecut/scene.hpp"
 #include "treecut/splat/renderer.hpp"
 #include "treecut/tree_cut.hpp"
 
 namespace treecut::splat {
-namespace {
-
-// The singular values of the linear part, largest first: square roots of the
-// eigenvalues of L^T L (closed form for a symmetric 3x3; Smith 1961).
-std::array<double, 3> singular_values(const glm::dmat3& l) {
-  const glm::dmat3 a = glm::transpose(l) * l;
-  const double p1 = a[0][1] * a[0][1] + a[0][2] * a[0][2] + a[1][2] * a[1][2];
-  std::array<double, 3> e{};
-  if (p1 == 0.0) {
-    e = {a[0][0], a[1][1], a[2][2]};
-  } else {
-    const double q = (a[0][0] + a[1][1] + a[2][2]) / 3.0;
-    const double p2 = (a[0][0] - q) * (a[0][0] - q) + (a[1][1] - q) * (a[1][1] - q) +
-                      (a[2][2] - q) * (a[2][2] - q) + 2.0 * p1;
-    const double p = std::sqrt(p2 / 6.0);
-    const glm::dmat3 b = (a - q * glm::dmat3(1.0)) * (1.0 / p);
-    const double r = std::clamp(glm::determinant(b) / 2.0, -1.0, 1.0);
-    const double phi = std::acos(r) / 3.0;
-    constexpr double kThird = 2.0943951023931954923;  // 2 pi / 3
-    e[0] = q + 2.0 * p * std::cos(phi);
-    e[2] = q + 2.0 * p * std::cos(phi + kThird);
-    e[1] = 3.0 * q - e[0] - e[2];
-  }
-  std::sort(e.begin(), e.end(), [](double x, double y) { return x > y; });
-  return {std::sqrt(std::max(e[0], 0.0)), std::sqrt(std::max(e[1], 0.0)),
-          std::sqrt(std::max(e[2], 0.0))};
-}
-
-}  // namespace
 
 ObjectRecord object_record(const glm::mat4& world) {
   for (int c = 0; c < 4; ++c) {
@@ -86,7 +58,7 @@ ObjectRecord object_record(const glm::mat4& world) {
   // within radius sigma_1 r; the sine of the angle between two normals grows
   // by at most sigma_1 sigma_2 / sigma_3^2 (|Au x Av| = |det A| |A^-T (u x
   // v)| for the normal map A = L^-T).
-  const std::array<double, 3> s = singular_values(l);
+  const std::array<double, 3> s = singular_values(world);
   constexpr double kUp = 1.0 + 1e-5;
   rec.extra = {static_cast<float>(s[0] * kUp),
                static_cast<float>(s[0] * s[1] / (s[2] * s[2]) * kUp), sign, 0.0f};

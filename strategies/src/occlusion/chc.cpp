@@ -30,36 +30,6 @@ std::string_view occlusion_mode_name(OcclusionMode mode) {
 
 namespace {
 
-float box_distance(const Box& box, glm::vec3 eye) {
-  const glm::vec3 d = glm::max(glm::max(box.lo - eye, eye - box.hi), glm::vec3(0.0f));
-  return glm::length(d);
-}
-
-// Gribb and Hartmann: the six planes of clip = m * world, normals inward.
-void frustum_planes(const glm::mat4& m, glm::vec4 (&planes)[6]) {
-  const glm::vec4 r0(m[0][0], m[1][0], m[2][0], m[3][0]);
-  const glm::vec4 r1(m[0][1], m[1][1], m[2][1], m[3][1]);
-  const glm::vec4 r2(m[0][2], m[1][2], m[2][2], m[3][2]);
-  const glm::vec4 r3(m[0][3], m[1][3], m[2][3], m[3][3]);
-  planes[0] = r3 + r0;
-  planes[1] = r3 - r0;
-  planes[2] = r3 + r1;
-  planes[3] = r3 - r1;
-  planes[4] = r3 + r2;
-  planes[5] = r3 - r2;
-}
-
-// Conservative: false only when the box lies wholly outside one plane (its
-// corner farthest along the plane's normal is behind it).
-bool box_in_frustum(const Box& box, const glm::vec4 (&planes)[6]) {
-  for (const glm::vec4& p : planes) {
-    const glm::vec3 corner(p.x >= 0.0f ? box.hi.x : box.lo.x, p.y >= 0.0f ? box.hi.y : box.lo.y,
-                           p.z >= 0.0f ? box.hi.z : box.lo.z);
-    if (p.x * corner.x + p.y * corner.y + p.z * corner.z + p.w < 0.0f) return false;
-  }
-  return true;
-}
-
 bool heap_less(const auto& a, const auto& b) {
   // std heaps are max-heaps: the nearest block must compare greatest.
   return a.distance > b.distance || (a.distance == b.distance && a.block > b.block);
@@ -98,7 +68,7 @@ bool ChcTraversal::answer_visible(std::uint64_t samples) const {
 
 void ChcTraversal::push(BlockId b, const OcclusionView& view) {
   wait_at_push_ = device_->frame_stats().wait_ms;
-  heap_.push_back({box_distance(blocks_->box(b), view.eye), b});
+  heap_.push_back({blocks_->box(b).distance_to(view.eye), b});
   std::push_heap(heap_.begin(), heap_.end(),
                  [](const Entry& x, const Entry& y) { return heap_less(x, y); });
 }
@@ -134,7 +104,7 @@ ChcFrameStats ChcTraversal::frame_render_thread(OcclusionDeviceRenderThread& dev
   ++frame_;
   const std::uint64_t frame = frame_;
   const OcclusionMode mode = options_.mode;
-  frustum_planes(view.view_projection, planes_);
+  frustum_ = FrustumPlanes(view.view_projection);
   heap_.clear();
   pending_.clear();
   pending_head_ = 0;
@@ -177,7 +147,7 @@ ChcFrameStats ChcTraversal::frame_render_thread(OcclusionDeviceRenderThread& dev
     ++since_poll;
     const BlockId b = e.block;
     const Box& box = blocks_->box(b);
-    if (!box_in_frustum(box, planes_)) {
+    if (!frustum_.may_contain(box)) {
       ++stats.frustum_culled;
       continue;
     }

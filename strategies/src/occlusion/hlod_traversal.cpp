@@ -69,29 +69,6 @@ std::vector<P2> clip(const std::vector<P2>& in, bool use_x, double bound, double
   return out;
 }
 
-// Gribb and Hartmann, as chc.cpp: the six planes of clip = m * world.
-void frustum_planes(const glm::mat4& m, glm::vec4 (&planes)[6]) {
-  const glm::vec4 r0(m[0][0], m[1][0], m[2][0], m[3][0]);
-  const glm::vec4 r1(m[0][1], m[1][1], m[2][1], m[3][1]);
-  const glm::vec4 r2(m[0][2], m[1][2], m[2][2], m[3][2]);
-  const glm::vec4 r3(m[0][3], m[1][3], m[2][3], m[3][3]);
-  planes[0] = r3 + r0;
-  planes[1] = r3 - r0;
-  planes[2] = r3 + r1;
-  planes[3] = r3 - r1;
-  planes[4] = r3 + r2;
-  planes[5] = r3 - r2;
-}
-
-bool box_in_frustum(const Box& box, const glm::vec4 (&planes)[6]) {
-  for (const glm::vec4& p : planes) {
-    const glm::vec3 corner(p.x >= 0.0f ? box.hi.x : box.lo.x, p.y >= 0.0f ? box.hi.y : box.lo.y,
-                           p.z >= 0.0f ? box.hi.z : box.lo.z);
-    if (p.x * corner.x + p.y * corner.y + p.z * corner.z + p.w < 0.0f) return false;
-  }
-  return true;
-}
-
 bool heap_less(const auto& a, const auto& b) {
   return a.distance > b.distance || (a.distance == b.distance && a.block > b.block);
 }
@@ -248,7 +225,7 @@ void HlodTraversal::visit(const Entry& e) {
   last_visited_[b] = frame;
   visible_[b] = 0;
   outside_[b] = 0;
-  if (!box_in_frustum(blocks_->box(b), planes_)) {
+  if (!frustum_.may_contain(blocks_->box(b))) {
     outside_[b] = 1;
     // Nothing to query against: next frame it is invisible last frame (Delay).
     ++stats_.frustum_culled;
@@ -338,7 +315,7 @@ HlodFrameStats HlodTraversal::frame_render_thread(OcclusionDeviceRenderThread& d
   device_ = &device;
   view_ = &view;
   stats_ = {};
-  frustum_planes(view.occlusion.view_projection, planes_);
+  frustum_ = FrustumPlanes(view.occlusion.view_projection);
   heap_.clear();
   pending_.clear();
   pending_head_ = 0;

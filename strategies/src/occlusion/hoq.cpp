@@ -34,8 +34,7 @@ float sigmoid_bias(float mu, float s, float t) {
 }
 
 float distance_to_box(glm::vec3 eye, const Box& box) {
-  const glm::vec3 d = glm::max(glm::max(box.lo - eye, eye - box.hi), glm::vec3(0.0f));
-  return glm::length(d);
+  return box.distance_to(eye);
 }
 
 float block_sse(const ViewSnapshot& view, const Box& box, float error_radius) {

@@ -158,7 +158,7 @@ class ChcTraversal {
   std::vector<BlockId> classified_;  // leaves visited this frame
   double wait_at_push_ = 0.0;        // the device's wait_ms when the last block was queued
   const OcclusionDeviceRenderThread* device_ = nullptr;  // during a frame
-  glm::vec4 planes_[6]{};                                // this frame's frustum planes
+  FrustumPlanes frustum_{glm::mat4(1.0f)};               // this frame's
 };
 
 }  // namespace treecut::strategies

@@ -45,7 +45,9 @@
 #pragma once
 
 #include <cstdint>
+#include <glm/mat4x4.hpp>
 #include <glm/vec3.hpp>
+#include <glm/vec4.hpp>
 #include <limits>
 #include <memory>
 #include <span>
@@ -64,6 +66,19 @@ struct Box {
   glm::vec3 lo{0.0f};
   glm::vec3 hi{0.0f};
   [[nodiscard]] bool contains_sphere(glm::vec3 c, float r) const;
+  /// Distance from `p` to the box (0 inside): the front-to-back key of both
+  /// traversals and the nearest distance of a block's screen-space error.
+  [[nodiscard]] float distance_to(glm::vec3 p) const;
+};
+
+/// The six planes of a view frustum, normals inward (Gribb and Hartmann:
+/// from the rows of clip = m * world), for conservative box culling.
+struct FrustumPlanes {
+  glm::vec4 planes[6];
+  explicit FrustumPlanes(const glm::mat4& view_projection);
+  /// False only when the box lies wholly outside one plane (its corner
+  /// farthest along the plane's normal is behind it): conservative.
+  [[nodiscard]] bool may_contain(const Box& box) const;
 };
 
 class HlodBlocks {

@@ -171,7 +171,7 @@ class HlodTraversal {
   OcclusionDeviceRenderThread* device_ = nullptr;
   const HlodView* view_ = nullptr;
   HlodFrameStats stats_;
-  glm::vec4 planes_[6]{};
+  FrustumPlanes frustum_{glm::mat4(1.0f)};  // this frame's
 };
 
 }  // namespace treecut::strategies
