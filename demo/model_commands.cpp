@@ -385,16 +385,7 @@ void add_model_commands(CLI::App& app) {
     save_ply(out, ps);
     std::printf("wrote %s (%zu points)\n", out.string().c_str(), ps.size());
     if (!gen_args->walk.empty()) {
-      splat::CameraPath path;
-      for (const WalkKey& k : scene_walkthrough(kind)) {
-        splat::CameraKey key;
-        key.time = k.time;
-        key.camera.eye = k.eye;
-        key.camera.target = k.target;
-        key.camera.up = k.up;
-        key.camera.fov_y_deg = k.fov_deg;
-        path.keys.push_back(key);
-      }
+      const splat::CameraPath path = walk_path(scene_walkthrough(kind));
       save_camera_path(gen_args->walk, path);
       std::printf("wrote %s (%zu keys, %.1f s)\n", gen_args->walk.c_str(), path.keys.size(),
                   path.duration());

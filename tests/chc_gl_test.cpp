@@ -22,6 +22,7 @@
 #include <utility>
 #include <vector>
 
+#include "query_check.hpp"
 #include "test_support.hpp"
 #include "treecut/attributes.hpp"
 #include "treecut/generate.hpp"
@@ -173,63 +174,7 @@ INSTANTIATE_TEST_SUITE_P(Scenes, ChcGl,
                            return p.param.kind == ModelKind::City ? "city" : "plant";
                          });
 
-// Interposed query entry points: which query's availability was seen, and
-// reads of a result before it.
-struct QueryCheck {
-  static inline PFNGLBEGINQUERYPROC real_begin = nullptr;
-  static inline PFNGLGETQUERYOBJECTUIVPROC real_uiv = nullptr;
-  static inline PFNGLGETQUERYOBJECTUI64VPROC real_ui64v = nullptr;
-  static inline PFNGLCREATEQUERIESPROC real_create = nullptr;
-  static inline std::map<GLuint, bool> seen;
-  static inline std::map<GLuint, int> hide;  // polls still to report "pending"
-  static inline int hidden = 0;
-  static inline int early_reads = 0;
-  static inline int reads = 0;
-  static inline int created = 0;
-
-  static void APIENTRY begin(GLenum target, GLuint id) {
-    seen[id] = false;
-    hide[id] = 2;
-    real_begin(target, id);
-  }
-  static void APIENTRY uiv(GLuint id, GLenum pname, GLuint* v) {
-    real_uiv(id, pname, v);
-    if (pname != GL_QUERY_RESULT_AVAILABLE) return;
-    if (*v != GL_FALSE && hide[id] > 0) {
-      --hide[id];
-      ++hidden;
-      *v = GL_FALSE;  // available in truth, reported pending
-    }
-    if (*v != GL_FALSE) seen[id] = true;
-  }
-  static void APIENTRY ui64v(GLuint id, GLenum pname, GLuint64* v) {
-    if (pname == GL_QUERY_RESULT) {
-      ++reads;
-      if (!seen[id]) ++early_reads;
-    }
-    real_ui64v(id, pname, v);
-  }
-  static void APIENTRY create(GLenum target, GLsizei n, GLuint* ids) {
-    created += n;
-    real_create(target, n, ids);
-  }
-  QueryCheck() {
-    real_begin = std::exchange(gl::BeginQuery, &begin);
-    real_uiv = std::exchange(gl::GetQueryObjectuiv, &uiv);
-    real_ui64v = std::exchange(gl::GetQueryObjectui64v, &ui64v);
-    real_create = std::exchange(gl::CreateQueries, &create);
-    seen.clear(), hide.clear();
-    hidden = early_reads = reads = created = 0;
-  }
-  ~QueryCheck() {
-    gl::BeginQuery = real_begin;
-    gl::GetQueryObjectuiv = real_uiv;
-    gl::GetQueryObjectui64v = real_ui64v;
-    gl::CreateQueries = real_create;
-  }
-  QueryCheck(const QueryCheck&) = delete;
-  QueryCheck& operator=(const QueryCheck&) = delete;
-};
+using test::QueryCheck;  // tests/support/query_check.hpp
 
 class ChcGlQueries : public ChcGl {};
 

@@ -20,6 +20,7 @@
 #include <utility>
 #include <vector>
 
+#include "query_check.hpp"
 #include "test_support.hpp"
 #include "treecut/attributes.hpp"
 #include "treecut/generate.hpp"
@@ -82,59 +83,7 @@ strategies::HlodView view_of(const Camera& c) {
                                occlusion_view(c, size).near_radius);
 }
 
-// Interposed query entry points, as in chc_gl_test.cpp: which query's
-// availability was seen, reads before it, and those while the traversal
-// had work.
-struct QueryCheck {
-  static inline PFNGLBEGINQUERYPROC real_begin = nullptr;
-  static inline PFNGLGETQUERYOBJECTUIVPROC real_uiv = nullptr;
-  static inline PFNGLGETQUERYOBJECTUI64VPROC real_ui64v = nullptr;
-  static inline std::map<GLuint, bool> seen;
-  static inline std::map<GLuint, int> hide;
-  static inline int hidden = 0, early_reads = 0, early_with_work = 0, reads = 0;
-  static inline const HlodTraversal* traversal = nullptr;
-
-  static void APIENTRY begin(GLenum target, GLuint id) {
-    seen[id] = false;
-    hide[id] = 2;
-    real_begin(target, id);
-  }
-  static void APIENTRY uiv(GLuint id, GLenum pname, GLuint* v) {
-    real_uiv(id, pname, v);
-    if (pname != GL_QUERY_RESULT_AVAILABLE) return;
-    if (*v != GL_FALSE && hide[id] > 0) {
-      --hide[id];
-      ++hidden;
-      *v = GL_FALSE;  // available in truth, reported pending
-    }
-    if (*v != GL_FALSE) seen[id] = true;
-  }
-  static void APIENTRY ui64v(GLuint id, GLenum pname, GLuint64* v) {
-    if (pname == GL_QUERY_RESULT) {
-      ++reads;
-      if (!seen[id]) {
-        ++early_reads;
-        if (traversal != nullptr && traversal->queued() > 0) ++early_with_work;
-      }
-    }
-    real_ui64v(id, pname, v);
-  }
-  QueryCheck() {
-    real_begin = std::exchange(gl::BeginQuery, &begin);
-    real_uiv = std::exchange(gl::GetQueryObjectuiv, &uiv);
-    real_ui64v = std::exchange(gl::GetQueryObjectui64v, &ui64v);
-    seen.clear(), hide.clear();
-    hidden = early_reads = early_with_work = reads = 0;
-  }
-  ~QueryCheck() {
-    gl::BeginQuery = real_begin;
-    gl::GetQueryObjectuiv = real_uiv;
-    gl::GetQueryObjectui64v = real_ui64v;
-    traversal = nullptr;
-  }
-  QueryCheck(const QueryCheck&) = delete;
-  QueryCheck& operator=(const QueryCheck&) = delete;
-};
+using test::QueryCheck;  // tests/support/query_check.hpp
 
 class HlodGl : public ::testing::Test {
  protected:
@@ -167,7 +116,7 @@ TEST_F(HlodGl, CohBNeverReadsAResultBeforeItIsAvailableWhileItHasWork) {
   for (const Camera& c : cameras) frame(t, c);  // the pool grows to what the walk needs
   t.reset();
   const QueryCheck check;
-  QueryCheck::traversal = &t;
+  QueryCheck::has_work = [&t] { return t.queued() > 0; };
   std::uint64_t blocking = 0, queries = 0, delayed = 0;
   for (const Camera& c : cameras) {
     const HlodFrameStats s = frame(t, c);
