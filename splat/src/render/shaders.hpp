@@ -1,5 +1,5 @@
 // GLSL 4.50 sources of the splat renderer, embedded as raw strings. Each
-// program is kCommon + its stages' bodies (see renderer.cpp).
+// program is kCommon + its stages' bodies (make_program in renderer.cpp).
 #pragma once
 
 namespace treecut::splat::shaders {
