@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "bench_hlod.hpp"
+#include "bench_scene.hpp"
 #include "commands.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
@@ -179,6 +180,11 @@ struct OcclusionArgs {
   std::string path;
   double fps = 10.0;
   int frames = 0;  // > 0: that many frames evenly spaced instead of every 1 / fps s
+  // The part of the walk measured, in path seconds (to < 0: its end): a
+  // stretch at the walk's own frame rate in the time a full run would not fit.
+  double from = 0.0;
+  double to = -1.0;
+  bool no_chc = false;  // the HLOD table alone (half the frames drawn)
   int width = 1280;
   int height = 720;
   std::uint32_t block_size = strategies::kDefaultBlockSize;
@@ -247,6 +253,14 @@ void run_bench_occlusion(const OcclusionArgs& a) {
   const splat::CameraPath path = splat::load_camera_path(a.path);  // exit 2 before any work
   if (!a.no_hlod && !a.csv_dir.empty()) check_hlod_csv(hlod_csv_path(a.csv_dir, a.scene));
   if (path.empty()) throw InputError(a.path + ": the camera path has no keys");
+  const double to = a.to < 0.0 ? path.duration() : a.to;
+  if (!(a.from >= 0.0) || !(to <= path.duration()) || !(a.from <= to)) {
+    char msg[160];
+    std::snprintf(msg, sizeof msg, ": --from %g --to %g is not a part of the path (0 to %.1f s)",
+                  a.from, to, path.duration());
+    throw InputError(a.path + msg);
+  }
+  if (a.no_chc && a.no_hlod) throw InputError("--no-chc and --no-hlod leave nothing to run");
   SceneArgs scene_args;
   scene_args.model = a.scene;
   if (!a.scene.empty()) require_regular_file(a.scene);
@@ -264,10 +278,11 @@ void run_bench_occlusion(const OcclusionArgs& a) {
 
   // The path at 1 / fps steps (a walk at that frame rate), or `frames` evenly
   // spaced times; the first and last key included.
-  const int frames = a.frames > 0 ? a.frames : 1 + static_cast<int>(path.duration() * a.fps);
+  const double span = to - a.from;
+  const int frames = a.frames > 0 ? a.frames : 1 + static_cast<int>(span * a.fps + 1e-9);
   std::vector<splat::Camera> cameras;
   for (int f = 0; f < frames; ++f) {
-    const double t = frames == 1 ? 0.0 : path.duration() * f / (frames - 1);
+    const double t = a.from + (frames == 1 ? 0.0 : span * f / (frames - 1));
     splat::Camera c = path.at(t);
     splat::fit_clip_planes(c, scene.center, scene.radius);
     cameras.push_back(c);
@@ -280,9 +295,9 @@ void run_bench_occlusion(const OcclusionArgs& a) {
   std::printf("renderer  %s, %dx%d, fast splats, full detail (leaf blocks)\n",
               splat::GlContext::renderer_string().c_str(), a.width, a.height);
   std::printf(
-      "path      %s: %d frames over %.1f s; means over the frames (frame ms: glFinish-ed "
-      "wall time; wait ms: CPU blocked in query reads)\n",
-      a.path.c_str(), frames, path.duration());
+      "path      %s: %d frames over %.1f s (%.1f to %.1f s of %.1f); means over the frames "
+      "(frame ms: glFinish-ed wall time; wait ms: CPU blocked in query reads)\n",
+      a.path.c_str(), frames, span, a.from, to, path.duration());
   std::fflush(stdout);
 
   using strategies::OcclusionMode;
@@ -323,11 +338,13 @@ void run_bench_occlusion(const OcclusionArgs& a) {
   // One untimed frame at the first camera: the GPU's caches warm, and CHC
   // starts the path with a previous frame as it would in a walk. S&W comes
   // before Ideal in `runs`: Ideal replays the set S&W found for this camera.
-  for (std::size_t r = 0; r < runs.size(); ++r) (void)frame(r, 0);
-  for (std::size_t f = 0; f < cameras.size(); ++f) {
-    for (std::size_t r = 0; r < runs.size(); ++r) runs[r].frames.push_back(frame(r, f));
+  if (!a.no_chc) {
+    for (std::size_t r = 0; r < runs.size(); ++r) (void)frame(r, 0);
+    for (std::size_t f = 0; f < cameras.size(); ++f) {
+      for (std::size_t r = 0; r < runs.size(); ++r) runs[r].frames.push_back(frame(r, f));
+    }
+    print_chc_table(runs);
   }
-  print_chc_table(runs);
   if (!a.no_hlod) {
     HlodBenchInput hlod;
     hlod.hierarchy = scene.hierarchy;
@@ -418,6 +435,10 @@ void add_bench_commands(CLI::App& app) {
   occlusion->add_option("--fps", occ->fps, "Frames per second of path time (default 10)");
   occlusion->add_option("--frames", occ->frames,
                         "Frames evenly spaced over the path instead (0: every 1 / fps s)");
+  occlusion->add_option("--from", occ->from, "Start of the part of the path measured, seconds")
+      ->check(CLI::NonNegativeNumber);
+  occlusion->add_option("--to", occ->to, "End of the part of the path measured (default: its end)")
+      ->check(CLI::NonNegativeNumber);
   occlusion->add_option("--width", occ->width, "Width in pixels")->check(CLI::Range(16, 8192));
   occlusion->add_option("--height", occ->height, "Height in pixels")->check(CLI::Range(16, 8192));
   occlusion->add_option("--block-size", occ->block_size, "HLOD block size (splats per block)");
@@ -435,7 +456,10 @@ void add_bench_commands(CLI::App& app) {
   occlusion->add_option("--csv", occ->csv_dir,
                         "Folder for the HLOD table's per-frame CSV (occlusion_SCENE.csv)");
   occlusion->add_flag("--no-hlod", occ->no_hlod, "Print the CHC table only");
+  occlusion->add_flag("--no-chc", occ->no_chc, "Print the HLOD table only");
   occlusion->callback([occ] { run_bench_occlusion(*occ); });
+
+  add_bench_scene_command(*bench);
 }
 
 }  // namespace treecut::cli

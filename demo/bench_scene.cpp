@@ -1,0 +1,557 @@
+// treecut bench scene SCENE --path WALK: the `budget` strategy (Peng & Cao,
+// I3D 2013, ../shared/papers/occlusion-culling-with-parallel-lod.txt) along a
+// walkthrough, with HZM culling on and off at the same budget N, against the
+// exact reference of the renderer: every object in the frustum drawn at full
+// detail (its model's leaves) in SplatMode::ObjectId and read back, as
+// tests/hzm_gl_test.cpp does. Per frame:
+//   - accuracy: objects the HZM culled / objects truly hidden (in the
+//     strategy's frustum and no pixel of their id), and the wrongly culled
+//     (culled with a pixel: must be 0);
+//   - the points (splats selected) given to the objects the reference sees;
+//   - the luma PSNR (render --psnr's luma_psnr) of each budgeted image
+//     against the full-detail image;
+//   - the draw time of each budgeted cut (draw_scene + glFinish: wall and
+//     process CPU, llvmpipe's threads included) and the splats drawn.
+// A diagnosis table reruns the strategy's culler (HzmCuller on the
+// strategy's own objects, read-only) with other parameters on the same
+// reference: what the missed hidden objects would need (a finer test level,
+// an exact depth image, more occluders).
+//
+// The strategies are iterated directly (as the stage's step() would, with
+// no previous lists: the budget strategy is a function of the view), so
+// both see the same cameras and nothing of the stage's timing.
+#include "bench_scene.hpp"
+
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <limits>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "render_reports.hpp"
+#include "treecut/error.hpp"
+#include "treecut/feedback_stage.hpp"
+#include "treecut/file_io.hpp"
+#include "treecut/scene.hpp"
+#include "treecut/splat/camera_path.hpp"
+#include "treecut/splat/context.hpp"
+#include "treecut/splat/frame.hpp"
+#include "treecut/splat/image.hpp"
+#include "treecut/splat/renderer.hpp"
+#include "treecut/splat/scene_draw.hpp"
+#include "treecut/strategies/budget_strategy.hpp"
+#include "treecut/strategies/hzm.hpp"
+#include "treecut/tree_cut.hpp"
+#include "viewer.hpp"
+
+namespace treecut::cli {
+
+namespace {
+
+namespace many = strategies::many;
+
+constexpr const char* kCsvHeader =
+    "frame,in_frustum,seen,hidden,culled,wrongly,accuracy,selected_on,selected_off,"
+    "to_seen_on,to_seen_off,splats_on,splats_off,draw_ms_on,draw_ms_off,draw_cpu_ms_on,"
+    "draw_cpu_ms_off,iteration_ms_on,iteration_ms_off,psnr_luma_on,psnr_luma_off";
+
+struct SceneBenchArgs {
+  std::string scene;
+  std::string path;
+  int frames = 12;
+  // The part of the walk measured, in path seconds (to < 0: its end): the
+  // street part of a walk without the overviews, whose full detail is every
+  // object of the scene.
+  double from = 0.0;
+  double to = -1.0;
+  int width = 1280;
+  int height = 720;
+  std::vector<std::string> params;  // "name=value" for the budget strategy
+  std::string csv_dir;
+  bool no_psnr = false;
+  bool no_diagnosis = false;
+};
+
+// Process CPU time (every thread: llvmpipe rasterizes on its own threads).
+double process_cpu_ms() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return double(u.ru_utime.tv_sec + u.ru_stime.tv_sec) * 1e3 +
+         double(u.ru_utime.tv_usec + u.ru_stime.tv_usec) * 1e-3;
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+double mean(const std::vector<double>& v) {
+  double s = 0.0;
+  for (const double x : v) s += x;
+  return v.empty() ? std::numeric_limits<double>::quiet_NaN() : s / double(v.size());
+}
+
+// One budget strategy (culling on or off) and what its iterations gave.
+struct Side {
+  std::unique_ptr<Strategy> owned;
+  strategies::BudgetStrategy* strategy = nullptr;
+  std::vector<NodeId> nodes;
+  std::vector<std::uint32_t> offsets;
+  std::vector<std::uint8_t> visible;
+  splat::SceneCutBuffer buffer;
+  // Per frame.
+  std::vector<double> selected, to_seen, splats, draw_ms, draw_cpu_ms, iteration_ms, psnr;
+  std::vector<double> occlusion_culled, visible_count;
+};
+
+// A rerun of the strategy's culler with other parameters (diagnosis).
+struct Variant {
+  std::string name;
+  many::HzmParams params;
+  std::unique_ptr<many::HzmCuller> culler;
+  std::size_t culled = 0;   // hidden and culled, over the frames
+  std::size_t wrongly = 0;  // culled with a pixel
+  std::size_t rescued = 0;  // of the strategy's missed hidden objects, culled here
+};
+
+std::filesystem::path csv_path(const std::filesystem::path& dir, const std::string& scene) {
+  return dir / ("scene_" + std::filesystem::path(scene).stem().string() + ".csv");
+}
+
+// As bench occlusion's CSV: only an earlier run's file (its header) may be
+// replaced; anything else is the user's.
+void check_csv(const std::filesystem::path& csv) {
+  const std::filesystem::path dir = csv.parent_path();
+  if (!dir.empty()) {
+    const FileKind k = file_kind(dir);
+    if (k != FileKind::Missing && k != FileKind::Directory) {
+      throw InputError(dir.string() + ": " + std::string(describe(k)) + ", not a folder for --csv");
+    }
+  }
+  const FileKind k = file_kind(csv);
+  if (k == FileKind::Missing) return;
+  if (k != FileKind::Regular) throw InputError(csv.string() + ": " + std::string(describe(k)));
+  const std::string text = read_text_file(csv);
+  if (text.rfind(std::string(kCsvHeader) + "\n", 0) != 0) {
+    throw InputError(csv.string() + ": exists and is not a bench scene CSV; not overwritten");
+  }
+}
+
+std::string csv_number(double v) {
+  if (!std::isfinite(v)) return "";
+  char b[32];
+  std::snprintf(b, sizeof b, "%.6g", v);
+  return b;
+}
+
+void run_bench_scene(const SceneBenchArgs& a) {
+  // Every input is checked before any work: exit 2 with one line.
+  const splat::CameraPath path = splat::load_camera_path(a.path);
+  if (path.empty()) throw InputError(a.path + ": the camera path has no keys");
+  const double to = a.to < 0.0 ? path.duration() : a.to;
+  if (!(a.from >= 0.0) || !(to <= path.duration()) || !(a.from <= to)) {
+    char msg[160];
+    std::snprintf(msg, sizeof msg, ": --from %g --to %g is not a part of the path (0 to %.1f s)",
+                  a.from, to, path.duration());
+    throw InputError(a.path + msg);
+  }
+  require_regular_file(a.scene);
+  if (!looks_like_scene(a.scene)) {
+    throw InputError(a.scene + ": not a scene file (bench scene takes a .scene)");
+  }
+  SceneArgs scene_args;
+  scene_args.model = a.scene;
+  scene_args.strategies = {"budget"};
+  scene_args.params = a.params;
+  const StrategyRegistry registry = make_registry(scene_args);
+  check_params(registry, scene_args.strategies, a.params);
+  for (const std::string& p : a.params) {
+    if (parse_param(p).first == "culling") {
+      throw InputError("-p " + p + ": bench scene runs culling on and off itself");
+    }
+  }
+  const std::filesystem::path csv =
+      a.csv_dir.empty() ? std::filesystem::path() : csv_path(a.csv_dir, a.scene);
+  if (!csv.empty()) check_csv(csv);
+
+  const Scene scene = load_scene(scene_args);
+  const StageScene& world = *scene.world;
+  const std::size_t n = world.objects.size();
+  if (n >= splat::kMaxSceneDrawObjects) {
+    throw InputError(a.scene + ": more objects than the ObjectId reference can tell apart");
+  }
+  std::vector<SceneObjectInput> inputs;
+  inputs.reserve(n);
+  for (const StageScene::Object& o : world.objects) {
+    inputs.push_back({world.models[o.model].get(), o.world, o.world_inverse, o.model});
+  }
+
+  Side on, off;
+  for (Side* s : {&on, &off}) {
+    s->owned = make_strategy(registry, "budget", a.params);
+    s->strategy = dynamic_cast<strategies::BudgetStrategy*>(s->owned.get());
+    if (s->strategy == nullptr) throw std::runtime_error("budget: not the built-in strategy");
+    s->strategy->set_param("culling", s == &on ? 1.0 : 0.0);
+    s->strategy->reset_scene(inputs);
+  }
+  const auto points = static_cast<std::uint64_t>(on.strategy->param("points"));
+  const auto aos = static_cast<std::size_t>(on.strategy->param("occluders"));
+  const auto ct = static_cast<float>(on.strategy->param("ct"));
+
+  const glm::ivec2 size(a.width, a.height);
+  splat::OsmesaContext context(a.width, a.height);
+  splat::Renderer renderer(*scene.hierarchy, size);
+  std::vector<const Hierarchy*> models;
+  std::vector<std::vector<NodeId>> leaves;
+  std::uint64_t full_points = 0;
+  for (const auto& m : world.models) {
+    models.push_back(m.get());
+    const TreeCut all = TreeCut::leaf_cut(*m);
+    leaves.emplace_back(all.nodes().begin(), all.nodes().end());
+  }
+  for (const StageScene::Object& o : world.objects) full_points += leaves[o.model].size();
+  renderer.set_models(models);
+  std::vector<splat::SceneObjectDraw> draws;
+  for (const StageScene::Object& o : world.objects) draws.push_back({o.model, o.world});
+  splat::SceneCutBuffer reference;
+  reference.set_objects(renderer, draws);
+  on.buffer.set_objects(renderer, draws);
+  off.buffer.set_objects(renderer, draws);
+  splat::RenderSettings color;  // fast splats, as render's default
+  splat::RenderSettings ids;
+  ids.mode = splat::SplatMode::ObjectId;
+
+  const int frames = std::max(a.frames, 1);
+  std::printf("scene     %s: %zu objects of %zu models, %llu points at full detail\n",
+              scene.label.c_str(), n, world.models.size(),
+              static_cast<unsigned long long>(full_points));
+  std::printf(
+      "renderer  %s, %dx%d, fast splats; reference: ObjectId image of the objects in "
+      "the frustum at full detail\n",
+      splat::GlContext::renderer_string().c_str(), a.width, a.height);
+  std::printf(
+      "path      %s: %d frames from %.1f to %.1f s of %.1f; budget N = %llu, AOS %zu, CT %.2f\n",
+      a.path.c_str(), frames, a.from, to, path.duration(), static_cast<unsigned long long>(points),
+      aos, double(ct));
+  std::fflush(stdout);
+
+  // Diagnosis: the strategy's culler rerun on its objects with other
+  // parameters. The first one repeats the strategy's own settings (a check
+  // that the rerun reproduces it).
+  std::vector<Variant> variants;
+  if (!a.no_diagnosis) {
+    const auto add = [&](std::string name, std::size_t active, float threshold, int finer,
+                         unsigned depth_width, many::Facing facing = many::Facing::ViewDirection) {
+      Variant v;
+      v.name = std::move(name);
+      v.params.active = active;
+      v.params.compactness_threshold = threshold;
+      v.params.finer_levels = finer;
+      v.params.depth_width = depth_width;
+      v.params.facing = facing;
+      variants.push_back(std::move(v));
+    };
+    const unsigned cells = many::HzmParams{}.depth_width;
+    const int finer = many::HzmParams{}.finer_levels;
+    const auto label = [&](std::size_t active, float threshold, int f, unsigned w) {
+      char b[128];
+      std::snprintf(b, sizeof b, "AOS %zu, CT %.2f, finer %d, %u cells", active, double(threshold),
+                    f, w);
+      return std::string(b);
+    };
+    add(label(aos, ct, finer, cells) + " (the strategy's)", aos, ct, finer, cells);
+    add(label(aos, ct, 0, cells) + " (Eq. 5 only)", aos, ct, 0, cells);
+    add(label(aos, ct, 10, cells) + " (every cell)", aos, ct, 10, cells);
+    const unsigned exact = static_cast<unsigned>(std::max(a.width, a.height));
+    add(label(aos, ct, 10, exact) + " (exact depth)", aos, ct, 10, exact);
+    add(label(2 * aos, ct, finer, cells), 2 * aos, ct, finer, cells);
+    add(label(4 * aos, ct, finer, cells), 4 * aos, ct, finer, cells);
+    add(label(16 * aos, ct, 10, exact), 16 * aos, ct, 10, exact);
+    add(label(aos, ct, finer, cells) + ", Eq. 3 E = eye to object", aos, ct, finer, cells,
+        many::Facing::EyeToObject);
+    add(label(4 * aos, ct, 10, exact) + ", Eq. 3 E = eye to object", 4 * aos, ct, 10, exact,
+        many::Facing::EyeToObject);
+    add(label(aos, 0.3f, finer, cells), aos, 0.3f, finer, cells);
+    add(label(aos, 0.9f, finer, cells), aos, 0.9f, finer, cells);
+    for (Variant& v : variants) v.culler = std::make_unique<many::HzmCuller>(v.params);
+  }
+  many::WorkerPool pool(2);
+
+  std::vector<double> in_frustum_f, seen_f, hidden_f, culled_f, wrongly_f, accuracy_f;
+  std::vector<double> missed_occluder_f;  // hidden objects in the AOS (never culled)
+  std::size_t hidden_all = 0, culled_all = 0, wrongly_all = 0, missed_aos_all = 0;
+  std::vector<std::uint32_t> seen(n);
+  std::vector<std::span<const NodeId>> lists(n);
+  const std::vector<NodeId> none;
+
+  const auto iterate = [&](Side& s, const ViewSnapshot& view) {
+    s.nodes.clear();
+    s.offsets.clear();
+    std::vector<QueryRequest> queries;
+    const SceneIterationInput in{inputs, view, nullptr, s.strategy->params_version(), {}, {}};
+    SceneIterationOutput out;
+    out.nodes = &s.nodes;
+    out.offsets = &s.offsets;
+    out.queries = &queries;
+    const auto t0 = std::chrono::steady_clock::now();
+    s.strategy->iterate_scene(in, out);
+    s.iteration_ms.push_back(
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    s.visible.assign(s.strategy->visible().begin(), s.strategy->visible().end());
+    s.selected.push_back(double(s.nodes.size()));
+    s.occlusion_culled.push_back(double(s.strategy->last().occlusion_culled));
+    s.visible_count.push_back(double(s.strategy->last().visible));
+  };
+  const auto upload = [&](Side& s) {
+    for (std::size_t i = 0; i < n; ++i) {
+      lists[i] =
+          std::span<const NodeId>(s.nodes.data() + s.offsets[i], s.offsets[i + 1] - s.offsets[i]);
+    }
+    s.buffer.upload(models, lists);
+  };
+  const auto draw = [&](Side& s, const splat::Camera& cam, bool record) {
+    const double cpu0 = process_cpu_ms();
+    const auto t0 = std::chrono::steady_clock::now();
+    const splat::FrameStats st = renderer.draw_scene(s.buffer, cam, color, true);
+    const double ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    if (!record) return;
+    s.draw_cpu_ms.push_back(process_cpu_ms() - cpu0);
+    s.draw_ms.push_back(ms);
+    s.splats.push_back(double(st.splats));
+  };
+  auto grab = [&] { return splat::Image{a.width, a.height, renderer.read_pixels()}; };
+
+  for (int f = 0; f < frames; ++f) {
+    const double t = a.from + (frames == 1 ? 0.0 : (to - a.from) * f / (frames - 1));
+    splat::Camera cam = path.at(t);
+    splat::fit_clip_planes(cam, scene.center, scene.radius);
+    const ViewSnapshot view = splat::view_snapshot(cam, size, color.light);
+    iterate(on, view);
+    iterate(off, view);
+
+    // The reference: every object in the strategy's frustum (culling off:
+    // visible = in the frustum) at full detail, its id per pixel.
+    for (std::size_t i = 0; i < n; ++i) {
+      lists[i] = off.visible[i] ? std::span<const NodeId>(leaves[world.objects[i].model])
+                                : std::span<const NodeId>(none);
+    }
+    reference.upload(models, lists);
+    renderer.draw_scene(reference, cam, ids, true);
+    std::fill(seen.begin(), seen.end(), 0u);
+    {
+      const std::vector<std::uint8_t> px = renderer.read_pixels();
+      for (std::size_t p = 0; p + 3 < px.size(); p += 4) {
+        const std::uint32_t v = px[p] | (px[p + 1] << 8) | (px[p + 2] << 16);
+        if (v < n) ++seen[v];
+      }
+    }
+    splat::Image full;
+    if (!a.no_psnr) {
+      renderer.draw_scene(reference, cam, color, true);
+      full = grab();
+    }
+
+    std::size_t in_frustum = 0, seen_objects = 0, hidden = 0, culled = 0, wrongly = 0;
+    std::size_t hidden_aos = 0;
+    double to_seen_on = 0.0, to_seen_off = 0.0;
+    std::vector<std::uint8_t> missed(n, 0);
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!off.visible[i]) continue;
+      ++in_frustum;
+      const bool hzm_culled = !on.visible[i];
+      if (seen[i] > 0) {
+        ++seen_objects;
+        wrongly += hzm_culled ? 1 : 0;
+        to_seen_on += double(on.offsets[i + 1] - on.offsets[i]);
+        to_seen_off += double(off.offsets[i + 1] - off.offsets[i]);
+      } else {
+        ++hidden;
+        culled += hzm_culled ? 1 : 0;
+        missed[i] = hzm_culled ? 0 : 1;
+      }
+    }
+    on.to_seen.push_back(to_seen_on);
+    off.to_seen.push_back(to_seen_off);
+
+    // Diagnosis on the same reference.
+    const many::FrameView frame_view(view);
+    const std::span<const many::SceneObject> objects = on.strategy->objects();
+    for (Variant& v : variants) {
+      v.culler->preprocess(objects);
+      v.culler->cull(objects, frame_view, &pool);
+      const auto vis = v.culler->visible();
+      const auto states = v.culler->states();
+      for (std::size_t i = 0; i < n; ++i) {
+        if (!off.visible[i] || states[i] != many::ObjectState::Occluded) continue;
+        if (seen[i] > 0) {
+          ++v.wrongly;
+        } else {
+          ++v.culled;
+          v.rescued += missed[i];
+        }
+      }
+      (void)vis;
+      if (&v == &variants.front()) {
+        for (const std::uint32_t k : v.culler->active()) hidden_aos += seen[k] == 0 ? 1 : 0;
+      }
+    }
+
+    for (Side* s : {&on, &off}) {
+      upload(*s);
+      if (f == 0) draw(*s, cam, false);  // untimed: the GPU's caches warm
+      draw(*s, cam, true);
+      if (!a.no_psnr) s->psnr.push_back(luma_psnr(grab(), full));
+    }
+    in_frustum_f.push_back(double(in_frustum));
+    seen_f.push_back(double(seen_objects));
+    hidden_f.push_back(double(hidden));
+    culled_f.push_back(double(culled));
+    wrongly_f.push_back(double(wrongly));
+    accuracy_f.push_back(hidden > 0 ? double(culled) / double(hidden)
+                                    : std::numeric_limits<double>::quiet_NaN());
+    missed_occluder_f.push_back(double(hidden_aos));
+    hidden_all += hidden;
+    culled_all += culled;
+    wrongly_all += wrongly;
+    missed_aos_all += hidden_aos;
+    std::fprintf(stderr, "frame %d/%d: %zu in the frustum, %zu hidden, %zu culled\n", f + 1, frames,
+                 in_frustum, hidden, culled);
+  }
+
+  const double accuracy = hidden_all > 0 ? double(culled_all) / double(hidden_all)
+                                         : std::numeric_limits<double>::quiet_NaN();
+  double acc_min = std::numeric_limits<double>::infinity(), acc_max = -acc_min;
+  for (const double x : accuracy_f) {
+    if (!std::isfinite(x)) continue;
+    acc_min = std::min(acc_min, x);
+    acc_max = std::max(acc_max, x);
+  }
+  std::printf(
+      "\nCulling accuracy against the exact reference (means per frame; accuracy = culled / "
+      "hidden over all frames)\n");
+  std::printf(
+      "| frames | in frustum | seen (reference) | truly hidden | HZM culled | wrongly culled | "
+      "hidden in the AOS | accuracy | per frame min / max |\n");
+  std::printf("|---:|---:|---:|---:|---:|---:|---:|---:|---|\n");
+  std::printf("| %d | %.1f | %.1f | %.1f | %.1f | %zu | %.1f | %.4f (%zu / %zu) | %.4f / %.4f |\n",
+              frames, mean(in_frustum_f), mean(seen_f), mean(hidden_f), mean(culled_f), wrongly_all,
+              mean(missed_occluder_f), accuracy, culled_all, hidden_all,
+              std::isfinite(acc_min) ? acc_min : 0.0, std::isfinite(acc_max) ? acc_max : 0.0);
+
+  const auto psnr_text_of = [](const std::vector<double>& v) {
+    if (v.empty()) return std::string("-");
+    double lo = std::numeric_limits<double>::infinity();
+    for (const double x : v) lo = std::min(lo, x);
+    char b[64];
+    std::snprintf(b, sizeof b, "%.2f (min %.2f)", mean(v), lo);
+    return std::string(b);
+  };
+  std::printf("\nCulling on and off at the same budget N = %llu (means per frame unless said)\n",
+              static_cast<unsigned long long>(points));
+  std::printf("| | culling on | culling off | on / off |\n");
+  std::printf("|---|---:|---:|---:|\n");
+  const auto row = [](const char* name, double x, double y, const char* fmt) {
+    char bx[48], by[48];
+    std::snprintf(bx, sizeof bx, fmt, x);
+    std::snprintf(by, sizeof by, fmt, y);
+    std::printf("| %s | %s | %s | %.4f |\n", name, bx, by, y != 0.0 ? x / y : 0.0);
+  };
+  row("potentially visible objects", mean(on.visible_count), mean(off.visible_count), "%.1f");
+  row("splats selected", mean(on.selected), mean(off.selected), "%.0f");
+  row("splats to objects the reference sees", mean(on.to_seen), mean(off.to_seen), "%.0f");
+  row("share of the splats to seen objects", mean(on.to_seen) / std::max(mean(on.selected), 1.0),
+      mean(off.to_seen) / std::max(mean(off.selected), 1.0), "%.4f");
+  row("splats drawn", mean(on.splats), mean(off.splats), "%.0f");
+  row("draw ms (median, wall, glFinish)", median(on.draw_ms), median(off.draw_ms), "%.2f");
+  row("draw CPU ms (median, process)", median(on.draw_cpu_ms), median(off.draw_cpu_ms), "%.2f");
+  row("strategy iteration ms (median)", median(on.iteration_ms), median(off.iteration_ms), "%.2f");
+  std::printf("| luma PSNR against full detail, dB | %s | %s | |\n", psnr_text_of(on.psnr).c_str(),
+              psnr_text_of(off.psnr).c_str());
+
+  if (!variants.empty()) {
+    std::printf(
+        "\nDiagnosis: the strategy's culler rerun with other parameters on the same frames and "
+        "reference (rescued = of the %zu hidden objects the strategy kept, culled here)\n",
+        hidden_all - culled_all);
+    std::printf("| culler | accuracy | culled | wrongly | rescued |\n");
+    std::printf("|---|---:|---:|---:|---:|\n");
+    for (const Variant& v : variants) {
+      std::printf("| %s | %.4f | %zu | %zu | %zu |\n", v.name.c_str(),
+                  hidden_all > 0 ? double(v.culled) / double(hidden_all) : 0.0, v.culled, v.wrongly,
+                  v.rescued);
+    }
+  }
+  std::fflush(stdout);
+
+  if (!csv.empty()) {
+    std::ostringstream o;
+    o << kCsvHeader << "\n";
+    for (std::size_t f = 0; f < std::size_t(frames); ++f) {
+      const auto at = [f](const std::vector<double>& v) {
+        return f < v.size() ? v[f] : std::numeric_limits<double>::quiet_NaN();
+      };
+      o << f << ',' << csv_number(at(in_frustum_f)) << ',' << csv_number(at(seen_f)) << ','
+        << csv_number(at(hidden_f)) << ',' << csv_number(at(culled_f)) << ','
+        << csv_number(at(wrongly_f)) << ',' << csv_number(at(accuracy_f)) << ','
+        << csv_number(at(on.selected)) << ',' << csv_number(at(off.selected)) << ','
+        << csv_number(at(on.to_seen)) << ',' << csv_number(at(off.to_seen)) << ','
+        << csv_number(at(on.splats)) << ',' << csv_number(at(off.splats)) << ','
+        << csv_number(at(on.draw_ms)) << ',' << csv_number(at(off.draw_ms)) << ','
+        << csv_number(at(on.draw_cpu_ms)) << ',' << csv_number(at(off.draw_cpu_ms)) << ','
+        << csv_number(at(on.iteration_ms)) << ',' << csv_number(at(off.iteration_ms)) << ','
+        << csv_number(at(on.psnr)) << ',' << csv_number(at(off.psnr)) << "\n";
+    }
+    if (!csv.parent_path().empty()) {
+      std::error_code ec;
+      std::filesystem::create_directories(csv.parent_path(), ec);
+      if (ec) throw std::runtime_error(csv.parent_path().string() + ": " + ec.message());
+    }
+    write_file_atomically(csv, o.str());
+    std::printf("csv       %s\n", csv.string().c_str());
+  }
+}
+
+}  // namespace
+
+void add_bench_scene_command(CLI::App& bench) {
+  auto args = std::make_shared<SceneBenchArgs>();
+  auto* cmd = bench.add_subcommand(
+      "scene",
+      "The budget strategy on a scene's walk, culling on and off at the same N, against the "
+      "renderer's exact ObjectId reference: culling accuracy, points to visible objects, luma "
+      "PSNR against full detail, draw time (docs/many-objects.md)");
+  cmd->add_option("SCENE", args->scene, "Scene file (e.g. made by treecut gen city-block)")
+      ->required();
+  cmd->add_option("--path", args->path, "Camera path (gen city-block --walk FILE)")->required();
+  cmd->add_option("--frames", args->frames, "Frames evenly spaced over the path")
+      ->check(CLI::Range(1, 100000))
+      ->capture_default_str();
+  cmd->add_option("--from", args->from, "Start of the part of the path measured, seconds");
+  cmd->add_option("--to", args->to, "Its end, seconds (default: the end of the path)");
+  cmd->add_option("-p,--param", args->params,
+                  "Budget strategy parameter name=value (points, alpha, pet, occluders, ct, "
+                  "threads; culling is run both ways)");
+  cmd->add_option("--width", args->width, "Width in pixels")
+      ->check(CLI::Range(16, 8192))
+      ->capture_default_str();
+  cmd->add_option("--height", args->height, "Height in pixels")
+      ->check(CLI::Range(16, 8192))
+      ->capture_default_str();
+  cmd->add_option("--csv", args->csv_dir, "Folder for the per-frame CSV (scene_SCENE.csv)");
+  cmd->add_flag("--no-psnr", args->no_psnr, "Skip the full-detail color image and the PSNR");
+  cmd->add_flag("--no-diagnosis", args->no_diagnosis,
+                "Skip the reruns of the culler with other parameters");
+  cmd->callback([args] { run_bench_scene(*args); });
+}
+
+}  // namespace treecut::cli
