@@ -188,6 +188,11 @@ struct OcclusionArgs {
   int width = 1280;
   int height = 720;
   std::uint32_t block_size = strategies::kDefaultBlockSize;
+  // The tree of blocks (HlodBlocks::build): 2 binary (the paper's kD-tree), 4
+  // the hierarchy's; compare_fan_out adds the CHC table's VFC, S&W, CHC and
+  // Ideal rows on a second tree, frames interleaved with the first.
+  unsigned fan_out = strategies::kBinaryFanOut;
+  unsigned compare_fan_out = 0;
   bool flush_row = false;
   // The HLOD table (bench_hlod.hpp): tau, PSNR frames, per-frame CSV folder.
   float hlod_tau = 1.0f;
@@ -203,6 +208,7 @@ struct ChcRun {
   strategies::ChcOptions options;
   std::vector<strategies::ChcFrameStats> frames;
   bool flush_per_block = false;  // diagnostics: GlOcclusionDevice::set_flush_after_draw
+  unsigned tree = 0;             // 0: the --block-fan-out tree, 1: the --compare-fan-out one
 };
 
 // The paper's table 1 (+ its table 2 rows): means over the frames of the path.
@@ -213,9 +219,11 @@ void print_chc_table(const std::vector<ChcRun>& runs) {
     return v;
   };
   const auto frame_ms = [](const strategies::ChcFrameStats& f) { return f.frame_ms; };
-  double vfc_ms = 0.0;
+  // Speed-ups against the VFC row of the same tree of blocks.
+  double vfc_ms[2] = {0.0, 0.0};
   for (const ChcRun& r : runs) {
-    if (r.options.mode == strategies::OcclusionMode::Vfc) vfc_ms = mean(column(r, frame_ms));
+    if (r.options.mode == strategies::OcclusionMode::Vfc)
+      vfc_ms[r.tree] = mean(column(r, frame_ms));
   }
   std::printf(
       "| method | t_av | n_vp | queries | blocking reads | wait ms | of it, end-of-frame drain ms "
@@ -241,7 +249,7 @@ void print_chc_table(const std::vector<ChcRun>& runs) {
                 static_cast<unsigned long long>(r.options.min_visible_samples), q, b, w, dr,
                 mean(column(r, [](const auto& f) { return f.blocks_drawn; })),
                 mean(column(r, [](const auto& f) { return f.splats_drawn; })), ms,
-                median(column(r, frame_ms)), ms > 0.0 ? vfc_ms / ms : 0.0);
+                median(column(r, frame_ms)), ms > 0.0 ? vfc_ms[r.tree] / ms : 0.0);
   }
   std::fflush(stdout);
 }
@@ -250,6 +258,11 @@ void run_bench_occlusion(const OcclusionArgs& a) {
   if (a.frames < 0) throw InputError("--frames must not be negative");
   if (!(a.fps > 0.0) || a.fps > 1000.0) throw InputError("--fps must be in (0, 1000]");
   if (a.block_size < 1) throw InputError("--block-size must be at least 1");
+  if (a.fan_out != 2 && a.fan_out != 4) throw InputError("--block-fan-out must be 2 or 4");
+  if (a.compare_fan_out != 0 &&
+      (a.compare_fan_out == a.fan_out || (a.compare_fan_out != 2 && a.compare_fan_out != 4))) {
+    throw InputError("--compare-fan-out must be the other of 2 and 4");
+  }
   const splat::CameraPath path = splat::load_camera_path(a.path);  // exit 2 before any work
   if (!a.no_hlod && !a.csv_dir.empty()) check_hlod_csv(hlod_csv_path(a.csv_dir, a.scene));
   if (path.empty()) throw InputError(a.path + ": the camera path has no keys");
@@ -267,13 +280,19 @@ void run_bench_occlusion(const OcclusionArgs& a) {
   const Scene scene = load_scene(scene_args);
   const Hierarchy& h = *scene.hierarchy;
   const double t0 = now_seconds();
-  const strategies::HlodBlocks blocks = strategies::HlodBlocks::build(h, a.block_size);
+  const strategies::HlodBlocks blocks = strategies::HlodBlocks::build(h, a.block_size, a.fan_out);
   const double block_seconds = now_seconds() - t0;
+  const bool compare = a.compare_fan_out != 0 && !a.no_chc;
+  const strategies::HlodBlocks other =
+      compare ? strategies::HlodBlocks::build(h, a.block_size, a.compare_fan_out)
+              : strategies::HlodBlocks();
 
   const glm::ivec2 size(a.width, a.height);
   splat::OsmesaContext context(a.width, a.height);
   splat::Renderer renderer(h, size);
   splat::GlOcclusionDevice device(renderer, blocks);
+  std::unique_ptr<splat::GlOcclusionDevice> other_device;
+  if (compare) other_device = std::make_unique<splat::GlOcclusionDevice>(renderer, other);
   splat::RenderSettings settings;  // fast splats: the one-pass mode of in-frame draws
 
   // The path at 1 / fps steps (a walk at that frame rate), or `frames` evenly
@@ -289,9 +308,13 @@ void run_bench_occlusion(const OcclusionArgs& a) {
   }
   std::printf(
       "scene     %s: %u points, %u nodes; %u blocks (%u leaf blocks) of <= %u splats, "
-      "built in %.3f s\n",
+      "fan-out %u, built in %.3f s\n",
       scene.label.c_str(), h.leaf_count(), h.node_count(), blocks.block_count(),
-      blocks.leaf_block_count(), blocks.block_size(), block_seconds);
+      blocks.leaf_block_count(), blocks.block_size(), blocks.fan_out(), block_seconds);
+  if (compare) {
+    std::printf("compare   fan-out %u: %u blocks (%u leaf blocks)\n", other.fan_out(),
+                other.block_count(), other.leaf_block_count());
+  }
   std::printf("renderer  %s, %dx%d, fast splats, full detail (leaf blocks)\n",
               splat::GlContext::renderer_string().c_str(), a.width, a.height);
   std::printf(
@@ -316,23 +339,36 @@ void run_bench_occlusion(const OcclusionArgs& a) {
                     {OcclusionMode::Chc, 0, 0, a.poll_every},
                     {}});
   }
+  if (compare) {
+    const std::string tag = ", fan-out " + std::to_string(a.compare_fan_out);
+    for (const OcclusionMode m : {OcclusionMode::Vfc, OcclusionMode::StopAndWait,
+                                  OcclusionMode::Chc, OcclusionMode::Ideal}) {
+      const char* name = m == OcclusionMode::Vfc           ? "VFC"
+                         : m == OcclusionMode::StopAndWait ? "S&W"
+                         : m == OcclusionMode::Chc         ? "CHC"
+                                                           : "Ideal";
+      runs.push_back({name + tag, {m, 0, 0}, {}, false, 1});
+    }
+  }
   // Ideal replays, frame by frame, the leaf blocks S&W found visible for the
   // same camera (S&W's frame runs just before).
-  std::vector<strategies::BlockId> sw_set;
+  std::vector<strategies::BlockId> sw_set[2];
   // Each method has its own traversal (its own previous frames), and the
   // methods take turns frame by frame: every method sees the path in order,
   // and a change of the machine's load (other processes on the 2 cores)
   // falls on all of them alike instead of on whichever ran then.
   std::vector<strategies::ChcTraversal> traversals;
-  for (const ChcRun& run : runs) traversals.emplace_back(blocks, run.options);
+  for (const ChcRun& run : runs)
+    traversals.emplace_back(run.tree == 0 ? blocks : other, run.options);
   auto frame = [&](std::size_t r, std::size_t f) {
     const ChcRun& run = runs[r];
-    device.set_flush_after_draw(run.flush_per_block);
-    device.set_view_render_thread(cameras[f], settings);
-    if (run.options.mode == OcclusionMode::Ideal) traversals[r].set_ideal_leaves(sw_set);
+    splat::GlOcclusionDevice& dev = run.tree == 0 ? device : *other_device;
+    dev.set_flush_after_draw(run.flush_per_block);
+    dev.set_view_render_thread(cameras[f], settings);
+    if (run.options.mode == OcclusionMode::Ideal) traversals[r].set_ideal_leaves(sw_set[run.tree]);
     const auto stats =
-        traversals[r].frame_render_thread(device, splat::occlusion_view(cameras[f], size), true);
-    if (run.options.mode == OcclusionMode::StopAndWait) sw_set = traversals[r].drawn();
+        traversals[r].frame_render_thread(dev, splat::occlusion_view(cameras[f], size), true);
+    if (run.options.mode == OcclusionMode::StopAndWait) sw_set[run.tree] = traversals[r].drawn();
     return stats;
   };
   // One untimed frame at the first camera: the GPU's caches warm, and CHC
@@ -442,6 +478,11 @@ void add_bench_commands(CLI::App& app) {
   occlusion->add_option("--width", occ->width, "Width in pixels")->check(CLI::Range(16, 8192));
   occlusion->add_option("--height", occ->height, "Height in pixels")->check(CLI::Range(16, 8192));
   occlusion->add_option("--block-size", occ->block_size, "HLOD block size (splats per block)");
+  occlusion->add_option("--block-fan-out", occ->fan_out,
+                        "Children per interior block: 2 binary (default), 4 the hierarchy's");
+  occlusion->add_option("--compare-fan-out", occ->compare_fan_out,
+                        "Add VFC, S&W, CHC and Ideal rows on a tree of this fan-out (the other "
+                        "of 2 and 4), frames interleaved");
   occlusion->add_flag("--flush-row", occ->flush_row,
                       "Add a diagnostic row: Ideal with a glFlush after every block");
   occlusion->add_option(

@@ -36,6 +36,7 @@ using treecut::strategies::ChcOptions;
 using treecut::strategies::ChcTraversal;
 using treecut::strategies::DeviceFrameStats;
 using treecut::strategies::HlodBlocks;
+using treecut::strategies::kBinaryFanOut;
 using treecut::strategies::kNoBlock;
 using treecut::strategies::OcclusionDeviceRenderThread;
 using treecut::strategies::OcclusionMode;
@@ -211,7 +212,8 @@ OcclusionView view_from(glm::vec3 eye) {
 
 class Chc : public ::testing::Test {
  protected:
-  void SetUp() override { blocks_ = HlodBlocks::build(*sheets(), 64); }
+  // The binary tree of blocks CHC runs on (the paper's kD-tree).
+  void SetUp() override { blocks_ = HlodBlocks::build(*sheets(), 64, kBinaryFanOut); }
 
   std::vector<BlockId> leaves_in_frustum(const FakeDevice& d) const {
     std::vector<BlockId> out;

@@ -15,19 +15,32 @@
 //     every node has a box and a representation of its whole subtree at that
 //     node's level; a cut of the HLOD tree is what is drawn.
 //
-// The blocks:
-//   - Leaf blocks are the subtrees cut at the nodes whose subtree holds
-//     <= block_size leaves while their parent's holds more (the hierarchy root
-//     when it holds <= block_size). Every leaf of the hierarchy is in exactly
-//     one leaf block. A leaf block's representation is its leaves (full detail).
-//   - Interior blocks are the hierarchy nodes above the leaf blocks; the tree of
-//     blocks is that upper tree: an interior block's children are the blocks
-//     rooted at its root's children. Its representation is a cut of its subtree
-//     of at most block_size nodes: its root refined breadth first (the biggest
-//     splats first: hierarchy ids are breadth-first) while the count fits.
+// The blocks (fan_out 2: a binary, balanced tree like the CHC paper's
+// kD-tree; fan_out 4: the hierarchy's own upper tree, the first form):
+//   - Every block is a set of disjoint subtrees of the hierarchy (roots(b));
+//     the root block is the hierarchy root. A block holding <= block_size
+//     leaves (or a single leaf) is a leaf block, and its representation is
+//     its leaves (full detail). Every leaf of the hierarchy is in exactly one
+//     leaf block.
+//   - fan_out 2: an interior block's two children split its subtrees (a
+//     single subtree first becomes its root's children; a subtree with more
+//     than a quarter of the leaves is replaced by its children) along the
+//     longest axis of their centers, where the near side's leaves come
+//     closest to floor(k/2)/k of the block's, k = ceil(leaves / block_size):
+//     leaf blocks hold about leaves / k, more than block_size / 2 where the
+//     subtrees' sizes allow it, instead of the slivers the hierarchy's
+//     fan-out leaves (a parent just over block_size gave four quarters).
+//     fan_out 4: a block is one node; its children are its node's children.
+//   - root(b) is the lowest common ancestor of the block's subtrees (the
+//     node itself for a one-node block): its sphere contains the block, but
+//     is looser than the box for a block of several subtrees.
+//   - An interior block's representation is a cut of its subtrees of at most
+//     block_size nodes (or its subtree count, when larger): the roots refined
+//     in id order (breadth first: the biggest splats first) while the count
+//     fits. It is coarser than (or equal to) its children's representations
+//     together, so never larger than their sum.
 //   - Block ids are breadth-first over the tree of blocks (block 0 is the root
-//     block; children of a block are a contiguous id range), in the order of
-//     their root node ids.
+//     block; children of a block are a contiguous id range).
 //   - Each block has an axis-aligned box containing the sphere of every node of
 //     its representation and so (children lie inside their parent's sphere,
 //     check_invariants) of every node below it: whatever the block draws at its
@@ -52,6 +65,7 @@
 #include <memory>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "treecut/hierarchy.hpp"
@@ -61,6 +75,15 @@ namespace treecut::strategies {
 using BlockId = std::uint32_t;
 inline constexpr BlockId kNoBlock = std::numeric_limits<BlockId>::max();
 inline constexpr std::uint32_t kDefaultBlockSize = 1000;
+/// Children per interior block: 2, binary and balanced (the CHC paper's
+/// kD-tree: CHC and `treecut bench occlusion` use it), or 4, the hierarchy's
+/// own children (the first form). build()'s default stays 4 for the `hoq`
+/// strategy: its queries go through the View's executor, which tests a
+/// node's sphere, and the node of a binary block made of several subtrees is
+/// their common ancestor, whose sphere is looser than the block (its relative
+/// visibility is that of a bigger region).
+inline constexpr unsigned kBinaryFanOut = 2;
+inline constexpr unsigned kHierarchyFanOut = 4;
 
 struct Box {
   glm::vec3 lo{0.0f};
@@ -85,11 +108,15 @@ class HlodBlocks {
  public:
   HlodBlocks() = default;
 
-  /// Groups `h` into blocks of at most `block_size` (>= 1) leaves; throws
-  /// std::invalid_argument for block_size 0 or an empty hierarchy. Parallel.
-  static HlodBlocks build(const Hierarchy& h, std::uint32_t block_size = kDefaultBlockSize);
+  /// Groups `h` into blocks of at most `block_size` (>= 1) leaves, interior
+  /// blocks with `fan_out` 2 (binary) or 4 (the hierarchy's children) children;
+  /// throws std::invalid_argument for block_size 0, another fan_out or an
+  /// empty hierarchy. Parallel.
+  static HlodBlocks build(const Hierarchy& h, std::uint32_t block_size = kDefaultBlockSize,
+                          unsigned fan_out = kHierarchyFanOut);
 
   [[nodiscard]] std::uint32_t block_size() const { return block_size_; }
+  [[nodiscard]] unsigned fan_out() const { return fan_out_; }
   [[nodiscard]] std::uint32_t block_count() const {
     return static_cast<std::uint32_t>(root_.size());
   }
@@ -97,19 +124,24 @@ class HlodBlocks {
   /// The hierarchy's node count the blocks were built for (a cheap identity check).
   [[nodiscard]] std::uint32_t hierarchy_nodes() const { return hierarchy_nodes_; }
 
+  /// The lowest common ancestor of roots(b) (see above).
   [[nodiscard]] NodeId root(BlockId b) const { return root_[b]; }
+  /// The disjoint subtrees the block is made of, in id order.
+  [[nodiscard]] std::span<const NodeId> roots(BlockId b) const {
+    return {roots_.data() + roots_begin_[b], roots_begin_[b + 1] - roots_begin_[b]};
+  }
   [[nodiscard]] BlockId parent(BlockId b) const { return parent_[b]; }
   [[nodiscard]] BlockId first_child(BlockId b) const { return first_child_[b]; }
   [[nodiscard]] unsigned child_count(BlockId b) const { return child_count_[b]; }
   [[nodiscard]] bool is_leaf(BlockId b) const { return child_count_[b] == 0; }
-  /// Leaves of the hierarchy under the block (its root's point_count).
+  /// Leaves of the hierarchy in the block (its subtrees' point_count).
   [[nodiscard]] std::uint32_t leaf_count(BlockId b) const { return leaves_[b]; }
   [[nodiscard]] const Box& box(BlockId b) const { return box_[b]; }
   /// The nodes drawn for the block at its level: a cut of its root's subtree.
   [[nodiscard]] std::span<const NodeId> representation(BlockId b) const {
     return {rep_.data() + rep_begin_[b], rep_begin_[b + 1] - rep_begin_[b]};
   }
-  /// The block whose root is `n`, or kNoBlock (binary search over the roots).
+  /// The highest block whose root() is `n`, or kNoBlock (binary search).
   [[nodiscard]] BlockId block_of_root(NodeId n) const;
 
   /// The cut holding only the root block.
@@ -128,9 +160,13 @@ class HlodBlocks {
 
  private:
   std::uint32_t block_size_ = 0;
+  unsigned fan_out_ = kHierarchyFanOut;
   std::uint32_t leaf_blocks_ = 0;
   std::uint32_t hierarchy_nodes_ = 0;
   std::vector<NodeId> root_;
+  std::vector<NodeId> roots_;                        // the subtrees of every block, concatenated
+  std::vector<std::size_t> roots_begin_;             // block_count() + 1 offsets into roots_
+  std::vector<std::pair<NodeId, BlockId>> by_root_;  // (root_, id), sorted
   std::vector<BlockId> parent_;
   std::vector<BlockId> first_child_;
   std::vector<std::uint8_t> child_count_;
