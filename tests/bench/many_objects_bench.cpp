@@ -23,11 +23,19 @@
 #include <time.h>
 
 #include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <glm/geometric.hpp>
 #include <map>
 #include <memory>
 #include <tuple>
 
+#include "test_support.hpp"
+#include "treecut/scene.hpp"
+#include "treecut/splat/camera_path.hpp"
+#include "treecut/splat/frame.hpp"
 #include "treecut/strategies/budget.hpp"
+#include "treecut/strategies/budget_strategy.hpp"
 #include "treecut/strategies/hzm.hpp"
 
 namespace {
@@ -196,6 +204,118 @@ BENCHMARK(BM_Frame)
     ->ArgsProduct({{100000}, {2}, {320}, {16, 64}, {0}, {2}})
     ->ArgsProduct({{100000}, {2}, {320}, {32}, {1}, {2}})
     ->ArgsProduct({{100000}, {2}, {320}, {32}, {0}, {1, 3, 10}})
+    ->Unit(benchmark::kMillisecond)
+    ->UseManualTime();
+
+// The budget strategy itself on the generated city block (`treecut gen
+// city-block --objects N`, 20,000 points a model, seed 1) along its walk
+// (`gen --walk`), as `treecut render SCENE -s budget --sync --frames 6`
+// samples it: 6 frames at t = k / 5 of the walk, clip planes fitted to the
+// scene. Each iteration is one iterate_scene (N = 1,000,000 points) of the
+// next of the 6 views; the reported time is select + cull (everything but
+// best_cut) wall, the counters each phase's wall and CPU (stage thread +
+// pool workers, BudgetCounters) per iteration.
+struct CityBlock {
+  treecut::Scene scene;
+  std::vector<treecut::SceneObjectInput> inputs;
+  std::vector<treecut::ViewSnapshot> views;
+};
+
+const CityBlock& city_block(std::size_t buildings) {
+  static std::map<std::size_t, std::unique_ptr<CityBlock>> cache;
+  auto& slot = cache[buildings];
+  if (!slot) {
+    slot = std::make_unique<CityBlock>();
+    const treecut::CityBlockLayout layout = treecut::city_block_layout(buildings, kSeed);
+    const std::filesystem::path file = treecut::test::scratch_dir("many_objects_bench") /
+                                       ("city" + std::to_string(buildings) + ".scene");
+    {
+      std::ofstream out(file);
+      out << treecut::format_city_block_scene(layout, kSeed, 20000);
+      if (!out.flush()) throw std::runtime_error(file.string() + ": cannot write");
+    }
+    slot->scene = treecut::load_scene(file);
+    for (const treecut::SceneObject& o : slot->scene.objects) {
+      slot->inputs.push_back(
+          {slot->scene.models[o.model].hierarchy.get(), o.world, o.world_inverse, o.model});
+    }
+    treecut::splat::CameraPath path;
+    for (const treecut::WalkKey& k : treecut::city_block_walkthrough(layout)) {
+      treecut::splat::CameraKey key;
+      key.time = k.time;
+      key.camera.eye = k.eye;
+      key.camera.target = k.target;
+      key.camera.up = k.up;
+      key.camera.fov_y_deg = k.fov_deg;
+      path.keys.push_back(key);
+    }
+    const glm::vec3 lo = slot->scene.bounds_min, hi = slot->scene.bounds_max;
+    const glm::vec3 center = 0.5f * (lo + hi);
+    const float radius = std::max(0.5f * glm::length(hi - lo), 1e-6f);
+    constexpr int kFrames = 6;
+    for (int f = 0; f < kFrames; ++f) {
+      treecut::splat::Camera c = path.at(path.duration() * f / (kFrames - 1));
+      treecut::splat::fit_clip_planes(c, center, radius);
+      slot->views.push_back(treecut::splat::view_snapshot(c, {1280, 720}, {}));
+    }
+  }
+  return *slot;
+}
+
+void BM_CityBlock(benchmark::State& state) {
+  const auto buildings = static_cast<std::size_t>(state.range(0));
+  const CityBlock& cb = city_block(buildings);
+  treecut::strategies::BudgetStrategy s;
+  s.set_param("threads", static_cast<double>(state.range(1)));
+  s.set_param("culling", static_cast<double>(state.range(2)));
+  s.set_param("points", 1'000'000.0);
+  s.reset_scene(cb.inputs);
+  std::vector<treecut::NodeId> nodes, previous;
+  std::vector<std::uint32_t> offsets, previous_offsets;
+  double w[6] = {}, c[6] = {};
+  double visible = 0, culled = 0, selected = 0;
+  std::size_t frame = 0;
+  const auto ms_of = [](std::uint64_t ns) { return static_cast<double>(ns) * 1e-6; };
+  for (auto _ : state) {
+    const treecut::ViewSnapshot& view = cb.views[frame++ % cb.views.size()];
+    treecut::SceneIterationInput in{cb.inputs, view, nullptr, 0, previous, previous_offsets};
+    treecut::SceneIterationOutput out;
+    out.nodes = &nodes;
+    out.offsets = &offsets;
+    nodes.clear();
+    s.iterate_scene(in, out);
+    const treecut::strategies::BudgetCounters& k = s.last();
+    const std::uint64_t wall[6] = {k.project_ns, k.select_ns, k.hzm_ns,
+                                   k.test_ns,    k.budget_ns, k.lod_ns};
+    const std::uint64_t cpu[6] = {k.project_cpu_ns, k.select_cpu_ns, k.hzm_cpu_ns,
+                                  k.test_cpu_ns,    k.budget_cpu_ns, k.lod_cpu_ns};
+    for (int i = 0; i < 6; ++i) {
+      w[i] += ms_of(wall[i]);
+      c[i] += ms_of(cpu[i]);
+    }
+    visible += static_cast<double>(k.visible);
+    culled += static_cast<double>(k.occlusion_culled);
+    selected += static_cast<double>(k.selected);
+    state.SetIterationTime(
+        static_cast<double>(k.project_ns + k.select_ns + k.hzm_ns + k.test_ns + k.budget_ns) *
+        1e-9);
+  }
+  const double n = static_cast<double>(state.iterations());
+  const char* names[6] = {"project", "select", "hzm", "test", "eq1", "lod"};
+  for (int i = 0; i < 6; ++i) {
+    state.counters[std::string(names[i]) + "_ms"] = w[i] / n;
+    state.counters[std::string(names[i]) + "_cpu_ms"] = c[i] / n;
+  }
+  state.counters["select_cull_cpu_ms"] = (c[0] + c[1] + c[2] + c[3] + c[4]) / n;
+  state.counters["objects"] = static_cast<double>(cb.inputs.size());
+  state.counters["visible"] = visible / n;
+  state.counters["occluded"] = culled / n;
+  state.counters["selected"] = selected / n;
+}
+
+BENCHMARK(BM_CityBlock)
+    ->ArgNames({"buildings", "threads", "culling"})
+    ->ArgsProduct({{20000, 100000}, {1, 2}, {1}})
     ->Unit(benchmark::kMillisecond)
     ->UseManualTime();
 

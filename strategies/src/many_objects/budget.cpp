@@ -7,7 +7,6 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
-#include <queue>
 
 #include "treecut/strategies/optimization.hpp"
 
@@ -60,6 +59,18 @@ void budget_items(std::span<const SceneObject> objects, std::span<const ScreenRe
       const bool v = (visible.empty() || visible[i] != 0) && rects[i].in_frustum;
       // The points are read only where they matter (most objects are culled).
       items[i] = {v ? rects[i].area() : 0.0f, rects[i].depth, v ? objects[i].points : 0u};
+    }
+  });
+}
+
+void budget_items(std::span<const std::uint32_t> points, std::span<const ScreenRect> rects,
+                  std::span<const std::uint8_t> visible, std::vector<BudgetItem>& items,
+                  WorkerPool* pool) {
+  items.resize(points.size());
+  for_chunks(pool, points.size(), [&](std::size_t b, std::size_t e, std::size_t) {
+    for (std::size_t i = b; i < e; ++i) {
+      const bool v = (visible.empty() || visible[i] != 0) && rects[i].in_frustum;
+      items[i] = {v ? rects[i].area() : 0.0f, rects[i].depth, v ? points[i] : 0u};
     }
   });
 }
@@ -222,9 +233,18 @@ BudgetStats allocate_budget(std::span<const BudgetItem> items, const BudgetParam
 std::vector<NodeId> best_cut(const Hierarchy& h, const ViewSnapshot& view, std::size_t n,
                              const CutParams& params) {
   std::vector<NodeId> cut;
-  if (n == 0 || h.empty()) return cut;
+  best_cut(h, view, n, cut, params);
+  return cut;
+}
+
+void best_cut(const Hierarchy& h, const ViewSnapshot& view, std::size_t n, std::vector<NodeId>& cut,
+              const CutParams& params) {
+  cut.clear();
+  if (n == 0 || h.empty()) return;
   // Max-heap of (priority, node) over the refinable cut nodes; the rest of the
-  // cut (leaves, too small, no room) goes straight to the result.
+  // cut (leaves, too small, no room) goes straight to the result. The heap's
+  // storage is the thread's, kept from object to object (push_heap and
+  // pop_heap with operator<, what std::priority_queue does: the same order).
   struct Entry {
     float priority;
     NodeId node;
@@ -232,7 +252,8 @@ std::vector<NodeId> best_cut(const Hierarchy& h, const ViewSnapshot& view, std::
       return priority != o.priority ? priority < o.priority : node > o.node;
     }
   };
-  std::priority_queue<Entry> heap;
+  thread_local std::vector<Entry> heap;
+  heap.clear();
   std::size_t size = 1;
   const auto offer = [&](NodeId node) {
     float px = 0.0f;
@@ -240,13 +261,15 @@ std::vector<NodeId> best_cut(const Hierarchy& h, const ViewSnapshot& view, std::
     if (h.is_leaf(node) || !(px >= params.min_size) || !(p > 0.0f)) {
       cut.push_back(node);
     } else {
-      heap.push({p, node});
+      heap.push_back({p, node});
+      std::push_heap(heap.begin(), heap.end());
     }
   };
   offer(h.root());
   while (!heap.empty()) {
-    const Entry top = heap.top();
-    heap.pop();
+    std::pop_heap(heap.begin(), heap.end());
+    const Entry top = heap.back();
+    heap.pop_back();
     const std::size_t children = h.child_count(top.node);
     if (size + children - 1 > n) {
       cut.push_back(top.node);  // its children do not fit; a later node's may
@@ -256,7 +279,6 @@ std::vector<NodeId> best_cut(const Hierarchy& h, const ViewSnapshot& view, std::
     const NodeId first = h.first_child(top.node);
     for (NodeId c = first; c < first + children; ++c) offer(c);
   }
-  return cut;
 }
 
 }  // namespace treecut::strategies::many

@@ -2,9 +2,13 @@
 // cores): what it does and what it adds, budget_strategy.hpp.
 #include "treecut/strategies/budget_strategy.hpp"
 
+#include <time.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <glm/geometric.hpp>
+#include <glm/matrix.hpp>
 #include <stdexcept>
 #include <string>
 
@@ -19,6 +23,20 @@ std::uint64_t ns_since(Clock::time_point& t) {
   const auto ns = std::chrono::duration_cast<std::chrono::nanoseconds>(now - t).count();
   t = now;
   return static_cast<std::uint64_t>(ns);
+}
+
+// CPU time of the calling thread and the pool's workers, nanoseconds.
+std::uint64_t pool_cpu_ns(const many::WorkerPool& pool) {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return static_cast<std::uint64_t>(ts.tv_sec) * 1'000'000'000u +
+         static_cast<std::uint64_t>(ts.tv_nsec) + pool.worker_cpu_ns();
+}
+std::uint64_t cpu_since(const many::WorkerPool& pool, std::uint64_t& t) {
+  const std::uint64_t now = pool_cpu_ns(pool);
+  const std::uint64_t d = now - t;
+  t = now;
+  return d;
 }
 
 // Objects per chunk of the LOD pass: best_cut is O(n log n) in the share, so
@@ -127,8 +145,11 @@ void BudgetStrategy::reset_scene(std::span<const SceneObjectInput> objects) {
   }
   std::vector<many::SceneObject> made(objects.size());
   open_.clear();
+  open_planes_.clear();
+  open_inside_.clear();
   hierarchies_.resize(objects.size());
   worlds_.resize(objects.size());
+  points_.resize(objects.size());
   for (std::size_t i = 0; i < objects.size(); ++i) {
     const SceneObjectInput& o = objects[i];
     const ModelShape& s = shapes[o.model];
@@ -145,8 +166,23 @@ void BudgetStrategy::reset_scene(std::span<const SceneObjectInput> objects) {
     x.has_inner = s.inner.has_value();
     if (x.has_inner) x.inner = many::transformed(*s.inner, o.world);
     x.points = o.hierarchy->leaf_count();
+    points_[i] = x.points;
     x.compactness = s.compactness;
-    if (s.open_face >= 0) open_.push_back(static_cast<std::uint32_t>(i));
+    if (s.open_face >= 0) {
+      // The eye is on the face's inner side when
+      //   sign * dot(world_inverse * eye - centre, axis) < half,
+      // a plane in world space: (p, d) with dot(p, eye) + d < 0, in double
+      // (one dot product a frame instead of a matrix product per object).
+      const int k = s.open_face / 2;
+      const double sign = s.open_face % 2 ? 1.0 : -1.0;
+      const glm::dvec4 q =
+          glm::transpose(glm::dmat4(o.world_inverse)) * glm::dvec4(glm::dvec3(s.box.axes[k]), 0.0);
+      const double offset = q.w - glm::dot(glm::dvec3(s.box.center), glm::dvec3(s.box.axes[k]));
+      open_.push_back(static_cast<std::uint32_t>(i));
+      open_inside_.push_back(x.has_inner ? 1 : 0);
+      open_planes_.push_back(
+          glm::dvec4(sign * glm::dvec3(q), sign * offset - static_cast<double>(s.box.half[k])));
+    }
     hierarchies_[i] = o.hierarchy;
     worlds_[i] = o.world;
   }
@@ -183,30 +219,33 @@ void BudgetStrategy::iterate_scene(const SceneIterationInput& input, SceneIterat
                            " objects, reset_scene saw " + std::to_string(n));
   }
   ensure_pool();
-  // Objects open on one face occlude only while the eye is on its inner side.
-  const glm::vec3 eye = glm::vec3(glm::inverse(input.view.view)[3]);
-  bool moved = false;
-  for (const std::uint32_t i : open_) {
-    const ModelShape& s = shapes_[input.objects[i].model];
-    const int k = s.open_face / 2;
-    const float sign = s.open_face % 2 ? 1.0f : -1.0f;
-    const glm::vec3 local = glm::vec3(input.objects[i].world_inverse * glm::vec4(eye, 1.0f));
-    const bool inside = sign * glm::dot(local - s.box.center, s.box.axes[k]) < s.box.half[k];
-    if (objects_[i].has_inner != inside) {
-      objects_[i].has_inner = inside;
-      moved = true;
-    }
-  }
-  const bool made_culler = !culler_;
-  ensure_culler();
-  if (moved && !made_culler) culler_->preprocess(objects_);
   many::WorkerPool* pool = pool_.get();
   BudgetCounters c;
   c.objects = n;
   // The culler needs a perspective frustum (FrameView throws otherwise:
   // the stage names it as this strategy's error).
   const many::FrameView view(input.view);
+  // From here on everything but best_cut is "select + cull" (the open-face
+  // check and a preprocess it needs count as projection).
   Clock::time_point t = Clock::now();
+  std::uint64_t cpu = pool_cpu_ns(*pool);
+  // Objects open on one face occlude only while the eye is on its inner side.
+  const glm::dvec3 eye(view.eye());
+  bool moved = false;
+  for (std::size_t j = 0; j < open_.size(); ++j) {
+    const glm::dvec4& p = open_planes_[j];
+    const std::uint8_t inside = glm::dot(glm::dvec3(p), eye) + p.w < 0.0 ? 1 : 0;
+    // The dense copy of has_inner: the SceneObjects (156 bytes each) are
+    // touched only where it changes.
+    if (open_inside_[j] != inside) {
+      open_inside_[j] = inside;
+      objects_[open_[j]].has_inner = inside != 0;
+      moved = true;
+    }
+  }
+  const bool made_culler = !culler_;
+  ensure_culler();
+  if (moved && !made_culler) culler_->preprocess(objects_);
 
   const auto stop_with_previous = [&] {
     // Cancelled: the lists before stay (a valid scene list by definition).
@@ -224,27 +263,37 @@ void BudgetStrategy::iterate_scene(const SceneIterationInput& input, SceneIterat
   const bool culling = param_at(kCulling) != 0.0;
   culler.project(objects_, view, pool);
   c.project_ns = ns_since(t);
+  c.project_cpu_ns = cpu_since(*pool, cpu);
   if (culling) {
     culler.select_occluders(objects_, view, pool);
     c.select_ns = ns_since(t);
+    c.select_cpu_ns = cpu_since(*pool, cpu);
     culler.build_hzm(objects_, view, pool);
     c.hzm_ns = ns_since(t);
+    c.hzm_cpu_ns = cpu_since(*pool, cpu);
     culler.test(objects_, pool);
     c.test_ns = ns_since(t);
+    c.test_cpu_ns = cpu_since(*pool, cpu);
     visible_.assign(culler.visible().begin(), culler.visible().end());
-    const many::CullStats s = culler.stats();
-    c.occluders = s.occluders;
-    c.occlusion_culled = s.occluded;
+    c.occluders = culler.active().size();
+    // The counts from the states (a byte an object; Outside is exactly the
+    // frustum culled), not from the rectangles (24 bytes an object).
+    const auto states = culler.states();
+    for (std::size_t i = 0; i < n; ++i) {
+      c.occlusion_culled += states[i] == many::ObjectState::Occluded ? 1 : 0;
+      c.frustum_culled += states[i] == many::ObjectState::Outside ? 1 : 0;
+      c.visible += visible_[i];
+    }
   } else {
     visible_.resize(n);
     const auto rects = culler.rects();
-    for (std::size_t i = 0; i < n; ++i) visible_[i] = rects[i].in_frustum ? 1 : 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      visible_[i] = rects[i].in_frustum ? 1 : 0;
+      c.frustum_culled += rects[i].in_frustum ? 0 : 1;
+      c.visible += visible_[i];
+    }
   }
   const auto rects = culler.rects();
-  for (std::size_t i = 0; i < n; ++i) {
-    c.frustum_culled += rects[i].in_frustum ? 0 : 1;
-    c.visible += visible_[i];
-  }
   if (input.cancelled()) return stop_with_previous();
 
   // Eq. 1 over the visible set: a culled object's area is 0, its share goes
@@ -253,12 +302,13 @@ void BudgetStrategy::iterate_scene(const SceneIterationInput& input, SceneIterat
   bp.total = static_cast<std::uint64_t>(param_at(kPoints));
   bp.alpha = param_at(kAlpha);
   bp.pet = param_at(kPet);
-  many::budget_items(objects_, rects, visible_, items_, pool);
+  many::budget_items(points_, rects, visible_, items_, pool);
   const many::BudgetStats bs = many::allocate_budget(items_, bp, shares_, pool);
   c.below_pet = bs.below_pet;
   c.receiving = bs.receiving;
   c.shares = bs.total;
   c.budget_ns = ns_since(t);
+  c.budget_cpu_ns = cpu_since(*pool, cpu);
   if (input.cancelled()) return stop_with_previous();
 
   // Each share a cut of its object's hierarchy, objects in parallel (each
@@ -270,7 +320,8 @@ void BudgetStrategy::iterate_scene(const SceneIterationInput& input, SceneIterat
         continue;
       }
       const ViewSnapshot v = many::object_view(input.view, worlds_[i]);
-      cuts_[i] = many::best_cut(*hierarchies_[i], v, shares_[i]);
+      // Into the object's list of the last iteration: its storage is reused.
+      many::best_cut(*hierarchies_[i], v, shares_[i], cuts_[i]);
     }
   });
   output.offsets->resize(n + 1);
@@ -286,6 +337,7 @@ void BudgetStrategy::iterate_scene(const SceneIterationInput& input, SceneIterat
   }
   c.selected = total;
   c.lod_ns = ns_since(t);
+  c.lod_cpu_ns = cpu_since(*pool, cpu);
 
   output.result.visited = n;
   output.result.culled = c.frustum_culled + c.occlusion_culled;

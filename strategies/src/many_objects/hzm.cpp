@@ -358,20 +358,29 @@ float HierarchicalZMap::max_over_at(int level, int x0, int y0, int x1, int y1) c
   return m;
 }
 
-float occluder_weight(const SceneObject& object, glm::vec3 normal, const ScreenRect& rect,
-                      const FrameView& view, Facing facing) {
-  if (!rect.in_frustum || rect.crosses_near || !object.has_inner) return 0.0f;
+namespace {
+
+// Eq. 3 from an AABB: the one expression of occluder_weight() and the
+// frame's loop over the candidates (the same operations, so the same bits).
+float eq3_weight(const Aabb& bounds, glm::vec3 normal, const FrameView& view, Facing facing) {
   const glm::vec3 e = view.eye();
-  const glm::vec3 outside =
-      glm::max(glm::max(object.bounds.min - e, e - object.bounds.max), glm::vec3(0.0f));
+  const glm::vec3 outside = glm::max(glm::max(bounds.min - e, e - bounds.max), glm::vec3(0.0f));
   const float distance = glm::length(outside);
   if (!(distance > 0.0f)) return 0.0f;
-  const glm::vec3 size = object.bounds.max - object.bounds.min;
+  const glm::vec3 size = bounds.max - bounds.min;
   const float volume = size.x * size.y * size.z;
   const glm::vec3 e_dir = facing == Facing::ViewDirection
                               ? view.forward()
-                              : glm::normalize(0.5f * (object.bounds.min + object.bounds.max) - e);
+                              : glm::normalize(0.5f * (bounds.min + bounds.max) - e);
   return volume * std::abs(glm::dot(normal, e_dir)) / distance;
+}
+
+}  // namespace
+
+float occluder_weight(const SceneObject& object, glm::vec3 normal, const ScreenRect& rect,
+                      const FrameView& view, Facing facing) {
+  if (!rect.in_frustum || rect.crosses_near || !object.has_inner) return 0.0f;
+  return eq3_weight(object.bounds, normal, view, facing);
 }
 
 void HzmCuller::preprocess(std::span<const SceneObject> objects) {
@@ -380,23 +389,21 @@ void HzmCuller::preprocess(std::span<const SceneObject> objects) {
   bounds_.resize(objects.size());
   for (std::size_t i = 0; i < objects.size(); ++i) bounds_[i] = objects[i].bounds;
   cos_.clear();
+  by_index_.clear();
   for (std::uint32_t i = 0; i < objects.size(); ++i) {
     if (objects[i].has_inner && objects[i].compactness >= params_.compactness_threshold) {
       cos_.push_back(i);
+      // The largest face is across the axis of the smallest extent.
+      const Obb& b = objects[i].box;
+      int k = 0;
+      for (int a = 1; a < 3; ++a)
+        if (b.half[a] < b.half[k]) k = a;
+      by_index_.push_back({objects[i].bounds, b.axes[k], i});
     }
   }
   std::stable_sort(cos_.begin(), cos_.end(), [&](std::uint32_t a, std::uint32_t b) {
     return objects[a].compactness > objects[b].compactness;
   });
-  normal_.resize(cos_.size());
-  for (std::size_t j = 0; j < cos_.size(); ++j) {
-    // The largest face is across the axis of the smallest extent.
-    const Obb& b = objects[cos_[j]].box;
-    int k = 0;
-    for (int a = 1; a < 3; ++a)
-      if (b.half[a] < b.half[k]) k = a;
-    normal_[j] = b.axes[k];
-  }
 }
 
 void HzmCuller::project(std::span<const SceneObject> objects, const FrameView& view,
@@ -414,25 +421,29 @@ void HzmCuller::project(std::span<const SceneObject> objects, const FrameView& v
 
 void HzmCuller::select_occluders(std::span<const SceneObject> objects, const FrameView& view,
                                  WorkerPool* pool) {
-  const std::size_t n = cos_.size();
+  const std::size_t n = by_index_.size();
   const std::size_t k = params_.active;
-  weight_.resize(n);
+  // The AABBs of preprocess(), unless the objects changed in number.
+  const bool copied = bounds_.size() == objects.size();
   // Per chunk: the weights, then the chunk's best k; the best k of those
-  // merged are the best k of all (ties by object index: deterministic).
-  struct Pick {
-    float weight;
-    std::uint32_t object;
-  };
+  // merged are the best k of all (a total order: weight, then object index;
+  // so the set does not depend on the order the candidates are visited in).
   const auto better = [](const Pick& a, const Pick& b) {
     return a.weight != b.weight ? a.weight > b.weight : a.object < b.object;
   };
-  std::vector<std::vector<Pick>> best(WorkerPool::chunk_count(n, kObjectGrain));
+  picks_.resize(WorkerPool::chunk_count(n, kObjectGrain));
   for_chunks(pool, n, kObjectGrain, [&](std::size_t b, std::size_t e, std::size_t c) {
-    std::vector<Pick>& mine = best[c];
+    std::vector<Pick>& mine = picks_[c];
+    mine.clear();
     for (std::size_t j = b; j < e; ++j) {
-      const std::uint32_t i = cos_[j];
-      weight_[j] = occluder_weight(objects[i], normal_[j], rects_[i], view, params_.facing);
-      if (weight_[j] > 0.0f) mine.push_back({weight_[j], i});
+      const Candidate& cand = by_index_[j];
+      const ScreenRect& r = rects_[cand.object];
+      if (!r.in_frustum || r.crosses_near) continue;
+      const SceneObject* o = copied ? nullptr : &objects[cand.object];
+      if (o != nullptr && !o->has_inner) continue;
+      const float w =
+          eq3_weight(o != nullptr ? o->bounds : cand.bounds, cand.normal, view, params_.facing);
+      if (w > 0.0f) mine.push_back({w, cand.object});
     }
     if (mine.size() > k) {
       std::nth_element(mine.begin(), mine.begin() + static_cast<std::ptrdiff_t>(k), mine.end(),
@@ -441,7 +452,7 @@ void HzmCuller::select_occluders(std::span<const SceneObject> objects, const Fra
     }
   });
   std::vector<Pick> all;
-  for (const auto& v : best) all.insert(all.end(), v.begin(), v.end());
+  for (const auto& v : picks_) all.insert(all.end(), v.begin(), v.end());
   std::sort(all.begin(), all.end(), better);
   if (all.size() > k) all.resize(k);
   aos_.clear();
@@ -558,12 +569,13 @@ void HzmCuller::test(std::span<const SceneObject> objects, WorkerPool* pool) {
         }
       }
       states_[i] = st;
+      visible_[i] = st == ObjectState::Visible ? 1 : 0;
     }
   });
   // The AOS is visible by definition (and wrote the map itself).
-  for (const std::uint32_t i : aos_) states_[i] = ObjectState::Occluder;
-  for (std::size_t i = 0; i < objects.size(); ++i) {
-    visible_[i] = states_[i] == ObjectState::Visible || states_[i] == ObjectState::Occluder;
+  for (const std::uint32_t i : aos_) {
+    states_[i] = ObjectState::Occluder;
+    visible_[i] = 1;
   }
 }
 

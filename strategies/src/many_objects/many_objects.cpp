@@ -4,6 +4,9 @@
 // ../shared/papers/occlusion-culling-with-parallel-lod.txt), sections 5-6.
 #include "treecut/strategies/many_objects.hpp"
 
+#include <pthread.h>
+#include <time.h>
+
 #include <cmath>
 #include <glm/geometric.hpp>
 #include <glm/matrix.hpp>
@@ -178,6 +181,22 @@ WorkerPool::~WorkerPool() {
   }
   wake_.notify_all();
   for (std::thread& t : workers_) t.join();
+}
+
+std::uint64_t WorkerPool::worker_cpu_ns() const {
+  std::uint64_t total = 0;
+  for (const std::thread& t : workers_) {
+    clockid_t clock{};
+    timespec ts{};
+    // const_cast: native_handle() is not const, reading the id changes nothing.
+    if (pthread_getcpuclockid(const_cast<std::thread&>(t).native_handle(), &clock) != 0 ||
+        clock_gettime(clock, &ts) != 0) {
+      continue;
+    }
+    total += static_cast<std::uint64_t>(ts.tv_sec) * 1'000'000'000u +
+             static_cast<std::uint64_t>(ts.tv_nsec);
+  }
+  return total;
 }
 
 void WorkerPool::take_chunks(const Job& job) {

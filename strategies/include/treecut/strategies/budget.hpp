@@ -92,6 +92,11 @@ std::vector<double> eq1_shares(std::span<const BudgetItem> items, const BudgetPa
 void budget_items(std::span<const SceneObject> objects, std::span<const ScreenRect> rects,
                   std::span<const std::uint8_t> visible, std::vector<BudgetItem>& items,
                   WorkerPool* pool = nullptr);
+/// The same with P_i given apart (points[i] = objects[i].points): what a
+/// caller that keeps them in an array passes, 4 bytes an object to read.
+void budget_items(std::span<const std::uint32_t> points, std::span<const ScreenRect> rects,
+                  std::span<const std::uint8_t> visible, std::vector<BudgetItem>& items,
+                  WorkerPool* pool = nullptr);
 
 struct CutParams {
   float curvature_weight = 0.5f;  ///< as the optimization strategy's parameter
@@ -110,5 +115,10 @@ struct CutParams {
 /// object is not drawn); otherwise at least the root.
 std::vector<NodeId> best_cut(const Hierarchy& h, const ViewSnapshot& view, std::size_t n,
                              const CutParams& params = {});
+/// The same cut into `cut` (cleared first; its storage is reused, as is a
+/// per-thread heap: no allocation per object per iteration once the lists
+/// have grown).
+void best_cut(const Hierarchy& h, const ViewSnapshot& view, std::size_t n, std::vector<NodeId>& cut,
+              const CutParams& params = {});
 
 }  // namespace treecut::strategies::many

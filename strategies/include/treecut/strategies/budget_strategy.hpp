@@ -26,6 +26,7 @@
 #include <cstdint>
 #include <glm/mat4x4.hpp>
 #include <glm/vec3.hpp>
+#include <glm/vec4.hpp>
 #include <memory>
 #include <optional>
 #include <span>
@@ -57,6 +58,15 @@ struct BudgetCounters {
   std::uint64_t test_ns = 0;     ///< the Eq. 5 tests
   std::uint64_t budget_ns = 0;   ///< Eq. 1 shares
   std::uint64_t lod_ns = 0;      ///< best_cut of every share
+  // CPU time of the same phases: the stage thread's plus the pool workers'
+  // (thread CPU clocks; on a loaded machine the wall times above also count
+  // waiting for a core, these do not).
+  std::uint64_t project_cpu_ns = 0;
+  std::uint64_t select_cpu_ns = 0;
+  std::uint64_t hzm_cpu_ns = 0;
+  std::uint64_t test_cpu_ns = 0;
+  std::uint64_t budget_cpu_ns = 0;
+  std::uint64_t lod_cpu_ns = 0;
 };
 
 class BudgetStrategy final : public Strategy, public SceneStrategy {
@@ -106,8 +116,11 @@ class BudgetStrategy final : public Strategy, public SceneStrategy {
   std::vector<ModelShape> shapes_;
   std::vector<many::SceneObject> objects_;
   std::vector<const Hierarchy*> hierarchies_;
-  std::vector<std::uint32_t> open_;  // objects whose model's inner box needs an open face
+  std::vector<std::uint32_t> open_;        // objects whose model's inner box needs an open face
+  std::vector<glm::dvec4> open_planes_;    // per open_ entry: eye inside when dot(xyz, eye) + w < 0
+  std::vector<std::uint8_t> open_inside_;  // per open_ entry: its object's has_inner
   std::vector<glm::mat4> worlds_;
+  std::vector<std::uint32_t> points_;  // P_i apart: Eq. 1 reads 4 bytes an object, not 156
   std::unique_ptr<many::WorkerPool> pool_;
   std::unique_ptr<many::HzmCuller> culler_;
   many::HzmParams culler_params_;

@@ -206,6 +206,12 @@ class WorkerPool {
   WorkerPool& operator=(const WorkerPool&) = delete;
 
   [[nodiscard]] unsigned threads() const { return static_cast<unsigned>(workers_.size()) + 1; }
+  /// CPU time the worker threads (not the caller) have used so far,
+  /// nanoseconds: read from their thread CPU clocks by the caller, so a
+  /// phase's CPU is the caller's thread CPU plus the difference of this
+  /// (what a phase costs on a machine where the wall clock counts waiting
+  /// for a core).
+  [[nodiscard]] std::uint64_t worker_cpu_ns() const;
 
   /// body(begin, end, chunk) for every chunk [begin, end) of [0, n).
   template <class Body>
