@@ -1,9 +1,10 @@
 // CHC on the GL device (splat/occlusion_device_gl.hpp, strategies/chc.hpp) on
 // OSMesa, on small generated scenes with their walkthroughs:
 //  - nothing visible is culled under exact settings (t_av = 0, n_vp = 0):
-//    every leaf block that a brute-force reference sees (drawn inside a
-//    query after every other leaf block in the frustum: samples > 0) is drawn
-//    by CHC, frame after frame along the walkthrough;
+//    every leaf block in the frustum that CHC does not draw is hidden to a
+//    brute-force reference (drawn inside a query after every other leaf
+//    block in the frustum: no sample passes), frame after frame along the
+//    walkthrough, on the binary tree of blocks CHC runs on;
 //  - the render thread reads GL_QUERY_RESULT only after
 //    GL_QUERY_RESULT_AVAILABLE said true for that query, or in a read the
 //    device counts as a blocking wait (interposed entry points; availability
@@ -16,6 +17,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <map>
 #include <memory>
 #include <set>
@@ -89,20 +91,26 @@ class ChcGl : public ::testing::TestWithParam<SceneCase> {
   }
   void SetUp() override {
     h_ = scene(GetParam().kind, GetParam().points);
-    blocks_ = HlodBlocks::build(*h_, 500);
+    blocks_ = HlodBlocks::build(*h_, 500, strategies::kBinaryFanOut);
     renderer_ = std::make_unique<Renderer>(*h_, glm::ivec2(kWidth, kHeight));
     device_ = std::make_unique<GlOcclusionDevice>(*renderer_, blocks_);
   }
 
-  // The reference: each leaf block in the frustum drawn inside a query after
-  // every other one; visible if any of its samples passed.
-  std::set<BlockId> reference(const Camera& c) {
+  // The leaf blocks in the frustum (VFC's set).
+  std::vector<BlockId> in_frustum(const Camera& c) {
     ChcTraversal vfc(blocks_, {OcclusionMode::Vfc});
     device_->set_view_render_thread(c, settings_);
     vfc.frame_render_thread(*device_, occlusion_view(c, {kWidth, kHeight}));
-    const std::vector<BlockId> in = vfc.drawn();
+    return vfc.drawn();
+  }
+  // The reference: each leaf block of `candidates` drawn inside a query after
+  // every other leaf block in the frustum (`in`); visible if any of its
+  // samples passed.
+  std::set<BlockId> reference(const Camera& c, const std::vector<BlockId>& in,
+                              const std::vector<BlockId>& candidates) {
+    device_->set_view_render_thread(c, settings_);
     std::set<BlockId> seen;
-    for (const BlockId b : in) {
+    for (const BlockId b : candidates) {
       device_->begin_frame_render_thread();
       for (const BlockId o : in) {
         if (o != b) device_->draw_render_thread(o);
@@ -121,27 +129,47 @@ class ChcGl : public ::testing::TestWithParam<SceneCase> {
   RenderSettings settings_;
 };
 
+// Only the blocks CHC culls are given to the reference: a visible block is
+// missed exactly when one of them is seen, so the check is the same as
+// classifying every block in the frustum, at the cost of the culled ones
+// alone (the reference costs a frame per block; the run took 106 s for the
+// city and 96 s for the plant under load 15 when it classified them all).
 TEST_P(ChcGl, NothingVisibleIsCulledUnderExactSettings) {
   const auto cameras = walk_cameras(GetParam().kind, *h_, 7);
   ChcTraversal chc(blocks_, {OcclusionMode::Chc, 0, 0});
-  std::size_t occluded_frames = 0;
+  std::size_t occluded_frames = 0, reference_frames = 0, all_frames = 0;
   for (std::size_t f = 0; f < cameras.size(); ++f) {
-    const std::set<BlockId> seen = reference(cameras[f]);
+    const std::vector<BlockId> in = in_frustum(cameras[f]);
     device_->set_view_render_thread(cameras[f], settings_);
     const ChcFrameStats s =
         chc.frame_render_thread(*device_, occlusion_view(cameras[f], {kWidth, kHeight}));
     const std::set<BlockId> drawn(chc.drawn().begin(), chc.drawn().end());
-    std::size_t missed = 0;
-    for (const BlockId b : seen) missed += drawn.count(b) == 0 ? 1 : 0;
-    EXPECT_EQ(missed, 0u) << "frame " << f << ": " << missed << " of " << seen.size()
-                          << " visible leaf blocks culled";
-    EXPECT_GE(s.blocks_drawn, seen.size());
-    // The check has teeth: some frames hide most of what is in the frustum.
-    ChcTraversal vfc(blocks_, {OcclusionMode::Vfc});
-    vfc.frame_render_thread(*device_, occlusion_view(cameras[f], {kWidth, kHeight}));
-    if (seen.size() * 2 < vfc.drawn().size()) ++occluded_frames;
+    std::vector<BlockId> culled;
+    for (const BlockId b : in)
+      if (drawn.count(b) == 0) culled.push_back(b);
+    const std::set<BlockId> missed = reference(cameras[f], in, culled);
+    EXPECT_TRUE(missed.empty()) << "frame " << f << ": " << missed.size() << " of " << culled.size()
+                                << " culled leaf blocks are visible";
+    EXPECT_EQ(s.blocks_drawn, drawn.size());
+    // And the reference can see: of the first three blocks CHC drew (the
+    // nearest, front to back), one at least is visible to it.
+    const std::vector<BlockId> first(
+        chc.drawn().begin(), chc.drawn().begin() + std::min<std::ptrdiff_t>(3, chc.drawn().size()));
+    if (!first.empty()) {
+      EXPECT_FALSE(reference(cameras[f], in, first).empty()) << "frame " << f;
+    }
+    // The check has teeth: the street frames cull (and the reference
+    // confirms hidden) a third or more of what is in the frustum (measured:
+    // city 21 of 39 and 20 of 39, plant 16 of 42, 16 of 39 and 15 of 33).
+    if (culled.size() * 3 >= in.size() && !culled.empty()) ++occluded_frames;
+    std::printf("frame %zu: %zu of %zu culled\n", f, culled.size(), in.size());
+    reference_frames += culled.size();
+    all_frames += in.size();
   }
   EXPECT_GE(occluded_frames, 2u);
+  EXPECT_GE(reference_frames, 30u);
+  std::printf("reference: %zu frames of %zu leaf blocks in the frustum\n", reference_frames,
+              all_frames);
 }
 
 TEST_P(ChcGl, StopAndWaitAndIdealDrawTheSameSetAndChcConvergesToIt) {
