@@ -256,7 +256,8 @@ TEST(BenchOcclusion, PrintsTheChcTableOfAWalk) {
   const std::string walk =
       test::quote(std::filesystem::path(TREECUT_SOURCE_DIR) / "assets/paths/city_walk.campath");
   const auto r = test::run_treecut("bench occlusion " + test::quote(model) + " --path " + walk +
-                                   " --frames 3 --width 160 --height 90 --block-size 200");
+                                   " --frames 3 --width 160 --height 90 --block-size 200"
+                                   " --compare-fan-out 4");
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_EQ(count(r.out, "| VFC | 0 | 0 |"), 1) << r.out;
   EXPECT_EQ(count(r.out, "| S&W | 0 | 0 |"), 1);
@@ -265,6 +266,11 @@ TEST(BenchOcclusion, PrintsTheChcTableOfAWalk) {
   EXPECT_EQ(count(r.out, "| CHC | 2 | 0 |"), 1);
   EXPECT_EQ(count(r.out, "| CHC | 0 | 25 |"), 1);
   EXPECT_NE(r.out.find("3 frames"), std::string::npos) << r.out;
+  // The 4-ary tree's rows beside the binary tree's, in the same run.
+  EXPECT_NE(r.out.find("fan-out 2, built"), std::string::npos) << r.out;
+  for (const char* m : {"VFC", "S&W", "CHC", "Ideal"}) {
+    EXPECT_EQ(count(r.out, std::string("| ") + m + ", fan-out 4 | 0 | 0 |"), 1) << m;
+  }
 }
 
 TEST(BenchOcclusion, RefusesBadInputWithOneLineAndExitCode2) {
@@ -285,6 +291,16 @@ TEST(BenchOcclusion, RefusesBadInputWithOneLineAndExitCode2) {
   EXPECT_EQ(no_path.code, 2);
   EXPECT_EQ(count(no_path.out, "\n"), 1) << no_path.out;
   EXPECT_NE(no_path.out.find("none.campath"), std::string::npos) << no_path.out;
+  // Fan-outs other than 2 and 4, or the same tree twice, before any work.
+  const auto model = dir / "m.ply";
+  ASSERT_EQ(test::run_treecut("gen city -n 2000 -o " + test::quote(model)).code, 0);
+  for (const char* bad : {"--block-fan-out 3", "--compare-fan-out 2", "--compare-fan-out 5"}) {
+    const auto b =
+        test::run_treecut("bench occlusion " + test::quote(model) + " --path " + walk + " " + bad);
+    EXPECT_EQ(b.code, 2) << bad;
+    EXPECT_EQ(count(b.out, "\n"), 1) << b.out;
+    EXPECT_NE(b.out.find("fan-out"), std::string::npos) << b.out;
+  }
 }
 
 }  // namespace
