@@ -32,6 +32,8 @@ constexpr const char* kCsvHeader =
 struct Row {
   double frame_ms = 0.0;
   double drawn = 0, splats = 0, rarn = 0, delayed = 0, delayed_all = 0, queries = 0, wait_ms = 0;
+  // D by cause and the stops drawn although hidden (the analysis of DN / SW(B)).
+  double d_shift_up = 0, d_new = 0, d_hidden = 0, stopped_hidden = 0;
   double psnr = std::numeric_limits<double>::quiet_NaN();
 };
 
@@ -98,7 +100,7 @@ void run_hlod_table(const HlodBenchInput& in) {
     methods.push_back({std::string(strategies::hlod_mode_name(m)), {}});
   }
   methods.push_back({"hoq (stage)", {}});  // no comma: a CSV field
-  const std::size_t kBool = 0, kCoh = 3, kHoq = 4;
+  const std::size_t kBool = 0, kSwB = 1, kSimp = 2, kCoh = 3, kHoq = 4;
 
   // The stage strategy through the frame layer, as `treecut render --sync`:
   // its queries go through the executor, its iteration runs after the frame.
@@ -146,6 +148,10 @@ void run_hlod_table(const HlodBenchInput& in) {
     row.delayed_all = double(s.delayed);
     row.queries = double(s.queries);
     row.wait_ms = s.wait_ms;
+    row.d_shift_up = double(s.delayed_drawn_shift_up);
+    row.d_new = double(s.delayed_drawn_new);
+    row.d_hidden = double(s.delayed_drawn_hidden);
+    row.stopped_hidden = double(s.stopped_hidden);
     return row;
   };
   auto grab = [&] { return splat::Image{size.x, size.y, renderer.read_pixels()}; };
@@ -197,6 +203,20 @@ void run_hlod_table(const HlodBenchInput& in) {
         dn > 0 ? 100.0 * d / dn : 0.0, mean_of(m.rows, &Row::delayed_all),
         mean_of(m.rows, &Row::queries), mean_of(m.rows, &Row::wait_ms), ms,
         median_of(m.rows, &Row::frame_ms), coh_ms > 0 ? ms / coh_ms : 0.0);
+  }
+  {
+    const std::vector<Row>& c = methods[kCoh].rows;
+    std::printf(
+        "Coh(B) per frame: D by cause: shift-up %.2f, new to the traversal %.2f, hidden last "
+        "frame %.2f; stops drawn and found hidden %.2f (Simp(B) %.2f); splats per drawn block: "
+        "Bool %.0f, SW(B) %.0f, Coh(B) %.0f\n",
+        mean_of(c, &Row::d_shift_up), mean_of(c, &Row::d_new), mean_of(c, &Row::d_hidden),
+        mean_of(c, &Row::stopped_hidden), mean_of(methods[kSimp].rows, &Row::stopped_hidden),
+        mean_of(methods[kBool].rows, &Row::splats) /
+            std::max(mean_of(methods[kBool].rows, &Row::drawn), 1e-9),
+        mean_of(methods[kSwB].rows, &Row::splats) /
+            std::max(mean_of(methods[kSwB].rows, &Row::drawn), 1e-9),
+        mean_of(c, &Row::splats) / std::max(mean_of(c, &Row::drawn), 1e-9));
   }
   for (const std::size_t m : {kCoh, kHoq}) {
     double sum = 0.0, low = std::numeric_limits<double>::infinity();

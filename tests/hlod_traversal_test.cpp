@@ -253,6 +253,10 @@ TEST_F(HlodTraversalTest, StopDrawsAtOnceRefineQueriesNothingDelayWaitsForTheAns
   }
   EXPECT_GT(refined, 0u);
   EXPECT_GT(s.delayed, 0u);  // the children, new to the traversal
+  EXPECT_GT(s.delayed_drawn_new, 0u);
+  EXPECT_EQ(s.delayed_drawn_hidden, 0u);
+  EXPECT_EQ(s.delayed_drawn,
+            s.delayed_drawn_shift_up + s.delayed_drawn_new + s.delayed_drawn_hidden);
 
   // Delay: a block hidden for one frame is invisible last frame: queried,
   // and drawn only after its answer is read.
@@ -260,12 +264,18 @@ TEST_F(HlodTraversalTest, StopDrawsAtOnceRefineQueriesNothingDelayWaitsForTheAns
   const std::vector<BlockId> cut2 = t.drawn();
   const BlockId hidden = cut2[cut2.size() / 2];
   d.fraction = [hidden](BlockId b) { return b == hidden ? 0.0 : 1.0; };
-  run(t, d, near_);
+  s = run(t, d, near_);
   EXPECT_EQ(d.first(Op::Draw, hidden), d.first(Op::Query, hidden) + 1);  // stopped: drawn at once
   EXPECT_FALSE(t.visible(hidden));
+  EXPECT_EQ(s.stopped_hidden, 1u);  // drawn although its answer found it hidden
   d.fraction = [](BlockId) { return 1.0; };
   s = run(t, d, near_);
   EXPECT_GE(s.delayed, 1u);
+  // D by cause: the hidden block, drawn after its answer.
+  EXPECT_EQ(s.delayed_drawn_hidden, 1u);
+  EXPECT_EQ(s.delayed_drawn,
+            s.delayed_drawn_shift_up + s.delayed_drawn_new + s.delayed_drawn_hidden);
+  EXPECT_EQ(s.stopped_hidden, 0u);
   const long q = d.first(Op::Query, hidden), r = d.first(Op::Read, hidden);
   const long dr = d.first(Op::Draw, hidden);
   ASSERT_GE(q, 0);
@@ -280,6 +290,8 @@ TEST_F(HlodTraversalTest, StopDrawsAtOnceRefineQueriesNothingDelayWaitsForTheAns
   const HlodView farther = view_at(*h_, 2.4f);
   s = run(t, d, farther);
   EXPECT_GT(s.delayed_shift_up, 0u);
+  EXPECT_GT(s.delayed_drawn_shift_up, 0u);
+  EXPECT_LE(s.delayed_drawn_shift_up, s.delayed_shift_up);
   std::size_t shifted = 0;
   for (const BlockId b : t.drawn()) {
     if (blocks_.is_leaf(b)) continue;

@@ -95,8 +95,18 @@ struct HlodFrameStats {
   /// answer then drew (a stop found only after waiting for its answer).
   std::uint64_t delayed_drawn = 0;
   std::uint64_t delayed_shift_up = 0;  ///< of them, refined blocks (candidates to shift up)
-  std::uint64_t culled = 0;            ///< blocks an answer found invisible
-  std::uint64_t frustum_culled = 0;    ///< blocks outside the frustum
+  /// D by what delayed the block: a shift-up candidate drawn at its own level
+  /// (the front moved up), a block new to the traversal (not visited last
+  /// frame: the front moved down, or it entered the frustum), a block hidden
+  /// last frame (a disocclusion). The three add up to delayed_drawn.
+  std::uint64_t delayed_drawn_shift_up = 0;
+  std::uint64_t delayed_drawn_new = 0;
+  std::uint64_t delayed_drawn_hidden = 0;
+  /// Stop predictions (drawn before their answer) whose answer found no
+  /// sample: drawn although hidden this frame, where SW(B) culls them.
+  std::uint64_t stopped_hidden = 0;
+  std::uint64_t culled = 0;          ///< blocks an answer found invisible
+  std::uint64_t frustum_culled = 0;  ///< blocks outside the frustum
   std::uint64_t queries = 0;
   std::uint64_t blocking_reads = 0;
   double wait_ms = 0.0;   ///< CPU time blocked in query reads (the device's)
@@ -131,6 +141,8 @@ class HlodTraversal {
 
  private:
   enum class Kind : std::uint8_t { Drawn, Delayed, Refined };
+  // Why a Delayed block waits (the D breakdown of HlodFrameStats).
+  enum class Why : std::uint8_t { None, ShiftUp, New, Hidden };
   struct Entry {
     float distance;
     BlockId block;
@@ -140,6 +152,7 @@ class HlodTraversal {
     QueryHandle query;
     Kind kind;
     float sse;
+    Why why;
   };
 
   void push(BlockId b);
@@ -148,7 +161,7 @@ class HlodTraversal {
   void pull_up(BlockId b);
   void answer(const Pending& p, std::uint64_t samples);
   void visit(const Entry& e);
-  void query(BlockId b, Kind kind, float sse);
+  void query(BlockId b, Kind kind, float sse, Why why = Why::None);
   [[nodiscard]] float sse(BlockId b) const;
 
   const Hierarchy* hierarchy_;
