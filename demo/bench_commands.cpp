@@ -194,6 +194,7 @@ struct OcclusionArgs {
   unsigned fan_out = strategies::kBinaryFanOut;
   unsigned compare_fan_out = 0;
   bool flush_row = false;
+  bool probe_row = false;  // diagnostics: Ideal with a box query before every block it draws
   // The HLOD table (bench_hlod.hpp): tau, PSNR frames, per-frame CSV folder.
   float hlod_tau = 1.0f;
   int psnr_frames = 20;
@@ -233,7 +234,8 @@ void print_chc_table(const std::vector<ChcRun>& runs) {
   std::printf("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
   for (const ChcRun& r : runs) {
     const bool queries = r.options.mode == strategies::OcclusionMode::StopAndWait ||
-                         r.options.mode == strategies::OcclusionMode::Chc;
+                         r.options.mode == strategies::OcclusionMode::Chc ||
+                         r.options.ideal_probe_queries;
     const double ms = mean(column(r, frame_ms));
     char q[32] = "---", b[32] = "---", w[32] = "---", dr[32] = "---";
     if (queries) {
@@ -338,6 +340,11 @@ void run_bench_occlusion(const OcclusionArgs& a) {
     runs.push_back({"CHC, poll every " + std::to_string(a.poll_every) + " blocks",
                     {OcclusionMode::Chc, 0, 0, a.poll_every},
                     {}});
+  }
+  // Diagnostics: Ideal's draws with a box query before each (answers polled
+  // as CHC polls them, then ignored): the queries' own cost, draws equal.
+  if (a.probe_row) {
+    runs.push_back({"Ideal + a box query per block", {OcclusionMode::Ideal, 0, 0, 1, true}, {}});
   }
   if (compare) {
     const std::string tag = ", fan-out " + std::to_string(a.compare_fan_out);
@@ -483,6 +490,8 @@ void add_bench_commands(CLI::App& app) {
   occlusion->add_option("--compare-fan-out", occ->compare_fan_out,
                         "Add VFC, S&W, CHC and Ideal rows on a tree of this fan-out (the other "
                         "of 2 and 4), frames interleaved");
+  occlusion->add_flag("--probe-row", occ->probe_row,
+                      "Add a diagnostic row: Ideal with a box query before every block it draws");
   occlusion->add_flag("--flush-row", occ->flush_row,
                       "Add a diagnostic row: Ideal with a glFlush after every block");
   occlusion->add_option(

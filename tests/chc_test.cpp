@@ -305,6 +305,24 @@ TEST_F(Chc, IdealDrawsTheStopAndWaitSetWithNoQuery) {
   EXPECT_EQ(d.frame_stats().queries, 0u);
 }
 
+// The bench's diagnostic row: Ideal's draws, in Ideal's order, with one box
+// query before each (answers ignored).
+TEST_F(Chc, IdealWithProbeQueriesDrawsTheSameSetAndQueriesEachDrawnBlock) {
+  FakeDevice d(blocks_, 3);
+  ChcTraversal sw(blocks_, {OcclusionMode::StopAndWait});
+  sw.frame_render_thread(d, view_from({-3, 0.3f, 0}));
+  const auto set = sw.drawn();
+  ASSERT_FALSE(set.empty());
+  ChcOptions o{OcclusionMode::Ideal};
+  o.ideal_probe_queries = true;
+  ChcTraversal probe(blocks_, o);
+  probe.set_ideal_leaves(set);
+  const ChcFrameStats s = probe.frame_render_thread(d, view_from({-3, 0.3f, 0}));
+  EXPECT_EQ(probe.drawn(), set);
+  EXPECT_EQ(s.queries, set.size());
+  EXPECT_EQ(d.frame_stats().queries, set.size());
+}
+
 TEST_F(Chc, ChcIsConservativeEveryFrameAndExactOnceTheViewStops) {
   FakeDevice d(blocks_, 4);
   ChcTraversal t(blocks_, {OcclusionMode::Chc});

@@ -133,6 +133,7 @@ ChcFrameStats ChcTraversal::frame_render_thread(OcclusionDeviceRenderThread& dev
       if (!read) break;
       const Pending p = pending_[pending_head_++];
       const std::uint64_t samples = device.result_render_thread(p.query);
+      if (mode == OcclusionMode::Ideal) continue;  // a probe: ignored
       if (answer_visible(samples)) {
         pull_up(p.block);
         visible_query_[p.block] = frame;
@@ -166,6 +167,10 @@ ChcFrameStats ChcTraversal::frame_render_thread(OcclusionDeviceRenderThread& dev
         break;
       case OcclusionMode::Ideal:
         if (ideal_[b] != 0) {
+          if (leaf && options_.ideal_probe_queries) {
+            pending_.push_back({b, device.query_box_render_thread(b), true});
+            ++stats.queries;
+          }
           pull_up(b);
           traverse(b, view, device);
         }

@@ -68,6 +68,10 @@ struct ChcOptions {
   /// paper's section 3.6: where the check is costly, ask later. On llvmpipe
   /// the first poll of a query flushes the batched draws (docs/occlusion.md).
   std::uint32_t poll_interval = 1;
+  /// Ideal only, a diagnostic: a box query before every leaf block it draws,
+  /// answers read as CHC reads them and ignored. Ideal's draws with CHC's
+  /// query traffic: the difference to Ideal is the queries' own cost.
+  bool ideal_probe_queries = false;
 };
 
 /// The camera of a frame, as the traversal needs it.
