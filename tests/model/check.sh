@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Model-checks the Feedback Stage's wait/process exchange (exchange.pml, the
-# protocol of lib/src/feedback_stage.cpp) with spin, and shows that the check
+# protocol of lib/src/stage/feedback_stage*.cpp) with spin, and shows that the check
 # bites: every exchange_broken_*.pml must be rejected.
 #
 #  - exchange.pml, in every configuration below: a full state-space search for

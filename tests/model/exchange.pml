@@ -1,6 +1,6 @@
 /*
  * The wait/process exchange of the Feedback Stage, as implemented in
- * lib/src/feedback_stage.cpp and lib/include/treecut/feedback_stage.hpp
+ * lib/src/stage/feedback_stage*.cpp and lib/include/treecut/feedback_stage.hpp
  * (Marton, Schiffner et al., "Parallel TreeCut Manipulation", section 3,
  * figure 2; docs/threading.md). tests/model/check.sh verifies it with spin.
  *

@@ -1,5 +1,6 @@
 /*
- * Deliberately broken, and how lib/src/feedback_stage.cpp was until the
+ * Deliberately broken, and how lib/src/feedback_stage.cpp (now
+ * lib/src/stage/feedback_stage_process.cpp) was until the
  * model found it: process() began with cancel_.store(false). A cancel that
  * set_strategy(), set_model() or the destructor stores between request() and
  * the stage waking up is lost: the iteration runs to its end, and one that
