@@ -479,9 +479,9 @@ void add_bench_commands(CLI::App& app) {
   occlusion->add_option("--frames", occ->frames,
                         "Frames evenly spaced over the path instead (0: every 1 / fps s)");
   occlusion->add_option("--from", occ->from, "Start of the part of the path measured, seconds")
-      ->check(CLI::NonNegativeNumber);
+      ->check(CLI::Range(0.0, 1e6));
   occlusion->add_option("--to", occ->to, "End of the part of the path measured (default: its end)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(CLI::Range(0.0, 1e6));
   occlusion->add_option("--width", occ->width, "Width in pixels")->check(CLI::Range(16, 8192));
   occlusion->add_option("--height", occ->height, "Height in pixels")->check(CLI::Range(16, 8192));
   occlusion->add_option("--block-size", occ->block_size, "HLOD block size (splats per block)");
