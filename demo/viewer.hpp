@@ -3,7 +3,6 @@
 // The frame itself runs in the library (treecut/splat/frame.hpp).
 #pragma once
 
-#include <CLI/CLI.hpp>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -19,6 +18,12 @@
 #include "treecut/splat/camera.hpp"
 #include "treecut/splat/renderer.hpp"
 #include "treecut/up_axis.hpp"
+
+// CLI11 is declared, not included: it costs every viewer file about 6 s of
+// compile time and only the command files build options.
+namespace CLI {
+class App;
+}
 
 namespace treecut::cli {
 

@@ -1,4 +1,5 @@
 // Model, strategy and frame set-up shared by `treecut render` and `treecut view`.
+#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
