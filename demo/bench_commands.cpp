@@ -19,6 +19,7 @@
 #include <utility>
 #include <vector>
 
+#include "bench_common.hpp"
 #include "bench_hlod.hpp"
 #include "bench_scene.hpp"
 #include "commands.hpp"
@@ -160,12 +161,6 @@ Sample run_in_child(const std::string& spec, unsigned threads) {
   return s;
 }
 
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
 double mean(const std::vector<double>& v) {
   double sum = 0.0;
   for (const double x : v) sum += x;
@@ -267,14 +262,7 @@ void run_bench_occlusion(const OcclusionArgs& a) {
   }
   const splat::CameraPath path = splat::load_camera_path(a.path);  // exit 2 before any work
   if (!a.no_hlod && !a.csv_dir.empty()) check_hlod_csv(hlod_csv_path(a.csv_dir, a.scene));
-  if (path.empty()) throw InputError(a.path + ": the camera path has no keys");
-  const double to = a.to < 0.0 ? path.duration() : a.to;
-  if (!(a.from >= 0.0) || !(to <= path.duration()) || !(a.from <= to)) {
-    char msg[160];
-    std::snprintf(msg, sizeof msg, ": --from %g --to %g is not a part of the path (0 to %.1f s)",
-                  a.from, to, path.duration());
-    throw InputError(a.path + msg);
-  }
+  const double to = walk_part_end(path, a.path, a.from, a.to);
   if (a.no_chc && a.no_hlod) throw InputError("--no-chc and --no-hlod leave nothing to run");
   SceneArgs scene_args;
   scene_args.model = a.scene;

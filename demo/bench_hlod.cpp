@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <sstream>
 
+#include "bench_common.hpp"
 #include "render_reports.hpp"
 #include "treecut/controller.hpp"
 #include "treecut/error.hpp"
@@ -51,10 +52,7 @@ double mean_of(const std::vector<Row>& rows, double Row::*field) {
 double median_of(const std::vector<Row>& rows, double Row::*field) {
   std::vector<double> v;
   for (const Row& r : rows) v.push_back(r.*field);
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+  return v.empty() ? 0.0 : median(std::move(v));
 }
 
 }  // namespace
@@ -64,22 +62,7 @@ std::filesystem::path hlod_csv_path(const std::filesystem::path& dir, const std:
 }
 
 void check_hlod_csv(const std::filesystem::path& csv) {
-  const std::filesystem::path dir = csv.parent_path();
-  if (!dir.empty()) {
-    const FileKind k = file_kind(dir);
-    if (k != FileKind::Missing && k != FileKind::Directory) {
-      throw InputError(dir.string() + ": " + std::string(describe(k)) + ", not a folder for --csv");
-    }
-  }
-  const FileKind k = file_kind(csv);
-  if (k == FileKind::Missing) return;
-  if (k != FileKind::Regular) throw InputError(csv.string() + ": " + std::string(describe(k)));
-  // Ours from an earlier run (its header) may be replaced; anything else is
-  // the user's and is left alone.
-  const std::string text = read_text_file(csv);
-  if (text.rfind(std::string(kCsvHeader) + "\n", 0) != 0) {
-    throw InputError(csv.string() + ": exists and is not a bench occlusion CSV; not overwritten");
-  }
+  check_bench_csv(csv, kCsvHeader, "bench occlusion");
 }
 
 void run_hlod_table(const HlodBenchInput& in) {

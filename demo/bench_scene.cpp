@@ -35,6 +35,7 @@
 #include <string>
 #include <vector>
 
+#include "bench_common.hpp"
 #include "render_reports.hpp"
 #include "treecut/error.hpp"
 #include "treecut/feedback_stage.hpp"
@@ -87,13 +88,6 @@ double process_cpu_ms() {
          double(u.ru_utime.tv_usec + u.ru_stime.tv_usec) * 1e-3;
 }
 
-double median(std::vector<double> v) {
-  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
-  std::sort(v.begin(), v.end());
-  const std::size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
 double mean(const std::vector<double>& v) {
   double s = 0.0;
   for (const double x : v) s += x;
@@ -127,25 +121,6 @@ std::filesystem::path csv_path(const std::filesystem::path& dir, const std::stri
   return dir / ("scene_" + std::filesystem::path(scene).stem().string() + ".csv");
 }
 
-// As bench occlusion's CSV: only an earlier run's file (its header) may be
-// replaced; anything else is the user's.
-void check_csv(const std::filesystem::path& csv) {
-  const std::filesystem::path dir = csv.parent_path();
-  if (!dir.empty()) {
-    const FileKind k = file_kind(dir);
-    if (k != FileKind::Missing && k != FileKind::Directory) {
-      throw InputError(dir.string() + ": " + std::string(describe(k)) + ", not a folder for --csv");
-    }
-  }
-  const FileKind k = file_kind(csv);
-  if (k == FileKind::Missing) return;
-  if (k != FileKind::Regular) throw InputError(csv.string() + ": " + std::string(describe(k)));
-  const std::string text = read_text_file(csv);
-  if (text.rfind(std::string(kCsvHeader) + "\n", 0) != 0) {
-    throw InputError(csv.string() + ": exists and is not a bench scene CSV; not overwritten");
-  }
-}
-
 std::string csv_number(double v) {
   if (!std::isfinite(v)) return "";
   char b[32];
@@ -156,14 +131,7 @@ std::string csv_number(double v) {
 void run_bench_scene(const SceneBenchArgs& a) {
   // Every input is checked before any work: exit 2 with one line.
   const splat::CameraPath path = splat::load_camera_path(a.path);
-  if (path.empty()) throw InputError(a.path + ": the camera path has no keys");
-  const double to = a.to < 0.0 ? path.duration() : a.to;
-  if (!(a.from >= 0.0) || !(to <= path.duration()) || !(a.from <= to)) {
-    char msg[160];
-    std::snprintf(msg, sizeof msg, ": --from %g --to %g is not a part of the path (0 to %.1f s)",
-                  a.from, to, path.duration());
-    throw InputError(a.path + msg);
-  }
+  const double to = walk_part_end(path, a.path, a.from, a.to);
   require_regular_file(a.scene);
   if (!looks_like_scene(a.scene)) {
     throw InputError(a.scene + ": not a scene file (bench scene takes a .scene)");
@@ -181,7 +149,7 @@ void run_bench_scene(const SceneBenchArgs& a) {
   }
   const std::filesystem::path csv =
       a.csv_dir.empty() ? std::filesystem::path() : csv_path(a.csv_dir, a.scene);
-  if (!csv.empty()) check_csv(csv);
+  if (!csv.empty()) check_bench_csv(csv, kCsvHeader, "bench scene");
 
   const Scene scene = load_scene(scene_args);
   const StageScene& world = *scene.world;
