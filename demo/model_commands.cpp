@@ -148,20 +148,6 @@ void check_scene_output(const std::filesystem::path& out) {
   check_replaceable_output(out, "treecut-scene", "a scene", "a scene file");
 }
 
-splat::CameraPath walk_path(const std::vector<WalkKey>& keys) {
-  splat::CameraPath path;
-  for (const WalkKey& k : keys) {
-    splat::CameraKey key;
-    key.time = k.time;
-    key.camera.eye = k.eye;
-    key.camera.target = k.target;
-    key.camera.up = k.up;
-    key.camera.fov_y_deg = k.fov_deg;
-    path.keys.push_back(key);
-  }
-  return path;
-}
-
 double mib(std::size_t bytes) {
   return static_cast<double>(bytes) / (1024.0 * 1024.0);
 }
@@ -249,7 +235,7 @@ void generate_scene_file(const SceneGenArgs& a) {
   std::printf("wrote %s (%zu objects)\n", a.out.string().c_str(),
               parse_scene_file(a.out).objects.size());
   if (!a.walk.empty()) {
-    const splat::CameraPath path = walk_path(walk);
+    const splat::CameraPath path = splat::walk_path(walk);
     save_camera_path(a.walk, path);
     std::printf("wrote %s (%zu keys, %.1f s)\n", a.walk.c_str(), path.keys.size(), path.duration());
   }
@@ -385,7 +371,7 @@ void add_model_commands(CLI::App& app) {
     save_ply(out, ps);
     std::printf("wrote %s (%zu points)\n", out.string().c_str(), ps.size());
     if (!gen_args->walk.empty()) {
-      const splat::CameraPath path = walk_path(scene_walkthrough(kind));
+      const splat::CameraPath path = splat::walk_path(scene_walkthrough(kind));
       save_camera_path(gen_args->walk, path);
       std::printf("wrote %s (%zu keys, %.1f s)\n", gen_args->walk.c_str(), path.keys.size(),
                   path.duration());

@@ -239,16 +239,8 @@ const CityBlock& city_block(std::size_t buildings) {
       slot->inputs.push_back(
           {slot->scene.models[o.model].hierarchy.get(), o.world, o.world_inverse, o.model});
     }
-    treecut::splat::CameraPath path;
-    for (const treecut::WalkKey& k : treecut::city_block_walkthrough(layout)) {
-      treecut::splat::CameraKey key;
-      key.time = k.time;
-      key.camera.eye = k.eye;
-      key.camera.target = k.target;
-      key.camera.up = k.up;
-      key.camera.fov_y_deg = k.fov_deg;
-      path.keys.push_back(key);
-    }
+    const treecut::splat::CameraPath path =
+        treecut::splat::walk_path(treecut::city_block_walkthrough(layout));
     const glm::vec3 lo = slot->scene.bounds_min, hi = slot->scene.bounds_max;
     const glm::vec3 center = 0.5f * (lo + hi);
     const float radius = std::max(0.5f * glm::length(hi - lo), 1e-6f);
