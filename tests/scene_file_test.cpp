@@ -224,14 +224,10 @@ TEST(SceneFile, IncludeCyclesAndErrorsInIncludedFiles) {
   EXPECT_EQ(parse_error(dir / "outer.scene"),
             (dir / "bad.scene").string() + ":3: scale: a zero factor is not invertible");
   // Depth: a chain of 20 distinct files.
-  // (std::to_string appended, not "d" + std::to_string(i): GCC 12 reports a
-  // false -Wstringop-overflow in the inlined operator+ of the latter.)
-  const auto chain_file = [](int i) {
-    return std::string("d").append(std::to_string(i)) + ".scene";
-  };
   for (int i = 0; i < 20; ++i)
-    write(dir / chain_file(i),
-          "treecut-scene 1\ngenerate g sphere 1 50\nobject g\ninclude " + chain_file(i + 1) + "\n");
+    write(dir / ("d" + std::to_string(i) + ".scene"),
+          "treecut-scene 1\ngenerate g sphere 1 50\nobject g\ninclude d" + std::to_string(i + 1) +
+              ".scene\n");
   write(dir / "d20.scene", "treecut-scene 1\n");
   EXPECT_NE(parse_error(dir / "d0.scene").find("includes nested deeper than 16"),
             std::string::npos);
