@@ -53,14 +53,10 @@ std::vector<double> eq1_shares(std::span<const BudgetItem> items, const BudgetPa
 void budget_items(std::span<const SceneObject> objects, std::span<const ScreenRect> rects,
                   std::span<const std::uint8_t> visible, std::vector<BudgetItem>& items,
                   WorkerPool* pool) {
-  items.resize(objects.size());
-  for_chunks(pool, objects.size(), [&](std::size_t b, std::size_t e, std::size_t) {
-    for (std::size_t i = b; i < e; ++i) {
-      const bool v = (visible.empty() || visible[i] != 0) && rects[i].in_frustum;
-      // The points are read only where they matter (most objects are culled).
-      items[i] = {v ? rects[i].area() : 0.0f, rects[i].depth, v ? objects[i].points : 0u};
-    }
-  });
+  // The objects' point counts as the dense array the strategy keeps.
+  std::vector<std::uint32_t> points(objects.size());
+  for (std::size_t i = 0; i < objects.size(); ++i) points[i] = objects[i].points;
+  budget_items(points, rects, visible, items, pool);
 }
 
 void budget_items(std::span<const std::uint32_t> points, std::span<const ScreenRect> rects,
