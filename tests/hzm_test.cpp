@@ -381,6 +381,45 @@ TEST(Hzm, inner_box_lies_inside_a_closed_surface) {
   EXPECT_FALSE(inner_box(open, fit_obb(open)).has_value());
 }
 
+TEST(Hzm, inner_box_of_a_surface_open_on_one_face_reaches_the_closing_plane) {
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  const glm::vec3 h(3.0f, 2.0f, 4.0f);
+  const Obb box = axis_box(glm::vec3(0.0f), h);
+  // A box's surface without its floor (z = -h.z): walls and a roof.
+  const auto floorless = [&](std::vector<glm::vec3>& out, float floor_z, int count) {
+    for (int k = 0; k < count; ++k) {
+      glm::vec3 l(u(rng) * h.x, u(rng) * h.y, floor_z + (h.z - floor_z) * 0.5f * (u(rng) + 1.0f));
+      const int face = k % 5;  // -x, +x, -y, +y, +z
+      if (face < 4) l[face / 2] = face % 2 ? h[face / 2] : -h[face / 2];
+      else l.z = h.z;
+      out.push_back(l);
+    }
+  };
+  std::vector<glm::vec3> open;
+  floorless(open, -h.z, 100000);
+  EXPECT_FALSE(inner_box(open, box).has_value()) << "the outside floods in through the floor";
+  EXPECT_FALSE(inner_box(open, box, 32, 5).has_value()) << "closing the roof does not close it";
+  const auto closed = inner_box(open, box, 32, 4);
+  ASSERT_TRUE(closed.has_value());
+  // Down to the plane of the open face, the other sides a cell or two in.
+  EXPECT_FLOAT_EQ(closed->center.z - closed->half.z, -h.z);
+  EXPECT_LE(closed->center.z + closed->half.z, h.z);
+  for (int k = 0; k < 2; ++k) {
+    EXPECT_LE(closed->half[k], h[k]);
+    EXPECT_GE(closed->half[k], h[k] * (1.0f - 4.0f / 32.0f));
+  }
+  // On stilts: the floorless box's walls stop at z = 0 and there is a floor
+  // plate there; below it the air is open to the street on every side.
+  // Closing the face at z = -h.z must not claim that air.
+  std::vector<glm::vec3> stilts;
+  floorless(stilts, 0.0f, 100000);
+  for (int k = 0; k < 40000; ++k) stilts.push_back({u(rng) * h.x, u(rng) * h.y, 0.0f});
+  const auto raised = inner_box(stilts, box, 32, 4);
+  ASSERT_TRUE(raised.has_value());  // the closed upper part
+  EXPECT_GT(raised->center.z - raised->half.z, 0.0f);
+}
+
 TEST(Hzm, occluders_are_the_top_weights_of_eq3) {
   const auto objects = random_boxes(500, 11);
   const auto snap =

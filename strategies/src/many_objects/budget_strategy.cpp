@@ -117,30 +117,14 @@ void BudgetStrategy::reset_scene(std::span<const SceneObjectInput> objects) {
         static_cast<int>(std::sqrt(static_cast<double>(points.size()) / (6.0 * 16.0))), 3, 32);
     s.inner = many::inner_box(points, s.box, cells);
     // A surface open on one face (a building without a floor: the flood
-    // from outside leaks in through it): closed with points on that face,
-    // the box found is still inside the solid for every eye on the inner
-    // side of the face's plane (a ray from there cannot pass through the
-    // open face into the box without crossing the plane twice), so the
-    // object occludes exactly while the eye is there (iterate_scene).
+    // from outside leaks in through it): closed by that face's plane, the
+    // box found (which may reach the plane) is inside the solid for every
+    // eye on the inner side of the plane (a ray from there cannot pass
+    // through the open face into the box without crossing the plane twice),
+    // so the object occludes exactly while the eye is there (iterate_scene).
     for (int face = 0; !s.inner && face < 6 && !points.empty(); ++face) {
-      const int k = face / 2;
-      const float sign = face % 2 ? 1.0f : -1.0f;
-      const int a = (k + 1) % 3, b = (k + 2) % 3;
-      const int m = 4 * cells;
-      std::vector<glm::vec3> closed = points;
-      for (int i = 0; i < m; ++i) {
-        for (int j = 0; j < m; ++j) {
-          glm::vec3 l(0.0f);
-          l[k] = sign * s.box.half[k];
-          l[a] = s.box.half[a] * (2.0f * (static_cast<float>(i) + 0.5f) / float(m) - 1.0f);
-          l[b] = s.box.half[b] * (2.0f * (static_cast<float>(j) + 0.5f) / float(m) - 1.0f);
-          closed.push_back(s.box.center + s.box.axes * l);
-        }
-      }
-      s.inner = many::inner_box(closed, s.box, cells);
-      if (s.inner) {
-        s.open_face = face;
-      }
+      s.inner = many::inner_box(points, s.box, cells, face);
+      if (s.inner) s.open_face = face;
     }
   }
   std::vector<many::SceneObject> made(objects.size());

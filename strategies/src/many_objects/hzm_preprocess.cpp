@@ -129,7 +129,8 @@ Obb fit_obb(std::span<const glm::vec3> points) {
   return box;
 }
 
-std::optional<Obb> inner_box(std::span<const glm::vec3> points, const Obb& box, int cells) {
+std::optional<Obb> inner_box(std::span<const glm::vec3> points, const Obb& box, int cells,
+                             int closed_face) {
   const int n = std::max(cells, 3);
   const auto at = [n](int x, int y, int z) {
     return (static_cast<std::size_t>(z) * static_cast<std::size_t>(n) +
@@ -151,7 +152,8 @@ std::optional<Obb> inner_box(std::span<const glm::vec3> points, const Obb& box, 
         glm::clamp(glm::floor(l), glm::vec3(0.0f), glm::vec3(static_cast<float>(n - 1))));
     grid[at(c.x, c.y, c.z)] = kSurface;
   }
-  // Flood the outside from every empty border cell (6-connected).
+  // Flood the outside from every empty border cell (6-connected), but for
+  // the closed face's: the plane beyond them is a wall.
   std::vector<glm::ivec3> stack;
   const auto push = [&](int x, int y, int z) {
     if (x < 0 || y < 0 || z < 0 || x >= n || y >= n || z >= n) return;
@@ -160,10 +162,13 @@ std::optional<Obb> inner_box(std::span<const glm::vec3> points, const Obb& box, 
     g = kOutside;
     stack.push_back({x, y, z});
   };
+  const auto seed_border = [&](int face, int x, int y, int z) {
+    if (face != closed_face) push(x, y, z);
+  };
   for (int a = 0; a < n; ++a) {
     for (int b = 0; b < n; ++b) {
-      push(0, a, b), push(n - 1, a, b), push(a, 0, b), push(a, n - 1, b), push(a, b, 0),
-          push(a, b, n - 1);
+      seed_border(0, 0, a, b), seed_border(1, n - 1, a, b), seed_border(2, a, 0, b),
+          seed_border(3, a, n - 1, b), seed_border(4, a, b, 0), seed_border(5, a, b, n - 1);
     }
   }
   while (!stack.empty()) {

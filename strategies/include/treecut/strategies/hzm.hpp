@@ -115,7 +115,16 @@ enum class Facing : std::uint8_t { ViewDirection, EyeToObject };
 /// are in (points denser than the grid); a scan with holes larger than a
 /// cell leaks the outside in, and there is no inside: no inner box, the
 /// safe failure. For a box object use the box itself (box_object()).
-std::optional<Obb> inner_box(std::span<const glm::vec3> points, const Obb& box, int cells = 32);
+///
+/// `closed_face` (0..5: -x, +x, -y, +y, -z, +z of `box`'s frame; -1: none)
+/// closes a surface open on that face (a building without a floor) by the
+/// face's plane itself: the outside is not flooded in from that side, and
+/// the box found may reach the plane. It is inside the solid that the
+/// surface and the plane bound, so it occludes conservatively only for an
+/// eye on the inner side of the plane (a ray from there cannot enter through
+/// the open face without crossing the plane twice); the caller checks that.
+std::optional<Obb> inner_box(std::span<const glm::vec3> points, const Obb& box, int cells = 32,
+                             int closed_face = -1);
 
 struct HzmParams {
   unsigned depth_width = 320;             ///< cells across the viewport's larger side
