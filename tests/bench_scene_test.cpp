@@ -30,7 +30,10 @@ struct Tiny {
 const Tiny& tiny() {
   static const Tiny t = [] {
     Tiny x;
-    x.dir = test::scratch_dir("bench_scene");
+    // One folder per test: ctest runs this file's tests as parallel
+    // processes, and scratch_dir empties the folder it returns.
+    x.dir = test::scratch_dir(std::string("bench_scene/") +
+                              ::testing::UnitTest::GetInstance()->current_test_info()->name());
     x.scene = x.dir / "tiny.scene";
     x.walk = x.dir / "tiny.campath";
     const test::CommandResult r =

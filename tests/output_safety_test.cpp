@@ -480,29 +480,13 @@ TEST(OutputSafety, PsnrOfIdenticalImagesIsInfinite) {
 namespace {
 
 // `treecut view --script SCRIPT --screenshot-dir DIR` under Xvfb (nullopt
-// without xvfb-run). No leak check: Mesa's GLX driver leaks when the window
-// closes (see tests/viewer_window_test/check.cmake).
+// without xvfb-run), from the script's folder.
 std::optional<CommandResult> run_view_script(const fs::path& script, const fs::path& dir) {
-  if (std::system("command -v xvfb-run > /dev/null 2>&1") != 0) return std::nullopt;
-  const fs::path bin = fs::path(TREECUT_BINARY_DIR) / "demo" / "treecut";
-  // The program's own exit code, printed inside the X session: xvfb-run's
-  // (it also fails when it cannot clean up its temporary folder) is not it.
-  const fs::path runner = script.parent_path() / "run-view.sh";
-  write_text(runner, quote(bin) + " view --default-points 2000 --width 160 --height 120 --script " +
-                         quote(script) + " --screenshot-dir " + quote(dir) +
-                         " 2>&1\necho \"exit code $?\"\n");
-  const std::string cmd =
-      "LSAN_OPTIONS=detect_leaks=0 timeout -k 5 240 xvfb-run -a -s '-screen 0 640x480x24' sh " +
-      quote(runner) + " 2>&1";
-  CommandResult r;
-  FILE* p = ::popen(cmd.c_str(), "r");
-  if (!p) return r;
-  char buf[4096];
-  while (std::fgets(buf, sizeof buf, p)) r.out += buf;
-  ::pclose(p);
-  const auto at = r.out.rfind("exit code ");
-  if (at != std::string::npos) r.code = std::atoi(r.out.c_str() + at + 10);
-  return r;
+  return treecut::test::run_treecut_in_xvfb(
+      "view --default-points 2000 --width 160 --height 120 "
+      "--script " +
+          quote(script) + " --screenshot-dir " + quote(dir),
+      script.parent_path(), "640x480x24");
 }
 
 }  // namespace

@@ -6,9 +6,7 @@
 // malformed one when it is loaded, each with one line naming the file, exit 2.
 #include <gtest/gtest.h>
 #include <stb/stb_image.h>
-#include <sys/wait.h>
 
-#include <array>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -38,23 +36,11 @@ void write_file(const fs::path& p, const std::string& text) {
 
 // `treecut view ARGS` in a window under Xvfb, caches in `dir`.
 treecut::test::CommandResult view(const fs::path& dir, const std::string& args) {
-  const auto bin = fs::path(TREECUT_BINARY_DIR) / "demo" / "treecut";
-  // No leak check (ASan builds): Mesa's GLX driver leaks when the window
-  // closes (tests/viewer_window_test/check.cmake).
-  const std::string cmd = "cd " + quote(dir) + " && XDG_CACHE_HOME=" + quote(dir / "cache") +
-                          " LSAN_OPTIONS=detect_leaks=0 timeout -k 5 240 xvfb-run -a -s "
-                          "'-screen 0 1280x800x24' " +
-                          quote(bin) + " view --width " + std::to_string(kWidth) + " --height " +
-                          std::to_string(kHeight) + " --screenshot-dir " + quote(dir) + " " + args +
-                          " 2>&1";
-  treecut::test::CommandResult r;
-  FILE* p = popen(cmd.c_str(), "r");
-  if (p == nullptr) return r;
-  std::array<char, 4096> buf;
-  while (std::fgets(buf.data(), static_cast<int>(buf.size()), p)) r.out += buf.data();
-  const int status = pclose(p);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
+  auto r = treecut::test::run_treecut_in_xvfb(
+      "view --width " + std::to_string(kWidth) + " --height " + std::to_string(kHeight) +
+          " --screenshot-dir " + quote(dir) + " " + args,
+      dir, "1280x800x24", "XDG_CACHE_HOME=" + quote(dir / "cache"));
+  return r ? *r : treecut::test::CommandResult{-1, "xvfb-run is not installed"};
 }
 
 struct Rgb {

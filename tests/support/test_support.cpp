@@ -6,8 +6,15 @@
 
 #include <array>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
 
 namespace treecut::test {
+
+namespace {
+constexpr const char* kExitMarker = "treecut-test-exit-code ";
+}  // namespace
 
 std::optional<std::filesystem::path> shared_dir() {
   std::filesystem::path p = TREECUT_SHARED_DIR;
@@ -44,6 +51,36 @@ CommandResult run_treecut(const std::string& args, int timeout_seconds) {
   while (std::fgets(buf.data(), static_cast<int>(buf.size()), p)) r.out += buf.data();
   const int status = pclose(p);
   r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+std::optional<CommandResult> run_treecut_in_xvfb(const std::string& args,
+                                                 const std::filesystem::path& dir,
+                                                 const std::string& screen,
+                                                 const std::string& env) {
+  if (std::system("command -v xvfb-run > /dev/null 2>&1") != 0) return std::nullopt;
+  const auto bin = std::filesystem::path(TREECUT_BINARY_DIR) / "demo" / "treecut";
+  const std::filesystem::path runner = dir / "run-in-xvfb.sh";
+  {
+    std::ofstream out(runner, std::ios::binary);
+    out << "cd " << quote(dir) << " && " << env << " " << quote(bin) << " " << args
+        << " 2>&1\necho \"" << kExitMarker << "$?\"\n";
+    if (!out.good()) return CommandResult{-1, "cannot write " + runner.string()};
+  }
+  const std::string cmd =
+      "LSAN_OPTIONS=detect_leaks=0 timeout -k 5 240 xvfb-run -a -s '-screen 0 " + screen + "' sh " +
+      quote(runner) + " 2>&1";
+  CommandResult r;
+  FILE* p = popen(cmd.c_str(), "r");
+  if (!p) return r;
+  std::array<char, 4096> buf;
+  while (std::fgets(buf.data(), static_cast<int>(buf.size()), p)) r.out += buf.data();
+  pclose(p);
+  const auto at = r.out.rfind(kExitMarker);
+  if (at != std::string::npos) {
+    r.code = std::atoi(r.out.c_str() + at + std::strlen(kExitMarker));
+    r.out.erase(at, r.out.find('\n', at) - at + 1);  // the marker is not the program's output
+  }
   return r;
 }
 

@@ -23,6 +23,17 @@ struct CommandResult {
 /// `timeout`: a command that hangs fails the test with code 124 instead of
 /// stalling the suite.
 CommandResult run_treecut(const std::string& args, int timeout_seconds = 300);
+/// Runs the built `treecut` with `args` (already shell-quoted) in a window
+/// under Xvfb (`xvfb-run -a`, screen WxHxDEPTH), from folder `dir`, with the
+/// environment assignments `env` ("A=1 B=2") and no leak check (Mesa's GLX
+/// driver leaks when the window closes: tests/viewer_window_test/check.cmake).
+/// The code is the program's own, printed inside the X session: xvfb-run's is
+/// not (it exits 5 when it cannot remove its temporary folder, whatever the
+/// program did). nullopt when xvfb-run is not installed.
+std::optional<CommandResult> run_treecut_in_xvfb(const std::string& args,
+                                                 const std::filesystem::path& dir,
+                                                 const std::string& screen,
+                                                 const std::string& env = "");
 /// 'path', single-quoted for the shell.
 std::string quote(const std::filesystem::path& p);
 

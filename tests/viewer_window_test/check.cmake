@@ -10,15 +10,21 @@ file(MAKE_DIRECTORY "${OUT}")
 # window closes, leaks 255 strdup'ed strings (a minimal GLFW program under
 # Xvfb reports the same), and its frames are unknown by then, so no
 # suppression can name them. The leak check still covers the headless paths.
+# The program's exit code is printed inside the X session: xvfb-run's own is
+# not it (xvfb-run exits 5 when it cannot remove its temporary folder).
 execute_process(
   COMMAND ${CMAKE_COMMAND} -E env LSAN_OPTIONS=detect_leaks=0
           "${XVFB_RUN}" -a -s "-screen 0 1024x768x24"
+          sh -c "\"$0\" \"$@\"; echo \"treecut exit code $?\""
           "${TREECUT}" view --default-points 30000 --width 640 --height 400
           --script "${SCRIPT}" --screenshot-dir "${OUT}"
-  RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err TIMEOUT 240)
+  RESULT_VARIABLE xvfb_rc OUTPUT_VARIABLE out ERROR_VARIABLE err TIMEOUT 240)
 message("${out}${err}")
-if(NOT rc EQUAL 0)
-  message(FATAL_ERROR "treecut view exited with ${rc}")
+if(NOT out MATCHES "treecut exit code ([0-9]+)")
+  message(FATAL_ERROR "treecut view did not run (xvfb-run exited with ${xvfb_rc})")
+endif()
+if(NOT CMAKE_MATCH_1 EQUAL 0)
+  message(FATAL_ERROR "treecut view exited with ${CMAKE_MATCH_1}")
 endif()
 foreach(shot start.png end.png)
   set(png "${OUT}/${shot}")
