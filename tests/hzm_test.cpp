@@ -158,6 +158,55 @@ TEST(Hzm, wall_culls_what_it_hides) {
   for (const std::uint32_t i : culler.active()) EXPECT_LT(i, 24u);
 }
 
+// More occluders than the wall: the AOS takes field boxes behind the wall
+// too. Those the wall hides are culled like any object (the paper keeps the
+// AOS visible), those it does not are kept, none the reference sees is
+// culled, and the map is the one the visible occluders alone would build.
+TEST(Hzm, an_occluder_the_others_hide_is_culled) {
+  const auto objects = wall_scene(3);
+  const auto snap = ViewSnapshot::look_at({0.0f, 4.0f, 12.0f}, {0.0f, 4.0f, -10.0f}, {400, 300},
+                                          0.9f, 0.05f, 500.0f);
+  const FrameView view(snap);
+  HzmParams params;
+  params.depth_width = 400;
+  params.active = 80;
+  params.compactness_threshold = 0.5f;
+  HzmCuller culler(params);
+  culler.preprocess(objects);
+  culler.cull(objects, view, nullptr);
+  std::vector<std::uint8_t> seen;
+  reference_visibility(objects, view, seen, nullptr);
+  std::size_t hidden_occluders = 0, culled_occluders = 0;
+  for (const std::uint32_t i : culler.active()) {
+    const ObjectState st = culler.states()[i];
+    if (seen[i]) {
+      EXPECT_EQ(st, ObjectState::Occluder) << "seen occluder " << i << " culled";
+    }
+    hidden_occluders += seen[i] == 0;
+    culled_occluders += st == ObjectState::Occluded;
+    EXPECT_EQ(culler.visible()[i], st == ObjectState::Occluder ? 1 : 0);
+  }
+  EXPECT_EQ(culler.active().size(), 80u);
+  EXPECT_GT(culled_occluders, 10u) << "of " << hidden_occluders << " hidden occluders";
+  EXPECT_EQ(cull_accuracy(culler, seen).wrongly, 0u);
+  // Culling them changed nothing: a culler whose AOS holds only the kept
+  // occluders (the culled ones no candidates, the AOS that much smaller: the
+  // top weights of the rest are the kept ones) builds the same map.
+  std::vector<SceneObject> kept = objects;
+  for (const std::uint32_t i : culler.active()) {
+    if (culler.states()[i] == ObjectState::Occluded) kept[i].has_inner = false;
+  }
+  HzmParams fewer = params;
+  fewer.active = params.active - culled_occluders;
+  HzmCuller alone(fewer);
+  alone.preprocess(kept);
+  alone.cull(kept, view, nullptr);
+  ASSERT_EQ(alone.depth_image().size(), culler.depth_image().size());
+  EXPECT_TRUE(std::equal(alone.depth_image().begin(), alone.depth_image().end(),
+                         culler.depth_image().begin()))
+      << "a culled occluder was front-most in a cell";
+}
+
 // The depth image against ray casting of the active occluders' inner boxes:
 // one cell a pixel, the front surface at the pixel center; larger cells,
 // never nearer than the front surface at any pixel center under them, and
@@ -391,8 +440,10 @@ TEST(Hzm, inner_box_of_a_surface_open_on_one_face_reaches_the_closing_plane) {
     for (int k = 0; k < count; ++k) {
       glm::vec3 l(u(rng) * h.x, u(rng) * h.y, floor_z + (h.z - floor_z) * 0.5f * (u(rng) + 1.0f));
       const int face = k % 5;  // -x, +x, -y, +y, +z
-      if (face < 4) l[face / 2] = face % 2 ? h[face / 2] : -h[face / 2];
-      else l.z = h.z;
+      if (face < 4)
+        l[face / 2] = face % 2 ? h[face / 2] : -h[face / 2];
+      else
+        l.z = h.z;
       out.push_back(l);
     }
   };
@@ -425,34 +476,42 @@ TEST(Hzm, occluders_are_the_top_weights_of_eq3) {
   const auto snap =
       ViewSnapshot::look_at({0.0f, 0.0f, 45.0f}, glm::vec3(0.0f), {320, 240}, 0.9f, 0.05f, 500.0f);
   const FrameView view(snap);
-  HzmCuller culler({64, 10, 0.5f});
-  culler.preprocess(objects);
-  culler.project(objects, view, nullptr);
-  culler.select_occluders(objects, view, nullptr);
-  ASSERT_EQ(culler.active().size(), 10u);
-  // The weights by hand: AABB volume * |N . E| / distance to the AABB.
-  std::vector<std::pair<float, std::uint32_t>> w;
-  for (std::uint32_t i = 0; i < objects.size(); ++i) {
-    const SceneObject& o = objects[i];
-    const ScreenRect r = view.project(o.bounds);
-    if (!r.in_frustum || r.crosses_near) continue;
-    int k = 0;
-    for (int a = 1; a < 3; ++a)
-      if (o.box.half[a] < o.box.half[k]) k = a;
-    const glm::vec3 e = view.eye();
-    const glm::vec3 out = glm::max(glm::max(o.bounds.min - e, e - o.bounds.max), glm::vec3(0.0f));
-    const glm::vec3 s = o.bounds.max - o.bounds.min;
-    const float weight =
-        s.x * s.y * s.z * std::abs(glm::dot(o.box.axes[k], view.forward())) / glm::length(out);
-    EXPECT_FLOAT_EQ(weight, occluder_weight(o, o.box.axes[k], r, view));
-    w.push_back({weight, i});
+  // Both readings of E: the viewing direction, the eye to the AABB's center.
+  for (const Facing facing : {Facing::ViewDirection, Facing::EyeToObject}) {
+    HzmParams params{64, 10, 0.5f};
+    params.facing = facing;
+    HzmCuller culler(params);
+    culler.preprocess(objects);
+    culler.project(objects, view, nullptr);
+    culler.select_occluders(objects, view, nullptr);
+    ASSERT_EQ(culler.active().size(), 10u);
+    // The weights by hand: AABB volume * |N . E| / distance to the AABB.
+    std::vector<std::pair<float, std::uint32_t>> w;
+    for (std::uint32_t i = 0; i < objects.size(); ++i) {
+      const SceneObject& o = objects[i];
+      const ScreenRect r = view.project(o.bounds);
+      if (!r.in_frustum || r.crosses_near) continue;
+      int k = 0;
+      for (int a = 1; a < 3; ++a)
+        if (o.box.half[a] < o.box.half[k]) k = a;
+      const glm::vec3 e = view.eye();
+      const glm::vec3 out = glm::max(glm::max(o.bounds.min - e, e - o.bounds.max), glm::vec3(0.0f));
+      const glm::vec3 s = o.bounds.max - o.bounds.min;
+      const glm::vec3 dir = facing == Facing::ViewDirection
+                                ? view.forward()
+                                : glm::normalize(0.5f * (o.bounds.min + o.bounds.max) - e);
+      const float weight =
+          s.x * s.y * s.z * std::abs(glm::dot(o.box.axes[k], dir)) / glm::length(out);
+      EXPECT_FLOAT_EQ(weight, occluder_weight(o, o.box.axes[k], r, view, facing));
+      w.push_back({weight, i});
+    }
+    std::sort(w.begin(), w.end(), [](auto a, auto b) {
+      return a.first != b.first ? a.first > b.first : a.second < b.second;
+    });
+    for (std::size_t k = 0; k < 10; ++k) EXPECT_EQ(culler.active()[k], w[k].second);
+    // Nothing behind the camera or outside the frustum is chosen.
+    for (const std::uint32_t i : culler.active()) EXPECT_TRUE(culler.rects()[i].in_frustum);
   }
-  std::sort(w.begin(), w.end(), [](auto a, auto b) {
-    return a.first != b.first ? a.first > b.first : a.second < b.second;
-  });
-  for (std::size_t k = 0; k < 10; ++k) EXPECT_EQ(culler.active()[k], w[k].second);
-  // Nothing behind the camera or outside the frustum is chosen.
-  for (const std::uint32_t i : culler.active()) EXPECT_TRUE(culler.rects()[i].in_frustum);
 }
 
 TEST(Hzm, screen_rectangles_and_near_plane) {

@@ -200,10 +200,10 @@ void BM_Frame(benchmark::State& state) {
 
 BENCHMARK(BM_Frame)
     ->ArgNames({"objects", "threads", "depth", "aos", "to_object", "finer"})
-    ->ArgsProduct({{10000, 100000}, {1, 2}, {320, 1280}, {32}, {0}, {0, 2}})
-    ->ArgsProduct({{100000}, {2}, {320}, {16, 64}, {0}, {2}})
-    ->ArgsProduct({{100000}, {2}, {320}, {32}, {1}, {2}})
-    ->ArgsProduct({{100000}, {2}, {320}, {32}, {0}, {1, 3, 10}})
+    ->ArgsProduct({{10000, 100000}, {1, 2}, {320, 1280}, {32}, {1}, {0, 2}})
+    ->ArgsProduct({{100000}, {2}, {320}, {16, 64}, {1}, {2}})
+    ->ArgsProduct({{10000, 100000}, {2}, {320}, {32}, {0}, {2}})
+    ->ArgsProduct({{100000}, {2}, {320}, {32}, {1}, {1, 3, 10}})
     ->Unit(benchmark::kMillisecond)
     ->UseManualTime();
 

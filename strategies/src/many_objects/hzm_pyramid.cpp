@@ -108,8 +108,15 @@ void HzmCuller::test(std::span<const SceneObject> objects, WorkerPool* pool) {
       visible_[i] = st == ObjectState::Visible ? 1 : 0;
     }
   });
-  // The AOS is visible by definition (and wrote the map itself).
+  // The paper takes the AOS as visible by definition; added: an occluder is
+  // tested like the others, and culled when the others hide it. Its own
+  // cells cannot cull it (each holds a depth of its inner box, which lies
+  // behind its AABB's nearest depth), so a culled occluder is front-most in
+  // no cell: the map without it is the same map, and what it culled stays
+  // culled by the occluders in front of it. (19 to 22 of the 32 occluders
+  // of a city block's street frame are hidden: docs/many-objects.md.)
   for (const std::uint32_t i : aos_) {
+    if (states_[i] == ObjectState::Occluded) continue;
     states_[i] = ObjectState::Occluder;
     visible_[i] = 1;
   }
