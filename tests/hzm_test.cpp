@@ -133,15 +133,24 @@ TEST(Hzm, hzm_culling_is_conservative) {
   EXPECT_GT(culled_total, 300u);
 }
 
-TEST(Hzm, wall_culls_what_it_hides) {
-  const auto objects = wall_scene(3);
-  const auto snap = ViewSnapshot::look_at({0.0f, 4.0f, 12.0f}, {0.0f, 4.0f, -10.0f}, {400, 300},
-                                          0.9f, 0.05f, 500.0f);
-  const FrameView view(snap);
+// The wall scene from the front, and the culler's settings for it: one
+// depth cell a pixel, an AOS of `active`.
+ViewSnapshot wall_front_view() {
+  return ViewSnapshot::look_at({0.0f, 4.0f, 12.0f}, {0.0f, 4.0f, -10.0f}, {400, 300}, 0.9f, 0.05f,
+                               500.0f);
+}
+HzmParams wall_params(std::size_t active) {
   HzmParams params;
   params.depth_width = 400;
-  params.active = 24;
+  params.active = active;
   params.compactness_threshold = 0.5f;
+  return params;
+}
+
+TEST(Hzm, wall_culls_what_it_hides) {
+  const auto objects = wall_scene(3);
+  const FrameView view(wall_front_view());
+  HzmParams params = wall_params(24);
   params.finer_levels = 0;  // the paper's test
   HzmCuller culler(params);
   culler.preprocess(objects);
@@ -164,13 +173,8 @@ TEST(Hzm, wall_culls_what_it_hides) {
 // culled, and the map is the one the visible occluders alone would build.
 TEST(Hzm, an_occluder_the_others_hide_is_culled) {
   const auto objects = wall_scene(3);
-  const auto snap = ViewSnapshot::look_at({0.0f, 4.0f, 12.0f}, {0.0f, 4.0f, -10.0f}, {400, 300},
-                                          0.9f, 0.05f, 500.0f);
-  const FrameView view(snap);
-  HzmParams params;
-  params.depth_width = 400;
-  params.active = 80;
-  params.compactness_threshold = 0.5f;
+  const FrameView view(wall_front_view());
+  const HzmParams params = wall_params(80);
   HzmCuller culler(params);
   culler.preprocess(objects);
   culler.cull(objects, view, nullptr);
