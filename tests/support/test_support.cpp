@@ -65,7 +65,8 @@ std::optional<CommandResult> run_treecut_in_xvfb(const std::string& args,
     std::ofstream out(runner, std::ios::binary);
     out << "cd " << quote(dir) << " && " << env << " " << quote(bin) << " " << args
         << " 2>&1\necho \"" << kExitMarker << "$?\"\n";
-    if (!out.good()) return CommandResult{-1, "cannot write " + runner.string()};
+    out.close();  // the write is checked after the flush
+    if (!out) return CommandResult{-1, "cannot write " + runner.string()};
   }
   const std::string cmd =
       "LSAN_OPTIONS=detect_leaks=0 timeout -k 5 240 xvfb-run -a -s '-screen 0 " + screen + "' sh " +
