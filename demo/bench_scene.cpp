@@ -259,7 +259,7 @@ void run_bench_scene(const SceneBenchArgs& a) {
 
   std::vector<double> in_frustum_f, seen_f, hidden_f, culled_f, wrongly_f, accuracy_f;
   std::vector<double> missed_occluder_f;  // hidden occluders the HZM kept
-  std::size_t hidden_all = 0, culled_all = 0, wrongly_all = 0, missed_aos_all = 0;
+  std::size_t hidden_all = 0, culled_all = 0, wrongly_all = 0;
   std::vector<std::uint32_t> seen(n);
   std::vector<std::span<const NodeId>> lists(n);
   const std::vector<NodeId> none;
@@ -395,7 +395,6 @@ void run_bench_scene(const SceneBenchArgs& a) {
     hidden_all += hidden;
     culled_all += culled;
     wrongly_all += wrongly;
-    missed_aos_all += hidden_aos;
     std::fprintf(stderr, "frame %d/%d: %zu in the frustum, %zu hidden, %zu culled\n", f + 1, frames,
                  in_frustum, hidden, culled);
   }

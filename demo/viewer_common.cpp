@@ -200,14 +200,16 @@ std::unique_ptr<Strategy> make_strategy(const StrategyRegistry& registry, const 
                                         const std::vector<std::string>& params) {
   std::unique_ptr<Strategy> s = registry.create(name);
   for (const std::string& p : params) {
-    const auto [key, value] = parse_param(p);
+    // Named, not a structured binding: clang 14 cannot capture one in a lambda.
+    const auto param = parse_param(p);
+    const auto& key = param.first;
     const auto& specs = s->param_specs();
     // With several strategies (render -s a -s b) a parameter applies to those that have it.
     if (std::none_of(specs.begin(), specs.end(),
                      [&](const ParamSpec& ps) { return ps.name == key; })) {
       continue;
     }
-    s->set_param(key, value);
+    s->set_param(key, param.second);
   }
   return s;
 }
