@@ -27,19 +27,22 @@ namespace {
   std::abort();
 }
 
-// load_cache maps a file by path: one scratch file per process, removed at exit.
+// load_cache maps a file by path: one scratch file per process, removed
+// after every input. (Not at exit: libFuzzer ends a run with _Exit, which
+// skips atexit handlers, and each run left its file in the temp folder.)
 const std::filesystem::path& scratch() {
-  static const std::filesystem::path path = [] {
-    auto p = std::filesystem::temp_directory_path() /
-             ("treecut-cache-fuzz-" + std::to_string(::getpid()) + ".tch");
-    std::atexit([] {
-      std::error_code ec;
-      std::filesystem::remove(scratch(), ec);
-    });
-    return p;
-  }();
+  static const std::filesystem::path path =
+      std::filesystem::temp_directory_path() /
+      ("treecut-cache-fuzz-" + std::to_string(::getpid()) + ".tch");
   return path;
 }
+
+struct RemoveScratch {
+  ~RemoveScratch() {
+    std::error_code ec;
+    std::filesystem::remove(scratch(), ec);
+  }
+};
 
 void write_file(const std::uint8_t* data, std::size_t size) {
   const int fd = ::open(scratch().c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
@@ -53,6 +56,7 @@ void write_file(const std::uint8_t* data, std::size_t size) {
 }
 
 void load(const std::uint8_t* data, std::size_t size) {
+  const RemoveScratch remove_after;  // last to go: after the hierarchy that maps it
   write_file(data, size);
   std::string why;
   const auto h = treecut::load_cache(scratch(), std::nullopt, &why);
