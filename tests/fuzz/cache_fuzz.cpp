@@ -28,8 +28,8 @@ namespace {
 }
 
 // load_cache maps a file by path: one scratch file per process, removed
-// after every input. (Not at exit: libFuzzer ends a run with _Exit, which
-// skips atexit handlers, and each run left its file in the temp folder.)
+// after every input. (An atexit handler did not do it: every CI fuzz run
+// left its file in the temp folder.)
 const std::filesystem::path& scratch() {
   static const std::filesystem::path path =
       std::filesystem::temp_directory_path() /
