@@ -6,9 +6,9 @@
 // poll while the stage thread writes, and switches strategies,
 // parameters, views and models, and shuts stages down, in the middle of
 // iterations. TREECUT_STRESS_EXCHANGES sets the number of exchanges (default
-// 1,000,000: about 65 s in Release, run alone; ASan 30,000, TSan 20,000), spread
-// over sessions of a size that scales with it, so a small run still shuts
-// several stages down. Nothing here measures time; a deadlock hangs and the
+// 1,000,000: about 55 s in Release, run alone; the ASan and TSan presets set
+// 100,000), spread over sessions of a size that scales with it, so a small
+// run still shuts several stages down. Nothing here measures time; a deadlock hangs and the
 // CTest timeout fails the test.
 #include <gtest/gtest.h>
 
