@@ -269,15 +269,7 @@ std::vector<float> error_radii(const HlodBlocks& b, const Hierarchy& h) {
   return r;
 }
 
-ViewSnapshot street_view(const Hierarchy& h, float t) {
-  // A walk through the city at a low height, looking along the street.
-  const glm::vec3 lo = h.bounds_min(), hi = h.bounds_max();
-  const glm::vec3 c = 0.5f * (lo + hi);
-  const float ext = glm::length(hi - lo);
-  const glm::vec3 eye = c + ext * glm::vec3(-0.3f + 0.4f * t, -0.02f, 0.03f);
-  const glm::vec3 target = eye + glm::vec3(std::cos(0.6f * t), std::sin(0.6f * t), -0.05f);
-  return ViewSnapshot::look_at(eye, target, {640, 360}, 0.9f, 0.0005f * ext, 4.0f * ext);
-}
+using treecut::test::street_view;
 
 class HoqStrategyTest : public ::testing::Test {
  protected:

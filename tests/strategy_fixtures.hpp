@@ -46,6 +46,17 @@ inline ViewSnapshot orbit_view(const Hierarchy& h, float angle, float distance_f
   return ViewSnapshot::look_at(eye, center, viewport, 0.8f, 0.001f * extent, 10.0f * extent);
 }
 
+/// A walk through a generated city at a low height, looking along the
+/// street; t = 0 .. 1 crosses 40 % of the model.
+inline ViewSnapshot street_view(const Hierarchy& h, float t) {
+  const glm::vec3 lo = h.bounds_min(), hi = h.bounds_max();
+  const glm::vec3 c = 0.5f * (lo + hi);
+  const float ext = glm::length(hi - lo);
+  const glm::vec3 eye = c + ext * glm::vec3(-0.3f + 0.4f * t, -0.02f, 0.03f);
+  const glm::vec3 target = eye + glm::vec3(std::cos(0.6f * t), std::sin(0.6f * t), -0.05f);
+  return ViewSnapshot::look_at(eye, target, {640, 360}, 0.9f, 0.0005f * ext, 4.0f * ext);
+}
+
 /// One iteration of S on CUT as the Feedback Stage runs it: frame 0, the
 /// strategy's current parameter version, fresh node and query lists.
 inline IterationResult iterate_once(Strategy& s, const Hierarchy& h, TreeCut& cut,
