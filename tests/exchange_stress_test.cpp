@@ -8,8 +8,8 @@
 // iterations. TREECUT_STRESS_EXCHANGES sets the number of exchanges (default
 // 1,000,000: about 55 s in Release, run alone; the ASan and TSan presets set
 // 100,000), spread over sessions of a size that scales with it, so a small
-// run still shuts several stages down. Nothing here measures time; a deadlock hangs and the
-// CTest timeout fails the test.
+// run still shuts several stages down. Nothing here measures time; a
+// deadlock hangs and the CTest timeout fails the test.
 #include <gtest/gtest.h>
 
 #include <algorithm>
