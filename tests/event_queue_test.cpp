@@ -142,6 +142,7 @@ TEST_P(EventQueuePath, event_queue_exact_vs_topdown) {
   const auto path = make_path(GetParam(), s);
   ASSERT_FALSE(path.empty());
   std::uint64_t top_tests = 0, event_tests = 0, multi_frame = 0, rebuilds = 0, advances = 0;
+  std::uint64_t changes = 0;
   std::size_t largest = 0;
   for (std::size_t i = 0; i < path.size(); ++i) {
     const IterationResult rt = top.step(path[i]);
@@ -156,6 +157,14 @@ TEST_P(EventQueuePath, event_queue_exact_vs_topdown) {
     const auto& st = ev.s.stats();
     rebuilds += st.rebuilt ? 1 : 0;
     advances += st.rebuilt ? 0 : 1;
+    if (!st.rebuilt) {
+      // The counters the benchmark reports account for every test and
+      // every cut edit of an advance.
+      ASSERT_EQ(re.visited, st.due + st.descended + st.rotation_events) << "frame " << i;
+      ASSERT_EQ(re.refined, st.unfolded) << "frame " << i;
+      ASSERT_LE(st.changed - st.unfolded, re.coarsened) << "frame " << i;
+      changes += st.changed;
+    }
     multi_frame += (!st.rebuilt && st.frames_advanced > 1) ? 1 : 0;
     largest = std::max(largest, ev.cut.size());
   }
@@ -163,6 +172,10 @@ TEST_P(EventQueuePath, event_queue_exact_vs_topdown) {
   // is not trivial.
   EXPECT_GT(largest, 2000u);
   EXPECT_GT(advances, path.size() / 2);
+  // Every path but the slow one changes the cut after the first iteration.
+  if (GetParam() != "slow") {
+    EXPECT_GT(changes, 0u);
+  }
   if (GetParam() == "slow") {
     EXPECT_EQ(rebuilds, 1u);  // only the first iteration
     EXPECT_EQ(multi_frame, 0u);

@@ -287,12 +287,14 @@ void EventQueueStrategy::handle(NodeId n, bool boundary, const Decision& dec,
     cut.refine_known(n, state_[n].first_child, state_[n].child_count);
     ++r.refined;
     ++stats_.changed;
+    ++stats_.unfolded;
     schedule(n, dec.t, false);
     const NodeId first = state_[n].first_child;
     const NodeId end = first + state_[n].child_count;
     for (NodeId ch = first; ch < end; ++ch) {
       if (state_[ch].child_count == 0) continue;
       ++r.visited;
+      ++stats_.descended;
       handle(ch, true, decide(camera_, state_[ch].sphere, rates_), input, cut, r);
     }
   } else if (dec.pass) {
@@ -389,6 +391,7 @@ bool EventQueueStrategy::run(const IterationInput& input, TreeCut& cut, Iteratio
       }
       work_[i] = kErased;
       --queued_;
+      ++stats_.due;
       const NodeId n = entry & ~kBoundary;
       const bool boundary = (entry & kBoundary) != 0;
       // No state_[n].slot = kNone here: n is queued again either way.
