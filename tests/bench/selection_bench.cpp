@@ -3,7 +3,8 @@
 // our mesh selection method with the top-down mesh adjustment procedure").
 // Three camera paths over the dragon, the lion and a generated 20 M-point
 // terrain; both strategies see the same view every frame (and must give the
-// same cut: checked every frame). Time = thread CPU time of iterate().
+// same cut: checked every frame). Time = thread CPU time of iterate(); each
+// strategy runs the whole path on its own.
 // theta is chosen per model so that the cut at the first frame holds about
 // 150,000 nodes; rho = 0.002 model diameters and omega = 0.02 rad per frame.
 //
@@ -14,6 +15,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <ctime>
@@ -173,6 +175,20 @@ double choose_theta(const Hierarchy& h, const ViewSnapshot& v) {
   return std::sqrt(lo * hi);
 }
 
+// The cut as a set, whatever its order: the size and a sum of mixed ids
+// (splitmix64's finalizer), so two cuts that differ in any node differ here
+// but for a 2^-64 chance.
+std::uint64_t fingerprint(const TreeCut& cut) {
+  std::uint64_t sum = 0;
+  for (const NodeId n : cut.nodes()) {
+    std::uint64_t z = std::uint64_t(n) + 0x9e3779b97f4a7c15ull;
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    sum += z ^ (z >> 31);
+  }
+  return sum ^ (std::uint64_t(cut.size()) << 40);
+}
+
 double median(std::vector<double> v) {
   if (v.empty()) return 0.0;
   std::sort(v.begin(), v.end());
@@ -193,7 +209,8 @@ void BM_Selection(benchmark::State& state) {
   std::vector<ViewSnapshot> views;
   for (std::size_t i = 0; i < path.size(); ++i) views.push_back(view_of(*h, path[i], i + 1, up));
   const double theta = choose_theta(*h, views[0]);
-  std::vector<double> top_ns, event_ns, cut, events, tests, advanced, changed;
+  std::vector<double> top_ns, event_ns, cut, events, tests, advanced, changed, unfolded, descended;
+  std::vector<std::uint64_t> top_cut;
   std::vector<std::string> segment;
   for (auto _ : state) {
     Runner<TopDownStrategy> top(*h);
@@ -205,31 +222,38 @@ void BM_Selection(benchmark::State& state) {
     if (const char* o = std::getenv("TREECUT_SELECTION_OMEGA"))
       ev.s.set_param("omega", std::atof(o));
     if (const char* r = std::getenv("TREECUT_SELECTION_RHO")) ev.s.set_param("rho", std::atof(r));
-    top_ns.clear();
-    event_ns.clear();
-    cut.clear();
-    events.clear();
-    tests.clear();
-    advanced.clear();
-    changed.clear();
+    for (auto* v :
+         {&top_ns, &event_ns, &cut, &events, &tests, &advanced, &changed, &unfolded, &descended}) {
+      v->clear();
+    }
+    top_cut.clear();
     segment.clear();
+    // Each strategy alone along the whole path, as the engine runs one:
+    // run in turns on the same frame, each would start from caches the
+    // other had just filled with its own nodes.
     for (std::size_t i = 0; i < views.size(); ++i) {
-      double tn = 0, en = 0;
+      double tn = 0;
       const IterationResult rt = top.step(views[i], &tn);
-      const IterationResult re = ev.step(views[i], &en);
-      if (top.cut.size() != ev.cut.size()) {
-        throw std::runtime_error(std::string(kModels[which]) + "/" + kPaths[path_kind] + " frame " +
-                                 std::to_string(i) + ": event_queue " +
-                                 std::to_string(ev.cut.size()) + " nodes, topdown " +
-                                 std::to_string(top.cut.size()));
-      }
       top_ns.push_back(tn);
+      tests.push_back(double(rt.visited));
+      top_cut.push_back(fingerprint(top.cut));
+    }
+    for (std::size_t i = 0; i < views.size(); ++i) {
+      double en = 0;
+      const IterationResult re = ev.step(views[i], &en);
+      if (fingerprint(ev.cut) != top_cut[i]) {
+        throw std::runtime_error(std::string(kModels[which]) + "/" + kPaths[path_kind] + " frame " +
+                                 std::to_string(i) + ": event_queue's cut (" +
+                                 std::to_string(ev.cut.size()) + " nodes) is not topdown's");
+      }
+      const auto& st = ev.s.stats();
       event_ns.push_back(en);
       cut.push_back(double(ev.cut.size()));
       events.push_back(double(re.visited));
-      tests.push_back(double(rt.visited));
-      advanced.push_back(ev.s.stats().rebuilt ? -1.0 : double(ev.s.stats().frames_advanced));
-      changed.push_back(double(ev.s.stats().changed));
+      advanced.push_back(st.rebuilt ? -1.0 : double(st.frames_advanced));
+      changed.push_back(double(st.changed));
+      unfolded.push_back(double(st.unfolded));
+      descended.push_back(double(st.descended));
       segment.emplace_back(path[i].segment);
     }
     state.SetIterationTime(1e-9 * median(event_ns));
@@ -248,16 +272,20 @@ void BM_Selection(benchmark::State& state) {
   state.counters["events"] = median(tail(events));
   // Tests that changed the cut (unfolds and folds; the rest only rescheduled).
   state.counters["changed"] = median(tail(changed));
+  // Of those, unfolds; and the children of unfolds tested at once (their
+  // first event time), which the cut changes force as much as the changes.
+  state.counters["unfolded"] = median(tail(unfolded));
+  state.counters["descended"] = median(tail(descended));
   state.counters["ns_per_event"] = me / median(tail(events));
   state.SetLabel(std::string(kModels[which]) + "/" + kPaths[path_kind]);
   if (const char* dir = std::getenv("TREECUT_SELECTION_CSV")) {
     std::ostringstream out;
     out << "frame,segment,cut,topdown_us,event_queue_us,topdown_tests,events,frames_advanced,"
-           "theta,changed\n";
+           "theta,changed,unfolded,descended\n";
     for (std::size_t i = 0; i < cut.size(); ++i) {
       out << i << ',' << segment[i] << ',' << cut[i] << ',' << 1e-3 * top_ns[i] << ','
           << 1e-3 * event_ns[i] << ',' << tests[i] << ',' << events[i] << ',' << advanced[i] << ','
-          << theta << ',' << changed[i] << '\n';
+          << theta << ',' << changed[i] << ',' << unfolded[i] << ',' << descended[i] << '\n';
     }
     try {
       treecut::write_file_atomically(

@@ -74,10 +74,11 @@ def rows_of(rows, path):
         mt, me = med(rs, "topdown_us"), med(rs, "event_queue_us")
         ev = med(rs, "events")
         changed = med(rs, "changed") if "changed" in rs[0] else float("nan")
+        descended = med(rs, "descended") if "descended" in rs[0] else float("nan")
         out.append((path if seg == "all" else f"{path}: {seg}",
                     [float(rows[0]["theta"]), med(rs, "cut"), mt, me, me / mt,
                      med(rs, "topdown_tests"), ev, med(rs, "frames_advanced"), changed,
-                     1000.0 * me / ev if ev > 0 else float("nan")]))
+                     descended, 1000.0 * me / ev if ev > 0 else float("nan")]))
     return out
 
 
@@ -123,14 +124,15 @@ def main():
         write_checked(os.path.join(out, f"selection_{path}.svg"),
                       "\n".join(head + o + ["</svg>"]) + "\n")
     print("| model | path | theta | cut (median) | topdown us | event_queue us | event / top |"
-          " tests (top) | events | changed | ns / event | frames advanced |")
-    print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
-    for label, path, theta, cut, mt, me, ratio, tests, events, adv, changed, ns in table:
+          " tests (top) | events | changed | children tested | ns / event | frames advanced |")
+    print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for label, path, theta, cut, mt, me, ratio, tests, events, adv, changed, desc, ns in table:
         advanced = "rebuild" if adv < 0 else f"{adv:g}"
         # A rebuild's changes are the top-down pass's, not counted as events.
         ch = "-" if changed != changed or adv < 0 else f"{changed:,.0f}"
+        de = "-" if desc != desc or adv < 0 else f"{desc:,.0f}"
         print(f"| {label} | {path} | {theta:.2f} | {cut:,.0f} | {fmt(mt)} | {fmt(me)} | "
-              f"{ratio:.2f} | {tests:,.0f} | {events:,.0f} | {ch} | {ns:.0f} | {advanced} |")
+              f"{ratio:.2f} | {tests:,.0f} | {events:,.0f} | {ch} | {de} | {ns:.0f} | {advanced} |")
 
 
 if __name__ == "__main__":
