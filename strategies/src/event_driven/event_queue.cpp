@@ -391,7 +391,6 @@ bool EventQueueStrategy::run(const IterationInput& input, TreeCut& cut, Iteratio
       }
       work_[i] = kErased;
       --queued_;
-      ++stats_.due;
       const NodeId n = entry & ~kBoundary;
       const bool boundary = (entry & kBoundary) != 0;
       // No state_[n].slot = kNone here: n is queued again either way.

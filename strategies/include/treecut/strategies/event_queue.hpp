@@ -128,7 +128,6 @@ class EventQueueStrategy final : public Strategy {
     std::size_t queued = 0;             ///< events in the translation lists afterwards
     std::size_t rotation_queued = 0;    ///< nodes with a live rotation entry afterwards
     std::uint64_t rotation_events = 0;  ///< events handled from the rotation lists
-    std::uint64_t due = 0;              ///< events handled from the translation lists
     std::uint64_t descended = 0;        ///< children of unfolds tested at once
     std::uint64_t changed = 0;          ///< tests that changed the cut (unfolds and folds)
     std::uint64_t unfolded = 0;         ///< of those, unfolds (the rest folded a subtree)
