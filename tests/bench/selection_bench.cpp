@@ -29,6 +29,7 @@
 
 #include "bench_models.hpp"
 #include "treecut/file_io.hpp"
+#include "treecut/mix64.hpp"
 #include "treecut/strategies/event_queue.hpp"
 #include "treecut/strategies/topdown.hpp"
 
@@ -175,18 +176,12 @@ double choose_theta(const Hierarchy& h, const ViewSnapshot& v) {
   return std::sqrt(lo * hi);
 }
 
-// The cut as a set, whatever its order: the size and a sum of mixed ids
-// (splitmix64's finalizer), so two cuts that differ in any node differ here
-// but for a 2^-64 chance.
+// The cut as a set, whatever its order: a sum of mixed ids, so two cuts
+// that differ in any node differ here but for a 2^-64 chance.
 std::uint64_t fingerprint(const TreeCut& cut) {
   std::uint64_t sum = 0;
-  for (const NodeId n : cut.nodes()) {
-    std::uint64_t z = std::uint64_t(n) + 0x9e3779b97f4a7c15ull;
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-    sum += z ^ (z >> 31);
-  }
-  return sum ^ (std::uint64_t(cut.size()) << 40);
+  for (const NodeId n : cut.nodes()) sum += splitmix64(n);
+  return sum;
 }
 
 double median(std::vector<double> v) {

@@ -6,6 +6,7 @@
 #include <glm/common.hpp>
 #include <numeric>
 
+#include "treecut/mix64.hpp"
 #include "treecut/parallel.hpp"
 
 namespace treecut::detail {
@@ -22,14 +23,6 @@ constexpr int kMaxShell = 8;
 template <class T>
 void release_keys(std::vector<T>& v) {
   std::vector<T>().swap(v);
-}
-
-std::uint64_t mix(std::uint64_t x) {  // splitmix64 finalizer
-  x ^= x >> 30;
-  x *= 0xbf58476d1ce4e5b9ull;
-  x ^= x >> 27;
-  x *= 0x94d049bb133111ebull;
-  return x ^ (x >> 31);
 }
 
 }  // namespace
@@ -109,14 +102,14 @@ void KnnGrid::bucket(float cell_size) {
   table_.assign(cap, Cell{~0ull, 0, 0});
   mask_ = cap - 1;
   for (const Cell& run : runs_) {
-    std::uint64_t h = mix(run.key) & mask_;
+    std::uint64_t h = mix64(run.key) & mask_;
     while (table_[h].key != ~0ull) h = (h + 1) & mask_;
     table_[h] = run;
   }
 }
 
 const KnnGrid::Cell* KnnGrid::find(std::uint64_t key) const {
-  for (std::uint64_t h = mix(key) & mask_;; h = (h + 1) & mask_) {
+  for (std::uint64_t h = mix64(key) & mask_;; h = (h + 1) & mask_) {
     const Cell& c = table_[h];
     if (c.key == key) return &c;
     if (c.key == ~0ull) return nullptr;

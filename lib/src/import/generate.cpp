@@ -9,22 +9,17 @@
 #include <glm/geometric.hpp>
 
 #include "treecut/error.hpp"
+#include "treecut/mix64.hpp"
 #include "treecut/parallel.hpp"
 
 namespace treecut {
 
 namespace {
 
-std::uint64_t hash64(std::uint64_t x) {
-  x += 0x9e3779b97f4a7c15ull;
-  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
-  x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
-  return x ^ (x >> 31);
-}
-
 // Uniform in [0, 1) from a hash of the arguments.
 float unit(std::uint64_t seed, std::uint64_t i, std::uint64_t stream) {
-  return static_cast<float>(hash64(seed ^ hash64(i * 4 + stream)) >> 40) * (1.0f / 16777216.0f);
+  return static_cast<float>(splitmix64(seed ^ splitmix64(i * 4 + stream)) >> 40) *
+         (1.0f / 16777216.0f);
 }
 
 glm::u8vec4 rgb(float r, float g, float b) {

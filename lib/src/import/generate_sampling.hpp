@@ -11,6 +11,7 @@
 #include <numbers>
 #include <vector>
 
+#include "treecut/mix64.hpp"
 #include "treecut/parallel.hpp"
 #include "treecut/point_set.hpp"
 
@@ -18,16 +19,9 @@ namespace treecut::scene_detail {
 
 constexpr float kPi = std::numbers::pi_v<float>;
 
-inline std::uint64_t mix(std::uint64_t x) {
-  x += 0x9e3779b97f4a7c15ull;
-  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
-  x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
-  return x ^ (x >> 31);
-}
-
 // Uniform in [0, 1) for (seed, index, stream); any number of streams.
 inline float rnd(std::uint64_t seed, std::uint64_t i, std::uint64_t stream) {
-  return static_cast<float>(mix(mix(seed * 0x100000001b3ull + stream) ^ i) >> 40) *
+  return static_cast<float>(splitmix64(splitmix64(seed * 0x100000001b3ull + stream) ^ i) >> 40) *
          (1.0f / 16777216.0f);
 }
 
