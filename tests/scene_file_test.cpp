@@ -120,6 +120,9 @@ TEST(SceneFile, EveryMalformedLineNamesFileAndLine) {
        "3: matrix: singular (not invertible)"},
       {"model m m.ply\nobject m scale 1e-20 scale 1e-20\n",
        "3: the transform is not invertible (singular)"},
+      // Found by scene_fuzz: invertible in double, not after rounding to floats.
+      {"model m m.ply\nobject m matrix 5 0 0 5  0 1 0 0  33333333.3 0 1 0\n",
+       "3: the transform is too badly conditioned for single precision"},
       {"model m missing.ply\n", "2: model 'm': "},
       {"model m folder.ply\n", "2: model 'm': "},
       {"include missing.scene\n", "2: "},

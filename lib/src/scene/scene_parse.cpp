@@ -261,6 +261,18 @@ struct Parser {
                 throw InputError("the transform or its inverse does not fit in floats");
           o.world = glm::mat4(world);
           o.world_inverse = glm::mat4(inverse);
+          // The engine keeps both in floats: after rounding they must still be
+          // inverses. A shear or scale spread near float precision (a column
+          // of 3e7 beside columns of 1) passes the determinant test, but its
+          // float pair is off by tenths and would move the lighting and the
+          // culling of the object.
+          const glm::mat4 product = o.world * o.world_inverse;
+          for (int c = 0; c < 4; ++c)
+            for (int r = 0; r < 4; ++r)
+              if (!(std::abs(product[c][r] - (c == r ? 1.0f : 0.0f)) <= 1e-3f))
+                throw InputError(
+                    "the transform is too badly conditioned for single precision (its float "
+                    "inverse is not one)");
           o.file = file;
           o.line = line_no;
           out.objects.push_back(o);
