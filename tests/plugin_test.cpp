@@ -3,11 +3,15 @@
 // passes its path in TREECUT_EXAMPLE_PLUGIN) registers and runs its strategy.
 #include "treecut/plugin.hpp"
 
+#include <dlfcn.h>
 #include <gtest/gtest.h>
 
 #include <cstdlib>
+#include <fstream>
+#include <iterator>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "strategy_fixtures.hpp"
 #include "test_support.hpp"
@@ -32,14 +36,76 @@ std::string message_of(const std::function<void()>& f) {
 TEST(Plugin, AMissingFileIsAnInputErrorNamingIt) {
   StrategyRegistry r;
   const std::string m = message_of([&] { r.load_plugin("/nonexistent/libnothing.so"); });
-  EXPECT_NE(m.find("/nonexistent/libnothing.so: cannot load plugin"), std::string::npos) << m;
+  EXPECT_EQ(m, "/nonexistent/libnothing.so: no such file");
+}
+
+// The C library this test runs with, by its absolute path.
+std::string libc_path() {
+  Dl_info info{};
+  if (dladdr(reinterpret_cast<void*>(&::dlopen), &info) == 0 || info.dli_fname == nullptr)
+    return {};
+  return info.dli_fname;
 }
 
 TEST(Plugin, ALibraryWithoutEntryPointsIsRefused) {
+  const std::string libc = libc_path();
+  if (libc.empty() || libc.front() != '/') GTEST_SKIP() << "no path for the C library";
   StrategyRegistry r;
-  const std::string m = message_of([&] { r.load_plugin("libm.so.6"); });
+  const std::string m = message_of([&] { r.load_plugin(libc); });
   EXPECT_NE(m.find("not a treecut plugin"), std::string::npos) << m;
   EXPECT_TRUE(r.names().empty());
+}
+
+// A plugin path is a path: a bare name that is no file here is "no such
+// file", never a search of the library path (which loaded the system's libz
+// and ran its constructors before saying it was no plugin).
+TEST(Plugin, ABareNameIsAFileNotALibrarySearch) {
+  StrategyRegistry r;
+  EXPECT_EQ(message_of([&] { r.load_plugin("libz.so.1"); }), "libz.so.1: no such file");
+  EXPECT_EQ(message_of([&] { r.load_plugin("libc.so.6"); }), "libc.so.6: no such file");
+}
+
+// What dlopen would map past the end of the file (a SIGBUS inside it) or
+// refuse with a cryptic message is named before dlopen sees it.
+TEST(Plugin, TruncatedForeignAndNonLibraryFilesAreRefusedBeforeDlopen) {
+  const std::string libc = libc_path();
+  if (libc.empty() || libc.front() != '/') GTEST_SKIP() << "no path for the C library";
+  const auto dir = test::scratch_dir("plugin_not_libraries");
+  std::string bytes;
+  {
+    std::ifstream in(libc, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  ASSERT_GT(bytes.size(), 65536u);
+  auto write = [&](const std::string& name, const std::string& content) {
+    std::ofstream(dir / name, std::ios::binary) << content;
+    return (dir / name).string();
+  };
+  struct Case {
+    std::string path, says;
+  };
+  std::string foreign = bytes;
+  foreign[18] = 40;  // e_machine: EM_ARM
+  foreign[19] = 0;
+  std::string executable = bytes;
+  executable[16] = 2;  // e_type: ET_EXEC
+  executable[17] = 0;
+  const std::vector<Case> cases{
+      {write("t.so", bytes.substr(0, 4096)), "truncated"},
+      {write("half.so", bytes.substr(0, bytes.size() / 2)), "truncated"},
+      {write("empty.so", ""), "not a shared library (no ELF header)"},
+      {write("notes.so", "just some text\n"), "not a shared library (no ELF header)"},
+      {write("header.so", bytes.substr(0, 40)), "truncated (shorter than an ELF header)"},
+      {write("arm.so", foreign), "an ELF file for another kind of machine"},
+      {write("exec.so", executable), "an ELF executable, not a shared library"},
+  };
+  for (const Case& c : cases) {
+    StrategyRegistry r;
+    const std::string m = message_of([&] { r.load_plugin(c.path); });
+    EXPECT_EQ(m.rfind(c.path + ": ", 0), 0u) << m;
+    EXPECT_NE(m.find(c.says), std::string::npos) << c.path << " -> " << m;
+    EXPECT_TRUE(r.names().empty());
+  }
 }
 
 TEST(ExamplePlugin, RegistersAndRunsItsStrategyInAFeedbackStage) {

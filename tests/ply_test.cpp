@@ -551,7 +551,16 @@ TEST(PlyLoad, AllPointsNonFiniteIsOneErrorAndNoWarning) {
       {head + "nan 0 0\n0 inf 0\n-inf nan nan\n",
        "mem.ply: no finite points (all 3 vertices are NaN or infinite)"},
       {head + "nan 0 0\n1e30 0 0\n0 0 -inf\n",
-       "mem.ply: no finite points (all 3 vertices are NaN or infinite or beyond 1e18)"},
+       "mem.ply: no usable points (all 3 vertices are NaN, infinite or beyond 1e18: 2 not finite, "
+       "1 too large)"},
+      {head + "1e30 0 0\n0 -1e19 0\n0 0 3e38\n",
+       "mem.ply: no usable points (all 3 vertices are finite but beyond the coordinate limit, 1e18 "
+       "in magnitude)"},
+      // Finite doubles past the float range: too large, not "infinite".
+      {"ply\nformat ascii 1.0\nelement vertex 2\nproperty double x\nproperty double y\n"
+       "property double z\nend_header\n1e300 0 0\n0 0 -1e300\n",
+       "mem.ply: no usable points (all 2 vertices are finite but beyond the coordinate limit, 1e18 "
+       "in magnitude)"},
       {"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
        "property float z\nend_header\nnan 0 0\n",
        "mem.ply: no finite points (the only vertex is NaN or infinite)"},
@@ -590,6 +599,42 @@ TEST(PlyLoad, ByteOrderMarkAndCrOnlyLineEndingsAreNamed) {
                  body.bytes)
                 .size(),
             1u);
+}
+
+// Binary doubles past the float range, whether OpenMesh reads the file's
+// own bytes or a transcoded body: "too large", and a point that is finite
+// and in range beside them loads with one warning naming them so.
+TEST(PlyLoad, BinaryDoublesPastTheFloatRangeAreTooLargeNotInfinite) {
+  const std::string header =
+      "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty double x\n"
+      "property double y\nproperty double z\nend_header\n";
+  Body all;
+  all.put(1e300).put(0.0).put(0.0).put(0.0).put(-1e300).put(0.0).put(0.0).put(0.0).put(1e39);
+  EXPECT_EQ(error_of(header + all.bytes),
+            "mem.ply: no usable points (all 3 vertices are finite but beyond the coordinate "
+            "limit, 1e18 in magnitude)");
+  Body some;
+  some.put(1e300).put(0.0).put(0.0).put(1.0).put(2.0).put(3.0).put(0.0).put(0.0).put(4.0);
+  std::vector<std::string> warnings;
+  EXPECT_EQ(load(header + some.bytes, nullptr, &warnings).size(), 2u);
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("out-of-range (beyond 1e18)"), std::string::npos) << warnings[0];
+}
+
+// Files of other formats are named by their signature, not as a PLY with a
+// bad magic line or "CR-only line endings" (a LAS header holds a CR byte).
+TEST(PlyLoad, OtherFormatsAreNamedByTheirSignature) {
+  std::string las = "LASF";
+  las += std::string("\0\0\x01\x02\r\x0a\x00\x05", 8) + std::string(200, '\0');
+  EXPECT_EQ(error_of(las), "mem.ply: not a PLY file: a LAS/LAZ point cloud (LASF signature)");
+  EXPECT_EQ(error_of("ASTM-E57 and more"), "mem.ply: not a PLY file: an E57 point cloud");
+  EXPECT_EQ(error_of("# .PCD v0.7\nVERSION 0.7\n"),
+            "mem.ply: not a PLY file: a PCL point cloud (.pcd)");
+  EXPECT_EQ(error_of("\x89PNG\r\n\x1a\n"), "mem.ply: not a PLY file: a PNG image");
+  EXPECT_EQ(error_of("treecut-camera-path 1\n"),
+            "mem.ply: not a PLY file: a treecut text file (camera path, scene or script)");
+  // Text with a CR in its first line that does not start like a PLY.
+  EXPECT_EQ(error_of("x y z\r1 2 3\r"), "mem.ply: not a PLY file (no 'ply' magic line)");
 }
 
 TEST(PlyLoad, TristripsBecomeTriangles) {

@@ -16,4 +16,12 @@ class InputError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+/// A file changed while it was being read (it shrank under a mapping, or its
+/// identity moved between the start and the end of a read): a runtime
+/// failure (exit code 1), "NAME: changed while being read".
+class FileChangedError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 }  // namespace treecut

@@ -49,15 +49,44 @@ std::string read_text_file(const std::filesystem::path& path, std::size_t limit 
 /// and symbolic links to it count). False when either does not exist.
 bool same_file(const std::filesystem::path& a, const std::filesystem::path& b);
 
-/// "PATH: REASON" where REASON is strerror(error), as one line.
+/// Whether writing A would write B: the same file now (same_file), or, for
+/// files that do not exist yet, the same place once `.`, `..` and symbolic
+/// links in their folders are resolved ("n.ply" and "./d/../n.ply").
+bool same_destination(const std::filesystem::path& a, const std::filesystem::path& b);
+
+/// A file name as a one-line message shows it: as it is when it holds only
+/// letters, digits and `._/+,:@%=~-` (or printable non-ASCII UTF-8), else in
+/// single quotes with control characters, invalid UTF-8 and the C1 controls
+/// escaped (\n, \t, \x1b, ...) and `'` and `\` backslashed: a name can
+/// neither break the one-line rule nor send the terminal an escape sequence.
+std::string quoted_name(const std::filesystem::path& path);
+std::string quoted_name(std::string_view name);
+inline std::string quoted_name(const std::string& name) {
+  return quoted_name(std::string_view(name));
+}
+inline std::string quoted_name(const char* name) {
+  return quoted_name(std::string_view(name));
+}
+
+/// TEXT with every control character (C0, DEL, the C1 controls) and invalid
+/// UTF-8 escaped as in quoted_name(): the last guard of the one-line rule, applied
+/// by the program to every message it prints.
+std::string one_line(std::string_view text);
+
+/// "PATH: REASON" where REASON is strerror(error), as one line (PATH quoted_name()).
 std::string system_error_text(const std::filesystem::path& path, int error);
 
 /// An output file under construction. The bytes go to a temporary file in
-/// the target's folder (created with O_EXCL, never following a link); commit()
-/// flushes, closes and renames it over the target. Destroying an uncommitted
-/// AtomicFile removes the temporary, so a failed or abandoned write leaves
-/// nothing behind and the previous target untouched. Errors throw
-/// std::runtime_error "TARGET: REASON" (exit code 1 in the program).
+/// the target's folder, "TARGET.tmp-PID-N" (created with O_EXCL, never
+/// following a link); commit() flushes, closes and renames it over the
+/// target. Destroying an uncommitted AtomicFile removes the temporary, so a
+/// failed or abandoned write leaves nothing behind and the previous target
+/// untouched; so does SIGINT, SIGTERM, SIGHUP or SIGQUIT (the temporary is
+/// registered with the signal guard), and the temporaries of a process that
+/// died without a chance (kill -9, a power cut) are removed by the next
+/// AtomicFile of the same target: "TARGET.tmp-PID-N" of a PID that no longer
+/// runs, owned by this user. Errors throw std::runtime_error "TARGET: REASON"
+/// (exit code 1 in the program).
 class AtomicFile {
  public:
   explicit AtomicFile(std::filesystem::path target);
@@ -69,6 +98,11 @@ class AtomicFile {
   void write(std::string_view text) { write(text.data(), text.size()); }
   /// Makes the new content visible at the target, atomically.
   void commit();
+  /// Makes it visible at NAME (in the target's folder) only if nothing is
+  /// there, atomically (no other writer can slip in between a check and the
+  /// rename); false when NAME exists, and the content stays to be committed
+  /// under another name.
+  bool commit_new(const std::filesystem::path& name);
 
   [[nodiscard]] const std::filesystem::path& target() const { return target_; }
   [[nodiscard]] const std::filesystem::path& temporary() const { return temporary_; }
@@ -78,15 +112,30 @@ class AtomicFile {
   void buffer_flush();
   void discard() noexcept;
 
+  void close_checked();
+
   std::filesystem::path target_;
   std::filesystem::path temporary_;
   int fd_ = -1;
+  int signal_slot_ = -1;  // support/signal_guard.hpp
   std::uint64_t written_ = 0;
   std::string buffer_;  // writes are batched into 1 MiB system calls
 };
 
 /// Writes `bytes` to `target` through an AtomicFile.
 void write_file_atomically(const std::filesystem::path& target, std::string_view bytes);
+
+/// Writes `bytes` to the first name of WANTED, STEM-1.EXT, STEM-2.EXT, ...
+/// that is free when the file is committed (AtomicFile::commit_new), and
+/// returns it: never over an existing file, even one written a moment ago.
+std::filesystem::path write_file_to_free_name(const std::filesystem::path& wanted,
+                                              std::string_view bytes);
+
+/// Removes "NAME.tmp-PID-N" files in FOLDER whose NAME ends with SUFFIX,
+/// whose PID no longer runs and which this user owns: what killed writers
+/// left. For folders that are treecut's own (the cache folder); AtomicFile
+/// does this for its own target everywhere. Returns how many were removed.
+std::size_t remove_stale_temporaries(const std::filesystem::path& folder, std::string_view suffix);
 
 /// A token of a user's text as it may appear in a one-line message: control
 /// and non-ASCII bytes become '?' (a binary file must not garble the

@@ -12,6 +12,11 @@
 
 namespace treecut {
 
+/// The largest coordinate magnitude treecut works with (models, camera eyes
+/// and targets): squared distances and covariances of such points still fit
+/// a float. Model points beyond it are dropped on import.
+inline constexpr float kMaxCoordinate = 1e18f;
+
 struct PointSet {
   std::vector<glm::vec3> positions;   ///< model units, always size()
   std::vector<glm::vec3> normals;     ///< unit length (zero when undefined) or empty

@@ -106,6 +106,15 @@ struct Scene {
 /// symmetric 3x3 (Smith 1961); exactly 1, 1, 1 for the identity.
 std::array<double, 3> singular_values(const glm::mat4& world);
 
+/// Whether the linear part of a transform is safely invertible: finite, no
+/// column shorter than 1e-30, and its determinant neither lost in rounding
+/// relative to the product of the column lengths (1e-9: a singular matrix
+/// written with rounded numbers) nor relative to the longest column cubed
+/// (1e-12: a flattening whose inverse and normal widening leave floats).
+/// The one test: the scene parser rejects what fails it (FILE:LINE, exit 2),
+/// and the scene drawer asserts it.
+bool invertible_transform(const glm::dmat3& linear);
+
 /// The memory of a loaded scene (what `treecut info` and the benchmarks print).
 struct SceneMemory {
   std::size_t hierarchy_bytes = 0;  ///< node arrays of the distinct hierarchies, each once

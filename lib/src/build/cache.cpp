@@ -6,7 +6,6 @@
 #include "treecut/cache.hpp"
 
 #include <fcntl.h>
-#include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -20,6 +19,7 @@
 #include "cache_format.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
+#include "treecut/mapped_file.hpp"
 
 namespace treecut {
 
@@ -120,17 +120,6 @@ std::uint64_t checksum(const unsigned char* data, std::size_t size) {
   return c.finish();
 }
 
-struct Mapping {
-  void* base = MAP_FAILED;
-  std::size_t size = 0;
-  Mapping() = default;
-  Mapping(const Mapping&) = delete;
-  Mapping& operator=(const Mapping&) = delete;
-  ~Mapping() {
-    if (base != MAP_FAILED) munmap(base, size);
-  }
-};
-
 bool fail(std::string* why, std::string text) {
   if (why) *why = std::move(text);
   return false;
@@ -139,42 +128,44 @@ bool fail(std::string* why, std::string text) {
 // Structural sanity of the links, O(nodes): what a reader relies on to never
 // index out of bounds. (Geometric invariants are the builder's business and
 // are covered by the checksum.)
-bool links_ok(const HierarchyArrays& a, std::span<const NodeId> levels, std::string* why) {
+// Returns what is wrong, or nullptr. (No std::string: it runs under
+// MappedFile::read_guarded, which may leave it by a jump.)
+const char* link_problem(const HierarchyArrays& a, std::span<const NodeId> levels) {
   const std::size_t n = a.center_radius.size();
   if (levels.size() < 2 || levels.front() != 0 || levels.back() != n)
-    return fail(why, "level table does not span the nodes");
+    return "level table does not span the nodes";
   for (std::size_t d = 0; d + 1 < levels.size(); ++d)
-    if (levels[d] >= levels[d + 1]) return fail(why, "level table not increasing");
-  if (a.parent[0] != kNoNode || a.depth[0] != 0) return fail(why, "bad root");
+    if (levels[d] >= levels[d + 1]) return "level table not increasing";
+  if (a.parent[0] != kNoNode || a.depth[0] != 0) return "bad root";
   for (std::size_t d = 0; d + 1 < levels.size(); ++d) {
     std::uint64_t children = 0;  // of this level: must be the whole next level
     for (NodeId i = levels[d]; i < levels[d + 1]; ++i) {
-      if (a.depth[i] != d) return fail(why, "node depth disagrees with the level table");
+      if (a.depth[i] != d) return "node depth disagrees with the level table";
       const unsigned cc = a.child_count[i];
       if (cc == 0) {
-        if (a.point_count[i] != 1) return fail(why, "leaf point count is not 1");
+        if (a.point_count[i] != 1) return "leaf point count is not 1";
         continue;
       }
       const NodeId c0 = a.first_child[i];
       if (cc > 4 || c0 < levels[d + 1] || c0 > n || cc > n - c0 ||
           (d + 2 < levels.size() && c0 + cc > levels[d + 2]))
-        return fail(why, "child range out of bounds");
+        return "child range out of bounds";
       std::uint64_t points = 0;
       for (NodeId c = c0; c < c0 + cc; ++c) {
-        if (a.parent[c] != i) return fail(why, "parent link broken");
+        if (a.parent[c] != i) return "parent link broken";
         points += a.point_count[c];
       }
       // leaf_count() is the root's count and sizes allocations: every count
       // must be the sum of the children's, down to the leaves' 1.
-      if (a.point_count[i] != points) return fail(why, "point count is not the children's sum");
+      if (a.point_count[i] != points) return "point count is not the children's sum";
       children += cc;
     }
     // The parent links make the child ranges disjoint; covering the next
     // level as well leaves no node unreachable from the root.
     const std::uint64_t next = d + 2 < levels.size() ? levels[d + 2] - levels[d + 1] : 0;
-    if (children != next) return fail(why, "a node is nobody's child");
+    if (children != next) return "a node is nobody's child";
   }
-  return true;
+  return nullptr;
 }
 
 // open_regular_file() without the exception: the reason as *why, without the
@@ -188,7 +179,7 @@ int open_for_reading(const std::filesystem::path& path, std::string* why) {
   } catch (const InputError& e) {
     // "PATH: reason" -> "reason"
     const std::string text = e.what();
-    const std::string prefix = path.string() + ": ";
+    const std::string prefix = quoted_name(path) + ": ";
     fail(why, text.rfind(prefix, 0) == 0 ? text.substr(prefix.size()) : text);
     return -1;
   }
@@ -209,17 +200,21 @@ std::optional<Hierarchy> map_and_verify(const std::filesystem::path& path, Heade
     ::close(fd);
     return fail(why, "truncated (shorter than a header)"), std::nullopt;
   }
-  auto map = std::make_shared<Mapping>();
-  map->base = mmap(nullptr, size, PROT_READ, MAP_PRIVATE, fd, 0);
-  const int map_error = errno;
-  map->size = size;
+  std::shared_ptr<MappedFile> map;
+  try {
+    map = std::make_shared<MappedFile>(fd, size, path);
+  } catch (const std::exception& e) {
+    ::close(fd);
+    const std::string text = e.what();  // "NAME: REASON"
+    return fail(why, "cannot map: " + text.substr(text.rfind(": ") + 2)), std::nullopt;
+  }
   ::close(fd);
-  if (map->base == MAP_FAILED)
-    return fail(why, std::string("cannot map: ") + std::strerror(map_error)), std::nullopt;
-  const auto* bytes = static_cast<const unsigned char*>(map->base);
+  const unsigned char* bytes = map->data();
 
+  // Every read of the mapping below is guarded: a cache truncated meanwhile
+  // is a FileChangedError, not a SIGBUS.
   Header h;
-  std::memcpy(&h, bytes, sizeof h);
+  map->read_guarded([&] { std::memcpy(&h, bytes, sizeof h); });
   if (std::memcmp(h.magic, kMagic, sizeof kMagic) != 0)
     return fail(why, "not a treecut cache"), std::nullopt;
   if (h.version != kVersion)
@@ -231,10 +226,13 @@ std::optional<Hierarchy> map_and_verify(const std::filesystem::path& path, Heade
   if (h.header_size != sizeof(Header)) return fail(why, "header size mismatch"), std::nullopt;
   if (h.payload_end != size - 8)
     return fail(why, "truncated or extended (size mismatch)"), std::nullopt;
-  std::uint64_t stored;
-  std::memcpy(&stored, bytes + size - 8, 8);
-  if (checksum(bytes, size - 8) != stored)
-    return fail(why, "checksum mismatch (corrupted)"), std::nullopt;
+  bool sum_ok = false;
+  map->read_guarded([&] {
+    std::uint64_t stored;
+    std::memcpy(&stored, bytes + size - 8, 8);
+    sum_ok = checksum(bytes, size - 8) == stored;
+  });
+  if (!sum_ok) return fail(why, "checksum mismatch (corrupted)"), std::nullopt;
 
   // The checksum only proves the file is what some writer wrote; still check
   // every offset before building spans.
@@ -262,10 +260,15 @@ std::optional<Hierarchy> map_and_verify(const std::filesystem::path& path, Heade
                     {reinterpret_cast<const std::uint8_t*>(at(7)), nn},
                     {reinterpret_cast<const std::uint8_t*>(at(8)), nn}};
   std::vector<NodeId> levels(h.level_count + 1);
-  std::memcpy(levels.data(), bytes + h.level_table, levels.size() * sizeof(NodeId));
-  if (!links_ok(a, levels, why)) return std::nullopt;
+  const char* problem = nullptr;
+  map->read_guarded([&] {
+    std::memcpy(levels.data(), bytes + h.level_table, levels.size() * sizeof(NodeId));
+    problem = link_problem(a, levels);
+  });
+  if (problem != nullptr) return fail(why, problem), std::nullopt;
   if (out_header) *out_header = h;
-  return Hierarchy::from_arrays(map, a, std::move(levels), {h.bounds[0], h.bounds[1], h.bounds[2]},
+  return Hierarchy::from_arrays(std::move(map), a, std::move(levels),
+                                {h.bounds[0], h.bounds[1], h.bounds[2]},
                                 {h.bounds[3], h.bounds[4], h.bounds[5]});
 }
 

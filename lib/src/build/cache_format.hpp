@@ -3,6 +3,7 @@
 // library; the layout itself stays inside cache.cpp.
 #pragma once
 
+#include <cstdint>
 #include <filesystem>
 #include <optional>
 
@@ -15,5 +16,10 @@ namespace treecut::detail {
 /// to decide whether the content hash can be skipped. nullopt when CACHE is
 /// not a readable cache of this format version. Never blocks.
 std::optional<CacheKey> peek_cache_key(const std::filesystem::path& cache);
+
+/// XXH3-64 of the first SIZE bytes (what an fstat saw) of the file open as
+/// FD, named SOURCE in messages. Throws FileChangedError when the file is
+/// shorter than that by the time its pages are read.
+std::uint64_t hash_descriptor(const std::filesystem::path& source, int fd, std::uint64_t size);
 
 }  // namespace treecut::detail

@@ -17,6 +17,7 @@
 #include "cache_format.hpp"
 #include "treecut/cache.hpp"
 #include "treecut/file_io.hpp"
+#include "treecut/mapped_file.hpp"
 
 namespace treecut {
 
@@ -45,24 +46,29 @@ CacheKey identity_of_descriptor(const std::filesystem::path& source, int fd,
   return key;
 }
 
+}  // namespace
+
 // XXH3-64 of the SIZE bytes behind FD. Through a read-only mapping (no copy
 // into a buffer; the model was usually just read, so its pages are in the
-// page cache and hashing runs at memory bandwidth).
-std::uint64_t hash_descriptor(const std::filesystem::path& source, int fd, std::uint64_t size) {
+// page cache and hashing runs at memory bandwidth). A file that shrinks
+// meanwhile (or is shorter than SIZE, the size an earlier fstat saw) is a
+// FileChangedError, not a SIGBUS.
+std::uint64_t detail::hash_descriptor(const std::filesystem::path& source, int fd,
+                                      std::uint64_t size) {
   if (size == 0) return XXH3_64bits(nullptr, 0);
-  const auto length = static_cast<std::size_t>(size);
-  void* base = ::mmap(nullptr, length, PROT_READ, MAP_PRIVATE, fd, 0);
-  if (base == MAP_FAILED) throw std::runtime_error(system_error_text(source, errno));
-  ::madvise(base, length, MADV_SEQUENTIAL);
-  const std::uint64_t hash = XXH3_64bits(base, length);
-  ::munmap(base, length);
+  const MappedFile map(fd, size, source);
+  ::madvise(const_cast<unsigned char*>(map.data()), map.size(), MADV_SEQUENTIAL);
+  std::uint64_t hash = 0;
+  map.read_guarded([&] { hash = XXH3_64bits(map.data(), map.size()); });
   return hash;
 }
+
+namespace {
 
 CacheKey key_of_descriptor(const std::filesystem::path& source, int fd,
                            std::uint32_t options_bits) {
   CacheKey key = identity_of_descriptor(source, fd, options_bits);
-  key.content_hash = hash_descriptor(source, fd, key.source_size);
+  key.content_hash = detail::hash_descriptor(source, fd, key.source_size);
   return key;
 }
 
@@ -108,7 +114,7 @@ CacheLookup lookup_cache(const std::filesystem::path& source, const std::filesys
   out.key = identity_of_descriptor(source, file.fd, options_bits);
   auto hash = [&] {
     const auto t0 = std::chrono::steady_clock::now();
-    const std::uint64_t h = hash_descriptor(source, file.fd, out.key.source_size);
+    const std::uint64_t h = detail::hash_descriptor(source, file.fd, out.key.source_size);
     out.hash_seconds = seconds_since(t0);
     return h;
   };

@@ -1,8 +1,11 @@
 #include "treecut/model_io.hpp"
 
+#include <unistd.h>
+
 #include <chrono>
 #include <cstdlib>
 #include <cstring>
+#include <mutex>
 #include <optional>
 #include <stdexcept>
 
@@ -76,6 +79,26 @@ void probe_cache_destination(const std::filesystem::path& cache) {
   AtomicFile probe(cache);  // never committed: the destructor removes it
 }
 
+// Whether the regular file PATH starts with PREFIX (false when unreadable).
+bool starts_with_bytes(const std::filesystem::path& path, std::string_view prefix) {
+  try {
+    const int fd = open_regular_file(path);
+    std::string head(prefix.size(), '\0');
+    const bool same =
+        ::read(fd, head.data(), head.size()) == static_cast<ssize_t>(head.size()) && head == prefix;
+    ::close(fd);
+    return same;
+  } catch (const std::exception&) {
+    return false;
+  }
+}
+
+bool same_identity(const CacheKey& a, const CacheKey& b) {
+  return a.source_device == b.source_device && a.source_inode == b.source_inode &&
+         a.source_size == b.source_size && a.source_mtime_ns == b.source_mtime_ns &&
+         a.source_ctime_ns == b.source_ctime_ns;
+}
+
 }  // namespace
 
 OpenedModel open_model(const std::filesystem::path& model, const OpenOptions& options) {
@@ -86,17 +109,22 @@ OpenedModel open_model(const std::filesystem::path& model, const OpenOptions& op
     std::string why;
     auto t0 = std::chrono::steady_clock::now();
     auto h = load_cache(model, std::nullopt, &why);
-    if (!h) throw InputError(model.string() + ": " + why);
+    if (!h) throw InputError(quoted_name(model) + ": " + why);
     out.hierarchy = std::move(*h);
     out.cache = model;
     out.from_cache = true;
     out.cache_seconds = seconds_since(t0);
     return out;
   }
+  // A .tch that is not a cache is named as such, not as a bad PLY (unless it
+  // is a PLY under that name).
+  if (model.extension() == ".tch" && !starts_with_bytes(model, "ply"))
+    throw InputError(quoted_name(model) +
+                     ": not a treecut cache (it does not start with a cache's signature)");
   const std::uint32_t bits = options_bits(options.attributes, options.build);
   out.cache = options.cache_path ? *options.cache_path : default_cache_path(model);
   if (same_file(out.cache, model))
-    throw InputError(out.cache.string() + ": is the model itself (" + model.string() +
+    throw InputError(quoted_name(out.cache) + ": is the model itself (" + quoted_name(model) +
                      "); refusing to write a cache over it");
   auto hash_model = [&] {
     const auto t0 = std::chrono::steady_clock::now();
@@ -110,7 +138,7 @@ OpenedModel open_model(const std::filesystem::path& model, const OpenOptions& op
   bool write_cache = options.use_cache;
   if (kind != FileKind::Missing && kind != FileKind::Regular) {
     const std::string what =
-        out.cache.string() + ": is " + std::string(describe(kind)) + ", not a cache file";
+        quoted_name(out.cache) + ": is " + std::string(describe(kind)) + ", not a cache file";
     if (options.require_cache) throw std::runtime_error(what);
     out.cache_note = what;
     if (options.warn) options.warn(what + " (continuing without a cache)");
@@ -130,7 +158,7 @@ OpenedModel open_model(const std::filesystem::path& model, const OpenOptions& op
       return out;
     }
     out.cache_note = found.why;
-    if (options.warn) options.warn(out.cache.string() + ": " + out.cache_note + "; rebuilding");
+    if (options.warn) options.warn(quoted_name(out.cache) + ": " + out.cache_note + "; rebuilding");
     key = found.key;
   } else {
     key = hash_model();
@@ -141,8 +169,24 @@ OpenedModel open_model(const std::filesystem::path& model, const OpenOptions& op
   };
   stage("read");
   auto t0 = std::chrono::steady_clock::now();
-  PointSet points = load_ply(model, &out.ply, options.warn);
+  // The key (and the cache it names) is for the bytes hashed before the
+  // read: a model replaced or edited meanwhile (`cp new.ply model.ply` during
+  // a load) would give a hierarchy of one content under the key of another,
+  // or a parse error about bytes the user never wrote.
+  const auto changed = [&] { return !same_identity(cache_identity_of(model, bits), *key); };
+  const auto changed_error = [&] {
+    return FileChangedError(quoted_name(model) +
+                            ": changed while being read (its size, times or inode moved)");
+  };
+  PointSet points;
+  try {
+    points = load_ply(model, &out.ply, options.warn);
+  } catch (const InputError&) {
+    if (changed()) throw changed_error();
+    throw;
+  }
   out.read_seconds = seconds_since(t0);
+  if (changed()) throw changed_error();
   out.input_points = points.size();
   stage("attributes");
   t0 = std::chrono::steady_clock::now();
@@ -161,6 +205,14 @@ OpenedModel open_model(const std::filesystem::path& model, const OpenOptions& op
   if (write_cache) {
     stage("cache");
     t0 = std::chrono::steady_clock::now();
+    // The default cache folder is treecut's own: what killed writers left
+    // there (a cache's temporary of hundreds of MB after a kill -9) goes,
+    // whichever model it was for. Elsewhere only the target's own
+    // temporaries are removed (AtomicFile).
+    if (!options.cache_path) {
+      static std::once_flag swept;
+      std::call_once(swept, [&] { remove_stale_temporaries(out.cache.parent_path(), ".tch"); });
+    }
     try {
       save_cache(out.hierarchy, *key, out.cache);
       out.cache_written = true;

@@ -244,18 +244,43 @@ std::string printable(std::string_view text) {
 
 namespace {
 
+// Point-cloud and image formats a user may hand treecut by mistake, by the
+// signature they start with: named, rather than "no 'ply' magic line".
+std::string_view other_format(std::string_view file) {
+  struct Signature {
+    std::string_view magic, name;
+  };
+  static constexpr Signature kKnown[] = {
+      {"LASF", "a LAS/LAZ point cloud (LASF signature)"},
+      {"ASTM-E57", "an E57 point cloud"},
+      {"# .PCD", "a PCL point cloud (.pcd)"},
+      {"TCUTHIER", "a treecut cache"},
+      {"\x89PNG", "a PNG image"},
+      {"\x7F"
+       "ELF",
+       "an ELF program or library"},
+      {"PK\x03\x04", "a ZIP archive"},
+      {"\x1f\x8b", "a gzip-compressed file"},
+      {"treecut-", "a treecut text file (camera path, scene or script)"},
+  };
+  for (const Signature& s : kKnown)
+    if (file.starts_with(s.magic)) return s.name;
+  return {};
+}
+
 // The two ways a text editor commonly spoils a PLY header, named as such
-// rather than as a missing magic line.
+// rather than as a missing magic line; and other formats, named.
 void check_magic_line(std::string_view file) {
   if (file.starts_with("\xEF\xBB\xBF")) {
     throw Error("starts with a UTF-8 byte-order mark (3 bytes before 'ply'); save it without one");
   }
+  if (const std::string_view other = other_format(file); !other.empty())
+    throw Error("not a PLY file: " + std::string(other));
   const std::size_t newline = file.find('\n');
   const std::string_view first = file.substr(0, newline);
-  const std::size_t cr = first.find('\r');
-  // A CR that ends the first line is a CRLF file; one followed by more text
-  // means the lines end in CR alone.
-  if (cr != std::string_view::npos && cr + 1 < first.size()) {
+  // "ply" then a CR followed by more text: the lines end in CR alone (a CR
+  // that ends the first line is a CRLF file).
+  if (first.starts_with("ply\r") && first.size() > 4) {
     throw Error("uses CR-only line endings (classic Mac); convert them to LF or CRLF");
   }
 }

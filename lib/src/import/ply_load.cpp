@@ -16,6 +16,7 @@
 
 #include "ply_load_parts.hpp"
 #include "treecut/error.hpp"
+#include "treecut/file_io.hpp"
 #include "treecut/ply.hpp"
 
 namespace treecut {
@@ -81,7 +82,7 @@ PointSet load(std::string_view file, const Warnings& warn, PlyLoadReport& report
     }
   }
   PointSet points = ply_load::read_plan(plan, warn, report);
-  ply_load::tidy(points, warn, report);
+  ply_load::tidy(points, warn, report, plan.finite_beyond_float);
   return points;
 }
 
@@ -101,7 +102,7 @@ PointSet load_ply_from_memory(std::string_view bytes, const std::string& name,
 
 PointSet load_ply(const std::filesystem::path& path, PlyLoadReport* report,
                   const WarningSink& warn) {
-  const std::string name = path.string();
+  const std::string name = quoted_name(path);
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec)) {
     throw InputError(name + ": " + (ec ? ec.message() : "not a regular file"));
@@ -114,6 +115,8 @@ PointSet load_ply(const std::filesystem::path& path, PlyLoadReport* report,
   auto buffer = std::make_unique_for_overwrite<char[]>(static_cast<std::size_t>(size));
   in.read(buffer.get(), static_cast<std::streamsize>(size));
   if (static_cast<std::uintmax_t>(in.gcount()) != size) {
+    if (std::filesystem::file_size(path, ec) != size)
+      throw FileChangedError(name + ": changed while being read (its size moved)");
     throw InputError(name + ": cannot read the whole file");
   }
   return load_ply_from_memory(std::string_view(buffer.get(), static_cast<std::size_t>(size)), name,

@@ -143,6 +143,10 @@ struct Plan {
   std::vector<BrokenElement> broken;  ///< ascii elements whose rows do not match
   bool faces_lost = false;            ///< a face element is among them
   std::size_t trailing_lines = 0;     ///< ascii: non-blank lines after the last row
+  /// Vertex rows whose position is finite in the file but past the float
+  /// range (a double 1e300): they reach the PointSet as infinities, and the
+  /// messages must not call them that.
+  std::size_t finite_beyond_float = 0;
 };
 
 // ---- ply_elements.cpp: what the file holds
@@ -180,6 +184,9 @@ PointSet read_plan(Plan& plan, const Warnings& warn, PlyLoadReport& report);
 
 // Makes the PointSet contract hold: finite positions, unit (or zero)
 // normals, radii all positive or none.
-void tidy(PointSet& points, const Warnings& warn, PlyLoadReport& report);
+// FINITE_BEYOND_FLOAT: Plan::finite_beyond_float, named as too large, not
+// as infinite.
+void tidy(PointSet& points, const Warnings& warn, PlyLoadReport& report,
+          std::size_t finite_beyond_float);
 
 }  // namespace treecut::ply_load

@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <array>
 #include <bit>
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <limits>
@@ -137,6 +138,14 @@ void append_le(std::string& out, T value) {
   out.append(bytes, sizeof(T));
 }
 
+// 1 when a position is finite but past the float range (it becomes an
+// infinity as a float), else 0.
+int finite_beyond_float(double x, double y, double z) {
+  constexpr double kMax = std::numeric_limits<float>::max();
+  const bool finite = std::isfinite(x) && std::isfinite(y) && std::isfinite(z);
+  return finite && (std::fabs(x) > kMax || std::fabs(y) > kMax || std::fabs(z) > kMax) ? 1 : 0;
+}
+
 // The canonical body for OpenMesh when it cannot read the file's own:
 // little-endian float positions (and normals), uchar colours, faces as
 // "list int int". Radii go straight to the plan.
@@ -150,6 +159,8 @@ struct Transcoder {
 
   void vertex_row(const Row& row) {
     std::string& out = plan.vertex_bytes;
+    plan.finite_beyond_float +=
+        finite_beyond_float(row.scalar(roles.x), row.scalar(roles.y), row.scalar(roles.z));
     for (int p : {roles.x, roles.y, roles.z}) append_le(out, ply::to_float(row.scalar(p)));
     if (roles.normals()) {
       for (int p : {roles.nx, roles.ny, roles.nz}) append_le(out, ply::to_float(row.scalar(p)));
@@ -231,6 +242,27 @@ void plan_direct(const Header& header, const ply::BinaryLayout& layout, std::str
   }
   input.normals = roles.normals();
   input.colors = u8_colors;
+
+  // Double positions past the float range reach the PointSet as infinities:
+  // counted here, from the file's own values, for the messages.
+  if (property(vertex, roles.x).type == Type::f64 || property(vertex, roles.y).type == Type::f64 ||
+      property(vertex, roles.z).type == Type::f64) {
+    const std::size_t stride = vertex.fixed_stride();
+    std::array<std::size_t, 3> offset{};
+    std::array<Type, 3> type{};
+    const std::array<int, 3> axes{roles.x, roles.y, roles.z};
+    for (std::size_t a = 0; a < 3; ++a) {
+      for (int i = 0; i < axes[a]; ++i) offset[a] += ply::type_size(property(vertex, i).type);
+      type[a] = property(vertex, axes[a]).type;
+    }
+    for (std::size_t row = 0; row < vertex_count; ++row) {
+      const char* p = vertex_bytes.data() + row * stride;
+      plan.finite_beyond_float +=
+          finite_beyond_float(ply::load_scalar(p + offset[0], type[0], big_endian),
+                              ply::load_scalar(p + offset[1], type[1], big_endian),
+                              ply::load_scalar(p + offset[2], type[2], big_endian));
+    }
+  }
 
   if (roles.radius >= 0) {
     plan.radii.resize(vertex_count);

@@ -13,10 +13,9 @@ namespace treecut::ply_load {
 
 namespace {
 
-// Beyond this magnitude the float arithmetic of attributes and build (squared
-// distances, covariances) overflows: such points are as unusable as NaNs.
-constexpr float kMaxCoordinate = 1e18f;
-
+// Beyond kMaxCoordinate (point_set.hpp) the float arithmetic of attributes
+// and build (squared distances, covariances) overflows: such points are as
+// unusable as NaNs.
 bool out_of_range(const glm::vec3& p) {
   return !(std::fabs(p.x) <= kMaxCoordinate && std::fabs(p.y) <= kMaxCoordinate &&
            std::fabs(p.z) <= kMaxCoordinate);
@@ -63,19 +62,34 @@ std::pair<std::size_t, std::size_t> drop_nonfinite(PointSet& points) {
 
 }  // namespace
 
-void tidy(PointSet& points, const Warnings& warn, PlyLoadReport& report) {
-  const bool huge =
-      std::any_of(points.positions.begin(), points.positions.end(), [](const glm::vec3& p) {
-        return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z) && out_of_range(p);
-      });
+void tidy(PointSet& points, const Warnings& warn, PlyLoadReport& report,
+          std::size_t finite_beyond_float) {
+  std::size_t huge_count = 0, nonfinite_count = 0;
+  for (const glm::vec3& p : points.positions) {
+    if (!out_of_range(p)) continue;
+    if (std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z))
+      ++huge_count;
+    else
+      ++nonfinite_count;
+  }
+  // Those were finite in the file: too large, not infinite.
+  const std::size_t beyond = std::min(finite_beyond_float, nonfinite_count);
+  nonfinite_count -= beyond;
+  huge_count += beyond;
+  const bool huge = huge_count > 0;
   const std::size_t read = points.size();
-  if (std::all_of(points.positions.begin(), points.positions.end(), out_of_range)) {
+  if (huge_count + nonfinite_count == read) {
     // One line that names the real problem, not a warning about dropping
     // every point followed by an error about having none.
-    throw ply::Error("no finite points (" +
-                     (read == 1 ? std::string("the only vertex is")
-                                : "all " + std::to_string(read) + " vertices are") +
-                     " NaN or infinite" + (huge ? " or beyond 1e18" : "") + ")");
+    const std::string which = read == 1 ? std::string("the only vertex is")
+                                        : "all " + std::to_string(read) + " vertices are";
+    if (nonfinite_count == 0)
+      throw ply::Error("no usable points (" + which +
+                       " finite but beyond the coordinate limit, 1e18 in magnitude)");
+    if (huge_count == 0) throw ply::Error("no finite points (" + which + " NaN or infinite)");
+    throw ply::Error("no usable points (" + which +
+                     " NaN, infinite or beyond 1e18: " + std::to_string(nonfinite_count) +
+                     " not finite, " + std::to_string(huge_count) + " too large)");
   }
   const auto [dropped_points, dropped_faces] = drop_nonfinite(points);
   report.dropped_nonfinite = dropped_points;

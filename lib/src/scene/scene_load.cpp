@@ -109,7 +109,7 @@ std::uint64_t Scene::distinct_points() const {
 }
 
 std::string Scene::where(const SceneObject& object) const {
-  return files[object.file].string() + ":" + std::to_string(object.line);
+  return quoted_name(files[object.file]) + ":" + std::to_string(object.line);
 }
 
 double SceneMemory::per_object_bytes() const {
@@ -146,7 +146,7 @@ Scene load_scene(const std::filesystem::path& file, const SceneLoadOptions& opti
     if (decl.source.type == SceneModelSource::Type::File) {
       struct stat st {};
       if (::stat(decl.source.file.c_str(), &st) != 0)
-        throw InputError(scene.files[decl.file].string() + ":" + std::to_string(decl.line) +
+        throw InputError(quoted_name(scene.files[decl.file]) + ":" + std::to_string(decl.line) +
                          ": model '" + decl.name +
                          "': " + system_error_text(decl.source.file, errno));
       m = by_file.try_emplace({st.st_dev, st.st_ino}, next).first->second;
@@ -206,7 +206,7 @@ Scene load_scene(const std::filesystem::path& file, const SceneLoadOptions& opti
   for (std::size_t i = 0; i < count; ++i) {
     if (!errors[i]) continue;
     const SceneModelDecl& decl = d.models[decl_of_model[i]];
-    rethrow_with(errors[i], scene.files[decl.file].string() + ":" + std::to_string(decl.line) +
+    rethrow_with(errors[i], quoted_name(scene.files[decl.file]) + ":" + std::to_string(decl.line) +
                                 ": model '" + decl.name + "': ");
   }
   scene.models.resize(count);
@@ -215,7 +215,7 @@ Scene load_scene(const std::filesystem::path& file, const SceneLoadOptions& opti
     SceneModel& m = scene.models[i];
     m.name = decl.name;
     m.source = decl.source;
-    m.declared_at = scene.files[decl.file].string() + ":" + std::to_string(decl.line);
+    m.declared_at = quoted_name(scene.files[decl.file]) + ":" + std::to_string(decl.line);
     m.hierarchy = std::move(loaded[i]);
     m.from_cache = cached[i] != 0;
     splat_box(*m.hierarchy, m.box_min, m.box_max);

@@ -72,17 +72,11 @@ std::uint64_t whole(std::string_view field, std::string_view token, std::uint64_
   return v;
 }
 
-// The linear part's columns are far from degenerate: its determinant,
-// relative to the product of the column lengths (1 for a rotation or an
-// axis scale, 0 for a singular matrix), is not lost in rounding, and no
-// column is so short that the inverse would overflow a float.
+constexpr const char* kNotInvertible =
+    "the transform is not invertible (singular, or so near it that floats cannot invert it)";
+
 bool invertible(const Mat& m) {
-  const glm::dmat3 a(m);
-  const double c0 = glm::length(a[0]), c1 = glm::length(a[1]), c2 = glm::length(a[2]);
-  const double det = glm::determinant(a);
-  const double tiny = 1e-30;
-  return std::isfinite(det) && c0 > tiny && c1 > tiny && c2 > tiny &&
-         std::abs(det) > 1e-9 * c0 * c1 * c2;
+  return invertible_transform(glm::dmat3(m));
 }
 
 // Ops are applied in the order written: the first one to the model's points.
@@ -128,7 +122,10 @@ Mat parse_transform(const std::vector<std::string_view>& t, std::size_t i) {
       args({12}, "12 numbers (the rows of a 3x4 matrix [A | t])");
       for (int r = 0; r < 3; ++r)
         for (int c = 0; c < 4; ++c) step[c][r] = v[static_cast<std::size_t>(r * 4 + c)];
-      if (!invertible(step)) throw InputError("matrix: singular (not invertible)");
+      if (!invertible(step))
+        throw InputError(
+            "matrix: not invertible (singular, or so near it that floats cannot "
+            "invert it)");
     } else if (is_number_token(op)) {
       throw InputError("'" + printable_excerpt(op) + "': a number where a transform was expected");
     } else {
@@ -137,7 +134,7 @@ Mat parse_transform(const std::vector<std::string_view>& t, std::size_t i) {
     }
     m = step * m;
   }
-  if (!invertible(m)) throw InputError("the transform is not invertible (singular)");
+  if (!invertible(m)) throw InputError(kNotInvertible);
   return m;
 }
 
@@ -188,7 +185,7 @@ struct Parser {
         line = line.substr(0, hash);
       line = trim_blanks(line);
       if (line.empty()) continue;
-      const std::string where = name.string() + ":" + std::to_string(line_no) + ": ";
+      const std::string where = quoted_name(name) + ":" + std::to_string(line_no) + ": ";
       try {
         if (!header) {
           if (line != kSceneHeader)
@@ -249,7 +246,7 @@ struct Parser {
             throw InputError("more than " + std::to_string(options.max_objects) +
                              " objects (the limit for a scene)");
           const Mat world = parent * parse_transform(t, 2);
-          if (!invertible(world)) throw InputError("the transform is not invertible (singular)");
+          if (!invertible(world)) throw InputError(kNotInvertible);
           SceneObjectDecl o;
           o.decl = it->second;
           const Mat inverse = glm::inverse(world);
@@ -286,7 +283,7 @@ struct Parser {
             if (stack[k].second.dev == id.dev && stack[k].second.ino == id.ino) {
               std::string chain;
               for (std::size_t m = k; m < stack.size(); ++m)
-                chain += stack[m].first.string() + " -> ";
+                chain += quoted_name(stack[m].first) + " -> ";
               throw InputError("include cycle: " + chain + include.file.string());
             }
           }
@@ -314,7 +311,8 @@ struct Parser {
       }
     }
     if (!header)
-      throw InputError(name.string() + ": empty scene (no '" + std::string(kSceneHeader) + "')");
+      throw InputError(quoted_name(name) + ": empty scene (no '" + std::string(kSceneHeader) +
+                       "')");
   }
 };
 
@@ -332,7 +330,7 @@ SceneDescription parse_scene_text(std::string_view text, const std::filesystem::
   const auto id = file_id(name);
   p.stack.emplace_back(name, id.value_or(FileId{0, 0}));
   p.parse(text, name, Mat(1.0), 0);
-  if (p.out.objects.empty()) throw InputError(name.string() + ": scene has no objects");
+  if (p.out.objects.empty()) throw InputError(quoted_name(name) + ": scene has no objects");
   return std::move(p.out);
 }
 

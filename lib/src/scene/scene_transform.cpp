@@ -35,4 +35,13 @@ std::array<double, 3> singular_values(const glm::mat4& world) {
           std::sqrt(std::max(e[2], 0.0))};
 }
 
+bool invertible_transform(const glm::dmat3& a) {
+  const double c0 = glm::length(a[0]), c1 = glm::length(a[1]), c2 = glm::length(a[2]);
+  const double longest = std::max({c0, c1, c2});
+  const double det = glm::determinant(a);
+  constexpr double kTiny = 1e-30;
+  return std::isfinite(det) && std::isfinite(longest) && c0 > kTiny && c1 > kTiny && c2 > kTiny &&
+         std::abs(det) > 1e-9 * c0 * c1 * c2 && std::abs(det) > 1e-12 * longest * longest * longest;
+}
+
 }  // namespace treecut

@@ -15,6 +15,7 @@
 
 #include "feedback_stage_impl.hpp"
 #include "treecut/feedback_stage.hpp"
+#include "treecut/file_io.hpp"
 
 #if defined(__linux__)
 #include <pthread.h>
@@ -73,7 +74,7 @@ FeedbackStage::~FeedbackStage() {
       if (options_.on_slow_cancel) {
         options_.on_slow_cancel(what);
       } else {
-        std::fprintf(stderr, "warning: %s; waiting for it to return\n", what.c_str());
+        std::fprintf(stderr, "warning: %s; waiting for it to return\n", one_line(what).c_str());
       }
     }
     while (state_.load(std::memory_order_acquire) == State::Process) {

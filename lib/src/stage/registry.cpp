@@ -1,8 +1,14 @@
 #include "treecut/registry.hpp"
 
 #include <dlfcn.h>
+#include <elf.h>
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
+#include <cstring>
 #include <stdexcept>
 
 #include "treecut/error.hpp"
@@ -66,19 +72,126 @@ std::vector<std::string> StrategyRegistry::names() const {
   return out;
 }
 
-void StrategyRegistry::load_plugin(const std::filesystem::path& path) {
-  const std::string where = path.string();
-  // dlopen() of a FIFO blocks in open() and of a device reads from it: a file
-  // that exists must be a regular file. A bare name that names no file here
-  // is searched on the library path (dlopen's rule); one that does is this
-  // file, so "--plugin libx.so" in its folder loads it (dlopen alone would
-  // search elsewhere and report "No such file"). A missing path is left to
-  // dlopen's own message.
-  std::string open_as = where;
-  if (file_kind(path) != FileKind::Missing) {
-    require_regular_file(path);
-    if (where.find('/') == std::string::npos) open_as = "./" + where;
+namespace {
+
+// What an ELF header says, read without mapping anything (dlopen would map
+// a truncated library's segments past its end and die of SIGBUS inside it).
+struct ElfFacts {
+  unsigned char elf_class = 0, data = 0;
+  std::uint16_t type = 0, machine = 0;
+  std::string problem;  // empty when complete as far as the headers tell
+};
+
+template <class Ehdr, class Phdr>
+void read_elf_tables(int fd, std::uint64_t size, ElfFacts& facts) {
+  Ehdr eh{};
+  if (::pread(fd, &eh, sizeof eh, 0) != static_cast<ssize_t>(sizeof eh)) {
+    facts.problem = "truncated (shorter than an ELF header)";
+    return;
   }
+  facts.type = eh.e_type;
+  facts.machine = eh.e_machine;
+  const auto past_end = [&](std::uint64_t offset, std::uint64_t bytes) {
+    return offset > size || bytes > size - offset;
+  };
+  if (eh.e_phentsize != sizeof(Phdr) ||
+      past_end(eh.e_phoff, std::uint64_t{eh.e_phnum} * sizeof(Phdr))) {
+    facts.problem = "truncated or damaged (its program headers are not inside the file)";
+    return;
+  }
+  if (eh.e_shoff != 0 && past_end(eh.e_shoff, std::uint64_t{eh.e_shnum} * eh.e_shentsize)) {
+    facts.problem = "truncated (its section headers end past the end of the file)";
+    return;
+  }
+  for (unsigned i = 0; i < eh.e_phnum; ++i) {
+    Phdr ph{};
+    if (::pread(fd, &ph, sizeof ph, static_cast<off_t>(eh.e_phoff + i * sizeof ph)) !=
+        static_cast<ssize_t>(sizeof ph)) {
+      facts.problem = "truncated (a program header cannot be read)";
+      return;
+    }
+    if (ph.p_type == PT_LOAD && past_end(ph.p_offset, ph.p_filesz)) {
+      facts.problem = "truncated (a loadable segment ends past the end of the file)";
+      return;
+    }
+  }
+}
+
+// Reads the ELF identity of the regular file open as FD (SIZE bytes).
+ElfFacts elf_facts(int fd, std::uint64_t size) {
+  ElfFacts facts;
+  unsigned char ident[EI_NIDENT] = {};
+  if (::pread(fd, ident, sizeof ident, 0) != static_cast<ssize_t>(sizeof ident) ||
+      std::memcmp(ident, ELFMAG, SELFMAG) != 0) {
+    facts.problem = "not a shared library (no ELF header)";
+    return facts;
+  }
+  facts.elf_class = ident[EI_CLASS];
+  facts.data = ident[EI_DATA];
+  if (facts.elf_class == ELFCLASS64)
+    read_elf_tables<Elf64_Ehdr, Elf64_Phdr>(fd, size, facts);
+  else if (facts.elf_class == ELFCLASS32)
+    read_elf_tables<Elf32_Ehdr, Elf32_Phdr>(fd, size, facts);
+  else
+    facts.problem = "not a shared library (an unknown ELF class)";
+  return facts;
+}
+
+// This program's own ELF identity: a plugin must match it.
+const ElfFacts& own_elf() {
+  static const ElfFacts facts = [] {
+    ElfFacts f;
+    const int fd = ::open("/proc/self/exe", O_RDONLY | O_CLOEXEC);
+    if (fd < 0) return f;
+    struct stat st {};
+    if (::fstat(fd, &st) == 0) f = elf_facts(fd, static_cast<std::uint64_t>(st.st_size));
+    ::close(fd);
+    return f;
+  }();
+  return facts;
+}
+
+// A plugin path is a path like every other input: an existing regular file,
+// an ELF shared object for this machine whose headers and loadable segments
+// lie inside it. Returns its absolute path for dlopen (which would otherwise
+// search the library path for a bare name, and run the constructors of a
+// system library of that name before saying it is no plugin).
+std::filesystem::path checked_plugin_path(const std::filesystem::path& path) {
+  const std::string shown = quoted_name(path);
+  const int fd = open_regular_file(path);  // InputError: missing, a FIFO, a directory...
+  struct stat st {};
+  if (::fstat(fd, &st) != 0) {
+    const int error = errno;
+    ::close(fd);
+    throw InputError(system_error_text(path, error));
+  }
+  const ElfFacts facts = elf_facts(fd, static_cast<std::uint64_t>(st.st_size));
+  ::close(fd);
+  if (!facts.problem.empty()) throw InputError(shown + ": " + facts.problem);
+  const ElfFacts& own = own_elf();
+  if (own.elf_class != 0 &&
+      (facts.elf_class != own.elf_class || facts.data != own.data || facts.machine != own.machine))
+    throw InputError(shown + ": an ELF file for another kind of machine (class " +
+                     std::to_string(facts.elf_class) + ", machine " +
+                     std::to_string(facts.machine) + "; this program is class " +
+                     std::to_string(own.elf_class) + ", machine " + std::to_string(own.machine) +
+                     ")");
+  if (facts.type != ET_DYN)
+    throw InputError(shown + ": an ELF " +
+                     (facts.type == ET_EXEC  ? std::string("executable")
+                      : facts.type == ET_REL ? std::string("object file (.o)")
+                                             : "file of type " + std::to_string(facts.type)) +
+                     ", not a shared library");
+  std::error_code ec;
+  const std::filesystem::path absolute = std::filesystem::absolute(path, ec);
+  return ec ? path : absolute;
+}
+
+}  // namespace
+
+void StrategyRegistry::load_plugin(const std::filesystem::path& path) {
+  const std::string where = quoted_name(path);
+  const std::filesystem::path open_as = checked_plugin_path(path);
   // RTLD_LOCAL: two plugins may define the same internal symbols. The handle is
   // never closed (see the header), so it is deliberately not kept.
   void* handle = dlopen(open_as.c_str(), RTLD_NOW | RTLD_LOCAL);
@@ -101,7 +214,7 @@ void StrategyRegistry::load_plugin(const std::filesystem::path& path) {
                      std::to_string(kPluginApiVersion));
   }
   const std::size_t before = entries_.size();
-  origin_ = where;
+  origin_ = path.string();
   try {
     entry(*this);
   } catch (const std::exception& e) {

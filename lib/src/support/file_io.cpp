@@ -1,15 +1,24 @@
 #include "treecut/file_io.hpp"
 
+#include <dirent.h>
 #include <fcntl.h>
+#include <signal.h>
+#include <stdio.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
+#include <cctype>
 #include <cerrno>
+#include <charconv>
 #include <cstring>
+#include <map>
+#include <mutex>
+#include <optional>
 #include <stdexcept>
 
+#include "support/signal_guard.hpp"
 #include "treecut/error.hpp"
 
 namespace treecut {
@@ -27,12 +36,106 @@ FileKind kind_of(mode_t mode) {
 }
 
 [[noreturn]] void throw_input(const std::filesystem::path& path, int error) {
-  if (error == ENOENT || error == ENOTDIR) throw InputError(path.string() + ": no such file");
+  if (error == ENOENT || error == ENOTDIR) throw InputError(quoted_name(path) + ": no such file");
   throw InputError(system_error_text(path, error));
 }
 
 [[noreturn]] void throw_not_regular(const std::filesystem::path& path, FileKind kind) {
-  throw InputError(path.string() + ": is " + std::string(describe(kind)) + ", not a regular file");
+  throw InputError(quoted_name(path) + ": is " + std::string(describe(kind)) +
+                   ", not a regular file");
+}
+
+// -- how names are shown -------------------------------------------------------
+
+// The length of the UTF-8 sequence at TEXT[I] and its code point, or 0 when
+// it is not well formed (overlong, surrogate, past U+10FFFF, cut short).
+std::size_t utf8_sequence(std::string_view text, std::size_t i, char32_t* code) {
+  const auto byte = [&](std::size_t k) { return static_cast<unsigned char>(text[i + k]); };
+  const unsigned char c = byte(0);
+  std::size_t n = 0;
+  char32_t cp = 0;
+  if (c >= 0xc2 && c <= 0xdf)
+    n = 2, cp = c & 0x1fu;
+  else if (c >= 0xe0 && c <= 0xef)
+    n = 3, cp = c & 0x0fu;
+  else if (c >= 0xf0 && c <= 0xf4)
+    n = 4, cp = c & 0x07u;
+  else
+    return 0;
+  if (i + n > text.size()) return 0;
+  for (std::size_t k = 1; k < n; ++k) {
+    if ((byte(k) & 0xc0u) != 0x80u) return 0;
+    cp = (cp << 6) | (byte(k) & 0x3fu);
+  }
+  if ((n == 3 && cp < 0x800) || (n == 4 && (cp < 0x10000 || cp > 0x10ffff)) ||
+      (cp >= 0xd800 && cp <= 0xdfff))
+    return 0;
+  *code = cp;
+  return n;
+}
+
+void append_hex(std::string& out, unsigned char c) {
+  static constexpr char kDigits[] = "0123456789abcdef";
+  out += "\\x";
+  out += kDigits[c >> 4];
+  out += kDigits[c & 15];
+}
+
+void append_control(std::string& out, unsigned char c) {
+  switch (c) {
+    case '\n':
+      out += "\\n";
+      return;
+    case '\t':
+      out += "\\t";
+      return;
+    case '\r':
+      out += "\\r";
+      return;
+    default:
+      append_hex(out, c);
+  }
+}
+
+// TEXT with control characters and bad UTF-8 escaped; *PLAIN false when
+// anything outside the plain set (see quoted_name()) was met.
+std::string escaped(std::string_view text, bool quote_marks, bool* plain) {
+  std::string out;
+  out.reserve(text.size());
+  bool clean = !text.empty();
+  for (std::size_t i = 0; i < text.size();) {
+    const auto c = static_cast<unsigned char>(text[i]);
+    if (c < 0x80) {
+      if (c < 0x20 || c == 0x7f) {
+        append_control(out, c);
+        clean = false;
+      } else if (quote_marks && (c == '\'' || c == '\\')) {
+        out += '\\';
+        out += static_cast<char>(c);
+        clean = false;
+      } else {
+        if (std::isalnum(c) == 0 && std::strchr("._/+,:@%=~-", c) == nullptr) clean = false;
+        out += static_cast<char>(c);
+      }
+      ++i;
+      continue;
+    }
+    char32_t code = 0;
+    const std::size_t n = utf8_sequence(text, i, &code);
+    // The C1 controls (U+0080..U+009F; U+009B is a CSI on some terminals)
+    // and the line and paragraph separators are escaped byte by byte.
+    if (n == 0 || code <= 0x9f || code == 0x2028 || code == 0x2029) {
+      for (std::size_t k = 0; k < std::max<std::size_t>(n, 1); ++k)
+        append_hex(out, static_cast<unsigned char>(text[i + k]));
+      clean = false;
+      i += std::max<std::size_t>(n, 1);
+      continue;
+    }
+    out.append(text.substr(i, n));
+    i += n;
+  }
+  if (plain != nullptr) *plain = clean;
+  return out;
 }
 
 }  // namespace
@@ -65,8 +168,22 @@ std::string_view describe(FileKind kind) {
   return "not a regular file";
 }
 
+std::string quoted_name(std::string_view name) {
+  bool plain = false;
+  std::string body = escaped(name, true, &plain);
+  return plain ? body : "'" + body + "'";
+}
+
+std::string quoted_name(const std::filesystem::path& path) {
+  return quoted_name(std::string_view(path.native()));
+}
+
+std::string one_line(std::string_view text) {
+  return escaped(text, false, nullptr);
+}
+
 std::string system_error_text(const std::filesystem::path& path, int error) {
-  return path.string() + ": " + std::strerror(error);
+  return quoted_name(path) + ": " + std::strerror(error);
 }
 
 void require_regular_file(const std::filesystem::path& path) {
@@ -117,7 +234,7 @@ std::string read_text_file(const std::filesystem::path& path, std::size_t limit)
     if (n == 0) break;
     if (text.size() + static_cast<std::size_t>(n) > limit) {
       ::close(fd);
-      throw InputError(path.string() + ": larger than " + std::to_string(limit) +
+      throw InputError(quoted_name(path) + ": larger than " + std::to_string(limit) +
                        " bytes (the limit for this input)");
     }
     text.append(chunk, static_cast<std::size_t>(n));
@@ -133,6 +250,103 @@ bool same_file(const std::filesystem::path& a, const std::filesystem::path& b) {
   return sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
 }
 
+bool same_destination(const std::filesystem::path& a, const std::filesystem::path& b) {
+  if (same_file(a, b)) return true;
+  std::error_code ea, eb;
+  const auto ca = std::filesystem::weakly_canonical(std::filesystem::absolute(a, ea), ea);
+  const auto cb = std::filesystem::weakly_canonical(std::filesystem::absolute(b, eb), eb);
+  return !ea && !eb && ca == cb;
+}
+
+// -- temporaries of writers that died -----------------------------------------
+
+namespace {
+
+struct TemporaryName {
+  std::string owner;  // the target's file name
+  pid_t pid = 0;
+};
+
+// "NAME.tmp-PID-N" -> {NAME, PID}.
+std::optional<TemporaryName> parse_temporary_name(std::string_view file) {
+  const std::size_t at = file.rfind(".tmp-");
+  if (at == std::string_view::npos || at == 0) return std::nullopt;
+  const std::string_view tail = file.substr(at + 5);
+  const std::size_t dash = tail.find('-');
+  if (dash == std::string_view::npos || dash == 0 || dash + 1 == tail.size()) return std::nullopt;
+  long long pid = 0;
+  auto [p, ec] = std::from_chars(tail.data(), tail.data() + dash, pid);
+  if (ec != std::errc() || p != tail.data() + dash || pid <= 0 || pid > 0x3fffffff)
+    return std::nullopt;
+  for (char c : tail.substr(dash + 1))
+    if (c < '0' || c > '9') return std::nullopt;
+  return TemporaryName{std::string(file.substr(0, at)), static_cast<pid_t>(pid)};
+}
+
+// A regular file of this user whose writer no longer runs (kill(pid, 0):
+// ESRCH; EPERM means some process of another user runs under that PID).
+bool left_by_dead_writer(const std::filesystem::path& file, pid_t pid) {
+  if (pid == ::getpid()) return false;
+  struct stat st {};
+  if (::lstat(file.c_str(), &st) != 0 || !S_ISREG(st.st_mode) || st.st_uid != ::geteuid())
+    return false;
+  return ::kill(pid, 0) != 0 && errno == ESRCH;
+}
+
+// The temporaries of each folder, listed once per process (a render writes
+// thousands of frames into one folder; each would list it again).
+class StaleTemporaries {
+ public:
+  void remove_for(const std::filesystem::path& target) {
+    const std::filesystem::path folder = target.parent_path();
+    const std::string owner = target.filename().string();
+    std::lock_guard lock(mutex_);
+    auto [it, fresh] = folders_.try_emplace(folder.string());
+    if (fresh) it->second = full_names_in(folder);
+    auto& names = it->second;
+    std::erase_if(names, [&](const std::string& name) {
+      const auto t = parse_temporary_name(name);
+      if (!t || t->owner != owner) return false;
+      const std::filesystem::path file = folder / name;
+      if (left_by_dead_writer(file, t->pid)) ::unlink(file.c_str());
+      return true;
+    });
+  }
+
+ private:
+  static std::vector<std::string> full_names_in(const std::filesystem::path& folder) {
+    std::vector<std::string> out;
+    DIR* dir = ::opendir(folder.empty() ? "." : folder.c_str());
+    if (dir == nullptr) return out;
+    while (const dirent* e = ::readdir(dir))
+      if (parse_temporary_name(e->d_name)) out.emplace_back(e->d_name);
+    ::closedir(dir);
+    return out;
+  }
+  std::mutex mutex_;
+  std::map<std::string, std::vector<std::string>> folders_;
+};
+
+StaleTemporaries g_stale;
+
+}  // namespace
+
+std::size_t remove_stale_temporaries(const std::filesystem::path& folder, std::string_view suffix) {
+  std::size_t removed = 0;
+  DIR* dir = ::opendir(folder.empty() ? "." : folder.c_str());
+  if (dir == nullptr) return 0;
+  std::vector<std::string> names;
+  while (const dirent* e = ::readdir(dir)) names.emplace_back(e->d_name);
+  ::closedir(dir);
+  for (const std::string& name : names) {
+    const auto t = parse_temporary_name(name);
+    if (!t || !std::string_view(t->owner).ends_with(suffix)) continue;
+    const std::filesystem::path file = folder / name;
+    if (left_by_dead_writer(file, t->pid) && ::unlink(file.c_str()) == 0) ++removed;
+  }
+  return removed;
+}
+
 // -- AtomicFile ---------------------------------------------------------------
 
 namespace {
@@ -140,25 +354,50 @@ constexpr std::size_t kWriteChunk = std::size_t{1} << 20;
 std::atomic<unsigned> g_temporary_serial{0};
 }  // namespace
 
+// Termination signals wait while a temporary is created and registered, so
+// none can come between the two and leave it behind.
+class TerminationSignalsHeld {
+ public:
+  TerminationSignalsHeld() {
+    sigset_t set;
+    sigemptyset(&set);
+    for (const int sig : {SIGINT, SIGTERM, SIGHUP, SIGQUIT}) sigaddset(&set, sig);
+    ::pthread_sigmask(SIG_BLOCK, &set, &previous_);
+  }
+  TerminationSignalsHeld(const TerminationSignalsHeld&) = delete;
+  TerminationSignalsHeld& operator=(const TerminationSignalsHeld&) = delete;
+  ~TerminationSignalsHeld() { ::pthread_sigmask(SIG_SETMASK, &previous_, nullptr); }
+
+ private:
+  sigset_t previous_{};
+};
+
 AtomicFile::AtomicFile(std::filesystem::path target) : target_(std::move(target)) {
   const FileKind kind = file_kind(target_);
   if (kind != FileKind::Missing && kind != FileKind::Regular)
-    throw std::runtime_error(target_.string() + ": is " + std::string(describe(kind)) +
+    throw std::runtime_error(quoted_name(target_) + ": is " + std::string(describe(kind)) +
                              "; refusing to replace it");
+  g_stale.remove_for(target_);
   // Beside the target, so the final rename stays on one file system.
   for (int attempt = 0; attempt < 100; ++attempt) {
     temporary_ = target_;
     temporary_ += ".tmp-" + std::to_string(::getpid()) + "-" +
                   std::to_string(g_temporary_serial.fetch_add(1, std::memory_order_relaxed));
+    const TerminationSignalsHeld held;
     fd_ = ::open(temporary_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC | O_NOFOLLOW, 0644);
-    if (fd_ >= 0) break;
+    if (fd_ >= 0) {
+      std::error_code ec;
+      const std::filesystem::path absolute = std::filesystem::absolute(temporary_, ec);
+      signal_slot_ = detail::register_temporary(ec ? temporary_.native() : absolute.native());
+      break;
+    }
     if (errno != EEXIST) {
       const int error = errno;
       temporary_.clear();
       throw std::runtime_error(system_error_text(target_, error));
     }
   }
-  if (fd_ < 0) throw std::runtime_error(target_.string() + ": cannot create a temporary file");
+  if (fd_ < 0) throw std::runtime_error(quoted_name(target_) + ": cannot create a temporary file");
   buffer_.reserve(kWriteChunk);
 }
 
@@ -171,6 +410,8 @@ void AtomicFile::discard() noexcept {
   fd_ = -1;
   if (!temporary_.empty()) ::unlink(temporary_.c_str());
   temporary_.clear();
+  detail::unregister_temporary(signal_slot_);
+  signal_slot_ = -1;
 }
 
 void AtomicFile::buffer_flush() {
@@ -203,8 +444,11 @@ void AtomicFile::write(const void* data, std::size_t size) {
   }
 }
 
-void AtomicFile::commit() {
-  if (fd_ < 0) throw std::logic_error("AtomicFile::commit twice or after a failure");
+void AtomicFile::close_checked() {
+  if (fd_ < 0) {
+    if (temporary_.empty()) throw std::logic_error("AtomicFile::commit twice or after a failure");
+    return;  // closed by an earlier commit_new() that found its name taken
+  }
   buffer_flush();
   // No fsync: a full disk is reported by write() on the file systems in use
   // (delayed allocation reserves blocks at write time); close() is checked
@@ -216,18 +460,56 @@ void AtomicFile::commit() {
     discard();
     throw std::runtime_error(system_error_text(target_, error));
   }
+}
+
+void AtomicFile::commit() {
+  close_checked();
   if (::rename(temporary_.c_str(), target_.c_str()) != 0) {
     const int error = errno;
     discard();
     throw std::runtime_error(system_error_text(target_, error));
   }
   temporary_.clear();
+  discard();  // only unregisters: the temporary is the target now
+}
+
+bool AtomicFile::commit_new(const std::filesystem::path& name) {
+  close_checked();
+  // renameat2(RENAME_NOREPLACE) where the file system has it; else link()
+  // (which never replaces either) and removing the temporary's name.
+  int result = ::renameat2(AT_FDCWD, temporary_.c_str(), AT_FDCWD, name.c_str(), RENAME_NOREPLACE);
+  if (result != 0 && (errno == EINVAL || errno == ENOSYS)) {
+    result = ::link(temporary_.c_str(), name.c_str());
+    if (result == 0) ::unlink(temporary_.c_str());
+  }
+  if (result != 0) {
+    if (errno == EEXIST) return false;
+    const int error = errno;
+    discard();
+    throw std::runtime_error(system_error_text(name, error));
+  }
+  temporary_.clear();
+  discard();
+  return true;
 }
 
 void write_file_atomically(const std::filesystem::path& target, std::string_view bytes) {
   AtomicFile file(target);
   file.write(bytes);
   file.commit();
+}
+
+std::filesystem::path write_file_to_free_name(const std::filesystem::path& wanted,
+                                              std::string_view bytes) {
+  AtomicFile file(wanted);
+  file.write(bytes);
+  for (int i = 0;; ++i) {
+    std::filesystem::path name = wanted;
+    if (i > 0)
+      name.replace_filename(wanted.stem().string() + "-" + std::to_string(i) +
+                            wanted.extension().string());
+    if (file.commit_new(name)) return name;
+  }
 }
 
 std::string printable_excerpt(std::string_view text, std::size_t max_chars) {

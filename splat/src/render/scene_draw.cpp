@@ -34,9 +34,9 @@ ObjectRecord object_record(const glm::mat4& world) {
   const double det = glm::determinant(l);
   const double len[3] = {glm::length(l[0]), glm::length(l[1]), glm::length(l[2])};
   const double longest = std::max({len[0], len[1], len[2]});
-  if (!(longest > 0.0) || !(std::abs(det) > 1e-12 * longest * longest * longest)) {
-    throw std::invalid_argument("the transform is not invertible");
-  }
+  // The scene parser's own test (scene.hpp): a scene file never gets here
+  // with a transform that fails it.
+  if (!invertible_transform(l)) throw std::invalid_argument("the transform is not invertible");
   // A similarity (orthogonal columns of one length: rotations, mirrors,
   // uniform scales) keeps the angles of normal cones and maps a sphere to a
   // sphere: sigma is the columns' length and the widening exactly 1, so a
