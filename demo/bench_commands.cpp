@@ -23,6 +23,7 @@
 #include "bench_hlod.hpp"
 #include "bench_scene.hpp"
 #include "commands.hpp"
+#include "option_checks.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
 #include "treecut/generate.hpp"
@@ -427,8 +428,9 @@ void add_bench_commands(CLI::App& app) {
                    "PLY files, or gen:KIND:POINTS for an in-memory generated model")
       ->required();
   build->add_option("-r,--repeat", args->repeat, "Repetitions per model (median reported)")
-      ->check(CLI::Range(1, 100));
-  build->add_option("-t,--threads", args->threads, "Worker threads (0 = all)");
+      ->check(whole_number(1, 100));
+  build->add_option("-t,--threads", args->threads, "Worker threads (0 = all)")
+      ->check(whole_number(0, 4096));
   build->callback([args] {
     // Every input is checked before the first run: a FIFO or a folder is
     // refused at once (a child would block on it), a bad gen: spec too.
@@ -478,34 +480,43 @@ void add_bench_commands(CLI::App& app) {
       ->required();
   occlusion->add_option("--path", occ->path, "Camera path (assets/paths/*_walk.campath)")
       ->required();
-  occlusion->add_option("--fps", occ->fps, "Frames per second of path time (default 10)");
-  occlusion->add_option("--frames", occ->frames,
-                        "Frames evenly spaced over the path instead (0: every 1 / fps s)");
+  occlusion->add_option("--fps", occ->fps, "Frames per second of path time (default 10)")
+      ->check(finite_number(0.0, 1000.0));
+  occlusion
+      ->add_option("--frames", occ->frames,
+                   "Frames evenly spaced over the path instead (0: every 1 / fps s)")
+      ->check(whole_number(0, 1000000));
   occlusion->add_option("--from", occ->from, "Start of the part of the path measured, seconds")
-      ->check(CLI::Range(0.0, 1e6));
+      ->check(finite_number(0.0, 1e6));
   occlusion->add_option("--to", occ->to, "End of the part of the path measured (default: its end)")
-      ->check(CLI::Range(0.0, 1e6));
-  occlusion->add_option("--width", occ->width, "Width in pixels")->check(CLI::Range(16, 8192));
-  occlusion->add_option("--height", occ->height, "Height in pixels")->check(CLI::Range(16, 8192));
-  occlusion->add_option("--block-size", occ->block_size, "HLOD block size (splats per block)");
-  occlusion->add_option("--block-fan-out", occ->fan_out,
-                        "Children per interior block: 2 binary (default), 4 the hierarchy's");
-  occlusion->add_option("--compare-fan-out", occ->compare_fan_out,
-                        "Add VFC, S&W, CHC and Ideal rows on a tree of this fan-out (the other "
-                        "of 2 and 4), frames interleaved");
+      ->check(finite_number(0.0, 1e6));
+  occlusion->add_option("--width", occ->width, "Width in pixels")->check(whole_number(16, 8192));
+  occlusion->add_option("--height", occ->height, "Height in pixels")->check(whole_number(16, 8192));
+  occlusion->add_option("--block-size", occ->block_size, "HLOD block size (splats per block)")
+      ->check(whole_number(1, 0xffffffffu));
+  occlusion
+      ->add_option("--block-fan-out", occ->fan_out,
+                   "Children per interior block: 2 binary (default), 4 the hierarchy's")
+      ->check(whole_number(2, 4));
+  occlusion
+      ->add_option("--compare-fan-out", occ->compare_fan_out,
+                   "Add VFC, S&W, CHC and Ideal rows on a tree of this fan-out (the other "
+                   "of 2 and 4), frames interleaved")
+      ->check(whole_number(0, 4));
   occlusion->add_flag("--probe-row", occ->probe_row,
                       "Add a diagnostic row: Ideal with a box query before every block it draws");
   occlusion->add_flag("--flush-row", occ->flush_row,
                       "Add a diagnostic row: Ideal with a glFlush after every block");
-  occlusion->add_option(
-      "--poll-every", occ->poll_every,
-      "Add a CHC row that polls answers every N blocks (ChcOptions::poll_interval)");
+  occlusion
+      ->add_option("--poll-every", occ->poll_every,
+                   "Add a CHC row that polls answers every N blocks (ChcOptions::poll_interval)")
+      ->check(whole_number(0, 0xffffffffu));
   occlusion->add_option("--tau", occ->hlod_tau, "HLOD table: tau, pixels of error (default 1)")
-      ->check(CLI::Range(0.0, 1e6));
+      ->check(finite_number(0.0, 1e6));
   occlusion
       ->add_option("--psnr-frames", occ->psnr_frames,
                    "HLOD table: frames of the path the PSNR against Bool is taken on")
-      ->check(CLI::Range(0, 100000));
+      ->check(whole_number(0, 100000));
   occlusion->add_option("--csv", occ->csv_dir,
                         "Folder for the HLOD table's per-frame CSV (occlusion_SCENE.csv)");
   occlusion->add_flag("--no-hlod", occ->no_hlod, "Print the CHC table only");

@@ -29,15 +29,16 @@ void check_bench_csv(const std::filesystem::path& csv, std::string_view header,
   if (!dir.empty()) {
     const FileKind k = file_kind(dir);
     if (k != FileKind::Missing && k != FileKind::Directory) {
-      throw InputError(dir.string() + ": " + std::string(describe(k)) + ", not a folder for --csv");
+      throw InputError(quoted_name(dir) + ": " + std::string(describe(k)) +
+                       ", not a folder for --csv");
     }
   }
   const FileKind k = file_kind(csv);
   if (k == FileKind::Missing) return;
-  if (k != FileKind::Regular) throw InputError(csv.string() + ": " + std::string(describe(k)));
+  if (k != FileKind::Regular) throw InputError(quoted_name(csv) + ": " + std::string(describe(k)));
   const std::string text = read_text_file(csv);
   if (text.rfind(std::string(header) + "\n", 0) != 0) {
-    throw InputError(csv.string() + ": exists and is not a " + std::string(what) +
+    throw InputError(quoted_name(csv) + ": exists and is not a " + std::string(what) +
                      " CSV; not overwritten");
   }
 }

@@ -237,7 +237,7 @@ void run_hlod_table(const HlodBenchInput& in) {
     if (!in.csv.parent_path().empty()) {
       std::error_code ec;
       std::filesystem::create_directories(in.csv.parent_path(), ec);
-      if (ec) throw std::runtime_error(in.csv.parent_path().string() + ": " + ec.message());
+      if (ec) throw std::runtime_error(quoted_name(in.csv.parent_path()) + ": " + ec.message());
     }
     write_file_atomically(in.csv, o.str());
     std::printf("csv       %s\n", in.csv.string().c_str());

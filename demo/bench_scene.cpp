@@ -36,6 +36,7 @@
 #include <vector>
 
 #include "bench_common.hpp"
+#include "option_checks.hpp"
 #include "render_reports.hpp"
 #include "treecut/error.hpp"
 #include "treecut/feedback_stage.hpp"
@@ -485,7 +486,7 @@ void run_bench_scene(const SceneBenchArgs& a) {
     if (!csv.parent_path().empty()) {
       std::error_code ec;
       std::filesystem::create_directories(csv.parent_path(), ec);
-      if (ec) throw std::runtime_error(csv.parent_path().string() + ": " + ec.message());
+      if (ec) throw std::runtime_error(quoted_name(csv.parent_path()) + ": " + ec.message());
     }
     write_file_atomically(csv, o.str());
     std::printf("csv       %s\n", csv.string().c_str());
@@ -505,18 +506,20 @@ void add_bench_scene_command(CLI::App& bench) {
       ->required();
   cmd->add_option("--path", args->path, "Camera path (gen city-block --walk FILE)")->required();
   cmd->add_option("--frames", args->frames, "Frames evenly spaced over the path")
-      ->check(CLI::Range(1, 100000))
+      ->check(whole_number(1, 100000))
       ->capture_default_str();
-  cmd->add_option("--from", args->from, "Start of the part of the path measured, seconds");
-  cmd->add_option("--to", args->to, "Its end, seconds (default: the end of the path)");
+  cmd->add_option("--from", args->from, "Start of the part of the path measured, seconds")
+      ->check(finite_number(0.0, 1e6));
+  cmd->add_option("--to", args->to, "Its end, seconds (default: the end of the path)")
+      ->check(finite_number(0.0, 1e6));
   cmd->add_option("-p,--param", args->params,
                   "Budget strategy parameter name=value (points, alpha, pet, occluders, ct, "
                   "threads; culling is run both ways)");
   cmd->add_option("--width", args->width, "Width in pixels")
-      ->check(CLI::Range(16, 8192))
+      ->check(whole_number(16, 8192))
       ->capture_default_str();
   cmd->add_option("--height", args->height, "Height in pixels")
-      ->check(CLI::Range(16, 8192))
+      ->check(whole_number(16, 8192))
       ->capture_default_str();
   cmd->add_option("--csv", args->csv_dir, "Folder for the per-frame CSV (scene_SCENE.csv)");
   cmd->add_flag("--no-psnr", args->no_psnr, "Skip the full-detail color image and the PSNR");

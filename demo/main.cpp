@@ -85,13 +85,15 @@ int main(int argc, char** argv) {
   } catch (const CLI::CallForAllHelp& e) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
-    std::fprintf(stderr, "%s\n", usage_message(app, e).c_str());
+    std::fprintf(stderr, "%s\n", treecut::one_line(usage_message(app, e)).c_str());
     return 2;
   } catch (const treecut::InputError& e) {
-    std::fprintf(stderr, "treecut: %s\n", e.what());
+    // one_line(): whatever a message quotes of the user's (a file name, a
+    // token), it stays one line and sends the terminal no control sequence.
+    std::fprintf(stderr, "treecut: %s\n", treecut::one_line(e.what()).c_str());
     return 2;
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "treecut: error: %s\n", e.what());
+    std::fprintf(stderr, "treecut: error: %s\n", treecut::one_line(e.what()).c_str());
     return 1;
   }
   return 0;

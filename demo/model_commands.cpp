@@ -1,13 +1,17 @@
 // treecut build | info | gen
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <memory>
 #include <stdexcept>
 #include <string_view>
 
 #include "commands.hpp"
+#include "messages.hpp"
+#include "option_checks.hpp"
 #include "progress.hpp"
 #include "treecut/attributes.hpp"
 #include "treecut/cache.hpp"
@@ -32,14 +36,10 @@ struct ModelArgs {
   int k = 12;
 };
 
-void print_warning(const std::string& w) {
-  std::fprintf(stderr, "warning: %s\n", w.c_str());
-}
-
 void add_build_options(CLI::App& cmd, ModelArgs& args) {
   cmd.add_option("-k,--neighbours", args.k,
                  "Neighbours for normals, radii and curvature of point clouds")
-      ->check(CLI::Range(3, 64));
+      ->check(whole_number(3, 64));
   cmd.add_flag(
       "--real-points", args.real_points,
       "Place every parent splat on one of its real points (no splat motion on LOD changes)");
@@ -57,7 +57,7 @@ OpenOptions open_options(const ModelArgs& args) {
 void print_summary(const std::filesystem::path& model, const OpenedModel& m) {
   const Hierarchy& h = m.hierarchy;
   const glm::vec3 lo = h.bounds_min(), hi = h.bounds_max();
-  std::printf("model       %s\n", model.string().c_str());
+  std::printf("model       %s\n", quoted_name(model).c_str());
   std::printf("points      %u\n", h.leaf_count());
   std::printf("nodes       %u\n", h.node_count());
   std::printf("depth       %d\n", h.level_count() - 1);
@@ -69,9 +69,9 @@ void print_summary(const std::filesystem::path& model, const OpenedModel& m) {
               static_cast<double>(h.memory_bytes()) / std::max(1u, h.leaf_count()));
   // Only a cache that exists is printed as the cache (build fails otherwise).
   if (m.from_cache || m.cache_written)
-    std::printf("cache       %s\n", m.cache.string().c_str());
+    std::printf("cache       %s\n", quoted_name(m.cache).c_str());
   else
-    std::printf("cache       none (not written: %s)\n", m.cache_note.c_str());
+    std::printf("cache       none (not written: %s)\n", one_line(m.cache_note).c_str());
   if (m.from_cache && m.cache == model) {
     std::printf("loaded      from cache in %.3f s\n", m.cache_seconds);
   } else if (m.from_cache && !m.hashed) {
@@ -102,12 +102,13 @@ void check_cache_output(const std::filesystem::path& out, const std::filesystem:
   const FileKind kind = file_kind(out);
   if (kind == FileKind::Missing) return;
   if (same_file(out, model))
-    throw InputError(out.string() + ": is the model itself; refusing to overwrite it with a cache");
+    throw InputError(quoted_name(out) +
+                     ": is the model itself; refusing to overwrite it with a cache");
   if (kind != FileKind::Regular)
-    throw InputError(out.string() + ": is " + std::string(describe(kind)) +
+    throw InputError(quoted_name(out) + ": is " + std::string(describe(kind)) +
                      "; refusing to write a cache there");
   if (!looks_like_cache(out))
-    throw InputError(out.string() +
+    throw InputError(quoted_name(out) +
                      ": exists and is not a treecut cache; refusing to overwrite it");
 }
 
@@ -120,8 +121,8 @@ void check_replaceable_output(const std::filesystem::path& out, std::string_view
   const FileKind file = file_kind(out);
   if (file == FileKind::Missing) return;
   if (file != FileKind::Regular)
-    throw InputError(out.string() + ": is " + std::string(describe(file)) + "; refusing to write " +
-                     std::string(written) + " there");
+    throw InputError(quoted_name(out) + ": is " + std::string(describe(file)) +
+                     "; refusing to write " + std::string(written) + " there");
   bool same_kind = false;
   try {
     const int fd = open_regular_file(out);
@@ -133,7 +134,7 @@ void check_replaceable_output(const std::filesystem::path& out, std::string_view
     same_kind = false;
   }
   if (!same_kind)
-    throw InputError(out.string() + ": exists and is not " + std::string(kind) +
+    throw InputError(quoted_name(out) + ": exists and is not " + std::string(kind) +
                      "; refusing to overwrite it");
 }
 
@@ -157,7 +158,7 @@ void print_scene_summary(const std::filesystem::path& file, const Scene& scene) 
   std::size_t generated = 0;
   for (const auto& m : scene.models)
     generated += m.source.type == SceneModelSource::Type::Generated ? 1 : 0;
-  std::printf("scene       %s\n", file.string().c_str());
+  std::printf("scene       %s\n", quoted_name(file).c_str());
   std::printf("objects     %zu\n", scene.objects.size());
   std::printf("models      %zu distinct hierarchies (%zu generated, %zu files)\n",
               scene.models.size(), generated, scene.models.size() - generated);
@@ -189,7 +190,31 @@ struct SceneGenArgs {
   std::uint64_t seed = 1;
 };
 
+// One command never writes one file twice, nor over a file it reads:
+// checked before any work, on the paths as they resolve (`n.ply` and
+// `./d/../n.ply`, links included), whether or not they exist yet.
+void check_distinct_files(
+    const std::vector<std::pair<std::filesystem::path, std::string>>& outputs,
+    const std::vector<std::pair<std::filesystem::path, std::string>>& inputs) {
+  for (std::size_t i = 0; i < outputs.size(); ++i) {
+    for (std::size_t j = 0; j < i; ++j)
+      if (same_destination(outputs[i].first, outputs[j].first))
+        throw InputError(quoted_name(outputs[i].first) + ": named as both " + outputs[j].second +
+                         " and " + outputs[i].second + "; one file cannot hold both");
+    for (const auto& [input, role] : inputs)
+      if (same_destination(outputs[i].first, input))
+        throw InputError(quoted_name(outputs[i].first) + ": is " + role +
+                         ", which this command reads; refusing to write " + outputs[i].second +
+                         " over it");
+  }
+}
+
 void generate_scene_file(const SceneGenArgs& a) {
+  std::vector<std::pair<std::filesystem::path, std::string>> outputs{{a.out, "the scene (-o)"}};
+  if (!a.walk.empty()) outputs.emplace_back(a.walk, "the camera path (--walk)");
+  std::vector<std::pair<std::filesystem::path, std::string>> inputs;
+  for (const auto& s : a.sources) inputs.emplace_back(s, "a source model (--source)");
+  check_distinct_files(outputs, inputs);
   check_scene_output(a.out);
   if (!a.walk.empty()) check_walk_output(a.walk);
   std::string text;
@@ -215,8 +240,14 @@ void generate_scene_file(const SceneGenArgs& a) {
       const std::filesystem::path abs = std::filesystem::absolute(s).lexically_normal();
       const std::filesystem::path rel = abs.lexically_relative(dir);
       src.path = rel.empty() ? abs : rel;
-      if (src.path.string().find_first_of(" \t#") != std::string::npos)
-        throw InputError(s + ": a path with blanks or '#' cannot be written in a scene file");
+      const std::string written = src.path.string();
+      if (std::any_of(written.begin(), written.end(), [](char c) {
+            const auto u = static_cast<unsigned char>(c);
+            return u < 0x20 || u == 0x7f || c == ' ' || c == '#';
+          }))
+        throw InputError(
+            quoted_name(s) +
+            ": a path with blanks, control characters or '#' cannot be written in a scene file");
       src.up = detect_up_axis(m.hierarchy).vector();
       src.box_min = m.hierarchy.bounds_min();
       src.box_max = m.hierarchy.bounds_max();
@@ -232,12 +263,13 @@ void generate_scene_file(const SceneGenArgs& a) {
     if (ec) throw std::runtime_error(system_error_text(a.out.parent_path(), ec.value()));
   }
   write_file_atomically(a.out, text);
-  std::printf("wrote %s (%zu objects)\n", a.out.string().c_str(),
+  std::printf("wrote %s (%zu objects)\n", quoted_name(a.out).c_str(),
               parse_scene_file(a.out).objects.size());
   if (!a.walk.empty()) {
     const splat::CameraPath path = splat::walk_path(walk);
     save_camera_path(a.walk, path);
-    std::printf("wrote %s (%zu keys, %.1f s)\n", a.walk.c_str(), path.keys.size(), path.duration());
+    std::printf("wrote %s (%zu keys, %.1f s)\n", quoted_name(a.walk).c_str(), path.keys.size(),
+                path.duration());
   }
 }
 
@@ -308,16 +340,17 @@ void add_model_commands(CLI::App& app) {
       ->required();
   gen->add_option("-n,--points", gen_args->points,
                   "Number of points (city-block, hall: of each generated model, default 20000)")
-      ->check(CLI::Range(1ull, 1ull << 31));
+      ->check(whole_number(1, std::uint64_t{1} << 31));
   gen->add_option("-o,--output", gen_args->out,
                   "Output PLY (default: assets/KIND.ply; a scene: assets/KIND.scene)");
-  gen->add_option("--seed", gen_args->seed, "Random seed");
+  gen->add_option("--seed", gen_args->seed, "Random seed")
+      ->check(whole_number(0, std::numeric_limits<std::uint64_t>::max()));
   gen->add_option("--source", gen_args->source,
                   "field: the scanned model (PLY) whose copies fill the field; hall: the models "
                   "to place (repeat the option for several)");
   gen->add_option("--objects", gen_args->objects,
                   "city-block (default 20000 buildings), hall (default 1000 copies): objects")
-      ->check(CLI::Range(std::size_t{1}, kMaxSceneObjects / 2));
+      ->check(whole_number(1, kMaxSceneObjects / 2));
   gen->add_option(
       "--walk", gen_args->walk,
       "city, field, plant, city-block, hall: also write the scene's walkthrough camera path "
@@ -352,6 +385,11 @@ void add_model_commands(CLI::App& app) {
     const std::filesystem::path out =
         gen_args->out.empty() ? std::filesystem::path("assets") / (gen_args->kind + ".ply")
                               : std::filesystem::path(gen_args->out);
+    std::vector<std::pair<std::filesystem::path, std::string>> outputs{{out, "the model (-o)"}};
+    if (!gen_args->walk.empty()) outputs.emplace_back(gen_args->walk, "the camera path (--walk)");
+    std::vector<std::pair<std::filesystem::path, std::string>> inputs;
+    for (const auto& s : gen_args->source) inputs.emplace_back(s, "the source scan (--source)");
+    check_distinct_files(outputs, inputs);
     check_ply_output(out);
     if (!gen_args->walk.empty()) check_walk_output(gen_args->walk);
     PointSet source;
@@ -369,12 +407,12 @@ void add_model_commands(CLI::App& app) {
                                                             gen_args->points, gen_args->seed)
                                            : generate_model(kind, gen_args->points, gen_args->seed);
     save_ply(out, ps);
-    std::printf("wrote %s (%zu points)\n", out.string().c_str(), ps.size());
+    std::printf("wrote %s (%zu points)\n", quoted_name(out).c_str(), ps.size());
     if (!gen_args->walk.empty()) {
       const splat::CameraPath path = splat::walk_path(scene_walkthrough(kind));
       save_camera_path(gen_args->walk, path);
-      std::printf("wrote %s (%zu keys, %.1f s)\n", gen_args->walk.c_str(), path.keys.size(),
-                  path.duration());
+      std::printf("wrote %s (%zu keys, %.1f s)\n", quoted_name(gen_args->walk).c_str(),
+                  path.keys.size(), path.duration());
     }
   });
 }

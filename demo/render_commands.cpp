@@ -14,6 +14,8 @@
 #include <optional>
 
 #include "commands.hpp"
+#include "messages.hpp"
+#include "option_checks.hpp"
 #include "render_reports.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
@@ -397,7 +399,7 @@ void run_render(const RenderArgs& a) {
                             static_cast<int>(controller.stage().counters().frames));
         !late.empty()) {
       std::fflush(stdout);
-      std::fprintf(stderr, "warning: %s\n", late.c_str());
+      print_warning(late);
     }
     if (governor) {
       std::printf("governor  %s = %.6g at the end, model %.2f ms + %.4g us/splat\n",
@@ -407,7 +409,7 @@ void run_render(const RenderArgs& a) {
     runs.push_back(std::move(run));
   }
   write_plot_svg(out / "plot.svg", runs, scene.label + ": frame time and cut size per strategy");
-  std::printf("wrote     %s (stats.csv, summary.json, plot.svg%s)\n", out.string().c_str(),
+  std::printf("wrote     %s (stats.csv, summary.json, plot.svg%s)\n", quoted_name(out).c_str(),
               a.no_png ? "" : ", frame_*.png");
 }
 
@@ -422,20 +424,20 @@ void add_render_commands(CLI::App& app) {
   // load_view_script say what a bad path is ("is a FIFO", "is a directory").
   render->add_option("--path", ra->path, "Camera path file (default: one orbit around the model)");
   render->add_option("-n,--frames", ra->frames, "Frames along the path")
-      ->check(CLI::Range(1, 1000000))
+      ->check(whole_number(1, 1000000))
       ->capture_default_str();
   render->add_option("-o,--out", ra->out, "Output folder")->capture_default_str();
   render->add_option("--width", ra->width, "Frame width")
-      ->check(CLI::Range(16, 8192))
+      ->check(whole_number(16, 8192))
       ->capture_default_str();
   render->add_option("--height", ra->height, "Frame height")
-      ->check(CLI::Range(16, 8192))
+      ->check(whole_number(16, 8192))
       ->capture_default_str();
   render->add_option("--orbit-seconds", ra->orbit_seconds, "Duration of the default orbit")
-      ->check(CLI::Range(0.1, 3600.0))
+      ->check(finite_number(0.1, 3600.0))
       ->capture_default_str();
   render->add_option("--warmup", ra->warmup, "Frames rendered at the first camera before recording")
-      ->check(CLI::Range(0, 100000))
+      ->check(whole_number(0, 100000))
       ->capture_default_str();
   render->add_flag("--sync", ra->sync,
                    "Run the Feedback Stage synchronously, one iteration per frame (deterministic)");
@@ -444,12 +446,12 @@ void add_render_commands(CLI::App& app) {
       ->add_option("--stability", ra->stability,
                    "After the path: converge at the last camera, then measure this many frames "
                    "of temporal stability")
-      ->check(CLI::Range(0, 100000));
+      ->check(whole_number(0, 100000));
   render->add_flag("--no-png", ra->no_png, "Write statistics only");
   render
       ->add_option("--target-fps", ra->target_fps,
                    "Adapt the strategy's budget to hold this frame rate, as the viewer (0 = off)")
-      ->check(CLI::Range(0.0, 1000.0));
+      ->check(finite_number(0.0, 1000.0));
   render->callback([ra] { run_render(*ra); });
 
   auto va = std::make_shared<ViewArgs>();
@@ -457,10 +459,10 @@ void add_render_commands(CLI::App& app) {
   add_scene_options(*view, va->scene);
   view->add_option("MORE", va->more_models, "Further models; O in the window opens the next");
   view->add_option("--width", va->width, "Window width")
-      ->check(CLI::Range(16, 8192))
+      ->check(whole_number(16, 8192))
       ->capture_default_str();
   view->add_option("--height", va->height, "Window height")
-      ->check(CLI::Range(16, 8192))
+      ->check(whole_number(16, 8192))
       ->capture_default_str();
   view->add_option("--path", va->path, "Replay this camera path");
   view->add_option("--script", va->script,
@@ -469,7 +471,7 @@ void add_render_commands(CLI::App& app) {
       ->capture_default_str();
   view->add_option("--target-fps", va->target_fps,
                    "Adapt the strategy's budget to hold this frame rate (0 = off)")
-      ->check(CLI::Range(0.0, 1000.0));
+      ->check(finite_number(0.0, 1000.0));
   view->callback([va] {
     // The text inputs are checked before a window opens (and where there is
     // no display): a bad path or script is exit 2 with FILE:LINE.

@@ -79,7 +79,7 @@ bool is_earlier_render_output(const std::filesystem::path& dir) {
 void check_output_target(const std::filesystem::path& file) {
   const FileKind kind = file_kind(file);
   if (kind != FileKind::Missing && kind != FileKind::Regular)
-    throw InputError(file.string() + ": is " + std::string(describe(kind)) +
+    throw InputError(quoted_name(file) + ": is " + std::string(describe(kind)) +
                      "; refusing to write render output there");
 }
 
@@ -308,13 +308,13 @@ void check_output_folder(const std::filesystem::path& out,
   const FileKind kind = file_kind(out);
   if (kind == FileKind::Missing) return;
   if (kind != FileKind::Directory)
-    throw InputError(out.string() + ": is " + std::string(describe(kind)) +
+    throw InputError(quoted_name(out) + ": is " + std::string(describe(kind)) +
                      ", not a folder; refusing to write render output there");
   std::error_code ec;
   const bool empty = std::filesystem::is_empty(out, ec);
   if (ec) throw InputError(system_error_text(out, ec.value()));
   if (!empty && !is_earlier_render_output(out))
-    throw InputError(out.string() +
+    throw InputError(quoted_name(out) +
                      ": folder is not empty and not an earlier treecut render output; refusing to "
                      "write into it");
   check_output_target(out / "plot.svg");
@@ -322,7 +322,7 @@ void check_output_folder(const std::filesystem::path& out,
     const std::filesystem::path dir = strategies.size() > 1 ? out / name : out;
     const FileKind dir_kind = file_kind(dir);
     if (dir_kind != FileKind::Missing && dir_kind != FileKind::Directory)
-      throw InputError(dir.string() + ": is " + std::string(describe(dir_kind)) +
+      throw InputError(quoted_name(dir) + ": is " + std::string(describe(dir_kind)) +
                        ", not a folder; refusing to write render output there");
     check_output_target(dir / "stats.csv");
     check_output_target(dir / "summary.json");

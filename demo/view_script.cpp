@@ -64,7 +64,7 @@ double parse_real(std::string_view token, const std::string& where) {
 std::vector<ScriptCommand> parse_view_script(std::string_view text,
                                              const std::filesystem::path& file,
                                              const ScriptChecks& checks) {
-  const std::string name = file.string();
+  const std::string name = quoted_name(file);
   std::vector<ScriptCommand> out;
   std::string strategy = checks.strategy;
   bool header = false;

@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <stdexcept>
 
+#include "messages.hpp"
 #include "treecut/error.hpp"
 #include "treecut/model.hpp"
 #include "treecut/splat/gl.hpp"
@@ -217,8 +218,7 @@ void Viewer::poll_loader() {
       throw std::runtime_error(done->error);
     }
     // The program's own prefixes: "treecut: " for bad input, "treecut: error: " else.
-    std::fprintf(stderr, "treecut: %s%s\n",
-                 done->input_error ? "" : "error: ", done->error.c_str());
+    print_error(done->error, done->input_error);
     return;
   }
   if (done->scene->world) {
@@ -227,13 +227,13 @@ void Viewer::poll_loader() {
     if (std::string why =
             per_object_limit_problem(*done->scene->world, *make_strategy(registry_, strategy_, {}));
         !why.empty()) {
-      done->error = done->file + ": " + why;
+      done->error = quoted_name(done->file) + ": " + why;
       done->input_error = true;
       done->scene.reset();
       load_error_ = done->error;
       script_opening_ = false;
       if (!script_.empty()) throw InputError(done->error);
-      std::fprintf(stderr, "treecut: %s\n", done->error.c_str());
+      print_error(done->error, true);
       return;
     }
   }

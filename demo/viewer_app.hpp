@@ -85,8 +85,7 @@ class Viewer {
   /// Instances of strategy `name` with the command line's parameters (a
   /// scene's stage calls it per object, on its thread; it reads only what
   /// never changes after construction).
-  [[nodiscard]] StrategyFactory strategy_factory(const std::string& name,
-                                                 bool with_params) const;
+  [[nodiscard]] StrategyFactory strategy_factory(const std::string& name, bool with_params) const;
 
   // viewer_input.cpp: camera controls.
   void fit();
@@ -103,8 +102,6 @@ class Viewer {
 
   // viewer_output.cpp: screenshots.
   void save_screenshot(const std::string& file, glm::ivec2 size);
-  [[nodiscard]] std::filesystem::path free_screenshot_name(
-      const std::filesystem::path& wanted) const;
 
   // viewer_hud.cpp.
   void hud(const splat::FrameStats& stats);
@@ -151,7 +148,6 @@ class Viewer {
   double draw_ms_ = 0.0;
   std::uint64_t frame_ = 0;
   std::string pending_screenshot_;
-  std::vector<std::filesystem::path> written_screenshots_;  // may be replaced by a script
   std::string status_;
   bool recording_ = false;
   splat::CameraPath recorded_;

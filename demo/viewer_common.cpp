@@ -11,6 +11,8 @@
 #include <glm/matrix.hpp>
 #include <limits>
 
+#include "messages.hpp"
+#include "option_checks.hpp"
 #include "treecut/error.hpp"
 #include "treecut/generate.hpp"
 #include "treecut/model_io.hpp"
@@ -28,7 +30,7 @@ void add_scene_options(CLI::App& cmd, SceneArgs& args) {
                  "Procedural model used without MODEL: sphere | terrain | city | plant")
       ->capture_default_str();
   cmd.add_option("--default-points", args.default_points, "Points of the generated model")
-      ->check(CLI::Range(std::size_t{1}, std::size_t{1} << 28))
+      ->check(whole_number(1, std::uint64_t{1} << 28))
       ->capture_default_str();
   cmd.add_option("-s,--strategy", args.strategies,
                  "LOD strategy (optimization, bucket, recursive or a plugin's); render accepts "
@@ -38,13 +40,13 @@ void add_scene_options(CLI::App& cmd, SceneArgs& args) {
   cmd.add_option("--plugin", args.plugins, "Load strategies from a plugin shared library");
   cmd.add_option("-m,--mode", args.mode, "Splat mode: fast | hq | fixed")->capture_default_str();
   cmd.add_option("--radius-scale", args.radius_scale, "Multiply every splat radius")
-      ->check(CLI::Range(0.05f, 20.0f))
+      ->check(finite_number(0.05, 20.0))
       ->capture_default_str();
   cmd.add_option("--point-size", args.point_size, "Point size in pixels of the fixed mode")
-      ->check(CLI::Range(1.0f, 64.0f))
+      ->check(finite_number(1.0, 64.0))
       ->capture_default_str();
   cmd.add_option("-k,--neighbours", args.k, "Neighbours for normals and radii of point clouds")
-      ->check(CLI::Range(3, 64))
+      ->check(whole_number(3, 64))
       ->capture_default_str();
   cmd.add_option("--up", args.up,
                  "Up axis of the model: x | y | z | auto (from the data: a ground or base, the "
@@ -59,12 +61,12 @@ void add_scene_options(CLI::App& cmd, SceneArgs& args) {
   cmd.add_option("--blend", args.blend_frames,
                  "Frames over which the splats of an exchanged cut fade in and the replaced ones "
                  "out (screen-door dither; 0 = swap at once; docs/rendering.md, \"Fades\")")
-      ->check(CLI::Range(0u, 64u))
+      ->check(whole_number(0, 64))
       ->capture_default_str();
   cmd.add_option("--stage-wait-bound", args.stage_wait_bound_ms,
                  "Milliseconds an update may wait for the low-priority Feedback Stage before it "
                  "runs at normal priority until done (0 = never; docs/threading.md)")
-      ->check(CLI::Range(0, 3600000))
+      ->check(whole_number(0, 3600000))
       ->capture_default_str();
 }
 
@@ -76,7 +78,7 @@ void configure_stage(StageOptions& options, const SceneArgs& args) {
   // lists and the model); the program is done with both, so it ends here.
   options.on_slow_cancel = [](const std::string& what) {
     std::fflush(stdout);
-    std::fprintf(stderr, "treecut: error: %s; exiting\n", what.c_str());
+    print_error(what + "; exiting");
     std::_Exit(1);
   };
 }
@@ -118,7 +120,7 @@ Scene load_scene(const SceneArgs& args, const LoadProgressFn& progress) {
   if (!args.model.empty() && looks_like_scene(args.model)) {
     SceneLoadOptions so;
     so.open.attributes.k = args.k;
-    so.open.warn = [](const std::string& w) { std::fprintf(stderr, "warning: %s\n", w.c_str()); };
+    so.open.warn = [](const std::string& w) { print_warning(w); };
     const treecut::Scene scene = treecut::load_scene(std::filesystem::path(args.model), so);
     s.world = stage_scene(scene);
     s.hierarchy = scene.models.front().hierarchy;
@@ -158,7 +160,7 @@ Scene load_scene(const SceneArgs& args, const LoadProgressFn& progress) {
   } else {
     OpenOptions o;
     o.attributes.k = args.k;
-    o.warn = [](const std::string& w) { std::fprintf(stderr, "warning: %s\n", w.c_str()); };
+    o.warn = [](const std::string& w) { print_warning(w); };
     o.progress = progress;
     s.hierarchy = std::make_shared<const Hierarchy>(open_model(args.model, o).hierarchy);
     s.label = std::filesystem::path(args.model).filename().string();

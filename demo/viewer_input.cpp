@@ -6,6 +6,7 @@
 #include <glm/geometric.hpp>
 #include <glm/gtc/matrix_transform.hpp>
 
+#include "messages.hpp"
 #include "viewer_app.hpp"
 
 namespace treecut::cli {
@@ -40,8 +41,9 @@ void Viewer::handle_input(double dt) {
   // named on stderr as ignored, not queued behind it).
   if (!input_.dropped.empty()) {
     for (std::size_t i = 0; i + 1 < input_.dropped.size(); ++i) {
-      std::fprintf(stderr, "treecut: %s: ignored (several files dropped; opening the last)\n",
-                   input_.dropped[i].c_str());
+      print_error(
+          quoted_name(input_.dropped[i]) + ": ignored (several files dropped; opening the last)",
+          true);
     }
     open_model(input_.dropped.back());
     input_.dropped.clear();

@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <filesystem>
 
+#include "treecut/file_io.hpp"
 #include "viewer_app.hpp"
 
 namespace treecut::cli {
@@ -25,8 +26,11 @@ void Viewer::toggle_recording() {
   }
   recording_ = false;
   if (recorded_.keys.size() >= 2) {
-    const std::string file = next_name("campath");
-    splat::save_camera_path(file, recorded_);
+    // The name is taken when the file is committed (another program may
+    // have made treecut_NNN.campath since next_name looked).
+    const std::string file =
+        write_file_to_free_name(next_name("campath"), splat::format_camera_path(recorded_))
+            .string();
     path_ = recorded_;
     status_ = "saved " + file;
   }

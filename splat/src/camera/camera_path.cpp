@@ -12,6 +12,7 @@
 
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
+#include "treecut/point_set.hpp"
 
 namespace treecut::splat {
 
@@ -38,7 +39,12 @@ std::string parse_numbers(std::string_view line, std::vector<double>& out) {
       return what + "'" + shown + "' is not a number";
     if (!std::isfinite(v)) return what + "'" + shown + "' is not a finite number";
     // Everything but the time is stored as a float: a double past FLT_MAX
-    // would become infinity without a word.
+    // would become infinity without a word. Eye and target are points of the
+    // model's space, within the coordinate limit (their squared distance must
+    // fit a float).
+    if (out.size() >= 1 && out.size() <= 6 &&
+        static_cast<float>(std::min(std::abs(v), 1e30)) > kMaxCoordinate)
+      return what + "'" + shown + "' is out of range (coordinates are at most 1e18 in magnitude)";
     if (out.size() >= 1 && std::abs(v) > double(std::numeric_limits<float>::max()))
       return what + "'" + shown + "' is out of range (single precision)";
     out.push_back(v);
@@ -114,23 +120,25 @@ CameraPath parse_camera_path(std::string_view text, const std::string& name) {
     if (!path.keys.empty() && k.time < path.keys.back().time) {
       throw InputError(where + "time goes backwards");
     }
-    const glm::vec3 view = k.camera.target - k.camera.eye;
-    const float dist = glm::length(view);
+    // In double, from the floats that are kept: no length of a valid key
+    // overflows (an up of 1e30 is as good as one of 1).
+    const glm::dvec3 eye(k.camera.eye), target(k.camera.target), up(k.camera.up);
+    const glm::dvec3 view = target - eye;
+    const double dist = glm::length(view);
     // Within a few float steps of each other the direction is noise.
-    const float scale = std::max(glm::length(k.camera.eye), glm::length(k.camera.target));
-    if (!std::isfinite(dist) || !(dist > 4.0f * std::numeric_limits<float>::epsilon() * scale) ||
+    const double scale = std::max(glm::length(eye), glm::length(target));
+    if (!(dist > 4.0 * std::numeric_limits<float>::epsilon() * scale) ||
         dist < std::numeric_limits<float>::min()) {
       throw InputError(where + "eye and target coincide");
     }
-    const float up_len = glm::length(k.camera.up);
-    if (!std::isfinite(up_len) || !(up_len >= std::numeric_limits<float>::min()))
-      throw InputError(where + "zero up vector");
-    if (glm::length(glm::cross(view / dist, k.camera.up / up_len)) < kMinUpAngleSin)
+    const double up_len = glm::length(up);
+    if (!(up_len >= std::numeric_limits<float>::min())) throw InputError(where + "zero up vector");
+    if (glm::length(glm::cross(view / dist, up / up_len)) < kMinUpAngleSin)
       throw InputError(where + "up vector is parallel to the view direction (target - eye)");
     if (!(k.camera.fov_y_deg > 1.0f && k.camera.fov_y_deg < 170.0f)) {
       throw InputError(where + "fov_y_deg outside (1, 170)");
     }
-    k.camera.up = k.camera.up / up_len;
+    k.camera.up = glm::vec3(up / up_len);
     path.keys.push_back(k);
   }
   if (!header) throw InputError(name + ": empty camera path (no '" + std::string(kHeader) + "')");
@@ -155,7 +163,7 @@ std::string format_camera_path(const CameraPath& path) {
 CameraPath load_camera_path(const std::filesystem::path& file) {
   // Refuses a FIFO, a device or a directory without opening it, and reads at
   // most kTextInputLimit bytes (a path of /dev/zero would otherwise grow forever).
-  return parse_camera_path(read_text_file(file, kTextInputLimit), file.string());
+  return parse_camera_path(read_text_file(file, kTextInputLimit), quoted_name(file));
 }
 
 void save_camera_path(const std::filesystem::path& file, const CameraPath& path) {

@@ -63,7 +63,7 @@ void write_png(const std::filesystem::path& path, const Image& image) {
   try {
     bytes = encode_png(image);
   } catch (const std::exception& e) {
-    throw std::runtime_error(path.string() + ": " + e.what());
+    throw std::runtime_error(quoted_name(path) + ": " + e.what());
   }
   // Encoded in memory first, then one checked atomic write: a full disk
   // leaves no truncated PNG that looks like a frame.

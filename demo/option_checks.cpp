@@ -1,0 +1,68 @@
+#include "option_checks.hpp"
+
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <string_view>
+
+#include "treecut/file_io.hpp"
+
+namespace treecut::cli {
+
+namespace {
+
+std::string shown(std::string_view token) {
+  return "'" + printable_excerpt(token) + "'";
+}
+
+std::string number_text(double v) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g", v);
+  return text;
+}
+
+}  // namespace
+
+CLI::Validator whole_number(std::uint64_t lo, std::uint64_t hi) {
+  const std::string range =
+      " (a whole number from " + std::to_string(lo) + " to " + std::to_string(hi) + ")";
+  return CLI::Validator(
+      [lo, hi, range](std::string& text) -> std::string {
+        std::string_view digits = text;
+        if (digits.starts_with('+')) digits.remove_prefix(1);
+        const bool negative = digits.starts_with('-');
+        if (negative) digits.remove_prefix(1);
+        std::uint64_t v = 0;
+        const auto [end, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), v);
+        const bool whole = !digits.empty() && end == digits.data() + digits.size() &&
+                           (ec == std::errc() || ec == std::errc::result_out_of_range);
+        if (!whole) return shown(text) + " is not a whole number" + range;
+        if (ec == std::errc::result_out_of_range || (negative && v != 0) || v < lo || v > hi)
+          return shown(text) + " is out of range" + range;
+        return {};
+      },
+      "INT in [" + std::to_string(lo) + " - " + std::to_string(hi) + "]", "WHOLE");
+}
+
+CLI::Validator finite_number(double lo, double hi) {
+  const std::string range = " (a number from " + number_text(lo) + " to " + number_text(hi) + ")";
+  return CLI::Validator(
+      [lo, hi, range](std::string& text) -> std::string {
+        std::string_view token = text;
+        if (token.starts_with('+')) token.remove_prefix(1);
+        double v = 0.0;
+        const auto [end, ec] = std::from_chars(token.data(), token.data() + token.size(), v);
+        const bool number = !token.empty() && end == token.data() + token.size() &&
+                            (ec == std::errc() || ec == std::errc::result_out_of_range);
+        if (!number) return shown(text) + " is not a number" + range;
+        if (ec == std::errc() && !std::isfinite(v))
+          return shown(text) + " is not a finite number" + range;
+        if (ec == std::errc::result_out_of_range || v < lo || v > hi)
+          return shown(text) + " is out of range" + range;
+        return {};
+      },
+      "NUMBER in [" + number_text(lo) + " - " + number_text(hi) + "]", "FINITE");
+}
+
+}  // namespace treecut::cli

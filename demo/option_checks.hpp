@@ -1,0 +1,19 @@
+// Checks of numeric options, in place of CLI::Range, which lets NaN through
+// (every comparison with NaN is false) and reports "1e3" for a whole-number
+// option as "not in range". Each names the token and what was expected:
+// "'1e3' is not a whole number (a whole number from 1 to 1000000)",
+// "'nan' is not a finite number (a number from 0.1 to 3600)".
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <cstdint>
+
+namespace treecut::cli {
+
+/// A whole number in [LO, HI] (decimal digits, an optional '+').
+CLI::Validator whole_number(std::uint64_t lo, std::uint64_t hi);
+
+/// A finite number in [LO, HI] (what std::from_chars reads: 2, 0.5, 1e3).
+CLI::Validator finite_number(double lo, double hi);
+
+}  // namespace treecut::cli
