@@ -89,6 +89,8 @@ void splat_box(const Hierarchy& h, glm::vec3& lo, glm::vec3& hi) {
     std::rethrow_exception(example);
   } catch (const InputError& e) {
     throw InputError(prefix + e.what());
+  } catch (const FileChangedError& e) {
+    throw FileChangedError(prefix + e.what());
   } catch (const std::exception& e) {
     throw std::runtime_error(prefix + e.what());
   }
