@@ -11,6 +11,7 @@
 #include <cerrno>
 #include <charconv>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <memory>
@@ -280,6 +281,21 @@ void run_bench_occlusion(const OcclusionArgs& a) {
   if (!a.no_hlod && !a.csv_dir.empty()) check_hlod_csv(hlod_csv_path(a.csv_dir, a.scene));
   const double to = walk_part_end(path, a.path, a.from, a.to);
   if (a.no_chc && a.no_hlod) throw InputError("--no-chc and --no-hlod leave nothing to run");
+  // The path at 1 / fps steps (a walk at that frame rate), or `frames` evenly
+  // spaced times; the first and last key included.
+  const double span = to - a.from;
+  // In double: a path of 1e300 s at 10 fps is no int (it wrapped negative).
+  const double walk_frames = 1.0 + std::floor(span * a.fps + 1e-9);
+  if (a.frames == 0 && !(walk_frames <= 1e6)) {
+    char msg[200];
+    std::snprintf(msg, sizeof msg,
+                  ": %.6g s of path at %g fps is %.6g frames, more than 1000000; use --frames, "
+                  "--fps, --from or --to",
+                  span, a.fps, walk_frames);
+    throw InputError(quoted_name(a.path) + msg);
+  }
+  const int frames = a.frames > 0 ? a.frames : static_cast<int>(walk_frames);
+
   SceneArgs scene_args;
   scene_args.model = a.scene;
   if (!a.scene.empty()) require_regular_file(a.scene);
@@ -301,10 +317,6 @@ void run_bench_occlusion(const OcclusionArgs& a) {
   if (compare) other_device = std::make_unique<splat::GlOcclusionDevice>(renderer, other);
   splat::RenderSettings settings;  // fast splats: the one-pass mode of in-frame draws
 
-  // The path at 1 / fps steps (a walk at that frame rate), or `frames` evenly
-  // spaced times; the first and last key included.
-  const double span = to - a.from;
-  const int frames = a.frames > 0 ? a.frames : 1 + static_cast<int>(span * a.fps + 1e-9);
   std::vector<splat::Camera> cameras;
   for (int f = 0; f < frames; ++f) {
     const double t = a.from + (frames == 1 ? 0.0 : span * f / (frames - 1));
@@ -426,11 +438,12 @@ void add_bench_commands(CLI::App& app) {
   build
       ->add_option("MODELS", args->models,
                    "PLY files, or gen:KIND:POINTS for an in-memory generated model")
+      ->check(non_empty_path())
       ->required();
   build->add_option("-r,--repeat", args->repeat, "Repetitions per model (median reported)")
       ->check(whole_number(1, 100));
   build->add_option("-t,--threads", args->threads, "Worker threads (0 = all)")
-      ->check(whole_number(0, 4096));
+      ->check(whole_number(0, 1024));
   build->callback([args] {
     // Every input is checked before the first run: a FIFO or a folder is
     // refused at once (a child would block on it), a bad gen: spec too.
@@ -477,8 +490,10 @@ void add_bench_commands(CLI::App& app) {
       "Occlusion culling on a walkthrough, headless: the CHC table (VFC, S&W, CHC, Ideal, CHC "
       "t_av=2, CHC n_vp=25; docs/occlusion.md)");
   occlusion->add_option("SCENE", occ->scene, "PLY or .tch (e.g. one made by treecut gen city)")
+      ->check(non_empty_path())
       ->required();
   occlusion->add_option("--path", occ->path, "Camera path (assets/paths/*_walk.campath)")
+      ->check(non_empty_path())
       ->required();
   occlusion->add_option("--fps", occ->fps, "Frames per second of path time (default 10)")
       ->check(finite_number(0.0, 1000.0));
@@ -517,8 +532,10 @@ void add_bench_commands(CLI::App& app) {
       ->add_option("--psnr-frames", occ->psnr_frames,
                    "HLOD table: frames of the path the PSNR against Bool is taken on")
       ->check(whole_number(0, 100000));
-  occlusion->add_option("--csv", occ->csv_dir,
-                        "Folder for the HLOD table's per-frame CSV (occlusion_SCENE.csv)");
+  occlusion
+      ->add_option("--csv", occ->csv_dir,
+                   "Folder for the HLOD table's per-frame CSV (occlusion_SCENE.csv)")
+      ->check(non_empty_path());
   occlusion->add_flag("--no-hlod", occ->no_hlod, "Print the CHC table only");
   occlusion->add_flag("--no-chc", occ->no_chc, "Print the HLOD table only");
   occlusion->callback([occ] { run_bench_occlusion(*occ); });

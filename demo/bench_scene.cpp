@@ -503,8 +503,11 @@ void add_bench_scene_command(CLI::App& bench) {
       "renderer's exact ObjectId reference: culling accuracy, points to visible objects, luma "
       "PSNR against full detail, draw time (docs/many-objects.md)");
   cmd->add_option("SCENE", args->scene, "Scene file (e.g. made by treecut gen city-block)")
+      ->check(non_empty_path())
       ->required();
-  cmd->add_option("--path", args->path, "Camera path (gen city-block --walk FILE)")->required();
+  cmd->add_option("--path", args->path, "Camera path (gen city-block --walk FILE)")
+      ->check(non_empty_path())
+      ->required();
   cmd->add_option("--frames", args->frames, "Frames evenly spaced over the path")
       ->check(whole_number(1, 100000))
       ->capture_default_str();
@@ -521,7 +524,8 @@ void add_bench_scene_command(CLI::App& bench) {
   cmd->add_option("--height", args->height, "Height in pixels")
       ->check(whole_number(16, 8192))
       ->capture_default_str();
-  cmd->add_option("--csv", args->csv_dir, "Folder for the per-frame CSV (scene_SCENE.csv)");
+  cmd->add_option("--csv", args->csv_dir, "Folder for the per-frame CSV (scene_SCENE.csv)")
+      ->check(non_empty_path());
   cmd->add_flag("--no-psnr", args->no_psnr, "Skip the full-detail color image and the PSNR");
   cmd->add_flag("--no-diagnosis", args->no_diagnosis,
                 "Skip the reruns of the culler with other parameters");

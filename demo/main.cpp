@@ -1,5 +1,8 @@
 // treecut: build, inspect and render point-splat hierarchies.
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
+#include <new>
 #include <exception>
 #include <string>
 #include <vector>
@@ -92,8 +95,21 @@ int main(int argc, char** argv) {
     // token), it stays one line and sends the terminal no control sequence.
     std::fprintf(stderr, "treecut: %s\n", treecut::one_line(e.what()).c_str());
     return 2;
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr,
+                 "treecut: error: out of memory (the model or the options ask for more than this "
+                 "machine gives)\n");
+    return 1;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "treecut: error: %s\n", treecut::one_line(e.what()).c_str());
+    return 1;
+  }
+  // What a command printed must have reached its reader: `treecut info m.ply
+  // > /dev/full` is a failure, not a silent success.
+  errno = 0;
+  if (std::fflush(stdout) != 0 || std::ferror(stdout) != 0) {
+    std::fprintf(stderr, "treecut: error: standard output: %s\n",
+                 std::strerror(errno != 0 ? errno : EIO));
     return 1;
   }
   return 0;

@@ -190,6 +190,56 @@ struct SceneGenArgs {
   std::uint64_t seed = 1;
 };
 
+// A model placed by `gen hall`: its path as the scene writes it (relative to
+// DIR, the scene's canonical folder), its up axis and its box.
+HallSource hall_source(const std::string& s, const std::filesystem::path& dir) {
+  // Stood upright by its detected up axis, as `render --up auto` would.
+  require_regular_file(s);
+  OpenOptions o;
+  o.warn = print_warning;
+  const OpenedModel m = open_model(s, o);
+  HallSource src;
+  const std::filesystem::path abs = std::filesystem::weakly_canonical(std::filesystem::absolute(s));
+  const std::filesystem::path rel = abs.lexically_relative(dir);
+  src.path = rel.empty() ? abs : rel;
+  const std::string written = src.path.string();
+  if (std::any_of(written.begin(), written.end(), [](char c) {
+        const auto u = static_cast<unsigned char>(c);
+        return u < 0x20 || u == 0x7f || c == ' ' || c == '#';
+      }))
+    throw InputError(
+        quoted_name(s) +
+        ": a path with blanks, control characters or '#' cannot be written in a scene file");
+  src.up = detect_up_axis(m.hierarchy).vector();
+  src.box_min = m.hierarchy.bounds_min();
+  src.box_max = m.hierarchy.bounds_max();
+  // A model of one point (or all points at one place) has no size to scale
+  // into a place of the hall.
+  const float magnitude = std::max({1.0f, glm::length(src.box_min), glm::length(src.box_max)});
+  if (!(glm::length(src.box_max - src.box_min) > 1e-6f * magnitude))
+    throw InputError(quoted_name(s) +
+                     ": its points span no volume (a single point, or all at one place); "
+                     "nothing to scale into the hall");
+  return src;
+}
+
+// What `gen` writes must be what treecut reads: within the size of a text
+// input, and parsing (LOADABLE: the same scene with absolute model paths).
+// Checked before anything is written.
+void check_scene_loads(const SceneGenArgs& a, const std::string& text,
+                       const std::string& loadable) {
+  if (text.size() > kTextInputLimit)
+    throw InputError(quoted_name(a.out) + ": the scene would be " + std::to_string(text.size()) +
+                     " bytes, more than the " + std::to_string(kTextInputLimit) +
+                     " a scene file may hold; use fewer --objects");
+  try {
+    (void)parse_scene_text(loadable, a.out);
+  } catch (const InputError& e) {
+    throw InputError("gen " + a.kind + ": the scene made for " + quoted_name(a.out) +
+                     " would not load (" + e.what() + "); nothing written");
+  }
+}
+
 // One command never writes one file twice, nor over a file it reads:
 // checked before any work, on the paths as they resolve (`n.ply` and
 // `./d/../n.ply`, links included), whether or not they exist yet.
@@ -217,46 +267,36 @@ void generate_scene_file(const SceneGenArgs& a) {
   check_distinct_files(outputs, inputs);
   check_scene_output(a.out);
   if (!a.walk.empty()) check_walk_output(a.walk);
-  std::string text;
+  std::string text, loadable;
   std::vector<WalkKey> walk;
   if (a.kind == "city-block") {
     if (!a.sources.empty()) throw InputError("gen city-block: --source is only for field and hall");
     const CityBlockLayout layout = city_block_layout(a.objects, a.seed);
     text = format_city_block_scene(layout, a.seed, a.points);
+    loadable = text;
     walk = city_block_walkthrough(layout);
   } else {
     if (a.sources.empty())
       throw InputError("gen hall: needs --source PLY (one or more models to place)");
+    // Canonical folder and sources (links resolved): the relative path is
+    // then the one the system follows from the scene's folder.
     const std::filesystem::path dir =
-        std::filesystem::absolute(a.out).lexically_normal().parent_path();
-    std::vector<HallSource> sources;
+        std::filesystem::weakly_canonical(std::filesystem::absolute(a.out).parent_path());
+    std::vector<HallSource> sources, absolute_sources;
     for (const auto& s : a.sources) {
-      // Stood upright by its detected up axis, as `render --up auto` would.
-      require_regular_file(s);
-      OpenOptions o;
-      o.warn = print_warning;
-      const OpenedModel m = open_model(s, o);
-      HallSource src;
-      const std::filesystem::path abs = std::filesystem::absolute(s).lexically_normal();
-      const std::filesystem::path rel = abs.lexically_relative(dir);
-      src.path = rel.empty() ? abs : rel;
-      const std::string written = src.path.string();
-      if (std::any_of(written.begin(), written.end(), [](char c) {
-            const auto u = static_cast<unsigned char>(c);
-            return u < 0x20 || u == 0x7f || c == ' ' || c == '#';
-          }))
-        throw InputError(
-            quoted_name(s) +
-            ": a path with blanks, control characters or '#' cannot be written in a scene file");
-      src.up = detect_up_axis(m.hierarchy).vector();
-      src.box_min = m.hierarchy.bounds_min();
-      src.box_max = m.hierarchy.bounds_max();
-      sources.push_back(src);
+      sources.push_back(hall_source(s, dir));
+      absolute_sources.push_back(sources.back());
+      absolute_sources.back().path =
+          std::filesystem::weakly_canonical(std::filesystem::absolute(s));
     }
     const HallLayout layout = hall_layout(a.objects, sources.size(), a.seed);
     text = format_hall_scene(layout, sources, a.seed, a.points);
+    // The same scene with absolute paths: it parses before the folder that
+    // makes the relative ones resolve exists.
+    loadable = format_hall_scene(layout, absolute_sources, a.seed, a.points);
     walk = hall_walkthrough(layout);
   }
+  check_scene_loads(a, text, loadable);
   if (a.out.has_parent_path()) {
     std::error_code ec;
     std::filesystem::create_directories(a.out.parent_path(), ec);
@@ -280,9 +320,11 @@ void add_model_commands(CLI::App& app) {
   auto* build =
       app.add_subcommand("build", "Build (or refresh) the hierarchy cache of a PLY model");
   // No CLI::ExistingFile: open_model names what MODEL is ("is a FIFO", "is a directory").
-  build->add_option("MODEL", build_args->model, "PLY file")->required();
-  build->add_option("-o,--output", build_args->out,
-                    "Cache file to write (default: the user cache folder)");
+  build->add_option("MODEL", build_args->model, "PLY file")->check(non_empty_path())->required();
+  build
+      ->add_option("-o,--output", build_args->out,
+                   "Cache file to write (default: the user cache folder)")
+      ->check(non_empty_path());
   build->add_flag("-f,--force", build_args->force, "Rebuild even when a valid cache exists");
   add_build_options(*build, *build_args);
   build->callback([build_args] {
@@ -293,6 +335,10 @@ void add_model_commands(CLI::App& app) {
     // -f removes nothing up front: the old cache stays until the new one replaces it.
     o.rebuild = build_args->force;
     require_regular_file(build_args->model);
+    if (looks_like_cache(build_args->model))
+      throw InputError(quoted_name(build_args->model) +
+                       ": is a treecut cache already; build takes a PLY model (info shows the "
+                       "cache)");
     if (o.cache_path) check_cache_output(*o.cache_path, build_args->model);
     ProgressBar bar("read");
     o.progress = bar.callback();
@@ -304,7 +350,9 @@ void add_model_commands(CLI::App& app) {
   auto info_args = std::make_shared<ModelArgs>();
   auto* info =
       app.add_subcommand("info", "Summarize a model (PLY, through its cache) or a cache file");
-  info->add_option("MODEL", info_args->model, "PLY, .tch cache file or .scene")->required();
+  info->add_option("MODEL", info_args->model, "PLY, .tch cache file or .scene")
+      ->check(non_empty_path())
+      ->required();
   add_build_options(*info, *info_args);
   info->callback([info_args] {
     OpenOptions o = open_options(*info_args);
@@ -342,19 +390,22 @@ void add_model_commands(CLI::App& app) {
                   "Number of points (city-block, hall: of each generated model, default 20000)")
       ->check(whole_number(1, std::uint64_t{1} << 31));
   gen->add_option("-o,--output", gen_args->out,
-                  "Output PLY (default: assets/KIND.ply; a scene: assets/KIND.scene)");
+                  "Output PLY (default: assets/KIND.ply; a scene: assets/KIND.scene)")
+      ->check(non_empty_path());
   gen->add_option("--seed", gen_args->seed, "Random seed")
       ->check(whole_number(0, std::numeric_limits<std::uint64_t>::max()));
   gen->add_option("--source", gen_args->source,
                   "field: the scanned model (PLY) whose copies fill the field; hall: the models "
-                  "to place (repeat the option for several)");
+                  "to place (repeat the option for several)")
+      ->check(non_empty_path());
   gen->add_option("--objects", gen_args->objects,
                   "city-block (default 20000 buildings), hall (default 1000 copies): objects")
       ->check(whole_number(1, kMaxSceneObjects / 2));
   gen->add_option(
-      "--walk", gen_args->walk,
-      "city, field, plant, city-block, hall: also write the scene's walkthrough camera path "
-      "(assets/paths/KIND_walk.campath is made this way)");
+         "--walk", gen_args->walk,
+         "city, field, plant, city-block, hall: also write the scene's walkthrough camera path "
+         "(assets/paths/KIND_walk.campath is made this way)")
+      ->check(non_empty_path());
   gen->callback([gen_args, gen] {
     if (gen_args->kind == "city-block" || gen_args->kind == "hall") {
       SceneGenArgs a;

@@ -65,4 +65,12 @@ CLI::Validator finite_number(double lo, double hi) {
       "NUMBER in [" + number_text(lo) + " - " + number_text(hi) + "]", "FINITE");
 }
 
+CLI::Validator non_empty_path() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        return text.empty() ? std::string("an empty path (name a file)") : std::string();
+      },
+      "PATH", "PATH");
+}
+
 }  // namespace treecut::cli

@@ -16,4 +16,8 @@ CLI::Validator whole_number(std::uint64_t lo, std::uint64_t hi);
 /// A finite number in [LO, HI] (what std::from_chars reads: 2, 0.5, 1e3).
 CLI::Validator finite_number(double lo, double hi);
 
+/// A path that is not the empty string: '' is a mistake (an unset shell
+/// variable), never "the default".
+CLI::Validator non_empty_path();
+
 }  // namespace treecut::cli

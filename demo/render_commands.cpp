@@ -69,7 +69,7 @@ void run_render(const RenderArgs& a) {
       throw InputError(name + ": --target-fps needs a max_nodes or min_size parameter");
     }
   }
-  check_output_folder(a.out, a.scene.strategies);
+  check_output_folder(a.out, a.scene.strategies, {a.scene.model, a.path});
   const float aspect = float(a.width) / float(a.height);
   splat::CameraPath path;
   if (!a.path.empty()) path = splat::load_camera_path(a.path);
@@ -422,11 +422,14 @@ void add_render_commands(CLI::App& app) {
   add_scene_options(*render, ra->scene);
   // No CLI::ExistingFile on --path/--script: load_camera_path and
   // load_view_script say what a bad path is ("is a FIFO", "is a directory").
-  render->add_option("--path", ra->path, "Camera path file (default: one orbit around the model)");
+  render->add_option("--path", ra->path, "Camera path file (default: one orbit around the model)")
+      ->check(non_empty_path());
   render->add_option("-n,--frames", ra->frames, "Frames along the path")
       ->check(whole_number(1, 1000000))
       ->capture_default_str();
-  render->add_option("-o,--out", ra->out, "Output folder")->capture_default_str();
+  render->add_option("-o,--out", ra->out, "Output folder")
+      ->check(non_empty_path())
+      ->capture_default_str();
   render->add_option("--width", ra->width, "Frame width")
       ->check(whole_number(16, 8192))
       ->capture_default_str();
@@ -457,17 +460,20 @@ void add_render_commands(CLI::App& app) {
   auto va = std::make_shared<ViewArgs>();
   auto* view = app.add_subcommand("view", "Open a window on a model (GLFW, OpenGL 4.5 core)");
   add_scene_options(*view, va->scene);
-  view->add_option("MORE", va->more_models, "Further models; O in the window opens the next");
+  view->add_option("MORE", va->more_models, "Further models; O in the window opens the next")
+      ->check(non_empty_path());
   view->add_option("--width", va->width, "Window width")
       ->check(whole_number(16, 8192))
       ->capture_default_str();
   view->add_option("--height", va->height, "Window height")
       ->check(whole_number(16, 8192))
       ->capture_default_str();
-  view->add_option("--path", va->path, "Replay this camera path");
+  view->add_option("--path", va->path, "Replay this camera path")->check(non_empty_path());
   view->add_option("--script", va->script,
-                   "Scripted run (see docs/camera-paths.md): replay, screenshot, exit");
+                   "Scripted run (see docs/camera-paths.md): replay, screenshot, exit")
+      ->check(non_empty_path());
   view->add_option("--screenshot-dir", va->screenshot_dir, "Where F12 / scripts save PNGs")
+      ->check(non_empty_path())
       ->capture_default_str();
   view->add_option("--target-fps", va->target_fps,
                    "Adapt the strategy's budget to hold this frame rate (0 = off)")

@@ -67,21 +67,36 @@ bool starts_with_stats_header(const std::filesystem::path& file) {
   return n == static_cast<ssize_t>(sizeof head) && std::string_view(head, sizeof head) == kHeader;
 }
 
+// The marker, or the stats.csv of an older treecut, at the folder's own top:
+// a render output somewhere below it (proj/old/stats.csv) does not make the
+// user's proj/plot.svg treecut's to replace.
 bool is_earlier_render_output(const std::filesystem::path& dir) {
-  if (file_kind(dir / kRenderMarker) == FileKind::Regular) return true;
-  if (starts_with_stats_header(dir / "stats.csv")) return true;
-  std::error_code ec;
-  for (const auto& e : std::filesystem::directory_iterator(dir, ec))
-    if (e.is_directory(ec) && starts_with_stats_header(e.path() / "stats.csv")) return true;
-  return false;
+  return file_kind(dir / kRenderMarker) == FileKind::Regular ||
+         starts_with_stats_header(dir / "stats.csv");
 }
 
-void check_output_target(const std::filesystem::path& file) {
-  const FileKind kind = file_kind(file);
-  if (kind != FileKind::Missing && kind != FileKind::Regular)
-    throw InputError(quoted_name(file) + ": is " + std::string(describe(kind)) +
-                     "; refusing to write render output there");
+// A name render writes in a folder: frame_NNNNN.png, stats.csv, summary.json,
+// plot.svg, the marker.
+bool is_render_output_name(const std::string& name) {
+  if (name == "stats.csv" || name == "summary.json" || name == "plot.svg" || name == kRenderMarker)
+    return true;
+  return name.size() >= 15 && name.starts_with("frame_") && name.ends_with(".png") &&
+         std::all_of(name.begin() + 6, name.end() - 4, [](char c) { return c >= '0' && c <= '9'; });
 }
+
+// Every entry of DIR that render would replace must be a regular file (a
+// directory or FIFO found mid-run would end it after frames were written).
+void check_output_entries(const std::filesystem::path& dir) {
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(dir, ec)) {
+    if (!is_render_output_name(e.path().filename().string())) continue;
+    const auto status = e.symlink_status(ec);
+    if (std::filesystem::is_regular_file(status) || std::filesystem::is_symlink(status)) continue;
+    throw InputError(quoted_name(e.path()) + ": is " + std::string(describe(file_kind(e.path()))) +
+                     "; refusing to write render output there");
+  }
+}
+
 
 }  // namespace
 
@@ -298,34 +313,61 @@ std::string summary_json(const RunSummary& s) {
 }
 
 void check_output_folder(const std::filesystem::path& out,
-                         const std::vector<std::string>& strategies) {
+                         const std::vector<std::string>& strategies,
+                         const std::vector<std::filesystem::path>& inputs) {
   std::set<std::string> seen;
   for (const std::string& name : strategies)
     if (!seen.insert(name).second)
       throw InputError("--strategy " + name +
                        " given twice: each strategy runs once (a second run would overwrite the "
                        "first one's output)");
+  if (out.empty()) throw InputError("--out: an empty path (name the output folder)");
+  // Render replaces files in the folder: none of its inputs may live there.
+  std::error_code ec;
+  const std::filesystem::path folder =
+      std::filesystem::weakly_canonical(std::filesystem::absolute(out, ec), ec);
+  for (const std::filesystem::path& input : inputs) {
+    if (input.empty()) continue;
+    std::error_code ie;
+    const std::filesystem::path in =
+        std::filesystem::weakly_canonical(std::filesystem::absolute(input, ie), ie);
+    if (ec || ie) continue;
+    const auto rel = in.lexically_relative(folder);
+    if (!rel.empty() && *rel.begin() != "..")
+      throw InputError(quoted_name(input) + ": is inside the output folder " + quoted_name(out) +
+                       ", where render replaces files; choose another --out");
+  }
   const FileKind kind = file_kind(out);
   if (kind == FileKind::Missing) return;
   if (kind != FileKind::Directory)
     throw InputError(quoted_name(out) + ": is " + std::string(describe(kind)) +
                      ", not a folder; refusing to write render output there");
-  std::error_code ec;
   const bool empty = std::filesystem::is_empty(out, ec);
   if (ec) throw InputError(system_error_text(out, ec.value()));
   if (!empty && !is_earlier_render_output(out))
     throw InputError(quoted_name(out) +
                      ": folder is not empty and not an earlier treecut render output; refusing to "
                      "write into it");
-  check_output_target(out / "plot.svg");
+  check_output_entries(out);
   for (const std::string& name : strategies) {
-    const std::filesystem::path dir = strategies.size() > 1 ? out / name : out;
+    if (strategies.size() == 1) break;
+    const std::filesystem::path dir = out / name;
+    // Not through a link: an earlier output's subfolder made a link to the
+    // user's photos would have its frames written there.
+    const auto status = std::filesystem::symlink_status(dir, ec);
+    if (std::filesystem::is_symlink(status))
+      throw InputError(quoted_name(dir) +
+                       ": is a symbolic link; refusing to write render output through it");
     const FileKind dir_kind = file_kind(dir);
-    if (dir_kind != FileKind::Missing && dir_kind != FileKind::Directory)
+    if (dir_kind == FileKind::Missing) continue;
+    if (dir_kind != FileKind::Directory)
       throw InputError(quoted_name(dir) + ": is " + std::string(describe(dir_kind)) +
                        ", not a folder; refusing to write render output there");
-    check_output_target(dir / "stats.csv");
-    check_output_target(dir / "summary.json");
+    if (!std::filesystem::is_empty(dir, ec) && !is_earlier_render_output(dir))
+      throw InputError(quoted_name(dir) +
+                       ": folder is not empty and not an earlier treecut render output; refusing "
+                       "to write into it");
+    check_output_entries(dir);
   }
 }
 
@@ -341,6 +383,24 @@ void mark_output_folder(const std::filesystem::path& out) {
     write_file_atomically(out / kRenderMarker, "written by treecut render\n");
 }
 
+// TEXT as SVG character data: a model named `a&b<c>.ply` must not make the
+// plot ill-formed XML; control characters (not allowed in XML 1.0) as '?'.
+std::string xml_text(std::string_view text) {
+  std::string out;
+  for (const char c : text) {
+    switch (c) {
+      case '&': out += "&amp;"; break;
+      case '<': out += "&lt;"; break;
+      case '>': out += "&gt;"; break;
+      case '"': out += "&quot;"; break;
+      case '\'': out += "&apos;"; break;
+      default:
+        out += static_cast<unsigned char>(c) < 0x20 ? '?' : c;
+    }
+  }
+  return out;
+}
+
 // Two stacked charts (frame time, cut size) over the frame index, one line per
 // strategy: the plot of the README's benchmark section.
 void write_plot_svg(const std::filesystem::path& file, const std::vector<RunSummary>& runs,
@@ -351,7 +411,8 @@ void write_plot_svg(const std::filesystem::path& file, const std::vector<RunSumm
   o << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << kW << "\" height=\""
     << kTop + 2 * kH + kGap + 40 << "\" font-family=\"sans-serif\" font-size=\"12\">\n";
   o << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
-  o << "<text x=\"" << kLeft << "\" y=\"20\" font-size=\"14\">" << title << "</text>\n";
+  o << "<text x=\"" << kLeft << "\" y=\"20\" font-size=\"14\">" << xml_text(title)
+    << "</text>\n";
   auto chart = [&](int index, const char* label, auto value) {
     const double y0 = kTop + index * (kH + kGap);
     double vmax = 0.0;
@@ -392,7 +453,7 @@ void write_plot_svg(const std::filesystem::path& file, const std::vector<RunSumm
     const double y = kTop + 2 * kH + kGap + 30;
     o << "<rect x=\"" << x << "\" y=\"" << y - 10 << "\" width=\"14\" height=\"4\" fill=\""
       << colors[ri % 6] << "\"/><text x=\"" << x + 20 << "\" y=\"" << y - 5 << "\">"
-      << runs[ri].strategy << "</text>\n";
+      << xml_text(runs[ri].strategy) << "</text>\n";
   }
   o << "</svg>\n";
   write_file_atomically(file, o.str());

@@ -103,11 +103,14 @@ std::string summary_json(const RunSummary& s);
 void write_plot_svg(const std::filesystem::path& file, const std::vector<RunSummary>& runs,
                     const std::string& title);
 
-/// Refuses (InputError) an --out that is not a missing or empty folder or an
-/// earlier render's output, a strategy given twice, or a report file that is
-/// not a regular file; before any work.
+/// Refuses (InputError), before any work: an --out that is not a missing or
+/// empty folder or an earlier render's output (its marker or stats.csv at its
+/// top), a strategy given twice, an entry render would replace that is not a
+/// regular file, a strategy's subfolder that is a link, and INPUTS (the
+/// model, the camera path) inside the output folder.
 void check_output_folder(const std::filesystem::path& out,
-                         const std::vector<std::string>& strategies);
+                         const std::vector<std::string>& strategies,
+                         const std::vector<std::filesystem::path>& inputs);
 void make_output_folder(const std::filesystem::path& dir);
 /// Writes the marker that makes `out` recognizably an earlier render's output.
 void mark_output_folder(const std::filesystem::path& out);

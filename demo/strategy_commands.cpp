@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "commands.hpp"
+#include "option_checks.hpp"
 #include "treecut/registry.hpp"
 #include "treecut/strategies/builtin.hpp"
 
@@ -31,7 +32,8 @@ void add_strategy_commands(CLI::App& app) {
       "strategies", "List the LOD strategies and their parameters (plugins included)");
   cmd->add_option("--plugin", *plugins,
                   "Load a strategy plugin (shared library exporting treecut_plugin_register); "
-                  "repeatable");
+                  "repeatable")
+      ->check(non_empty_path());
   cmd->callback([plugins] {
     StrategyRegistry registry = strategies::builtin_registry();
     for (const std::string& path : *plugins) registry.load_plugin(path);  // InputError -> exit 2

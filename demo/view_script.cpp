@@ -101,6 +101,11 @@ std::vector<ScriptCommand> parse_view_script(std::string_view text,
                c.verb == "mode") {
       want(1, c.verb == "play" ? "a camera path" : "an argument");
       c.arg = std::string(words[1]);
+      // A screenshot is a PNG name in --screenshot-dir, never a path out of it.
+      if (c.verb == "screenshot" &&
+          (c.arg.find('/') != std::string::npos || c.arg == "." || c.arg == ".."))
+        throw InputError(where + "screenshot takes a file name in --screenshot-dir, not the path " +
+                         shown(words[1]));
       try {
         if (c.verb == "play") {
           c.arg = (file.parent_path() / c.arg).string();

@@ -24,8 +24,9 @@ namespace treecut::cli {
 
 void add_scene_options(CLI::App& cmd, SceneArgs& args) {
   cmd.add_option(
-      "MODEL", args.model,
-      "PLY model, .tch cache or .scene file (default: a generated model, see --default-kind)");
+         "MODEL", args.model,
+         "PLY model, .tch cache or .scene file (default: a generated model, see --default-kind)")
+      ->check(non_empty_path());
   cmd.add_option("--default-kind", args.default_kind,
                  "Procedural model used without MODEL: sphere | terrain | city | plant")
       ->capture_default_str();
@@ -37,7 +38,8 @@ void add_scene_options(CLI::App& cmd, SceneArgs& args) {
                  "several and runs the path once per strategy")
       ->capture_default_str();
   cmd.add_option("-p,--param", args.params, "Strategy parameter NAME=VALUE (repeatable)");
-  cmd.add_option("--plugin", args.plugins, "Load strategies from a plugin shared library");
+  cmd.add_option("--plugin", args.plugins, "Load strategies from a plugin shared library")
+      ->check(non_empty_path());
   cmd.add_option("-m,--mode", args.mode, "Splat mode: fast | hq | fixed")->capture_default_str();
   cmd.add_option("--radius-scale", args.radius_scale, "Multiply every splat radius")
       ->check(finite_number(0.05, 20.0))

@@ -67,7 +67,10 @@ class Hostile : public ::testing::Test {
   void SetUp() override {
     const char* old = std::getenv("XDG_CACHE_HOME");
     if (old != nullptr) saved_ = old;
-    ::setenv("XDG_CACHE_HOME", scratch_dir("hostile_cache").c_str(), 1);
+    // Each test its own (ctest runs them in parallel; a fresh scratch folder
+    // is emptied first).
+    const std::string test = ::testing::UnitTest::GetInstance()->current_test_info()->name();
+    ::setenv("XDG_CACHE_HOME", scratch_dir("hostile_cache_" + test).c_str(), 1);
   }
   void TearDown() override {
     if (saved_)
@@ -248,6 +251,182 @@ TEST_F(Hostile, PluginsAreCheckedAsFilesBeforeDlopen) {
   expect_failure(run_treecut("strategies --plugin " + quote(dir / "t.so")), 2, "t.so: truncated");
   // A bare name is a file name: not found here, it is not searched for.
   expect_failure(run_treecut("strategies --plugin libz.so.1"), 2, "libz.so.1: no such file");
+}
+
+// -- the hostile run's own finds (cases not in the issue) -------------------------
+
+// A command that runs treecut under `sh -c` with its own redirections and
+// environment: stdout and stderr apart.
+CommandResult run_shell(const std::string& command_line) {
+  const auto bin = fs::path(TREECUT_BINARY_DIR) / "demo" / "treecut";
+  const std::string cmd =
+      "export T=" + quote(bin) + "; timeout -k 5 120 sh -c " + quote(command_line);
+  CommandResult r;
+  FILE* p = popen((cmd + " 2>&1").c_str(), "r");
+  if (p == nullptr) return r;
+  char buf[4096];
+  while (std::fgets(buf, sizeof buf, p) != nullptr) r.out += buf;
+  const int status = pclose(p);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+TEST_F(Hostile, APathOfNoFramesCountIsRefusedNotACrash) {
+  const fs::path dir = scratch_dir("hostile_long_path");
+  const fs::path model = sphere(dir, "m.ply");
+  write_text(dir / "long.campath",
+             "treecut-camera-path 1\n0 0 -3 1 0 0 0 0 0 1 45\n1e300 3 0 1 0 0 0 0 0 1 45\n");
+  expect_failure(run_treecut("bench occlusion " + quote(model) + " --path " +
+                             quote(dir / "long.campath") + " --no-hlod"),
+                 2, "long.campath: 1e+300 s of path at 10 fps is 1e+301 frames, more than 1000000");
+}
+
+TEST_F(Hostile, AnEmptyPathIsAMistakeNotTheDefault) {
+  const fs::path dir = scratch_dir("hostile_empty_paths");
+  const fs::path model = sphere(dir, "m.ply");
+  expect_failure(run_treecut("gen sphere -n 10 -o ''"), 2, "--output: an empty path");
+  expect_failure(run_treecut("render '' --frames 1 --out " + quote(dir / "o")), 2,
+                 "MODEL: an empty path");
+  expect_failure(run_treecut("render " + quote(model) + " --path '' --out " + quote(dir / "o")), 2,
+                 "--path: an empty path");
+  expect_failure(run_treecut("render " + quote(model) + " --out ''"), 2, "--out: an empty path");
+  expect_failure(run_treecut("strategies --plugin ''"), 2, "--plugin: an empty path");
+  EXPECT_FALSE(fs::exists(dir / "o"));
+  EXPECT_FALSE(fs::exists("assets/sphere.ply"));
+}
+
+TEST_F(Hostile, BuildOfACacheIsRefusedNotSilentlySkipped) {
+  const fs::path dir = scratch_dir("hostile_build_cache");
+  const fs::path model = sphere(dir, "m.ply");
+  ASSERT_EQ(run_treecut("build " + quote(model) + " -o " + quote(dir / "m.tch")).code, 0);
+  expect_failure(run_treecut("build " + quote(dir / "m.tch") + " -o " + quote(dir / "other.tch")),
+                 2, "m.tch: is a treecut cache already; build takes a PLY model");
+  EXPECT_FALSE(fs::exists(dir / "other.tch"));
+}
+
+TEST_F(Hostile, AStrategyThatAsksQueriesIsRefusedForAScene) {
+  const fs::path dir = scratch_dir("hostile_scene_queries");
+  ASSERT_EQ(run_treecut("gen city-block --objects 4 -n 200 -o " + quote(dir / "cb.scene")).code, 0);
+  expect_failure(run_treecut("render " + quote(dir / "cb.scene") + " -s hoq --frames 2 --out " +
+                             quote(dir / "o")),
+                 2, "strategy 'hoq' (built-in) asks for GPU occlusion queries");
+  EXPECT_FALSE(fs::exists(dir / "o")) << "refused before any output";
+}
+
+TEST_F(Hostile, GenWritesOnlyScenesThatLoad) {
+  const fs::path dir = scratch_dir("hostile_scene_loads");
+  // Past the 16 MiB a scene file may hold (a text input's limit).
+  expect_failure(
+      run_treecut("gen city-block --objects 200000 -n 10 -o " + quote(dir / "big.scene")), 2,
+      "more than the 16777216 a scene file may hold; use fewer --objects");
+  // A source of one point has no size to scale into the hall.
+  write_text(dir / "point.ply",
+             "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+             "property float z\nend_header\n0.1 0.2 0.3\n");
+  expect_failure(run_treecut("gen hall --source " + quote(dir / "point.ply") + " -o " +
+                             quote(dir / "h.scene")),
+                 2, "point.ply: its points span no volume");
+  EXPECT_FALSE(fs::exists(dir / "big.scene"));
+  EXPECT_FALSE(fs::exists(dir / "h.scene"));
+}
+
+// Paths in a scene resolve as the system resolves them: through a link in
+// the scene's folder, `..` is the link target's parent.
+TEST_F(Hostile, AHallWrittenThroughALinkLoadsFromBothPaths) {
+  const fs::path dir = scratch_dir("hostile_hall_link");
+  const fs::path model = sphere(dir, "m.ply");
+  fs::create_directories(dir / "real" / "deep");
+  fs::create_directory_symlink(dir / "real" / "deep", dir / "lnk");
+  ASSERT_EQ(run_treecut("gen hall --objects 4 -n 200 --source " + quote(model) + " -o " +
+                        quote(dir / "lnk" / "h.scene"))
+                .code,
+            0);
+  EXPECT_EQ(run_treecut("info " + quote(dir / "lnk" / "h.scene")).code, 0);
+  const CommandResult r = run_treecut("info " + quote(dir / "real" / "deep" / "h.scene"));
+  EXPECT_EQ(r.code, 0) << r.out;
+}
+
+TEST_F(Hostile, RenderWritesNothingOutsideItsOwnOutputs) {
+  const fs::path dir = scratch_dir("hostile_render_out");
+  const fs::path model = sphere(dir, "m.ply");
+  const std::string render = "render " + quote(model) + " --frames 2 --width 32 --height 32 ";
+  // An earlier output whose strategy subfolder was made a link to photos.
+  fs::create_directory(dir / "photos");
+  write_text(dir / "photos" / "frame_00000.png", "a photo\n");
+  ASSERT_EQ(run_treecut(render + "-s optimization -s bucket --out " + quote(dir / "prev")).code, 0);
+  fs::remove_all(dir / "prev" / "optimization");
+  fs::create_directory_symlink(dir / "photos", dir / "prev" / "optimization");
+  expect_failure(run_treecut(render + "-s optimization -s bucket --out " + quote(dir / "prev")), 2,
+                 "optimization: is a symbolic link; refusing to write render output through it");
+  EXPECT_EQ(read_all(dir / "photos" / "frame_00000.png"), "a photo\n");
+  // An old output in a subfolder does not make the folder itself one.
+  fs::create_directories(dir / "proj" / "old");
+  write_text(dir / "proj" / "plot.svg", "the user's plot\n");
+  fs::copy_file(dir / "prev" / "bucket" / "stats.csv", dir / "proj" / "old" / "stats.csv");
+  expect_failure(run_treecut(render + "--out " + quote(dir / "proj")), 2,
+                 "folder is not empty and not an earlier treecut render output");
+  EXPECT_EQ(read_all(dir / "proj" / "plot.svg"), "the user's plot\n");
+  // Inputs inside the output folder, and a frame name taken by a folder.
+  ASSERT_EQ(run_treecut(render + "--out " + quote(dir / "rin")).code, 0);
+  fs::copy_file(model, dir / "rin" / "model.ply");
+  expect_failure(run_treecut("render " + quote(dir / "rin" / "model.ply") + " --frames 2 --out " +
+                             quote(dir / "rin")),
+                 2, "model.ply: is inside the output folder");
+  fs::create_directory(dir / "rin" / "frame_00007.png");
+  expect_failure(run_treecut(render + "--out " + quote(dir / "rin")), 2,
+                 "frame_00007.png: is a directory; refusing to write render output there");
+}
+
+TEST_F(Hostile, ThePlotOfAModelWithMarkupInItsNameIsWellFormed) {
+  const fs::path dir = scratch_dir("hostile_svg");
+  const fs::path model = sphere(dir, "a&b<c>.ply");
+  ASSERT_EQ(run_treecut("render " + quote(model) +
+                        " --frames 2 --width 32 --height 32 --no-png "
+                        "--out " +
+                        quote(dir / "o"))
+                .code,
+            0);
+  const std::string svg = read_all(dir / "o" / "plot.svg");
+  EXPECT_NE(svg.find("a&amp;b&lt;c&gt;.ply"), std::string::npos) << svg.substr(0, 400);
+  EXPECT_EQ(svg.find("<c>"), std::string::npos);
+}
+
+TEST_F(Hostile, LegalLongNamesGetTheirTemporariesAndCaches) {
+  const fs::path dir = scratch_dir("hostile_long_names");
+  const std::string name = std::string(246, 'n') + ".ply";  // 250 bytes
+  ASSERT_EQ(run_treecut("gen sphere -n 500 -o " + quote(dir / name)).code, 0);
+  const CommandResult r = run_treecut("build " + quote(dir / name));
+  EXPECT_EQ(r.code, 0) << r.out;
+  EXPECT_EQ(files_in(dir), std::vector<fs::path>{name});
+}
+
+TEST_F(Hostile, OutputThatCannotBeWrittenIsAFailure) {
+  const fs::path dir = scratch_dir("hostile_stdout");
+  const fs::path model = sphere(dir, "m.ply");
+  const CommandResult r = run_shell("\"$T\" info " + quote(model) + " > /dev/full");
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_EQ(r.out, "treecut: error: standard output: No space left on device\n");
+  EXPECT_EQ(run_shell("\"$T\" strategies > /dev/full").code, 1);
+}
+
+TEST_F(Hostile, NoHomeAndNoTemporaryFolderMeansNoCacheNotAFailure) {
+  const fs::path dir = scratch_dir("hostile_no_home");
+  const fs::path model = sphere(dir, "m.ply");
+  const CommandResult r =
+      run_shell("env -u HOME -u XDG_CACHE_HOME TMPDIR=/nonexistent \"$T\" info " + quote(model));
+  EXPECT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("warning: no cache folder"), std::string::npos) << r.out;
+}
+
+TEST_F(Hostile, ParameterMessagesShowTheValueAsGiven) {
+  const fs::path dir = scratch_dir("hostile_param_text");
+  const fs::path model = sphere(dir, "m.ply");
+  expect_failure(
+      run_treecut("render " + quote(model) + " -p max_nodes=4000000001 --out " + quote(dir / "o")),
+      2, "max_nodes = 4000000001 is out of range [1, 4000000000]");
+  expect_failure(run_treecut("render " + quote(model) + " -p max_nodes=100000.0000000001 --out " +
+                             quote(dir / "o")),
+                 2, "max_nodes = 100000.0000000001 must be a whole number");
 }
 
 }  // namespace

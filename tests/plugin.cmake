@@ -34,6 +34,15 @@ add_dependencies(plugin_test treecut_misbehaving_plugin treecut)
 target_compile_definitions(plugin_test PRIVATE
   TREECUT_MISBEHAVING_PLUGIN="$<TARGET_FILE:treecut_misbehaving_plugin>")
 
+# A library that crashes in dlopen (tests/crashing_plugin.cpp): plugin_test
+# checks that loading it is an error naming it, not a crash of the host.
+add_library(treecut_crashing_plugin MODULE ${CMAKE_CURRENT_SOURCE_DIR}/crashing_plugin.cpp)
+set_target_properties(treecut_crashing_plugin PROPERTIES PREFIX "lib")
+treecut_warnings(treecut_crashing_plugin)
+add_dependencies(plugin_test treecut_crashing_plugin)
+target_compile_definitions(plugin_test PRIVATE
+  TREECUT_CRASHING_PLUGIN="$<TARGET_FILE:treecut_crashing_plugin>")
+
 # A plugin whose strategy posts GPU queries (tests/querying_plugin.cpp): none
 # of the built-in ones does; render_command_test runs `treecut render` with it
 # to see the query columns of stats.csv and summary.json filled in.

@@ -111,6 +111,19 @@ TEST(Plugin, TruncatedForeignAndNonLibraryFilesAreRefusedBeforeDlopen) {
   }
 }
 
+// A library whose loading crashes (here its constructor; in the hostile run a
+// bad pointer in the dynamic section of a complete copy of libz) is tried in
+// a child process first: an error naming it, and the host lives on.
+TEST(Plugin, ALibraryThatCrashesTheLoaderIsAnErrorNotACrash) {
+  StrategyRegistry r;
+  const std::string m = message_of([&] { r.load_plugin(TREECUT_CRASHING_PLUGIN); });
+  EXPECT_EQ(m.rfind(std::string(TREECUT_CRASHING_PLUGIN) + ": cannot load plugin: loading it ", 0),
+            0u)
+      << m;
+  EXPECT_NE(m.find("the library is damaged"), std::string::npos) << m;
+  EXPECT_TRUE(r.names().empty());
+}
+
 TEST(ExamplePlugin, RegistersAndRunsItsStrategyInAFeedbackStage) {
   const char* path = std::getenv("TREECUT_EXAMPLE_PLUGIN");
   if (path == nullptr) GTEST_SKIP() << "run by the example_plugin_roundtrip test";

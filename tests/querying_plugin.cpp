@@ -21,6 +21,7 @@ class Querying final : public treecut::Strategy {
   Querying() : Strategy({}) {}
   [[nodiscard]] std::string_view name() const override { return "querying"; }
   [[nodiscard]] Mode mode() const override { return Mode::Rebuild; }
+  [[nodiscard]] bool asks_queries() const override { return true; }
   void reset(const treecut::Hierarchy&) override { tag_ = 0; }
   void iterate(const treecut::IterationInput& in, treecut::IterationOutput& out) override {
     const treecut::Hierarchy& h = in.hierarchy;

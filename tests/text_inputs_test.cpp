@@ -337,6 +337,21 @@ TEST(ViewScript, MutatedScriptsEitherParseInRangeOrFailWithInputError) {
   EXPECT_GT(parsed, 100) << "the mutations also produce valid scripts";
 }
 
+// A screenshot is a name in --screenshot-dir: a path out of it (absolute,
+// or up a level) is an error naming the line, before the window opens.
+TEST(ViewScript, ScreenshotsStayInTheScreenshotFolder) {
+  for (const char* name : {"/tmp/x.png", "../x.png", "shots/../../x.png", "..", "sub/x.png"}) {
+    const std::string m = input_error_of([&] {
+      (void)cli::parse_view_script(std::string("treecut-view-script 1\nscreenshot ") + name + "\n",
+                                   "s.script");
+    });
+    EXPECT_NE(m.find("s.script:2: screenshot takes a file name in --screenshot-dir"),
+              std::string::npos)
+        << name << " -> " << m;
+  }
+  EXPECT_EQ(cli::parse_view_script("treecut-view-script 1\nscreenshot a.png\n", "ok").size(), 1u);
+}
+
 TEST(ViewScript, HeaderIsRequired) {
   EXPECT_NE(input_error_of([] { (void)cli::parse_view_script("", "e"); }).find("e: empty script"),
             std::string::npos);

@@ -77,8 +77,10 @@ std::shared_ptr<const StageScene> stage_scene(const Scene& scene);
 /// is destroyed or given another factory.
 using StrategyFactory = std::function<std::unique_ptr<Strategy>()>;
 
-/// Why `strategy` cannot run on `scene`, or empty: a per-object strategy
-/// (one that is not a SceneStrategy) past kMaxPerObjectNodes nodes in all.
+/// Why `strategy` cannot run on `scene`, or empty: one that asks for GPU
+/// queries (Strategy::asks_queries; a scene answers none), or a per-object
+/// strategy (one that is not a SceneStrategy) past kMaxPerObjectNodes nodes
+/// in all.
 /// One line, naming the scene's size and the way out; the stage throws it
 /// as an InputError, a program may check it before any work.
 [[nodiscard]] std::string per_object_limit_problem(const StageScene& scene,

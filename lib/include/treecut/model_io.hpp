@@ -56,7 +56,10 @@ struct OpenedModel {
 };
 
 /// `${XDG_CACHE_HOME:-$HOME/.cache}/treecut/<file name>-<hash of the absolute path>.tch`.
-/// A relative XDG_CACHE_HOME is ignored, as the XDG base-directory rules say.
+/// A relative XDG_CACHE_HOME is ignored, as the XDG base-directory rules say;
+/// without either, the temporary folder; without a usable one, an empty path
+/// (no cache: open_model warns and goes on). The file name is cut to 180
+/// bytes (the hash keeps caches apart).
 std::filesystem::path default_cache_path(const std::filesystem::path& model);
 
 /// The bits of the options that change a built hierarchy (part of the cache key).

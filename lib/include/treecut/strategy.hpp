@@ -144,6 +144,11 @@ class Strategy {
   /// before the first iteration and whenever the model changes.
   virtual void reset(const Hierarchy& hierarchy) = 0;
 
+  /// Whether iterations may append GPU query requests (IterationOutput::
+  /// queries). Scenes answer none: a strategy that asks is refused for a
+  /// scene before any work (per_object_limit_problem, feedback_stage.hpp).
+  [[nodiscard]] virtual bool asks_queries() const { return false; }
+
   [[nodiscard]] const std::vector<ParamSpec>& param_specs() const { return specs_; }
   /// Throws InputError naming the parameter for an unknown name.
   [[nodiscard]] double param(std::string_view name) const;

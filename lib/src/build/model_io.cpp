@@ -37,14 +37,20 @@ std::filesystem::path default_cache_path(const std::filesystem::path& model) {
     dir = xdg;
   else if (const char* home = std::getenv("HOME"); home && *home)
     dir = std::filesystem::path(home) / ".cache";
-  else
-    dir = std::filesystem::temp_directory_path();
+  else {
+    // No home at all: the temporary folder, if there is a usable one.
+    std::error_code tmp;
+    dir = std::filesystem::temp_directory_path(tmp);
+    if (tmp || !dir.is_absolute()) return {};
+  }
   std::error_code ec;
   const auto abs = std::filesystem::weakly_canonical(model, ec);
   char hex[17];
   std::snprintf(hex, sizeof hex, "%016llx",
                 static_cast<unsigned long long>(fnv1a((ec ? model : abs).string())));
-  return dir / "treecut" / (model.filename().string() + "-" + hex + ".tch");
+  // The hash names the model; its file name is for people, cut so that the
+  // cache's name (and its temporary's) stays within NAME_MAX.
+  return dir / "treecut" / (model.filename().string().substr(0, 180) + "-" + hex + ".tch");
 }
 
 // Revision of what the pipeline computes (attributes and build). Bump it when
@@ -123,9 +129,24 @@ OpenedModel open_model(const std::filesystem::path& model, const OpenOptions& op
                      ": not a treecut cache (it does not start with a cache's signature)");
   const std::uint32_t bits = options_bits(options.attributes, options.build);
   out.cache = options.cache_path ? *options.cache_path : default_cache_path(model);
-  if (same_file(out.cache, model))
-    throw InputError(quoted_name(out.cache) + ": is the model itself (" + quoted_name(model) +
-                     "); refusing to write a cache over it");
+  // A cache that cannot be: named by the caller, an error; the default one,
+  // a warning, and the model opens without it.
+  std::string no_cache;
+  if (out.cache.empty()) {
+    no_cache =
+        "no cache folder (HOME and XDG_CACHE_HOME are unset and there is no usable temporary "
+        "folder)";
+  } else if (same_file(out.cache, model)) {
+    no_cache = quoted_name(out.cache) + ": is the model itself (" + quoted_name(model) +
+               "); refusing to write a cache over it";
+    if (options.cache_path) throw InputError(no_cache);
+  }
+  const bool use_cache = options.use_cache && no_cache.empty();
+  if (options.use_cache && !no_cache.empty()) {
+    if (options.require_cache) throw std::runtime_error(no_cache);
+    out.cache_note = no_cache;
+    if (options.warn) options.warn(no_cache + " (continuing without a cache)");
+  }
   auto hash_model = [&] {
     const auto t0 = std::chrono::steady_clock::now();
     CacheKey k = cache_key_for(model, bits);
@@ -133,9 +154,9 @@ OpenedModel open_model(const std::filesystem::path& model, const OpenOptions& op
     out.hashed = true;
     return k;
   };
-  const FileKind kind = options.use_cache ? file_kind(out.cache) : FileKind::Missing;
+  const FileKind kind = use_cache ? file_kind(out.cache) : FileKind::Missing;
   std::optional<CacheKey> key;
-  bool write_cache = options.use_cache;
+  bool write_cache = use_cache;
   if (kind != FileKind::Missing && kind != FileKind::Regular) {
     const std::string what =
         quoted_name(out.cache) + ": is " + std::string(describe(kind)) + ", not a cache file";
@@ -144,7 +165,7 @@ OpenedModel open_model(const std::filesystem::path& model, const OpenOptions& op
     if (options.warn) options.warn(what + " (continuing without a cache)");
     write_cache = false;
   }
-  if (options.use_cache && kind == FileKind::Regular && !options.rebuild) {
+  if (use_cache && kind == FileKind::Regular && !options.rebuild) {
     // The cache module decides (cache.hpp): the model's identity when it is
     // unchanged and settled, its content hash otherwise.
     CacheLookup found = lookup_cache(model, out.cache, bits, write_cache);

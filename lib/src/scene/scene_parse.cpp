@@ -160,9 +160,16 @@ struct Parser {
     const auto file = static_cast<std::uint32_t>(out.files.size());
     out.files.push_back(name);
     const std::filesystem::path dir = name.parent_path();
+    // As spelled, beside the scene file: the system resolves `..` after any
+    // link in the folder (a lexical `lnk/../m.ply` -> `m.ply` would name
+    // another file than the one `cd lnk; ls ../m.ply` shows).
     auto resolve = [&](std::string_view p) {
       const std::filesystem::path path(p);
-      return (path.is_absolute() || dir.empty() ? path : dir / path).lexically_normal();
+      const std::filesystem::path joined = path.is_absolute() || dir.empty() ? path : dir / path;
+      std::filesystem::path kept;  // without its "." components (harmless to drop)
+      for (const auto& part : joined)
+        if (part != ".") kept /= part;
+      return kept;
     };
     // Names are those of this file: an included file's models are its own.
     std::unordered_map<std::string, std::uint32_t> names;

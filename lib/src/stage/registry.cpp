@@ -4,6 +4,7 @@
 #include <elf.h>
 #include <fcntl.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -187,11 +188,42 @@ std::filesystem::path checked_plugin_path(const std::filesystem::path& path) {
   return ec ? path : absolute;
 }
 
+// dlopen runs the library's code in this process (relocations, its
+// constructors): one damaged inside, with complete headers (a bad pointer in
+// its dynamic section), crashes the loader itself. It is loaded in a child
+// process first, whose output goes nowhere; a crash there is a message here.
+// (Plugins are loaded at start-up, before the program starts threads.)
+void try_in_child(const std::filesystem::path& open_as, const std::string& where) {
+  const pid_t child = ::fork();
+  if (child < 0) return;  // no probe; dlopen below decides
+  if (child == 0) {
+    const int null = ::open("/dev/null", O_WRONLY | O_CLOEXEC);
+    if (null >= 0) {
+      ::dup2(null, STDOUT_FILENO);
+      ::dup2(null, STDERR_FILENO);
+    }
+    // 0: loaded; 42: dlopen refused it (its message comes from the real
+    // dlopen below). Anything else is a crash, also under a sanitizer that
+    // turns the signal into an exit code.
+    ::_exit(dlopen(open_as.c_str(), RTLD_NOW | RTLD_LOCAL) != nullptr ? 0 : 42);
+  }
+  int status = 0;
+  while (::waitpid(child, &status, 0) < 0 && errno == EINTR) {
+  }
+  if (WIFSIGNALED(status))
+    throw InputError(where + ": cannot load plugin: loading it crashed a test process (" +
+                     ::strsignal(WTERMSIG(status)) + "); the library is damaged");
+  if (WIFEXITED(status) && WEXITSTATUS(status) != 0 && WEXITSTATUS(status) != 42)
+    throw InputError(where + ": cannot load plugin: loading it ended a test process (exit status " +
+                     std::to_string(WEXITSTATUS(status)) + "); the library is damaged");
+}
+
 }  // namespace
 
 void StrategyRegistry::load_plugin(const std::filesystem::path& path) {
   const std::string where = quoted_name(path);
   const std::filesystem::path open_as = checked_plugin_path(path);
+  try_in_child(open_as, where);
   // RTLD_LOCAL: two plugins may define the same internal symbols. The handle is
   // never closed (see the header), so it is deliberately not kept.
   void* handle = dlopen(open_as.c_str(), RTLD_NOW | RTLD_LOCAL);

@@ -1,21 +1,34 @@
 #include "treecut/strategy.hpp"
 
+#include <charconv>
 #include <cmath>
-#include <sstream>
+#include <string>
 
 #include "treecut/error.hpp"
 
 namespace treecut {
 
+namespace {
+
+// The shortest text that reads back as V: a message about 4000000001 must
+// not say "4e+09 is out of range [1, 4e+09]".
+std::string exact(double v) {
+  if (std::isfinite(v) && v == std::floor(v) && std::fabs(v) < 9007199254740992.0)
+    return std::to_string(static_cast<long long>(v));
+  char text[32];
+  const auto [end, ec] = std::to_chars(text, text + sizeof text, v);
+  return ec == std::errc() ? std::string(text, end) : std::to_string(v);
+}
+
+}  // namespace
+
 std::string check_param(const ParamSpec& spec, double value) {
-  std::ostringstream why;
-  if (!std::isfinite(value) || value < spec.min_value || value > spec.max_value) {
-    why << spec.name << " = " << value << " is out of range [" << spec.min_value << ", "
-        << spec.max_value << "]";
-  } else if (spec.integer && value != std::floor(value)) {
-    why << spec.name << " = " << value << " must be a whole number";
-  }
-  return why.str();
+  if (!std::isfinite(value) || value < spec.min_value || value > spec.max_value)
+    return spec.name + " = " + exact(value) + " is out of range [" + exact(spec.min_value) + ", " +
+           exact(spec.max_value) + "]";
+  if (spec.integer && value != std::floor(value))
+    return spec.name + " = " + exact(value) + " must be a whole number";
+  return {};
 }
 
 Strategy::Strategy(std::vector<ParamSpec> specs) : specs_(std::move(specs)) {

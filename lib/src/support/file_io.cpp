@@ -283,6 +283,19 @@ std::optional<TemporaryName> parse_temporary_name(std::string_view file) {
   return TemporaryName{std::string(file.substr(0, at)), static_cast<pid_t>(pid)};
 }
 
+// The name a target's temporaries start with: the target's own file name,
+// or, when "NAME.tmp-PID-N" would pass NAME_MAX (255 bytes), a cut of it and
+// a hash of the whole (a legal 250-byte name still gets its temporary).
+std::string temporary_owner(const std::string& file_name) {
+  constexpr std::size_t kLongest = 215;  // + ".tmp-" + a 10-digit PID + "-" + a serial
+  if (file_name.size() <= kLongest) return file_name;
+  std::uint64_t h = 0xcbf29ce484222325ull;
+  for (const unsigned char c : file_name) h = (h ^ c) * 0x100000001b3ull;
+  char hex[17];
+  std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(h));
+  return file_name.substr(0, kLongest - 17) + "~" + hex;
+}
+
 // A regular file of this user whose writer no longer runs (kill(pid, 0):
 // ESRCH; EPERM means some process of another user runs under that PID).
 bool left_by_dead_writer(const std::filesystem::path& file, pid_t pid) {
@@ -299,7 +312,7 @@ class StaleTemporaries {
  public:
   void remove_for(const std::filesystem::path& target) {
     const std::filesystem::path folder = target.parent_path();
-    const std::string owner = target.filename().string();
+    const std::string owner = temporary_owner(target.filename().string());
     std::lock_guard lock(mutex_);
     auto [it, fresh] = folders_.try_emplace(folder.string());
     if (fresh) it->second = full_names_in(folder);
@@ -381,8 +394,9 @@ AtomicFile::AtomicFile(std::filesystem::path target) : target_(std::move(target)
   // Beside the target, so the final rename stays on one file system.
   for (int attempt = 0; attempt < 100; ++attempt) {
     temporary_ = target_;
-    temporary_ += ".tmp-" + std::to_string(::getpid()) + "-" +
-                  std::to_string(g_temporary_serial.fetch_add(1, std::memory_order_relaxed));
+    temporary_.replace_filename(temporary_owner(target_.filename().string()) + ".tmp-" +
+                                std::to_string(::getpid()) + "-" +
+                                std::to_string(g_temporary_serial.fetch_add(1, std::memory_order_relaxed)));
     const TerminationSignalsHeld held;
     fd_ = ::open(temporary_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC | O_NOFOLLOW, 0644);
     if (fd_ >= 0) {

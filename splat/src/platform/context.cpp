@@ -1,6 +1,10 @@
 #include "treecut/splat/context.hpp"
 
 #include <dlfcn.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
 
 #include <string>
 
@@ -47,10 +51,35 @@ struct OsmesaLibrary {
   GetProcAddressFn get_proc = nullptr;
 };
 
+// Mesa keeps compiled shaders in $XDG_CACHE_HOME/mesa_shader_cache (or
+// ~/.cache/...); when it cannot make that folder it prints a line of its own
+// ("Failed to create ... for shader cache (Permission denied)---disabling")
+// beside treecut's one line. Where the folder cannot be made, the cache is
+// disabled up front (as Mesa would do anyway), unless the user chose.
+void quiet_mesa_shader_cache() {
+  if (std::getenv("MESA_SHADER_CACHE_DISABLE") != nullptr ||
+      std::getenv("MESA_SHADER_CACHE_DIR") != nullptr ||
+      std::getenv("MESA_GLSL_CACHE_DISABLE") != nullptr ||
+      std::getenv("MESA_GLSL_CACHE_DIR") != nullptr)
+    return;
+  std::filesystem::path dir;
+  if (const char* xdg = std::getenv("XDG_CACHE_HOME"); xdg != nullptr && *xdg != '\0')
+    dir = xdg;
+  else if (const char* home = std::getenv("HOME"); home != nullptr && *home != '\0')
+    dir = std::filesystem::path(home) / ".cache";
+  else
+    return;  // Mesa looks the home folder up itself
+  std::error_code ec;
+  std::filesystem::create_directories(dir / "mesa_shader_cache", ec);
+  if (ec || ::access((dir / "mesa_shader_cache").c_str(), W_OK | X_OK) != 0)
+    ::setenv("MESA_SHADER_CACHE_DISABLE", "true", 0);
+}
+
 // Opened once per process and never closed: the GL entry points loaded from it
 // stay valid for the life of the process.
 const OsmesaLibrary& osmesa_library() {
   static const OsmesaLibrary lib = [] {
+    quiet_mesa_shader_cache();
     OsmesaLibrary l;
     for (const char* name : {"libOSMesa.so.8", "libOSMesa.so.6", "libOSMesa.so"}) {
       l.handle = dlopen(name, RTLD_NOW | RTLD_LOCAL);
@@ -133,6 +162,7 @@ void* glfw_resolve(const char* name) {
 
 GlfwWindow::GlfwWindow(const WindowOptions& options) {
   if (g_glfw_windows == 0) {
+    quiet_mesa_shader_cache();
     glfwSetErrorCallback(&glfw_error);
     if (glfwInit() == GLFW_FALSE)
       throw gl::GlError("GLFW: init failed (no display?) " + g_glfw_error);

@@ -177,6 +177,7 @@ class HoqStrategy final : public Strategy {
   HoqStrategy();
   [[nodiscard]] std::string_view name() const override { return "hoq"; }
   [[nodiscard]] Mode mode() const override { return Mode::Rebuild; }
+  [[nodiscard]] bool asks_queries() const override { return true; }
   void reset(const Hierarchy& hierarchy) override;
   void iterate(const IterationInput& input, IterationOutput& output) override;
 
