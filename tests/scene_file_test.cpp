@@ -132,6 +132,7 @@ TEST(SceneFile, EveryMalformedLineNamesFileAndLine) {
       {"model m missing.ply\n", "2: model 'm': "},
       {"model m folder.ply\n", "2: model 'm': "},
       {"include missing.scene\n", "2: "},
+      {"include .\n", "2: "},
       {"model m m.ply\n", ": scene has no objects"},
       {"", ": scene has no objects"},
   };

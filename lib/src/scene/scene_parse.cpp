@@ -169,7 +169,7 @@ struct Parser {
       std::filesystem::path kept;  // without its "." components (harmless to drop)
       for (const auto& part : joined)
         if (part != ".") kept /= part;
-      return kept;
+      return kept.empty() ? joined : kept;
     };
     // Names are those of this file: an included file's models are its own.
     std::unordered_map<std::string, std::uint32_t> names;
