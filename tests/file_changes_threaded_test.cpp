@@ -32,6 +32,7 @@ namespace treecut {
 namespace {
 
 namespace fs = std::filesystem;
+using test::read_all;
 
 void write_bytes(const fs::path& p, std::size_t size, char fill = 'x') {
   std::ofstream(p, std::ios::binary) << std::string(size, fill);
@@ -53,11 +54,6 @@ fs::path small_model(const fs::path& dir, const std::string& name, std::size_t p
   const fs::path p = dir / name;
   save_ply(p, generate_model(ModelKind::Sphere, points, 1));
   return p;
-}
-
-std::string read_all(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), {}};
 }
 
 std::size_t temporaries_in(const fs::path& dir) {

@@ -24,6 +24,7 @@
 namespace {
 
 namespace fs = std::filesystem;
+using treecut::test::read_all;
 
 const fs::path kRegressions = fs::path(TREECUT_SOURCE_DIR) / "tests" / "fuzz" / "regressions";
 
@@ -50,11 +51,6 @@ std::vector<Regression> read_manifest() {
     rows.push_back(r);
   }
   return rows;
-}
-
-std::string read_all(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), {}};
 }
 
 std::string test_name(const testing::TestParamInfo<Regression>& info) {

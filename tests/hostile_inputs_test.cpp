@@ -26,19 +26,12 @@
 namespace fs = std::filesystem;
 using treecut::test::CommandResult;
 using treecut::test::quote;
+using treecut::test::read_all;
 using treecut::test::run_treecut;
 using treecut::test::scratch_dir;
+using treecut::test::write_text;
 
 namespace {
-
-std::string read_all(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), {}};
-}
-
-void write_text(const fs::path& p, const std::string& text) {
-  std::ofstream(p, std::ios::binary | std::ios::trunc) << text;
-}
 
 std::size_t line_count(const std::string& text) {
   std::size_t n = 0;

@@ -26,20 +26,13 @@
 namespace fs = std::filesystem;
 using treecut::test::CommandResult;
 using treecut::test::quote;
+using treecut::test::read_all;
 using treecut::test::run_treecut;
 using treecut::test::scratch_dir;
 using treecut::test::SmallDisk;
+using treecut::test::write_text;
 
 namespace {
-
-std::string read_all(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), {}};
-}
-
-void write_text(const fs::path& p, const std::string& text) {
-  std::ofstream(p, std::ios::binary | std::ios::trunc) << text;
-}
 
 fs::path small_model(const fs::path& dir, const std::string& name, std::size_t points = 3000,
                      std::uint64_t seed = 1) {
@@ -520,7 +513,7 @@ TEST(OutputSafety, AViewerScreenshotOnAFullDiskEndsTheScriptNamingTheFile) {
   const fs::path dir = scratch_dir("safety_screenshot_full_script");
   write_text(dir / "run.script", "treecut-view-script 1\nframes 2\nscreenshot big.png\nexit\n");
   // Fill the disk to the last byte (the write past it fails): no PNG fits.
-  write_text(disk->path() / "filler", std::string(64 << 10, 'x'));
+  std::ofstream(disk->path() / "filler", std::ios::binary) << std::string(64 << 10, 'x');
   const auto r = run_view_script(dir / "run.script", disk->path());
   if (!r) GTEST_SKIP() << "xvfb-run is not installed";
   EXPECT_EQ(r->code, 1) << r->out;

@@ -9,6 +9,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <iterator>
 
 namespace treecut::test {
 
@@ -83,6 +84,18 @@ std::optional<CommandResult> run_treecut_in_xvfb(const std::string& args,
     r.out.erase(at, r.out.find('\n', at) - at + 1);  // the marker is not the program's output
   }
   return r;
+}
+
+std::string read_all(const std::filesystem::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), {}};
+}
+
+void write_text(const std::filesystem::path& p, const std::string& text) {
+  std::ofstream out(p, std::ios::binary | std::ios::trunc);
+  out << text;
+  out.close();
+  EXPECT_TRUE(out.good()) << "cannot write " << p;
 }
 
 std::string quote(const std::filesystem::path& p) {

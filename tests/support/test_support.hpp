@@ -37,6 +37,11 @@ std::optional<CommandResult> run_treecut_in_xvfb(const std::string& args,
 /// 'path', single-quoted for the shell.
 std::string quote(const std::filesystem::path& p);
 
+/// The bytes of a file (empty when it cannot be read).
+std::string read_all(const std::filesystem::path& p);
+/// Writes TEXT as the whole file P; a failed write fails the test.
+void write_text(const std::filesystem::path& p, const std::string& text);
+
 /// A small tmpfs mounted at a scratch folder, for tests of a full disk:
 /// writes past `bytes` fail with ENOSPC. Unmounted on destruction.
 class SmallDisk {
