@@ -56,6 +56,16 @@ fs::path small_model(const fs::path& dir, const std::string& name, std::size_t p
   return p;
 }
 
+// DIR/m.tch, the cache of a small model DIR/m.ply.
+fs::path built_cache(const fs::path& dir) {
+  const fs::path cache = dir / "m.tch";
+  OpenOptions options;
+  options.cache_path = cache;
+  (void)open_model(small_model(dir, "m.ply"), options);
+  EXPECT_TRUE(fs::exists(cache));
+  return cache;
+}
+
 std::size_t temporaries_in(const fs::path& dir) {
   std::size_t n = 0;
   for (const auto& e : fs::directory_iterator(dir))
@@ -109,12 +119,7 @@ TEST(MappedFile, TheContentHashOfAShortenedFileIsAnErrorNotASignal) {
 TEST(MappedFileDeathTest, AShrunkCacheEndsTheProcessWithOneLineAndNoTemporaries) {
   GTEST_FLAG_SET(death_test_style, "threadsafe");
   const fs::path dir = test::scratch_dir("changes_cache_death");
-  const fs::path model = small_model(dir, "m.ply");
-  const fs::path cache = dir / "m.tch";
-  OpenOptions options;
-  options.cache_path = cache;
-  (void)open_model(model, options);
-  ASSERT_TRUE(fs::exists(cache));
+  const fs::path cache = built_cache(dir);
   EXPECT_EXIT(
       {
         OpenedModel m = open_model(cache);
@@ -137,11 +142,7 @@ TEST(MappedFileDeathTest, AShrunkCacheEndsTheProcessWithOneLineAndNoTemporaries)
 // is a FileChangedError from the loader, which the viewer survives.
 TEST(MappedFile, ACacheThatShrinksWhileVerifiedIsAFileChangedError) {
   const fs::path dir = test::scratch_dir("changes_cache_verify");
-  const fs::path model = small_model(dir, "m.ply");
-  const fs::path cache = dir / "m.tch";
-  OpenOptions options;
-  options.cache_path = cache;
-  (void)open_model(model, options);
+  const fs::path cache = built_cache(dir);
   // Shrunk after its header was read (the size is taken from fstat when it
   // is mapped): the race of `truncate` with a load, at a fixed point.
   const int fd = open_read(cache);
