@@ -6,6 +6,7 @@
 #include <stdio.h>
 #include <sys/stat.h>
 #include <unistd.h>
+#include <xxhash.h>
 
 #include <algorithm>
 #include <atomic>
@@ -289,10 +290,9 @@ std::optional<TemporaryName> parse_temporary_name(std::string_view file) {
 std::string temporary_owner(const std::string& file_name) {
   constexpr std::size_t kLongest = 215;  // + ".tmp-" + a 10-digit PID + "-" + a serial
   if (file_name.size() <= kLongest) return file_name;
-  std::uint64_t h = 0xcbf29ce484222325ull;
-  for (const unsigned char c : file_name) h = (h ^ c) * 0x100000001b3ull;
   char hex[17];
-  std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(h));
+  std::snprintf(hex, sizeof hex, "%016llx",
+                static_cast<unsigned long long>(XXH3_64bits(file_name.data(), file_name.size())));
   return file_name.substr(0, kLongest - 17) + "~" + hex;
 }
 
@@ -394,9 +394,9 @@ AtomicFile::AtomicFile(std::filesystem::path target) : target_(std::move(target)
   // Beside the target, so the final rename stays on one file system.
   for (int attempt = 0; attempt < 100; ++attempt) {
     temporary_ = target_;
-    temporary_.replace_filename(temporary_owner(target_.filename().string()) + ".tmp-" +
-                                std::to_string(::getpid()) + "-" +
-                                std::to_string(g_temporary_serial.fetch_add(1, std::memory_order_relaxed)));
+    temporary_.replace_filename(
+        temporary_owner(target_.filename().string()) + ".tmp-" + std::to_string(::getpid()) + "-" +
+        std::to_string(g_temporary_serial.fetch_add(1, std::memory_order_relaxed)));
     const TerminationSignalsHeld held;
     fd_ = ::open(temporary_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC | O_NOFOLLOW, 0644);
     if (fd_ >= 0) {
