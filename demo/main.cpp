@@ -2,8 +2,8 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
-#include <new>
 #include <exception>
+#include <new>
 #include <string>
 #include <vector>
 

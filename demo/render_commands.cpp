@@ -20,6 +20,7 @@
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
 #include "treecut/model.hpp"
+#include "treecut/scene.hpp"
 #include "treecut/splat/camera_path.hpp"
 #include "treecut/splat/context.hpp"
 #include "treecut/splat/frame.hpp"
@@ -479,13 +480,21 @@ void add_render_commands(CLI::App& app) {
                    "Adapt the strategy's budget to hold this frame rate (0 = off)")
       ->check(finite_number(0.0, 1000.0));
   view->callback([va] {
-    // The text inputs are checked before a window opens (and where there is
-    // no display): a bad path or script is exit 2 with FILE:LINE.
+    // The inputs are checked before a window opens (and where there is no
+    // display), as render checks them: a bad path or script is exit 2 with
+    // FILE:LINE, an unknown strategy or parameter, or one that cannot run on
+    // the scene given, exit 2 naming it.
     if (!va->path.empty()) (void)splat::load_camera_path(va->path);
+    const StrategyRegistry registry = make_registry(va->scene);
+    const std::string strategy =
+        va->scene.strategies.empty() ? std::string("optimization") : va->scene.strategies.front();
+    check_params(registry, {strategy}, va->scene.params);
+    const bool scene = !va->scene.model.empty() && looks_like_scene(va->scene.model);
+    if (const std::string why = scene_strategy_problem(*registry.create(strategy));
+        scene && !why.empty())
+      throw InputError(quoted_name(va->scene.model) + ": " + why);
     if (!va->script.empty()) {
-      const StrategyRegistry registry = make_registry(va->scene);
-      ScriptChecks checks{&registry, va->scene.strategies.empty() ? std::string("optimization")
-                                                                  : va->scene.strategies.front()};
+      ScriptChecks checks{&registry, strategy, scene ? va->scene.model : std::string()};
       (void)load_view_script(va->script, checks);
     }
     const int code = run_viewer(*va);

@@ -91,12 +91,15 @@ void check_output_entries(const std::filesystem::path& dir) {
   for (const auto& e : std::filesystem::directory_iterator(dir, ec)) {
     if (!is_render_output_name(e.path().filename().string())) continue;
     const auto status = e.symlink_status(ec);
-    if (std::filesystem::is_regular_file(status) || std::filesystem::is_symlink(status)) continue;
-    throw InputError(quoted_name(e.path()) + ": is " + std::string(describe(file_kind(e.path()))) +
+    if (std::filesystem::is_regular_file(status)) continue;
+    // A link is the user's (render never makes one), whatever it points to.
+    const std::string what = std::filesystem::is_symlink(status)
+                                 ? std::string("a symbolic link")
+                                 : std::string(describe(file_kind(e.path())));
+    throw InputError(quoted_name(e.path()) + ": is " + what +
                      "; refusing to write render output there");
   }
 }
-
 
 }  // namespace
 
@@ -389,11 +392,21 @@ std::string xml_text(std::string_view text) {
   std::string out;
   for (const char c : text) {
     switch (c) {
-      case '&': out += "&amp;"; break;
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '"': out += "&quot;"; break;
-      case '\'': out += "&apos;"; break;
+      case '&':
+        out += "&amp;";
+        break;
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      case '"':
+        out += "&quot;";
+        break;
+      case '\'':
+        out += "&apos;";
+        break;
       default:
         out += static_cast<unsigned char>(c) < 0x20 ? '?' : c;
     }
@@ -411,8 +424,7 @@ void write_plot_svg(const std::filesystem::path& file, const std::vector<RunSumm
   o << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << kW << "\" height=\""
     << kTop + 2 * kH + kGap + 40 << "\" font-family=\"sans-serif\" font-size=\"12\">\n";
   o << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
-  o << "<text x=\"" << kLeft << "\" y=\"20\" font-size=\"14\">" << xml_text(title)
-    << "</text>\n";
+  o << "<text x=\"" << kLeft << "\" y=\"20\" font-size=\"14\">" << xml_text(title) << "</text>\n";
   auto chart = [&](int index, const char* label, auto value) {
     const double y0 = kTop + index * (kH + kGap);
     double vmax = 0.0;

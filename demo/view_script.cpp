@@ -6,6 +6,7 @@
 #include <system_error>
 
 #include "treecut/error.hpp"
+#include "treecut/feedback_stage.hpp"
 #include "treecut/file_io.hpp"
 #include "treecut/splat/camera_path.hpp"
 #include "treecut/splat/renderer.hpp"
@@ -113,7 +114,10 @@ std::vector<ScriptCommand> parse_view_script(std::string_view text,
         } else if (c.verb == "mode") {
           (void)splat::parse_splat_mode(c.arg);
         } else if (c.verb == "strategy" && checks.registry != nullptr) {
-          (void)checks.registry->create(c.arg);
+          const std::unique_ptr<Strategy> s = checks.registry->create(c.arg);
+          if (const std::string why = scene_strategy_problem(*s);
+              !checks.scene.empty() && !why.empty())
+            throw InputError(quoted_name(checks.scene) + ": " + why);
           strategy = c.arg;
         }
       } catch (const InputError& e) {

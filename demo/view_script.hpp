@@ -36,6 +36,9 @@ inline constexpr double kMaxOrbitDegrees = 360.0;
 struct ScriptChecks {
   const StrategyRegistry* registry = nullptr;
   std::string strategy = "optimization";  ///< in use before the first `strategy` line
+  /// The scene file the script runs on (empty: a single model): a `strategy`
+  /// line naming one that cannot run on a scene is an error naming it.
+  std::string scene;
 };
 
 /// Parses a script's text; `file` names it in messages and locates `play`

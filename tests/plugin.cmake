@@ -34,14 +34,18 @@ add_dependencies(plugin_test treecut_misbehaving_plugin treecut)
 target_compile_definitions(plugin_test PRIVATE
   TREECUT_MISBEHAVING_PLUGIN="$<TARGET_FILE:treecut_misbehaving_plugin>")
 
-# A library that crashes in dlopen (tests/crashing_plugin.cpp): plugin_test
-# checks that loading it is an error naming it, not a crash of the host.
-add_library(treecut_crashing_plugin MODULE ${CMAKE_CURRENT_SOURCE_DIR}/crashing_plugin.cpp)
-set_target_properties(treecut_crashing_plugin PROPERTIES PREFIX "lib")
-treecut_warnings(treecut_crashing_plugin)
-add_dependencies(plugin_test treecut_crashing_plugin)
+# Libraries that crash, exit or lie as they load (tests/odd_library.cpp, one
+# per variant): plugin_test checks that loading each is an error naming it.
+foreach(odd crash exit0 exit42 data)
+  string(TOUPPER ${odd} odd_upper)
+  add_library(treecut_odd_${odd} MODULE ${CMAKE_CURRENT_SOURCE_DIR}/odd_library.cpp)
+  target_compile_definitions(treecut_odd_${odd} PRIVATE TREECUT_ODD_${odd_upper})
+  set_target_properties(treecut_odd_${odd} PROPERTIES PREFIX "lib")
+  treecut_warnings(treecut_odd_${odd})
+  add_dependencies(plugin_test treecut_odd_${odd})
+endforeach()
 target_compile_definitions(plugin_test PRIVATE
-  TREECUT_CRASHING_PLUGIN="$<TARGET_FILE:treecut_crashing_plugin>")
+  TREECUT_ODD_LIBRARY_DIR="$<TARGET_FILE_DIR:treecut_odd_crash>")
 
 # A plugin whose strategy posts GPU queries (tests/querying_plugin.cpp): none
 # of the built-in ones does; render_command_test runs `treecut render` with it

@@ -316,7 +316,7 @@ TEST(ViewScript, MutatedScriptsEitherParseInRangeOrFailWithInputError) {
     }
     std::vector<cli::ScriptCommand> commands;
     try {
-      commands = cli::parse_view_script(text, "m.script", {&registry, "optimization"});
+      commands = cli::parse_view_script(text, "m.script", {&registry, "optimization", {}});
     } catch (const InputError& e) {
       EXPECT_EQ(std::string(e.what()).rfind("m.script", 0), 0u) << e.what();
       continue;
@@ -367,7 +367,7 @@ TEST(ViewScript, HeaderIsRequired) {
 
 TEST(ViewScript, StrategiesAndParametersAreCheckedAgainstTheRegistry) {
   const StrategyRegistry registry = strategies::builtin_registry();
-  const cli::ScriptChecks checks{&registry, "optimization"};
+  const cli::ScriptChecks checks{&registry, "optimization", {}};
   auto error = [&](const std::string& body) {
     return input_error_of([&] { (void)cli::parse_view_script(kScript + body, "s", checks); });
   };
@@ -386,10 +386,27 @@ TEST(ViewScript, StrategiesAndParametersAreCheckedAgainstTheRegistry) {
             3u);
 }
 
+// A script that runs on a scene may not switch to a strategy that cannot run
+// on one (hoq asks for GPU queries): an error naming the line and the scene,
+// before the window opens.
+TEST(ViewScript, AStrategyThatCannotRunOnTheSceneIsAnErrorNamingBoth) {
+  const StrategyRegistry registry = strategies::builtin_registry();
+  const std::string text = "treecut-view-script 1\nframes 1\nstrategy hoq\n";
+  const std::string m = input_error_of([&] {
+    (void)cli::parse_view_script(text, "s.script", {&registry, "optimization", "city.scene"});
+  });
+  EXPECT_NE(m.find("s.script:3: strategy: city.scene: strategy 'hoq' (built-in) asks for GPU "
+                   "occlusion queries"),
+            std::string::npos)
+      << m;
+  EXPECT_EQ(cli::parse_view_script(text, "s.script", {&registry, "optimization", {}}).size(), 2u)
+      << "a single model answers queries";
+}
+
 TEST(ViewScript, TheWindowTestsScriptParses) {
   const fs::path script = fs::path(TREECUT_SOURCE_DIR) / "tests/viewer_window_test/run.script";
   const StrategyRegistry registry = strategies::builtin_registry();
-  const auto commands = cli::load_view_script(script, {&registry, "optimization"});
+  const auto commands = cli::load_view_script(script, {&registry, "optimization", {}});
   ASSERT_EQ(commands.size(), 9u);
   EXPECT_EQ(commands[3].verb, "play");
   EXPECT_EQ(fs::path(commands[3].arg).filename(), "orbit.campath");

@@ -86,6 +86,11 @@ using StrategyFactory = std::function<std::unique_ptr<Strategy>()>;
 [[nodiscard]] std::string per_object_limit_problem(const StageScene& scene,
                                                    const Strategy& strategy);
 
+/// Why `strategy` cannot run on any scene, or empty: it asks for GPU queries
+/// (Strategy::asks_queries), which scenes do not answer. Needs no loaded
+/// scene: a program checks it as soon as it knows the file is one.
+[[nodiscard]] std::string scene_strategy_problem(const Strategy& strategy);
+
 enum class Launch {
   Thread,  ///< the stage runs its own thread
   Manual,  ///< no thread: the owner calls step() (synchronous tests)

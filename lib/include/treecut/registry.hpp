@@ -47,6 +47,10 @@ class StrategyRegistry {
   void load_plugin(const std::filesystem::path& path);
 
  private:
+  /// Loads and registers OPEN_AS in a child process first (registry.cpp);
+  /// throws InputError naming WHERE when that fails or crashes.
+  void try_plugin_in_child(const std::filesystem::path& open_as, const std::string& where) const;
+
   struct Entry {
     StrategyInfo info;
     StrategyFactory factory;

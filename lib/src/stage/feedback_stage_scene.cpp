@@ -113,12 +113,16 @@ void FeedbackStage::check_scene_strategy(const Strategy& probe) const {
   }
 }
 
+std::string scene_strategy_problem(const Strategy& probe) {
+  if (!probe.asks_queries()) return {};
+  return describe_strategy(probe.name(), probe.origin()) +
+         " asks for GPU occlusion queries, which are answered for single models only "
+         "(docs/architecture.md, \"Scenes through the stage\"); use a strategy without "
+         "queries for a scene";
+}
+
 std::string per_object_limit_problem(const StageScene& scene, const Strategy& probe) {
-  if (probe.asks_queries())
-    return describe_strategy(probe.name(), probe.origin()) +
-           " asks for GPU occlusion queries, which are answered for single models only "
-           "(docs/architecture.md, \"Scenes through the stage\"); use a strategy without "
-           "queries for a scene";
+  if (std::string why = scene_strategy_problem(probe); !why.empty()) return why;
   if (dynamic_cast<const SceneStrategy*>(&probe) != nullptr) return {};
   const std::uint64_t nodes = scene.object_nodes();
   if (nodes <= kMaxPerObjectNodes) return {};

@@ -188,42 +188,115 @@ std::filesystem::path checked_plugin_path(const std::filesystem::path& path) {
   return ec ? path : absolute;
 }
 
+// What a trial load in a child process found (try_plugin_in_child).
+struct Trial {
+  char outcome = 0;    // 'K' loads and registers, 'R' dlopen refused it, 'N' no entry
+                       // points, 'V' another API version, 'E' registration threw;
+                       // 0: the child ended before it could say (crashed, exited)
+  std::string detail;  // dlerror(), the version, the exception's text
+};
+
+// Reads everything the child wrote, then its end.
+Trial read_trial(int fd, pid_t child, const std::string& where) {
+  std::string report;
+  char buffer[512];
+  for (;;) {
+    const ssize_t n = ::read(fd, buffer, sizeof buffer);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) break;
+    report.append(buffer, static_cast<std::size_t>(n));
+  }
+  ::close(fd);
+  int status = 0;
+  while (::waitpid(child, &status, 0) < 0 && errno == EINTR) {
+  }
+  if (report.empty()) {
+    const std::string how =
+        WIFSIGNALED(status)
+            ? std::string("crashed a test process (") + ::strsignal(WTERMSIG(status)) + ")"
+            : "ended a test process (exit status " + std::to_string(WEXITSTATUS(status)) + ")";
+    throw InputError(where + ": cannot load plugin: loading it " + how +
+                     "; the library is damaged or not meant to be loaded");
+  }
+  return {report[0], report.substr(1)};
+}
+
+}  // namespace
+
 // dlopen runs the library's code in this process (relocations, its
-// constructors): one damaged inside, with complete headers (a bad pointer in
-// its dynamic section), crashes the loader itself. It is loaded in a child
-// process first, whose output goes nowhere; a crash there is a message here.
-// (Plugins are loaded at start-up, before the program starts threads.)
-void try_in_child(const std::filesystem::path& open_as, const std::string& where) {
+// constructors), and the entry points are called as functions: a library
+// damaged inside (a bad pointer in its dynamic section), one whose
+// constructor exits, or one whose version "function" is a variable would
+// crash or end the host. The whole load and registration is first tried in a
+// child process, whose output goes nowhere, on a copy of the registry; only
+// a library that passes is loaded here, so one that is no plugin never runs
+// its constructors in the host. (Plugins are loaded at start-up, before the
+// program starts threads.)
+void StrategyRegistry::try_plugin_in_child(const std::filesystem::path& open_as,
+                                           const std::string& where) const {
+  int pipe_fds[2];
+  if (::pipe2(pipe_fds, O_CLOEXEC) != 0) return;  // no trial; the real load decides
   const pid_t child = ::fork();
-  if (child < 0) return;  // no probe; dlopen below decides
+  if (child < 0) {
+    ::close(pipe_fds[0]);
+    ::close(pipe_fds[1]);
+    return;
+  }
   if (child == 0) {
+    ::close(pipe_fds[0]);
     const int null = ::open("/dev/null", O_WRONLY | O_CLOEXEC);
     if (null >= 0) {
       ::dup2(null, STDOUT_FILENO);
       ::dup2(null, STDERR_FILENO);
     }
-    // 0: loaded; 42: dlopen refused it (its message comes from the real
-    // dlopen below). Anything else is a crash, also under a sanitizer that
-    // turns the signal into an exit code.
-    ::_exit(dlopen(open_as.c_str(), RTLD_NOW | RTLD_LOCAL) != nullptr ? 0 : 42);
+    const auto say = [&](char outcome, const std::string& detail) {
+      const std::string text = outcome + detail;
+      (void)!::write(pipe_fds[1], text.data(), text.size());
+      ::_exit(0);
+    };
+    void* handle = dlopen(open_as.c_str(), RTLD_NOW | RTLD_LOCAL);
+    if (handle == nullptr) {
+      const char* why = dlerror();
+      say('R', why != nullptr ? why : "unknown error");
+    }
+    auto* version = reinterpret_cast<std::uint32_t (*)()>(dlsym(handle, kPluginVersionSymbol));
+    auto* entry =
+        reinterpret_cast<void (*)(StrategyRegistry&)>(dlsym(handle, kPluginRegisterSymbol));
+    if (version == nullptr || entry == nullptr) say('N', {});
+    if (const std::uint32_t v = version(); v != kPluginApiVersion) say('V', std::to_string(v));
+    StrategyRegistry trial = *this;
+    trial.origin_ = open_as.string();
+    try {
+      entry(trial);
+    } catch (const std::exception& e) {
+      say('E', std::string(": ") + e.what());
+    } catch (...) {
+      say('E', {});
+    }
+    say('K', {});
   }
-  int status = 0;
-  while (::waitpid(child, &status, 0) < 0 && errno == EINTR) {
+  ::close(pipe_fds[1]);
+  const Trial trial = read_trial(pipe_fds[0], child, where);
+  switch (trial.outcome) {
+    case 'R':
+      throw InputError(where + ": cannot load plugin: " + trial.detail);
+    case 'N':
+      throw InputError(where + ": not a treecut plugin (no " + kPluginVersionSymbol + "/" +
+                       kPluginRegisterSymbol + ")");
+    case 'V':
+      throw InputError(where + ": plugin API version " + trial.detail + ", this treecut has " +
+                       std::to_string(kPluginApiVersion));
+    case 'E':
+      throw InputError(where + ": plugin registration failed" + trial.detail);
+    default:
+      return;
   }
-  if (WIFSIGNALED(status))
-    throw InputError(where + ": cannot load plugin: loading it crashed a test process (" +
-                     ::strsignal(WTERMSIG(status)) + "); the library is damaged");
-  if (WIFEXITED(status) && WEXITSTATUS(status) != 0 && WEXITSTATUS(status) != 42)
-    throw InputError(where + ": cannot load plugin: loading it ended a test process (exit status " +
-                     std::to_string(WEXITSTATUS(status)) + "); the library is damaged");
 }
-
-}  // namespace
 
 void StrategyRegistry::load_plugin(const std::filesystem::path& path) {
   const std::string where = quoted_name(path);
   const std::filesystem::path open_as = checked_plugin_path(path);
-  try_in_child(open_as, where);
+  try_plugin_in_child(open_as, where);
   // RTLD_LOCAL: two plugins may define the same internal symbols. The handle is
   // never closed (see the header), so it is deliberately not kept.
   void* handle = dlopen(open_as.c_str(), RTLD_NOW | RTLD_LOCAL);

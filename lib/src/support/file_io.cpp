@@ -515,14 +515,20 @@ void write_file_atomically(const std::filesystem::path& target, std::string_view
 
 std::filesystem::path write_file_to_free_name(const std::filesystem::path& wanted,
                                               std::string_view bytes) {
-  AtomicFile file(wanted);
-  file.write(bytes);
+  std::optional<AtomicFile> file;
   for (int i = 0;; ++i) {
     std::filesystem::path name = wanted;
     if (i > 0)
       name.replace_filename(wanted.stem().string() + "-" + std::to_string(i) +
                             wanted.extension().string());
-    if (file.commit_new(name)) return name;
+    // Taken by anything (a file, a folder, a link even to nowhere): the next.
+    struct stat st {};
+    if (::lstat(name.c_str(), &st) == 0) continue;
+    if (!file) {
+      file.emplace(name);
+      file->write(bytes);
+    }
+    if (file->commit_new(name)) return name;  // else taken since the lstat
   }
 }
 
