@@ -235,6 +235,26 @@ TEST(AtomicFile, ASignalTheProgramIgnoresLeavesTheWriteAlone) {
   EXPECT_EQ(read_all(dir / "kept.ply"), "ply\n");
 }
 
+// A child made by fork() (bench build measures in one, plugins are tried in
+// one) inherits the table of temporaries, not the writes: a signal that ends
+// the child leaves the parent's output in progress alone.
+TEST(AtomicFile, ASignalToAForkedChildLeavesTheParentsTemporary) {
+  const fs::path dir = test::scratch_dir("changes_signal_child");
+  AtomicFile output(dir / "parent.ply");
+  output.write("ply\n");
+  const pid_t child = ::fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    std::raise(SIGTERM);
+    ::_exit(0);
+  }
+  int status = 0;
+  ASSERT_EQ(::waitpid(child, &status, 0), child);
+  EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGTERM) << status;
+  output.commit();
+  EXPECT_EQ(read_all(dir / "parent.ply"), "ply\n");
+}
+
 // A PID that no longer runs: a child that has exited and been reaped.
 pid_t dead_pid() {
   const pid_t child = ::fork();

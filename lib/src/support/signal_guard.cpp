@@ -23,6 +23,7 @@ enum SlotState : int { kFree = 0, kFilling = 1, kReady = 2, kClaimed = 3 };
 
 struct TemporarySlot {
   std::atomic<int> state{kFree};
+  pid_t owner = 0;  // a child made by fork() inherits the table, not the files
   char path[4096];
 };
 struct MappingSlot {
@@ -68,8 +69,10 @@ void write_all(int fd, const char* text, std::size_t size) noexcept {
 }
 
 void remove_temporaries() noexcept {
+  const pid_t self = ::getpid();
   for (TemporarySlot& s : g_temporaries) {
     int expected = kReady;
+    if (s.state.load(std::memory_order_acquire) != kReady || s.owner != self) continue;
     if (s.state.compare_exchange_strong(expected, kClaimed, std::memory_order_acquire))
       ::unlink(s.path);
   }
@@ -176,6 +179,7 @@ int register_temporary(std::string_view absolute_path) noexcept {
   const int slot = take_slot(g_temporaries);
   if (slot < 0) return -1;
   TemporarySlot& s = g_temporaries[slot];
+  s.owner = ::getpid();
   copy_text(s.path, sizeof s.path, absolute_path);
   s.state.store(kReady, std::memory_order_release);
   return slot;
