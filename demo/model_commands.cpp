@@ -1,5 +1,4 @@
 // treecut build | info | gen
-#include <unistd.h>
 
 #include <algorithm>
 #include <cstdio>
@@ -123,17 +122,7 @@ void check_replaceable_output(const std::filesystem::path& out, std::string_view
   if (file != FileKind::Regular)
     throw InputError(quoted_name(out) + ": is " + std::string(describe(file)) +
                      "; refusing to write " + std::string(written) + " there");
-  bool same_kind = false;
-  try {
-    const int fd = open_regular_file(out);
-    std::string head(magic.size(), '\0');
-    same_kind =
-        ::read(fd, head.data(), head.size()) == static_cast<ssize_t>(head.size()) && head == magic;
-    ::close(fd);
-  } catch (const std::exception&) {
-    same_kind = false;
-  }
-  if (!same_kind)
+  if (!file_starts_with(out, magic))
     throw InputError(quoted_name(out) + ": exists and is not " + std::string(kind) +
                      "; refusing to overwrite it");
 }

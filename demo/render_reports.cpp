@@ -1,7 +1,5 @@
 #include "render_reports.hpp"
 
-#include <unistd.h>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -51,20 +49,8 @@ std::size_t identical_frames(const std::vector<FrameRow>& rows) {
 constexpr const char* kRenderMarker = ".treecut-render";
 
 bool starts_with_stats_header(const std::filesystem::path& file) {
-  if (file_kind(file) != FileKind::Regular) return false;
-  // Only the header line matters (a long run's table may be large); opened
-  // without blocking, as every input.
-  int fd = -1;
-  try {
-    fd = open_regular_file(file);
-  } catch (const std::exception&) {
-    return false;
-  }
-  constexpr std::string_view kHeader = "frame,time_s,frame_ms,";
-  char head[kHeader.size()] = {};
-  const ssize_t n = ::read(fd, head, sizeof head);
-  ::close(fd);
-  return n == static_cast<ssize_t>(sizeof head) && std::string_view(head, sizeof head) == kHeader;
+  // Only the header line matters (a long run's table may be large).
+  return file_starts_with(file, "frame,time_s,frame_ms,");
 }
 
 // The marker, or the stats.csv of an older treecut, at the folder's own top:

@@ -45,6 +45,10 @@ inline constexpr std::size_t kTextInputLimit = std::size_t{16} << 20;
 /// past the limit.
 std::string read_text_file(const std::filesystem::path& path, std::size_t limit = kTextInputLimit);
 
+/// Whether PATH is a readable regular file whose first bytes are PREFIX (a
+/// format's magic). Never blocks; false for anything it cannot read.
+bool file_starts_with(const std::filesystem::path& path, std::string_view prefix);
+
 /// Whether two paths name the same file (same device and inode: hard links
 /// and symbolic links to it count). False when either does not exist.
 bool same_file(const std::filesystem::path& a, const std::filesystem::path& b);

@@ -47,9 +47,14 @@ class StrategyRegistry {
   void load_plugin(const std::filesystem::path& path);
 
  private:
-  /// Loads and registers OPEN_AS in a child process first (registry.cpp);
-  /// throws InputError naming WHERE when that fails or crashes.
-  void try_plugin_in_child(const std::filesystem::path& open_as, const std::string& where) const;
+  /// Tries load_and_register() in a child process first (registry.cpp);
+  /// throws InputError naming PATH when that fails, crashes or exits.
+  void try_plugin_in_child(const std::filesystem::path& path,
+                           const std::filesystem::path& open_as) const;
+  /// dlopen of OPEN_AS (PATH, checked and made absolute), its entry points,
+  /// its version, then registration (all or nothing); throws InputError
+  /// naming PATH.
+  void load_and_register(const std::filesystem::path& path, const std::filesystem::path& open_as);
 
   struct Entry {
     StrategyInfo info;

@@ -300,23 +300,7 @@ std::optional<CacheKey> detail::peek_cache_key(const std::filesystem::path& cach
 }
 
 bool looks_like_cache(const std::filesystem::path& path) {
-  if (file_kind(path) != FileKind::Regular) return false;
-  int fd = -1;
-  try {
-    fd = open_regular_file(path);
-  } catch (const std::exception&) {
-    return false;
-  }
-  char magic[sizeof kMagic] = {};
-  std::size_t got = 0;
-  while (got < sizeof magic) {
-    const ssize_t n = ::read(fd, magic + got, sizeof magic - got);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) break;
-    got += static_cast<std::size_t>(n);
-  }
-  ::close(fd);
-  return got == sizeof magic && std::memcmp(magic, kMagic, sizeof kMagic) == 0;
+  return file_starts_with(path, std::string_view(kMagic, sizeof kMagic));
 }
 
 void save_cache(const Hierarchy& hier, const CacheKey& key, const std::filesystem::path& cache) {

@@ -1,7 +1,5 @@
 #include "treecut/model_io.hpp"
 
-#include <unistd.h>
-
 #include <chrono>
 #include <cstdlib>
 #include <cstring>
@@ -85,20 +83,6 @@ void probe_cache_destination(const std::filesystem::path& cache) {
   AtomicFile probe(cache);  // never committed: the destructor removes it
 }
 
-// Whether the regular file PATH starts with PREFIX (false when unreadable).
-bool starts_with_bytes(const std::filesystem::path& path, std::string_view prefix) {
-  try {
-    const int fd = open_regular_file(path);
-    std::string head(prefix.size(), '\0');
-    const bool same =
-        ::read(fd, head.data(), head.size()) == static_cast<ssize_t>(head.size()) && head == prefix;
-    ::close(fd);
-    return same;
-  } catch (const std::exception&) {
-    return false;
-  }
-}
-
 bool same_identity(const CacheKey& a, const CacheKey& b) {
   return a.source_device == b.source_device && a.source_inode == b.source_inode &&
          a.source_size == b.source_size && a.source_mtime_ns == b.source_mtime_ns &&
@@ -124,7 +108,7 @@ OpenedModel open_model(const std::filesystem::path& model, const OpenOptions& op
   }
   // A .tch that is not a cache is named as such, not as a bad PLY (unless it
   // is a PLY under that name).
-  if (model.extension() == ".tch" && !starts_with_bytes(model, "ply"))
+  if (model.extension() == ".tch" && !file_starts_with(model, "ply"))
     throw InputError(quoted_name(model) +
                      ": not a treecut cache (it does not start with a cache's signature)");
   const std::uint32_t bits = options_bits(options.attributes, options.build);

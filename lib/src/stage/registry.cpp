@@ -188,16 +188,10 @@ std::filesystem::path checked_plugin_path(const std::filesystem::path& path) {
   return ec ? path : absolute;
 }
 
-// What a trial load in a child process found (try_plugin_in_child).
-struct Trial {
-  char outcome = 0;    // 'K' loads and registers, 'R' dlopen refused it, 'N' no entry
-                       // points, 'V' another API version, 'E' registration threw;
-                       // 0: the child ended before it could say (crashed, exited)
-  std::string detail;  // dlerror(), the version, the exception's text
-};
-
-// Reads everything the child wrote, then its end.
-Trial read_trial(int fd, pid_t child, const std::string& where) {
+// What the trial in the child reported: its error message, empty when it
+// loaded and registered. Throws, naming WHERE, when the child ended without
+// a report (it crashed, or the library's code ended it).
+std::string read_trial(int fd, pid_t child, const std::string& where) {
   std::string report;
   char buffer[512];
   for (;;) {
@@ -218,7 +212,7 @@ Trial read_trial(int fd, pid_t child, const std::string& where) {
     throw InputError(where + ": cannot load plugin: loading it " + how +
                      "; the library is damaged or not meant to be loaded");
   }
-  return {report[0], report.substr(1)};
+  return report.substr(1);  // after the 'K' or 'E' that makes it non-empty
 }
 
 }  // namespace
@@ -232,8 +226,9 @@ Trial read_trial(int fd, pid_t child, const std::string& where) {
 // a library that passes is loaded here, so one that is no plugin never runs
 // its constructors in the host. (Plugins are loaded at start-up, before the
 // program starts threads.)
-void StrategyRegistry::try_plugin_in_child(const std::filesystem::path& open_as,
-                                           const std::string& where) const {
+void StrategyRegistry::try_plugin_in_child(const std::filesystem::path& path,
+                                           const std::filesystem::path& open_as) const {
+  const std::string where = quoted_name(path);
   int pipe_fds[2];
   if (::pipe2(pipe_fds, O_CLOEXEC) != 0) return;  // no trial; the real load decides
   const pid_t child = ::fork();
@@ -249,54 +244,24 @@ void StrategyRegistry::try_plugin_in_child(const std::filesystem::path& open_as,
       ::dup2(null, STDOUT_FILENO);
       ::dup2(null, STDERR_FILENO);
     }
-    const auto say = [&](char outcome, const std::string& detail) {
-      const std::string text = outcome + detail;
-      (void)!::write(pipe_fds[1], text.data(), text.size());
-      ::_exit(0);
-    };
-    void* handle = dlopen(open_as.c_str(), RTLD_NOW | RTLD_LOCAL);
-    if (handle == nullptr) {
-      const char* why = dlerror();
-      say('R', why != nullptr ? why : "unknown error");
-    }
-    auto* version = reinterpret_cast<std::uint32_t (*)()>(dlsym(handle, kPluginVersionSymbol));
-    auto* entry =
-        reinterpret_cast<void (*)(StrategyRegistry&)>(dlsym(handle, kPluginRegisterSymbol));
-    if (version == nullptr || entry == nullptr) say('N', {});
-    if (const std::uint32_t v = version(); v != kPluginApiVersion) say('V', std::to_string(v));
-    StrategyRegistry trial = *this;
-    trial.origin_ = open_as.string();
+    std::string report = "K";
     try {
-      entry(trial);
+      StrategyRegistry trial = *this;
+      trial.load_and_register(path, open_as);
     } catch (const std::exception& e) {
-      say('E', std::string(": ") + e.what());
-    } catch (...) {
-      say('E', {});
+      report = std::string("E") + e.what();
     }
-    say('K', {});
+    (void)!::write(pipe_fds[1], report.data(), report.size());
+    ::_exit(0);
   }
   ::close(pipe_fds[1]);
-  const Trial trial = read_trial(pipe_fds[0], child, where);
-  switch (trial.outcome) {
-    case 'R':
-      throw InputError(where + ": cannot load plugin: " + trial.detail);
-    case 'N':
-      throw InputError(where + ": not a treecut plugin (no " + kPluginVersionSymbol + "/" +
-                       kPluginRegisterSymbol + ")");
-    case 'V':
-      throw InputError(where + ": plugin API version " + trial.detail + ", this treecut has " +
-                       std::to_string(kPluginApiVersion));
-    case 'E':
-      throw InputError(where + ": plugin registration failed" + trial.detail);
-    default:
-      return;
-  }
+  if (const std::string error = read_trial(pipe_fds[0], child, where); !error.empty())
+    throw InputError(error);
 }
 
-void StrategyRegistry::load_plugin(const std::filesystem::path& path) {
+void StrategyRegistry::load_and_register(const std::filesystem::path& path,
+                                         const std::filesystem::path& open_as) {
   const std::string where = quoted_name(path);
-  const std::filesystem::path open_as = checked_plugin_path(path);
-  try_plugin_in_child(open_as, where);
   // RTLD_LOCAL: two plugins may define the same internal symbols. The handle is
   // never closed (see the header), so it is deliberately not kept.
   void* handle = dlopen(open_as.c_str(), RTLD_NOW | RTLD_LOCAL);
@@ -332,6 +297,12 @@ void StrategyRegistry::load_plugin(const std::filesystem::path& path) {
     throw InputError(where + ": plugin registration failed");
   }
   origin_ = "built-in";
+}
+
+void StrategyRegistry::load_plugin(const std::filesystem::path& path) {
+  const std::filesystem::path open_as = checked_plugin_path(path);
+  try_plugin_in_child(path, open_as);
+  load_and_register(path, open_as);
 }
 
 }  // namespace treecut

@@ -244,6 +244,26 @@ std::string read_text_file(const std::filesystem::path& path, std::size_t limit)
   return text;
 }
 
+bool file_starts_with(const std::filesystem::path& path, std::string_view prefix) {
+  if (file_kind(path) != FileKind::Regular) return false;
+  int fd = -1;
+  try {
+    fd = open_regular_file(path);
+  } catch (const std::exception&) {
+    return false;
+  }
+  std::string head(prefix.size(), '\0');
+  std::size_t got = 0;
+  while (got < head.size()) {
+    const ssize_t n = ::read(fd, head.data() + got, head.size() - got);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) break;
+    got += static_cast<std::size_t>(n);
+  }
+  ::close(fd);
+  return got == head.size() && head == prefix;
+}
+
 bool same_file(const std::filesystem::path& a, const std::filesystem::path& b) {
   struct stat sa {
   }, sb{};
