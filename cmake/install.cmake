@@ -1,6 +1,6 @@
 # Install and export rules: `cmake --install BUILD --prefix P` gives P a
 # find_package(treecut CONFIG) package with the imported targets
-# treecut::core and treecut::strategies (static, position independent, so a
+# treecut::core, treecut::culling and treecut::strategies (static, position independent, so a
 # plugin shared library can link them), their headers, and the `treecut`
 # program. Components: treecut_development (libraries, headers, CMake
 # package) and treecut_runtime (the program).
@@ -14,14 +14,15 @@ set(TREECUT_INSTALL_CMAKEDIR ${CMAKE_INSTALL_LIBDIR}/cmake/treecut)
 # dynamic symbol table, so it exports only its two entry points, whatever
 # visibility the core was compiled with, and never interposes on the host's
 # copy. Only for the installed targets and only for shared consumers.
-set_property(TARGET treecut_core treecut_strategies APPEND PROPERTY INTERFACE_LINK_OPTIONS
+set_property(TARGET treecut_core treecut_culling treecut_strategies APPEND PROPERTY INTERFACE_LINK_OPTIONS
   "$<INSTALL_INTERFACE:$<$<IN_LIST:$<TARGET_PROPERTY:TYPE>,MODULE_LIBRARY;SHARED_LIBRARY>:LINKER:--exclude-libs,ALL>>")
 
-install(TARGETS treecut_core treecut_strategies EXPORT treecutTargets
+install(TARGETS treecut_core treecut_culling treecut_strategies EXPORT treecutTargets
   ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT treecut_development
   LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT treecut_development
   INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/lib/include/treecut
+                  ${PROJECT_SOURCE_DIR}/lib/culling/include/treecut
                   ${PROJECT_SOURCE_DIR}/strategies/include/treecut
   DESTINATION ${CMAKE_INSTALL_INCLUDEDIR} COMPONENT treecut_development
   FILES_MATCHING PATTERN "*.hpp")

@@ -25,6 +25,8 @@
 #include "bench_scene.hpp"
 #include "commands.hpp"
 #include "option_checks.hpp"
+#include "treecut/culling/chc.hpp"
+#include "treecut/culling/hlod_blocks.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
 #include "treecut/generate.hpp"
@@ -33,8 +35,6 @@
 #include "treecut/splat/context.hpp"
 #include "treecut/splat/occlusion_device_gl.hpp"
 #include "treecut/splat/renderer.hpp"
-#include "treecut/strategies/chc.hpp"
-#include "treecut/strategies/hlod_blocks.hpp"
 #include "viewer.hpp"
 
 namespace treecut::cli {
@@ -184,11 +184,11 @@ struct OcclusionArgs {
   bool no_chc = false;  // the HLOD table alone (half the frames drawn)
   int width = 1280;
   int height = 720;
-  std::uint32_t block_size = strategies::kDefaultBlockSize;
+  std::uint32_t block_size = culling::kDefaultBlockSize;
   // The tree of blocks (HlodBlocks::build): 2 binary (the paper's kD-tree), 4
   // the hierarchy's; compare_fan_out adds the CHC table's VFC, S&W, CHC and
   // Ideal rows on a second tree, frames interleaved with the first.
-  unsigned fan_out = strategies::kBinaryFanOut;
+  unsigned fan_out = culling::kBinaryFanOut;
   unsigned compare_fan_out = 0;
   bool flush_row = false;
   bool probe_row = false;  // diagnostics: Ideal with a box query before every block it draws
@@ -203,8 +203,8 @@ struct OcclusionArgs {
 // One method of the CHC table and what each frame of the path did.
 struct ChcRun {
   std::string method;
-  strategies::ChcOptions options;
-  std::vector<strategies::ChcFrameStats> frames;
+  culling::ChcOptions options;
+  std::vector<culling::ChcFrameStats> frames;
   bool flush_per_block = false;  // diagnostics: GlOcclusionDevice::set_flush_after_draw
   unsigned tree = 0;             // 0: the --block-fan-out tree, 1: the --compare-fan-out one
 };
@@ -230,12 +230,12 @@ void print_chc_table(const std::vector<ChcRun>& runs) {
     for (const auto& f : r.frames) v.push_back(static_cast<double>(field(f)));
     return v;
   };
-  const auto frame_ms = [](const strategies::ChcFrameStats& f) { return f.frame_ms; };
+  const auto frame_ms = [](const culling::ChcFrameStats& f) { return f.frame_ms; };
   // Speed-ups against the VFC row of the same tree of blocks, whose frames
   // are the same cameras in the same order.
   std::vector<double> vfc_ms[2];
   for (const ChcRun& r : runs) {
-    if (r.options.mode == strategies::OcclusionMode::Vfc) vfc_ms[r.tree] = column(r, frame_ms);
+    if (r.options.mode == culling::OcclusionMode::Vfc) vfc_ms[r.tree] = column(r, frame_ms);
   }
   std::printf(
       "| method | t_av | n_vp | queries | blocking reads | wait ms | of it, end-of-frame drain ms "
@@ -243,8 +243,8 @@ void print_chc_table(const std::vector<ChcRun>& runs) {
       "VFC (ratio of means) | speed-up vs VFC (mean per frame, the paper's) |\n");
   std::printf("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
   for (const ChcRun& r : runs) {
-    const bool queries = r.options.mode == strategies::OcclusionMode::StopAndWait ||
-                         r.options.mode == strategies::OcclusionMode::Chc ||
+    const bool queries = r.options.mode == culling::OcclusionMode::StopAndWait ||
+                         r.options.mode == culling::OcclusionMode::Chc ||
                          r.options.ideal_probe_queries;
     const double ms = mean(column(r, frame_ms));
     char q[32] = "---", b[32] = "---", w[32] = "---", dr[32] = "---";
@@ -302,12 +302,12 @@ void run_bench_occlusion(const OcclusionArgs& a) {
   const Scene scene = load_scene(scene_args);
   const Hierarchy& h = *scene.hierarchy;
   const double t0 = now_seconds();
-  const strategies::HlodBlocks blocks = strategies::HlodBlocks::build(h, a.block_size, a.fan_out);
+  const culling::HlodBlocks blocks = culling::HlodBlocks::build(h, a.block_size, a.fan_out);
   const double block_seconds = now_seconds() - t0;
   const bool compare = a.compare_fan_out != 0 && !a.no_chc;
-  const strategies::HlodBlocks other =
-      compare ? strategies::HlodBlocks::build(h, a.block_size, a.compare_fan_out)
-              : strategies::HlodBlocks();
+  const culling::HlodBlocks other =
+      compare ? culling::HlodBlocks::build(h, a.block_size, a.compare_fan_out)
+              : culling::HlodBlocks();
 
   const glm::ivec2 size(a.width, a.height);
   splat::OsmesaContext context(a.width, a.height);
@@ -341,7 +341,7 @@ void run_bench_occlusion(const OcclusionArgs& a) {
       a.path.c_str(), frames, span, a.from, to, path.duration());
   std::fflush(stdout);
 
-  using strategies::OcclusionMode;
+  using culling::OcclusionMode;
   std::vector<ChcRun> runs = {
       {"VFC", {OcclusionMode::Vfc, 0, 0}, {}}, {"S&W", {OcclusionMode::StopAndWait, 0, 0}, {}},
       {"CHC", {OcclusionMode::Chc, 0, 0}, {}}, {"Ideal", {OcclusionMode::Ideal, 0, 0}, {}},
@@ -375,12 +375,12 @@ void run_bench_occlusion(const OcclusionArgs& a) {
   }
   // Ideal replays, frame by frame, the leaf blocks S&W found visible for the
   // same camera (S&W's frame runs just before).
-  std::vector<strategies::BlockId> sw_set[2];
+  std::vector<culling::BlockId> sw_set[2];
   // Each method has its own traversal (its own previous frames), and the
   // methods take turns frame by frame: every method sees the path in order,
   // and a change of the machine's load (other processes on the 2 cores)
   // falls on all of them alike instead of on whichever ran then.
-  std::vector<strategies::ChcTraversal> traversals;
+  std::vector<culling::ChcTraversal> traversals;
   for (const ChcRun& run : runs)
     traversals.emplace_back(run.tree == 0 ? blocks : other, run.options);
   auto frame = [&](std::size_t r, std::size_t f) {

@@ -14,13 +14,13 @@
 #include "bench_common.hpp"
 #include "render_reports.hpp"
 #include "treecut/controller.hpp"
+#include "treecut/culling/hlod_traversal.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
 #include "treecut/model.hpp"
 #include "treecut/splat/frame.hpp"
 #include "treecut/splat/image.hpp"
 #include "treecut/splat/query_executor.hpp"
-#include "treecut/strategies/hlod_traversal.hpp"
 #include "treecut/strategies/hoq.hpp"
 
 namespace treecut::cli {
@@ -66,7 +66,7 @@ void check_hlod_csv(const std::filesystem::path& csv) {
 }
 
 void run_hlod_table(const HlodBenchInput& in) {
-  using strategies::HlodMode;
+  using culling::HlodMode;
   const Hierarchy& h = *in.hierarchy;
   splat::Renderer& renderer = *in.renderer;
   splat::GlOcclusionDevice& device = *in.device;
@@ -74,13 +74,13 @@ void run_hlod_table(const HlodBenchInput& in) {
   const float aspect = float(size.x) / float(std::max(size.y, 1));
   const HlodMode modes[] = {HlodMode::Bool, HlodMode::SwB, HlodMode::SimpB, HlodMode::CohB};
   std::vector<Method> methods;
-  std::vector<strategies::HlodTraversal> traversals;
+  std::vector<culling::HlodTraversal> traversals;
   for (const HlodMode m : modes) {
-    strategies::HlodOptions o;
+    culling::HlodOptions o;
     o.mode = m;
     o.tau = in.tau;
     traversals.emplace_back(h, *in.blocks, o);
-    methods.push_back({std::string(strategies::hlod_mode_name(m)), {}});
+    methods.push_back({std::string(culling::hlod_mode_name(m)), {}});
   }
   methods.push_back({"hoq (stage)", {}});  // no comma: a CSV field
   const std::size_t kBool = 0, kSwB = 1, kSimp = 2, kCoh = 3, kHoq = 4;
@@ -119,10 +119,10 @@ void run_hlod_table(const HlodBenchInput& in) {
       return row;
     }
     device.set_view_render_thread(cam, in.settings);
-    const strategies::HlodView view =
-        strategies::hlod_view(cam.view_matrix(), cam.projection_matrix(aspect), size,
-                              splat::occlusion_view(cam, size).near_radius);
-    const strategies::HlodFrameStats s = traversals[m].frame_render_thread(device, view, true);
+    const culling::HlodView view =
+        culling::hlod_view(cam.view_matrix(), cam.projection_matrix(aspect), size,
+                           splat::occlusion_view(cam, size).near_radius);
+    const culling::HlodFrameStats s = traversals[m].frame_render_thread(device, view, true);
     row.frame_ms = s.frame_ms;
     row.drawn = double(s.drawn);
     row.splats = double(s.splats);

@@ -11,17 +11,17 @@
 #include <string>
 #include <vector>
 
+#include "treecut/culling/hlod_blocks.hpp"
 #include "treecut/hierarchy.hpp"
 #include "treecut/splat/camera.hpp"
 #include "treecut/splat/occlusion_device_gl.hpp"
 #include "treecut/splat/renderer.hpp"
-#include "treecut/strategies/hlod_blocks.hpp"
 
 namespace treecut::cli {
 
 struct HlodBenchInput {
   std::shared_ptr<const Hierarchy> hierarchy;
-  const strategies::HlodBlocks* blocks = nullptr;
+  const culling::HlodBlocks* blocks = nullptr;
   splat::Renderer* renderer = nullptr;
   splat::GlOcclusionDevice* device = nullptr;
   std::vector<splat::Camera> cameras;

@@ -38,6 +38,7 @@
 #include "bench_common.hpp"
 #include "option_checks.hpp"
 #include "render_reports.hpp"
+#include "treecut/culling/hzm.hpp"
 #include "treecut/error.hpp"
 #include "treecut/feedback_stage.hpp"
 #include "treecut/file_io.hpp"
@@ -49,7 +50,6 @@
 #include "treecut/splat/renderer.hpp"
 #include "treecut/splat/scene_draw.hpp"
 #include "treecut/strategies/budget_strategy.hpp"
-#include "treecut/strategies/hzm.hpp"
 #include "treecut/tree_cut.hpp"
 #include "viewer.hpp"
 
@@ -111,8 +111,8 @@ struct Side {
 // A rerun of the strategy's culler with other parameters (diagnosis).
 struct Variant {
   std::string name;
-  many::HzmParams params;
-  std::unique_ptr<many::HzmCuller> culler;
+  culling::HzmParams params;
+  std::unique_ptr<culling::HzmCuller> culler;
   std::size_t culled = 0;   // hidden and culled, over the frames
   std::size_t wrongly = 0;  // culled with a pixel
   std::size_t rescued = 0;  // of the strategy's missed hidden objects, culled here
@@ -219,7 +219,8 @@ void run_bench_scene(const SceneBenchArgs& a) {
   std::vector<Variant> variants;
   if (!a.no_diagnosis) {
     const auto add = [&](std::string name, std::size_t active, float threshold, int finer,
-                         unsigned depth_width, many::Facing facing = many::HzmParams{}.facing) {
+                         unsigned depth_width,
+                         culling::Facing facing = culling::HzmParams{}.facing) {
       Variant v;
       v.name = std::move(name);
       v.params.active = active;
@@ -229,8 +230,8 @@ void run_bench_scene(const SceneBenchArgs& a) {
       v.params.facing = facing;
       variants.push_back(std::move(v));
     };
-    const unsigned cells = many::HzmParams{}.depth_width;
-    const int finer = many::HzmParams{}.finer_levels;
+    const unsigned cells = culling::HzmParams{}.depth_width;
+    const int finer = culling::HzmParams{}.finer_levels;
     const auto label = [&](std::size_t active, float threshold, int f, unsigned w) {
       char b[128];
       std::snprintf(b, sizeof b, "AOS %zu, CT %.2f, finer %d, %u cells", active, double(threshold),
@@ -246,17 +247,18 @@ void run_bench_scene(const SceneBenchArgs& a) {
     add(label(4 * aos, ct, finer, cells), 4 * aos, ct, finer, cells);
     add(label(16 * aos, ct, 10, exact), 16 * aos, ct, 10, exact);
     // The other reading of E in Eq. 3 than the strategy's (hzm.hpp, Facing).
-    const bool to_object = many::HzmParams{}.facing == many::Facing::EyeToObject;
-    const many::Facing other = to_object ? many::Facing::ViewDirection : many::Facing::EyeToObject;
+    const bool to_object = culling::HzmParams{}.facing == culling::Facing::EyeToObject;
+    const culling::Facing other =
+        to_object ? culling::Facing::ViewDirection : culling::Facing::EyeToObject;
     const std::string other_name =
         to_object ? ", Eq. 3 E = viewing direction" : ", Eq. 3 E = eye to object";
     add(label(aos, ct, finer, cells) + other_name, aos, ct, finer, cells, other);
     add(label(4 * aos, ct, 10, exact) + other_name, 4 * aos, ct, 10, exact, other);
     add(label(aos, 0.3f, finer, cells), aos, 0.3f, finer, cells);
     add(label(aos, 0.9f, finer, cells), aos, 0.9f, finer, cells);
-    for (Variant& v : variants) v.culler = std::make_unique<many::HzmCuller>(v.params);
+    for (Variant& v : variants) v.culler = std::make_unique<culling::HzmCuller>(v.params);
   }
-  many::WorkerPool pool(2);
+  culling::WorkerPool pool(2);
 
   std::vector<double> in_frustum_f, seen_f, hidden_f, culled_f, wrongly_f, accuracy_f;
   std::vector<double> missed_occluder_f;  // hidden occluders the HZM kept
@@ -356,15 +358,15 @@ void run_bench_scene(const SceneBenchArgs& a) {
     off.to_seen.push_back(to_seen_off);
 
     // Diagnosis on the same reference.
-    const many::FrameView frame_view(view);
-    const std::span<const many::SceneObject> objects = on.strategy->objects();
+    const culling::FrameView frame_view(view);
+    const std::span<const culling::SceneObject> objects = on.strategy->objects();
     for (Variant& v : variants) {
       v.culler->preprocess(objects);
       v.culler->cull(objects, frame_view, &pool);
       const auto vis = v.culler->visible();
       const auto states = v.culler->states();
       for (std::size_t i = 0; i < n; ++i) {
-        if (!off.visible[i] || states[i] != many::ObjectState::Occluded) continue;
+        if (!off.visible[i] || states[i] != culling::ObjectState::Occluded) continue;
         if (seen[i] > 0) {
           ++v.wrongly;
         } else {
@@ -375,7 +377,7 @@ void run_bench_scene(const SceneBenchArgs& a) {
       (void)vis;
       if (&v == &variants.front()) {
         for (const std::uint32_t k : v.culler->active())
-          hidden_aos += seen[k] == 0 && states[k] != many::ObjectState::Occluded ? 1 : 0;
+          hidden_aos += seen[k] == 0 && states[k] != culling::ObjectState::Occluded ? 1 : 0;
       }
     }
 

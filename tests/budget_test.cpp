@@ -15,14 +15,16 @@
 #include <vector>
 
 #include "support/test_support.hpp"
+#include "treecut/culling/hzm.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/ply.hpp"
-#include "treecut/strategies/hzm.hpp"
 #include "treecut/strategies/optimization.hpp"
 #include "treecut/tree_cut.hpp"
 
 namespace treecut::strategies::many {
 namespace {
+
+using namespace treecut::culling;
 
 std::uint64_t sum(const std::vector<std::uint32_t>& v) {
   return std::accumulate(v.begin(), v.end(), std::uint64_t{0});

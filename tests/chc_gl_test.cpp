@@ -27,6 +27,7 @@
 #include "query_check.hpp"
 #include "test_support.hpp"
 #include "treecut/attributes.hpp"
+#include "treecut/culling/chc.hpp"
 #include "treecut/generate.hpp"
 #include "treecut/hierarchy.hpp"
 #include "treecut/splat/camera.hpp"
@@ -34,17 +35,16 @@
 #include "treecut/splat/gl.hpp"
 #include "treecut/splat/occlusion_device_gl.hpp"
 #include "treecut/splat/renderer.hpp"
-#include "treecut/strategies/chc.hpp"
 
 namespace treecut::splat {
 namespace {
 
-using strategies::BlockId;
-using strategies::ChcFrameStats;
-using strategies::ChcOptions;
-using strategies::ChcTraversal;
-using strategies::HlodBlocks;
-using strategies::OcclusionMode;
+using culling::BlockId;
+using culling::ChcFrameStats;
+using culling::ChcOptions;
+using culling::ChcTraversal;
+using culling::HlodBlocks;
+using culling::OcclusionMode;
 
 constexpr int kWidth = 320;
 constexpr int kHeight = 180;
@@ -91,7 +91,7 @@ class ChcGl : public ::testing::TestWithParam<SceneCase> {
   }
   void SetUp() override {
     h_ = scene(GetParam().kind, GetParam().points);
-    blocks_ = HlodBlocks::build(*h_, 500, strategies::kBinaryFanOut);
+    blocks_ = HlodBlocks::build(*h_, 500, culling::kBinaryFanOut);
     renderer_ = std::make_unique<Renderer>(*h_, glm::ivec2(kWidth, kHeight));
     device_ = std::make_unique<GlOcclusionDevice>(*renderer_, blocks_);
   }

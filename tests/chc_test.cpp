@@ -1,4 +1,4 @@
-// CHC traversal (strategies/include/treecut/strategies/chc.hpp) on a CPU
+// CHC traversal (strategies/include/treecut/culling/chc.hpp) on a CPU
 // device: a perspective "GPU" looking down +x whose depth buffer is a grid of
 // pixels over the projected rectangles of block boxes (a drawn leaf block
 // fills its box's rectangle at the box's nearest depth; a box query counts the
@@ -7,7 +7,7 @@
 // blocking are all observable. The reference ("truth") is brute force on the
 // same device model: a leaf is visible when some pixel of its rectangle is
 // nearer than every other leaf's rectangle there.
-#include "treecut/strategies/chc.hpp"
+#include "treecut/culling/chc.hpp"
 
 #include <gtest/gtest.h>
 
@@ -29,19 +29,19 @@ namespace {
 
 using treecut::Hierarchy;
 using treecut::PointSet;
-using treecut::strategies::BlockId;
-using treecut::strategies::Box;
-using treecut::strategies::ChcFrameStats;
-using treecut::strategies::ChcOptions;
-using treecut::strategies::ChcTraversal;
-using treecut::strategies::DeviceFrameStats;
-using treecut::strategies::HlodBlocks;
-using treecut::strategies::kBinaryFanOut;
-using treecut::strategies::kNoBlock;
-using treecut::strategies::OcclusionDeviceRenderThread;
-using treecut::strategies::OcclusionMode;
-using treecut::strategies::OcclusionView;
-using treecut::strategies::QueryHandle;
+using treecut::culling::BlockId;
+using treecut::culling::Box;
+using treecut::culling::ChcFrameStats;
+using treecut::culling::ChcOptions;
+using treecut::culling::ChcTraversal;
+using treecut::culling::DeviceFrameStats;
+using treecut::culling::HlodBlocks;
+using treecut::culling::kBinaryFanOut;
+using treecut::culling::kNoBlock;
+using treecut::culling::OcclusionDeviceRenderThread;
+using treecut::culling::OcclusionMode;
+using treecut::culling::OcclusionView;
+using treecut::culling::QueryHandle;
 
 constexpr int kRes = 96;  // pixels per side over u, v in [-1, 1]
 

@@ -1,8 +1,8 @@
-// HLOD blocks (strategies/include/treecut/strategies/hlod_blocks.hpp): the
+// HLOD blocks (strategies/include/treecut/culling/hlod_blocks.hpp): the
 // partition of the leaves, conservative boxes, block sizes, the tree of blocks
 // (binary and balanced with fan-out 2, the hierarchy's own with fan-out 4)
 // and the mapping of block cuts to valid TreeCuts.
-#include "treecut/strategies/hlod_blocks.hpp"
+#include "treecut/culling/hlod_blocks.hpp"
 
 #include <gtest/gtest.h>
 
@@ -21,9 +21,9 @@ using treecut::Hierarchy;
 using treecut::ModelKind;
 using treecut::NodeId;
 using treecut::TreeCut;
-using treecut::strategies::BlockId;
-using treecut::strategies::HlodBlocks;
-using treecut::strategies::kNoBlock;
+using treecut::culling::BlockId;
+using treecut::culling::HlodBlocks;
+using treecut::culling::kNoBlock;
 using treecut::test::small_hierarchy;
 
 // Leaves of the subtree of n, collected depth first.

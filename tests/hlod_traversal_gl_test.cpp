@@ -23,6 +23,7 @@
 #include "query_check.hpp"
 #include "test_support.hpp"
 #include "treecut/attributes.hpp"
+#include "treecut/culling/hlod_traversal.hpp"
 #include "treecut/generate.hpp"
 #include "treecut/hierarchy.hpp"
 #include "treecut/splat/camera.hpp"
@@ -31,16 +32,15 @@
 #include "treecut/splat/image.hpp"
 #include "treecut/splat/occlusion_device_gl.hpp"
 #include "treecut/splat/renderer.hpp"
-#include "treecut/strategies/hlod_traversal.hpp"
 
 namespace treecut::splat {
 namespace {
 
-using strategies::HlodBlocks;
-using strategies::HlodFrameStats;
-using strategies::HlodMode;
-using strategies::HlodOptions;
-using strategies::HlodTraversal;
+using culling::HlodBlocks;
+using culling::HlodFrameStats;
+using culling::HlodMode;
+using culling::HlodOptions;
+using culling::HlodTraversal;
 
 constexpr int kWidth = 320;
 constexpr int kHeight = 180;
@@ -77,10 +77,10 @@ std::vector<Camera> walk(const Hierarchy& h, int count) {
   return out;
 }
 
-strategies::HlodView view_of(const Camera& c) {
+culling::HlodView view_of(const Camera& c) {
   const glm::ivec2 size(kWidth, kHeight);
-  return strategies::hlod_view(c.view_matrix(), c.projection_matrix(float(kWidth) / kHeight), size,
-                               occlusion_view(c, size).near_radius);
+  return culling::hlod_view(c.view_matrix(), c.projection_matrix(float(kWidth) / kHeight), size,
+                            occlusion_view(c, size).near_radius);
 }
 
 using test::QueryCheck;  // tests/support/query_check.hpp

@@ -9,7 +9,7 @@
 //  - SW(B) draws no more blocks than Bool where the scene is occluded;
 //  - Coh(B) never reads an answer before it is available while the
 //    traversal queue has work.
-#include "treecut/strategies/hlod_traversal.hpp"
+#include "treecut/culling/hlod_traversal.hpp"
 
 #include <gtest/gtest.h>
 
@@ -28,17 +28,17 @@
 namespace {
 
 using treecut::Hierarchy;
-using treecut::strategies::BlockId;
-using treecut::strategies::box_projected_pixels;
-using treecut::strategies::DeviceFrameStats;
-using treecut::strategies::HlodBlocks;
-using treecut::strategies::HlodFrameStats;
-using treecut::strategies::HlodMode;
-using treecut::strategies::HlodOptions;
-using treecut::strategies::HlodTraversal;
-using treecut::strategies::HlodView;
-using treecut::strategies::OcclusionDeviceRenderThread;
-using treecut::strategies::QueryHandle;
+using treecut::culling::BlockId;
+using treecut::culling::box_projected_pixels;
+using treecut::culling::DeviceFrameStats;
+using treecut::culling::HlodBlocks;
+using treecut::culling::HlodFrameStats;
+using treecut::culling::HlodMode;
+using treecut::culling::HlodOptions;
+using treecut::culling::HlodTraversal;
+using treecut::culling::HlodView;
+using treecut::culling::OcclusionDeviceRenderThread;
+using treecut::culling::QueryHandle;
 
 constexpr glm::ivec2 kViewport(320, 180);
 
@@ -59,7 +59,7 @@ HlodView view_at(const Hierarchy& h, float distance_factor) {
   const glm::mat4 view = glm::lookAt(eye, c, glm::vec3(0, 0, 1));
   const float aspect = float(kViewport.x) / float(kViewport.y);
   const glm::mat4 proj = glm::perspective(0.9f, aspect, 0.01f * r, 10.0f * r);
-  return treecut::strategies::hlod_view(view, proj, kViewport, 0.02f * r);
+  return treecut::culling::hlod_view(view, proj, kViewport, 0.02f * r);
 }
 
 enum class Op { Query, Read, Draw };
@@ -163,8 +163,8 @@ class HlodTraversalTest : public ::testing::Test {
     std::vector<float> sse;
     for (BlockId b = 0; b < blocks_.block_count(); ++b) {
       if (!blocks_.is_leaf(b)) {
-        sse.push_back(treecut::strategies::hoq::block_sse(near_.snapshot, blocks_.box(b),
-                                                          probe.error_radius(b)));
+        sse.push_back(treecut::culling::hoq::block_sse(near_.snapshot, blocks_.box(b),
+                                                       probe.error_radius(b)));
       }
     }
     std::sort(sse.begin(), sse.end());
@@ -183,7 +183,7 @@ class HlodTraversalTest : public ::testing::Test {
     return t.frame_render_thread(d, v);
   }
   float block_sse(const HlodTraversal& t, BlockId b, const HlodView& v) const {
-    return treecut::strategies::hoq::block_sse(v.snapshot, blocks_.box(b), t.error_radius(b));
+    return treecut::culling::hoq::block_sse(v.snapshot, blocks_.box(b), t.error_radius(b));
   }
 
   std::shared_ptr<const Hierarchy> h_;
@@ -194,7 +194,7 @@ class HlodTraversalTest : public ::testing::Test {
 
 TEST_F(HlodTraversalTest, BoxPixelsOfABoxFillingTheViewAreTheViewport) {
   const glm::mat4 vp = near_.occlusion.view_projection;
-  treecut::strategies::Box huge{glm::vec3(-1e4f), glm::vec3(1e4f)};
+  treecut::culling::Box huge{glm::vec3(-1e4f), glm::vec3(1e4f)};
   // Behind the eye: no analytic count.
   EXPECT_LT(box_projected_pixels(vp, kViewport, huge), 0.0);
   // A box seen whole is less than the viewport and more than nothing.

@@ -26,7 +26,7 @@ namespace {
 // in the western half of the model (hidden), the proxy's pixels otherwise.
 VisibilityResult answer(const Hierarchy& h, const ViewSnapshot& view, const QueryRequest& q,
                         std::uint64_t issued) {
-  namespace hoq = strategies::hoq;
+  namespace hoq = culling::hoq;
   const hoq::QueryCamera cam{view.view, view.projection, view.viewport};
   const glm::vec4 s = h.arrays().center_radius[q.node];
   const double pixels = hoq::proxy_pixels(cam, glm::vec3(s), s.w);

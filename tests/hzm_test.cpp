@@ -2,7 +2,7 @@
 // strategies/hzm.hpp; Peng & Cao, I3D 2013, section 6): conservative against
 // an exact reference, the max-reduction levels, the level of Eq. 5, the
 // compactness of Eq. 2, the occluder weights of Eq. 3, the screen rectangles.
-#include "treecut/strategies/hzm.hpp"
+#include "treecut/culling/hzm.hpp"
 
 #include <gtest/gtest.h>
 
@@ -14,9 +14,9 @@
 #include <random>
 #include <vector>
 
-#include "treecut/strategies/many_objects.hpp"
+#include "treecut/culling/many_objects.hpp"
 
-namespace treecut::strategies::many {
+namespace treecut::culling {
 namespace {
 
 Obb axis_box(glm::vec3 center, glm::vec3 half) {
@@ -605,4 +605,4 @@ TEST(Hzm, worker_pool_runs_every_chunk_once_and_rethrows) {
 }
 
 }  // namespace
-}  // namespace treecut::strategies::many
+}  // namespace treecut::culling

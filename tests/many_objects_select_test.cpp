@@ -16,13 +16,15 @@
 #include <vector>
 
 #include "support/test_support.hpp"
+#include "treecut/culling/hzm.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/ply.hpp"
 #include "treecut/strategies/budget.hpp"
-#include "treecut/strategies/hzm.hpp"
 
-namespace treecut::strategies::many {
+namespace treecut::culling {
 namespace {
+
+using namespace treecut::strategies::many;
 
 TEST(ManyObjectsSelect, nth_element_per_chunk_picks_the_full_sorts_occluders) {
   // 20,000 buildings: five chunks of candidates. Compactness spread so that
@@ -116,4 +118,4 @@ TEST(ManyObjectsSelect, best_cut_into_a_reused_list_is_the_fresh_cut) {
 }
 
 }  // namespace
-}  // namespace treecut::strategies::many
+}  // namespace treecut::culling

@@ -1,4 +1,4 @@
-// HLOD block build time (strategies/include/treecut/strategies/hlod_blocks.hpp):
+// HLOD block build time (strategies/include/treecut/culling/hlod_blocks.hpp):
 // decides whether blocks must be cached with the hierarchy or can be rebuilt
 // at load. The dragon from ../shared/assets and a generated terrain of
 // TREECUT_BENCH_POINTS (default 20 million) points; block_size 1000 (the
@@ -9,12 +9,12 @@
 #include <benchmark/benchmark.h>
 
 #include "bench_models.hpp"
-#include "treecut/strategies/hlod_blocks.hpp"
+#include "treecut/culling/hlod_blocks.hpp"
 
 namespace {
 
 using treecut::Hierarchy;
-using treecut::strategies::HlodBlocks;
+using treecut::culling::HlodBlocks;
 
 void run(benchmark::State& state, const Hierarchy& h) {
   const auto block_size = static_cast<std::uint32_t>(state.range(0));

@@ -31,16 +31,17 @@
 #include <tuple>
 
 #include "test_support.hpp"
+#include "treecut/culling/hzm.hpp"
 #include "treecut/scene.hpp"
 #include "treecut/splat/camera_path.hpp"
 #include "treecut/splat/frame.hpp"
 #include "treecut/strategies/budget.hpp"
 #include "treecut/strategies/budget_strategy.hpp"
-#include "treecut/strategies/hzm.hpp"
 
 namespace {
 
 using namespace treecut::strategies::many;
+using namespace treecut::culling;
 using Clock = std::chrono::steady_clock;
 
 constexpr std::uint32_t kSeed = 1;

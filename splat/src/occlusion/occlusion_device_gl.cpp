@@ -43,9 +43,9 @@ void main() {}
 
 }  // namespace
 
-strategies::OcclusionView occlusion_view(const Camera& camera, glm::ivec2 size) {
+culling::OcclusionView occlusion_view(const Camera& camera, glm::ivec2 size) {
   const float aspect = static_cast<float>(size.x) / static_cast<float>(std::max(size.y, 1));
-  strategies::OcclusionView v;
+  culling::OcclusionView v;
   v.view_projection = camera.projection_matrix(aspect) * camera.view_matrix();
   v.eye = camera.eye;
   // The farthest corner of the near plane's rectangle, with a margin.
@@ -54,7 +54,7 @@ strategies::OcclusionView occlusion_view(const Camera& camera, glm::ivec2 size) 
   return v;
 }
 
-GlOcclusionDevice::GlOcclusionDevice(Renderer& renderer, const strategies::HlodBlocks& blocks,
+GlOcclusionDevice::GlOcclusionDevice(Renderer& renderer, const culling::HlodBlocks& blocks,
                                      std::size_t initial_queries)
     : renderer_(&renderer), blocks_(&blocks) {
   if (blocks.hierarchy_nodes() != renderer.node_count() || blocks.block_count() == 0) {
@@ -87,7 +87,7 @@ GlOcclusionDevice::GlOcclusionDevice(Renderer& renderer, const strategies::HlodB
   seen_available_.assign(pool_.size(), 0);
   free_.reserve(pool_.size());
   for (std::size_t i = pool_.size(); i-- > 0;)
-    free_.push_back(static_cast<strategies::QueryHandle>(i));
+    free_.push_back(static_cast<culling::QueryHandle>(i));
   gl::check("GlOcclusionDevice setup");
 }
 
@@ -99,18 +99,17 @@ void GlOcclusionDevice::set_view_render_thread(const Camera& camera,
   settings_ = settings;
 }
 
-strategies::QueryHandle GlOcclusionDevice::acquire() {
+culling::QueryHandle GlOcclusionDevice::acquire() {
   if (free_.empty()) {
     // More queries in flight than ever before: grow once (doubling), not per frame.
     const std::size_t old = pool_.size();
     const std::size_t grown = std::max<std::size_t>(2 * old, 64);
     for (std::size_t i = old; i < grown; ++i) pool_.push_back(gl::Query::create(GL_SAMPLES_PASSED));
     seen_available_.resize(grown, 0);
-    for (std::size_t i = grown; i-- > old;)
-      free_.push_back(static_cast<strategies::QueryHandle>(i));
+    for (std::size_t i = grown; i-- > old;) free_.push_back(static_cast<culling::QueryHandle>(i));
     ++pool_growths_;
   }
-  const strategies::QueryHandle q = free_.back();
+  const culling::QueryHandle q = free_.back();
   free_.pop_back();
   seen_available_[q] = 0;
   return q;
@@ -148,12 +147,12 @@ void GlOcclusionDevice::begin_frame_render_thread() {
   in_frame_ = true;
 }
 
-strategies::QueryHandle GlOcclusionDevice::query_box_render_thread(strategies::BlockId b) {
-  const strategies::Box& box = blocks_->box(b);
+culling::QueryHandle GlOcclusionDevice::query_box_render_thread(culling::BlockId b) {
+  const culling::Box& box = blocks_->box(b);
   enter_proxy_state();
   gl::ProgramUniform3f(proxy_.id(), u_lo_, box.lo.x, box.lo.y, box.lo.z);
   gl::ProgramUniform3f(proxy_.id(), u_hi_, box.hi.x, box.hi.y, box.hi.z);
-  const strategies::QueryHandle q = acquire();
+  const culling::QueryHandle q = acquire();
   pool_[q].begin();
   gl::DrawArrays(GL_TRIANGLES, 0, 36);
   pool_[q].end();
@@ -161,8 +160,8 @@ strategies::QueryHandle GlOcclusionDevice::query_box_render_thread(strategies::B
   return q;
 }
 
-strategies::QueryHandle GlOcclusionDevice::query_draw_render_thread(strategies::BlockId b) {
-  const strategies::QueryHandle q = acquire();
+culling::QueryHandle GlOcclusionDevice::query_draw_render_thread(culling::BlockId b) {
+  const culling::QueryHandle q = acquire();
   pool_[q].begin();
   draw_render_thread(b);
   pool_[q].end();
@@ -170,7 +169,7 @@ strategies::QueryHandle GlOcclusionDevice::query_draw_render_thread(strategies::
   return q;
 }
 
-bool GlOcclusionDevice::result_available_render_thread(strategies::QueryHandle q) {
+bool GlOcclusionDevice::result_available_render_thread(culling::QueryHandle q) {
   if (seen_available_[q] != 0) return true;
   GLuint available = GL_FALSE;
   gl::GetQueryObjectuiv(pool_[q].id(), GL_QUERY_RESULT_AVAILABLE, &available);
@@ -178,7 +177,7 @@ bool GlOcclusionDevice::result_available_render_thread(strategies::QueryHandle q
   return seen_available_[q] != 0;
 }
 
-std::uint64_t GlOcclusionDevice::result_render_thread(strategies::QueryHandle q) {
+std::uint64_t GlOcclusionDevice::result_render_thread(culling::QueryHandle q) {
   GLuint64 samples = 0;
   if (result_available_render_thread(q)) {
     gl::GetQueryObjectui64v(pool_[q].id(), GL_QUERY_RESULT, &samples);
@@ -194,7 +193,7 @@ std::uint64_t GlOcclusionDevice::result_render_thread(strategies::QueryHandle q)
   return samples;
 }
 
-void GlOcclusionDevice::draw_render_thread(strategies::BlockId b) {
+void GlOcclusionDevice::draw_render_thread(culling::BlockId b) {
   leave_proxy_state();
   const auto count = static_cast<std::uint32_t>(blocks_->representation(b).size());
   renderer_->draw_frame_range(first_[b], count);

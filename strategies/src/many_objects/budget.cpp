@@ -20,11 +20,11 @@ constexpr double kMinDepth = 1e-6;
 constexpr std::size_t kMaxRounds = 32;
 
 template <class Body>
-void for_chunks(WorkerPool* pool, std::size_t n, Body&& body) {
+void for_chunks(culling::WorkerPool* pool, std::size_t n, Body&& body) {
   if (pool != nullptr) {
     pool->run(n, kGrain, body);
   } else {
-    const std::size_t chunks = WorkerPool::chunk_count(n, kGrain);
+    const std::size_t chunks = culling::WorkerPool::chunk_count(n, kGrain);
     for (std::size_t c = 0; c < chunks; ++c) body(c * kGrain, std::min(n, (c + 1) * kGrain), c);
   }
 }
@@ -50,18 +50,18 @@ std::vector<double> eq1_shares(std::span<const BudgetItem> items, const BudgetPa
   return t;
 }
 
-void budget_items(std::span<const SceneObject> objects, std::span<const ScreenRect> rects,
-                  std::span<const std::uint8_t> visible, std::vector<BudgetItem>& items,
-                  WorkerPool* pool) {
+void budget_items(std::span<const culling::SceneObject> objects,
+                  std::span<const culling::ScreenRect> rects, std::span<const std::uint8_t> visible,
+                  std::vector<BudgetItem>& items, culling::WorkerPool* pool) {
   // The objects' point counts as the dense array the strategy keeps.
   std::vector<std::uint32_t> points(objects.size());
   for (std::size_t i = 0; i < objects.size(); ++i) points[i] = objects[i].points;
   budget_items(points, rects, visible, items, pool);
 }
 
-void budget_items(std::span<const std::uint32_t> points, std::span<const ScreenRect> rects,
+void budget_items(std::span<const std::uint32_t> points, std::span<const culling::ScreenRect> rects,
                   std::span<const std::uint8_t> visible, std::vector<BudgetItem>& items,
-                  WorkerPool* pool) {
+                  culling::WorkerPool* pool) {
   items.resize(points.size());
   for_chunks(pool, points.size(), [&](std::size_t b, std::size_t e, std::size_t) {
     for (std::size_t i = b; i < e; ++i) {
@@ -72,7 +72,7 @@ void budget_items(std::span<const std::uint32_t> points, std::span<const ScreenR
 }
 
 BudgetStats allocate_budget(std::span<const BudgetItem> items, const BudgetParams& params,
-                            std::vector<std::uint32_t>& shares, WorkerPool* pool) {
+                            std::vector<std::uint32_t>& shares, culling::WorkerPool* pool) {
   const std::size_t m = items.size();
   BudgetStats stats;
   shares.assign(m, 0);
@@ -87,7 +87,7 @@ BudgetStats allocate_budget(std::span<const BudgetItem> items, const BudgetParam
     std::uint32_t points;
     double term;
   };
-  const std::size_t chunks = WorkerPool::chunk_count(m, kGrain);
+  const std::size_t chunks = culling::WorkerPool::chunk_count(m, kGrain);
   std::vector<std::vector<Active>> found(chunks);
   std::vector<std::size_t> chunk_pet(chunks);
   for_chunks(pool, m, [&](std::size_t b, std::size_t e, std::size_t c) {

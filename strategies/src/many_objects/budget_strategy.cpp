@@ -26,13 +26,13 @@ std::uint64_t ns_since(Clock::time_point& t) {
 }
 
 // CPU time of the calling thread and the pool's workers, nanoseconds.
-std::uint64_t pool_cpu_ns(const many::WorkerPool& pool) {
+std::uint64_t pool_cpu_ns(const culling::WorkerPool& pool) {
   timespec ts{};
   clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
   return static_cast<std::uint64_t>(ts.tv_sec) * 1'000'000'000u +
          static_cast<std::uint64_t>(ts.tv_nsec) + pool.worker_cpu_ns();
 }
-std::uint64_t cpu_since(const many::WorkerPool& pool, std::uint64_t& t) {
+std::uint64_t cpu_since(const culling::WorkerPool& pool, std::uint64_t& t) {
   const std::uint64_t now = pool_cpu_ns(pool);
   const std::uint64_t d = now - t;
   t = now;
@@ -104,18 +104,18 @@ void BudgetStrategy::reset_scene(std::span<const SceneObjectInput> objects) {
     // The principal axes are arbitrary for a model whose covariance is
     // nearly isotropic (a cube): the model's own axis-aligned box is the
     // other candidate, the smaller volume wins.
-    const many::Obb fitted = many::fit_obb(points);
+    const culling::Obb fitted = culling::fit_obb(points);
     const glm::vec3 lo = h.bounds_min(), hi = h.bounds_max();
-    const many::Obb aligned{0.5f * (lo + hi), glm::mat3(1.0f), 0.5f * (hi - lo)};
-    const auto volume = [](const many::Obb& b) { return b.half.x * b.half.y * b.half.z; };
+    const culling::Obb aligned{0.5f * (lo + hi), glm::mat3(1.0f), 0.5f * (hi - lo)};
+    const auto volume = [](const culling::Obb& b) { return b.half.x * b.half.y * b.half.z; };
     s.box = volume(fitted) < 0.98f * volume(aligned) ? fitted : aligned;
-    s.compactness = many::compactness(points, s.box);
+    s.compactness = culling::compactness(points, s.box);
     // A grid with about 16 points per surface cell (the six faces of n x n
     // cells hold 6 n^2): random sampling then leaves no cell of a closed
     // surface empty (e^-16), and an empty cell would read as a hole.
     const int cells = std::clamp(
         static_cast<int>(std::sqrt(static_cast<double>(points.size()) / (6.0 * 16.0))), 3, 32);
-    s.inner = many::inner_box(points, s.box, cells);
+    s.inner = culling::inner_box(points, s.box, cells);
     // A surface open on one face (a building without a floor: the flood
     // from outside leaks in through it): closed by that face's plane, the
     // box found (which may reach the plane) is inside the solid for every
@@ -123,11 +123,11 @@ void BudgetStrategy::reset_scene(std::span<const SceneObjectInput> objects) {
     // through the open face into the box without crossing the plane twice),
     // so the object occludes exactly while the eye is there (iterate_scene).
     for (int face = 0; !s.inner && face < 6 && !points.empty(); ++face) {
-      s.inner = many::inner_box(points, s.box, cells, face);
+      s.inner = culling::inner_box(points, s.box, cells, face);
       if (s.inner) s.open_face = face;
     }
   }
-  std::vector<many::SceneObject> made(objects.size());
+  std::vector<culling::SceneObject> made(objects.size());
   open_.clear();
   open_planes_.clear();
   open_inside_.clear();
@@ -137,18 +137,18 @@ void BudgetStrategy::reset_scene(std::span<const SceneObjectInput> objects) {
   for (std::size_t i = 0; i < objects.size(); ++i) {
     const SceneObjectInput& o = objects[i];
     const ModelShape& s = shapes[o.model];
-    many::SceneObject& x = made[i];
-    x.box = many::transformed(s.box, o.world);
+    culling::SceneObject& x = made[i];
+    x.box = culling::transformed(s.box, o.world);
     // The fitted box holds the splat centres; the splats' box moved holds
     // every pixel a splat can cover.
-    x.bounds = many::bounds_of(x.box);
-    const many::Obb aabb{0.5f * (s.splat_lo + s.splat_hi), glm::mat3(1.0f),
-                         0.5f * (s.splat_hi - s.splat_lo)};
-    const many::Aabb b = many::bounds_of(many::transformed(aabb, o.world));
+    x.bounds = culling::bounds_of(x.box);
+    const culling::Obb aabb{0.5f * (s.splat_lo + s.splat_hi), glm::mat3(1.0f),
+                            0.5f * (s.splat_hi - s.splat_lo)};
+    const culling::Aabb b = culling::bounds_of(culling::transformed(aabb, o.world));
     x.bounds.min = glm::min(x.bounds.min, b.min);
     x.bounds.max = glm::max(x.bounds.max, b.max);
     x.has_inner = s.inner.has_value();
-    if (x.has_inner) x.inner = many::transformed(*s.inner, o.world);
+    if (x.has_inner) x.inner = culling::transformed(*s.inner, o.world);
     x.points = o.hierarchy->leaf_count();
     points_[i] = x.points;
     x.compactness = s.compactness;
@@ -180,17 +180,17 @@ void BudgetStrategy::ensure_pool() {
   const auto threads = static_cast<unsigned>(param_at(kThreads));
   if (!pool_ || pool_->threads() != threads) {
     pool_.reset();  // its workers joined before the new ones start
-    pool_ = std::make_unique<many::WorkerPool>(threads);
+    pool_ = std::make_unique<culling::WorkerPool>(threads);
   }
 }
 
 void BudgetStrategy::ensure_culler() {
-  many::HzmParams p;
+  culling::HzmParams p;
   p.active = static_cast<std::size_t>(param_at(kOccluders));
   p.compactness_threshold = static_cast<float>(param_at(kCompactness));
   if (!culler_ || culler_params_.active != p.active ||
       culler_params_.compactness_threshold != p.compactness_threshold) {
-    culler_ = std::make_unique<many::HzmCuller>(p);
+    culler_ = std::make_unique<culling::HzmCuller>(p);
     culler_->preprocess(objects_);
     culler_params_ = p;
   }
@@ -203,12 +203,12 @@ void BudgetStrategy::iterate_scene(const SceneIterationInput& input, SceneIterat
                            " objects, reset_scene saw " + std::to_string(n));
   }
   ensure_pool();
-  many::WorkerPool* pool = pool_.get();
+  culling::WorkerPool* pool = pool_.get();
   BudgetCounters c;
   c.objects = n;
   // The culler needs a perspective frustum (FrameView throws otherwise:
   // the stage names it as this strategy's error).
-  const many::FrameView view(input.view);
+  const culling::FrameView view(input.view);
   // From here on everything but best_cut is "select + cull" (the open-face
   // check and a preprocess it needs count as projection).
   Clock::time_point t = Clock::now();
@@ -243,7 +243,7 @@ void BudgetStrategy::iterate_scene(const SceneIterationInput& input, SceneIterat
     output.result.cancelled = true;
   };
 
-  many::HzmCuller& culler = *culler_;
+  culling::HzmCuller& culler = *culler_;
   const bool culling = param_at(kCulling) != 0.0;
   culler.project(objects_, view, pool);
   c.project_ns = ns_since(t);
@@ -264,8 +264,8 @@ void BudgetStrategy::iterate_scene(const SceneIterationInput& input, SceneIterat
     // frustum culled), not from the rectangles (24 bytes an object).
     const auto states = culler.states();
     for (std::size_t i = 0; i < n; ++i) {
-      c.occlusion_culled += states[i] == many::ObjectState::Occluded ? 1 : 0;
-      c.frustum_culled += states[i] == many::ObjectState::Outside ? 1 : 0;
+      c.occlusion_culled += states[i] == culling::ObjectState::Occluded ? 1 : 0;
+      c.frustum_culled += states[i] == culling::ObjectState::Outside ? 1 : 0;
       c.visible += visible_[i];
     }
   } else {
@@ -303,7 +303,7 @@ void BudgetStrategy::iterate_scene(const SceneIterationInput& input, SceneIterat
         cuts_[i].clear();
         continue;
       }
-      const ViewSnapshot v = many::object_view(input.view, worlds_[i]);
+      const ViewSnapshot v = culling::object_view(input.view, worlds_[i]);
       // Into the object's list of the last iteration: its storage is reused.
       many::best_cut(*hierarchies_[i], v, shares_[i], cuts_[i]);
     }

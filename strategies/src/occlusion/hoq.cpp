@@ -15,93 +15,6 @@
 
 namespace treecut::strategies {
 
-namespace hoq {
-
-float sigmoid_bias(float mu, float s, float t) {
-  mu = std::clamp(mu, 0.0f, 1.0f);
-  s = std::clamp(s, 0.0f, 1.0f);
-  t = std::clamp(t, 0.0f, 1.0f);
-  float sig = 0.0f;
-  if (mu <= t) {
-    sig = t > 0.0f ? mu * mu / t : 0.0f;
-  } else {
-    const float u = 1.0f - mu;
-    sig = 1.0f - u * u / (1.0f - t);  // t < mu <= 1, so 1 - t > 0
-  }
-  // mu = 1 gives exactly 1 whatever the rounding of the mix.
-  if (mu >= 1.0f) return 1.0f;
-  return (1.0f - s) * mu + s * sig;
-}
-
-float distance_to_box(glm::vec3 eye, const Box& box) {
-  return box.distance_to(eye);
-}
-
-float block_sse(const ViewSnapshot& view, const Box& box, float error_radius) {
-  if (error_radius <= 0.0f) return 0.0f;
-  if (!view.derived.perspective) return error_radius * view.derived.pixel_scale;
-  constexpr float kMinDistance = 1e-6f;  // as projected_radius_px: the eye inside is "huge"
-  const float dist = std::max(distance_to_box(view.derived.eye, box), kMinDistance);
-  return error_radius * view.derived.pixel_scale / dist;
-}
-
-double proxy_pixels(const QueryCamera& camera, glm::vec3 center, float radius) {
-  // The rectangle the executor rasterizes (treecut/query_proxy.hpp); not
-  // wholly in front of the eye: the executor's quad path or host answer.
-  if (!is_perspective_frustum(camera.projection)) return -1.0;
-  const float w = float(camera.viewport.x), h = float(camera.viewport.y);
-  SphereWindowRect rect;
-  if (!sphere_window_rect(camera.view, camera.projection, glm::vec2(w, h),
-                          glm::vec4(center, radius), rect)) {
-    return -1.0;
-  }
-  const float x0 = rect.x0, x1 = rect.x1, y0 = rect.y0, y1 = rect.y1;
-  const float cx0 = std::max(x0, 0.0f), cx1 = std::min(x1, w);
-  const float cy0 = std::max(y0, 0.0f), cy1 = std::min(y1, h);
-  if (cx0 >= cx1 || cy0 >= cy1) return 0.0;
-  // The sprite: the square of the clipped rectangle's longer side, centred
-  // on it, and what of it lies in the viewport.
-  const double side = std::max(cx1 - cx0, cy1 - cy0);
-  const double mx = 0.5 * (double(cx0) + cx1), my = 0.5 * (double(cy0) + cy1);
-  const double sw = std::min(mx + 0.5 * side, double(w)) - std::max(mx - 0.5 * side, 0.0);
-  const double sh = std::min(my + 0.5 * side, double(h)) - std::max(my - 0.5 * side, 0.0);
-  return std::max(sw, 0.0) * std::max(sh, 0.0);
-}
-
-float relative_visibility(std::uint32_t samples_passed, double projected_pixels) {
-  if (samples_passed == 0) return 0.0f;
-  if (!(projected_pixels > 0.0)) return 1.0f;
-  return static_cast<float>(std::min(1.0, double(samples_passed) / projected_pixels));
-}
-
-float average_bias(std::span<const ChildState> children) {
-  if (children.empty()) return 1.0f;
-  float sum = 0.0f;
-  for (const ChildState& c : children) sum += c.bias;
-  return sum / float(children.size());
-}
-
-Prediction predict_refinement(const NodeState& node, float sse,
-                              std::span<const ChildState> children, float tau) {
-  if (!node.visited_last_frame || !node.visible) return Prediction::Delay;
-  if (!node.stop_refinement) {
-    bool candidate_to_shift_up = true;
-    for (const ChildState& child : children) {
-      if (!child.stop_refinement || !(vmsse(child.bias, child.sse) <= tau)) {
-        candidate_to_shift_up = false;
-      }
-    }
-    if (candidate_to_shift_up) {
-      if (vmsse(average_bias(children), sse) <= tau) return Prediction::Delay;
-    }
-  } else if (vmsse(node.bias, sse) <= tau) {
-    return Prediction::Stop;
-  }
-  return Prediction::Refine;
-}
-
-}  // namespace hoq
-
 void HoqCounters::add(const HoqCounters& o) {
   blocks += o.blocks;
   drawn += o.drawn;
@@ -129,7 +42,7 @@ HoqStrategy::HoqStrategy()
           {"t", "turn-over of the bias: the closer to 0, the weaker the modulation", 0.5, 0.0, 1.0,
            false},
           {"block_size", "leaves per HLOD leaf block (the unit of one occlusion query)",
-           double(kDefaultBlockSize), 1.0, 1e8, true},
+           double(culling::kDefaultBlockSize), 1.0, 1e8, true},
           {"assume_visible",
            "1: a block new in the traversal is refined by its SSE alone (as if visible) until its "
            "first answer; 0: it keeps its level until then",
@@ -142,12 +55,12 @@ HoqStrategy::HoqStrategy()
 
 void HoqStrategy::build_blocks(const Hierarchy& h) {
   built_block_size_ = static_cast<std::uint32_t>(param_at(kBlockSize));
-  blocks_ = HlodBlocks::build(h, built_block_size_);
+  blocks_ = culling::HlodBlocks::build(h, built_block_size_);
   hierarchy_ = &h;
   const auto& a = h.arrays();
-  const BlockId n = blocks_.block_count();
+  const culling::BlockId n = blocks_.block_count();
   error_radius_.assign(n, 0.0f);
-  for (BlockId b = 0; b < n; ++b) {
+  for (culling::BlockId b = 0; b < n; ++b) {
     // A leaf block draws its leaves: full detail, no error left to refine.
     if (blocks_.is_leaf(b)) continue;
     float r = 0.0f;
@@ -168,7 +81,7 @@ void HoqStrategy::reset(const Hierarchy& hierarchy) {
   build_blocks(hierarchy);
 }
 
-const hoq::QueryCamera* HoqStrategy::camera_of(std::uint64_t frame) const {
+const culling::hoq::QueryCamera* HoqStrategy::camera_of(std::uint64_t frame) const {
   const FrameCamera* best = nullptr;
   for (std::size_t i = 0; i < std::min(camera_count_, kCameras); ++i) {
     const FrameCamera& c = cameras_[i];
@@ -180,7 +93,7 @@ const hoq::QueryCamera* HoqStrategy::camera_of(std::uint64_t frame) const {
 void HoqStrategy::take_answers(const IterationInput& input) {
   const ViewSnapshot& view = input.view;
   const auto& a = input.hierarchy.arrays();
-  const hoq::QueryCamera current{view.view, view.projection, view.viewport};
+  const culling::hoq::QueryCamera current{view.view, view.projection, view.viewport};
   const float s = static_cast<float>(param_at(kS));
   const float t = static_cast<float>(param_at(kT));
   for (const VisibilityResult& r : view.visibility) {
@@ -195,19 +108,20 @@ void HoqStrategy::take_answers(const IterationInput& input) {
     last_.answer_gpu_frames += r.frame_read >= r.frame_issued ? r.frame_read - r.frame_issued : 0;
     BlockState& st = state_[r.tag];
     if (r.frame_issued < st.answer_frame) continue;  // an older answer than the one taken
-    const hoq::QueryCamera* cam = camera_of(r.frame_issued);
+    const culling::hoq::QueryCamera* cam = camera_of(r.frame_issued);
     const glm::vec4 sphere = a.center_radius[r.node];
     const double pixels =
-        hoq::proxy_pixels(cam != nullptr ? *cam : current, glm::vec3(sphere), sphere.w);
-    const float mu = hoq::relative_visibility(r.samples_passed, pixels);
+        culling::hoq::proxy_pixels(cam != nullptr ? *cam : current, glm::vec3(sphere), sphere.w);
+    const float mu = culling::hoq::relative_visibility(r.samples_passed, pixels);
     // Bool (the paper's image reference): the answer only as visible or not.
-    st.bias = param_at(kBias) != 0.0 ? hoq::sigmoid_bias(mu, s, t) : (mu > 0.0f ? 1.0f : 0.0f);
+    st.bias =
+        param_at(kBias) != 0.0 ? culling::hoq::sigmoid_bias(mu, s, t) : (mu > 0.0f ? 1.0f : 0.0f);
     st.visible = r.samples_passed > 0;
     st.answer_frame = r.frame_issued;
   }
 }
 
-void HoqStrategy::terminal(BlockId b, bool known_invisible) {
+void HoqStrategy::terminal(culling::BlockId b, bool known_invisible) {
   state_[b].stop = true;
   state_[b].culled = known_invisible;
   cut_.push_back(b);
@@ -219,7 +133,7 @@ void HoqStrategy::terminal(BlockId b, bool known_invisible) {
   }
 }
 
-void HoqStrategy::query(BlockId b, const IterationInput& input, IterationOutput& output) {
+void HoqStrategy::query(culling::BlockId b, const IterationInput& input, IterationOutput& output) {
   // The proxy: the bounding sphere of the block's root node, which contains
   // every node of the block's subtree, drawn by the executor at the sphere's
   // nearest depth (a point sprite over its window rectangle).
@@ -227,16 +141,17 @@ void HoqStrategy::query(BlockId b, const IterationInput& input, IterationOutput&
   ++last_.queries;
 }
 
-void HoqStrategy::children_states(BlockId b, const ViewSnapshot& view) {
+void HoqStrategy::children_states(culling::BlockId b, const ViewSnapshot& view) {
   children_.clear();
-  const BlockId first = blocks_.first_child(b);
-  for (BlockId c = first; c < first + blocks_.child_count(b); ++c) {
+  const culling::BlockId first = blocks_.first_child(b);
+  for (culling::BlockId c = first; c < first + blocks_.child_count(b); ++c) {
     const BlockState& cs = state_[c];
-    children_.push_back({cs.stop, cs.bias, hoq::block_sse(view, blocks_.box(c), error_radius_[c])});
+    children_.push_back(
+        {cs.stop, cs.bias, culling::hoq::block_sse(view, blocks_.box(c), error_radius_[c])});
   }
 }
 
-void HoqStrategy::visit(BlockId b, const IterationInput& input, IterationOutput& output) {
+void HoqStrategy::visit(culling::BlockId b, const IterationInput& input, IterationOutput& output) {
   const ViewSnapshot& view = input.view;
   const float tau = static_cast<float>(param_at(kTheta));
   BlockState& s = state_[b];
@@ -260,9 +175,9 @@ void HoqStrategy::visit(BlockId b, const IterationInput& input, IterationOutput&
   auto refine = [&] {
     if (!was_refined) ++last_.refined;
     s.stop = false;
-    const BlockId first = blocks_.first_child(b);
+    const culling::BlockId first = blocks_.first_child(b);
     bool any = false;
-    for (BlockId c = first; c < first + blocks_.child_count(b); ++c) {
+    for (culling::BlockId c = first; c < first + blocks_.child_count(b); ++c) {
       visit(c, input, output);
       any = any || state_[c].visible;
     }
@@ -291,7 +206,7 @@ void HoqStrategy::visit(BlockId b, const IterationInput& input, IterationOutput&
     query(b, input, output);
     return;
   }
-  const float sse = hoq::block_sse(view, blocks_.box(b), error_radius_[b]);
+  const float sse = culling::hoq::block_sse(view, blocks_.box(b), error_radius_[b]);
 
   if (s.delay != Delay::None) {
     if (s.answer_frame > s.delay_after) {
@@ -299,7 +214,7 @@ void HoqStrategy::visit(BlockId b, const IterationInput& input, IterationOutput&
       // an invisible block, stop where VMSSE <= tau, else refine.
       const Delay kind = s.delay;
       s.delay = Delay::None;
-      const bool stop_here = !s.visible || hoq::vmsse(s.bias, sse) <= tau;
+      const bool stop_here = !s.visible || culling::hoq::vmsse(s.bias, sse) <= tau;
       if (stop_here) {
         if (kind == Delay::ShiftUp) ++last_.coarsened;
         s.stop_bias = s.bias;
@@ -320,8 +235,9 @@ void HoqStrategy::visit(BlockId b, const IterationInput& input, IterationOutput&
     if (s.delay == Delay::ShiftUp) {
       // Still waiting; a child that now needs refinement ends the candidacy.
       children_states(b, view);
-      const hoq::NodeState ns{true, true, false, s.bias};
-      if (hoq::predict_refinement(ns, sse, children_, tau) == hoq::Prediction::Refine) {
+      const culling::hoq::NodeState ns{true, true, false, s.bias};
+      if (culling::hoq::predict_refinement(ns, sse, children_, tau) ==
+          culling::hoq::Prediction::Refine) {
         s.delay = Delay::None;
       } else {
         ++last_.delayed;
@@ -338,27 +254,27 @@ void HoqStrategy::visit(BlockId b, const IterationInput& input, IterationOutput&
     return;
   }
 
-  hoq::NodeState ns{was_visited, s.visible, was_terminal, s.bias};
+  culling::hoq::NodeState ns{was_visited, s.visible, was_terminal, s.bias};
   if (was_refined) children_states(b, view);
-  const hoq::Prediction p =
-      hoq::predict_refinement(ns, sse,
-                              was_refined ? std::span<const hoq::ChildState>(children_)
-                                          : std::span<const hoq::ChildState>(),
-                              tau);
+  const culling::hoq::Prediction p = culling::hoq::predict_refinement(
+      ns, sse,
+      was_refined ? std::span<const culling::hoq::ChildState>(children_)
+                  : std::span<const culling::hoq::ChildState>(),
+      tau);
   switch (p) {
-    case hoq::Prediction::Stop:
+    case culling::hoq::Prediction::Stop:
       s.stop_bias = s.bias;
       terminal(b, false);
       query(b, input, output);
       return;
-    case hoq::Prediction::Refine:
+    case culling::hoq::Prediction::Refine:
       if (was_terminal && s.culled) {
         // Culled (hidden) at its last visit, visible in the newer answer and
         // needing refinement: a disocclusion, drawn too coarse since that
         // answer was issued (the same as a Hidden delay resolved to refine).
         ++last_.late_refined;
         last_.late_frames += frame_ + 1 - std::min(s.answer_frame, frame_);
-      } else if (was_terminal && hoq::vmsse(s.stop_bias, sse) <= tau) {
+      } else if (was_terminal && culling::hoq::vmsse(s.stop_bias, sse) <= tau) {
         // Drawn (Stop) and refined because a newer answer raised the bias
         // (the old one would still stop): the paper's RARN, drawn too coarse
         // from the frame the answer was issued in to the frame its
@@ -368,7 +284,7 @@ void HoqStrategy::visit(BlockId b, const IterationInput& input, IterationOutput&
       }
       refine();
       return;
-    case hoq::Prediction::Delay:
+    case culling::hoq::Prediction::Delay:
       s.delay_frame = frame_;
       if (was_refined) {
         // A candidate to shift up: its children stay drawn while its own
@@ -415,8 +331,8 @@ void HoqStrategy::iterate(const IterationInput& input, IterationOutput& output) 
   IterationResult& r = output.result;
   if (input.cancelled()) {
     // Nothing decided yet: the last block cut (or the root block) stays.
-    blocks_.append_nodes(cut_.empty() ? std::span<const BlockId>(blocks_.root_block_cut())
-                                      : std::span<const BlockId>(cut_),
+    blocks_.append_nodes(cut_.empty() ? std::span<const culling::BlockId>(blocks_.root_block_cut())
+                                      : std::span<const culling::BlockId>(cut_),
                          *output.nodes);
     r.cancelled = true;
     return;

@@ -33,24 +33,24 @@
 #include <cstdint>
 #include <vector>
 
+#include "treecut/culling/chc.hpp"
+#include "treecut/culling/hlod_blocks.hpp"
+#include "treecut/culling/occlusion_device.hpp"
 #include "treecut/splat/camera.hpp"
 #include "treecut/splat/gl_objects.hpp"
 #include "treecut/splat/renderer.hpp"
-#include "treecut/strategies/chc.hpp"
-#include "treecut/strategies/hlod_blocks.hpp"
-#include "treecut/strategies/occlusion_device.hpp"
 
 namespace treecut::splat {
 
 /// The traversal's view of `camera` drawing into a `size` target.
-[[nodiscard]] strategies::OcclusionView occlusion_view(const Camera& camera, glm::ivec2 size);
+[[nodiscard]] culling::OcclusionView occlusion_view(const Camera& camera, glm::ivec2 size);
 
-class GlOcclusionDevice final : public strategies::OcclusionDeviceRenderThread {
+class GlOcclusionDevice final : public culling::OcclusionDeviceRenderThread {
  public:
   /// Uploads the representations, makes `initial_queries` query objects and
   /// the proxy program. Throws std::invalid_argument when the blocks were
   /// built for another hierarchy than the renderer's.
-  GlOcclusionDevice(Renderer& renderer, const strategies::HlodBlocks& blocks,
+  GlOcclusionDevice(Renderer& renderer, const culling::HlodBlocks& blocks,
                     std::size_t initial_queries = 1024);
   GlOcclusionDevice(const GlOcclusionDevice&) = delete;
   GlOcclusionDevice& operator=(const GlOcclusionDevice&) = delete;
@@ -60,13 +60,13 @@ class GlOcclusionDevice final : public strategies::OcclusionDeviceRenderThread {
   void set_view_render_thread(const Camera& camera, const RenderSettings& settings);
 
   void begin_frame_render_thread() override;
-  strategies::QueryHandle query_box_render_thread(strategies::BlockId b) override;
-  strategies::QueryHandle query_draw_render_thread(strategies::BlockId b) override;
-  bool result_available_render_thread(strategies::QueryHandle q) override;
-  std::uint64_t result_render_thread(strategies::QueryHandle q) override;
-  void draw_render_thread(strategies::BlockId b) override;
+  culling::QueryHandle query_box_render_thread(culling::BlockId b) override;
+  culling::QueryHandle query_draw_render_thread(culling::BlockId b) override;
+  bool result_available_render_thread(culling::QueryHandle q) override;
+  std::uint64_t result_render_thread(culling::QueryHandle q) override;
+  void draw_render_thread(culling::BlockId b) override;
   void end_frame_render_thread(bool finish) override;
-  [[nodiscard]] const strategies::DeviceFrameStats& frame_stats() const override { return stats_; }
+  [[nodiscard]] const culling::DeviceFrameStats& frame_stats() const override { return stats_; }
 
   /// Diagnostics: a glFlush after every block draw. On llvmpipe the first
   /// availability poll of a query flushes the batched work (Mesa starts
@@ -82,15 +82,15 @@ class GlOcclusionDevice final : public strategies::OcclusionDeviceRenderThread {
   /// Times the pool had to grow after construction.
   [[nodiscard]] std::uint64_t pool_growths() const { return pool_growths_; }
   /// The GL name of a handle's query object (tests).
-  [[nodiscard]] GLuint query_name(strategies::QueryHandle q) const { return pool_[q].id(); }
+  [[nodiscard]] GLuint query_name(culling::QueryHandle q) const { return pool_[q].id(); }
 
  private:
-  strategies::QueryHandle acquire();
+  culling::QueryHandle acquire();
   void enter_proxy_state();
   void leave_proxy_state();
 
   Renderer* renderer_;
-  const strategies::HlodBlocks* blocks_;
+  const culling::HlodBlocks* blocks_;
   Camera camera_;
   RenderSettings settings_;
   gl::Buffer elements_;               // every representation, back to back
@@ -100,13 +100,13 @@ class GlOcclusionDevice final : public strategies::OcclusionDeviceRenderThread {
   GLint u_view_proj_ = -1, u_lo_ = -1, u_hi_ = -1;
   gl::VertexArray proxy_vao_;
   std::vector<gl::Query> pool_;
-  std::vector<strategies::QueryHandle> free_;
+  std::vector<culling::QueryHandle> free_;
   std::vector<std::uint8_t> seen_available_;  // per handle, since its issue
   std::uint64_t pool_growths_ = 0;
   bool proxy_state_ = false;
   bool flush_after_draw_ = false;
   bool in_frame_ = false;
-  strategies::DeviceFrameStats stats_;
+  culling::DeviceFrameStats stats_;
   FrameStats last_frame_;
 };
 

@@ -40,8 +40,8 @@
 #include <span>
 #include <vector>
 
+#include "treecut/culling/many_objects.hpp"
 #include "treecut/hierarchy.hpp"
-#include "treecut/strategies/many_objects.hpp"
 #include "treecut/view_snapshot.hpp"
 
 namespace treecut::strategies::many {
@@ -80,7 +80,8 @@ struct BudgetStats {
 /// thousand of 100,000 in a street view). The result does not depend on the
 /// thread count.
 BudgetStats allocate_budget(std::span<const BudgetItem> items, const BudgetParams& params,
-                            std::vector<std::uint32_t>& shares, WorkerPool* pool = nullptr);
+                            std::vector<std::uint32_t>& shares,
+                            culling::WorkerPool* pool = nullptr);
 
 /// The real-valued Eq. 1 share of every item without cap or rounding,
 /// N * t_i / sum t_j: the formula itself, for tests and documentation.
@@ -89,14 +90,14 @@ std::vector<double> eq1_shares(std::span<const BudgetItem> items, const BudgetPa
 /// Items from the screen rectangles of `objects` under `view`, with the area
 /// zeroed where `visible` is 0 (culled objects give their share to the
 /// others); `visible` empty = all.
-void budget_items(std::span<const SceneObject> objects, std::span<const ScreenRect> rects,
-                  std::span<const std::uint8_t> visible, std::vector<BudgetItem>& items,
-                  WorkerPool* pool = nullptr);
+void budget_items(std::span<const culling::SceneObject> objects,
+                  std::span<const culling::ScreenRect> rects, std::span<const std::uint8_t> visible,
+                  std::vector<BudgetItem>& items, culling::WorkerPool* pool = nullptr);
 /// The same with P_i given apart (points[i] = objects[i].points): what a
 /// caller that keeps them in an array passes, 4 bytes an object to read.
-void budget_items(std::span<const std::uint32_t> points, std::span<const ScreenRect> rects,
+void budget_items(std::span<const std::uint32_t> points, std::span<const culling::ScreenRect> rects,
                   std::span<const std::uint8_t> visible, std::vector<BudgetItem>& items,
-                  WorkerPool* pool = nullptr);
+                  culling::WorkerPool* pool = nullptr);
 
 struct CutParams {
   float curvature_weight = 0.5f;  ///< as the optimization strategy's parameter

@@ -32,9 +32,9 @@
 #include <span>
 #include <vector>
 
+#include "treecut/culling/hzm.hpp"
+#include "treecut/culling/many_objects.hpp"
 #include "treecut/strategies/budget.hpp"
-#include "treecut/strategies/hzm.hpp"
-#include "treecut/strategies/many_objects.hpp"
 #include "treecut/strategy.hpp"
 
 namespace treecut::strategies {
@@ -94,7 +94,7 @@ class BudgetStrategy final : public Strategy, public SceneStrategy {
 
   [[nodiscard]] const BudgetCounters& last() const { return last_; }
   /// The objects as the culler sees them (world boxes, compactness), from reset_scene().
-  [[nodiscard]] std::span<const many::SceneObject> objects() const { return objects_; }
+  [[nodiscard]] std::span<const culling::SceneObject> objects() const { return objects_; }
   /// Per object of the last scene iteration: 1 when potentially visible.
   [[nodiscard]] std::span<const std::uint8_t> visible() const { return visible_; }
   /// Per object of the last scene iteration: its Eq. 1 share.
@@ -104,8 +104,8 @@ class BudgetStrategy final : public Strategy, public SceneStrategy {
   // Per distinct model: its box, compactness and inner box in model space.
   struct ModelShape {
     const Hierarchy* hierarchy = nullptr;
-    many::Obb box;
-    std::optional<many::Obb> inner;
+    culling::Obb box;
+    std::optional<culling::Obb> inner;
     float compactness = 0.0f;
     glm::vec3 splat_lo{0.0f}, splat_hi{0.0f};  // model-space box of every splat
     int open_face = -1;  // 2 * axis + (1: +side), the face closed to find `inner`; -1: none
@@ -114,16 +114,16 @@ class BudgetStrategy final : public Strategy, public SceneStrategy {
   void ensure_culler();
 
   std::vector<ModelShape> shapes_;
-  std::vector<many::SceneObject> objects_;
+  std::vector<culling::SceneObject> objects_;
   std::vector<const Hierarchy*> hierarchies_;
   std::vector<std::uint32_t> open_;        // objects whose model's inner box needs an open face
   std::vector<glm::dvec4> open_planes_;    // per open_ entry: eye inside when dot(xyz, eye) + w < 0
   std::vector<std::uint8_t> open_inside_;  // per open_ entry: its object's has_inner
   std::vector<glm::mat4> worlds_;
   std::vector<std::uint32_t> points_;  // P_i apart: Eq. 1 reads 4 bytes an object, not 156
-  std::unique_ptr<many::WorkerPool> pool_;
-  std::unique_ptr<many::HzmCuller> culler_;
-  many::HzmParams culler_params_;
+  std::unique_ptr<culling::WorkerPool> pool_;
+  std::unique_ptr<culling::HzmCuller> culler_;
+  culling::HzmParams culler_params_;
   std::vector<std::uint8_t> visible_;
   std::vector<many::BudgetItem> items_;
   std::vector<std::uint32_t> shares_;

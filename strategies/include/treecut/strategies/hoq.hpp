@@ -2,18 +2,16 @@
 // E. Romero, "Optimized HLOD Refinement Driven by Hardware Occlusion
 // Queries", ISVC 2007 (../shared/papers/hoq-driven-hlod-refinement.txt).
 //
-// Two parts:
-// - Pure functions of explicit inputs (namespace hoq): the sigmoid bias
-//   B_{s,t}(mu), VMSSE = B * SSE (equation 1), the screen-space error of an
-//   HLOD block, the relative visibility mu of a query answer and
-//   PredictRefinement of the paper's figure 3. The in-frame traversals (Bool,
-//   SW(B), Simp(B), Coh(B) on the occlusion device) call the same functions.
-// - HoqStrategy (`hoq`), the Feedback Stage form: the same prediction on the
-//   stage thread over a cut of HLOD blocks (hlod_blocks.hpp). Its queries go
-//   through the View's executor and their answers reach the strategy frames
-//   later; the render thread never waits. docs/occlusion.md ("## HOQ")
-//   describes how that latency maps onto the paper's delay and RARN, with
-//   measured figures.
+// The paper's pure functions (the sigmoid bias, VMSSE, the screen-space error
+// of a block, mu, PredictRefinement) are in the culling layer,
+// treecut/culling/hoq_refinement.hpp, shared with the in-frame traversals
+// (Bool, SW(B), Simp(B), Coh(B) on the occlusion device). This file is
+// HoqStrategy (`hoq`), the Feedback Stage form: the same prediction on the
+// stage thread over a cut of HLOD blocks (hlod_blocks.hpp). Its queries go
+// through the View's executor and their answers reach the strategy frames
+// later; the render thread never waits. docs/occlusion.md ("## HOQ")
+// describes how that latency maps onto the paper's delay and RARN, with
+// measured figures.
 #pragma once
 
 #include <cstddef>
@@ -24,102 +22,11 @@
 #include <span>
 #include <vector>
 
-#include "treecut/strategies/hlod_blocks.hpp"
+#include "treecut/culling/hlod_blocks.hpp"
+#include "treecut/culling/hoq_refinement.hpp"
 #include "treecut/strategy.hpp"
 
 namespace treecut::strategies {
-
-namespace hoq {
-
-/// The sigmoid bias B_{s,t}(mu) of section 3.2 (figure 1-a): the paper names
-/// its properties, not its formula, so this is the smooth quadratic sigmoid
-/// with turn-over t,
-///     S_t(mu) = mu^2 / t                      for mu <= t  (aggressive: S < mu)
-///     S_t(mu) = 1 - (1 - mu)^2 / (1 - t)      for mu >  t  (conservative: S > mu)
-/// (continuous with a continuous slope at t, S_t(0) = 0, S_t(1) = 1), and the
-/// smoothness s interpolating linearly between mu and it:
-///     B_{s,t}(mu) = (1 - s) mu + s S_t(mu).
-/// Hence s = 0 gives mu, mu = 1 gives 1 for every s and t, B is
-/// non-decreasing in mu, and a t closer to 0 modulates less (more
-/// conservative), as the paper asks. mu, s and t are clamped to [0, 1].
-[[nodiscard]] float sigmoid_bias(float mu, float s, float t);
-
-/// Equation 1: VMSSE = B_{s,t}(mu) * SSE.
-[[nodiscard]] inline float vmsse(float bias, float sse) {
-  return bias * sse;
-}
-
-/// Distance from `eye` to the nearest point of `box` (0 inside it).
-[[nodiscard]] float distance_to_box(glm::vec3 eye, const Box& box);
-
-/// The screen-space error of an HLOD block in pixels: `error_radius` (the
-/// largest splat radius of the block's representation, 0 for a leaf block,
-/// which is full detail) projected at the nearest distance of the block's
-/// box, as ViewSnapshot::projected_radius_px projects a radius. Conservative:
-/// every splat the block draws lies inside its box, so none is nearer than
-/// that distance and none is larger than that radius: no splat of the
-/// representation projects larger than this. Orthographic: radius times the
-/// pixel scale.
-[[nodiscard]] float block_sse(const ViewSnapshot& view, const Box& box, float error_radius);
-
-/// The camera of one frame, enough to redo a query's geometry.
-struct QueryCamera {
-  glm::mat4 view{1.0f};
-  glm::mat4 projection{1.0f};
-  glm::ivec2 viewport{1, 1};
-};
-
-/// The pixels the View's executor rasterizes for the query of a sphere
-/// (treecut/splat/query_executor.hpp): its window rectangle (exact tangent
-/// planes, 1/8 pixel wider on each side) clipped to the viewport, as the
-/// point sprite of the longer side centred on it, clipped to the viewport
-/// again. 0 when the rectangle misses the view. Negative (no analytic count)
-/// when the sphere is not entirely in front of the eye's plane or the
-/// projection is not a perspective frustum: the executor then draws a quad
-/// or answers on the host, and relative_visibility() treats any sample as
-/// mu = 1.
-[[nodiscard]] double proxy_pixels(const QueryCamera& camera, glm::vec3 center, float radius);
-
-/// mu = unoccluded pixels / projected pixels in [0, 1]; 0 for no sample; 1
-/// for any sample when `projected_pixels` <= 0 (no analytic count: never
-/// aggressive).
-[[nodiscard]] float relative_visibility(std::uint32_t samples_passed, double projected_pixels);
-
-enum class Prediction : std::uint8_t { Refine, Stop, Delay };
-
-/// What PredictRefinement reads of a node: the state cached in the last frame.
-struct NodeState {
-  bool visited_last_frame = false;  ///< node.lastVisited = frameID - 1
-  bool visible = false;             ///< node.visible (last frame's answer)
-  bool stop_refinement = false;     ///< node.stopRefinement (a termination node last frame)
-  float bias = 1.0f;                ///< node.bias: B(mu) of last frame's answer
-};
-
-/// What it reads of each child: its stop flag and cached bias, and its SSE
-/// in this frame.
-struct ChildState {
-  bool stop_refinement = false;
-  float bias = 1.0f;
-  float sse = 0.0f;
-};
-
-/// AvgBias: the mean cached bias of the children (1 for none).
-[[nodiscard]] float average_bias(std::span<const ChildState> children);
-
-/// PredictRefinement(node), the paper's figure 3, line by line:
-///     if not visited last frame or invisible:                 Delay
-///     if not stopped last frame (refined):
-///        candidate to shift up = every child stopped and
-///                                child.bias * SSE(child) <= tau
-///        if candidate and AvgBias(children) * SSE(node) <= tau: Delay
-///     else if node.bias * SSE(node) <= tau:                   Stop
-///     Refine
-/// `sse` is the node's SSE in this frame; `children` is read only for a
-/// refined node.
-[[nodiscard]] Prediction predict_refinement(const NodeState& node, float sse,
-                                            std::span<const ChildState> children, float tau);
-
-}  // namespace hoq
 
 /// Counters of one iteration of HoqStrategy (and their sums since reset()).
 struct HoqCounters {
@@ -186,9 +93,9 @@ class HoqStrategy final : public Strategy {
   [[nodiscard]] const HoqCounters& last() const { return last_; }
   [[nodiscard]] const HoqCounters& totals() const { return totals_; }
   [[nodiscard]] std::uint64_t iterations() const { return iteration_; }
-  [[nodiscard]] const HlodBlocks& blocks() const { return blocks_; }
+  [[nodiscard]] const culling::HlodBlocks& blocks() const { return blocks_; }
   /// The block cut of the last iteration.
-  [[nodiscard]] std::span<const BlockId> block_cut() const { return cut_; }
+  [[nodiscard]] std::span<const culling::BlockId> block_cut() const { return cut_; }
 
  private:
   // Front: new in the traversal, drawn at its level; Hidden: invisible last
@@ -210,18 +117,18 @@ class HoqStrategy final : public Strategy {
 
   void build_blocks(const Hierarchy& h);
   void take_answers(const IterationInput& input);
-  void visit(BlockId b, const IterationInput& input, IterationOutput& output);
-  void terminal(BlockId b, bool known_invisible);
-  void query(BlockId b, const IterationInput& input, IterationOutput& output);
-  void children_states(BlockId b, const ViewSnapshot& view);
-  [[nodiscard]] const hoq::QueryCamera* camera_of(std::uint64_t frame) const;
+  void visit(culling::BlockId b, const IterationInput& input, IterationOutput& output);
+  void terminal(culling::BlockId b, bool known_invisible);
+  void query(culling::BlockId b, const IterationInput& input, IterationOutput& output);
+  void children_states(culling::BlockId b, const ViewSnapshot& view);
+  [[nodiscard]] const culling::hoq::QueryCamera* camera_of(std::uint64_t frame) const;
 
-  HlodBlocks blocks_;
+  culling::HlodBlocks blocks_;
   std::vector<float> error_radius_;  // per block: the largest splat radius of its representation
   std::vector<BlockState> state_;
-  std::vector<BlockId> cut_, previous_cut_;
-  std::vector<BlockId> stack_;
-  std::vector<hoq::ChildState> children_;
+  std::vector<culling::BlockId> cut_, previous_cut_;
+  std::vector<culling::BlockId> stack_;
+  std::vector<culling::hoq::ChildState> children_;
   const Hierarchy* hierarchy_ = nullptr;
   std::uint32_t built_block_size_ = 0;
   std::uint64_t iteration_ = 0;
@@ -233,7 +140,7 @@ class HoqStrategy final : public Strategy {
   // projected pixels are counted with the camera of the frame it was issued in.
   struct FrameCamera {
     std::uint64_t frame = 0;
-    hoq::QueryCamera camera;
+    culling::hoq::QueryCamera camera;
   };
   static constexpr std::size_t kCameras = 16;
   FrameCamera cameras_[kCameras]{};

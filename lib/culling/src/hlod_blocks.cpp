@@ -6,6 +6,8 @@
 // (../shared/papers/hoq-driven-hlod-refinement.txt) refines an HLOD tree whose
 // nodes each carry a box and a representation of their subtree. Both are built
 // here from the QSplat hierarchy; see hlod_blocks.hpp for the definitions.
+#include "treecut/culling/hlod_blocks.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <functional>
@@ -13,9 +15,8 @@
 #include <stdexcept>
 
 #include "treecut/parallel.hpp"
-#include "treecut/strategies/hlod_blocks.hpp"
 
-namespace treecut::strategies {
+namespace treecut::culling {
 
 bool Box::contains_sphere(glm::vec3 c, float r) const {
   return c.x - r >= lo.x && c.y - r >= lo.y && c.z - r >= lo.z && c.x + r <= hi.x &&
@@ -376,4 +377,4 @@ std::vector<NodeId> HlodBlocks::nodes_of_cut(std::span<const BlockId> cut) const
   return out;
 }
 
-}  // namespace treecut::strategies
+}  // namespace treecut::culling

@@ -44,14 +44,14 @@
 #include <string_view>
 #include <vector>
 
+#include "treecut/culling/chc.hpp"
+#include "treecut/culling/hlod_blocks.hpp"
+#include "treecut/culling/hoq_refinement.hpp"
+#include "treecut/culling/occlusion_device.hpp"
 #include "treecut/hierarchy.hpp"
-#include "treecut/strategies/chc.hpp"
-#include "treecut/strategies/hlod_blocks.hpp"
-#include "treecut/strategies/hoq.hpp"
-#include "treecut/strategies/occlusion_device.hpp"
 #include "treecut/view_snapshot.hpp"
 
-namespace treecut::strategies {
+namespace treecut::culling {
 
 enum class HlodMode { Bool, SwB, SimpB, CohB };
 
@@ -187,4 +187,4 @@ class HlodTraversal {
   FrustumPlanes frustum_{glm::mat4(1.0f)};  // this frame's
 };
 
-}  // namespace treecut::strategies
+}  // namespace treecut::culling

@@ -3,7 +3,7 @@
 // Occlusion Queries", ISVC 2007 (../shared/papers/hoq-driven-hlod-refinement.txt,
 // figure 2: the traversal; figure 3: hoq::predict_refinement), with the
 // paper's scenarios Bool, SW(B), Simp(B) and Coh(B) as modes of one loop.
-#include "treecut/strategies/hlod_traversal.hpp"
+#include "treecut/culling/hlod_traversal.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -11,7 +11,7 @@
 #include <glm/geometric.hpp>
 #include <glm/vec4.hpp>
 
-namespace treecut::strategies {
+namespace treecut::culling {
 
 std::string_view hlod_mode_name(HlodMode mode) {
   switch (mode) {
@@ -365,4 +365,4 @@ HlodFrameStats HlodTraversal::frame_render_thread(OcclusionDeviceRenderThread& d
   return stats_;
 }
 
-}  // namespace treecut::strategies
+}  // namespace treecut::culling

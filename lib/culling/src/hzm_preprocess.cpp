@@ -15,9 +15,9 @@
 #include <vector>
 
 #include "hzm_internal.hpp"
-#include "treecut/strategies/hzm.hpp"
+#include "treecut/culling/hzm.hpp"
 
-namespace treecut::strategies::many {
+namespace treecut::culling {
 using detail::for_chunks;
 using detail::kInf;
 using detail::kObjectGrain;
@@ -242,4 +242,4 @@ void HzmCuller::preprocess(std::span<const SceneObject> objects) {
   });
 }
 
-}  // namespace treecut::strategies::many
+}  // namespace treecut::culling

@@ -14,9 +14,9 @@
 #include <vector>
 
 #include "hzm_internal.hpp"
-#include "treecut/strategies/hzm.hpp"
+#include "treecut/culling/hzm.hpp"
 
-namespace treecut::strategies::many {
+namespace treecut::culling {
 using detail::for_chunks;
 using detail::kInf;
 using detail::kObjectGrain;
@@ -142,4 +142,4 @@ CullStats HzmCuller::stats() const {
   return s;
 }
 
-}  // namespace treecut::strategies::many
+}  // namespace treecut::culling

@@ -2,7 +2,7 @@
 // After Peng & Cao, "Integrating Occlusion Culling and Parallel LOD for
 // Rendering Complex 3D Environments on GPU" (I3D 2013,
 // ../shared/papers/occlusion-culling-with-parallel-lod.txt), sections 5-6.
-#include "treecut/strategies/many_objects.hpp"
+#include "treecut/culling/many_objects.hpp"
 
 #include <pthread.h>
 #include <time.h>
@@ -13,7 +13,7 @@
 #include <random>
 #include <stdexcept>
 
-namespace treecut::strategies::many {
+namespace treecut::culling {
 
 Aabb bounds_of(const Obb& box) {
   glm::vec3 e(0.0f);
@@ -248,9 +248,9 @@ void WorkerPool::dispatch(std::size_t chunks, ChunkFn fn, void* ctx) {
   if (error) std::rethrow_exception(error);
 }
 
-}  // namespace treecut::strategies::many
+}  // namespace treecut::culling
 
-namespace treecut::strategies::many {
+namespace treecut::culling {
 namespace {
 
 constexpr float kLot = 20.0f;
@@ -324,4 +324,4 @@ std::vector<ViewSnapshot> city_views(std::size_t count, std::size_t views, std::
   return out;
 }
 
-}  // namespace treecut::strategies::many
+}  // namespace treecut::culling

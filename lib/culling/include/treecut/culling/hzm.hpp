@@ -79,9 +79,9 @@
 #include <span>
 #include <vector>
 
-#include "treecut/strategies/many_objects.hpp"
+#include "treecut/culling/many_objects.hpp"
 
-namespace treecut::strategies::many {
+namespace treecut::culling {
 
 /// Eq. 2: how well points fill their oriented box, from their orthogonal
 /// projections along the box's three axes:
@@ -282,4 +282,4 @@ struct CullAccuracy {
 };
 CullAccuracy cull_accuracy(const HzmCuller& culler, std::span<const std::uint8_t> reference);
 
-}  // namespace treecut::strategies::many
+}  // namespace treecut::culling

@@ -15,9 +15,9 @@
 #include <vector>
 
 #include "hzm_internal.hpp"
-#include "treecut/strategies/hzm.hpp"
+#include "treecut/culling/hzm.hpp"
 
-namespace treecut::strategies::many {
+namespace treecut::culling {
 using detail::for_chunks;
 using detail::kInf;
 using detail::kObjectGrain;
@@ -121,4 +121,4 @@ CullAccuracy cull_accuracy(const HzmCuller& culler, std::span<const std::uint8_t
   return a;
 }
 
-}  // namespace treecut::strategies::many
+}  // namespace treecut::culling

@@ -7,7 +7,7 @@
 // Pure C++, no GL: the GL device (treecut/splat/occlusion_device_gl.hpp) does
 // it with GL query objects and the renderer's in-frame range draws; the tests
 // use a CPU device (tests/chc_test.cpp). The CHC traversal
-// (treecut/strategies/chc.hpp) is the first user; the HOQ in-frame modes
+// (treecut/culling/chc.hpp) is the first user; the HOQ in-frame modes
 // (Charalambos et al. 2007) need the same four operations (box queries, a
 // block's representation drawn inside a query, polling, plain draws of
 // interior blocks' representations), so nothing here is CHC-specific.
@@ -22,9 +22,9 @@
 #include <cstdint>
 #include <limits>
 
-#include "treecut/strategies/hlod_blocks.hpp"
+#include "treecut/culling/hlod_blocks.hpp"
 
-namespace treecut::strategies {
+namespace treecut::culling {
 
 /// A query in flight; kNoQuery is no query.
 using QueryHandle = std::uint32_t;
@@ -64,4 +64,4 @@ class OcclusionDeviceRenderThread {
   [[nodiscard]] virtual const DeviceFrameStats& frame_stats() const = 0;
 };
 
-}  // namespace treecut::strategies
+}  // namespace treecut::culling

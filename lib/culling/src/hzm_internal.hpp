@@ -11,9 +11,9 @@
 #include <cstddef>
 #include <limits>
 
-#include "treecut/strategies/many_objects.hpp"
+#include "treecut/culling/many_objects.hpp"
 
-namespace treecut::strategies::many::detail {
+namespace treecut::culling::detail {
 
 inline constexpr float kInf = std::numeric_limits<float>::infinity();
 /// Objects per chunk of the per-object passes.
@@ -31,4 +31,4 @@ void for_chunks(WorkerPool* pool, std::size_t n, std::size_t grain, Body&& body)
   }
 }
 
-}  // namespace treecut::strategies::many::detail
+}  // namespace treecut::culling::detail

@@ -46,10 +46,10 @@
 #include <string_view>
 #include <vector>
 
-#include "treecut/strategies/hlod_blocks.hpp"
-#include "treecut/strategies/occlusion_device.hpp"
+#include "treecut/culling/hlod_blocks.hpp"
+#include "treecut/culling/occlusion_device.hpp"
 
-namespace treecut::strategies {
+namespace treecut::culling {
 
 enum class OcclusionMode { Vfc, StopAndWait, Chc, Ideal };
 
@@ -165,4 +165,4 @@ class ChcTraversal {
   FrustumPlanes frustum_{glm::mat4(1.0f)};               // this frame's
 };
 
-}  // namespace treecut::strategies
+}  // namespace treecut::culling

@@ -4,7 +4,7 @@
 // (../shared/papers/coherent-hierarchical-culling.tex.txt, figure "Pseudo-code
 // of coherent hierarchical culling"), over HLOD blocks, with the paper's
 // baselines (VFC, stop-and-wait, Ideal) in the same loop.
-#include "treecut/strategies/chc.hpp"
+#include "treecut/culling/chc.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -12,7 +12,7 @@
 #include <glm/geometric.hpp>
 #include <glm/vec4.hpp>
 
-namespace treecut::strategies {
+namespace treecut::culling {
 
 std::string_view occlusion_mode_name(OcclusionMode mode) {
   switch (mode) {
@@ -231,4 +231,4 @@ bool ChcTraversal::visible(BlockId b) const {
   return b < visible_.size() && visible_[b] != 0 && last_visited_[b] == frame_;
 }
 
-}  // namespace treecut::strategies
+}  // namespace treecut::culling

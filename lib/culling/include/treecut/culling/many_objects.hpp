@@ -36,7 +36,7 @@
 
 #include "treecut/view_snapshot.hpp"
 
-namespace treecut::strategies::many {
+namespace treecut::culling {
 
 /// Axis-aligned box, world units.
 struct Aabb {
@@ -269,4 +269,4 @@ class WorkerPool {
   std::exception_ptr error_;  // guarded
 };
 
-}  // namespace treecut::strategies::many
+}  // namespace treecut::culling

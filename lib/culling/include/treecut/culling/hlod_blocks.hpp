@@ -70,7 +70,7 @@
 
 #include "treecut/hierarchy.hpp"
 
-namespace treecut::strategies {
+namespace treecut::culling {
 
 using BlockId = std::uint32_t;
 inline constexpr BlockId kNoBlock = std::numeric_limits<BlockId>::max();
@@ -176,4 +176,4 @@ class HlodBlocks {
   std::vector<NodeId> rep_;
 };
 
-}  // namespace treecut::strategies
+}  // namespace treecut::culling

@@ -15,9 +15,9 @@
 #include <vector>
 
 #include "hzm_internal.hpp"
-#include "treecut/strategies/hzm.hpp"
+#include "treecut/culling/hzm.hpp"
 
-namespace treecut::strategies::many {
+namespace treecut::culling {
 using detail::for_chunks;
 using detail::kInf;
 using detail::kObjectGrain;
@@ -254,4 +254,4 @@ void HzmCuller::build_hzm(std::span<const SceneObject> objects, const FrameView&
   hzm_.build(depth_, depth_dims_.x, depth_dims_.y, pool);
 }
 
-}  // namespace treecut::strategies::many
+}  // namespace treecut::culling
