@@ -18,7 +18,7 @@
 #include <string>
 #include <thread>
 
-#include "build/cache_format.hpp"
+#include "hierarchy/cache_format.hpp"
 #include "test_support.hpp"
 #include "treecut/cache.hpp"
 #include "treecut/error.hpp"

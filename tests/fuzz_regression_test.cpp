@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "build/cache_checksum.hpp"
+#include "hierarchy/cache_checksum.hpp"
 #include "fuzz/fuzz_checks.hpp"
 #include "test_support.hpp"
 #include "treecut/cache.hpp"

@@ -16,7 +16,7 @@
 #include <string>
 #include <vector>
 
-#include "build/cache_checksum.hpp"
+#include "hierarchy/cache_checksum.hpp"
 #include "fuzz_checks.hpp"
 #include "treecut/cache.hpp"
 
