@@ -29,12 +29,12 @@
 #include "treecut/culling/hlod_blocks.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
-#include "treecut/generate.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/splat/camera_path.hpp"
 #include "treecut/splat/context.hpp"
 #include "treecut/splat/occlusion_device_gl.hpp"
 #include "treecut/splat/renderer.hpp"
+#include "treecut/tools/generate.hpp"
 #include "viewer.hpp"
 
 namespace treecut::cli {
@@ -54,10 +54,10 @@ double now_seconds() {
 
 // "gen:KIND:POINTS", POINTS a whole number in [1, 2^31] as for `gen -n`;
 // anything else is an InputError naming the spec.
-std::pair<ModelKind, std::uint64_t> parse_gen_spec(const std::string& spec) {
+std::pair<tools::ModelKind, std::uint64_t> parse_gen_spec(const std::string& spec) {
   const auto colon = spec.find(':', 4);
   if (colon == std::string::npos) throw InputError(spec + ": expected gen:KIND:POINTS");
-  const ModelKind kind = parse_model_kind(spec.substr(4, colon - 4));
+  const tools::ModelKind kind = tools::parse_model_kind(spec.substr(4, colon - 4));
   const std::string_view digits = std::string_view(spec).substr(colon + 1);
   std::uint64_t n = 0;
   const auto [ptr, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), n);
@@ -71,7 +71,7 @@ Sample run_once(const std::string& spec, unsigned threads) {
   Sample s;
   if (spec.rfind("gen:", 0) == 0) {
     const auto [kind, n] = parse_gen_spec(spec);
-    PointSet ps = generate_model(kind, n, 1);
+    PointSet ps = tools::generate_model(kind, n, 1);
     double t0 = now_seconds();
     complete_attributes(ps);
     s.attributes = now_seconds() - t0;

@@ -16,11 +16,13 @@
 #include "treecut/cache.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
-#include "treecut/generate.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/ply.hpp"
 #include "treecut/scene.hpp"
 #include "treecut/splat/camera_path.hpp"
+#include "treecut/tools/generate.hpp"
+#include "treecut/tools/scene_generate.hpp"
+#include "treecut/tools/walk_path.hpp"
 #include "treecut/up_axis.hpp"
 
 namespace treecut::cli {
@@ -181,13 +183,13 @@ struct SceneGenArgs {
 
 // A model placed by `gen hall`: its path as the scene writes it (relative to
 // DIR, the scene's canonical folder), its up axis and its box.
-HallSource hall_source(const std::string& s, const std::filesystem::path& dir) {
+tools::HallSource hall_source(const std::string& s, const std::filesystem::path& dir) {
   // Stood upright by its detected up axis, as `render --up auto` would.
   require_regular_file(s);
   OpenOptions o;
   o.warn = print_warning;
   const OpenedModel m = open_model(s, o);
-  HallSource src;
+  tools::HallSource src;
   const std::filesystem::path abs = std::filesystem::weakly_canonical(std::filesystem::absolute(s));
   const std::filesystem::path rel = abs.lexically_relative(dir);
   src.path = rel.empty() ? abs : rel;
@@ -215,6 +217,13 @@ HallSource hall_source(const std::string& s, const std::filesystem::path& dir) {
 // What `gen` writes must be what treecut reads: within the size of a text
 // input, and parsing (LOADABLE: the same scene with absolute model paths).
 // Checked before anything is written.
+// A scene as this program reads it: `generate` lines of the built-in kinds.
+SceneParseOptions scene_parse_options() {
+  SceneParseOptions options;
+  options.generator = tools::scene_generator();
+  return options;
+}
+
 void check_scene_loads(const SceneGenArgs& a, const std::string& text,
                        const std::string& loadable) {
   if (text.size() > kTextInputLimit)
@@ -222,7 +231,7 @@ void check_scene_loads(const SceneGenArgs& a, const std::string& text,
                      " bytes, more than the " + std::to_string(kTextInputLimit) +
                      " a scene file may hold; use fewer --objects");
   try {
-    (void)parse_scene_text(loadable, a.out);
+    (void)parse_scene_text(loadable, a.out, scene_parse_options());
   } catch (const InputError& e) {
     throw InputError("gen " + a.kind + ": the scene made for " + quoted_name(a.out) +
                      " would not load (" + e.what() + "); nothing written");
@@ -257,13 +266,13 @@ void generate_scene_file(const SceneGenArgs& a) {
   check_scene_output(a.out);
   if (!a.walk.empty()) check_walk_output(a.walk);
   std::string text, loadable;
-  std::vector<WalkKey> walk;
+  std::vector<tools::WalkKey> walk;
   if (a.kind == "city-block") {
     if (!a.sources.empty()) throw InputError("gen city-block: --source is only for field and hall");
-    const CityBlockLayout layout = city_block_layout(a.objects, a.seed);
-    text = format_city_block_scene(layout, a.seed, a.points);
+    const tools::CityBlockLayout layout = tools::city_block_layout(a.objects, a.seed);
+    text = tools::format_city_block_scene(layout, a.seed, a.points);
     loadable = text;
-    walk = city_block_walkthrough(layout);
+    walk = tools::city_block_walkthrough(layout);
   } else {
     if (a.sources.empty())
       throw InputError("gen hall: needs --source PLY (one or more models to place)");
@@ -271,19 +280,19 @@ void generate_scene_file(const SceneGenArgs& a) {
     // then the one the system follows from the scene's folder.
     const std::filesystem::path dir =
         std::filesystem::weakly_canonical(std::filesystem::absolute(a.out).parent_path());
-    std::vector<HallSource> sources, absolute_sources;
+    std::vector<tools::HallSource> sources, absolute_sources;
     for (const auto& s : a.sources) {
       sources.push_back(hall_source(s, dir));
       absolute_sources.push_back(sources.back());
       absolute_sources.back().path =
           std::filesystem::weakly_canonical(std::filesystem::absolute(s));
     }
-    const HallLayout layout = hall_layout(a.objects, sources.size(), a.seed);
-    text = format_hall_scene(layout, sources, a.seed, a.points);
+    const tools::HallLayout layout = tools::hall_layout(a.objects, sources.size(), a.seed);
+    text = tools::format_hall_scene(layout, sources, a.seed, a.points);
     // The same scene with absolute paths: it parses before the folder that
     // makes the relative ones resolve exists.
-    loadable = format_hall_scene(layout, absolute_sources, a.seed, a.points);
-    walk = hall_walkthrough(layout);
+    loadable = tools::format_hall_scene(layout, absolute_sources, a.seed, a.points);
+    walk = tools::hall_walkthrough(layout);
   }
   check_scene_loads(a, text, loadable);
   if (a.out.has_parent_path()) {
@@ -293,9 +302,9 @@ void generate_scene_file(const SceneGenArgs& a) {
   }
   write_file_atomically(a.out, text);
   std::printf("wrote %s (%zu objects)\n", quoted_name(a.out).c_str(),
-              parse_scene_file(a.out).objects.size());
+              parse_scene_file(a.out, scene_parse_options()).objects.size());
   if (!a.walk.empty()) {
-    const splat::CameraPath path = splat::walk_path(walk);
+    const splat::CameraPath path = tools::walk_path(walk);
     save_camera_path(a.walk, path);
     std::printf("wrote %s (%zu keys, %.1f s)\n", quoted_name(a.walk).c_str(), path.keys.size(),
                 path.duration());
@@ -347,6 +356,7 @@ void add_model_commands(CLI::App& app) {
     OpenOptions o = open_options(*info_args);
     if (looks_like_scene(info_args->model)) {
       SceneLoadOptions so;
+      so.parse = scene_parse_options();
       so.open = o;
       print_scene_summary(info_args->model, load_scene(info_args->model, so));
       return;
@@ -414,13 +424,13 @@ void add_model_commands(CLI::App& app) {
       throw InputError("gen " + gen_args->kind + ": --objects is only for city-block and hall");
     if (gen_args->source.size() > 1)
       throw InputError("gen " + gen_args->kind + ": one --source only");
-    const ModelKind kind = parse_model_kind(gen_args->kind);
-    if (kind == ModelKind::Field && gen_args->source.empty())
+    const tools::ModelKind kind = tools::parse_model_kind(gen_args->kind);
+    if (kind == tools::ModelKind::Field && gen_args->source.empty())
       throw InputError("gen field: needs --source PLY (the model to copy)");
-    if (kind != ModelKind::Field && !gen_args->source.empty())
+    if (kind != tools::ModelKind::Field && !gen_args->source.empty())
       throw InputError("gen " + gen_args->kind + ": --source is only for field");
-    if (!gen_args->walk.empty() && kind != ModelKind::City && kind != ModelKind::Field &&
-        kind != ModelKind::Plant)
+    if (!gen_args->walk.empty() && kind != tools::ModelKind::City &&
+        kind != tools::ModelKind::Field && kind != tools::ModelKind::Plant)
       throw InputError("gen " + gen_args->kind + ": --walk is only for city, field and plant");
     const std::filesystem::path out =
         gen_args->out.empty() ? std::filesystem::path("assets") / (gen_args->kind + ".ply")
@@ -433,7 +443,7 @@ void add_model_commands(CLI::App& app) {
     check_ply_output(out);
     if (!gen_args->walk.empty()) check_walk_output(gen_args->walk);
     PointSet source;
-    if (kind == ModelKind::Field) {
+    if (kind == tools::ModelKind::Field) {
       require_regular_file(gen_args->source.front());
       source = load_ply(gen_args->source.front());
       complete_attributes(source);
@@ -443,13 +453,14 @@ void add_model_commands(CLI::App& app) {
       std::filesystem::create_directories(out.parent_path(), ec);
       if (ec) throw std::runtime_error(system_error_text(out.parent_path(), ec.value()));
     }
-    PointSet ps = kind == ModelKind::Field ? generate_field(prepare_field_source(source),
-                                                            gen_args->points, gen_args->seed)
-                                           : generate_model(kind, gen_args->points, gen_args->seed);
+    PointSet ps = kind == tools::ModelKind::Field
+                      ? tools::generate_field(tools::prepare_field_source(source), gen_args->points,
+                                              gen_args->seed)
+                      : tools::generate_model(kind, gen_args->points, gen_args->seed);
     save_ply(out, ps);
     std::printf("wrote %s (%zu points)\n", quoted_name(out).c_str(), ps.size());
     if (!gen_args->walk.empty()) {
-      const splat::CameraPath path = splat::walk_path(scene_walkthrough(kind));
+      const splat::CameraPath path = tools::walk_path(tools::scene_walkthrough(kind));
       save_camera_path(gen_args->walk, path);
       std::printf("wrote %s (%zu keys, %.1f s)\n", quoted_name(gen_args->walk).c_str(),
                   path.keys.size(), path.duration());

@@ -14,10 +14,11 @@
 #include "messages.hpp"
 #include "option_checks.hpp"
 #include "treecut/error.hpp"
-#include "treecut/generate.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/scene.hpp"
 #include "treecut/strategies/builtin.hpp"
+#include "treecut/tools/generate.hpp"
+#include "treecut/tools/scene_generate.hpp"
 #include "viewer.hpp"
 
 namespace treecut::cli {
@@ -121,6 +122,7 @@ Scene load_scene(const SceneArgs& args, const LoadProgressFn& progress) {
   Scene s;
   if (!args.model.empty() && looks_like_scene(args.model)) {
     SceneLoadOptions so;
+    so.parse.generator = tools::scene_generator();
     so.open.attributes.k = args.k;
     so.open.warn = [](const std::string& w) { print_warning(w); };
     const treecut::Scene scene = treecut::load_scene(std::filesystem::path(args.model), so);
@@ -154,9 +156,9 @@ Scene load_scene(const SceneArgs& args, const LoadProgressFn& progress) {
     return s;
   }
   if (args.model.empty()) {
-    const ModelKind kind = parse_model_kind(args.default_kind);
+    const tools::ModelKind kind = tools::parse_model_kind(args.default_kind);
     s.hierarchy = std::make_shared<const Hierarchy>(
-        build_from_points(generate_model(kind, args.default_points, 1)));
+        build_from_points(tools::generate_model(kind, args.default_points, 1)));
     s.label =
         "generated " + args.default_kind + " (" + std::to_string(args.default_points) + " points)";
   } else {

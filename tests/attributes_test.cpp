@@ -5,9 +5,10 @@
 
 #include <glm/geometric.hpp>
 
-#include "treecut/generate.hpp"
+#include "treecut/tools/generate.hpp"
 
 using namespace treecut;
+using namespace treecut::tools;
 
 TEST(Attributes, PcaNormalsOfASphereMatchTheTrueNormals) {
   PointSet ps = generate_model(ModelKind::Sphere, 20000, 3);

@@ -22,9 +22,9 @@
 #include <vector>
 
 #include "treecut/feedback_stage.hpp"
-#include "treecut/generate.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/strategies/builtin.hpp"
+#include "treecut/tools/generate.hpp"
 
 namespace treecut {
 namespace {
@@ -112,7 +112,7 @@ std::size_t cut_total(const Lists& l) {
 TEST(BudgetStrategy, WalkthroughNeverExceedsTheBudgetAndListsAreCuts) {
   const auto cube = cube_model(3000, 1);
   const auto sphere = std::make_shared<const Hierarchy>(
-      build_from_points(generate_model(ModelKind::Sphere, 2500, 2)));
+      build_from_points(tools::generate_model(tools::ModelKind::Sphere, 2500, 2)));
   std::vector<SceneObjectInput> objects;
   for (int x = 0; x < 8; ++x) {
     for (int z = 0; z < 8; ++z) {

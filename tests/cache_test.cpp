@@ -14,11 +14,12 @@
 
 #include "test_support.hpp"
 #include "treecut/error.hpp"
-#include "treecut/generate.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/ply.hpp"
+#include "treecut/tools/generate.hpp"
 
 using namespace treecut;
+using namespace treecut::tools;
 namespace fs = std::filesystem;
 
 namespace {

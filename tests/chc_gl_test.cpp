@@ -28,13 +28,13 @@
 #include "test_support.hpp"
 #include "treecut/attributes.hpp"
 #include "treecut/culling/chc.hpp"
-#include "treecut/generate.hpp"
 #include "treecut/hierarchy.hpp"
 #include "treecut/splat/camera.hpp"
 #include "treecut/splat/context.hpp"
 #include "treecut/splat/gl.hpp"
 #include "treecut/splat/occlusion_device_gl.hpp"
 #include "treecut/splat/renderer.hpp"
+#include "treecut/tools/generate.hpp"
 
 namespace treecut::splat {
 namespace {
@@ -50,15 +50,16 @@ constexpr int kWidth = 320;
 constexpr int kHeight = 180;
 
 struct SceneCase {
-  ModelKind kind;
+  tools::ModelKind kind;
   std::size_t points;
 };
 
-std::shared_ptr<const Hierarchy> scene(ModelKind kind, std::size_t points) {
+std::shared_ptr<const Hierarchy> scene(tools::ModelKind kind, std::size_t points) {
   static std::map<int, std::shared_ptr<const Hierarchy>> cache;
   auto& slot = cache[static_cast<int>(kind)];
   if (!slot) {
-    PointSet ps = kind == ModelKind::City ? generate_city(points, 5) : generate_plant(points, 5);
+    PointSet ps = kind == tools::ModelKind::City ? tools::generate_city(points, 5)
+                                                 : tools::generate_plant(points, 5);
     complete_attributes(ps);
     slot = std::make_shared<const Hierarchy>(build_hierarchy(std::move(ps)));
   }
@@ -67,13 +68,13 @@ std::shared_ptr<const Hierarchy> scene(ModelKind kind, std::size_t points) {
 
 // Frames of the walkthrough: `count` times spread over it (overview, descent,
 // street level, ascent).
-std::vector<Camera> walk_cameras(ModelKind kind, const Hierarchy& h, int count) {
-  const auto keys = scene_walkthrough(kind);
+std::vector<Camera> walk_cameras(tools::ModelKind kind, const Hierarchy& h, int count) {
+  const auto keys = tools::scene_walkthrough(kind);
   const glm::vec3 center = 0.5f * (h.bounds_min() + h.bounds_max());
   const float radius = 0.5f * glm::length(h.bounds_max() - h.bounds_min());
   std::vector<Camera> out;
   for (int i = 0; i < count; ++i) {
-    const WalkKey& k =
+    const tools::WalkKey& k =
         keys[(keys.size() - 1) * static_cast<std::size_t>(i) / static_cast<std::size_t>(count - 1)];
     Camera c;
     c.eye = k.eye, c.target = k.target, c.up = k.up, c.fov_y_deg = k.fov_deg;
@@ -196,10 +197,10 @@ TEST_P(ChcGl, StopAndWaitAndIdealDrawTheSameSetAndChcConvergesToIt) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Scenes, ChcGl,
-                         ::testing::Values(SceneCase{ModelKind::City, 40000},
-                                           SceneCase{ModelKind::Plant, 40000}),
+                         ::testing::Values(SceneCase{tools::ModelKind::City, 40000},
+                                           SceneCase{tools::ModelKind::Plant, 40000}),
                          [](const auto& p) {
-                           return p.param.kind == ModelKind::City ? "city" : "plant";
+                           return p.param.kind == tools::ModelKind::City ? "city" : "plant";
                          });
 
 using test::QueryCheck;  // tests/support/query_check.hpp
@@ -240,7 +241,8 @@ TEST_P(ChcGlQueries, NeverReadsAResultBeforeItWasSeenAvailableUnlessItCountsTheW
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(Scenes, ChcGlQueries, ::testing::Values(SceneCase{ModelKind::City, 40000}),
+INSTANTIATE_TEST_SUITE_P(Scenes, ChcGlQueries,
+                         ::testing::Values(SceneCase{tools::ModelKind::City, 40000}),
                          [](const auto&) { return "city"; });
 
 int count(const std::string& text, const std::string& what) {

@@ -135,7 +135,7 @@ std::vector<ViewSnapshot> make_path(const std::string& kind, const Scene& s) {
 class EventQueuePath : public ::testing::TestWithParam<std::string> {};
 
 TEST_P(EventQueuePath, event_queue_exact_vs_topdown) {
-  const auto h = small_hierarchy(ModelKind::Terrain, 40000);
+  const auto h = small_hierarchy(tools::ModelKind::Terrain, 40000);
   const Scene s = scene_of(*h);
   Runner<TopDownStrategy> top(*h);
   Runner<EventQueueStrategy> ev(*h);
@@ -200,7 +200,7 @@ INSTANTIATE_TEST_SUITE_P(Paths, EventQueuePath,
 // A random walk with every speed, a second model and parameter changes: still
 // equal after every iteration.
 TEST(EventQueue, event_queue_exact_vs_topdown_random_walk_and_params) {
-  const auto h = small_hierarchy(ModelKind::City, 30000);
+  const auto h = small_hierarchy(tools::ModelKind::City, 30000);
   const Scene s = scene_of(*h);
   Runner<TopDownStrategy> top(*h);
   Runner<EventQueueStrategy> ev(*h);
@@ -229,7 +229,7 @@ TEST(EventQueue, event_queue_exact_vs_topdown_random_walk_and_params) {
 // with, from its copies of the children's ranges) make the very list and
 // slot map that refine / coarsen make, position for position.
 TEST(EventQueue, known_children_edits_equal_refine_and_coarsen) {
-  const auto h = small_hierarchy(ModelKind::Terrain, 5000);
+  const auto h = small_hierarchy(tools::ModelKind::Terrain, 5000);
   TreeCut a = TreeCut::root_cut(*h), b = TreeCut::root_cut(*h);
   std::mt19937 rng(5);
   std::size_t refined = 0, coarsened = 0;
@@ -261,7 +261,7 @@ TEST(EventQueue, known_children_edits_equal_refine_and_coarsen) {
 }
 
 TEST(EventQueue, static_camera_costs_nothing) {
-  const auto h = small_hierarchy(ModelKind::Terrain, 40000);
+  const auto h = small_hierarchy(tools::ModelKind::Terrain, 40000);
   const Scene s = scene_of(*h);
   Runner<EventQueueStrategy> ev(*h);
   const glm::vec3 eye = s.center + glm::vec3(0.7f, 0.3f, 0.2f) * s.extent;
@@ -288,7 +288,7 @@ TEST(EventQueue, static_camera_costs_nothing) {
 }
 
 TEST(EventQueue, cancelled_iteration_leaves_a_valid_cut_and_recovers) {
-  const auto h = small_hierarchy(ModelKind::Terrain, 40000);
+  const auto h = small_hierarchy(tools::ModelKind::Terrain, 40000);
   const Scene s = scene_of(*h);
   Runner<TopDownStrategy> top(*h);
   Runner<EventQueueStrategy> ev(*h);
@@ -318,7 +318,7 @@ TEST(EventQueue, cancelled_iteration_leaves_a_valid_cut_and_recovers) {
 // camera moves within k frames of rho and omega, the test never differs
 // before the frame the event names.
 TEST(EventQueue, event_times_are_lower_bounds) {
-  const auto h = small_hierarchy(ModelKind::Sphere, 20000);
+  const auto h = small_hierarchy(tools::ModelKind::Sphere, 20000);
   const Scene s = scene_of(*h);
   const auto& cr = h->arrays().center_radius;
   std::mt19937 rng(5);
@@ -365,7 +365,7 @@ TEST(EventQueue, event_times_are_lower_bounds) {
 // visibility gap (the camera's pace) and any mix of the two motions: brute
 // force over random nodes and moves up to just below both bounds.
 TEST(EventQueue, two_clock_event_times_are_lower_bounds) {
-  const auto h = small_hierarchy(ModelKind::Sphere, 20000);
+  const auto h = small_hierarchy(tools::ModelKind::Sphere, 20000);
   const Scene s = scene_of(*h);
   const auto& cr = h->arrays().center_radius;
   std::mt19937 rng(7);
@@ -419,7 +419,7 @@ TEST(EventQueue, two_clock_event_times_are_lower_bounds) {
 // two event functions): bit for bit, over random nodes (leaves, inner nodes,
 // the eye inside spheres), cameras and paces.
 TEST(EventQueue, decide_equals_test_and_event_time) {
-  const auto h = small_hierarchy(ModelKind::Sphere, 20000);
+  const auto h = small_hierarchy(tools::ModelKind::Sphere, 20000);
   const Scene s = scene_of(*h);
   const auto& cr = h->arrays().center_radius;
   std::mt19937 rng(9);

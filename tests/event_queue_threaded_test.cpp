@@ -40,7 +40,7 @@ std::vector<NodeId> stage_cut(FeedbackStage& stage, const ViewSnapshot& view) {
 }
 
 TEST(EventQueueThreaded, event_queue_exact_vs_topdown_on_the_stage_thread) {
-  const auto h = test::small_hierarchy(ModelKind::Terrain, 30000);
+  const auto h = test::small_hierarchy(tools::ModelKind::Terrain, 30000);
   const glm::vec3 center = 0.5f * (h->bounds_min() + h->bounds_max());
   const float extent = glm::length(h->bounds_max() - h->bounds_min());
   FeedbackStage stage(Model{h, TreeCut::root_cut(*h)},

@@ -134,9 +134,9 @@ std::uint64_t run_session(std::mt19937_64& rng, std::uint64_t budget,
 TEST(ExchangeStress, EveryExchangedListIsCompleteAndValid) {
   const std::uint64_t wanted = exchanges_wanted();
   const std::vector<std::shared_ptr<const Hierarchy>> models = {
-      test::small_hierarchy(ModelKind::Sphere, 3000),
-      test::small_hierarchy(ModelKind::Terrain, 2000),
-      test::small_hierarchy(ModelKind::City, 2500)};
+      test::small_hierarchy(tools::ModelKind::Sphere, 3000),
+      test::small_hierarchy(tools::ModelKind::Terrain, 2000),
+      test::small_hierarchy(tools::ModelKind::City, 2500)};
   const StrategyRegistry registry = strategies::builtin_registry();
   std::mt19937_64 rng(20240611);
   std::uint64_t exchanges = 0;
@@ -155,7 +155,7 @@ TEST(ExchangeStress, EveryExchangedListIsCompleteAndValid) {
 }
 
 TEST(ExchangeStress, ShutdownAtAnyMomentNeverDeadlocks) {
-  const auto h = test::small_hierarchy(ModelKind::Sphere, 3000);
+  const auto h = test::small_hierarchy(tools::ModelKind::Sphere, 3000);
   std::mt19937_64 rng(7);
   const int lives = static_cast<int>(std::min<std::uint64_t>(2000, exchanges_wanted() / 100 + 10));
   for (int i = 0; i < lives; ++i) {

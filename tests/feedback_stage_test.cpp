@@ -26,7 +26,7 @@ using test::orbit_view;
 using test::small_hierarchy;
 
 Model sphere_model() {
-  auto h = small_hierarchy(ModelKind::Sphere, 5000);
+  auto h = small_hierarchy(tools::ModelKind::Sphere, 5000);
   return Model{h, TreeCut::root_cut(*h)};
 }
 
@@ -473,7 +473,7 @@ TEST(FeedbackStage, ANewModelResetsTheStrategy) {
   ProbeStrategy* p = probe.get();
   FeedbackStage stage(sphere_model(), std::move(probe), manual());
   EXPECT_EQ(p->resets, 1);
-  auto terrain = small_hierarchy(ModelKind::Terrain, 3000);
+  auto terrain = small_hierarchy(tools::ModelKind::Terrain, 3000);
   stage.set_model(Model{terrain, TreeCut::root_cut(*terrain)});
   stage.poll();
   stage.step();
@@ -586,7 +586,7 @@ TEST(FeedbackStage, SetViewHandsTheSnapshotOverWholeOnTheStagesFrameCounter) {
 }
 
 TEST(Controller, CountsFramesWithTheStagesCounter) {
-  auto h = test::small_hierarchy(ModelKind::Sphere, 5000);
+  auto h = test::small_hierarchy(tools::ModelKind::Sphere, 5000);
   ViewSnapshot v = orbit_view(*h, 0.6f, 1.2f);
   v.frame = 500;  // an initial view's own number does not start a second count
   Controller c(Model{h, TreeCut::root_cut(*h)}, std::make_unique<SnapshotRecorder>(), v, manual());

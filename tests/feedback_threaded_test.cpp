@@ -46,7 +46,7 @@ void wait_until_entered(std::atomic<int>& entered, int count) {
 }
 
 Model model() {
-  auto h = test::small_hierarchy(ModelKind::Sphere, 4000);
+  auto h = test::small_hierarchy(tools::ModelKind::Sphere, 4000);
   return Model{h, TreeCut::root_cut(*h)};
 }
 

@@ -23,10 +23,10 @@
 #include "treecut/cache.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
-#include "treecut/generate.hpp"
 #include "treecut/mapped_file.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/ply.hpp"
+#include "treecut/tools/generate.hpp"
 
 namespace treecut {
 namespace {
@@ -52,7 +52,7 @@ int open_read(const fs::path& p) {
 
 fs::path small_model(const fs::path& dir, const std::string& name, std::size_t points = 20000) {
   const fs::path p = dir / name;
-  save_ply(p, generate_model(ModelKind::Sphere, points, 1));
+  save_ply(p, tools::generate_model(tools::ModelKind::Sphere, points, 1));
   return p;
 }
 
@@ -188,7 +188,7 @@ TEST(ModelChanges, AModelReplacedDuringTheLoadIsAnErrorNotAMixedCache) {
     }
     EXPECT_FALSE(fs::exists(dir / "m.tch")) << "a cache of one content under another's key";
     EXPECT_EQ(temporaries_in(dir), 0u);
-    save_ply(model, generate_model(ModelKind::Sphere, 20000, 1));
+    save_ply(model, tools::generate_model(tools::ModelKind::Sphere, 20000, 1));
   }
 }
 

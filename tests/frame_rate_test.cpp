@@ -23,10 +23,10 @@
 #include "strategy_fixtures.hpp"
 #include "test_support.hpp"
 #include "treecut/controller.hpp"
-#include "treecut/generate.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/strategies/optimization.hpp"
 #include "treecut/strategies/recursive.hpp"
+#include "treecut/tools/generate.hpp"
 
 namespace treecut::splat {
 namespace {
@@ -172,7 +172,7 @@ TEST(FrameRateGovernor, ThresholdAtFullDetailDoesNotWindDown) {
 
 std::shared_ptr<const Hierarchy> terrain() {
   static const auto h = std::make_shared<const Hierarchy>(
-      build_from_points(generate_model(ModelKind::Terrain, 30000, 3)));
+      build_from_points(tools::generate_model(tools::ModelKind::Terrain, 30000, 3)));
   return h;
 }
 

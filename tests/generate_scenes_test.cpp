@@ -13,27 +13,28 @@
 #include "test_support.hpp"
 #include "treecut/attributes.hpp"
 #include "treecut/error.hpp"
-#include "treecut/generate.hpp"
 #include "treecut/ply.hpp"
 #include "treecut/splat/camera_path.hpp"
+#include "treecut/tools/generate.hpp"
 
 namespace {
 
-using treecut::ModelKind;
 using treecut::PointSet;
+using treecut::tools::ModelKind;
 
 PointSet sphere_source() {
-  PointSet s = treecut::generate_model(ModelKind::Sphere, 3000, 1);
+  PointSet s = treecut::tools::generate_model(ModelKind::Sphere, 3000, 1);
   treecut::complete_attributes(s);
   return s;
 }
 
 PointSet scene(ModelKind kind, std::size_t n, std::uint64_t seed) {
   if (kind == ModelKind::Field) {
-    static const treecut::FieldSource src = treecut::prepare_field_source(sphere_source());
-    return treecut::generate_field(src, n, seed);
+    static const treecut::tools::FieldSource src =
+        treecut::tools::prepare_field_source(sphere_source());
+    return treecut::tools::generate_field(src, n, seed);
   }
-  return treecut::generate_model(kind, n, seed);
+  return treecut::tools::generate_model(kind, n, seed);
 }
 
 bool same(const PointSet& a, const PointSet& b) {
@@ -78,9 +79,9 @@ INSTANTIATE_TEST_SUITE_P(Kinds, Scenes,
 constexpr float kTol = 2e-5f;
 
 TEST(City, PointsLieOnTheGroundOrOnABuildingFace) {
-  const auto layout = treecut::city_layout(1);
+  const auto layout = treecut::tools::city_layout(1);
   ASSERT_GT(layout.buildings.size(), 100u);
-  const PointSet s = treecut::generate_city(60000, 1);
+  const PointSet s = treecut::tools::generate_city(60000, 1);
   std::size_t ground = 0, walls = 0, roofs = 0;
   for (std::size_t i = 0; i < s.size(); ++i) {
     const glm::vec3 p = s.positions[i], n = s.normals[i];
@@ -114,8 +115,8 @@ TEST(City, PointsLieOnTheGroundOrOnABuildingFace) {
 }
 
 TEST(City, GroundPointsAvoidTheFootprints) {
-  const auto layout = treecut::city_layout(1);
-  const PointSet s = treecut::generate_city(60000, 1);
+  const auto layout = treecut::tools::city_layout(1);
+  const PointSet s = treecut::tools::generate_city(60000, 1);
   for (std::size_t i = 0; i < s.size(); ++i) {
     const glm::vec3 p = s.positions[i];
     if (p.z != 0.0f || s.normals[i] != glm::vec3(0, 0, 1)) continue;
@@ -126,9 +127,9 @@ TEST(City, GroundPointsAvoidTheFootprints) {
 }
 
 TEST(Plant, PointsLieOnTheGroundOrOnACylinderOrACap) {
-  const auto layout = treecut::plant_layout(1);
+  const auto layout = treecut::tools::plant_layout(1);
   ASSERT_GT(layout.cylinders.size(), 100u);
-  const PointSet s = treecut::generate_plant(60000, 1);
+  const PointSet s = treecut::tools::generate_plant(60000, 1);
   for (std::size_t i = 0; i < s.size(); ++i) {
     const glm::vec3 p = s.positions[i], n = s.normals[i];
     if (std::abs(p.z) <= kTol && n == glm::vec3(0, 0, 1)) continue;
@@ -155,14 +156,14 @@ TEST(Plant, PointsLieOnTheGroundOrOnACylinderOrACap) {
 TEST(Field, CopiesAreTurnedScaledCopiesOfTheSource) {
   // The sphere source becomes a unit sphere standing on the ground, centre
   // (0, 0, 1); each copy is it turned and scaled: map every point back.
-  const auto layout = treecut::field_layout(1);
+  const auto layout = treecut::tools::field_layout(1);
   ASSERT_GT(layout.copies.size(), 50u);
   const PointSet s = scene(ModelKind::Field, 40000, 1);
   std::size_t on_copies = 0;
   for (std::size_t i = 0; i < s.size(); ++i) {
     const glm::vec3 p = s.positions[i];
     if (p.z == 0.0f && s.normals[i] == glm::vec3(0, 0, 1)) continue;
-    const treecut::FieldLayout::Copy* best = nullptr;
+    const treecut::tools::FieldLayout::Copy* best = nullptr;
     for (const auto& c : layout.copies)
       if (glm::length(glm::vec2(p) - c.centre) <= c.radius * 1.03f) best = &c;  // + jitter
     ASSERT_NE(best, nullptr) << "point " << i << " is on no copy";
@@ -180,13 +181,13 @@ TEST(Field, FacedSourceSamplesItsSurface) {
   TREECUT_REQUIRE_ASSET(bunny, "bun_zipper.ply");
   PointSet src = treecut::load_ply(bunny);
   treecut::complete_attributes(src);
-  const auto prepared = treecut::prepare_field_source(src);
+  const auto prepared = treecut::tools::prepare_field_source(src);
   double copies = 0.0;
-  for (const auto& c : treecut::field_layout(1).copies) copies += c.radius * c.radius;
+  for (const auto& c : treecut::tools::field_layout(1).copies) copies += c.radius * c.radius;
   std::printf("field of bun_zipper.ply at seed 1: copies' area %.2f\n",
               prepared.unit_area * copies);
-  const PointSet a = treecut::generate_field(prepared, 30000, 2);
-  const PointSet b = treecut::generate_field(prepared, 30000, 2);
+  const PointSet a = treecut::tools::generate_field(prepared, 30000, 2);
+  const PointSet b = treecut::tools::generate_field(prepared, 30000, 2);
   EXPECT_EQ(a.size(), 30000u);
   EXPECT_TRUE(same(a, b));
   // The bunny stands: its copies rise above the ground, none sink below it.
@@ -199,7 +200,7 @@ TEST(Field, FacedSourceSamplesItsSurface) {
 }
 
 TEST(Field, NeedsASourceModel) {
-  EXPECT_THROW((void)treecut::generate_model(ModelKind::Field, 100, 1), treecut::InputError);
+  EXPECT_THROW((void)treecut::tools::generate_model(ModelKind::Field, 100, 1), treecut::InputError);
   const auto r = treecut::test::run_treecut(
       "gen field -n 100 -o " +
       treecut::test::quote(treecut::test::scratch_dir("field_nosrc") / "f.ply"));
@@ -215,7 +216,7 @@ TEST(GenWalk, WritesTheWalkthroughAndRefusesToOverwriteOtherFiles) {
                                       quote(dir / "w.campath"));
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_EQ(treecut::splat::load_camera_path(dir / "w.campath").keys.size(),
-            treecut::scene_walkthrough(ModelKind::Plant).size());
+            treecut::tools::scene_walkthrough(ModelKind::Plant).size());
   // Again over its own output: a camera path may be replaced.
   r = treecut::test::run_treecut("gen plant -n 500 -o " + quote(dir / "p.ply") + " --walk " +
                                  quote(dir / "w.campath"));
@@ -272,7 +273,7 @@ TEST_P(Walks, TheCommittedCampathIsWhatTheGeneratorMakes) {
   const auto file = std::filesystem::path(TREECUT_SOURCE_DIR) / "assets" / "paths" /
                     (name_of(kind) + "_walk.campath");
   const auto path = treecut::splat::load_camera_path(file);
-  const auto keys = treecut::scene_walkthrough(kind);
+  const auto keys = treecut::tools::scene_walkthrough(kind);
   ASSERT_EQ(path.keys.size(), keys.size()) << file << ": regenerate it (docs/scenes.md)";
   for (std::size_t i = 0; i < keys.size(); ++i) {
     const auto& c = path.keys[i].camera;
@@ -284,24 +285,25 @@ TEST_P(Walks, TheCommittedCampathIsWhatTheGeneratorMakes) {
 
 TEST_P(Walks, TheEyeStaysOutOfEveryObject) {
   const ModelKind kind = GetParam();
-  const auto keys = treecut::scene_walkthrough(kind);
+  const auto keys = treecut::tools::scene_walkthrough(kind);
   const float margin = 0.004f;
   for (std::size_t i = 0; i < keys.size(); ++i) {
     const glm::vec3 e = keys[i].eye;
-    ASSERT_GE(e.z, treecut::walk_eye_height(kind) - 1e-6f) << "key " << i << " below eye level";
+    ASSERT_GE(e.z, treecut::tools::walk_eye_height(kind) - 1e-6f)
+        << "key " << i << " below eye level";
     if (kind == ModelKind::City) {
-      for (const auto& b : treecut::city_layout(1).buildings)
+      for (const auto& b : treecut::tools::city_layout(1).buildings)
         ASSERT_FALSE(e.x > b.lo.x - margin && e.x < b.hi.x + margin && e.y > b.lo.y - margin &&
                      e.y < b.hi.y + margin && e.z < b.hi.z + margin)
             << "key " << i;
     } else if (kind == ModelKind::Plant) {
-      for (const auto& c : treecut::plant_layout(1).cylinders) {
+      for (const auto& c : treecut::tools::plant_layout(1).cylinders) {
         const glm::vec3 d = e - c.base;
         const float along = std::clamp(glm::dot(d, c.axis), 0.0f, c.length);
         ASSERT_GT(glm::length(d - along * c.axis), c.radius + margin) << "key " << i;
       }
     } else {
-      for (const auto& c : treecut::field_layout(1).copies) {
+      for (const auto& c : treecut::tools::field_layout(1).copies) {
         if (e.z < 0.3f) {
           ASSERT_GT(glm::length(glm::vec2(e) - c.centre), c.radius + margin) << i;
         }
@@ -313,8 +315,8 @@ TEST_P(Walks, TheEyeStaysOutOfEveryObject) {
 TEST_P(Walks, StreetLevelIsOccludedAndTheOverviewIsOpen) {
   const ModelKind kind = GetParam();
   const Grid grid(scene(kind, 400000, 1));
-  const auto keys = treecut::scene_walkthrough(kind);
-  const float eye = treecut::walk_eye_height(kind);
+  const auto keys = treecut::tools::scene_walkthrough(kind);
+  const float eye = treecut::tools::walk_eye_height(kind);
   // Rays in the view's direction (yaw within 40 degrees of it, pitch 0..20
   // degrees up, so the ground never counts) from keys along the walk.
   std::size_t rays = 0, near_hits = 0, walk_keys = 0;
@@ -357,12 +359,12 @@ namespace {
 // sqrt(area / points); splat radius from complete_attributes ~1.5 spacings).
 TEST(SceneAreas, MatchTheDocumentedFigures) {
   double city = 4.0;
-  for (const auto& b : treecut::city_layout(1).buildings) {
+  for (const auto& b : treecut::tools::city_layout(1).buildings) {
     const glm::vec3 d = b.hi - b.lo;
     city += 2.0 * d.z * (d.x + d.y);  // walls; the roof replaces the ground below
   }
   double plant = 4.0;
-  for (const auto& c : treecut::plant_layout(1).cylinders)
+  for (const auto& c : treecut::tools::plant_layout(1).cylinders)
     plant += 2.0 * 3.14159265 * c.radius * c.length;  // caps replace the ground below
   std::printf("area at seed 1: city %.2f, plant %.2f\n", city, plant);
   EXPECT_NEAR(city, 9.0, 1.0);

@@ -8,11 +8,12 @@
 
 #include "test_support.hpp"
 #include "treecut/attributes.hpp"
-#include "treecut/generate.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/ply.hpp"
+#include "treecut/tools/generate.hpp"
 
 using namespace treecut;
+using namespace treecut::tools;
 
 namespace {
 

@@ -18,13 +18,13 @@
 namespace {
 
 using treecut::Hierarchy;
-using treecut::ModelKind;
 using treecut::NodeId;
 using treecut::TreeCut;
 using treecut::culling::BlockId;
 using treecut::culling::HlodBlocks;
 using treecut::culling::kNoBlock;
 using treecut::test::small_hierarchy;
+using treecut::tools::ModelKind;
 
 // Leaves of the subtree of n, collected depth first.
 void subtree(const Hierarchy& h, NodeId n, std::vector<NodeId>& all) {

@@ -24,7 +24,6 @@
 #include "test_support.hpp"
 #include "treecut/attributes.hpp"
 #include "treecut/culling/hlod_traversal.hpp"
-#include "treecut/generate.hpp"
 #include "treecut/hierarchy.hpp"
 #include "treecut/splat/camera.hpp"
 #include "treecut/splat/context.hpp"
@@ -32,6 +31,7 @@
 #include "treecut/splat/image.hpp"
 #include "treecut/splat/occlusion_device_gl.hpp"
 #include "treecut/splat/renderer.hpp"
+#include "treecut/tools/generate.hpp"
 
 namespace treecut::splat {
 namespace {
@@ -48,7 +48,7 @@ constexpr int kHeight = 180;
 std::shared_ptr<const Hierarchy> city() {
   static std::shared_ptr<const Hierarchy> h;
   if (!h) {
-    PointSet ps = generate_city(40000, 5);
+    PointSet ps = tools::generate_city(40000, 5);
     complete_attributes(ps);
     h = std::make_shared<const Hierarchy>(build_hierarchy(std::move(ps)));
   }
@@ -58,7 +58,7 @@ std::shared_ptr<const Hierarchy> city() {
 // `count` cameras along the walkthrough, interpolated between its keys (a
 // coherent walk: each frame near the last).
 std::vector<Camera> walk(const Hierarchy& h, int count) {
-  const auto keys = scene_walkthrough(ModelKind::City);
+  const auto keys = tools::scene_walkthrough(tools::ModelKind::City);
   const glm::vec3 center = 0.5f * (h.bounds_min() + h.bounds_max());
   const float radius = 0.5f * glm::length(h.bounds_max() - h.bounds_min());
   std::vector<Camera> out;

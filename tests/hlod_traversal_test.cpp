@@ -22,8 +22,8 @@
 #include <vector>
 
 #include "treecut/attributes.hpp"
-#include "treecut/generate.hpp"
 #include "treecut/hierarchy.hpp"
+#include "treecut/tools/generate.hpp"
 
 namespace {
 
@@ -45,7 +45,7 @@ constexpr glm::ivec2 kViewport(320, 180);
 std::shared_ptr<const Hierarchy> city() {
   static std::shared_ptr<const Hierarchy> h;
   if (!h) {
-    treecut::PointSet ps = treecut::generate_city(20000, 5);
+    treecut::PointSet ps = treecut::tools::generate_city(20000, 5);
     treecut::complete_attributes(ps);
     h = std::make_shared<const Hierarchy>(treecut::build_hierarchy(std::move(ps)));
   }

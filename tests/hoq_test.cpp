@@ -23,7 +23,6 @@ namespace {
 using treecut::Hierarchy;
 using treecut::IterationInput;
 using treecut::IterationOutput;
-using treecut::ModelKind;
 using treecut::NodeId;
 using treecut::QueryRequest;
 using treecut::TreeCut;
@@ -32,6 +31,7 @@ using treecut::VisibilityResult;
 using treecut::culling::BlockId;
 using treecut::culling::HlodBlocks;
 using treecut::strategies::HoqStrategy;
+using treecut::tools::ModelKind;
 namespace hoq = treecut::culling::hoq;
 using hoq::ChildState;
 using hoq::NodeState;

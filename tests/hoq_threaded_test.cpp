@@ -44,8 +44,8 @@ VisibilityResult answer(const Hierarchy& h, const ViewSnapshot& view, const Quer
 }
 
 TEST(HoqThreaded, AnswersCrossToTheStageThreadAndEveryListIsValid) {
-  const auto city = test::small_hierarchy(ModelKind::City, 20000);
-  const auto other = test::small_hierarchy(ModelKind::City, 12000);
+  const auto city = test::small_hierarchy(tools::ModelKind::City, 20000);
+  const auto other = test::small_hierarchy(tools::ModelKind::City, 12000);
   auto owned = std::make_unique<strategies::HoqStrategy>();
   owned->set_param("block_size", 200);
   owned->set_param("theta", 2.0);

@@ -20,8 +20,8 @@
 #include <vector>
 
 #include "test_support.hpp"
-#include "treecut/generate.hpp"
 #include "treecut/ply.hpp"
+#include "treecut/tools/generate.hpp"
 
 namespace fs = std::filesystem;
 using treecut::test::CommandResult;
@@ -77,7 +77,8 @@ class Hostile : public ::testing::Test {
 };
 
 fs::path sphere(const fs::path& dir, const std::string& name, std::size_t points = 3000) {
-  treecut::save_ply(dir / name, treecut::generate_model(treecut::ModelKind::Sphere, points, 1));
+  treecut::save_ply(dir / name,
+                    treecut::tools::generate_model(treecut::tools::ModelKind::Sphere, points, 1));
   return dir / name;
 }
 

@@ -30,6 +30,7 @@
 #include "treecut/splat/renderer.hpp"
 #include "treecut/splat/scene_draw.hpp"
 #include "treecut/strategies/budget_strategy.hpp"
+#include "treecut/tools/scene_generate.hpp"
 #include "treecut/tree_cut.hpp"
 
 namespace treecut {
@@ -135,7 +136,7 @@ class HzmCulling : public ::testing::Test {
   }
 
   Hierarchy cube_ = cube_model(12000, 7);
-  Hierarchy building_ = build_from_points(generate_building(12000, 3));
+  Hierarchy building_ = build_from_points(tools::generate_building(12000, 3));
   std::unique_ptr<splat::Renderer> renderer_ =
       std::make_unique<splat::Renderer>(cube_, glm::ivec2(kWidth, kHeight));
 };

@@ -20,8 +20,8 @@
 #include <vector>
 
 #include "test_support.hpp"
-#include "treecut/generate.hpp"
 #include "treecut/ply.hpp"
+#include "treecut/tools/generate.hpp"
 
 namespace fs = std::filesystem;
 using treecut::test::CommandResult;
@@ -37,7 +37,8 @@ namespace {
 fs::path small_model(const fs::path& dir, const std::string& name, std::size_t points = 3000,
                      std::uint64_t seed = 1) {
   const fs::path p = dir / name;
-  treecut::save_ply(p, treecut::generate_model(treecut::ModelKind::Sphere, points, seed));
+  treecut::save_ply(
+      p, treecut::tools::generate_model(treecut::tools::ModelKind::Sphere, points, seed));
   return p;
 }
 

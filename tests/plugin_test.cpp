@@ -149,7 +149,7 @@ TEST(ExamplePlugin, RegistersAndRunsItsStrategyInAFeedbackStage) {
   EXPECT_THROW(registry.load_plugin(path), InputError) << "a second load duplicates the name";
   EXPECT_TRUE(registry.contains("uniform_depth"));
 
-  const auto h = test::small_hierarchy(ModelKind::Terrain, 5000);
+  const auto h = test::small_hierarchy(tools::ModelKind::Terrain, 5000);
   StageOptions options;
   options.launch = Launch::Manual;
   FeedbackStage stage(Model{h, TreeCut::root_cut(*h)}, registry.create("uniform_depth"), options);
@@ -182,7 +182,7 @@ std::string first_error(FeedbackStage& stage) {
 TEST(MisbehavingPlugin, EveryErrorNamesTheStrategyAndThePluginFile) {
   StrategyRegistry registry;
   registry.load_plugin(kBadPlugin);
-  const auto h = test::small_hierarchy(ModelKind::Sphere, 3000);
+  const auto h = test::small_hierarchy(tools::ModelKind::Sphere, 3000);
   StageOptions o;
   o.launch = Launch::Manual;
   o.validate = false;  // the checks that run in every build

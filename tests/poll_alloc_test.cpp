@@ -1,7 +1,7 @@
 // The render thread's side of the exchange does no allocation: once the list
 // buffers have grown, poll() (with its exchange and request) and set_view()
-// never call operator new, whatever the cut size, blending or thread. The global operator new of this test binary counts the calls
-// made by the render thread while `counting` is set.
+// never call operator new, whatever the cut size, blending or thread. The global operator new of
+// this test binary counts the calls made by the render thread while `counting` is set.
 #include <gtest/gtest.h>
 
 #include <cstdlib>
@@ -51,7 +51,7 @@ struct Case {
 };
 
 std::size_t render_thread_allocations(const Case& c) {
-  const auto h = test::small_hierarchy(ModelKind::Terrain, 60000);
+  const auto h = test::small_hierarchy(tools::ModelKind::Terrain, 60000);
   StageOptions o;
   o.blend_frames = c.blend;
   o.launch = c.launch;

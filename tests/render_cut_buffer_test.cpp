@@ -8,12 +8,12 @@
 #include <random>
 #include <vector>
 
-#include "treecut/generate.hpp"
 #include "treecut/model.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/splat/context.hpp"
 #include "treecut/splat/image.hpp"
 #include "treecut/splat/renderer.hpp"
+#include "treecut/tools/generate.hpp"
 #include "treecut/tree_cut.hpp"
 
 namespace treecut::splat {
@@ -49,7 +49,7 @@ class RenderCutBuffer : public ::testing::Test {
     return p;
   }
 
-  Hierarchy h_ = build_from_points(generate_model(ModelKind::Terrain, 20000, 3));
+  Hierarchy h_ = build_from_points(tools::generate_model(tools::ModelKind::Terrain, 20000, 3));
   std::unique_ptr<Renderer> renderer_;
   Camera camera_;
 };

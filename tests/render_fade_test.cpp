@@ -19,12 +19,12 @@
 
 #include "test_support.hpp"
 #include "treecut/feedback_stage.hpp"
-#include "treecut/generate.hpp"
 #include "treecut/model.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/splat/context.hpp"
 #include "treecut/splat/image.hpp"
 #include "treecut/splat/renderer.hpp"
+#include "treecut/tools/generate.hpp"
 #include "treecut/tree_cut.hpp"
 
 namespace treecut::splat {
@@ -106,7 +106,7 @@ class RenderFade : public ::testing::TestWithParam<SplatMode> {
   }
 
   std::shared_ptr<const Hierarchy> h_ = std::make_shared<const Hierarchy>(
-      build_from_points(generate_model(ModelKind::Terrain, 20000, 3)));
+      build_from_points(tools::generate_model(tools::ModelKind::Terrain, 20000, 3)));
   std::vector<NodeId> a_, b_;
   std::unique_ptr<Renderer> renderer_;
   Camera camera_;

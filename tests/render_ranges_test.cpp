@@ -17,13 +17,13 @@
 #include <random>
 #include <vector>
 
-#include "treecut/generate.hpp"
 #include "treecut/model.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/splat/context.hpp"
 #include "treecut/splat/gl.hpp"
 #include "treecut/splat/image.hpp"
 #include "treecut/splat/renderer.hpp"
+#include "treecut/tools/generate.hpp"
 #include "treecut/tree_cut.hpp"
 
 namespace treecut::splat {
@@ -87,7 +87,7 @@ class RenderRanges : public ::testing::TestWithParam<SplatMode> {
     return Image{kWidth, kHeight, renderer_->read_pixels()};
   }
 
-  Hierarchy h_ = build_from_points(generate_model(ModelKind::City, 30000, 5));
+  Hierarchy h_ = build_from_points(tools::generate_model(tools::ModelKind::City, 30000, 5));
   std::unique_ptr<Renderer> renderer_;
   Camera camera_;
   RenderSettings settings_;

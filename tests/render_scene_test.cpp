@@ -22,13 +22,13 @@
 #include <stdexcept>
 #include <vector>
 
-#include "treecut/generate.hpp"
 #include "treecut/model.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/splat/context.hpp"
 #include "treecut/splat/image.hpp"
 #include "treecut/splat/renderer.hpp"
 #include "treecut/splat/scene_draw.hpp"
+#include "treecut/tools/generate.hpp"
 #include "treecut/tree_cut.hpp"
 
 namespace treecut::splat {
@@ -109,8 +109,8 @@ class RenderScene : public ::testing::TestWithParam<SplatMode> {
     return Image{kWidth, kHeight, renderer_->read_pixels()};
   }
 
-  Hierarchy city_ = build_from_points(generate_model(ModelKind::City, 30000, 5));
-  Hierarchy sphere_ = build_from_points(generate_model(ModelKind::Sphere, 8000, 2));
+  Hierarchy city_ = build_from_points(tools::generate_model(tools::ModelKind::City, 30000, 5));
+  Hierarchy sphere_ = build_from_points(tools::generate_model(tools::ModelKind::Sphere, 8000, 2));
   std::unique_ptr<Renderer> renderer_;
   Camera camera_;
   RenderSettings settings_;
@@ -221,7 +221,7 @@ TEST_P(RenderScene, AStretchedObjectCoversWhatItsStretchedPointsDo) {
   // built from the stretched points: coverage within a few percent (splats
   // must not leave holes, nor grow far past the surface).
   const glm::vec3 s(3.0f, 1.0f, 0.6f);
-  PointSet points = generate_model(ModelKind::Sphere, 8000, 2);
+  PointSet points = tools::generate_model(tools::ModelKind::Sphere, 8000, 2);
   for (auto& p : points.positions) p *= s;
   for (auto& n : points.normals) n = glm::normalize(n / s);
   points.radii.clear();  // spaced by the build, as the sphere's
@@ -255,8 +255,8 @@ class RenderSceneChecks : public ::testing::Test {
     static OsmesaContext ctx(kWidth, kHeight);
     ctx.make_current();
   }
-  Hierarchy h_ = build_from_points(generate_model(ModelKind::Sphere, 2000, 1));
-  Hierarchy other_ = build_from_points(generate_model(ModelKind::Sphere, 1000, 2));
+  Hierarchy h_ = build_from_points(tools::generate_model(tools::ModelKind::Sphere, 2000, 1));
+  Hierarchy other_ = build_from_points(tools::generate_model(tools::ModelKind::Sphere, 1000, 2));
 };
 
 TEST_F(RenderSceneChecks, BadTransformsModelsAndIdsAreRefused) {

@@ -18,7 +18,6 @@
 
 #include "treecut/controller.hpp"
 #include "treecut/feedback_stage.hpp"
-#include "treecut/generate.hpp"
 #include "treecut/model.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/splat/context.hpp"
@@ -26,6 +25,7 @@
 #include "treecut/splat/image.hpp"
 #include "treecut/splat/query_executor.hpp"
 #include "treecut/splat/renderer.hpp"
+#include "treecut/tools/generate.hpp"
 #include "treecut/tree_cut.hpp"
 
 namespace treecut::splat {
@@ -40,7 +40,7 @@ void context() {
 }
 
 std::shared_ptr<const Hierarchy> sphere(std::size_t points, glm::u8vec4 color) {
-  PointSet p = generate_model(ModelKind::Sphere, points, 7);
+  PointSet p = tools::generate_model(tools::ModelKind::Sphere, points, 7);
   p.colors.assign(p.size(), color);
   return std::make_shared<const Hierarchy>(build_from_points(std::move(p)));
 }

@@ -17,10 +17,11 @@
 #include "test_support.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
-#include "treecut/generate.hpp"
 #include "treecut/ply.hpp"
 #include "treecut/scene.hpp"
 #include "treecut/splat/camera_path.hpp"
+#include "treecut/tools/generate.hpp"
+#include "treecut/tools/scene_generate.hpp"
 
 namespace fs = std::filesystem;
 using treecut::test::quote;
@@ -35,7 +36,15 @@ void write(const fs::path& p, const std::string& text) {
 }
 
 // The message of the InputError that parsing FILE throws ("" when none).
-std::string parse_error(const fs::path& file, const treecut::SceneParseOptions& o = {}) {
+// The parse options of a program: the built-in generator's kinds.
+treecut::SceneParseOptions with_generator() {
+  treecut::SceneParseOptions o;
+  o.generator = treecut::tools::scene_generator();
+  return o;
+}
+
+std::string parse_error(const fs::path& file,
+                        const treecut::SceneParseOptions& o = with_generator()) {
   try {
     (void)treecut::parse_scene_file(file, o);
   } catch (const treecut::InputError& e) {
@@ -47,6 +56,7 @@ std::string parse_error(const fs::path& file, const treecut::SceneParseOptions& 
 // Loading without caches: the tests write nothing outside their folder.
 treecut::SceneLoadOptions no_cache() {
   treecut::SceneLoadOptions o;
+  o.parse = with_generator();
   o.open.use_cache = false;
   return o;
 }
@@ -63,7 +73,7 @@ std::string load_error(const fs::path& file) {
 // A small PLY model in DIR.
 fs::path small_ply(const fs::path& dir, const std::string& name, std::size_t n = 1500) {
   const fs::path p = dir / name;
-  treecut::save_ply(p, treecut::generate_model(treecut::ModelKind::Sphere, n, 3));
+  treecut::save_ply(p, treecut::tools::generate_model(treecut::tools::ModelKind::Sphere, n, 3));
   return p;
 }
 
@@ -190,7 +200,7 @@ TEST(SceneFile, HeaderAndFileProblems) {
   // Comments may follow anything; blanks and CRLF line ends are fine.
   write(dir / "ok.scene",
         "treecut-scene 1   # version\r\n\tgenerate g sphere 1 50 # fifty\r\nobject g  # here\r\n");
-  EXPECT_EQ(treecut::parse_scene_file(dir / "ok.scene").objects.size(), 1u);
+  EXPECT_EQ(treecut::parse_scene_file(dir / "ok.scene", with_generator()).objects.size(), 1u);
 }
 
 TEST(SceneFile, TooManyObjects) {
@@ -198,7 +208,7 @@ TEST(SceneFile, TooManyObjects) {
   std::string text = "treecut-scene 1\ngenerate g sphere 1 50\n";
   for (int i = 0; i < 6; ++i) text += "object g translate " + std::to_string(i) + " 0 0\n";
   write(dir / "six.scene", text);
-  treecut::SceneParseOptions o;
+  treecut::SceneParseOptions o = with_generator();
   o.max_objects = 5;
   EXPECT_EQ(parse_error(dir / "six.scene", o),
             (dir / "six.scene").string() + ":8: more than 5 objects (the limit for a scene)");
@@ -262,7 +272,7 @@ TEST(SceneFile, TransformsComposeInTheOrderWritten) {
         "object g rotate 1 0 0 90\n"
         "object g scale 1 2 3\n"
         "include row.scene translate 10 0 0\n");
-  const treecut::SceneDescription d = treecut::parse_scene_file(dir / "t.scene");
+  const treecut::SceneDescription d = treecut::parse_scene_file(dir / "t.scene", with_generator());
   ASSERT_EQ(d.objects.size(), 8u);
   auto apply = [&](std::size_t i, glm::vec3 p) {
     return glm::vec3(d.objects[i].world * glm::vec4(p, 1.0f));
@@ -433,10 +443,10 @@ TEST(SceneFile, CliErrorsExitWithTwoAndOneLine) {
 
 TEST(SceneFile, GeneratedCityBlockLoadsWithItsObjects) {
   const fs::path dir = treecut::test::scratch_dir("scene_city_block");
-  const treecut::CityBlockLayout layout = treecut::city_block_layout(300, 5);
+  const treecut::tools::CityBlockLayout layout = treecut::tools::city_block_layout(300, 5);
   EXPECT_EQ(layout.buildings.size(), 300u);
   EXPECT_EQ(layout.blocks, 10);  // 32 lots a block
-  write(dir / "lib.scene", treecut::format_city_block_scene(layout, 5, 400));
+  write(dir / "lib.scene", treecut::tools::format_city_block_scene(layout, 5, 400));
   const treecut::Scene lib = treecut::load_scene(dir / "lib.scene", no_cache());
   EXPECT_EQ(lib.objects.size(), 310u);
   EXPECT_EQ(lib.models.size(), 5u);  // 4 building models and the ground
@@ -475,10 +485,10 @@ TEST(SceneFile, GeneratedCityBlockLoadsWithItsObjects) {
   r = run_treecut("gen city-block --objects 40 -n 100 -o " + quote(dir / "c.scene") + " --walk " +
                   quote(dir / "c.campath"));
   ASSERT_EQ(r.code, 0) << r.out;
-  EXPECT_EQ(treecut::parse_scene_file(dir / "c.scene").objects.size(), 42u);
+  EXPECT_EQ(treecut::parse_scene_file(dir / "c.scene", with_generator()).objects.size(), 42u);
   // The walk at street level stays out of every building.
   const auto path = treecut::splat::load_camera_path(dir / "c.campath");
-  const auto small = treecut::city_block_layout(40, 1);
+  const auto small = treecut::tools::city_block_layout(40, 1);
   const treecut::Scene s40 = treecut::load_scene(dir / "c.scene", no_cache());
   for (const auto& k : path.keys) {
     const glm::vec3 e = k.camera.eye;
@@ -541,12 +551,13 @@ TEST(SceneFile, GeneratedHallLoadsWithItsObjects) {
 TEST(SceneFile, TheCommittedWalksAreWhatTheGeneratorMakes) {
   struct Walk {
     const char* file;
-    std::vector<treecut::WalkKey> keys;
+    std::vector<treecut::tools::WalkKey> keys;
   };
   const Walk walks[] = {
       {"city_block_walk.campath",
-       treecut::city_block_walkthrough(treecut::city_block_layout(20000, 1))},
-      {"hall_walk.campath", treecut::hall_walkthrough(treecut::hall_layout(1000, 2, 1))},
+       treecut::tools::city_block_walkthrough(treecut::tools::city_block_layout(20000, 1))},
+      {"hall_walk.campath",
+       treecut::tools::hall_walkthrough(treecut::tools::hall_layout(1000, 2, 1))},
   };
   for (const Walk& w : walks) {
     const fs::path file = fs::path(TREECUT_SOURCE_DIR) / "assets" / "paths" / w.file;
@@ -570,7 +581,7 @@ TEST(SceneFile, EveryTruncationAndByteFlipParsesOrIsAnInputError) {
   std::size_t parsed = 0, refused = 0;
   auto attempt = [&](const std::string& t) {
     try {
-      (void)treecut::parse_scene_text(t, dir / "t.scene");
+      (void)treecut::parse_scene_text(t, dir / "t.scene", with_generator());
       ++parsed;
     } catch (const treecut::InputError& e) {
       ++refused;
@@ -620,8 +631,8 @@ TEST(SceneFile, LoadingIsTheSameOnOneThreadOrMany) {
 TEST(SceneFile, TheCommittedWalksKeepOutOfEveryObject) {
   // City block: below the roofs, the eye is never over a building's footprint
   // (plus 1 m); the footprints are the layout's, the buildings' own extent.
-  const auto city = treecut::city_block_layout(20000, 1);
-  const auto walk = treecut::city_block_walkthrough(city);
+  const auto city = treecut::tools::city_block_layout(20000, 1);
+  const auto walk = treecut::tools::city_block_walkthrough(city);
   std::size_t street_level = 0;
   for (const auto& k : walk) {
     if (k.eye.z > 90.0f) continue;
@@ -637,9 +648,9 @@ TEST(SceneFile, TheCommittedWalksKeepOutOfEveryObject) {
   EXPECT_GT(street_level, 900u) << "the walk is at street level most of the time";
   // Hall: at eye level the eye is more than 1.2 m (a copy's largest reach
   // from its place) plus 0.5 m from every place.
-  const auto hall = treecut::hall_layout(1000, 2, 1);
+  const auto hall = treecut::tools::hall_layout(1000, 2, 1);
   std::size_t aisle = 0;
-  for (const auto& k : treecut::hall_walkthrough(hall)) {
+  for (const auto& k : treecut::tools::hall_walkthrough(hall)) {
     if (k.eye.z > 2.5f) continue;
     ++aisle;
     for (const auto& c : hall.copies)

@@ -32,24 +32,27 @@
 #include "treecut/controller.hpp"
 #include "treecut/error.hpp"
 #include "treecut/feedback_stage.hpp"
-#include "treecut/generate.hpp"
 #include "treecut/model.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/strategies/optimization.hpp"
 #include "treecut/strategies/recursive.hpp"
+#include "treecut/tools/generate.hpp"
 
 namespace treecut {
 namespace {
 
-std::shared_ptr<const Hierarchy> model_of(ModelKind kind, std::size_t points, std::uint64_t seed) {
-  return std::make_shared<const Hierarchy>(build_from_points(generate_model(kind, points, seed)));
+std::shared_ptr<const Hierarchy> model_of(tools::ModelKind kind, std::size_t points,
+                                          std::uint64_t seed) {
+  return std::make_shared<const Hierarchy>(
+      build_from_points(tools::generate_model(kind, points, seed)));
 }
 
 // `n` objects alternating between two models, on a row along x, turned and
 // scaled a little (a stretch on every third one).
 std::shared_ptr<const StageScene> row_scene(std::size_t n) {
   auto s = std::make_shared<StageScene>();
-  s->models = {model_of(ModelKind::Sphere, 3000, 1), model_of(ModelKind::City, 4000, 2)};
+  s->models = {model_of(tools::ModelKind::Sphere, 3000, 1),
+               model_of(tools::ModelKind::City, 4000, 2)};
   for (std::size_t i = 0; i < n; ++i) {
     glm::mat4 w = glm::translate(glm::mat4(1.0f), glm::vec3(3.0f * float(i), 0.0f, 0.0f));
     w = glm::rotate(w, 0.3f * float(i), glm::vec3(0, 1, 0));
@@ -143,7 +146,7 @@ void converge(Stage& stage, const ViewSnapshot& view) {
 }
 
 TEST(SceneStage, AnObjectIsIteratedInItsModelSpace) {
-  const auto sphere = model_of(ModelKind::Sphere, 5000, 3);
+  const auto sphere = model_of(tools::ModelKind::Sphere, 5000, 3);
   const glm::vec3 t(40.0f, -7.0f, 3.0f);
   auto scene = std::make_shared<StageScene>();
   scene->models = {sphere};
@@ -228,7 +231,7 @@ TEST(SceneStage, ASceneStrategyIsMadeOnceAndIteratesAllObjectsInOneCall) {
 
 TEST(SceneStage, PerObjectStrategiesPastTheLimitAreRefusedNamingTheWayOut) {
   auto scene = std::make_shared<StageScene>();
-  scene->models = {model_of(ModelKind::Sphere, 4000, 4)};
+  scene->models = {model_of(tools::ModelKind::Sphere, 4000, 4)};
   const std::uint64_t nodes = scene->models[0]->node_count();
   const std::size_t n = static_cast<std::size_t>(kMaxPerObjectNodes / nodes) + 1;
   scene->objects.assign(n, StageScene::Object{});

@@ -9,13 +9,13 @@
 
 #include "test_support.hpp"
 #include "treecut/error.hpp"
-#include "treecut/generate.hpp"
 #include "treecut/model.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/splat/context.hpp"
 #include "treecut/splat/gl_objects.hpp"
 #include "treecut/splat/image.hpp"
 #include "treecut/splat/renderer.hpp"
+#include "treecut/tools/generate.hpp"
 #include "treecut/tree_cut.hpp"
 
 namespace treecut::splat {
@@ -32,7 +32,8 @@ GlContext& context() {
 }
 
 const Hierarchy& sphere() {
-  static const Hierarchy h = build_from_points(generate_model(ModelKind::Sphere, 20000, 7));
+  static const Hierarchy h =
+      build_from_points(tools::generate_model(tools::ModelKind::Sphere, 20000, 7));
   return h;
 }
 

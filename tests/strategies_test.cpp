@@ -69,7 +69,7 @@ RunStats run_static(Strategy& s, const Hierarchy& h, const ViewSnapshot& view, T
   return st;
 }
 
-class EveryModel : public ::testing::TestWithParam<ModelKind> {};
+class EveryModel : public ::testing::TestWithParam<tools::ModelKind> {};
 
 TEST_P(EveryModel, OptimizationConvergesWithinBudgetWithoutFlipFlops) {
   const auto h = small_hierarchy(GetParam(), 20000);
@@ -127,10 +127,11 @@ TEST_P(EveryModel, RecursiveConvergesOnTheSecondIteration) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Generated, EveryModel,
-                         ::testing::Values(ModelKind::Sphere, ModelKind::Terrain, ModelKind::City));
+                         ::testing::Values(tools::ModelKind::Sphere, tools::ModelKind::Terrain,
+                                           tools::ModelKind::City));
 
 TEST(Optimization, SpendsTheBudgetNearTheCamera) {
-  const auto h = small_hierarchy(ModelKind::Terrain, 20000);
+  const auto h = small_hierarchy(tools::ModelKind::Terrain, 20000);
   strategies::OptimizationStrategy s;
   s.set_param("max_nodes", 1500);
   s.set_param("curvature_weight", 0.0);
@@ -152,7 +153,7 @@ TEST(Optimization, SpendsTheBudgetNearTheCamera) {
 }
 
 TEST(Optimization, PriorityIsMonotoneFromParentToChild) {
-  const auto h = small_hierarchy(ModelKind::City, 20000);
+  const auto h = small_hierarchy(tools::ModelKind::City, 20000);
   for (float angle : {0.0f, 1.5f, 3.0f}) {
     const ViewSnapshot view = orbit_view(*h, angle, 0.4f);
     for (NodeId n = 1; n < h->node_count(); ++n) {
@@ -164,7 +165,7 @@ TEST(Optimization, PriorityIsMonotoneFromParentToChild) {
 }
 
 TEST(Optimization, ACancelledIterationLeavesAValidCut) {
-  const auto h = small_hierarchy(ModelKind::Sphere, 20000);
+  const auto h = small_hierarchy(tools::ModelKind::Sphere, 20000);
   strategies::OptimizationStrategy s;
   s.reset(*h);
   std::atomic<bool> cancel{true};
@@ -182,7 +183,7 @@ TEST(Optimization, ACancelledIterationLeavesAValidCut) {
 }
 
 TEST(Bucket, DarkRegionsGetDeeperThanLitOnes) {
-  const auto h = small_hierarchy(ModelKind::Sphere, 20000);
+  const auto h = small_hierarchy(tools::ModelKind::Sphere, 20000);
   strategies::BucketStrategy s;
   s.set_param("ambient", 0.0);
   ViewSnapshot view = orbit_view(*h, 0.0f);
@@ -212,7 +213,7 @@ TEST(Bucket, DarkRegionsGetDeeperThanLitOnes) {
 }
 
 TEST(Bucket, ACustomFunctionDrivesTheCutToItsDepth) {
-  const auto h = small_hierarchy(ModelKind::Terrain, 20000);
+  const auto h = small_hierarchy(tools::ModelKind::Terrain, 20000);
   const int target = h->level_count() / 2;
   strategies::BucketStrategy s([target](const Hierarchy&, const ViewSnapshot&, NodeId) {
     return static_cast<float>(target) + 0.5f;
@@ -230,7 +231,7 @@ TEST(Bucket, ACustomFunctionDrivesTheCutToItsDepth) {
 }
 
 TEST(Recursive, StopsAtCulledBackfacingAndSmallNodes) {
-  const auto h = small_hierarchy(ModelKind::Sphere, 20000);
+  const auto h = small_hierarchy(tools::ModelKind::Sphere, 20000);
   strategies::RecursiveStrategy s;
   s.set_param("min_size", 3.0);
   s.reset(*h);
@@ -260,7 +261,7 @@ TEST(Recursive, StopsAtCulledBackfacingAndSmallNodes) {
 }
 
 TEST(Recursive, ACancelledTraversalStillCoversEveryLeaf) {
-  const auto h = small_hierarchy(ModelKind::Terrain, 20000);
+  const auto h = small_hierarchy(tools::ModelKind::Terrain, 20000);
   strategies::RecursiveStrategy s;
   s.set_param("min_size", 0.0);
   s.set_param("backface", 0.0);

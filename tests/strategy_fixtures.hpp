@@ -16,20 +16,20 @@
 #include <vector>
 
 #include "treecut/attributes.hpp"
-#include "treecut/generate.hpp"
 #include "treecut/hierarchy.hpp"
 #include "treecut/strategy.hpp"
+#include "treecut/tools/generate.hpp"
 #include "treecut/tree_cut.hpp"
 #include "treecut/view_snapshot.hpp"
 
 namespace treecut::test {
 
 /// A hierarchy over a generated model, built once per (kind, points) and shared.
-inline std::shared_ptr<const Hierarchy> small_hierarchy(ModelKind kind, std::size_t points) {
+inline std::shared_ptr<const Hierarchy> small_hierarchy(tools::ModelKind kind, std::size_t points) {
   static std::map<std::pair<int, std::size_t>, std::shared_ptr<const Hierarchy>> cache;
   auto& slot = cache[{static_cast<int>(kind), points}];
   if (!slot) {
-    PointSet model = generate_model(kind, points, 7);
+    PointSet model = tools::generate_model(kind, points, 7);
     complete_attributes(model);
     slot = std::make_shared<const Hierarchy>(build_hierarchy(std::move(model)));
   }

@@ -8,10 +8,11 @@
 #include <random>
 #include <vector>
 
-#include "treecut/generate.hpp"
 #include "treecut/model_io.hpp"
+#include "treecut/tools/generate.hpp"
 
 using namespace treecut;
+using namespace treecut::tools;
 
 namespace {
 const Hierarchy& small_hierarchy() {

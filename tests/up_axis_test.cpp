@@ -10,9 +10,9 @@
 
 #include "test_support.hpp"
 #include "treecut/attributes.hpp"
-#include "treecut/generate.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/ply.hpp"
+#include "treecut/tools/generate.hpp"
 
 namespace {
 
@@ -91,10 +91,10 @@ TEST(UpAxis, ParseNameVectorAndCycle) {
 }
 
 TEST(UpAxis, GeneratedTerrainAndCityAreUprightOnEveryAxis) {
-  using treecut::ModelKind;
+  using treecut::tools::ModelKind;
   for (ModelKind kind : {ModelKind::Terrain, ModelKind::City}) {
     for (std::size_t n : {std::size_t{3000}, std::size_t{60000}}) {
-      const PointSet generated = treecut::generate_model(kind, n, 7);
+      const PointSet generated = treecut::tools::generate_model(kind, n, 7);
       const std::string name =
           (kind == ModelKind::Terrain ? "terrain " : "city ") + std::to_string(n);
       expect_upright_on_every_axis(completed(generated), 2, name);
@@ -108,9 +108,9 @@ TEST(UpAxis, GeneratedTerrainAndCityAreUprightOnEveryAxis) {
 }
 
 TEST(UpAxis, UpsideDownModelsAreFoundUpsideDown) {
-  using treecut::ModelKind;
+  using treecut::tools::ModelKind;
   for (ModelKind kind : {ModelKind::Terrain, ModelKind::City}) {
-    const PointSet model = completed(treecut::generate_model(kind, 20000, 3));
+    const PointSet model = completed(treecut::tools::generate_model(kind, 20000, 3));
     for (int to = 0; to < 3; ++to) {
       const UpAxis found = detect(upside_down(rotated(model, 2, to), to));
       EXPECT_EQ(found, axis(to, true)) << found.name() << " (" << found.reason << ")";
@@ -119,7 +119,8 @@ TEST(UpAxis, UpsideDownModelsAreFoundUpsideDown) {
 }
 
 TEST(UpAxis, AFewOutliersDoNotMoveTheGround) {
-  PointSet city = completed(treecut::generate_model(treecut::ModelKind::City, 30000, 2));
+  PointSet city =
+      completed(treecut::tools::generate_model(treecut::tools::ModelKind::City, 30000, 2));
   // Birds and multipath returns far below and above the scene: 0.1%.
   for (int i = 0; i < 30; ++i) {
     city.positions.emplace_back(0.01f * i, 0.5f, i % 2 ? -40.0f - i : 55.0f + i);
@@ -129,16 +130,17 @@ TEST(UpAxis, AFewOutliersDoNotMoveTheGround) {
 }
 
 TEST(UpAxis, ASphereHasNoUpAndGetsTheDefault) {
-  const PointSet sphere = treecut::generate_model(treecut::ModelKind::Sphere, 20000, 1);
+  const PointSet sphere =
+      treecut::tools::generate_model(treecut::tools::ModelKind::Sphere, 20000, 1);
   const UpAxis found = detect(sphere);
   EXPECT_EQ(found, axis(2));
   EXPECT_NE(found.reason.find("default z"), std::string::npos) << found.reason;
 }
 
 TEST(UpAxis, TheHierarchyGivesWhatItsPointsGive) {
-  using treecut::ModelKind;
+  using treecut::tools::ModelKind;
   for (ModelKind kind : {ModelKind::Terrain, ModelKind::City}) {
-    const PointSet model = treecut::generate_model(kind, 40000, 5);
+    const PointSet model = treecut::tools::generate_model(kind, 40000, 5);
     for (int to = 0; to < 3; ++to) {
       const PointSet turned = rotated(model, 2, to);
       const treecut::Hierarchy h = treecut::build_from_points(turned);
@@ -180,7 +182,8 @@ TEST(UpAxisSharedAssets, AsciiDragonThroughItsHierarchyIsYUp) {
 
 TEST(UpAxisCli, InfoShowsTheAxisAndWhy) {
   const auto dir = treecut::test::scratch_dir("up_axis_cli");
-  const PointSet terrain = treecut::generate_model(treecut::ModelKind::Terrain, 5000, 1);
+  const PointSet terrain =
+      treecut::tools::generate_model(treecut::tools::ModelKind::Terrain, 5000, 1);
   const std::vector<std::pair<int, std::string>> cases{{2, "z"}, {0, "x"}, {1, "y"}};
   for (const auto& [to, name] : cases) {
     const auto ply = dir / ("terrain-" + name + "-up.ply");

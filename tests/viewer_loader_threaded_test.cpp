@@ -16,8 +16,8 @@
 #include <thread>
 
 #include "test_support.hpp"
-#include "treecut/generate.hpp"
 #include "treecut/ply.hpp"
+#include "treecut/tools/generate.hpp"
 #include "viewer_loader.hpp"
 
 namespace treecut::cli {
@@ -33,8 +33,8 @@ class ViewerLoader : public ::testing::Test {
     dir_ = new fs::path(test::scratch_dir("viewer_loader/" + std::to_string(::getpid())));
     // Caches go to the scratch folder, not the user's.
     setenv("XDG_CACHE_HOME", (*dir_ / "cache").c_str(), 1);
-    save_ply(*dir_ / "small.ply", generate_model(ModelKind::Sphere, 2000, 1));
-    save_ply(*dir_ / "large.ply", generate_model(ModelKind::Terrain, 400000, 2));
+    save_ply(*dir_ / "small.ply", tools::generate_model(tools::ModelKind::Sphere, 2000, 1));
+    save_ply(*dir_ / "large.ply", tools::generate_model(tools::ModelKind::Terrain, 400000, 2));
   }
   static void TearDownTestSuite() {
     std::error_code ec;

@@ -10,8 +10,8 @@
 
 #include "test_support.hpp"
 #include "treecut/cache.hpp"
-#include "treecut/generate.hpp"
 #include "treecut/model_io.hpp"
+#include "treecut/tools/generate.hpp"
 
 namespace treecut::bench {
 
@@ -22,13 +22,13 @@ inline std::filesystem::path cache_dir() {
 }
 
 /// A generated model of `points` points (deterministic), built once and cached.
-inline std::shared_ptr<const Hierarchy> generated(ModelKind kind, std::size_t points) {
+inline std::shared_ptr<const Hierarchy> generated(tools::ModelKind kind, std::size_t points) {
   const auto path = cache_dir() / ("generated-" + std::to_string(static_cast<int>(kind)) + "-" +
                                    std::to_string(points) + ".tch");
   const CacheKey key{points, 1, static_cast<std::uint32_t>(kind)};
   std::string why;
   if (auto h = load_cache(path, key, &why)) return std::make_shared<const Hierarchy>(std::move(*h));
-  Hierarchy h = build_from_points(generate_model(kind, points, 1));
+  Hierarchy h = build_from_points(tools::generate_model(kind, points, 1));
   save_cache(h, key, path);
   return std::make_shared<const Hierarchy>(std::move(h));
 }

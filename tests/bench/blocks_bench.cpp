@@ -40,8 +40,8 @@ void BM_BlocksDragon(benchmark::State& state) {
 }
 
 void BM_BlocksTerrain(benchmark::State& state) {
-  static const auto h =
-      treecut::bench::generated(treecut::ModelKind::Terrain, treecut::bench::large_cloud_points());
+  static const auto h = treecut::bench::generated(treecut::tools::ModelKind::Terrain,
+                                                  treecut::bench::large_cloud_points());
   run(state, *h);
 }
 

@@ -83,7 +83,7 @@ double since_ns(std::chrono::steady_clock::time_point t0) {
 // having to wake a sleeping thread (no system call).
 void BM_PollExchangeProtocol(benchmark::State& state) {
   const auto n = static_cast<std::size_t>(state.range(0));
-  const auto h = generated(ModelKind::Terrain, 1'500'000);
+  const auto h = generated(tools::ModelKind::Terrain, 1'500'000);
   StageOptions o;
   o.launch = Launch::Manual;
   FeedbackStage stage(Model{h, breadth_first_cut(*h, n)}, std::make_unique<ChurnStrategy>(), o);
@@ -104,7 +104,7 @@ void BM_PollExchangeProtocol(benchmark::State& state) {
 
 void BM_PollExchange(benchmark::State& state) {
   const auto n = static_cast<std::size_t>(state.range(0));
-  const auto h = generated(ModelKind::Terrain, 1'500'000);
+  const auto h = generated(tools::ModelKind::Terrain, 1'500'000);
   FeedbackStage stage(Model{h, breadth_first_cut(*h, n)}, std::make_unique<ChurnStrategy>());
   Samples s;
   s.all.reserve(1 << 16);

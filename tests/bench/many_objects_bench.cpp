@@ -37,6 +37,8 @@
 #include "treecut/splat/frame.hpp"
 #include "treecut/strategies/budget.hpp"
 #include "treecut/strategies/budget_strategy.hpp"
+#include "treecut/tools/scene_generate.hpp"
+#include "treecut/tools/walk_path.hpp"
 
 namespace {
 
@@ -227,21 +229,24 @@ const CityBlock& city_block(std::size_t buildings) {
   auto& slot = cache[buildings];
   if (!slot) {
     slot = std::make_unique<CityBlock>();
-    const treecut::CityBlockLayout layout = treecut::city_block_layout(buildings, kSeed);
+    const treecut::tools::CityBlockLayout layout =
+        treecut::tools::city_block_layout(buildings, kSeed);
     const std::filesystem::path file = treecut::test::scratch_dir("many_objects_bench") /
                                        ("city" + std::to_string(buildings) + ".scene");
     {
       std::ofstream out(file);
-      out << treecut::format_city_block_scene(layout, kSeed, 20000);
+      out << treecut::tools::format_city_block_scene(layout, kSeed, 20000);
       if (!out.flush()) throw std::runtime_error(file.string() + ": cannot write");
     }
-    slot->scene = treecut::load_scene(file);
+    treecut::SceneLoadOptions options;
+    options.parse.generator = treecut::tools::scene_generator();
+    slot->scene = treecut::load_scene(file, options);
     for (const treecut::SceneObject& o : slot->scene.objects) {
       slot->inputs.push_back(
           {slot->scene.models[o.model].hierarchy.get(), o.world, o.world_inverse, o.model});
     }
     const treecut::splat::CameraPath path =
-        treecut::splat::walk_path(treecut::city_block_walkthrough(layout));
+        treecut::tools::walk_path(treecut::tools::city_block_walkthrough(layout));
     const glm::vec3 lo = slot->scene.bounds_min, hi = slot->scene.bounds_max;
     const glm::vec3 center = 0.5f * (lo + hi);
     const float radius = std::max(0.5f * glm::length(hi - lo), 1e-6f);

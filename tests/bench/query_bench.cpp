@@ -85,7 +85,7 @@ double max_of(const std::vector<double>& v) {
 void Queries(benchmark::State& state) {
   const auto n = static_cast<std::size_t>(state.range(0));
   context();
-  const std::shared_ptr<const Hierarchy> h = generated(ModelKind::Terrain, 200'000);
+  const std::shared_ptr<const Hierarchy> h = generated(tools::ModelKind::Terrain, 200'000);
   splat::Renderer renderer(*h, {kWidth, kHeight});
   // A level with at least 20,000 nodes (or the leaves): the drawn cut.
   int level = 0;

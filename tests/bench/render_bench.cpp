@@ -52,7 +52,6 @@
 #include "test_support.hpp"
 #include "treecut/controller.hpp"
 #include "treecut/file_io.hpp"
-#include "treecut/generate.hpp"
 #include "treecut/model.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/registry.hpp"
@@ -63,11 +62,13 @@
 #include "treecut/splat/renderer.hpp"
 #include "treecut/splat/scene_draw.hpp"
 #include "treecut/strategies/builtin.hpp"
+#include "treecut/tools/generate.hpp"
 #include "treecut/tree_cut.hpp"
 
 namespace {
 
 using namespace treecut;
+using namespace treecut::tools;
 using namespace treecut::splat;
 
 constexpr int kWidth = 1280;

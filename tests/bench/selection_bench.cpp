@@ -47,7 +47,7 @@ std::shared_ptr<const Hierarchy> model(int which) {
   static std::shared_ptr<const Hierarchy> models[3];
   if (!models[which]) {
     if (which == 2) {
-      models[which] = generated(ModelKind::Terrain, large_cloud_points());
+      models[which] = generated(tools::ModelKind::Terrain, large_cloud_points());
     } else {
       const auto ply =
           test::shared_asset(which == 0 ? "dragon_vrip_normals.ply" : "lion_takanawa.ply");

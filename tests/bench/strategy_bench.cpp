@@ -48,7 +48,8 @@ TreeCut scrambled_cut(const Hierarchy& h, std::size_t n) {
 std::shared_ptr<const Hierarchy> model(int which) {
   static std::shared_ptr<const Hierarchy> models[2];
   if (!models[which]) {
-    models[which] = which == 0 ? dragon() : generated(ModelKind::Terrain, large_cloud_points());
+    models[which] =
+        which == 0 ? dragon() : generated(tools::ModelKind::Terrain, large_cloud_points());
   }
   return models[which];
 }

@@ -8,9 +8,9 @@
 
 #include "treecut/cache.hpp"
 #include "treecut/error.hpp"
-#include "treecut/generate.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/ply.hpp"
+#include "treecut/tools/generate.hpp"
 
 int main(int argc, char** argv) {
   if (argc < 2) {

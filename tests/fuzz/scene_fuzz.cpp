@@ -17,6 +17,7 @@
 
 #include "treecut/error.hpp"
 #include "treecut/scene.hpp"
+#include "treecut/tools/scene_generate.hpp"
 
 namespace {
 
@@ -43,6 +44,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const std::string_view text(reinterpret_cast<const char*>(data), size);
   treecut::SceneParseOptions options;
   options.max_objects = 4096;  // the limit's own check, without a million objects per input
+  static const treecut::SceneGenerator generator = treecut::tools::scene_generator();
+  options.generator = generator;
   treecut::SceneDescription d;
   try {
     d = treecut::parse_scene_text(text, "fuzz.scene", options);

@@ -15,6 +15,8 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <glm/geometric.hpp>
+#include <glm/gtc/matrix_transform.hpp>
 #include <memory>
 #include <random>
 #include <sstream>
@@ -22,17 +24,14 @@
 #include <thread>
 #include <vector>
 
-#include <glm/geometric.hpp>
-#include <glm/gtc/matrix_transform.hpp>
-
 #include "test_support.hpp"
 #include "treecut/error.hpp"
 #include "treecut/feedback_stage.hpp"
-#include "treecut/generate.hpp"
 #include "treecut/model.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/ply.hpp"
 #include "treecut/splat/context.hpp"
 #include "treecut/splat/renderer.hpp"
 #include "treecut/strategies/builtin.hpp"
+#include "treecut/tools/generate.hpp"
 #include "treecut/tree_cut.hpp"

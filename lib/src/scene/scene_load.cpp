@@ -188,7 +188,7 @@ Scene load_scene(const std::filesystem::path& file, const SceneLoadOptions& opti
           loaded[i] = std::make_shared<const Hierarchy>(std::move(opened.hierarchy));
         } else {
           loaded[i] = std::make_shared<const Hierarchy>(build_from_points(
-              generate_scene_model(decl.source.kind, decl.source.points, decl.source.seed),
+              options.parse.generator.make(decl.source.kind, decl.source.points, decl.source.seed),
               open.attributes, open.build));
         }
       } catch (...) {

@@ -230,13 +230,15 @@ struct Parser {
             d.source.kind = std::string(t[2]);
             bool known = false;
             std::string kinds;
-            for (const auto& k : scene_generated_kinds()) {
+            for (const auto& k : options.generator.kinds) {
               known = known || k == d.source.kind;
               kinds += (kinds.empty() ? "" : ", ") + k;
             }
             if (!known)
-              throw InputError("generate: unknown kind '" + printable_excerpt(t[2]) + "' (" +
-                               kinds + ")");
+              throw InputError(
+                  "generate: unknown kind '" + printable_excerpt(t[2]) + "' (" +
+                  (kinds.empty() ? "no generator given: SceneParseOptions::generator" : kinds) +
+                  ")");
             d.source.seed =
                 whole("generate: seed", t[3], 0, std::numeric_limits<std::uint64_t>::max());
             d.source.points = whole("generate: points", t[4], 1, kMaxGeneratedPoints);

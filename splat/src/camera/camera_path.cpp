@@ -186,18 +186,4 @@ CameraPath orbit_path(glm::vec3 bmin, glm::vec3 bmax, float aspect, double secon
   return path;
 }
 
-CameraPath walk_path(const std::vector<WalkKey>& keys) {
-  CameraPath path;
-  for (const WalkKey& k : keys) {
-    CameraKey key;
-    key.time = k.time;
-    key.camera.eye = k.eye;
-    key.camera.target = k.target;
-    key.camera.up = k.up;
-    key.camera.fov_y_deg = k.fov_deg;
-    path.keys.push_back(key);
-  }
-  return path;
-}
-
 }  // namespace treecut::splat

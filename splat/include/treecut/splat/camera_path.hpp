@@ -15,7 +15,6 @@
 #include <string_view>
 #include <vector>
 
-#include "treecut/generate.hpp"
 #include "treecut/splat/camera.hpp"
 
 namespace treecut::splat {
@@ -54,9 +53,5 @@ void save_camera_path(const std::filesystem::path& file, const CameraPath& path)
 /// keys (>= 2, the last equal to the first), at `elevation` radians.
 CameraPath orbit_path(glm::vec3 bmin, glm::vec3 bmax, float aspect, double seconds, int keys,
                       glm::vec3 up = {0.0f, 1.0f, 0.0f}, float elevation = 0.35f);
-
-/// The camera path of a generated walkthrough (generate.hpp: the scenes'
-/// walks), key for key.
-CameraPath walk_path(const std::vector<WalkKey>& keys);
 
 }  // namespace treecut::splat

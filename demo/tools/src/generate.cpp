@@ -2,7 +2,7 @@
 // plant) are in generate_city.cpp, generate_plant.cpp and generate_field.cpp. Every
 // point is a pure function of (seed, index), so generation is parallel and
 // deterministic.
-#include "treecut/generate.hpp"
+#include "treecut/tools/generate.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -12,7 +12,7 @@
 #include "treecut/mix64.hpp"
 #include "treecut/parallel.hpp"
 
-namespace treecut {
+namespace treecut::tools {
 
 namespace {
 
@@ -139,4 +139,4 @@ PointSet generate_model(ModelKind kind, std::size_t points, std::uint64_t seed) 
   throw InputError("generate_model: unknown kind");
 }
 
-}  // namespace treecut
+}  // namespace treecut::tools

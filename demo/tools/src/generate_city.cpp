@@ -6,9 +6,9 @@
 #include <glm/geometric.hpp>
 
 #include "generate_sampling.hpp"
-#include "treecut/generate.hpp"
+#include "treecut/tools/generate.hpp"
 
-namespace treecut {
+namespace treecut::tools {
 
 using namespace scene_detail;
 
@@ -147,4 +147,4 @@ PointSet generate_city(std::size_t n, std::uint64_t seed) {
   return city_scene(n, seed);
 }
 
-}  // namespace treecut
+}  // namespace treecut::tools

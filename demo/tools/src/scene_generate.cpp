@@ -3,17 +3,18 @@
 // tens of thousands of instanced buildings and the hall of instanced scans,
 // written as scene files, and their walkthroughs. Layouts are pure functions
 // of (objects, seed); the points pure functions of (seed, index), sampled
-// uniformly by area as the other scenes (import/generate_sampling.hpp).
+// uniformly by area as the other scenes (generate_sampling.hpp).
+#include "treecut/tools/scene_generate.hpp"
+
 #include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <glm/geometric.hpp>
 
-#include "import/generate_sampling.hpp"
+#include "generate_sampling.hpp"
 #include "treecut/error.hpp"
-#include "treecut/scene.hpp"
 
-namespace treecut {
+namespace treecut::tools {
 
 using namespace scene_detail;
 
@@ -312,4 +313,8 @@ std::vector<WalkKey> hall_walkthrough(const HallLayout& h) {
   return route_walkthrough(h.lo, h.hi, 2.2f, route, 1.6f, 2.0f, 3.0f);
 }
 
-}  // namespace treecut
+SceneGenerator scene_generator() {
+  return {scene_generated_kinds(), &generate_scene_model};
+}
+
+}  // namespace treecut::tools

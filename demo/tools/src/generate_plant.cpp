@@ -6,9 +6,9 @@
 #include <glm/geometric.hpp>
 
 #include "generate_sampling.hpp"
-#include "treecut/generate.hpp"
+#include "treecut/tools/generate.hpp"
 
-namespace treecut {
+namespace treecut::tools {
 
 using namespace scene_detail;
 
@@ -184,4 +184,4 @@ PointSet generate_plant(std::size_t n, std::uint64_t seed) {
   return plant_scene(n, seed);
 }
 
-}  // namespace treecut
+}  // namespace treecut::tools

@@ -11,7 +11,7 @@
 
 #include "treecut/point_set.hpp"
 
-namespace treecut {
+namespace treecut::tools {
 
 enum class ModelKind {
   Sphere,   ///< points on a unit sphere, normals outward, colored by latitude
@@ -152,4 +152,4 @@ std::vector<WalkKey> route_walkthrough(glm::vec2 lo, glm::vec2 hi, float top,
                                        const std::vector<glm::vec2>& route, float eye, float speed,
                                        float ahead);
 
-}  // namespace treecut
+}  // namespace treecut::tools

@@ -8,10 +8,10 @@
 
 #include "generate_sampling.hpp"
 #include "treecut/error.hpp"
-#include "treecut/generate.hpp"
+#include "treecut/tools/generate.hpp"
 #include "treecut/up_axis.hpp"
 
-namespace treecut {
+namespace treecut::tools {
 
 using namespace scene_detail;
 
@@ -175,4 +175,4 @@ PointSet generate_field(const FieldSource& src, std::size_t n, std::uint64_t see
   return ps;
 }
 
-}  // namespace treecut
+}  // namespace treecut::tools

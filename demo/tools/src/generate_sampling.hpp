@@ -15,7 +15,7 @@
 #include "treecut/parallel.hpp"
 #include "treecut/point_set.hpp"
 
-namespace treecut::scene_detail {
+namespace treecut::tools::scene_detail {
 
 constexpr float kPi = std::numbers::pi_v<float>;
 
@@ -162,4 +162,4 @@ inline float spacing_of(const std::vector<Surface>& surfaces, std::size_t n) {
   return static_cast<float>(std::sqrt(total / static_cast<double>(n)));
 }
 
-}  // namespace treecut::scene_detail
+}  // namespace treecut::tools::scene_detail

@@ -9,9 +9,9 @@
 #include <numbers>
 
 #include "treecut/error.hpp"
-#include "treecut/generate.hpp"
+#include "treecut/tools/generate.hpp"
 
-namespace treecut {
+namespace treecut::tools {
 
 namespace {
 
@@ -195,4 +195,4 @@ std::vector<WalkKey> route_walkthrough(glm::vec2 lo, glm::vec2 hi, float top,
   return five_segments(line, walk_length, ahead, speed, centre, high, arc);
 }
 
-}  // namespace treecut
+}  // namespace treecut::tools
