@@ -48,3 +48,32 @@ if(run_output MATCHES "SKIPPED" OR NOT run_output MATCHES "PASSED")
   message(FATAL_ERROR "plugin_roundtrip: the ExamplePlugin tests did not run:\n${run_output}")
 endif()
 message(STATUS "${run_output}")
+
+# The plugin's named counter through the program: a stats.csv column and a
+# summary.json entry, with the value its parameter asks for (depth 1.0: the
+# deepest level).
+if(DEFINED TREECUT AND NOT TREECUT STREQUAL "")
+  run("render with the plugin" "${TREECUT}" render --plugin "${plugin}" -s uniform_depth
+      -p depth=1 -n 3 --sync --no-png -o "${WORK_DIR}/render")
+  file(GLOB stats "${WORK_DIR}/render/*stats.csv" "${WORK_DIR}/render/*/stats.csv")
+  if(NOT stats)
+    message(FATAL_ERROR "plugin_roundtrip: render wrote no stats.csv:\n${run_output}")
+  endif()
+  list(GET stats 0 stats)
+  file(STRINGS "${stats}" rows)
+  list(GET rows 0 header)
+  string(REPLACE "," ";" header "${header}")
+  list(FIND header "uniform_depth_target" column)
+  if(column LESS 0)
+    message(FATAL_ERROR "plugin_roundtrip: no uniform_depth_target column in ${stats}")
+  endif()
+  get_filename_component(stats_dir "${stats}" DIRECTORY)
+  file(READ "${stats_dir}/summary.json" summary)
+  string(JSON unit GET "${summary}" counters uniform_depth_target unit)
+  string(JSON target GET "${summary}" counters uniform_depth_target mean)
+  if(NOT target GREATER 0 OR NOT unit STREQUAL "levels")
+    message(FATAL_ERROR "plugin_roundtrip: uniform_depth_target ${target} (${unit}), expected the "
+                        "deepest level in levels")
+  endif()
+  message(STATUS "uniform_depth_target ${target} ${unit} in ${stats}")
+endif()

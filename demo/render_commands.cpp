@@ -26,8 +26,6 @@
 #include "treecut/splat/frame.hpp"
 #include "treecut/splat/frame_rate.hpp"
 #include "treecut/splat/image.hpp"
-#include "treecut/strategies/budget_strategy.hpp"
-#include "treecut/strategies/hoq.hpp"
 #include "view_script.hpp"
 #include "viewer.hpp"
 
@@ -162,11 +160,6 @@ void run_render(const RenderArgs& a) {
       return make_strategy(registry, name, a.scene.params);
     };
     std::unique_ptr<Strategy> strategy = world ? nullptr : factory();
-    // The hoq strategy's block counters go into stats.csv with --sync only:
-    // then its iterations run on this thread (step()), so reading them races
-    // nothing.
-    const auto* hoq =
-        a.sync && strategy ? dynamic_cast<const strategies::HoqStrategy*>(strategy.get()) : nullptr;
     // The viewer's governor (--target-fps), fed the same way: frame time and
     // the splats that frame drew.
     std::optional<splat::FrameRateGovernor> governor;
@@ -177,18 +170,9 @@ void run_render(const RenderArgs& a) {
     // The scene's hierarchy itself (no copy): the renderer's vertex buffer is
     // of the hierarchy in the stage's lists, so it is never uploaded again.
     std::optional<Controller> controller_storage;
-    // The budget strategy's counters go into stats.csv as hoq's (--sync: its
-    // iterations run on this thread). On a scene the stage makes the one
-    // instance of a scene-level strategy: the factory notes it.
-    const strategies::BudgetStrategy* budget = nullptr;
-    const StrategyFactory stage_factory = [&factory, &budget, &a] {
-      std::unique_ptr<Strategy> s = factory();
-      if (a.sync) budget = dynamic_cast<const strategies::BudgetStrategy*>(s.get());
-      return s;
-    };
     if (world) {
-      controller_storage.emplace(world, stage_factory,
-                                 splat::view_snapshot(cam, size, settings.light), stage_options);
+      controller_storage.emplace(world, factory, splat::view_snapshot(cam, size, settings.light),
+                                 stage_options);
     } else {
       controller_storage.emplace(Model{scene.hierarchy, TreeCut::root_cut(h)}, std::move(strategy),
                                  splat::view_snapshot(cam, size, settings.light), stage_options);
@@ -250,37 +234,9 @@ void run_render(const RenderArgs& a) {
         row.query_latency_frames_max = q.latency_frames_max_last;
       }
       row.query_cpu_us = double(q.cpu_ns_total - before.cpu_ns_total) * 1e-3;
-      if (hoq != nullptr) {
-        const strategies::HoqCounters& c = hoq->last();
-        row.has_hoq = true;
-        row.hoq_blocks = c.blocks;
-        row.hoq_dn = c.drawn;
-        row.hoq_culled = c.culled;
-        row.hoq_delayed = c.delayed;
-        row.hoq_shift_up = c.delayed_shift_up;
-        row.hoq_rarn = c.rarn;
-        row.hoq_rarn_frames = c.rarn_frames;
-        row.hoq_late = c.late_refined;
-        row.hoq_late_frames = c.late_frames;
-      }
-      if (budget != nullptr) {
-        const strategies::BudgetCounters& c = budget->last();
-        row.has_budget = true;
-        row.budget_visible = c.visible;
-        row.budget_frustum_culled = c.frustum_culled;
-        row.budget_occlusion_culled = c.occlusion_culled;
-        row.budget_below_pet = c.below_pet;
-        row.budget_receiving = c.receiving;
-        row.budget_occluders = c.occluders;
-        row.budget_shares = c.shares;
-        row.budget_selected = c.selected;
-        row.budget_project_ms = double(c.project_ns) * 1e-6;
-        row.budget_select_ms = double(c.select_ns) * 1e-6;
-        row.budget_hzm_ms = double(c.hzm_ns) * 1e-6;
-        row.budget_test_ms = double(c.test_ns) * 1e-6;
-        row.budget_eq1_ms = double(c.budget_ns) * 1e-6;
-        row.budget_lod_ms = double(c.lod_ns) * 1e-6;
-      }
+      // The named counters of the last completed iteration (with --sync, the
+      // one after this frame), whatever the strategy publishes.
+      row.counters = counters.last.counters;
       if (!a.no_png || a.psnr) {
         const splat::Image lod = grab();
         if (!a.no_png) {
@@ -377,22 +333,8 @@ void run_render(const RenderArgs& a) {
           static_cast<unsigned long long>(q.latency_frames_max),
           double(q.cpu_ns_total) * 1e-6 / double(std::max<std::uint64_t>(controller.frame(), 1)));
     }
-    if (hoq != nullptr && !run.rows.empty()) {
-      double dn = 0, d = 0, rarn = 0, rarn_frames = 0, late = 0, late_frames = 0;
-      for (const FrameRow& r : run.rows) {
-        dn += double(r.hoq_dn);
-        d += double(r.hoq_delayed);
-        rarn += double(r.hoq_rarn);
-        rarn_frames += double(r.hoq_rarn_frames);
-        late += double(r.hoq_late);
-        late_frames += double(r.hoq_late_frames);
-      }
-      const double n = double(run.rows.size());
-      std::printf(
-          "hlod      %s: per frame DN %.1f blocks, D %.2f (%.2f%% of DN), RARN %.3f (%.2f frames "
-          "each), late %.3f (%.2f frames each)\n",
-          name.c_str(), dn / n, d / n, dn > 0 ? 100.0 * d / dn : 0.0, rarn / n,
-          rarn > 0 ? rarn_frames / rarn : 0.0, late / n, late > 0 ? late_frames / late : 0.0);
+    if (const std::string line = counters_line(run.rows); !line.empty()) {
+      std::printf("counters  %s: %s\n", name.c_str(), line.c_str());
     }
     // Fewer iterations than the path needed: say so (the frames lag or show the root).
     if (const std::string late =

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -151,18 +152,46 @@ double luma_psnr(const splat::Image& a, const splat::Image& b) {
   return std::min(kLumaPsnrCap, 10.0 * std::log10(255.0 * 255.0 * double(pixels) / sum));
 }
 
+std::vector<CounterSeries> counter_series(const std::vector<FrameRow>& rows) {
+  std::vector<CounterSeries> series;
+  for (const FrameRow& r : rows) {
+    for (const Counter& c : r.counters.items()) {
+      auto it = std::find_if(series.begin(), series.end(),
+                             [&](const CounterSeries& x) { return x.name == c.name(); });
+      if (it == series.end()) {
+        series.push_back({std::string(c.name()), std::string(c.unit()), 0.0, 0});
+        it = series.end() - 1;
+      }
+      it->total += c.value;
+      ++it->frames;
+    }
+  }
+  return series;
+}
+
+std::string counters_line(const std::vector<FrameRow>& rows) {
+  std::string line;
+  for (const CounterSeries& c : counter_series(rows)) {
+    char value[64];
+    std::snprintf(value, sizeof value, "%.3g",
+                  c.total / double(std::max<std::size_t>(c.frames, 1)));
+    line += (line.empty() ? "per frame " : ", ") + c.name + " " + value +
+            (c.unit.empty() ? "" : " " + c.unit);
+  }
+  return line;
+}
+
 void write_stats_csv(const std::filesystem::path& file, const std::vector<FrameRow>& rows) {
   std::ostringstream out;
-  // The query columns, then the luminance PSNR and the hoq counters last: an
-  // older reader of the first ones still works.
+  // The query columns, then the luminance PSNR, then one column per named
+  // counter of the strategy (treecut/counters.hpp), in the order first
+  // published: an older reader of the first ones still works.
+  const std::vector<CounterSeries> series = counter_series(rows);
   out << "frame,time_s,frame_ms,splats_drawn,points_represented,iteration_ms,exchanges,iterations,"
          "converged,psnr_db,queries_issued,queries_answered,queries_pending,"
-         "query_latency_frames_mean,query_latency_frames_max,query_cpu_us,psnr_luma_db,"
-         "hoq_blocks,hoq_dn,hoq_culled,hoq_delayed,hoq_rarn,hoq_rarn_frames,hoq_late,"
-         "hoq_late_frames,budget_visible,budget_frustum_culled,budget_occlusion_culled,"
-         "budget_below_pet,budget_receiving,budget_occluders,budget_shares,budget_selected,"
-         "budget_project_ms,budget_select_ms,budget_hzm_ms,budget_test_ms,budget_eq1_ms,"
-         "budget_lod_ms\n";
+         "query_latency_frames_mean,query_latency_frames_max,query_cpu_us,psnr_luma_db";
+  for (const CounterSeries& c : series) out << ',' << c.name;
+  out << '\n';
   for (const FrameRow& r : rows) {
     out << r.frame << ',' << r.time_s << ',' << r.frame_ms << ',' << r.cut_size << ',' << r.points
         << ',' << r.iteration_ms << ',' << r.exchanges << ',' << r.iterations << ','
@@ -170,21 +199,9 @@ void write_stats_csv(const std::filesystem::path& file, const std::vector<FrameR
         << r.queries_answered << ',' << r.queries_pending << ',' << r.query_latency_frames_mean
         << ',' << r.query_latency_frames_max << ',' << r.query_cpu_us << ','
         << (std::isfinite(r.psnr_luma_db) ? json_number(r.psnr_luma_db) : std::string());
-    if (r.has_hoq) {
-      out << ',' << r.hoq_blocks << ',' << r.hoq_dn << ',' << r.hoq_culled << ',' << r.hoq_delayed
-          << ',' << r.hoq_rarn << ',' << r.hoq_rarn_frames << ',' << r.hoq_late << ','
-          << r.hoq_late_frames;
-    } else {
-      out << ",,,,,,,,";
-    }
-    if (r.has_budget) {
-      out << ',' << r.budget_visible << ',' << r.budget_frustum_culled << ','
-          << r.budget_occlusion_culled << ',' << r.budget_below_pet << ',' << r.budget_receiving
-          << ',' << r.budget_occluders << ',' << r.budget_shares << ',' << r.budget_selected << ','
-          << r.budget_project_ms << ',' << r.budget_select_ms << ',' << r.budget_hzm_ms << ','
-          << r.budget_test_ms << ',' << r.budget_eq1_ms << ',' << r.budget_lod_ms;
-    } else {
-      out << std::string(14, ',');  // the 14 budget columns, empty
+    for (const CounterSeries& c : series) {
+      out << ',';
+      if (const std::optional<double> v = r.counters.find(c.name)) out << *v;
     }
     out << '\n';
   }
@@ -218,53 +235,17 @@ std::string summary_json(const RunSummary& s) {
                     {"max_changed_fraction", number_json(s.stability_max)},
                     {"splats_drawn", s.converged_cut},
                     {"psnr_db", psnr_json(s.converged_psnr)}};
-  // The hoq strategy's counters, per frame (only with them: --sync and -s hoq).
-  if (!s.rows.empty() && s.rows.front().has_hoq) {
-    double blocks = 0, dn = 0, culled = 0, delayed = 0, shift_up = 0, rarn = 0, rarn_frames = 0,
-           late = 0, late_frames = 0;
-    for (const FrameRow& r : s.rows) {
-      blocks += double(r.hoq_blocks);
-      dn += double(r.hoq_dn);
-      culled += double(r.hoq_culled);
-      delayed += double(r.hoq_delayed);
-      shift_up += double(r.hoq_shift_up);
-      rarn += double(r.hoq_rarn);
-      rarn_frames += double(r.hoq_rarn_frames);
-      late += double(r.hoq_late);
-      late_frames += double(r.hoq_late_frames);
+  // The strategy's named counters: unit, mean per frame that had it, total.
+  if (const std::vector<CounterSeries> series = counter_series(s.rows); !series.empty()) {
+    nlohmann::ordered_json counters = nlohmann::ordered_json::object();
+    for (const CounterSeries& c : series) {
+      counters[c.name] = {
+          {"unit", c.unit},
+          {"mean", number_json(c.total / double(std::max<std::size_t>(c.frames, 1)))},
+          {"total", number_json(c.total)},
+          {"frames", c.frames}};
     }
-    j["hoq"] = {{"mean_blocks", number_json(blocks / n)},
-                {"mean_dn", number_json(dn / n)},
-                {"mean_culled", number_json(culled / n)},
-                {"mean_delayed", number_json(delayed / n)},
-                {"delayed_per_dn", number_json(dn > 0 ? delayed / dn : 0.0)},
-                {"mean_delayed_shift_up", number_json(shift_up / n)},
-                {"rarn_per_frame", number_json(rarn / n)},
-                {"rarn_frames_mean", number_json(rarn > 0 ? rarn_frames / rarn : 0.0)},
-                {"late_per_frame", number_json(late / n)},
-                {"late_frames_mean", number_json(late > 0 ? late_frames / late : 0.0)}};
-  }
-  // The budget strategy's counters, means per frame (--sync, -s budget on a scene).
-  if (!s.rows.empty() && s.rows.front().has_budget) {
-    const auto mean = [&](auto member) {
-      double sum = 0;
-      for (const FrameRow& r : s.rows) sum += double(r.*member);
-      return number_json(sum / n);
-    };
-    j["budget"] = {{"mean_visible", mean(&FrameRow::budget_visible)},
-                   {"mean_frustum_culled", mean(&FrameRow::budget_frustum_culled)},
-                   {"mean_occlusion_culled", mean(&FrameRow::budget_occlusion_culled)},
-                   {"mean_below_pet", mean(&FrameRow::budget_below_pet)},
-                   {"mean_receiving", mean(&FrameRow::budget_receiving)},
-                   {"mean_occluders", mean(&FrameRow::budget_occluders)},
-                   {"mean_shares", mean(&FrameRow::budget_shares)},
-                   {"mean_selected", mean(&FrameRow::budget_selected)},
-                   {"mean_project_ms", mean(&FrameRow::budget_project_ms)},
-                   {"mean_select_ms", mean(&FrameRow::budget_select_ms)},
-                   {"mean_hzm_ms", mean(&FrameRow::budget_hzm_ms)},
-                   {"mean_test_ms", mean(&FrameRow::budget_test_ms)},
-                   {"mean_eq1_ms", mean(&FrameRow::budget_eq1_ms)},
-                   {"mean_lod_ms", mean(&FrameRow::budget_lod_ms)}};
+    j["counters"] = std::move(counters);
   }
   // A scene's block: objects, draw calls and render-thread CPU per frame.
   if (s.objects > 0) {

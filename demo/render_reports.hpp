@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "treecut/counters.hpp"
 #include "treecut/splat/image.hpp"
 #include "treecut/splat/query_executor.hpp"
 
@@ -38,19 +39,9 @@ struct FrameRow {
   // --psnr: luminance PSNR against full detail, capped at kLumaPsnrCap (never
   // inf); NaN when not measured.
   double psnr_luma_db = std::numeric_limits<double>::quiet_NaN();
-  // The `hoq` strategy's counters of the iteration after the frame (--sync
-  // only: read on the thread that ran it); has_hoq false otherwise.
-  bool has_hoq = false;
-  std::uint64_t hoq_blocks = 0, hoq_dn = 0, hoq_culled = 0, hoq_delayed = 0, hoq_shift_up = 0;
-  std::uint64_t hoq_rarn = 0, hoq_rarn_frames = 0, hoq_late = 0, hoq_late_frames = 0;
-  // The `budget` strategy's counters of the iteration after the frame (--sync
-  // on a scene only, as hoq's); has_budget false otherwise. Phase times in ms.
-  bool has_budget = false;
-  std::uint64_t budget_visible = 0, budget_frustum_culled = 0, budget_occlusion_culled = 0;
-  std::uint64_t budget_below_pet = 0, budget_receiving = 0, budget_occluders = 0;
-  std::uint64_t budget_shares = 0, budget_selected = 0;
-  double budget_project_ms = 0, budget_select_ms = 0, budget_hzm_ms = 0, budget_test_ms = 0;
-  double budget_eq1_ms = 0, budget_lod_ms = 0;
+  // The strategy's named counters (treecut/counters.hpp) of the last
+  // iteration completed at this frame (with --sync, the one after it).
+  Counters counters;
   // A scene (objects > 0): draw calls of the frame and the render thread's
   // CPU time for it (summary.json's "scene" block).
   std::size_t objects = 0;
@@ -96,6 +87,16 @@ std::string psnr_text(double v);
 
 /// stats.csv: the header, one row per frame (write_file_atomically).
 void write_stats_csv(const std::filesystem::path& file, const std::vector<FrameRow>& rows);
+/// The named counters of a run's rows: name and unit in the order first
+/// published, with the sum and the frames that had each.
+struct CounterSeries {
+  std::string name, unit;
+  double total = 0.0;
+  std::size_t frames = 0;
+};
+std::vector<CounterSeries> counter_series(const std::vector<FrameRow>& rows);
+/// "NAME MEAN UNIT, ..." per frame of every named counter ("" for none).
+std::string counters_line(const std::vector<FrameRow>& rows);
 /// The text of summary.json.
 std::string summary_json(const RunSummary& s);
 /// Two stacked charts (frame time, cut size) over the frame index, one line

@@ -82,6 +82,8 @@ std::pair<std::string, double> parse_param(const std::string& text);
 /// values out of range are an InputError.
 std::unique_ptr<Strategy> make_strategy(const StrategyRegistry& registry, const std::string& name,
                                         const std::vector<std::string>& params);
+/// Applies those of `params` ("name=value") that `strategy` has.
+void apply_params(Strategy& strategy, const std::vector<std::string>& params);
 
 /// Throws InputError for an unknown strategy, a parameter no selected strategy
 /// has, or a value out of range.

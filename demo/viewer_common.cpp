@@ -205,19 +205,23 @@ std::pair<std::string, double> parse_param(const std::string& text) {
 std::unique_ptr<Strategy> make_strategy(const StrategyRegistry& registry, const std::string& name,
                                         const std::vector<std::string>& params) {
   std::unique_ptr<Strategy> s = registry.create(name);
+  apply_params(*s, params);
+  return s;
+}
+
+void apply_params(Strategy& strategy, const std::vector<std::string>& params) {
   for (const std::string& p : params) {
     // Named, not a structured binding: clang 14 cannot capture one in a lambda.
     const auto param = parse_param(p);
     const auto& key = param.first;
-    const auto& specs = s->param_specs();
+    const auto& specs = strategy.param_specs();
     // With several strategies (render -s a -s b) a parameter applies to those that have it.
     if (std::none_of(specs.begin(), specs.end(),
                      [&](const ParamSpec& ps) { return ps.name == key; })) {
       continue;
     }
-    s->set_param(key, param.second);
+    strategy.set_param(key, param.second);
   }
-  return s;
 }
 
 void check_params(const StrategyRegistry& registry, const std::vector<std::string>& strategies,

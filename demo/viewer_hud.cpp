@@ -39,6 +39,12 @@ void Viewer::hud(const splat::FrameStats& stats) {
               static_cast<unsigned long long>(c.iterations),
               static_cast<unsigned long long>(c.exchanges));
   ImGui::Text("converged: %s", c.converged ? "yes" : "no");
+  // Whatever else the strategy measured in its last iteration, by name
+  // (treecut/counters.hpp): the HUD needs to know no strategy.
+  for (const Counter& counter : c.last.counters.items()) {
+    ImGui::Text("%.*s %.6g %.*s", static_cast<int>(counter.name().size()), counter.name().data(),
+                counter.value, static_cast<int>(counter.unit().size()), counter.unit().data());
+  }
   if (const splat::QueryStats& q = queries_->stats(); q.issued > 0 || q.queued > 0) {
     // The strategy's GPU queries: what is waiting, and how late answers come.
     ImGui::Text("queries: %llu issued, %llu answered (%llu occluded), %zu pending, %zu queued",

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <limits>
 #include <memory>
 #include <set>
 #include <stdexcept>
@@ -63,6 +64,7 @@ class ProbeStrategy final : public Strategy {
     out.queries->push_back(
         QueryRequest{0, out.cut->nodes()[0], static_cast<std::uint32_t>(frames.size())});
     out.result.converged = out.result.refined == 0;
+    out.result.counters.set("probe_iterations", double(frames.size()), "iterations");
     if (throw_next) {
       throw_next = false;
       throw std::runtime_error("probe failure");
@@ -74,6 +76,59 @@ class ProbeStrategy final : public Strategy {
   int resets = 0;
   bool throw_next = false;
 };
+
+TEST(Counters, KeepTheOrderFirstSetAndOverwriteByName) {
+  Counters c;
+  c.set("b_blocks", 2, "blocks");
+  c.set("a_ms", 1.5, "ms");
+  c.set("b_blocks", 3, "blocks");
+  c.add("a_ms", 0.5, "ms");
+  ASSERT_EQ(c.items().size(), 2u);
+  EXPECT_EQ(c.items()[0].name(), "b_blocks");
+  EXPECT_EQ(c.items()[0].unit(), "blocks");
+  EXPECT_EQ(c.items()[1].name(), "a_ms");
+  EXPECT_EQ(c.find("b_blocks"), 3.0);
+  EXPECT_EQ(c.find("a_ms"), 2.0);
+  EXPECT_FALSE(c.find("c").has_value());
+  Counters sum = c;
+  sum.add_all(c);
+  EXPECT_EQ(sum.find("b_blocks"), 6.0);
+  EXPECT_EQ(sum.find("a_ms"), 4.0);
+  c.clear();
+  EXPECT_TRUE(c.empty());
+}
+
+TEST(Counters, RefuseNamesThatAreNoColumnUnitsThatBreakACsvAndValuesThatAreNotFinite) {
+  Counters c;
+  for (const char* name :
+       {"", "Blocks", "9lives", "a-b", "a b", "a,b", "a_name_of_thirty_two_characters_"}) {
+    EXPECT_THROW(c.set(name, 1, ""), std::invalid_argument) << name;
+  }
+  EXPECT_NO_THROW(c.set("a_name_of_thirty_one_characters", 1, ""));
+  EXPECT_THROW(c.set("x", 1, "a,b"), std::invalid_argument);
+  EXPECT_THROW(c.set("x", 1, "twelve chars"), std::invalid_argument);
+  EXPECT_THROW(c.set("x", std::numeric_limits<double>::quiet_NaN(), ""), std::invalid_argument);
+  EXPECT_THROW(c.set("x", std::numeric_limits<double>::infinity(), ""), std::invalid_argument);
+  EXPECT_EQ(c.items().size(), 1u) << "a refused counter leaves none behind";
+  for (std::size_t i = 1; i < Counters::kMax; ++i) c.set("c" + std::to_string(i), 0, "");
+  EXPECT_THROW(c.set("one_too_many", 0, ""), std::length_error);
+  EXPECT_NO_THROW(c.set("c1", 5, "")) << "an existing name still takes a value";
+}
+
+TEST(FeedbackStage, AnIterationsNamedCountersReachTheRenderThreadsCounters) {
+  FeedbackStage stage(sphere_model(), std::make_unique<ProbeStrategy>(), manual());
+  EXPECT_TRUE(stage.counters().last.counters.empty());
+  for (int i = 0; i < 3; ++i) {
+    stage.poll();
+    stage.step();
+  }
+  stage.poll();
+  const Counters& c = stage.counters().last.counters;
+  ASSERT_EQ(c.items().size(), 1u);
+  EXPECT_EQ(c.items()[0].name(), "probe_iterations");
+  EXPECT_EQ(c.items()[0].unit(), "iterations");
+  EXPECT_EQ(c.find("probe_iterations"), double(stage.counters().iterations));
+}
 
 TEST(FeedbackStage, StartsInWaitWithTheModelCutAsGenerationOne) {
   FeedbackStage stage(sphere_model(), std::make_unique<ProbeStrategy>(), manual());

@@ -13,6 +13,7 @@ add_test(NAME example_plugin_roundtrip
     -DSOURCE_DIR=${PROJECT_SOURCE_DIR}
     -DWORK_DIR=${PROJECT_BINARY_DIR}/test-scratch/example_plugin
     -DPLUGIN_TEST=$<TARGET_FILE:plugin_test>
+    -DTREECUT=$<TARGET_FILE:treecut>
     -DGENERATOR=${CMAKE_GENERATOR}
     -DCXX_COMPILER=${CMAKE_CXX_COMPILER}
     -DBUILD_TYPE=${CMAKE_BUILD_TYPE}

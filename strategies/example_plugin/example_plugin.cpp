@@ -57,6 +57,9 @@ class UniformDepthStrategy final : public treecut::Strategy {
     }
     out.result.cut_size = cut.size();
     out.result.converged = out.result.refined == 0 && out.result.coarsened == 0;
+    // A named counter (treecut/counters.hpp): `treecut render` writes it as
+    // a stats.csv column and into summary.json, the viewer's HUD shows it.
+    out.result.counters.set("uniform_depth_target", target, "levels");
   }
 
  private:

@@ -19,6 +19,7 @@ int main(int argc, char** argv) {
   }
   namespace fs = std::filesystem;
   using namespace treecut;
+  using namespace treecut::tools;
   const fs::path out = argv[1];
   fs::create_directories(out);
   const CacheKey key{1234, 5678, 0};

@@ -66,6 +66,7 @@
 #include <utility>
 #include <vector>
 
+#include "treecut/counters.hpp"
 #include "treecut/hierarchy.hpp"
 #include "treecut/tree_cut.hpp"
 #include "treecut/view_snapshot.hpp"
@@ -95,6 +96,10 @@ struct IterationResult {
   std::size_t cut_size = 0;      ///< nodes in the resulting cut
   bool converged = false;        ///< another iteration under the same view changes nothing
   bool cancelled = false;        ///< stopped early on request; the cut is still valid
+  /// What else the strategy measured, by name (treecut/counters.hpp): shown
+  /// by the HUD, stats.csv, summary.json and the benchmarks as they are. On
+  /// a scene of per-object strategies, the sums over the objects.
+  Counters counters;
 };
 
 /// What an iteration may read. Valid for the duration of iterate() only.

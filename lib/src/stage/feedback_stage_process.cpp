@@ -300,6 +300,7 @@ void FeedbackStage::process_scene(Outbox& out) {
         total.backfacing += r.backfacing;
         total.too_small += r.too_small;
         total.blocked += r.blocked;
+        total.counters.add_all(r.counters);
         total.converged = total.converged && r.converged;
         total.cancelled = total.cancelled || r.cancelled;
         ++objects;

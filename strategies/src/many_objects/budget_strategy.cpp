@@ -328,6 +328,27 @@ void BudgetStrategy::iterate_scene(const SceneIterationInput& input, SceneIterat
   output.result.too_small = c.below_pet;
   output.result.converged = true;  // a function of the view and parameters only
   last_ = c;
+  publish(c, output.result.counters);
+}
+
+void BudgetStrategy::publish(const BudgetCounters& c, Counters& out) {
+  // The objects by what became of them, the occluder set, Eq. 1's shares and
+  // the nodes selected, and the wall time of each phase of the frame
+  // (docs/many-objects.md).
+  out.set("budget_visible", double(c.visible), "objects");
+  out.set("budget_frustum_culled", double(c.frustum_culled), "objects");
+  out.set("budget_occlusion_culled", double(c.occlusion_culled), "objects");
+  out.set("budget_below_pet", double(c.below_pet), "objects");
+  out.set("budget_receiving", double(c.receiving), "objects");
+  out.set("budget_occluders", double(c.occluders), "objects");
+  out.set("budget_shares", double(c.shares), "points");
+  out.set("budget_selected", double(c.selected), "nodes");
+  out.set("budget_project_ms", double(c.project_ns) * 1e-6, "ms");
+  out.set("budget_select_ms", double(c.select_ns) * 1e-6, "ms");
+  out.set("budget_hzm_ms", double(c.hzm_ns) * 1e-6, "ms");
+  out.set("budget_test_ms", double(c.test_ns) * 1e-6, "ms");
+  out.set("budget_eq1_ms", double(c.budget_ns) * 1e-6, "ms");
+  out.set("budget_lod_ms", double(c.lod_ns) * 1e-6, "ms");
 }
 
 }  // namespace treecut::strategies

@@ -366,6 +366,22 @@ void HoqStrategy::iterate(const IterationInput& input, IterationOutput& output) 
   constexpr std::uint32_t kSettle = 4;
   r.converged = settled_ >= kSettle;
   totals_.add(last_);
+  publish(last_, r.counters);
+}
+
+void HoqStrategy::publish(const HoqCounters& c, Counters& out) {
+  // The paper's quantities per iteration (docs/occlusion.md, "## HOQ"): the
+  // block cut, DN, the culled blocks, D (of it the refined candidates to
+  // shift up), RARN and the late refinements with the frames they waited.
+  out.set("hoq_blocks", double(c.blocks), "blocks");
+  out.set("hoq_dn", double(c.drawn), "blocks");
+  out.set("hoq_culled", double(c.culled), "blocks");
+  out.set("hoq_delayed", double(c.delayed), "blocks");
+  out.set("hoq_shift_up", double(c.delayed_shift_up), "blocks");
+  out.set("hoq_rarn", double(c.rarn), "blocks");
+  out.set("hoq_rarn_frames", double(c.rarn_frames), "frames");
+  out.set("hoq_late", double(c.late_refined), "blocks");
+  out.set("hoq_late_frames", double(c.late_frames), "frames");
 }
 
 }  // namespace treecut::strategies

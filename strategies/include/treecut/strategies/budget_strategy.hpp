@@ -101,6 +101,9 @@ class BudgetStrategy final : public Strategy, public SceneStrategy {
   [[nodiscard]] std::span<const std::uint32_t> shares() const { return shares_; }
 
  private:
+  /// Publishes C as the iteration's named counters (budget_*; treecut/counters.hpp).
+  static void publish(const BudgetCounters& c, Counters& out);
+
   // Per distinct model: its box, compactness and inner box in model space.
   struct ModelShape {
     const Hierarchy* hierarchy = nullptr;

@@ -98,6 +98,9 @@ class HoqStrategy final : public Strategy {
   [[nodiscard]] std::span<const culling::BlockId> block_cut() const { return cut_; }
 
  private:
+  /// Publishes C as the iteration's named counters (hoq_*; treecut/counters.hpp).
+  static void publish(const HoqCounters& c, Counters& out);
+
   // Front: new in the traversal, drawn at its level; Hidden: invisible last
   // frame, culled; ShiftUp: refined, a candidate to move the front up.
   enum class Delay : std::uint8_t { None, Front, Hidden, ShiftUp };
