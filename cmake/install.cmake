@@ -1,8 +1,9 @@
 # Install and export rules: `cmake --install BUILD --prefix P` gives P a
 # find_package(treecut CONFIG) package with the imported targets
-# treecut::core, treecut::culling and treecut::strategies (static, position independent, so a
-# plugin shared library can link them), their headers, and the `treecut`
-# program. Components: treecut_development (libraries, headers, CMake
+# treecut::core, treecut::culling, treecut::strategies and treecut::splat
+# (static, position independent, so a plugin shared library can link them),
+# treecut::treecut (all four, for a program that embeds the engine:
+# docs/embedding.md), their headers, and the `treecut` program. Components: treecut_development (libraries, headers, CMake
 # package) and treecut_runtime (the program).
 include(GNUInstallDirs)
 include(CMakePackageConfigHelpers)
@@ -17,13 +18,16 @@ set(TREECUT_INSTALL_CMAKEDIR ${CMAKE_INSTALL_LIBDIR}/cmake/treecut)
 set_property(TARGET treecut_core treecut_culling treecut_strategies APPEND PROPERTY INTERFACE_LINK_OPTIONS
   "$<INSTALL_INTERFACE:$<$<IN_LIST:$<TARGET_PROPERTY:TYPE>,MODULE_LIBRARY;SHARED_LIBRARY>:LINKER:--exclude-libs,ALL>>")
 
-install(TARGETS treecut_core treecut_culling treecut_strategies EXPORT treecutTargets
+install(TARGETS treecut_core treecut_culling treecut_strategies treecut_splat treecut_all
+        EXPORT treecutTargets
   ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT treecut_development
   LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT treecut_development
   INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/lib/include/treecut
                   ${PROJECT_SOURCE_DIR}/lib/culling/include/treecut
                   ${PROJECT_SOURCE_DIR}/strategies/include/treecut
+                  ${PROJECT_SOURCE_DIR}/splat/include/treecut
+                  ${PROJECT_SOURCE_DIR}/lib/umbrella/include/treecut
   DESTINATION ${CMAKE_INSTALL_INCLUDEDIR} COMPONENT treecut_development
   FILES_MATCHING PATTERN "*.hpp")
 install(EXPORT treecutTargets NAMESPACE treecut:: DESTINATION ${TREECUT_INSTALL_CMAKEDIR}

@@ -21,6 +21,21 @@ add_test(NAME example_plugin_roundtrip
     -P ${PROJECT_SOURCE_DIR}/cmake/plugin_roundtrip.cmake)
 set_tests_properties(example_plugin_roundtrip PROPERTIES LABELS unit TIMEOUT 600)
 
+# docs/embedding.md's program against the installed package, run headless on
+# the bunny (cmake/embedding_roundtrip.cmake).
+add_test(NAME embedding_roundtrip
+  COMMAND ${CMAKE_COMMAND}
+    -DBUILD_DIR=${PROJECT_BINARY_DIR}
+    -DSOURCE_DIR=${PROJECT_SOURCE_DIR}
+    -DWORK_DIR=${PROJECT_BINARY_DIR}/test-scratch/embedding
+    -DMODEL=${TREECUT_SHARED_DIR}/assets/bun_zipper.ply
+    -DGENERATOR=${CMAKE_GENERATOR}
+    -DCXX_COMPILER=${CMAKE_CXX_COMPILER}
+    -DBUILD_TYPE=${CMAKE_BUILD_TYPE}
+    -DEXTRA_FLAGS=${_treecut_plugin_flags}
+    -P ${PROJECT_SOURCE_DIR}/cmake/embedding_roundtrip.cmake)
+set_tests_properties(embedding_roundtrip PROPERTIES LABELS "unit;gl" TIMEOUT 600)
+
 # A plugin whose strategies misbehave (tests/misbehaving_plugin.cpp): plugin_test
 # loads it to check that errors name the strategy and the plugin file, and that
 # `treecut render` reports them. Built like a plugin author would (hidden
