@@ -499,11 +499,11 @@ TEST(Hzm, occluders_are_the_top_weights_of_eq3) {
       for (int a = 1; a < 3; ++a)
         if (o.box.half[a] < o.box.half[k]) k = a;
       const glm::vec3 e = view.eye();
-      const glm::vec3 out = glm::max(glm::max(o.bounds.min - e, e - o.bounds.max), glm::vec3(0.0f));
-      const glm::vec3 s = o.bounds.max - o.bounds.min;
+      const glm::vec3 out = glm::max(glm::max(o.bounds.lo - e, e - o.bounds.hi), glm::vec3(0.0f));
+      const glm::vec3 s = o.bounds.hi - o.bounds.lo;
       const glm::vec3 dir = facing == Facing::ViewDirection
                                 ? view.forward()
-                                : glm::normalize(0.5f * (o.bounds.min + o.bounds.max) - e);
+                                : glm::normalize(0.5f * (o.bounds.lo + o.bounds.hi) - e);
       const float weight =
           s.x * s.y * s.z * std::abs(glm::dot(o.box.axes[k], dir)) / glm::length(out);
       EXPECT_FLOAT_EQ(weight, occluder_weight(o, o.box.axes[k], r, view, facing));

@@ -18,38 +18,6 @@
 
 namespace treecut::culling {
 
-bool Box::contains_sphere(glm::vec3 c, float r) const {
-  return c.x - r >= lo.x && c.y - r >= lo.y && c.z - r >= lo.z && c.x + r <= hi.x &&
-         c.y + r <= hi.y && c.z + r <= hi.z;
-}
-
-float Box::distance_to(glm::vec3 p) const {
-  const glm::vec3 d = glm::max(glm::max(lo - p, p - hi), glm::vec3(0.0f));
-  return glm::length(d);
-}
-
-FrustumPlanes::FrustumPlanes(const glm::mat4& m) {
-  const glm::vec4 r0(m[0][0], m[1][0], m[2][0], m[3][0]);
-  const glm::vec4 r1(m[0][1], m[1][1], m[2][1], m[3][1]);
-  const glm::vec4 r2(m[0][2], m[1][2], m[2][2], m[3][2]);
-  const glm::vec4 r3(m[0][3], m[1][3], m[2][3], m[3][3]);
-  planes[0] = r3 + r0;
-  planes[1] = r3 - r0;
-  planes[2] = r3 + r1;
-  planes[3] = r3 - r1;
-  planes[4] = r3 + r2;
-  planes[5] = r3 - r2;
-}
-
-bool FrustumPlanes::may_contain(const Box& box) const {
-  for (const glm::vec4& p : planes) {
-    const glm::vec3 corner(p.x >= 0.0f ? box.hi.x : box.lo.x, p.y >= 0.0f ? box.hi.y : box.lo.y,
-                           p.z >= 0.0f ? box.hi.z : box.lo.z);
-    if (p.x * corner.x + p.y * corner.y + p.z * corner.z + p.w < 0.0f) return false;
-  }
-  return true;
-}
-
 namespace {
 
 // The representation of a block whose subtrees are rooted at `roots`: for a

@@ -96,16 +96,16 @@ namespace {
 
 // Eq. 3 from an AABB: the one expression of occluder_weight() and the
 // frame's loop over the candidates (the same operations, so the same bits).
-float eq3_weight(const Aabb& bounds, glm::vec3 normal, const FrameView& view, Facing facing) {
+float eq3_weight(const Box& bounds, glm::vec3 normal, const FrameView& view, Facing facing) {
   const glm::vec3 e = view.eye();
-  const glm::vec3 outside = glm::max(glm::max(bounds.min - e, e - bounds.max), glm::vec3(0.0f));
+  const glm::vec3 outside = glm::max(glm::max(bounds.lo - e, e - bounds.hi), glm::vec3(0.0f));
   const float distance = glm::length(outside);
   if (!(distance > 0.0f)) return 0.0f;
-  const glm::vec3 size = bounds.max - bounds.min;
+  const glm::vec3 size = bounds.hi - bounds.lo;
   const float volume = size.x * size.y * size.z;
   const glm::vec3 e_dir = facing == Facing::ViewDirection
                               ? view.forward()
-                              : glm::normalize(0.5f * (bounds.min + bounds.max) - e);
+                              : glm::normalize(0.5f * (bounds.lo + bounds.hi) - e);
   return volume * std::abs(glm::dot(normal, e_dir)) / distance;
 }
 

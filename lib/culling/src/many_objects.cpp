@@ -15,7 +15,7 @@
 
 namespace treecut::culling {
 
-Aabb bounds_of(const Obb& box) {
+Box bounds_of(const Obb& box) {
   glm::vec3 e(0.0f);
   for (int k = 0; k < 3; ++k) e += glm::abs(box.axes[k]) * box.half[k];
   return {box.center - e, box.center + e};
@@ -81,19 +81,19 @@ FrameView::FrameView(const ViewSnapshot& view) : view_(view) {
   forward_ = glm::normalize(to_world * glm::vec3(0.0f, 0.0f, -1.0f));
 }
 
-ScreenRect FrameView::project(const Aabb& box) const {
+ScreenRect FrameView::project(const Box& box) const {
   ScreenRect r;
-  const glm::vec3 center = 0.5f * (box.min + box.max);
-  const float radius = 0.5f * glm::length(box.max - box.min);
+  const glm::vec3 center = 0.5f * (box.lo + box.hi);
+  const float radius = 0.5f * glm::length(box.hi - box.lo);
   // Most of a large scene is outside the frustum: six planes first.
   if (view_.outside_frustum(center, radius)) return r;
   // Eye-space corners as the first one plus edge vectors: 8 corners from
   // one matrix product and three scaled columns.
   const glm::mat4& v = view_.view;
-  const glm::vec3 c0 = glm::vec3(v * glm::vec4(box.min, 1.0f));
-  const glm::vec3 ex = glm::vec3(v[0]) * (box.max.x - box.min.x);
-  const glm::vec3 ey = glm::vec3(v[1]) * (box.max.y - box.min.y);
-  const glm::vec3 ez = glm::vec3(v[2]) * (box.max.z - box.min.z);
+  const glm::vec3 c0 = glm::vec3(v * glm::vec4(box.lo, 1.0f));
+  const glm::vec3 ex = glm::vec3(v[0]) * (box.hi.x - box.lo.x);
+  const glm::vec3 ey = glm::vec3(v[1]) * (box.hi.y - box.lo.y);
+  const glm::vec3 ez = glm::vec3(v[2]) * (box.hi.z - box.lo.z);
   glm::vec3 corner[8];
   for (int i = 0; i < 8; ++i) {
     corner[i] = c0 + ((i & 1) ? ex : glm::vec3(0.0f)) + ((i & 2) ? ey : glm::vec3(0.0f)) +
@@ -286,9 +286,9 @@ std::vector<SceneObject> box_city(std::size_t count, std::uint32_t seed) {
                            glm::vec3(std::sin(yaw), 0.0f, std::cos(yaw)));
     }
     // Within its lot (a turned box is shrunk until its AABB fits).
-    Aabb b = bounds_of(box);
+    Box b = bounds_of(box);
     const float fit =
-        std::min(1.0f, 0.5f * kLot / std::max(b.max.x - box.center.x, b.max.z - box.center.z));
+        std::min(1.0f, 0.5f * kLot / std::max(b.hi.x - box.center.x, b.hi.z - box.center.z));
     box.half.x *= fit;
     box.half.z *= fit;
     box.center = {lot_origin(i) + 0.5f * kLot, 0.5f * height, lot_origin(j) + 0.5f * kLot};

@@ -66,6 +66,13 @@ struct VisibilityResult {
 /// A plane n.x + d >= 0 for points inside.
 using Plane = glm::vec4;
 
+/// The six planes of the view frustum of CLIP_FROM_WORLD (a projection times
+/// a view), normalized, normals inward: left, right, bottom, top, near, far.
+/// Gribb & Hartmann, "Fast Extraction of Viewing Frustum Planes from the
+/// World-View-Projection Matrix". The one extraction: ViewSnapshot's derived
+/// planes and the culling layer's FrustumPlanes are both this.
+std::array<glm::vec4, 6> frustum_planes(const glm::mat4& clip_from_world);
+
 struct ViewSnapshot {
   glm::mat4 view{1.0f};                   ///< model-to-eye (the model matrix is folded in)
   glm::mat4 projection{1.0f};             ///< eye-to-clip, perspective or orthographic

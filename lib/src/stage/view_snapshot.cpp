@@ -6,23 +6,27 @@
 
 namespace treecut {
 
-void ViewSnapshot::finalize() {
-  const glm::mat4 inverse_view = glm::inverse(view);
-  derived.eye = glm::vec3(inverse_view[3]);
-  // Gribb & Hartmann, "Fast Extraction of Viewing Frustum Planes from the
-  // World-View-Projection Matrix": each plane is row 3 +- row i of the clip
-  // matrix (glm is column-major, so row i is m[0][i], m[1][i], ...).
-  const glm::mat4 m = projection * view;
+std::array<glm::vec4, 6> frustum_planes(const glm::mat4& m) {
+  // Each plane is row 3 +- row i of the clip matrix (glm is column-major, so
+  // row i is m[0][i], m[1][i], ...).
   const auto row = [&m](int i) { return glm::vec4(m[0][i], m[1][i], m[2][i], m[3][i]); };
   const glm::vec4 r3 = row(3);
+  std::array<glm::vec4, 6> planes;
   for (int i = 0; i < 3; ++i) {
-    derived.frustum[static_cast<std::size_t>(2 * i)] = r3 + row(i);
-    derived.frustum[static_cast<std::size_t>(2 * i + 1)] = r3 - row(i);
+    planes[static_cast<std::size_t>(2 * i)] = r3 + row(i);
+    planes[static_cast<std::size_t>(2 * i + 1)] = r3 - row(i);
   }
-  for (Plane& p : derived.frustum) {
+  for (glm::vec4& p : planes) {
     const float len = glm::length(glm::vec3(p));
     if (len > 0.0f) p /= len;
   }
+  return planes;
+}
+
+void ViewSnapshot::finalize() {
+  const glm::mat4 inverse_view = glm::inverse(view);
+  derived.eye = glm::vec3(inverse_view[3]);
+  derived.frustum = frustum_planes(projection * view);
   for (std::size_t i = 0; i < 8; ++i) {
     // Lanes 6 and 7: 0 x + 1e30 >= -radius, a plane nothing is outside of.
     const Plane p = i < 6 ? derived.frustum[i] : Plane(0.0f, 0.0f, 0.0f, 1e30f);

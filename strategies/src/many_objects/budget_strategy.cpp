@@ -144,9 +144,9 @@ void BudgetStrategy::reset_scene(std::span<const SceneObjectInput> objects) {
     x.bounds = culling::bounds_of(x.box);
     const culling::Obb aabb{0.5f * (s.splat_lo + s.splat_hi), glm::mat3(1.0f),
                             0.5f * (s.splat_hi - s.splat_lo)};
-    const culling::Aabb b = culling::bounds_of(culling::transformed(aabb, o.world));
-    x.bounds.min = glm::min(x.bounds.min, b.min);
-    x.bounds.max = glm::max(x.bounds.max, b.max);
+    const culling::Box b = culling::bounds_of(culling::transformed(aabb, o.world));
+    x.bounds.lo = glm::min(x.bounds.lo, b.lo);
+    x.bounds.hi = glm::max(x.bounds.hi, b.hi);
     x.has_inner = s.inner.has_value();
     if (x.has_inner) x.inner = culling::transformed(*s.inner, o.world);
     x.points = o.hierarchy->leaf_count();

@@ -68,6 +68,7 @@
 #include <utility>
 #include <vector>
 
+#include "treecut/culling/box.hpp"
 #include "treecut/hierarchy.hpp"
 
 namespace treecut::culling {
@@ -84,25 +85,6 @@ inline constexpr std::uint32_t kDefaultBlockSize = 1000;
 /// visibility is that of a bigger region).
 inline constexpr unsigned kBinaryFanOut = 2;
 inline constexpr unsigned kHierarchyFanOut = 4;
-
-struct Box {
-  glm::vec3 lo{0.0f};
-  glm::vec3 hi{0.0f};
-  [[nodiscard]] bool contains_sphere(glm::vec3 c, float r) const;
-  /// Distance from `p` to the box (0 inside): the front-to-back key of both
-  /// traversals and the nearest distance of a block's screen-space error.
-  [[nodiscard]] float distance_to(glm::vec3 p) const;
-};
-
-/// The six planes of a view frustum, normals inward (Gribb and Hartmann:
-/// from the rows of clip = m * world), for conservative box culling.
-struct FrustumPlanes {
-  glm::vec4 planes[6];
-  explicit FrustumPlanes(const glm::mat4& view_projection);
-  /// False only when the box lies wholly outside one plane (its corner
-  /// farthest along the plane's normal is behind it): conservative.
-  [[nodiscard]] bool may_contain(const Box& box) const;
-};
 
 class HlodBlocks {
  public:

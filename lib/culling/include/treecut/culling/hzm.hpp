@@ -233,7 +233,7 @@ class HzmCuller {
 
  private:
   HzmParams params_;
-  std::vector<Aabb> bounds_;  // the objects' AABBs at preprocess()
+  std::vector<Box> bounds_;  // the objects' AABBs at preprocess()
   std::vector<std::uint32_t> cos_;
   std::vector<ScreenRect> rects_;
   std::vector<ObjectState> states_;
@@ -244,7 +244,7 @@ class HzmCuller {
   // compactness order (48 k of 100 k candidates are in a city block's
   // frustum).
   struct Candidate {
-    Aabb bounds;
+    Box bounds;
     glm::vec3 normal;
     std::uint32_t object;
   };

@@ -34,15 +34,10 @@
 #include <type_traits>
 #include <vector>
 
+#include "treecut/culling/box.hpp"
 #include "treecut/view_snapshot.hpp"
 
 namespace treecut::culling {
-
-/// Axis-aligned box, world units.
-struct Aabb {
-  glm::vec3 min{0.0f};
-  glm::vec3 max{0.0f};
-};
 
 /// Oriented box: center, unit orthogonal axes (columns of `axes`), half
 /// extents along them.
@@ -53,7 +48,7 @@ struct Obb {
 };
 
 /// The world AABB of an oriented box (exact: the box's extreme corners).
-Aabb bounds_of(const Obb& box);
+Box bounds_of(const Obb& box);
 /// `box` moved by an affine transform (rotation, translation and scale per
 /// axis are kept exactly; a shear makes the result the box of the transformed
 /// axes, which then contains the transformed box only approximately).
@@ -66,7 +61,7 @@ struct SceneObject {
   Obb box;
   /// World AABB containing `box`; the run-time tests use it (the paper:
   /// "we always use AABBs during run-time").
-  Aabb bounds;
+  Box bounds;
   /// A box inside the object's solid: what the object may write into the
   /// occluders' depth image (conservative: every ray that reaches it has hit
   /// the object already). For a box object (compactness 1) it is `box`.
@@ -132,7 +127,7 @@ class FrameView {
   /// the rectangle bounds the projected corners in front plus the edges'
   /// crossing points (the rectangle of the box's part in front of the near
   /// plane, exact), and its depth is the near plane's.
-  [[nodiscard]] ScreenRect project(const Aabb& box) const;
+  [[nodiscard]] ScreenRect project(const Box& box) const;
 
   /// World direction of the ray through window point (x, y) (pixels, y up),
   /// scaled so that its parameter t is the eye depth of the point reached.

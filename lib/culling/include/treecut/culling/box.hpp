@@ -1,0 +1,36 @@
+// The one box of the engine's culling vocabulary (docs/architecture.md,
+// "## Vocabulary"): axis-aligned, lo and hi corners, in the units of the
+// space it is given in (an HLOD block's in model space, a scene object's in
+// world space), and the frustum test against it.
+#pragma once
+
+#include <array>
+#include <glm/mat4x4.hpp>
+#include <glm/vec3.hpp>
+#include <glm/vec4.hpp>
+
+namespace treecut::culling {
+
+/// An axis-aligned box.
+struct Box {
+  glm::vec3 lo{0.0f};
+  glm::vec3 hi{0.0f};
+  [[nodiscard]] glm::vec3 center() const { return 0.5f * (lo + hi); }
+  [[nodiscard]] glm::vec3 size() const { return hi - lo; }
+  [[nodiscard]] bool contains_sphere(glm::vec3 c, float r) const;
+  /// Distance from `p` to the box (0 inside): the front-to-back key of both
+  /// traversals and the nearest distance of a block's screen-space error.
+  [[nodiscard]] float distance_to(glm::vec3 p) const;
+};
+
+/// The six planes of a view frustum, normals inward (treecut::frustum_planes,
+/// the core's one extraction), for conservative box culling.
+struct FrustumPlanes {
+  std::array<glm::vec4, 6> planes{};
+  explicit FrustumPlanes(const glm::mat4& view_projection);
+  /// False only when the box lies wholly outside one plane (its corner
+  /// farthest along the plane's normal is behind it): conservative.
+  [[nodiscard]] bool may_contain(const Box& box) const;
+};
+
+}  // namespace treecut::culling
