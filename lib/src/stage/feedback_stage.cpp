@@ -15,6 +15,8 @@
 #include <string>
 #include <utility>
 
+#include "feedback_stage_impl.hpp"
+
 namespace treecut {
 namespace {
 
@@ -54,7 +56,7 @@ StrategyError::StrategyError(std::string strategy, std::string origin, const std
       strategy_(std::move(strategy)),
       origin_(std::move(origin)) {}
 
-FeedbackStage::FeedbackStage(Model model, std::unique_ptr<Strategy> strategy, StageOptions options)
+FeedbackStage::Impl::Impl(Model model, std::unique_ptr<Strategy> strategy, StageOptions options)
     : options_(options) {
   if (!model.hierarchy || model.hierarchy->empty()) {
     throw std::invalid_argument("FeedbackStage: the model has no hierarchy");

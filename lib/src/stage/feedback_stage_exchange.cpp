@@ -28,7 +28,7 @@ namespace treecut {
 
 // Render thread: raises the stage thread to the priority it started with
 // (starved request, shutdown), or lowers it again.
-void FeedbackStage::set_boost(bool on) {
+void FeedbackStage::Impl::set_boost(bool on) {
 #if defined(__linux__)
   if (on == boosted_ || !boostable_.load(std::memory_order_acquire)) return;
   boosted_ = on;
@@ -46,12 +46,12 @@ void FeedbackStage::set_boost(bool on) {
 #endif
 }
 
-FrontList FeedbackStage::list_of(std::uint32_t index) const {
+FrontList FeedbackStage::Impl::list_of(std::uint32_t index) const {
   const ListBuffer& b = buffers_[index];
   return FrontList{b.nodes, b.generation, b.hierarchy.get(), b.queries, b.offsets, scene_.get()};
 }
 
-std::optional<std::uint32_t> FeedbackStage::free_buffer() const {
+std::optional<std::uint32_t> FeedbackStage::Impl::free_buffer() const {
   for (std::uint32_t i = 0; i < buffers_.size(); ++i) {
     if (buffers_[i].use == BufferUse::Free) return i;
   }
@@ -60,12 +60,12 @@ std::optional<std::uint32_t> FeedbackStage::free_buffer() const {
 
 // A list the renderer no longer draws: it was copied in the frame of its
 // exchange (CutBuffer::follow), so the stage may write it again at once.
-void FeedbackStage::retire(std::uint32_t index) {
+void FeedbackStage::Impl::retire(std::uint32_t index) {
   buffers_[index].use = BufferUse::Free;
 }
 
 // The Exchange: O(1), swaps which buffer is the front; no list is copied.
-void FeedbackStage::exchange() {
+void FeedbackStage::Impl::exchange() {
   const std::uint32_t old = front_;
   front_ = back_;
   buffers_[front_].use = BufferUse::Front;
@@ -82,7 +82,7 @@ void FeedbackStage::exchange() {
   if (front_view_.hierarchy == switching_to_) switching_to_ = nullptr;
 }
 
-bool FeedbackStage::request() {
+bool FeedbackStage::Impl::request() {
   const std::optional<std::uint32_t> free = free_buffer();
   if (!free) {
     ++counters_.no_free_buffer;
@@ -123,7 +123,7 @@ bool FeedbackStage::request() {
   return true;
 }
 
-FrameLists FeedbackStage::poll() {
+FrameLists FeedbackStage::Impl::poll() {
   ++counters_.frames;
   FrameLists f;
   if (blending_ && ++blend_frame_ >= options_.blend_frames) {

@@ -11,12 +11,13 @@
 #include <utility>
 #include <vector>
 
+#include "feedback_stage_impl.hpp"
 #include "treecut/error.hpp"
 #include "treecut/feedback_stage.hpp"
 
 namespace treecut {
 
-void FeedbackStage::set_view(const ViewSnapshot& view) {
+void FeedbackStage::Impl::set_view(const ViewSnapshot& view) {
   ViewSnapshot& p = pending_.view;
   if (view.version != p.version) pending_.view_changed = true;
   // One assignment of the whole value (a field added later is never dropped);
@@ -30,13 +31,13 @@ void FeedbackStage::set_view(const ViewSnapshot& view) {
   kept.clear();
 }
 
-void FeedbackStage::post_visibility(std::span<const VisibilityResult> results) {
+void FeedbackStage::Impl::post_visibility(std::span<const VisibilityResult> results) {
   // Until the new model's first list is drawn, every answer is about the old one.
   if (switching_to_ != nullptr) return;
   pending_.view.visibility.insert(pending_.view.visibility.end(), results.begin(), results.end());
 }
 
-void FeedbackStage::set_strategy(std::unique_ptr<Strategy> strategy) {
+void FeedbackStage::Impl::set_strategy(std::unique_ptr<Strategy> strategy) {
   if (!strategy) throw std::invalid_argument("FeedbackStage: no strategy");
   if (scene_ && dynamic_cast<const SceneStrategy*>(strategy.get()) == nullptr) {
     throw std::invalid_argument(
@@ -53,7 +54,7 @@ void FeedbackStage::set_strategy(std::unique_ptr<Strategy> strategy) {
   }
 }
 
-void FeedbackStage::set_strategy(StrategyFactory factory) {
+void FeedbackStage::Impl::set_strategy(StrategyFactory factory) {
   if (!factory) throw std::invalid_argument("FeedbackStage: no strategy factory");
   std::unique_ptr<Strategy> first = factory();
   if (!first) throw std::invalid_argument("FeedbackStage: the factory made no strategy");
@@ -73,7 +74,7 @@ void FeedbackStage::set_strategy(StrategyFactory factory) {
   }
 }
 
-void FeedbackStage::set_param(std::string_view name, double value) {
+void FeedbackStage::Impl::set_param(std::string_view name, double value) {
   for (const ParamSpec& spec : pending_.specs) {
     if (spec.name != name) continue;
     if (std::string why = check_param(spec, value); !why.empty()) {
@@ -86,7 +87,7 @@ void FeedbackStage::set_param(std::string_view name, double value) {
   throw InputError(strategy_name_ + ": unknown parameter '" + std::string(name) + "'");
 }
 
-void FeedbackStage::set_model(Model model) {
+void FeedbackStage::Impl::set_model(Model model) {
   if (scene_) throw std::logic_error("FeedbackStage: set_model on a stage made on a scene");
   if (!model.hierarchy || model.hierarchy->empty()) {
     throw std::invalid_argument("FeedbackStage: the model has no hierarchy");

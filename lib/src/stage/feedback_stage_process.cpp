@@ -23,6 +23,7 @@
 #include <typeinfo>
 #include <utility>
 
+#include "feedback_stage_impl.hpp"
 #include "treecut/feedback_stage.hpp"
 
 namespace treecut {
@@ -49,7 +50,7 @@ std::uint64_t ns_between(std::chrono::steady_clock::time_point a,
 
 // Feedback Stage side, state == Process: everything in the inbox, the back
 // buffer and the stage-only members is ours; the front list is read-only.
-void FeedbackStage::process() {
+void FeedbackStage::Impl::process() {
   using Clock = std::chrono::steady_clock;
   Outbox out;
   out.started = Clock::now();
@@ -149,7 +150,7 @@ void FeedbackStage::process() {
 // Stage thread, Process, on a scene: Extract as for a model, then the
 // objects one after the other into the back list, each list sorted, with
 // the object offsets beside them in the same buffer.
-void FeedbackStage::process_scene(Outbox& out) {
+void FeedbackStage::Impl::process_scene(Outbox& out) {
   using Clock = std::chrono::steady_clock;
   const Clock::time_point t0 = out.started;
   const std::size_t n = scene_inputs_.size();
@@ -339,7 +340,7 @@ void FeedbackStage::process_scene(Outbox& out) {
 // Stage thread, inside a catch handler: whatever the strategy threw (also
 // `throw 42`) becomes one StrategyError naming it and its plugin; nothing
 // escapes this thread (no terminate).
-void FeedbackStage::fail(Outbox& out) {
+void FeedbackStage::Impl::fail(Outbox& out) {
   std::string problem;
   try {
     throw;
@@ -366,11 +367,12 @@ void FeedbackStage::fail(Outbox& out) {
 // Stage thread. Always: ids in range and the cut's points add up to the
 // leaf count (O(cut): catches an empty cut and a missing node). With
 // options_.validate: every leaf exactly once (TreeCut::validate).
-std::string FeedbackStage::check_cut(std::span<const NodeId> nodes) const {
+std::string FeedbackStage::Impl::check_cut(std::span<const NodeId> nodes) const {
   return check_cut(*hierarchy_, nodes);
 }
 
-std::string FeedbackStage::check_cut(const Hierarchy& h, std::span<const NodeId> nodes) const {
+std::string FeedbackStage::Impl::check_cut(const Hierarchy& h,
+                                           std::span<const NodeId> nodes) const {
   if (nodes.empty()) return "the cut is empty";
   const std::uint32_t m = h.node_count();
   const auto counts = h.arrays().point_count;

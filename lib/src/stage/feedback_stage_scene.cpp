@@ -12,6 +12,7 @@
 #include <string>
 #include <utility>
 
+#include "feedback_stage_impl.hpp"
 #include "treecut/error.hpp"
 #include "treecut/feedback_stage.hpp"
 #include "treecut/scene.hpp"
@@ -37,8 +38,8 @@ std::shared_ptr<const StageScene> stage_scene(const Scene& scene) {
   return s;
 }
 
-FeedbackStage::FeedbackStage(std::shared_ptr<const StageScene> scene,
-                             const StrategyFactory& factory, StageOptions options)
+FeedbackStage::Impl::Impl(std::shared_ptr<const StageScene> scene, const StrategyFactory& factory,
+                          StageOptions options)
     : options_(options), scene_(std::move(scene)) {
   if (!scene_ || scene_->objects.empty()) {
     throw std::invalid_argument("FeedbackStage: the scene has no objects");
@@ -107,7 +108,7 @@ FeedbackStage::FeedbackStage(std::shared_ptr<const StageScene> scene,
 
 // Render thread (constructor, set_strategy): per-object instances are state
 // for every node of every object; refused past the limit, before any is made.
-void FeedbackStage::check_scene_strategy(const Strategy& probe) const {
+void FeedbackStage::Impl::check_scene_strategy(const Strategy& probe) const {
   if (std::string why = per_object_limit_problem(*scene_, probe); !why.empty()) {
     throw InputError(why);
   }
@@ -136,8 +137,8 @@ std::string per_object_limit_problem(const StageScene& scene, const Strategy& pr
 
 // The instances a scene runs: `first` and, for a per-object strategy, one
 // more from `factory` per further object, each reset for its model.
-void FeedbackStage::make_object_strategies(std::unique_ptr<Strategy> first,
-                                           const StrategyFactory& factory) {
+void FeedbackStage::Impl::make_object_strategies(std::unique_ptr<Strategy> first,
+                                                 const StrategyFactory& factory) {
   // Made aside and swapped in whole: a factory or reset that throws leaves
   // the instances of the strategy before (the iteration fails, the next
   // one runs them). The first instance outlives such a failure: the render

@@ -48,7 +48,7 @@ void apply_low_priority(pthread_t thread, int tid, int base_nice, StagePriority 
 }  // namespace detail
 #endif
 
-FeedbackStage::~FeedbackStage() {
+FeedbackStage::Impl::~Impl() {
   cancel_.store(true, std::memory_order_relaxed);
   if (!thread_.joinable()) return;
   // Shutdown while Process runs: let the (cancelled) iteration return to Wait,
@@ -86,7 +86,7 @@ FeedbackStage::~FeedbackStage() {
   thread_.join();
 }
 
-void FeedbackStage::run() {
+void FeedbackStage::Impl::run() {
 #if defined(__linux__)
   if (options_.priority != StagePriority::Normal) {
     const int tid = static_cast<int>(syscall(SYS_gettid));
@@ -113,7 +113,7 @@ void FeedbackStage::run() {
 
 // Stage thread, state == Wait: returns once the render thread has moved the
 // state to Process or Exit. Spin, then poll, then park (StageOptions).
-FeedbackStage::State FeedbackStage::await_request() {
+FeedbackStage::Impl::State FeedbackStage::Impl::await_request() {
   using Clock = std::chrono::steady_clock;
   const Clock::time_point idle_since = Clock::now();
   for (;;) {
@@ -136,7 +136,7 @@ FeedbackStage::State FeedbackStage::await_request() {
   }
 }
 
-bool FeedbackStage::step() {
+bool FeedbackStage::Impl::step() {
   if (options_.launch != Launch::Manual) return false;
   if (state_.load(std::memory_order_acquire) != State::Process) return false;
   process();
