@@ -1,6 +1,7 @@
 #include "render_reports.hpp"
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -24,6 +25,14 @@ std::string json_number(double v) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.6g", v);
   return buf;
+}
+
+// A counter's value in stats.csv: the shortest text that reads back as the
+// same double, so a count prints whole ("1234567", never "1.23457e+06").
+std::string counter_text(double v) {
+  char buf[32];
+  const auto [end, ec] = std::to_chars(buf, buf + sizeof buf, v);
+  return ec == std::errc() ? std::string(buf, end) : std::string();
 }
 
 nlohmann::ordered_json psnr_json(double v) {
@@ -201,7 +210,7 @@ void write_stats_csv(const std::filesystem::path& file, const std::vector<FrameR
         << (std::isfinite(r.psnr_luma_db) ? json_number(r.psnr_luma_db) : std::string());
     for (const CounterSeries& c : series) {
       out << ',';
-      if (const std::optional<double> v = r.counters.find(c.name)) out << *v;
+      if (const std::optional<double> v = r.counters.find(c.name)) out << counter_text(*v);
     }
     out << '\n';
   }
@@ -239,11 +248,11 @@ std::string summary_json(const RunSummary& s) {
   if (const std::vector<CounterSeries> series = counter_series(s.rows); !series.empty()) {
     nlohmann::ordered_json counters = nlohmann::ordered_json::object();
     for (const CounterSeries& c : series) {
-      counters[c.name] = {
-          {"unit", c.unit},
-          {"mean", number_json(c.total / double(std::max<std::size_t>(c.frames, 1)))},
-          {"total", number_json(c.total)},
-          {"frames", c.frames}};
+      // Full doubles (counters are finite): a total of counts stays exact.
+      counters[c.name] = {{"unit", c.unit},
+                          {"mean", c.total / double(std::max<std::size_t>(c.frames, 1))},
+                          {"total", c.total},
+                          {"frames", c.frames}};
     }
     j["counters"] = std::move(counters);
   }
