@@ -27,7 +27,7 @@ install(DIRECTORY ${PROJECT_SOURCE_DIR}/lib/include/treecut
                   ${PROJECT_SOURCE_DIR}/lib/culling/include/treecut
                   ${PROJECT_SOURCE_DIR}/strategies/include/treecut
                   ${PROJECT_SOURCE_DIR}/splat/include/treecut
-                  ${PROJECT_SOURCE_DIR}/lib/umbrella/include/treecut
+                  ${PROJECT_SOURCE_DIR}/demo/umbrella/include/treecut
   DESTINATION ${CMAKE_INSTALL_INCLUDEDIR} COMPONENT treecut_development
   FILES_MATCHING PATTERN "*.hpp")
 install(EXPORT treecutTargets NAMESPACE treecut:: DESTINATION ${TREECUT_INSTALL_CMAKEDIR}
