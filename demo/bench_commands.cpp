@@ -390,7 +390,7 @@ void run_bench_occlusion(const OcclusionArgs& a) {
     dev.set_view_render_thread(cameras[f], settings);
     if (run.options.mode == OcclusionMode::Ideal) traversals[r].set_ideal_leaves(sw_set[run.tree]);
     const auto stats =
-        traversals[r].frame_render_thread(dev, splat::occlusion_view(cameras[f], size), true);
+        traversals[r].frame_render_thread(dev, cameras[f].view(size), true);
     if (run.options.mode == OcclusionMode::StopAndWait) sw_set[run.tree] = traversals[r].drawn();
     return stats;
   };

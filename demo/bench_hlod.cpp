@@ -71,7 +71,6 @@ void run_hlod_table(const HlodBenchInput& in) {
   splat::Renderer& renderer = *in.renderer;
   splat::GlOcclusionDevice& device = *in.device;
   const glm::ivec2 size = in.size;
-  const float aspect = float(size.x) / float(std::max(size.y, 1));
   const HlodMode modes[] = {HlodMode::Bool, HlodMode::SwB, HlodMode::SimpB, HlodMode::CohB};
   std::vector<Method> methods;
   std::vector<culling::HlodTraversal> traversals;
@@ -119,10 +118,8 @@ void run_hlod_table(const HlodBenchInput& in) {
       return row;
     }
     device.set_view_render_thread(cam, in.settings);
-    const culling::HlodView view =
-        culling::hlod_view(cam.view_matrix(), cam.projection_matrix(aspect), size,
-                           splat::occlusion_view(cam, size).near_radius);
-    const culling::HlodFrameStats s = traversals[m].frame_render_thread(device, view, true);
+    const culling::HlodFrameStats s =
+        traversals[m].frame_render_thread(device, cam.view(size), true);
     row.frame_ms = s.frame_ms;
     row.drawn = double(s.drawn);
     row.splats = double(s.splats);

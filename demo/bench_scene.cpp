@@ -358,11 +358,10 @@ void run_bench_scene(const SceneBenchArgs& a) {
     off.to_seen.push_back(to_seen_off);
 
     // Diagnosis on the same reference.
-    const culling::FrameView frame_view(view);
     const std::span<const culling::SceneObject> objects = on.strategy->objects();
     for (Variant& v : variants) {
       v.culler->preprocess(objects);
-      v.culler->cull(objects, frame_view, &pool);
+      v.culler->cull(objects, view, &pool);
       const auto vis = v.culler->visible();
       const auto states = v.culler->states();
       for (std::size_t i = 0; i < n; ++i) {

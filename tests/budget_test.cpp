@@ -174,7 +174,7 @@ TEST(Budget, culled_objects_give_their_share_to_visible_ones) {
   WorkerPool pool(2);
   std::size_t culled_total = 0;
   for (const auto& snap : views) {
-    const FrameView view(snap);
+    const ViewSnapshot& view = snap;
     HzmCuller culler;
     culler.preprocess(objects);
     culler.cull(objects, view, &pool);

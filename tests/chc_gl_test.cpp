@@ -101,7 +101,7 @@ class ChcGl : public ::testing::TestWithParam<SceneCase> {
   std::vector<BlockId> in_frustum(const Camera& c) {
     ChcTraversal vfc(blocks_, {OcclusionMode::Vfc});
     device_->set_view_render_thread(c, settings_);
-    vfc.frame_render_thread(*device_, occlusion_view(c, {kWidth, kHeight}));
+    vfc.frame_render_thread(*device_, c.view({kWidth, kHeight}));
     return vfc.drawn();
   }
   // The reference: each leaf block of `candidates` drawn inside a query after
@@ -143,7 +143,7 @@ TEST_P(ChcGl, NothingVisibleIsCulledUnderExactSettings) {
     const std::vector<BlockId> in = in_frustum(cameras[f]);
     device_->set_view_render_thread(cameras[f], settings_);
     const ChcFrameStats s =
-        chc.frame_render_thread(*device_, occlusion_view(cameras[f], {kWidth, kHeight}));
+        chc.frame_render_thread(*device_, cameras[f].view({kWidth, kHeight}));
     const std::set<BlockId> drawn(chc.drawn().begin(), chc.drawn().end());
     std::vector<BlockId> culled;
     for (const BlockId b : in)
@@ -175,7 +175,7 @@ TEST_P(ChcGl, NothingVisibleIsCulledUnderExactSettings) {
 
 TEST_P(ChcGl, StopAndWaitAndIdealDrawTheSameSetAndChcConvergesToIt) {
   const Camera c = walk_cameras(GetParam().kind, *h_, 9)[4];  // street level
-  const auto view = occlusion_view(c, {kWidth, kHeight});
+  const auto view = c.view({kWidth, kHeight});
   device_->set_view_render_thread(c, settings_);
   ChcTraversal sw(blocks_, {OcclusionMode::StopAndWait});
   const ChcFrameStats s = sw.frame_render_thread(*device_, view);
@@ -214,7 +214,7 @@ TEST_P(ChcGlQueries, NeverReadsAResultBeforeItWasSeenAvailableUnlessItCountsTheW
     // Warm: the pool has grown to what the walk needs.
     for (const Camera& c : cameras) {
       device_->set_view_render_thread(c, settings_);
-      t.frame_render_thread(*device_, occlusion_view(c, {kWidth, kHeight}), false);
+      t.frame_render_thread(*device_, c.view({kWidth, kHeight}), false);
     }
     t.reset();
     const QueryCheck check;
@@ -222,7 +222,7 @@ TEST_P(ChcGlQueries, NeverReadsAResultBeforeItWasSeenAvailableUnlessItCountsTheW
     for (const Camera& c : cameras) {
       device_->set_view_render_thread(c, settings_);
       const ChcFrameStats s =
-          t.frame_render_thread(*device_, occlusion_view(c, {kWidth, kHeight}), false);
+          t.frame_render_thread(*device_, c.view({kWidth, kHeight}), false);
       blocking += s.blocking_reads;
       queries += s.queries;
     }

@@ -29,6 +29,7 @@ namespace {
 
 using treecut::Hierarchy;
 using treecut::PointSet;
+using treecut::ViewSnapshot;
 using treecut::culling::BlockId;
 using treecut::culling::Box;
 using treecut::culling::ChcFrameStats;
@@ -40,7 +41,6 @@ using treecut::culling::kBinaryFanOut;
 using treecut::culling::kNoBlock;
 using treecut::culling::OcclusionDeviceRenderThread;
 using treecut::culling::OcclusionMode;
-using treecut::culling::OcclusionView;
 using treecut::culling::QueryHandle;
 
 constexpr int kRes = 96;  // pixels per side over u, v in [-1, 1]
@@ -200,13 +200,12 @@ class FakeDevice final : public OcclusionDeviceRenderThread {
   DeviceFrameStats stats_;
 };
 
-OcclusionView view_from(glm::vec3 eye) {
-  const glm::mat4 proj = glm::perspective(glm::radians(90.0f), 1.0f, 0.1f, 100.0f);
-  const glm::mat4 view = glm::lookAt(eye, eye + glm::vec3(1, 0, 0), glm::vec3(0, 0, 1));
-  OcclusionView v;
-  v.view_projection = proj * view;
-  v.eye = eye;
-  v.near_radius = 0.1f * std::sqrt(3.0f);
+ViewSnapshot view_from(glm::vec3 eye) {
+  ViewSnapshot v;
+  v.projection = glm::perspective(glm::radians(90.0f), 1.0f, 0.1f, 100.0f);
+  v.view = glm::lookAt(eye, eye + glm::vec3(1, 0, 0), glm::vec3(0, 0, 1));
+  v.viewport = {64, 64};
+  v.finalize();
   return v;
 }
 
@@ -514,8 +513,8 @@ TEST_F(Chc, TheEyeInsideABoxMakesItVisibleWithoutAQuery) {
   ChcTraversal t(blocks_, {OcclusionMode::StopAndWait});
   // Eye inside the root's box: the root is not queried.
   const glm::vec3 eye(-3, 0, 0);
-  OcclusionView v = view_from(eye);
-  v.near_radius = 1e9f;  // every box counts as at the near plane
+  ViewSnapshot v = view_from(eye);
+  v.derived.near_radius = 1e9f;  // every box counts as at the near plane
   const ChcFrameStats s = t.frame_render_thread(d, v);
   EXPECT_EQ(s.queries, 0u);
   EXPECT_GE(t.drawn().size(), leaves_in_frustum(d).size());

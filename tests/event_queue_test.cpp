@@ -329,7 +329,7 @@ TEST(EventQueue, event_times_are_lower_bounds) {
   for (int trial = 0; trial < 300; ++trial) {
     const auto [eye, target] = random_camera(s, rng, u);
     const ViewSnapshot v0 = camera(s, eye, target, 1);
-    const auto c0 = strategies::CriterionCamera::from_view(v0, 1.5);
+    const auto c0 = strategies::CriterionConstants::from_view(v0, 1.5);
     for (int k = 0; k < 200; ++k) {
       const NodeId n = random_node(*h, rng);
       const bool now = strategies::unfold_test(c0, cr[n]);
@@ -350,7 +350,7 @@ TEST(EventQueue, event_times_are_lower_bounds) {
         const double a = 0.999 * frames * omega * (m % 3 == 0 ? 1.0 : -1.0);
         const glm::dvec3 f1 = fwd * std::cos(a) + glm::cross(axis, fwd) * std::sin(a);
         const ViewSnapshot v1 = camera(s, e1, e1 + glm::vec3(f1), 2);
-        const auto c1 = strategies::CriterionCamera::from_view(v1, 1.5);
+        const auto c1 = strategies::CriterionConstants::from_view(v1, 1.5);
         ASSERT_EQ(strategies::unfold_test(c1, cr[n]), now)
             << "node " << n << " event in " << t << " frames changed within " << frames;
         ++checked;
@@ -376,7 +376,7 @@ TEST(EventQueue, two_clock_event_times_are_lower_bounds) {
   std::size_t checked = 0, rotation_bounded = 0;
   for (int trial = 0; trial < 300; ++trial) {
     const auto [eye, target] = random_camera(s, rng, u);
-    const auto c0 = strategies::CriterionCamera::from_view(camera(s, eye, target, 1), 1.5);
+    const auto c0 = strategies::CriterionConstants::from_view(camera(s, eye, target, 1), 1.5);
     const strategies::EventRates rates(c0, rho, omega, 511.0, 63.0, paces[trial % 4]);
     for (int k = 0; k < 100; ++k) {
       const NodeId n = random_node(*h, rng);
@@ -402,7 +402,7 @@ TEST(EventQueue, two_clock_event_times_are_lower_bounds) {
         const double a = angle * (m % 4 < 2 ? 1.0 : -1.0);
         const glm::dvec3 f1 = fwd * std::cos(a) + glm::cross(axis, fwd) * std::sin(a);
         const auto c1 =
-            strategies::CriterionCamera::from_view(camera(s, e1, e1 + glm::vec3(f1), 2), 1.5);
+            strategies::CriterionConstants::from_view(camera(s, e1, e1 + glm::vec3(f1), 2), 1.5);
         ASSERT_EQ(strategies::unfold_test(c1, cr[n]), now)
             << "node " << n << " event (m " << t.m << ", w " << t.w << ") changed after "
             << dist / rho << " rho and " << angle / omega << " omega";
@@ -430,7 +430,7 @@ TEST(EventQueue, decide_equals_test_and_event_time) {
   for (int trial = 0; trial < 200; ++trial) {
     auto [eye, target] = random_camera(s, rng, u);
     if (trial % 5 == 0) eye = s.center + 0.05f * s.extent * glm::vec3(u(rng), u(rng), u(rng));
-    const auto cam = strategies::CriterionCamera::from_view(camera(s, eye, target, 1), 1.5);
+    const auto cam = strategies::CriterionConstants::from_view(camera(s, eye, target, 1), 1.5);
     const strategies::EventRates rates(cam, rho, 0.02, 511.0, 63.0, paces[trial % 4]);
     for (int k = 0; k < 200; ++k) {
       // Ids are breadth-first: every tenth node among the 64 largest spheres.

@@ -77,11 +77,7 @@ std::vector<Camera> walk(const Hierarchy& h, int count) {
   return out;
 }
 
-culling::HlodView view_of(const Camera& c) {
-  const glm::ivec2 size(kWidth, kHeight);
-  return culling::hlod_view(c.view_matrix(), c.projection_matrix(float(kWidth) / kHeight), size,
-                            occlusion_view(c, size).near_radius);
-}
+ViewSnapshot view_of(const Camera& c) { return c.view({kWidth, kHeight}); }
 
 using test::QueryCheck;  // tests/support/query_check.hpp
 

@@ -28,6 +28,7 @@
 namespace {
 
 using treecut::Hierarchy;
+using treecut::ViewSnapshot;
 using treecut::culling::BlockId;
 using treecut::culling::box_projected_pixels;
 using treecut::culling::DeviceFrameStats;
@@ -36,7 +37,6 @@ using treecut::culling::HlodFrameStats;
 using treecut::culling::HlodMode;
 using treecut::culling::HlodOptions;
 using treecut::culling::HlodTraversal;
-using treecut::culling::HlodView;
 using treecut::culling::OcclusionDeviceRenderThread;
 using treecut::culling::QueryHandle;
 
@@ -52,14 +52,20 @@ std::shared_ptr<const Hierarchy> city() {
   return h;
 }
 
-HlodView view_at(const Hierarchy& h, float distance_factor) {
+ViewSnapshot view_at(const Hierarchy& h, float distance_factor) {
   const glm::vec3 c = 0.5f * (h.bounds_min() + h.bounds_max());
   const float r = 0.5f * glm::length(h.bounds_max() - h.bounds_min());
   const glm::vec3 eye = c + distance_factor * r * glm::normalize(glm::vec3(1.0f, 0.6f, 0.8f));
   const glm::mat4 view = glm::lookAt(eye, c, glm::vec3(0, 0, 1));
   const float aspect = float(kViewport.x) / float(kViewport.y);
   const glm::mat4 proj = glm::perspective(0.9f, aspect, 0.01f * r, 10.0f * r);
-  return treecut::culling::hlod_view(view, proj, kViewport, 0.02f * r);
+  ViewSnapshot v;
+  v.view = view;
+  v.projection = proj;
+  v.viewport = kViewport;
+  v.finalize();
+  v.derived.near_radius = 0.02f * r;  // the tests' margin, wider than the near plane's
+  return v;
 }
 
 enum class Op { Query, Read, Draw };
@@ -75,7 +81,7 @@ class ScriptedDevice final : public OcclusionDeviceRenderThread {
   ScriptedDevice(const HlodBlocks& blocks, int latency) : blocks_(&blocks), latency_(latency) {}
 
   std::function<double(BlockId)> fraction = [](BlockId) { return 1.0; };
-  const HlodView* view = nullptr;
+  const ViewSnapshot* view = nullptr;
   const HlodTraversal* traversal = nullptr;
   std::vector<Event> log;
   std::uint64_t blocked_with_work = 0;
@@ -90,7 +96,7 @@ class ScriptedDevice final : public OcclusionDeviceRenderThread {
     ++stats_.queries;
     log.push_back({Op::Query, b});
     double px =
-        box_projected_pixels(view->occlusion.view_projection, view->viewport, blocks_->box(b));
+        box_projected_pixels(*view, blocks_->box(b));
     if (px < 0) px = 100.0;
     // Fully visible is every pixel (mu = 1), whatever the rounding.
     const double f = fraction(b);
@@ -163,7 +169,7 @@ class HlodTraversalTest : public ::testing::Test {
     std::vector<float> sse;
     for (BlockId b = 0; b < blocks_.block_count(); ++b) {
       if (!blocks_.is_leaf(b)) {
-        sse.push_back(treecut::culling::hoq::block_sse(near_.snapshot, blocks_.box(b),
+        sse.push_back(treecut::culling::hoq::block_sse(near_, blocks_.box(b),
                                                        probe.error_radius(b)));
       }
     }
@@ -177,28 +183,27 @@ class HlodTraversalTest : public ::testing::Test {
     o.tau = tau_;
     return o;
   }
-  HlodFrameStats run(HlodTraversal& t, ScriptedDevice& d, const HlodView& v) {
+  HlodFrameStats run(HlodTraversal& t, ScriptedDevice& d, const ViewSnapshot& v) {
     d.view = &v;
     d.traversal = &t;
     return t.frame_render_thread(d, v);
   }
-  float block_sse(const HlodTraversal& t, BlockId b, const HlodView& v) const {
-    return treecut::culling::hoq::block_sse(v.snapshot, blocks_.box(b), t.error_radius(b));
+  float block_sse(const HlodTraversal& t, BlockId b, const ViewSnapshot& v) const {
+    return treecut::culling::hoq::block_sse(v, blocks_.box(b), t.error_radius(b));
   }
 
   std::shared_ptr<const Hierarchy> h_;
   HlodBlocks blocks_;
-  HlodView near_, far_;
+  ViewSnapshot near_, far_;
   float tau_ = 1.0f;
 };
 
 TEST_F(HlodTraversalTest, BoxPixelsOfABoxFillingTheViewAreTheViewport) {
-  const glm::mat4 vp = near_.occlusion.view_projection;
   treecut::culling::Box huge{glm::vec3(-1e4f), glm::vec3(1e4f)};
   // Behind the eye: no analytic count.
-  EXPECT_LT(box_projected_pixels(vp, kViewport, huge), 0.0);
+  EXPECT_LT(box_projected_pixels(near_, huge), 0.0);
   // A box seen whole is less than the viewport and more than nothing.
-  const double px = box_projected_pixels(vp, kViewport, blocks_.box(0));
+  const double px = box_projected_pixels(near_, blocks_.box(0));
   EXPECT_GT(px, 0.0);
   EXPECT_LE(px, double(kViewport.x) * kViewport.y + 1e-6);
 }
@@ -236,7 +241,7 @@ TEST_F(HlodTraversalTest, StopDrawsAtOnceRefineQueriesNothingDelayWaitsForTheAns
   // Refine: closer, a stopped interior block whose SSE now exceeds tau is
   // refined: no query of it, its children traversed (queried: new to the
   // traversal, so delayed) in the same frame.
-  const HlodView closer = view_at(*h_, 1.1f);
+  const ViewSnapshot closer = view_at(*h_, 1.1f);
   s = run(t, d, closer);
   std::size_t refined = 0;
   for (BlockId b = 0; b < blocks_.block_count(); ++b) {
@@ -287,7 +292,7 @@ TEST_F(HlodTraversalTest, StopDrawsAtOnceRefineQueriesNothingDelayWaitsForTheAns
   // room to spare are candidates: queried, their answers waited for, and
   // then drawn at their own level (VMSSE <= tau), their children not drawn.
   for (int i = 0; i < 6; ++i) run(t, d, near_);
-  const HlodView farther = view_at(*h_, 2.4f);
+  const ViewSnapshot farther = view_at(*h_, 2.4f);
   s = run(t, d, farther);
   EXPECT_GT(s.delayed_shift_up, 0u);
   EXPECT_GT(s.delayed_drawn_shift_up, 0u);

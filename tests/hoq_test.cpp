@@ -146,7 +146,7 @@ TEST(HoqSse, NoSplatOfARepresentationProjectsLargerThanItsBlockSse) {
 TEST(HoqProxy, PixelsOfACentredSphereOffViewAndBehindTheEye) {
   const ViewSnapshot view =
       ViewSnapshot::look_at({0, 0, 10}, {0, 0, 0}, {400, 300}, 0.8f, 0.1f, 100.0f);
-  const hoq::QueryCamera cam{view.view, view.projection, view.viewport};
+  const treecut::ViewSnapshot& cam = view;
   // Straight ahead at distance 10, radius 1: the tangent half-width is
   // f * r / sqrt(d^2 - r^2) pixels, f = 150 / tan(0.4); 1/8 pixel more on
   // each side; a square sprite of that side.
@@ -182,7 +182,7 @@ class FakeExecutor {
 
   void post(const std::vector<QueryRequest>& queries, std::uint64_t frame, const ViewSnapshot& view,
             std::uint64_t latency) {
-    const hoq::QueryCamera cam{view.view, view.projection, view.viewport};
+    const treecut::ViewSnapshot& cam = view;
     for (const QueryRequest& q : queries) {
       const glm::vec4 s = h_.arrays().center_radius[q.node];
       const double pixels = hoq::proxy_pixels(cam, glm::vec3(s), s.w);
@@ -516,7 +516,7 @@ TEST(HoqStage, AnswersPostedToTheStageReachTheStrategyAndEveryListIsValid) {
       generation = f.current.generation;
       ASSERT_EQ(TreeCut::validate(*h, f.current.nodes), "") << "generation " << generation;
       ++lists;
-      const hoq::QueryCamera cam{view.view, view.projection, view.viewport};
+      const treecut::ViewSnapshot& cam = view;
       for (const QueryRequest& q : f.current.queries) {
         const glm::vec4 sp = h->arrays().center_radius[q.node];
         const double pixels = hoq::proxy_pixels(cam, glm::vec3(sp), sp.w);

@@ -27,7 +27,7 @@ namespace {
 VisibilityResult answer(const Hierarchy& h, const ViewSnapshot& view, const QueryRequest& q,
                         std::uint64_t issued) {
   namespace hoq = culling::hoq;
-  const hoq::QueryCamera cam{view.view, view.projection, view.viewport};
+  const treecut::ViewSnapshot& cam = view;
   const glm::vec4 s = h.arrays().center_radius[q.node];
   const double pixels = hoq::proxy_pixels(cam, glm::vec3(s), s.w);
   const float mid = 0.5f * (h.bounds_min().x + h.bounds_max().x);

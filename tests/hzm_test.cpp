@@ -72,7 +72,7 @@ std::vector<SceneObject> wall_scene(std::uint32_t seed) {
 // were culled (so a caller can also require that culling happened).
 std::size_t expect_conservative(const std::vector<SceneObject>& objects, const ViewSnapshot& snap,
                                 const HzmParams& params, WorkerPool* pool) {
-  const FrameView view(snap);
+  const ViewSnapshot& view = snap;
   HzmCuller culler(params);
   culler.preprocess(objects);
   culler.cull(objects, view, pool);
@@ -149,7 +149,7 @@ HzmParams wall_params(std::size_t active) {
 
 TEST(Hzm, wall_culls_what_it_hides) {
   const auto objects = wall_scene(3);
-  const FrameView view(wall_front_view());
+  const ViewSnapshot view = wall_front_view();
   HzmParams params = wall_params(24);
   params.finer_levels = 0;  // the paper's test
   HzmCuller culler(params);
@@ -173,7 +173,7 @@ TEST(Hzm, wall_culls_what_it_hides) {
 // culled, and the map is the one the visible occluders alone would build.
 TEST(Hzm, an_occluder_the_others_hide_is_culled) {
   const auto objects = wall_scene(3);
-  const FrameView view(wall_front_view());
+  const ViewSnapshot view = wall_front_view();
   const HzmParams params = wall_params(80);
   HzmCuller culler(params);
   culler.preprocess(objects);
@@ -219,7 +219,7 @@ TEST(Hzm, depth_image_bounds_the_occluders_front_surface) {
   const auto objects = random_boxes(300, 17);
   const auto snap =
       ViewSnapshot::look_at({30.0f, 8.0f, 35.0f}, glm::vec3(0.0f), {160, 120}, 0.9f, 0.05f, 500.0f);
-  const FrameView view(snap);
+  const ViewSnapshot& view = snap;
   for (const unsigned width : {160u, 40u, 23u}) {
     HzmParams params;
     params.depth_width = width;
@@ -242,7 +242,7 @@ TEST(Hzm, depth_image_bounds_the_occluders_front_surface) {
                 view.ray_direction(static_cast<float>(px) + 0.5f, static_cast<float>(py) + 0.5f);
             float front = std::numeric_limits<float>::infinity();
             for (const std::uint32_t i : culler.active()) {
-              const RayHit h = ray_box(objects[i].inner, view.eye(), d);
+              const RayHit h = ray_box(objects[i].inner, view.derived.eye, d);
               if (h.hit() && h.t_in > 0.0f) front = std::min(front, h.t_in);
             }
             farthest = std::max(farthest, front);
@@ -479,7 +479,7 @@ TEST(Hzm, occluders_are_the_top_weights_of_eq3) {
   const auto objects = random_boxes(500, 11);
   const auto snap =
       ViewSnapshot::look_at({0.0f, 0.0f, 45.0f}, glm::vec3(0.0f), {320, 240}, 0.9f, 0.05f, 500.0f);
-  const FrameView view(snap);
+  const ViewSnapshot& view = snap;
   // Both readings of E: the viewing direction, the eye to the AABB's center.
   for (const Facing facing : {Facing::ViewDirection, Facing::EyeToObject}) {
     HzmParams params{64, 10, 0.5f};
@@ -493,16 +493,16 @@ TEST(Hzm, occluders_are_the_top_weights_of_eq3) {
     std::vector<std::pair<float, std::uint32_t>> w;
     for (std::uint32_t i = 0; i < objects.size(); ++i) {
       const SceneObject& o = objects[i];
-      const ScreenRect r = view.project(o.bounds);
+      const ScreenRect r = project_box(view, o.bounds);
       if (!r.in_frustum || r.crosses_near) continue;
       int k = 0;
       for (int a = 1; a < 3; ++a)
         if (o.box.half[a] < o.box.half[k]) k = a;
-      const glm::vec3 e = view.eye();
+      const glm::vec3 e = view.derived.eye;
       const glm::vec3 out = glm::max(glm::max(o.bounds.lo - e, e - o.bounds.hi), glm::vec3(0.0f));
       const glm::vec3 s = o.bounds.hi - o.bounds.lo;
       const glm::vec3 dir = facing == Facing::ViewDirection
-                                ? view.forward()
+                                ? view.derived.forward
                                 : glm::normalize(0.5f * (o.bounds.lo + o.bounds.hi) - e);
       const float weight =
           s.x * s.y * s.z * std::abs(glm::dot(o.box.axes[k], dir)) / glm::length(out);
@@ -521,11 +521,11 @@ TEST(Hzm, occluders_are_the_top_weights_of_eq3) {
 TEST(Hzm, screen_rectangles_and_near_plane) {
   const auto snap =
       ViewSnapshot::look_at({0.0f, 0.0f, 10.0f}, glm::vec3(0.0f), {200, 100}, 0.9f, 0.5f, 100.0f);
-  const FrameView view(snap);
-  EXPECT_NEAR(view.near_plane(), 0.5f, 1e-4f);
-  EXPECT_NEAR(view.far_plane(), 100.0f, 0.05f);
+  const ViewSnapshot& view = snap;
+  EXPECT_NEAR(view.derived.near_plane, 0.5f, 1e-4f);
+  EXPECT_NEAR(view.derived.far_plane, 100.0f, 0.05f);
   // In front: the rectangle of the projected corners, depth of the nearest.
-  const ScreenRect r = view.project({{-1.0f, -1.0f, -1.0f}, {1.0f, 1.0f, 1.0f}});
+  const ScreenRect r = project_box(view, {{-1.0f, -1.0f, -1.0f}, {1.0f, 1.0f, 1.0f}});
   ASSERT_TRUE(r.in_frustum);
   EXPECT_FALSE(r.crosses_near);
   EXPECT_NEAR(r.depth, 9.0f, 1e-4f);
@@ -536,17 +536,17 @@ TEST(Hzm, screen_rectangles_and_near_plane) {
   EXPECT_NEAR(0.5f * (r.x0 + r.x1), 100.0f, 1e-3f);
   EXPECT_NEAR(r.area(), (r.x1 - r.x0) * (r.y1 - r.y0), 1e-3f);
   // Behind the camera: culled.
-  EXPECT_FALSE(view.project({{-1.0f, -1.0f, 20.0f}, {1.0f, 1.0f, 22.0f}}).in_frustum);
+  EXPECT_FALSE(project_box(view, {{-1.0f, -1.0f, 20.0f}, {1.0f, 1.0f, 22.0f}}).in_frustum);
   // Beyond the far plane: culled.
-  EXPECT_FALSE(view.project({{-1.0f, -1.0f, -200.0f}, {1.0f, 1.0f, -190.0f}}).in_frustum);
+  EXPECT_FALSE(project_box(view, {{-1.0f, -1.0f, -200.0f}, {1.0f, 1.0f, -190.0f}}).in_frustum);
   // Off to the side: culled.
-  EXPECT_FALSE(view.project({{50.0f, -1.0f, -1.0f}, {52.0f, 1.0f, 1.0f}}).in_frustum);
+  EXPECT_FALSE(project_box(view, {{50.0f, -1.0f, -1.0f}, {52.0f, 1.0f, 1.0f}}).in_frustum);
   // Crossing the near plane: depth = near, the rectangle of the part in
   // front (clipped to the viewport), never culled by the HZM.
-  const ScreenRect c = view.project({{-0.2f, -0.2f, 9.0f}, {0.2f, 0.2f, 11.0f}});
+  const ScreenRect c = project_box(view, {{-0.2f, -0.2f, 9.0f}, {0.2f, 0.2f, 11.0f}});
   ASSERT_TRUE(c.in_frustum);
   EXPECT_TRUE(c.crosses_near);
-  EXPECT_FLOAT_EQ(c.depth, view.near_plane());
+  EXPECT_FLOAT_EQ(c.depth, view.derived.near_plane);
   const float at_near = 0.2f * f / 0.5f * 50.0f;  // half size at the near plane, pixels
   EXPECT_NEAR(c.y1 - c.y0, std::min(100.0f, 2.0f * at_near), 1e-2f);
 }
@@ -556,7 +556,7 @@ TEST(Hzm, independent_of_the_thread_count) {
   const auto views = city_views(3000, 3, 4, {320, 180});
   WorkerPool one(1), two(2);
   for (const auto& snap : views) {
-    const FrameView view(snap);
+    const ViewSnapshot& view = snap;
     HzmCuller a, b;
     a.preprocess(objects);
     b.preprocess(objects);

@@ -46,7 +46,7 @@ TEST(ManyObjectsSelect, nth_element_per_chunk_picks_the_full_sorts_occluders) {
       HzmCuller culler(params);
       culler.preprocess(objects);
       for (const ViewSnapshot& snap : views) {
-        const FrameView view(snap);
+        const ViewSnapshot& view = snap;
         culler.project(objects, view, &pool);
         culler.select_occluders(objects, view, &pool);
         // The definition: every COS member's Eq. 3 weight, all sorted.
@@ -75,7 +75,7 @@ TEST(ManyObjectsSelect, nth_element_per_chunk_picks_the_full_sorts_occluders) {
 
 TEST(ManyObjectsSelect, budget_items_from_an_array_of_points) {
   const std::vector<SceneObject> objects = box_city(10000, 4);
-  const FrameView view(city_views(10000, 1, 4, {1280, 720})[0]);
+  const ViewSnapshot view = city_views(10000, 1, 4, {1280, 720})[0];
   HzmCuller culler;
   culler.preprocess(objects);
   WorkerPool pool(2);

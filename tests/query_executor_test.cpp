@@ -172,7 +172,7 @@ class QueryExecutorTest : public ::testing::Test {
 class AloneHook final : public QueryHook {
  public:
   explicit AloneHook(QueryRequest r) : request_(r) {}
-  void run(const FrameView& view) override {
+  void run(const ViewSnapshot& view) override {
     QueryExecutorOptions o;
     o.min_batch = 1;  // issued in this run(), not batched with later ones
     QueryExecutor single(o);
@@ -197,13 +197,13 @@ class AloneHook final : public QueryHook {
 // and view: the reference of the CPU ray test below.
 class DepthHook final : public QueryHook {
  public:
-  void run(const FrameView& v) override {
+  void run(const ViewSnapshot& v) override {
     view = v;
-    depth.assign(std::size_t(v.size.x) * std::size_t(v.size.y), 0.0f);
+    depth.assign(std::size_t(v.viewport.x) * std::size_t(v.viewport.y), 0.0f);
     gl::PixelStorei(GL_PACK_ALIGNMENT, 1);
-    gl::ReadPixels(0, 0, v.size.x, v.size.y, GL_DEPTH_COMPONENT, GL_FLOAT, depth.data());
+    gl::ReadPixels(0, 0, v.viewport.x, v.viewport.y, GL_DEPTH_COMPONENT, GL_FLOAT, depth.data());
   }
-  FrameView view;
+  ViewSnapshot view;
   std::vector<float> depth;
 };
 
@@ -212,27 +212,27 @@ class DepthHook final : public QueryHook {
 // frame's depth there (GL_LEQUAL). A conservative proxy counts at least
 // these, and 0 only where this is 0.
 std::uint32_t true_samples(glm::vec4 sphere, const DepthHook& d) {
-  const FrameView& v = d.view;
+  const ViewSnapshot& v = d.view;
   const glm::mat4 vp = v.projection * v.view;
   const glm::mat4 inv = glm::inverse(vp);
   const glm::vec3 c(sphere);
   const float r = sphere.w;
   std::uint32_t n = 0;
-  for (int y = 0; y < v.size.y; ++y) {
-    for (int x = 0; x < v.size.x; ++x) {
-      const glm::vec2 ndc((float(x) + 0.5f) / float(v.size.x) * 2.0f - 1.0f,
-                          (float(y) + 0.5f) / float(v.size.y) * 2.0f - 1.0f);
+  for (int y = 0; y < v.viewport.y; ++y) {
+    for (int x = 0; x < v.viewport.x; ++x) {
+      const glm::vec2 ndc((float(x) + 0.5f) / float(v.viewport.x) * 2.0f - 1.0f,
+                          (float(y) + 0.5f) / float(v.viewport.y) * 2.0f - 1.0f);
       const glm::vec4 far_h = inv * glm::vec4(ndc, 1.0f, 1.0f);
-      const glm::vec3 dir = glm::normalize(glm::vec3(far_h) / far_h.w - v.eye);
-      const glm::vec3 oc = v.eye - c;
+      const glm::vec3 dir = glm::normalize(glm::vec3(far_h) / far_h.w - v.derived.eye);
+      const glm::vec3 oc = v.derived.eye - c;
       const float b = glm::dot(oc, dir);
       const float disc = b * b - (glm::dot(oc, oc) - r * r);
       if (disc < 0.0f) continue;
       const float t = -b - std::sqrt(disc);
       if (t <= 0.0f) continue;  // behind the eye
-      const glm::vec4 hit = vp * glm::vec4(v.eye + t * dir, 1.0f);
+      const glm::vec4 hit = vp * glm::vec4(v.derived.eye + t * dir, 1.0f);
       const float depth = std::clamp(hit.z / hit.w * 0.5f + 0.5f, 0.0f, 1.0f);
-      if (depth <= d.depth[std::size_t(y) * std::size_t(v.size.x) + std::size_t(x)]) ++n;
+      if (depth <= d.depth[std::size_t(y) * std::size_t(v.viewport.x) + std::size_t(x)]) ++n;
     }
   }
   return n;

@@ -157,14 +157,14 @@ TEST_P(RenderRanges, ASubsetOfRangesDrawsExactlyThoseNodes) {
 // Records the calls and the GL state it is called in.
 class RecordingHook final : public RangeHook {
  public:
-  void after_range(std::size_t index, const FrameView& view) override {
+  void after_range(std::size_t index, const ViewSnapshot& view) override {
     calls.push_back(index);
     GLint depth_writes = 1;
     GLint color[4] = {1, 1, 1, 1};
     gl::GetIntegerv(GL_DEPTH_WRITEMASK, &depth_writes);
     gl::GetIntegerv(GL_COLOR_WRITEMASK, color);
     writes_off = writes_off && depth_writes == 0 && color[0] == 0 && color[3] == 0;
-    size_ok = size_ok && view.size == glm::ivec2(kWidth, kHeight);
+    size_ok = size_ok && view.viewport == glm::ivec2(kWidth, kHeight);
     // A hook may bind its own program and vertex array (the renderer rebinds).
     gl::UseProgram(0);
     gl::BindVertexArray(0);

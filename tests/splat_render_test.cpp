@@ -177,12 +177,12 @@ TEST_F(SplatRender, ResizeChangesTheFrameSize) {
 // bound and depth writes off, and an occlusion query issued there answers.
 class CountingHook : public QueryHook {
  public:
-  void run(const FrameView& view) override {
+  void run(const ViewSnapshot& view) override {
     ++calls;
     GLint depth_writes = GL_TRUE;
     gl::GetIntegerv(GL_DEPTH_WRITEMASK, &depth_writes);
     if (depth_writes != GL_FALSE) ++writes_on;
-    last_size = view.size;
+    last_size = view.viewport;
   }
   int calls = 0;
   int writes_on = 0;

@@ -74,7 +74,7 @@ const std::vector<std::vector<std::uint8_t>>& reference(std::size_t count) {
     WorkerPool pool(2);
     for (const auto& v : c.views) {
       slot.emplace_back();
-      reference_visibility(c.objects, FrameView(v), slot.back(), &pool);
+      reference_visibility(c.objects, v, slot.back(), &pool);
     }
   }
   return slot;
@@ -116,7 +116,7 @@ void BM_Frame(benchmark::State& state) {
   CullAccuracy total;
   std::size_t in_frustum = 0, visible = 0, seen = 0;
   for (std::size_t v = 0; v < c.views.size(); ++v) {
-    culler.cull(c.objects, FrameView(c.views[v]), &pool);
+    culler.cull(c.objects, c.views[v], &pool);
     const CullAccuracy a = cull_accuracy(culler, ref[v]);
     total.culled += a.culled;
     total.hidden += a.hidden;
@@ -137,7 +137,7 @@ void BM_Frame(benchmark::State& state) {
          cpu_test = 0;
   std::size_t frame = 0;
   for (auto _ : state) {
-    const FrameView view(c.views[frame++ % c.views.size()]);
+    const treecut::ViewSnapshot& view = c.views[frame++ % c.views.size()];
     const double c0 = cpu_ms();
     const double m0 = thread_cpu_ms();
     const auto t0 = Clock::now();

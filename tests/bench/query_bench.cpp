@@ -129,7 +129,7 @@ void Queries(benchmark::State& state) {
   struct TimedHook final : splat::QueryHook {
     splat::QueryHook* inner = nullptr;
     std::uint64_t enter = 0, exit = 0;
-    void run(const splat::FrameView& view) override {
+    void run(const ViewSnapshot& view) override {
       enter = thread_cpu_ns();
       if (inner != nullptr) inner->run(view);
       exit = thread_cpu_ns();

@@ -385,7 +385,7 @@ BENCHMARK_CAPTURE(FullVsLod, lion, std::string("lion_takanawa.ply"))
 // times with glFinish, and the same from the render thread's CPU time.
 class NoopHook final : public RangeHook {
  public:
-  void after_range(std::size_t, const FrameView&) override { ++calls; }
+  void after_range(std::size_t, const ViewSnapshot&) override { ++calls; }
   std::size_t calls = 0;
 };
 

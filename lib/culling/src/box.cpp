@@ -4,8 +4,6 @@
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
 
-#include "treecut/view_snapshot.hpp"
-
 namespace treecut::culling {
 
 bool Box::contains_sphere(glm::vec3 c, float r) const {
@@ -18,11 +16,8 @@ float Box::distance_to(glm::vec3 p) const {
   return glm::length(d);
 }
 
-FrustumPlanes::FrustumPlanes(const glm::mat4& view_projection)
-    : planes(frustum_planes(view_projection)) {}
-
-bool FrustumPlanes::may_contain(const Box& box) const {
-  for (const glm::vec4& p : planes) {
+bool may_be_in_frustum(const ViewSnapshot& view, const Box& box) {
+  for (const glm::vec4& p : view.derived.frustum) {
     const glm::vec3 corner(p.x >= 0.0f ? box.hi.x : box.lo.x, p.y >= 0.0f ? box.hi.y : box.lo.y,
                            p.z >= 0.0f ? box.hi.z : box.lo.z);
     if (p.x * corner.x + p.y * corner.y + p.z * corner.z + p.w < 0.0f) return false;

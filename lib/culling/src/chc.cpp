@@ -30,10 +30,10 @@ std::string_view occlusion_mode_name(OcclusionMode mode) {
 
 namespace {
 
-bool heap_less(const auto& a, const auto& b) {
-  // std heaps are max-heaps: the nearest block must compare greatest.
+// std heaps are max-heaps: the nearest block must compare greatest.
+constexpr auto heap_less = [](const auto& a, const auto& b) {
   return a.distance > b.distance || (a.distance == b.distance && a.block > b.block);
-}
+};
 
 }  // namespace
 
@@ -66,11 +66,10 @@ bool ChcTraversal::answer_visible(std::uint64_t samples) const {
   return samples > 0 && samples >= options_.min_visible_samples;
 }
 
-void ChcTraversal::push(BlockId b, const OcclusionView& view) {
+void ChcTraversal::push(BlockId b, const ViewSnapshot& view) {
   wait_at_push_ = device_->frame_stats().wait_ms;
-  heap_.push_back({blocks_->box(b).distance_to(view.eye), b});
-  std::push_heap(heap_.begin(), heap_.end(),
-                 [](const Entry& x, const Entry& y) { return heap_less(x, y); });
+  heap_.push_back({blocks_->box(b).distance_to(view.derived.eye), b});
+  std::push_heap(heap_.begin(), heap_.end(), heap_less);
 }
 
 void ChcTraversal::draw(BlockId b, OcclusionDeviceRenderThread& device) {
@@ -82,7 +81,7 @@ void ChcTraversal::draw(BlockId b, OcclusionDeviceRenderThread& device) {
 
 // The paper's TraverseNode: a leaf is drawn, an interior block's children go
 // to the traversal queue.
-void ChcTraversal::traverse(BlockId b, const OcclusionView& view,
+void ChcTraversal::traverse(BlockId b, const ViewSnapshot& view,
                             OcclusionDeviceRenderThread& device) {
   if (blocks_->is_leaf(b)) {
     draw(b, device);
@@ -99,110 +98,32 @@ void ChcTraversal::pull_up(BlockId b) {
 }
 
 ChcFrameStats ChcTraversal::frame_render_thread(OcclusionDeviceRenderThread& device,
-                                                const OcclusionView& view, bool finish) {
+                                                const ViewSnapshot& view, bool finish) {
   const auto start = std::chrono::steady_clock::now();
   ++frame_;
-  const std::uint64_t frame = frame_;
-  const OcclusionMode mode = options_.mode;
-  frustum_ = FrustumPlanes(view.view_projection);
   heap_.clear();
   pending_.clear();
   pending_head_ = 0;
   drawn_.clear();
   classified_.clear();
-  if (mode == OcclusionMode::Ideal && ideal_.size() != blocks_->block_count()) {
+  if (options_.mode == OcclusionMode::Ideal && ideal_.size() != blocks_->block_count()) {
     ideal_.assign(blocks_->block_count(), 0);
   }
   ChcFrameStats stats;
-  auto heap_cmp = [](const Entry& x, const Entry& y) { return heap_less(x, y); };
-
   const std::uint32_t interval = std::max<std::uint32_t>(options_.poll_interval, 1);
   std::uint32_t since_poll = interval;
   device.begin_frame_render_thread();
   device_ = &device;
   push(0, view);
   while (!heap_.empty() || pending_head_ < pending_.size()) {
-    // Part 1: answers. Stop-and-wait always waits; CHC reads an answer only
-    // when it is available, or when there is nothing else to do.
-    while (pending_head_ < pending_.size()) {
-      bool read = mode == OcclusionMode::StopAndWait || heap_.empty();
-      if (!read && since_poll >= interval) {
-        read = device.result_available_render_thread(pending_[pending_head_].query);
-        if (!read) since_poll = 0;  // not there: the next poll after `interval` blocks
-      }
-      if (!read) break;
-      const Pending p = pending_[pending_head_++];
-      const std::uint64_t samples = device.result_render_thread(p.query);
-      if (mode == OcclusionMode::Ideal) continue;  // a probe: ignored
-      if (answer_visible(samples)) {
-        pull_up(p.block);
-        visible_query_[p.block] = frame;
-        traverse(p.block, view, device);  // pull-down (a leaf drawn when queried is not redrawn)
-      }
-    }
+    read_answers(view, device, interval, since_poll);
     // Part 2: the hierarchical traversal, front to back.
     if (heap_.empty()) continue;
-    std::pop_heap(heap_.begin(), heap_.end(), heap_cmp);
+    std::pop_heap(heap_.begin(), heap_.end(), heap_less);
     const Entry e = heap_.back();
     heap_.pop_back();
     ++since_poll;
-    const BlockId b = e.block;
-    const Box& box = blocks_->box(b);
-    if (!frustum_.may_contain(box)) {
-      ++stats.frustum_culled;
-      continue;
-    }
-    const bool leaf = blocks_->is_leaf(b);
-    if (leaf) classified_.push_back(b);
-    const bool was_visible = visible_[b] != 0 && last_visited_[b] + 1 == frame;
-    visible_[b] = 0;
-    last_visited_[b] = frame;
-    // A box the eye is in (or at the near plane) cannot be queried: its
-    // proxy would be clipped. It is visible.
-    const bool near = e.distance <= view.near_radius;
-    switch (mode) {
-      case OcclusionMode::Vfc:
-        pull_up(b);
-        traverse(b, view, device);
-        break;
-      case OcclusionMode::Ideal:
-        if (ideal_[b] != 0) {
-          if (leaf && options_.ideal_probe_queries) {
-            pending_.push_back({b, device.query_box_render_thread(b), true});
-            ++stats.queries;
-          }
-          pull_up(b);
-          traverse(b, view, device);
-        }
-        break;
-      case OcclusionMode::StopAndWait:
-        if (near) {
-          pull_up(b);
-          traverse(b, view, device);
-        } else {
-          pending_.push_back({b, device.query_box_render_thread(b), false});
-          ++stats.queries;
-        }
-        break;
-      case OcclusionMode::Chc: {
-        const bool opened = was_visible && !leaf;
-        if (opened || near) {
-          // An opened node: no query, its children decide (pull-up).
-          if (near) pull_up(b);
-          traverse(b, view, device);
-        } else if (was_visible && options_.assume_visible_frames > 0 &&
-                   frame - visible_query_[b] <= options_.assume_visible_frames) {
-          // Conservative visibility testing: assumed visible, no query.
-          pull_up(b);
-          traverse(b, view, device);
-        } else {
-          pending_.push_back({b, device.query_box_render_thread(b), was_visible});
-          ++stats.queries;
-          if (was_visible) traverse(b, view, device);  // a previously visible leaf: draw at once
-        }
-        break;
-      }
-    }
+    visit(e, view, device, stats);
   }
   device.end_frame_render_thread(finish);
 
@@ -217,6 +138,91 @@ ChcFrameStats ChcTraversal::frame_render_thread(OcclusionDeviceRenderThread& dev
   stats.frame_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return stats;
+}
+
+// Part 1: answers. Stop-and-wait always waits; CHC reads an answer only when
+// it is available, or when there is nothing else to do.
+void ChcTraversal::read_answers(const ViewSnapshot& view, OcclusionDeviceRenderThread& device,
+                                std::uint32_t interval, std::uint32_t& since_poll) {
+  while (pending_head_ < pending_.size()) {
+    bool read = options_.mode == OcclusionMode::StopAndWait || heap_.empty();
+    if (!read && since_poll >= interval) {
+      read = device.result_available_render_thread(pending_[pending_head_].query);
+      if (!read) since_poll = 0;  // not there: the next poll after `interval` blocks
+    }
+    if (!read) break;
+    const Pending p = pending_[pending_head_++];
+    const std::uint64_t samples = device.result_render_thread(p.query);
+    if (options_.mode == OcclusionMode::Ideal) continue;  // a probe: ignored
+    if (answer_visible(samples)) {
+      pull_up(p.block);
+      visible_query_[p.block] = frame_;
+      traverse(p.block, view, device);  // pull-down (a leaf drawn when queried is not redrawn)
+    }
+  }
+}
+
+// One block taken from the traversal queue: culled, opened, queried or drawn
+// as the mode says.
+void ChcTraversal::visit(const Entry& e, const ViewSnapshot& view,
+                         OcclusionDeviceRenderThread& device, ChcFrameStats& stats) {
+  const BlockId b = e.block;
+  if (!may_be_in_frustum(view, blocks_->box(b))) {
+    ++stats.frustum_culled;
+    return;
+  }
+  const std::uint64_t frame = frame_;
+  const bool leaf = blocks_->is_leaf(b);
+  if (leaf) classified_.push_back(b);
+  const bool was_visible = visible_[b] != 0 && last_visited_[b] + 1 == frame;
+  visible_[b] = 0;
+  last_visited_[b] = frame;
+  // A box the eye is in (or at the near plane) cannot be queried: its
+  // proxy would be clipped. It is visible.
+  const bool near = e.distance <= view.derived.near_radius;
+  switch (options_.mode) {
+    case OcclusionMode::Vfc:
+      pull_up(b);
+      traverse(b, view, device);
+      break;
+    case OcclusionMode::Ideal:
+      if (ideal_[b] != 0) {
+        if (leaf && options_.ideal_probe_queries) {
+          pending_.push_back({b, device.query_box_render_thread(b), true});
+          ++stats.queries;
+        }
+        pull_up(b);
+        traverse(b, view, device);
+      }
+      break;
+    case OcclusionMode::StopAndWait:
+      if (near) {
+        pull_up(b);
+        traverse(b, view, device);
+      } else {
+        pending_.push_back({b, device.query_box_render_thread(b), false});
+        ++stats.queries;
+      }
+      break;
+    case OcclusionMode::Chc: {
+      const bool opened = was_visible && !leaf;
+      if (opened || near) {
+        // An opened node: no query, its children decide (pull-up).
+        if (near) pull_up(b);
+        traverse(b, view, device);
+      } else if (was_visible && options_.assume_visible_frames > 0 &&
+                 frame - visible_query_[b] <= options_.assume_visible_frames) {
+        // Conservative visibility testing: assumed visible, no query.
+        pull_up(b);
+        traverse(b, view, device);
+      } else {
+        pending_.push_back({b, device.query_box_render_thread(b), was_visible});
+        ++stats.queries;
+        if (was_visible) traverse(b, view, device);  // a previously visible leaf: draw at once
+      }
+      break;
+    }
+  }
 }
 
 std::vector<BlockId> ChcTraversal::visible_leaves() const {

@@ -27,20 +27,6 @@ std::string_view hlod_mode_name(HlodMode mode) {
   return "?";
 }
 
-HlodView hlod_view(const glm::mat4& view, const glm::mat4& projection, glm::ivec2 viewport,
-                   float near_radius) {
-  HlodView v;
-  v.snapshot.view = view;
-  v.snapshot.projection = projection;
-  v.snapshot.viewport = viewport;
-  v.snapshot.finalize();
-  v.viewport = viewport;
-  v.occlusion.view_projection = projection * view;
-  v.occlusion.eye = v.snapshot.derived.eye;
-  v.occlusion.near_radius = near_radius;
-  return v;
-}
-
 namespace {
 
 struct P2 {
@@ -75,7 +61,9 @@ bool heap_less(const auto& a, const auto& b) {
 
 }  // namespace
 
-double box_projected_pixels(const glm::mat4& view_projection, glm::ivec2 viewport, const Box& box) {
+double box_projected_pixels(const ViewSnapshot& view, const Box& box) {
+  const glm::mat4& view_projection = view.derived.view_projection;
+  const glm::ivec2 viewport = view.viewport;
   std::vector<P2> pts;
   for (int c = 0; c < 8; ++c) {
     const glm::vec4 p((c & 1) ? box.hi.x : box.lo.x, (c & 2) ? box.hi.y : box.lo.y,
@@ -140,11 +128,11 @@ void HlodTraversal::reset() {
 }
 
 float HlodTraversal::sse(BlockId b) const {
-  return hoq::block_sse(view_->snapshot, blocks_->box(b), error_radius_[b]);
+  return hoq::block_sse(*view_, blocks_->box(b), error_radius_[b]);
 }
 
 void HlodTraversal::push(BlockId b) {
-  heap_.push_back({hoq::distance_to_box(view_->occlusion.eye, blocks_->box(b)), b});
+  heap_.push_back({hoq::distance_to_box(view_->derived.eye, blocks_->box(b)), b});
   std::push_heap(heap_.begin(), heap_.end(),
                  [](const Entry& x, const Entry& y) { return heap_less(x, y); });
 }
@@ -182,7 +170,7 @@ void HlodTraversal::answer(const Pending& p, std::uint64_t samples) {
     bias_[b] = visible ? 1.0f : 0.0f;  // the answer only as visible or not
   } else {
     const double pixels =
-        box_projected_pixels(view_->occlusion.view_projection, view_->viewport, blocks_->box(b));
+        box_projected_pixels(*view_, blocks_->box(b));
     const float mu = hoq::relative_visibility(
         static_cast<std::uint32_t>(std::min<std::uint64_t>(samples, 0xffffffffu)), pixels);
     bias_[b] = hoq::sigmoid_bias(mu, options_.s, options_.t);
@@ -232,7 +220,7 @@ void HlodTraversal::visit(const Entry& e) {
   last_visited_[b] = frame;
   visible_[b] = 0;
   outside_[b] = 0;
-  if (!frustum_.may_contain(blocks_->box(b))) {
+  if (!may_be_in_frustum(*view_, blocks_->box(b))) {
     outside_[b] = 1;
     // Nothing to query against: next frame it is invisible last frame (Delay).
     // Its bias stays its last answer's (figure 3 caches biases from answers
@@ -246,7 +234,7 @@ void HlodTraversal::visit(const Entry& e) {
   const bool leaf = blocks_->is_leaf(b);
   const float block_sse = sse(b);
   const float tau = options_.tau;
-  if (e.distance <= view_->occlusion.near_radius) {
+  if (e.distance <= view_->derived.near_radius) {
     // The eye is at the box: its proxy would be clipped. Visible, mu = 1.
     bias_[b] = 1.0f;
     pull_up(b);
@@ -324,13 +312,12 @@ void HlodTraversal::visit(const Entry& e) {
 }
 
 HlodFrameStats HlodTraversal::frame_render_thread(OcclusionDeviceRenderThread& device,
-                                                  const HlodView& view, bool finish) {
+                                                  const ViewSnapshot& view, bool finish) {
   const auto start = std::chrono::steady_clock::now();
   ++frame_;
   device_ = &device;
   view_ = &view;
   stats_ = {};
-  frustum_ = FrustumPlanes(view.occlusion.view_projection);
   heap_.clear();
   pending_.clear();
   pending_head_ = 0;

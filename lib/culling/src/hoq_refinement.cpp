@@ -38,7 +38,7 @@ float block_sse(const ViewSnapshot& view, const Box& box, float error_radius) {
   return error_radius * view.derived.pixel_scale / dist;
 }
 
-double proxy_pixels(const QueryCamera& camera, glm::vec3 center, float radius) {
+double proxy_pixels(const ViewSnapshot& camera, glm::vec3 center, float radius) {
   // The rectangle the executor rasterizes (treecut/query_proxy.hpp); not
   // wholly in front of the eye: the executor's quad path or host answer.
   if (!is_perspective_frustum(camera.projection)) return -1.0;

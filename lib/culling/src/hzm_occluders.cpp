@@ -41,10 +41,10 @@ struct OccluderRaster {
   float near_depth = 0.0f;
   int x0 = 0, y0 = 0, x1 = -1, y1 = -1;  // cell range
 
-  OccluderRaster(const Obb& box, const FrameView& v) {
+  OccluderRaster(const Obb& box, const ViewSnapshot& v) {
     const glm::mat3 t = glm::transpose(box.axes);
-    const glm::vec3 o = t * (v.eye() - box.center);
-    const glm::vec3 qx = t * v.ray_x(), qy = t * v.ray_y(), q0 = t * v.ray_0();
+    const glm::vec3 o = t * (v.derived.eye - box.center);
+    const glm::vec3 qx = t * v.derived.ray_x, qy = t * v.derived.ray_y, q0 = t * v.derived.ray_0;
     std::size_t ne = 0, nx = 0;
     for (int k = 0; k < 3; ++k) {
       float h = box.half[k];
@@ -96,15 +96,15 @@ namespace {
 
 // Eq. 3 from an AABB: the one expression of occluder_weight() and the
 // frame's loop over the candidates (the same operations, so the same bits).
-float eq3_weight(const Box& bounds, glm::vec3 normal, const FrameView& view, Facing facing) {
-  const glm::vec3 e = view.eye();
+float eq3_weight(const Box& bounds, glm::vec3 normal, const ViewSnapshot& view, Facing facing) {
+  const glm::vec3 e = view.derived.eye;
   const glm::vec3 outside = glm::max(glm::max(bounds.lo - e, e - bounds.hi), glm::vec3(0.0f));
   const float distance = glm::length(outside);
   if (!(distance > 0.0f)) return 0.0f;
   const glm::vec3 size = bounds.hi - bounds.lo;
   const float volume = size.x * size.y * size.z;
   const glm::vec3 e_dir = facing == Facing::ViewDirection
-                              ? view.forward()
+                              ? view.derived.forward
                               : glm::normalize(0.5f * (bounds.lo + bounds.hi) - e);
   return volume * std::abs(glm::dot(normal, e_dir)) / distance;
 }
@@ -112,12 +112,12 @@ float eq3_weight(const Box& bounds, glm::vec3 normal, const FrameView& view, Fac
 }  // namespace
 
 float occluder_weight(const SceneObject& object, glm::vec3 normal, const ScreenRect& rect,
-                      const FrameView& view, Facing facing) {
+                      const ViewSnapshot& view, Facing facing) {
   if (!rect.in_frustum || rect.crosses_near || !object.has_inner) return 0.0f;
   return eq3_weight(object.bounds, normal, view, facing);
 }
 
-void HzmCuller::project(std::span<const SceneObject> objects, const FrameView& view,
+void HzmCuller::project(std::span<const SceneObject> objects, const ViewSnapshot& view,
                         WorkerPool* pool) {
   rects_.resize(objects.size());
   states_.assign(objects.size(), ObjectState::Outside);
@@ -125,12 +125,12 @@ void HzmCuller::project(std::span<const SceneObject> objects, const FrameView& v
   const bool copied = bounds_.size() == objects.size();
   for_chunks(pool, objects.size(), kObjectGrain, [&](std::size_t b, std::size_t e, std::size_t) {
     for (std::size_t i = b; i < e; ++i) {
-      rects_[i] = view.project(copied ? bounds_[i] : objects[i].bounds);
+      rects_[i] = project_box(view, copied ? bounds_[i] : objects[i].bounds);
     }
   });
 }
 
-void HzmCuller::select_occluders(std::span<const SceneObject> objects, const FrameView& view,
+void HzmCuller::select_occluders(std::span<const SceneObject> objects, const ViewSnapshot& view,
                                  WorkerPool* pool) {
   const std::size_t n = by_index_.size();
   const std::size_t k = params_.active;
@@ -170,9 +170,9 @@ void HzmCuller::select_occluders(std::span<const SceneObject> objects, const Fra
   for (const Pick& p : all) aos_.push_back(p.object);
 }
 
-void HzmCuller::build_hzm(std::span<const SceneObject> objects, const FrameView& view,
+void HzmCuller::build_hzm(std::span<const SceneObject> objects, const ViewSnapshot& view,
                           WorkerPool* pool) {
-  const glm::ivec2 vp = view.viewport();
+  const glm::ivec2 vp = view.viewport;
   const int larger = std::max(vp.x, vp.y);
   const int width = static_cast<int>(std::max(1u, params_.depth_width));
   cell_ = std::max(1, (larger + width - 1) / width);
@@ -187,7 +187,7 @@ void HzmCuller::build_hzm(std::span<const SceneObject> objects, const FrameView&
   const float s = static_cast<float>(cell_);
   for (const std::uint32_t i : aos_) {
     const SceneObject& o = objects[i];
-    const ScreenRect r = view.project(bounds_of(o.inner));
+    const ScreenRect r = project_box(view, bounds_of(o.inner));
     if (!r.in_frustum || r.crosses_near) continue;
     OccluderRaster raster(o.inner, view);
     raster.near_depth = r.depth;

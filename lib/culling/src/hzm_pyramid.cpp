@@ -122,8 +122,9 @@ void HzmCuller::test(std::span<const SceneObject> objects, WorkerPool* pool) {
   }
 }
 
-void HzmCuller::cull(std::span<const SceneObject> objects, const FrameView& view,
+void HzmCuller::cull(std::span<const SceneObject> objects, const ViewSnapshot& view,
                      WorkerPool* pool) {
+  require_perspective_frustum(view);
   project(objects, view, pool);
   select_occluders(objects, view, pool);
   build_hzm(objects, view, pool);

@@ -27,12 +27,12 @@ namespace {
 // Rays of a frame in one box's frame: the direction is affine in NDC.
 struct BoxRays {
   glm::vec3 o, qx, qy, q0, half;
-  BoxRays(const Obb& b, const FrameView& v) {
+  BoxRays(const Obb& b, const ViewSnapshot& v) {
     const glm::mat3 t = glm::transpose(b.axes);
-    o = t * (v.eye() - b.center);
-    qx = t * v.ray_x();
-    qy = t * v.ray_y();
-    q0 = t * v.ray_0();
+    o = t * (v.derived.eye - b.center);
+    qx = t * v.derived.ray_x;
+    qy = t * v.derived.ray_y;
+    q0 = t * v.derived.ray_0;
     half = b.half;
   }
   [[nodiscard]] RayHit at(float nx, float ny) const {
@@ -42,19 +42,20 @@ struct BoxRays {
 
 }  // namespace
 
-void reference_visibility(std::span<const SceneObject> objects, const FrameView& view,
+void reference_visibility(std::span<const SceneObject> objects, const ViewSnapshot& view,
                           std::vector<std::uint8_t>& visible, WorkerPool* pool,
                           std::vector<std::uint32_t>* ids) {
-  const glm::ivec2 vp = view.viewport();
+  require_perspective_frustum(view);
+  const glm::ivec2 vp = view.viewport;
   const std::size_t width = static_cast<std::size_t>(vp.x);
   std::vector<std::uint32_t> local_ids;
   std::vector<std::uint32_t>& id = ids != nullptr ? *ids : local_ids;
   id.assign(width * static_cast<std::size_t>(vp.y), ~0u);
   std::vector<ScreenRect> rects(objects.size());
   for_chunks(pool, objects.size(), kObjectGrain, [&](std::size_t b, std::size_t e, std::size_t) {
-    for (std::size_t i = b; i < e; ++i) rects[i] = view.project(objects[i].bounds);
+    for (std::size_t i = b; i < e; ++i) rects[i] = project_box(view, objects[i].bounds);
   });
-  const float near_plane = view.near_plane(), far_plane = view.far_plane();
+  const float near_plane = view.derived.near_plane, far_plane = view.derived.far_plane;
   const float to_ndc_x = 2.0f / static_cast<float>(vp.x),
               to_ndc_y = 2.0f / static_cast<float>(vp.y);
   // Bands of rows: each band owns its rows of the id and depth buffers.

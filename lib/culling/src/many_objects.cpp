@@ -13,6 +13,8 @@
 #include <random>
 #include <stdexcept>
 
+#include "treecut/query_proxy.hpp"
+
 namespace treecut::culling {
 
 Box bounds_of(const Obb& box) {
@@ -57,39 +59,25 @@ ViewSnapshot object_view(const ViewSnapshot& world_view, const glm::mat4& transf
   return v;
 }
 
-FrameView::FrameView(const ViewSnapshot& view) : view_(view) {
-  const glm::mat4& p = view.projection;
-  // Column-major: p[column][row]. The frustum form has w_clip = -z_eye and
-  // no term mixing x and y.
-  if (p[0][3] != 0.0f || p[1][3] != 0.0f || p[2][3] != -1.0f || p[3][3] != 0.0f ||
-      p[0][1] != 0.0f || p[1][0] != 0.0f || p[3][0] != 0.0f || p[3][1] != 0.0f || p[0][0] == 0.0f ||
-      p[1][1] == 0.0f) {
+void require_perspective_frustum(const ViewSnapshot& view) {
+  if (!is_perspective_frustum(view.projection)) {
     throw std::invalid_argument("many objects: the projection is not a perspective frustum");
   }
   if (view.viewport.x <= 0 || view.viewport.y <= 0) {
     throw std::invalid_argument("many objects: empty viewport");
   }
-  view_projection_ = p * view.view;
-  // Eye depth of NDC z: z_e = p32 / (ndc_z + p22).
-  near_ = p[3][2] / (p[2][2] - 1.0f);
-  far_ = p[3][2] / (p[2][2] + 1.0f);
-  const glm::mat3 to_world = glm::inverse(glm::mat3(view.view));
-  eye_ = glm::vec3(glm::inverse(view.view)[3]);
-  ray_x_ = to_world * glm::vec3(1.0f / p[0][0], 0.0f, 0.0f);
-  ray_y_ = to_world * glm::vec3(0.0f, 1.0f / p[1][1], 0.0f);
-  ray_0_ = to_world * glm::vec3(p[2][0] / p[0][0], p[2][1] / p[1][1], -1.0f);
-  forward_ = glm::normalize(to_world * glm::vec3(0.0f, 0.0f, -1.0f));
 }
 
-ScreenRect FrameView::project(const Box& box) const {
+ScreenRect project_box(const ViewSnapshot& view, const Box& box) {
   ScreenRect r;
+  const float near_plane = view.derived.near_plane, far_plane = view.derived.far_plane;
   const glm::vec3 center = 0.5f * (box.lo + box.hi);
   const float radius = 0.5f * glm::length(box.hi - box.lo);
   // Most of a large scene is outside the frustum: six planes first.
-  if (view_.outside_frustum(center, radius)) return r;
+  if (view.outside_frustum(center, radius)) return r;
   // Eye-space corners as the first one plus edge vectors: 8 corners from
   // one matrix product and three scaled columns.
-  const glm::mat4& v = view_.view;
+  const glm::mat4& v = view.view;
   const glm::vec3 c0 = glm::vec3(v * glm::vec4(box.lo, 1.0f));
   const glm::vec3 ex = glm::vec3(v[0]) * (box.hi.x - box.lo.x);
   const glm::vec3 ey = glm::vec3(v[1]) * (box.hi.y - box.lo.y);
@@ -99,7 +87,7 @@ ScreenRect FrameView::project(const Box& box) const {
     corner[i] = c0 + ((i & 1) ? ex : glm::vec3(0.0f)) + ((i & 2) ? ey : glm::vec3(0.0f)) +
                 ((i & 4) ? ez : glm::vec3(0.0f));
   }
-  const glm::mat4& p = view_.projection;
+  const glm::mat4& p = view.projection;
   float lo_x = 3e38f, lo_y = 3e38f, hi_x = -3e38f, hi_y = -3e38f;
   float min_depth = 3e38f;
   bool front = false, behind = false;
@@ -115,7 +103,7 @@ ScreenRect FrameView::project(const Box& box) const {
   };
   for (const glm::vec3& e : corner) {
     const float ze = -e.z;
-    if (ze >= near_) {
+    if (ze >= near_plane) {
       front = true;
       min_depth = std::min(min_depth, ze);
       add(e);
@@ -132,19 +120,19 @@ ScreenRect FrameView::project(const Box& box) const {
         const int j = i ^ bit;
         if (j < i) continue;
         const float zi = -corner[i].z, zj = -corner[j].z;
-        if ((zi >= near_) == (zj >= near_)) continue;
-        const float s = (near_ - zi) / (zj - zi);
+        if ((zi >= near_plane) == (zj >= near_plane)) continue;
+        const float s = (near_plane - zi) / (zj - zi);
         glm::vec3 e = corner[i] + s * (corner[j] - corner[i]);
-        e.z = -near_;  // exactly on the plane despite rounding
+        e.z = -near_plane;  // exactly on the plane despite rounding
         add(e);
       }
     }
-    min_depth = near_;
+    min_depth = near_plane;
     r.crosses_near = true;
   }
   r.depth = min_depth;
-  if (min_depth > far_) return r;
-  const float w = static_cast<float>(view_.viewport.x), h = static_cast<float>(view_.viewport.y);
+  if (min_depth > far_plane) return r;
+  const float w = static_cast<float>(view.viewport.x), h = static_cast<float>(view.viewport.y);
   r.x0 = std::max(0.0f, (lo_x + 1.0f) * 0.5f * w);
   r.x1 = std::min(w, (hi_x + 1.0f) * 0.5f * w);
   r.y0 = std::max(0.0f, (lo_y + 1.0f) * 0.5f * h);

@@ -70,7 +70,7 @@ using Plane = glm::vec4;
 /// a view), normalized, normals inward: left, right, bottom, top, near, far.
 /// Gribb & Hartmann, "Fast Extraction of Viewing Frustum Planes from the
 /// World-View-Projection Matrix". The one extraction: ViewSnapshot's derived
-/// planes and the culling layer's FrustumPlanes are both this.
+/// planes are this.
 std::array<glm::vec4, 6> frustum_planes(const glm::mat4& clip_from_world);
 
 struct ViewSnapshot {
@@ -88,9 +88,26 @@ struct ViewSnapshot {
   /// Query results gathered since the previous snapshot, in issue order.
   std::vector<VisibilityResult> visibility;
 
-  /// Derived from the fields above by finalize(); read-only for strategies.
+  /// Derived from the fields above by finalize(), once per view; read-only
+  /// for everyone who is handed the view (strategies, the culling
+  /// traversals, the renderer's query hooks).
   struct Derived {
-    glm::vec3 eye{0.0f};             ///< camera position in model space
+    glm::mat4 view_projection{1.0f};        ///< clip = view_projection * model (OpenGL, z in [-1, 1])
+    glm::vec3 eye{0.0f};                    ///< camera position in model space
+    glm::vec3 forward{0.0f, 0.0f, -1.0f};  ///< unit viewing direction in model space
+    /// Eye depths of the near and far planes, model units.
+    float near_plane = 0.0f;
+    float far_plane = 0.0f;
+    /// A box or sphere nearer to the eye than this may cross the near plane:
+    /// 1 % more than the distance from the eye to the farthest corner of the
+    /// near plane's rectangle (the margin covers rounding). The occlusion
+    /// traversals draw such blocks without a query.
+    float near_radius = 0.0f;
+    /// Pixel rays of a perspective frustum (all zero otherwise): the
+    /// model-space direction through normalized device coordinates (x, y)
+    /// is ray_x * x + ray_y * y + ray_0, scaled so that its parameter t is
+    /// the eye depth of the point reached (see ray_direction()).
+    glm::vec3 ray_x{0.0f}, ray_y{0.0f}, ray_0{0.0f};
     std::array<Plane, 6> frustum{};  ///< normalized, inward-facing
     /// The same planes by component, in 8 lanes (the last two never cull),
     /// so outside_frustum() tests all six with vector instructions.
@@ -103,6 +120,21 @@ struct ViewSnapshot {
 
   /// Recomputes `derived`; call after changing view, projection or viewport.
   void finalize();
+
+  /// The projection has the perspective frustum form (is_perspective_frustum
+  /// of treecut/query_proxy.hpp: glm::perspective, glm::frustum) and the
+  /// viewport is not empty: what the pixel rays, the screen rectangles of the
+  /// culling layer and the query proxies' pixel counts need.
+  [[nodiscard]] bool perspective_frustum() const;
+
+  /// Model-space direction of the ray through window point (x, y) (pixels,
+  /// y up) of a perspective frustum, scaled so that its parameter t is the
+  /// eye depth of the point reached.
+  [[nodiscard]] glm::vec3 ray_direction(float x, float y) const {
+    const float nx = 2.0f * x / static_cast<float>(viewport.x) - 1.0f;
+    const float ny = 2.0f * y / static_cast<float>(viewport.y) - 1.0f;
+    return derived.ray_x * nx + derived.ray_y * ny + derived.ray_0;
+  }
 
   /// A camera at `eye` looking at `target` with a vertical field of view
   /// (radians), finalized. `near`/`far` in model units.

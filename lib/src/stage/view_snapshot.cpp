@@ -1,8 +1,11 @@
 #include "treecut/view_snapshot.hpp"
 
+#include <algorithm>
 #include <glm/geometric.hpp>
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/matrix.hpp>
+
+#include "treecut/query_proxy.hpp"
 
 namespace treecut {
 
@@ -23,10 +26,27 @@ std::array<glm::vec4, 6> frustum_planes(const glm::mat4& m) {
   return planes;
 }
 
+namespace {
+
+// Eye depth (positive in front) of the plane at NDC depth z of projection p.
+float eye_depth(const glm::mat4& p, float ndc_z, bool perspective) {
+  // Perspective: ndc_z = (p22 z_e + p32) / -z_e; orthographic: ndc_z = p22 z_e + p32.
+  return perspective ? p[3][2] / (p[2][2] + ndc_z) : (p[3][2] - ndc_z) / p[2][2];
+}
+
+}  // namespace
+
+bool ViewSnapshot::perspective_frustum() const {
+  return is_perspective_frustum(projection) && viewport.x > 0 && viewport.y > 0;
+}
+
 void ViewSnapshot::finalize() {
   const glm::mat4 inverse_view = glm::inverse(view);
+  const glm::mat3 to_model = glm::mat3(inverse_view);
+  derived.view_projection = projection * view;
   derived.eye = glm::vec3(inverse_view[3]);
-  derived.frustum = frustum_planes(projection * view);
+  derived.forward = glm::normalize(to_model * glm::vec3(0.0f, 0.0f, -1.0f));
+  derived.frustum = frustum_planes(derived.view_projection);
   for (std::size_t i = 0; i < 8; ++i) {
     // Lanes 6 and 7: 0 x + 1e30 >= -radius, a plane nothing is outside of.
     const Plane p = i < 6 ? derived.frustum[i] : Plane(0.0f, 0.0f, 0.0f, 1e30f);
@@ -38,6 +58,26 @@ void ViewSnapshot::finalize() {
   // A perspective projection has w_clip = -z_eye, so its last row is (0,0,-1,0).
   derived.perspective = projection[3][3] == 0.0f;
   derived.pixel_scale = 0.5f * static_cast<float>(viewport.y) * projection[1][1];
+
+  const glm::mat4& p = projection;
+  derived.near_plane = eye_depth(p, -1.0f, derived.perspective);
+  derived.far_plane = eye_depth(p, 1.0f, derived.perspective);
+  const glm::mat4 inverse_projection = glm::inverse(p);
+  float corner = 0.0f;
+  for (const float x : {-1.0f, 1.0f}) {
+    for (const float y : {-1.0f, 1.0f}) {
+      const glm::vec4 e = inverse_projection * glm::vec4(x, y, -1.0f, 1.0f);
+      corner = std::max(corner, glm::length(glm::vec3(e) / e.w));
+    }
+  }
+  derived.near_radius = 1.01f * corner;
+  if (perspective_frustum()) {
+    derived.ray_x = to_model * glm::vec3(1.0f / p[0][0], 0.0f, 0.0f);
+    derived.ray_y = to_model * glm::vec3(0.0f, 1.0f / p[1][1], 0.0f);
+    derived.ray_0 = to_model * glm::vec3(p[2][0] / p[0][0], p[2][1] / p[1][1], -1.0f);
+  } else {
+    derived.ray_x = derived.ray_y = derived.ray_0 = glm::vec3(0.0f);
+  }
 }
 
 ViewSnapshot ViewSnapshot::look_at(glm::vec3 eye, glm::vec3 target, glm::ivec2 viewport,

@@ -16,6 +16,15 @@ glm::mat4 Camera::projection_matrix(float aspect) const {
   return glm::perspective(glm::radians(fov_y_deg), aspect, near_plane, far_plane);
 }
 
+ViewSnapshot Camera::view(glm::ivec2 size) const {
+  ViewSnapshot v;
+  v.view = view_matrix();
+  v.projection = projection_matrix(static_cast<float>(size.x) / static_cast<float>(size.y));
+  v.viewport = size;
+  v.finalize();
+  return v;
+}
+
 glm::vec3 Camera::forward() const {
   const glm::vec3 d = target - eye;
   const float len = glm::length(d);

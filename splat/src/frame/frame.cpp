@@ -18,12 +18,8 @@ glm::vec3 world_light_dir(const Light& light, const glm::mat4& view) {
 }
 
 ViewSnapshot view_snapshot(const Camera& camera, glm::ivec2 size, const Light& light) {
-  ViewSnapshot v;
-  v.view = camera.view_matrix();
-  v.projection = camera.projection_matrix(static_cast<float>(size.x) / static_cast<float>(size.y));
-  v.viewport = size;
+  ViewSnapshot v = camera.view(size);
   v.light_dir = world_light_dir(light, v.view);
-  v.finalize();
   return v;
 }
 

@@ -43,17 +43,6 @@ void main() {}
 
 }  // namespace
 
-culling::OcclusionView occlusion_view(const Camera& camera, glm::ivec2 size) {
-  const float aspect = static_cast<float>(size.x) / static_cast<float>(std::max(size.y, 1));
-  culling::OcclusionView v;
-  v.view_projection = camera.projection_matrix(aspect) * camera.view_matrix();
-  v.eye = camera.eye;
-  // The farthest corner of the near plane's rectangle, with a margin.
-  const float t = std::tan(0.5f * camera.fov_y_deg * 3.14159265f / 180.0f);
-  v.near_radius = 1.01f * camera.near_plane * std::sqrt(1.0f + t * t * (1.0f + aspect * aspect));
-  return v;
-}
-
 GlOcclusionDevice::GlOcclusionDevice(Renderer& renderer, const culling::HlodBlocks& blocks,
                                      std::size_t initial_queries)
     : renderer_(&renderer), blocks_(&blocks) {
@@ -140,8 +129,8 @@ void GlOcclusionDevice::begin_frame_render_thread() {
   if (in_frame_) throw std::logic_error("GlOcclusionDevice: frame already open");
   stats_ = {};
   renderer_->begin_frame_ranges(elements_, max_id_, camera_, settings_);
-  const FrameView& f = renderer_->frame_view();
-  const glm::mat4 view_proj = f.projection * f.view;
+  const ViewSnapshot& f = renderer_->frame_view();
+  const glm::mat4& view_proj = f.derived.view_projection;
   gl::ProgramUniformMatrix4fv(proxy_.id(), u_view_proj_, 1, GL_FALSE, glm::value_ptr(view_proj));
   proxy_state_ = false;
   in_frame_ = true;

@@ -27,11 +27,7 @@ void Renderer::begin_frame_ranges(const gl::Buffer& elements, NodeId max_id, con
                            ", the vertex buffer holds " + std::to_string(node_count_));
   }
   in_frame_start_ = std::chrono::steady_clock::now();
-  const float aspect = static_cast<float>(size_.x) / static_cast<float>(size_.y);
-  in_frame_view_.view = camera.view_matrix();
-  in_frame_view_.projection = camera.projection_matrix(aspect);
-  in_frame_view_.eye = camera.eye;
-  in_frame_view_.size = size_;
+  in_frame_view_ = camera.view(size_);
   in_frame_splats_ = 0;
   draw_calls_ = 0;
   const bool fixed = settings.mode == SplatMode::FixedSize;

@@ -174,26 +174,26 @@ void QueryExecutor::answer(const Queued& q, std::uint32_t samples, std::uint64_t
   stats_.latency_frames_max_last = std::max(stats_.latency_frames_max_last, latency);
 }
 
-bool QueryExecutor::answer_on_host(const Queued& q, const FrameView& view) {
+bool QueryExecutor::answer_on_host(const Queued& q, const ViewSnapshot& view) {
   const QueryRequest& r = q.request;
   if (r.node >= static_cast<NodeId>(spheres_.size())) {  // not a node of this hierarchy
     answer(q, 0, frame_);
     return true;
   }
   const glm::vec4 s = spheres_[r.node];
-  const glm::vec3 d = glm::vec3(s) - view.eye;
+  const glm::vec3 d = glm::vec3(s) - view.derived.eye;
   if (d.x * d.x + d.y * d.y + d.z * d.z <= s.w * s.w) {
     // The eye inside the sphere: it covers the whole view.
-    answer(q, r.kind == QueryKind::AnySamples ? 1u : std::uint32_t(view.size.x * view.size.y),
+    answer(q, r.kind == QueryKind::AnySamples ? 1u : std::uint32_t(view.viewport.x * view.viewport.y),
            frame_);
     return true;
   }
   return false;
 }
 
-bool QueryExecutor::point_proxy(glm::vec4 sphere, const FrameView& view, glm::vec4& out) const {
+bool QueryExecutor::point_proxy(glm::vec4 sphere, const ViewSnapshot& view, glm::vec4& out) const {
   const glm::mat4& p = view.projection;
-  const float w = float(view.size.x), h = float(view.size.y);
+  const float w = float(view.viewport.x), h = float(view.viewport.y);
   // Not entirely in front of the eye's plane, or NaN: the quad path.
   SphereWindowRect rect;
   if (!sphere_window_rect(view.view, p, glm::vec2(w, h), sphere, rect)) return false;
@@ -265,7 +265,7 @@ void QueryExecutor::poll_render_thread() {
   }
 }
 
-void QueryExecutor::issue_render_thread(const FrameView& view, std::size_t end) {
+void QueryExecutor::issue_render_thread(const ViewSnapshot& view, std::size_t end) {
   if (ring_count_ > 0 && ring_[(ring_head_ + ring_count_ - 1) % ring_.size()].fence == nullptr) {
     return;  // run() twice in one frame: one batch per frame, the rest waits
   }
@@ -390,7 +390,7 @@ void QueryExecutor::fence_last_batch_render_thread() {
   fence_ns_ += thread_cpu_ns() - cpu0;
 }
 
-void QueryExecutor::run(const FrameView& view) {
+void QueryExecutor::run(const ViewSnapshot& view) {
   const auto wall0 = std::chrono::steady_clock::now();
   const std::uint64_t cpu0 = thread_cpu_ns();
   stats_.issued_last = 0;

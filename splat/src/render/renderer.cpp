@@ -92,7 +92,7 @@ Renderer::Uniforms Renderer::lookup_uniforms(const gl::Program& p) {
 }
 
 void Renderer::set_common_uniforms(const gl::Program& program, const Uniforms& u,
-                                   const FrameView& frame, const RenderSettings& settings,
+                                   const ViewSnapshot& frame, const RenderSettings& settings,
                                    float fade) const {
   const Light& light = settings.light;
   // The same direction the strategies are handed (frame.hpp): one function.
@@ -101,7 +101,7 @@ void Renderer::set_common_uniforms(const gl::Program& program, const Uniforms& u
   const GLuint p = program.id();
   gl::ProgramUniformMatrix4fv(p, u.view, 1, GL_FALSE, glm::value_ptr(frame.view));
   gl::ProgramUniformMatrix4fv(p, u.proj, 1, GL_FALSE, glm::value_ptr(frame.projection));
-  gl::ProgramUniform3f(p, u.eye, frame.eye.x, frame.eye.y, frame.eye.z);
+  gl::ProgramUniform3f(p, u.eye, frame.derived.eye.x, frame.derived.eye.y, frame.derived.eye.z);
   gl::ProgramUniform1f(p, u.radius_scale, settings.radius_scale);
   gl::ProgramUniform1i(p, u.cull, settings.backface_culling ? 1 : 0);
   gl::ProgramUniform1f(p, u.min_radius_px, 0.75f);

@@ -87,7 +87,7 @@ void Renderer::plan_runs(const CutBuffer& cut, std::span<const CutRange> ranges,
 }
 
 void Renderer::draw_runs(GLuint elements, const gl::Program& program, const Uniforms& u,
-                         RangeHook* hook, const FrameView& frame, GLuint fbo, bool depth_writes) {
+                         RangeHook* hook, const ViewSnapshot& frame, GLuint fbo, bool depth_writes) {
   // The exchange point: the cut is just the element buffer of the node VAO.
   gl::VertexArrayElementBuffer(vao_.id(), elements);
   gl::BindVertexArray(vao_.id());
@@ -175,12 +175,7 @@ FrameStats Renderer::render(const CutBuffer* cut, const SceneCutBuffer* scene,
     points = whole ? cut->points() : 0;
   }
   draw_calls_ = 0;
-  const float aspect = static_cast<float>(size_.x) / static_cast<float>(size_.y);
-  FrameView frame;
-  frame.view = camera.view_matrix();
-  frame.projection = camera.projection_matrix(aspect);
-  frame.eye = camera.eye;
-  frame.size = size_;
+  const ViewSnapshot frame = camera.view(size_);
 
   auto set_common = [&](const gl::Program& program, const Uniforms& u) {
     set_common_uniforms(program, u, frame, settings, fade_weight);
@@ -251,7 +246,7 @@ FrameStats Renderer::render(const CutBuffer* cut, const SceneCutBuffer* scene,
       gl::BindFramebuffer(GL_FRAMEBUFFER, scene_fbo_.id());
       gl::Disable(GL_DEPTH_TEST);
       set_common(hq_normalize_, hq_normalize_u_);
-      const glm::mat4 inv_view_proj = glm::inverse(frame.projection * frame.view);
+      const glm::mat4 inv_view_proj = glm::inverse(frame.derived.view_projection);
       gl::ProgramUniformMatrix4fv(hq_normalize_.id(), hq_normalize_u_.inv_view_proj, 1, GL_FALSE,
                                   glm::value_ptr(inv_view_proj));
       gl::UseProgram(hq_normalize_.id());

@@ -34,8 +34,8 @@ std::uint32_t frames(double x, std::uint32_t cap) {
 
 }  // namespace
 
-CriterionCamera CriterionCamera::from_view(const ViewSnapshot& view, double theta) {
-  CriterionCamera c;
+CriterionConstants CriterionConstants::from_view(const ViewSnapshot& view, double theta) {
+  CriterionConstants c;
   c.ex = view.derived.eye.x;
   c.ey = view.derived.eye.y;
   c.ez = view.derived.eye.z;
@@ -65,7 +65,7 @@ CriterionCamera CriterionCamera::from_view(const ViewSnapshot& view, double thet
   return c;
 }
 
-bool unfold_test(const CriterionCamera& cam, const ViewSnapshot& view, const glm::vec4& cr) {
+bool unfold_test(const CriterionConstants& cam, const ViewSnapshot& view, const glm::vec4& cr) {
   if (cam.perspective) return unfold_test(cam, cr);
   return double(cr.w) * cam.pixel_scale >= cam.theta && !view.outside_frustum(glm::vec3(cr), cr.w);
 }
@@ -96,7 +96,7 @@ bool unfold_test(const CriterionCamera& cam, const ViewSnapshot& view, const glm
 // rotation cannot change that (w = infinity); else the node waits for
 // min(t_i, M) on the translation clock or W on the rotation clock.
 
-EventRates::EventRates(const CriterionCamera& cam, double rho_, double omega_, double cap_,
+EventRates::EventRates(const CriterionConstants& cam, double rho_, double omega_, double cap_,
                        double cap_w_, double turn_per_move)
     : rho(rho_ * kVelocityMargin),
       inv_rho(1.0 / (rho_ * kVelocityMargin)),
@@ -107,12 +107,12 @@ EventRates::EventRates(const CriterionCamera& cam, double rho_, double omega_, d
       cap_w(cap_w_),
       split(omega_ * turn_per_move) {}
 
-EventTime potential_unfold_event(const CriterionCamera& cam, const glm::vec4& cr,
+EventTime potential_unfold_event(const CriterionConstants& cam, const glm::vec4& cr,
                                  const EventRates& q) {
   return unfold_event(cam, look(cam, cr), q);
 }
 
-Decision decide(const CriterionCamera& cam, const glm::vec4& cr, const EventRates& q) {
+Decision decide(const CriterionConstants& cam, const glm::vec4& cr, const EventRates& q) {
   return event_time::decide(cam, cr, q);
 }
 
@@ -133,21 +133,21 @@ Decision decide(const CriterionCamera& cam, const glm::vec4& cr, const EventRate
 //   Fold needs either: with M = min(t_m, K, G / (b + k)) the node keeps its
 //   test while m < M and w < (G - b M) / omega; rotation alone can always
 //   turn it out of view, so w is always finite.
-EventTime potential_fold_event(const CriterionCamera& cam, const glm::vec4& cr,
+EventTime potential_fold_event(const CriterionConstants& cam, const glm::vec4& cr,
                                const EventRates& q) {
   return fold_event(cam, look(cam, cr), q);
 }
 
 // Both clocks in step, one frame of each: the frames before which nothing
 // can change are those before either clock's bound.
-std::uint32_t potential_unfold_time(const CriterionCamera& cam, const glm::vec4& cr, double rho,
+std::uint32_t potential_unfold_time(const CriterionConstants& cam, const glm::vec4& cr, double rho,
                                     double omega, std::uint32_t cap) {
   const EventTime e =
       potential_unfold_event(cam, cr, EventRates(cam, rho, omega, double(cap), double(cap)));
   return frames(std::min(e.m, e.w), cap);
 }
 
-std::uint32_t potential_fold_time(const CriterionCamera& cam, const glm::vec4& cr, double rho,
+std::uint32_t potential_fold_time(const CriterionConstants& cam, const glm::vec4& cr, double rho,
                                   double omega, std::uint32_t cap) {
   const EventTime e =
       potential_fold_event(cam, cr, EventRates(cam, rho, omega, double(cap), double(cap)));

@@ -444,7 +444,7 @@ void EventQueueStrategy::iterate(const IterationInput& input, IterationOutput& o
   IterationResult& r = output.result;
   if (state_.size() != h.node_count() || spheres_ != h.arrays().center_radius.data()) reset(h);
   stats_ = {};
-  camera_ = CriterionCamera::from_view(input.view, param_at(kTheta));
+  camera_ = CriterionConstants::from_view(input.view, param_at(kTheta));
   rho_ = param_at(kRho) * 2.0 * double(h.radius(h.root()));
   omega_ = param_at(kOmega);
 

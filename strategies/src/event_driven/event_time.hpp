@@ -23,7 +23,7 @@ struct SilhouetteAngle {
 };
 
 // `tangent` = sqrt(d^2 - r^2), from look() where it computed it.
-inline SilhouetteAngle silhouette_angle(const CriterionCamera& cam, const Sight& g,
+inline SilhouetteAngle silhouette_angle(const CriterionConstants& cam, const Sight& g,
                                         double tangent) {
   const double along = g.dx * cam.ux + g.dy * cam.uy + g.dz * cam.uz;
   const double cx = cam.uy * g.dz - cam.uz * g.dy;
@@ -37,11 +37,11 @@ inline SilhouetteAngle silhouette_angle(const CriterionCamera& cam, const Sight&
 // x in [0, pi], and both gaps lie in [-pi/2, pi) (alpha in [0, pi], phi and
 // beta in [0, pi/2)); a negative result gives a negative bound, t = 0.
 // beta - (alpha - phi) >= sin(beta - (alpha - phi)):
-inline double gap_into_view(const CriterionCamera& cam, const SilhouetteAngle& a, double d2) {
+inline double gap_into_view(const CriterionConstants& cam, const SilhouetteAngle& a, double d2) {
   return (cam.sin_beta * a.x - cam.cos_beta * a.y) / d2;
 }
 // (alpha - phi) - beta >= sin((alpha - phi) - beta):
-inline double gap_out_of_view(const CriterionCamera& cam, const SilhouetteAngle& a, double d2) {
+inline double gap_out_of_view(const CriterionConstants& cam, const SilhouetteAngle& a, double d2) {
   return (cam.cos_beta * a.y - cam.sin_beta * a.x) / d2;
 }
 
@@ -65,7 +65,7 @@ inline double split_of(const EventRates& q, double b) {
 
 // Both from look()'s values, so that decide() and the two functions below
 // are the same code on the same numbers.
-inline EventTime unfold_event(const CriterionCamera& cam, const Sight& g, const EventRates& q) {
+inline EventTime unfold_event(const CriterionConstants& cam, const Sight& g, const EventRates& q) {
   if (g.d2 < g.r * g.r || !cam.perspective) return {0.0, 0.0};
   const double d = g.d;  // computed by look() (outside)
   const double t_i = (d - g.r) * q.inv_rho;
@@ -94,7 +94,7 @@ inline EventTime unfold_event(const CriterionCamera& cam, const Sight& g, const 
   return {clock_bound(m, q.cap), clock_bound((gap - b * m) * q.inv_omega, q.cap_w)};
 }
 
-inline EventTime fold_event(const CriterionCamera& cam, const Sight& g, const EventRates& q) {
+inline EventTime fold_event(const CriterionConstants& cam, const Sight& g, const EventRates& q) {
   if (!cam.perspective) return {0.0, 0.0};
   if (g.d2 < g.r * g.r) return {clock_bound((g.r - std::sqrt(g.d2)) * q.inv_rho, q.cap), kNever};
   // look() passed the threshold: d and the tangent are computed.
@@ -110,7 +110,7 @@ inline EventTime fold_event(const CriterionCamera& cam, const Sight& g, const Ev
   return {clock_bound(m, q.cap), clock_bound((gap - b * std::max(m, 0.0)) * q.inv_omega, q.cap_w)};
 }
 
-[[gnu::always_inline]] inline Decision decide(const CriterionCamera& cam, const glm::vec4& cr,
+[[gnu::always_inline]] inline Decision decide(const CriterionConstants& cam, const glm::vec4& cr,
                                               const EventRates& q) {
   const Sight g = look(cam, cr);
   return {g.pass ? fold_event(cam, g, q) : unfold_event(cam, g, q), g.pass};

@@ -17,7 +17,7 @@ void TopDownStrategy::reset(const Hierarchy& /*hierarchy*/) {}
 void TopDownStrategy::iterate(const IterationInput& input, IterationOutput& output) {
   const Hierarchy& h = input.hierarchy;
   IterationResult& r = output.result;
-  const CriterionCamera cam = CriterionCamera::from_view(input.view, param_at(kTheta));
+  const CriterionConstants cam = CriterionConstants::from_view(input.view, param_at(kTheta));
   const auto& cr = h.arrays().center_radius;
   auto decided = [](NodeId, bool) {};
   auto drop = [](NodeId) {};

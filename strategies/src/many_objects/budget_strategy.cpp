@@ -206,15 +206,16 @@ void BudgetStrategy::iterate_scene(const SceneIterationInput& input, SceneIterat
   culling::WorkerPool* pool = pool_.get();
   BudgetCounters c;
   c.objects = n;
-  // The culler needs a perspective frustum (FrameView throws otherwise:
-  // the stage names it as this strategy's error).
-  const culling::FrameView view(input.view);
+  // The culler needs a perspective frustum (this throws otherwise: the
+  // stage names it as this strategy's error).
+  const ViewSnapshot& view = input.view;
+  culling::require_perspective_frustum(view);
   // From here on everything but best_cut is "select + cull" (the open-face
   // check and a preprocess it needs count as projection).
   Clock::time_point t = Clock::now();
   std::uint64_t cpu = pool_cpu_ns(*pool);
   // Objects open on one face occlude only while the eye is on its inner side.
-  const glm::dvec3 eye(view.eye());
+  const glm::dvec3 eye(view.derived.eye);
   bool moved = false;
   for (std::size_t j = 0; j < open_.size(); ++j) {
     const glm::dvec4& p = open_planes_[j];

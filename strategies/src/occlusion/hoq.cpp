@@ -81,7 +81,7 @@ void HoqStrategy::reset(const Hierarchy& hierarchy) {
   build_blocks(hierarchy);
 }
 
-const culling::hoq::QueryCamera* HoqStrategy::camera_of(std::uint64_t frame) const {
+const ViewSnapshot* HoqStrategy::camera_of(std::uint64_t frame) const {
   const FrameCamera* best = nullptr;
   for (std::size_t i = 0; i < std::min(camera_count_, kCameras); ++i) {
     const FrameCamera& c = cameras_[i];
@@ -93,7 +93,6 @@ const culling::hoq::QueryCamera* HoqStrategy::camera_of(std::uint64_t frame) con
 void HoqStrategy::take_answers(const IterationInput& input) {
   const ViewSnapshot& view = input.view;
   const auto& a = input.hierarchy.arrays();
-  const culling::hoq::QueryCamera current{view.view, view.projection, view.viewport};
   const float s = static_cast<float>(param_at(kS));
   const float t = static_cast<float>(param_at(kT));
   for (const VisibilityResult& r : view.visibility) {
@@ -108,10 +107,10 @@ void HoqStrategy::take_answers(const IterationInput& input) {
     last_.answer_gpu_frames += r.frame_read >= r.frame_issued ? r.frame_read - r.frame_issued : 0;
     BlockState& st = state_[r.tag];
     if (r.frame_issued < st.answer_frame) continue;  // an older answer than the one taken
-    const culling::hoq::QueryCamera* cam = camera_of(r.frame_issued);
+    const ViewSnapshot* cam = camera_of(r.frame_issued);
     const glm::vec4 sphere = a.center_radius[r.node];
     const double pixels =
-        culling::hoq::proxy_pixels(cam != nullptr ? *cam : current, glm::vec3(sphere), sphere.w);
+        culling::hoq::proxy_pixels(cam != nullptr ? *cam : view, glm::vec3(sphere), sphere.w);
     const float mu = culling::hoq::relative_visibility(r.samples_passed, pixels);
     // Bool (the paper's image reference): the answer only as visible or not.
     st.bias =
@@ -340,7 +339,12 @@ void HoqStrategy::iterate(const IterationInput& input, IterationOutput& output) 
   ++iteration_;
   frame_ = input.view.frame;
   FrameCamera& slot = cameras_[camera_count_ % kCameras];
-  slot = {frame_, {input.view.view, input.view.projection, input.view.viewport}};
+  // The camera only: the view's visibility list stays with the snapshot.
+  slot.frame = frame_;
+  slot.camera.view = input.view.view;
+  slot.camera.projection = input.view.projection;
+  slot.camera.viewport = input.view.viewport;
+  slot.camera.derived = input.view.derived;
   ++camera_count_;
 
   last_ = {};

@@ -1,9 +1,14 @@
 // A look-at perspective camera and the helpers that place it around a model.
-// Plain data, no GL; any thread.
+// Plain data, no GL; any thread. A Camera is the viewer's pose (what the user
+// moves); the view everyone else reads is the ViewSnapshot it makes
+// (Camera::view, docs/architecture.md "Vocabulary").
 #pragma once
 
 #include <glm/mat4x4.hpp>
+#include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
+
+#include "treecut/view_snapshot.hpp"
 
 namespace treecut::splat {
 
@@ -19,6 +24,10 @@ struct Camera {
   /// OpenGL clip space (z in [-1, 1]); aspect = width / height.
   [[nodiscard]] glm::mat4 projection_matrix(float aspect) const;
   [[nodiscard]] glm::vec3 forward() const;
+  /// The view of this camera drawing into a `size` framebuffer: view,
+  /// projection and viewport, finalized. No light (splat::view_snapshot adds
+  /// it) and no frame numbers.
+  [[nodiscard]] ViewSnapshot view(glm::ivec2 size) const;
 };
 
 /// Sets the clip planes so the sphere (center, radius) lies between them as

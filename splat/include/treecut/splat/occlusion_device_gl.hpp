@@ -42,9 +42,6 @@
 
 namespace treecut::splat {
 
-/// The traversal's view of `camera` drawing into a `size` target.
-[[nodiscard]] culling::OcclusionView occlusion_view(const Camera& camera, glm::ivec2 size);
-
 class GlOcclusionDevice final : public culling::OcclusionDeviceRenderThread {
  public:
   /// Uploads the representations, makes `initial_queries` query objects and

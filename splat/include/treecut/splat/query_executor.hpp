@@ -149,7 +149,7 @@ class QueryExecutor final : public QueryHook {
 
   /// Render thread, called by the renderer inside draw() with the frame's
   /// depth complete: polls earlier queries, then issues queued ones (cap).
-  void run(const FrameView& view) override;
+  void run(const ViewSnapshot& view) override;
 
   /// Answers read since the last clear_results(), in the order read.
   [[nodiscard]] std::span<const VisibilityResult> results() const { return results_; }
@@ -183,13 +183,13 @@ class QueryExecutor final : public QueryHook {
   void upload_spheres(const Hierarchy& h);
   // Answers without the GPU (no such node, or the eye inside its sphere);
   // false if the request needs a proxy.
-  bool answer_on_host(const Queued& q, const FrameView& view);
+  bool answer_on_host(const Queued& q, const ViewSnapshot& view);
   // The point proxy of a sphere (ndc x, y, depth, side px); w < 0: it
   // misses the viewport; false: it needs the quad path.
-  bool point_proxy(glm::vec4 sphere, const FrameView& view, glm::vec4& out) const;
+  bool point_proxy(glm::vec4 sphere, const ViewSnapshot& view, glm::vec4& out) const;
   void fence_last_batch_render_thread();
   void poll_render_thread();
-  void issue_render_thread(const FrameView& view, std::size_t end);
+  void issue_render_thread(const ViewSnapshot& view, std::size_t end);
   void begin_proxy_state();
   void end_proxy_state();
   void answer(const Queued& q, std::uint32_t samples, std::uint64_t issued);

@@ -162,14 +162,6 @@ struct CutRange {
   std::uint32_t count = 0;
 };
 
-/// The frame's matrices, handed to a QueryHook.
-struct FrameView {
-  glm::mat4 view{1.0f};
-  glm::mat4 projection{1.0f};
-  glm::vec3 eye{0.0f};
-  glm::ivec2 size{0};
-};
-
 /// The place in a frame where GPU queries requested by a strategy run. The
 /// renderer calls run() once per draw(), after the depth of the visible
 /// surface is complete and before it is resolved to color, with the scene
@@ -180,7 +172,7 @@ struct FrameView {
 class QueryHook {
  public:
   virtual ~QueryHook() = default;
-  virtual void run(const FrameView& view) = 0;
+  virtual void run(const ViewSnapshot& view) = 0;
 };
 
 /// Called between the ranges of Renderer::draw_ranges(), after range `index`
@@ -192,7 +184,7 @@ class QueryHook {
 class RangeHook {
  public:
   virtual ~RangeHook() = default;
-  virtual void after_range(std::size_t index, const FrameView& view) = 0;
+  virtual void after_range(std::size_t index, const ViewSnapshot& view) = 0;
 };
 
 class SceneCutBuffer;
@@ -291,7 +283,7 @@ class Renderer {
   /// FrameStats::splats counts the splats of the frame's ranges.
   FrameStats end_frame_ranges(bool finish = false);
   /// The frame's matrices while a frame of ranges is open.
-  [[nodiscard]] const FrameView& frame_view() const { return in_frame_view_; }
+  [[nodiscard]] const ViewSnapshot& frame_view() const { return in_frame_view_; }
 
   /// Copies the last frame to the bound draw framebuffer 0 (a window), scaled
   /// to `window_size`.
@@ -321,7 +313,7 @@ class Renderer {
   };
   static Uniforms lookup_uniforms(const gl::Program& p);
   // The per-frame uniforms every splat program reads.
-  void set_common_uniforms(const gl::Program& program, const Uniforms& u, const FrameView& frame,
+  void set_common_uniforms(const gl::Program& program, const Uniforms& u, const ViewSnapshot& frame,
                            const RenderSettings& settings, float fade) const;
 
   void create_targets();
@@ -336,7 +328,7 @@ class Renderer {
   // the leaving run; `sorted`: in buffer order (hq's additive pass).
   void plan_runs(const CutBuffer& cut, std::span<const CutRange> ranges, bool sorted);
   void draw_runs(GLuint elements, const gl::Program& program, const Uniforms& u, RangeHook* hook,
-                 const FrameView& frame, GLuint fbo, bool depth_writes);
+                 const ViewSnapshot& frame, GLuint fbo, bool depth_writes);
 
   glm::ivec2 size_{0};
   std::uint32_t node_count_ = 0;
@@ -372,7 +364,7 @@ class Renderer {
   QueryHook* query_hook_ = nullptr;
   // The open frame of begin_frame_ranges (null program: none).
   const gl::Program* in_frame_program_ = nullptr;
-  FrameView in_frame_view_;
+  ViewSnapshot in_frame_view_;
   std::chrono::steady_clock::time_point in_frame_start_;
   std::size_t in_frame_splats_ = 0;
 };

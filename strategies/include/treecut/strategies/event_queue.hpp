@@ -212,9 +212,9 @@ class EventQueueStrategy final : public Strategy {
   // their ratio sets how a visibility gap is split between the clocks.
   double pace_m_ = 1.0, pace_w_ = 1.0;
   bool valid_ = false;           // the queue describes the cut and last_camera_
-  CriterionCamera camera_;       // the camera of this iteration
-  CriterionCamera last_camera_;  // the camera the queue's events are relative to
-  EventRates rates_{CriterionCamera{}, 1.0, 1.0, 1.0, 1.0};
+  CriterionConstants camera_;       // the camera of this iteration
+  CriterionConstants last_camera_;  // the camera the queue's events are relative to
+  EventRates rates_{CriterionConstants{}, 1.0, 1.0, 1.0, 1.0};
   std::uint64_t last_version_ = 0;
   std::uint64_t last_params_ = 0;
   std::size_t last_cut_size_ = 0;

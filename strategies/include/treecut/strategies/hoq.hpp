@@ -124,7 +124,7 @@ class HoqStrategy final : public Strategy {
   void terminal(culling::BlockId b, bool known_invisible);
   void query(culling::BlockId b, const IterationInput& input, IterationOutput& output);
   void children_states(culling::BlockId b, const ViewSnapshot& view);
-  [[nodiscard]] const culling::hoq::QueryCamera* camera_of(std::uint64_t frame) const;
+  [[nodiscard]] const ViewSnapshot* camera_of(std::uint64_t frame) const;
 
   culling::HlodBlocks blocks_;
   std::vector<float> error_radius_;  // per block: the largest splat radius of its representation
@@ -143,7 +143,7 @@ class HoqStrategy final : public Strategy {
   // projected pixels are counted with the camera of the frame it was issued in.
   struct FrameCamera {
     std::uint64_t frame = 0;
-    culling::hoq::QueryCamera camera;
+    ViewSnapshot camera;  // view, projection, viewport and derived; no visibility
   };
   static constexpr std::size_t kCameras = 16;
   FrameCamera cameras_[kCameras]{};

@@ -34,8 +34,11 @@
 
 namespace treecut::strategies {
 
-/// What the criterion reads of a view, in double precision.
-struct CriterionCamera {
+/// The criterion's constants for one view (the ViewSnapshot, the one view
+/// type, holds the view): its eye and direction in double precision, the
+/// cone around the frustum and the threshold, so that event times and the
+/// top-down test agree to the last bit (event-driven paper, section 4).
+struct CriterionConstants {
   double ex = 0, ey = 0, ez = 0;   ///< eye, model space
   double ux = 0, uy = 0, uz = -1;  ///< unit view direction, model space
   double beta = 0;                 ///< half-angle of the cone around the frustum
@@ -47,10 +50,10 @@ struct CriterionCamera {
   /// From a finalized snapshot. Orthographic views set perspective = false
   /// (the criterion then has no distance: visibility is the frustum test and
   /// the threshold compares r * pixel_scale with theta).
-  static CriterionCamera from_view(const ViewSnapshot& view, double theta);
+  static CriterionConstants from_view(const ViewSnapshot& view, double theta);
   /// Same projection and threshold: only the eye and the direction differ, so
   /// the event times computed under one remain valid under the other.
-  [[nodiscard]] bool same_lens(const CriterionCamera& o) const {
+  [[nodiscard]] bool same_lens(const CriterionConstants& o) const {
     return beta == o.beta && pixel_scale == o.pixel_scale && theta == o.theta &&
            perspective == o.perspective;
   }
@@ -65,7 +68,7 @@ struct Sight {
   double tangent;  ///< sqrt(d^2 - r^2); NaN when not computed (inside, or below the threshold)
   bool pass;
 };
-[[gnu::always_inline]] inline Sight look(const CriterionCamera& cam, const glm::vec4& cr) {
+[[gnu::always_inline]] inline Sight look(const CriterionConstants& cam, const glm::vec4& cr) {
   Sight s;
   s.dx = double(cr.x) - cam.ex;
   s.dy = double(cr.y) - cam.ey;
@@ -93,12 +96,12 @@ struct Sight {
 
 /// The unfold test of figure 4 (perspective camera). Inline: the top-down pass
 /// calls it for every active and boundary node.
-[[gnu::always_inline]] inline bool unfold_test(const CriterionCamera& cam, const glm::vec4& cr) {
+[[gnu::always_inline]] inline bool unfold_test(const CriterionConstants& cam, const glm::vec4& cr) {
   return look(cam, cr).pass;
 }
 
 /// The same for any projection (orthographic views fall back to the frustum).
-bool unfold_test(const CriterionCamera& cam, const ViewSnapshot& view, const glm::vec4& cr);
+bool unfold_test(const CriterionConstants& cam, const ViewSnapshot& view, const glm::vec4& cr);
 
 /// When a node's test can change next, on two clocks: `m` counts the eye's
 /// translation in units of rho, `w` the view direction's rotation in units
@@ -120,7 +123,7 @@ struct EventRates {
   /// of translation (in rho units), which sets the split; any split gives a
   /// correct bound, this one the latest events for a camera that keeps its
   /// pace. `cap`, `cap_w`: the farthest times returned on each clock.
-  EventRates(const CriterionCamera& cam, double rho, double omega, double cap, double cap_w,
+  EventRates(const CriterionConstants& cam, double rho, double omega, double cap, double cap_w,
              double turn_per_move = 1.0);
   double rho, inv_rho, omega, inv_omega;
   double
@@ -133,11 +136,11 @@ struct EventRates {
 /// min(t_i, max(t_r, t_m)) with t_r's gap split between the clocks; rotation
 /// only moves it into view, so w is finite only when visibility is what
 /// keeps the translation time late.
-EventTime potential_unfold_event(const CriterionCamera& cam, const glm::vec4& cr,
+EventTime potential_unfold_event(const CriterionConstants& cam, const glm::vec4& cr,
                                  const EventRates& rates);
 /// When unfold_test, true now, can become false (an unfolded node): leaving
 /// the sphere, or min(t_r, t_m) outside it.
-EventTime potential_fold_event(const CriterionCamera& cam, const glm::vec4& cr,
+EventTime potential_fold_event(const CriterionConstants& cam, const glm::vec4& cr,
                                const EventRates& rates);
 
 /// unfold_test and the event time for its result in one: {pass, the fold
@@ -149,17 +152,17 @@ struct Decision {
   EventTime t;
   bool pass;
 };
-Decision decide(const CriterionCamera& cam, const glm::vec4& cr, const EventRates& rates);
+Decision decide(const CriterionConstants& cam, const glm::vec4& cr, const EventRates& rates);
 
 /// Frames (>= 0, at most `cap`) before which unfold_test cannot become true
 /// for a node for which it is false now, with the eye moving at most `rho`
 /// and the direction turning at most `omega` radians per frame, both at once:
 /// min(m, w) of potential_unfold_event, floored.
-std::uint32_t potential_unfold_time(const CriterionCamera& cam, const glm::vec4& cr, double rho,
+std::uint32_t potential_unfold_time(const CriterionConstants& cam, const glm::vec4& cr, double rho,
                                     double omega, std::uint32_t cap);
 /// Frames before which unfold_test cannot become false for a node for which
 /// it is true now (the dual).
-std::uint32_t potential_fold_time(const CriterionCamera& cam, const glm::vec4& cr, double rho,
+std::uint32_t potential_fold_time(const CriterionConstants& cam, const glm::vec4& cr, double rho,
                                   double omega, std::uint32_t cap);
 
 }  // namespace treecut::strategies

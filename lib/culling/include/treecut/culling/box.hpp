@@ -9,6 +9,8 @@
 #include <glm/vec3.hpp>
 #include <glm/vec4.hpp>
 
+#include "treecut/view_snapshot.hpp"
+
 namespace treecut::culling {
 
 /// An axis-aligned box.
@@ -23,14 +25,9 @@ struct Box {
   [[nodiscard]] float distance_to(glm::vec3 p) const;
 };
 
-/// The six planes of a view frustum, normals inward (treecut::frustum_planes,
-/// the core's one extraction), for conservative box culling.
-struct FrustumPlanes {
-  std::array<glm::vec4, 6> planes{};
-  explicit FrustumPlanes(const glm::mat4& view_projection);
-  /// False only when the box lies wholly outside one plane (its corner
-  /// farthest along the plane's normal is behind it): conservative.
-  [[nodiscard]] bool may_contain(const Box& box) const;
-};
+/// False only when the box lies wholly outside one of the view's frustum
+/// planes (ViewSnapshot::derived.frustum; its corner farthest along the
+/// plane's normal is behind it): conservative.
+[[nodiscard]] bool may_be_in_frustum(const ViewSnapshot& view, const Box& box);
 
 }  // namespace treecut::culling

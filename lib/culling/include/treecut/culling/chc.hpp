@@ -32,7 +32,7 @@
 // and min_visible_samples (n_vp: an answer below n_vp samples counts as
 // occluded; 0 and 1 both mean "any sample").
 //
-// A block whose box the eye is in (or nearer than OcclusionView::near_radius)
+// A block whose box the eye is in (or nearer than ViewSnapshot::derived.near_radius)
 // is visible without a query: its proxy would be clipped by the near plane.
 //
 // Render thread only (the device is); not thread-safe. The blocks must outlive
@@ -48,6 +48,7 @@
 
 #include "treecut/culling/hlod_blocks.hpp"
 #include "treecut/culling/occlusion_device.hpp"
+#include "treecut/view_snapshot.hpp"
 
 namespace treecut::culling {
 
@@ -74,16 +75,6 @@ struct ChcOptions {
   bool ideal_probe_queries = false;
 };
 
-/// The camera of a frame, as the traversal needs it.
-struct OcclusionView {
-  glm::mat4 view_projection{1.0f};  ///< clip = view_projection * world (OpenGL, z in [-1, 1])
-  glm::vec3 eye{0.0f};
-  /// A box nearer to the eye than this is visible without a query (it may
-  /// cross the near plane): at least the distance from the eye to a corner of
-  /// the near plane's rectangle.
-  float near_radius = 0.0f;
-};
-
 /// What one frame did.
 struct ChcFrameStats {
   std::uint64_t queries = 0;         ///< occlusion queries issued
@@ -106,7 +97,8 @@ class ChcTraversal {
 
   /// One frame: begins the device's frame, traverses, ends it (finish: waits
   /// for the GPU, so frame_ms is the whole frame).
-  ChcFrameStats frame_render_thread(OcclusionDeviceRenderThread& device, const OcclusionView& view,
+  /// `view`: the frame's camera over the blocks' model space, finalized.
+  ChcFrameStats frame_render_thread(OcclusionDeviceRenderThread& device, const ViewSnapshot& view,
                                     bool finish = true);
 
   /// Ideal mode: the leaf blocks to draw in the next frame (the StopAndWait
@@ -141,8 +133,12 @@ class ChcTraversal {
     bool drawn;  // drawn when queried (a previously visible leaf)
   };
 
-  void push(BlockId b, const OcclusionView& view);
-  void traverse(BlockId b, const OcclusionView& view, OcclusionDeviceRenderThread& device);
+  void push(BlockId b, const ViewSnapshot& view);
+  void traverse(BlockId b, const ViewSnapshot& view, OcclusionDeviceRenderThread& device);
+  void read_answers(const ViewSnapshot& view, OcclusionDeviceRenderThread& device,
+                    std::uint32_t interval, std::uint32_t& since_poll);
+  void visit(const Entry& e, const ViewSnapshot& view, OcclusionDeviceRenderThread& device,
+             ChcFrameStats& stats);
   void draw(BlockId b, OcclusionDeviceRenderThread& device);
   void pull_up(BlockId b);
   [[nodiscard]] bool answer_visible(std::uint64_t samples) const;
@@ -162,7 +158,6 @@ class ChcTraversal {
   std::vector<BlockId> classified_;  // leaves visited this frame
   double wait_at_push_ = 0.0;        // the device's wait_ms when the last block was queued
   const OcclusionDeviceRenderThread* device_ = nullptr;  // during a frame
-  FrustumPlanes frustum_{glm::mat4(1.0f)};               // this frame's
 };
 
 }  // namespace treecut::culling

@@ -32,7 +32,7 @@
 // for every answer by definition). mu = the box's unoccluded pixels (the
 // device's box query) / the box's projected pixels (box_projected_pixels,
 // analytic); B and VMSSE from hoq.hpp. A block whose box the eye is in (or
-// nearer than OcclusionView::near_radius) is visible with mu = 1, no query.
+// nearer than ViewSnapshot::derived.near_radius) is visible with mu = 1, no query.
 //
 // Render thread only (the device is); not thread-safe. The hierarchy and the
 // blocks must outlive the traversal.
@@ -65,23 +65,10 @@ struct HlodOptions {
   float t = 0.5f;    ///< turn-over of the bias
 };
 
-/// The camera of a frame: the traversal's (front-to-back order, frustum,
-/// near radius) and the snapshot SSE is measured with (hoq::block_sse).
-struct HlodView {
-  OcclusionView occlusion;
-  ViewSnapshot snapshot;  ///< finalized
-  glm::ivec2 viewport{1, 1};
-};
-
-/// `view` and `projection` as a camera drawing into `viewport`.
-[[nodiscard]] HlodView hlod_view(const glm::mat4& view, const glm::mat4& projection,
-                                 glm::ivec2 viewport, float near_radius);
-
 /// The pixels the box proxy of `box` covers (the convex hull of its projected
 /// corners, clipped to the viewport): mu's denominator for a box query.
 /// Negative (no analytic count) when a corner is not in front of the eye.
-[[nodiscard]] double box_projected_pixels(const glm::mat4& view_projection, glm::ivec2 viewport,
-                                          const Box& box);
+[[nodiscard]] double box_projected_pixels(const ViewSnapshot& view, const Box& box);
 
 /// What one frame did (means of these are the paper's table).
 struct HlodFrameStats {
@@ -117,8 +104,10 @@ class HlodTraversal {
  public:
   HlodTraversal(const Hierarchy& hierarchy, const HlodBlocks& blocks, HlodOptions options = {});
 
-  /// One frame: begins the device's frame, traverses, ends it.
-  HlodFrameStats frame_render_thread(OcclusionDeviceRenderThread& device, const HlodView& view,
+  /// One frame: begins the device's frame, traverses, ends it. `view`: the
+  /// frame's camera over the hierarchy's model space, finalized (its order,
+  /// frustum, near radius and the SSE of hoq::block_sse).
+  HlodFrameStats frame_render_thread(OcclusionDeviceRenderThread& device, const ViewSnapshot& view,
                                      bool finish = true);
   /// Forgets every cached state (the next frame starts as the first).
   void reset();
@@ -182,9 +171,8 @@ class HlodTraversal {
   std::vector<hoq::ChildState> children_;
   // During a frame.
   OcclusionDeviceRenderThread* device_ = nullptr;
-  const HlodView* view_ = nullptr;
+  const ViewSnapshot* view_ = nullptr;
   HlodFrameStats stats_;
-  FrustumPlanes frustum_{glm::mat4(1.0f)};  // this frame's
 };
 
 }  // namespace treecut::culling

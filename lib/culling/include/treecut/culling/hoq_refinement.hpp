@@ -51,13 +51,6 @@ namespace treecut::culling::hoq {
 /// pixel scale.
 [[nodiscard]] float block_sse(const ViewSnapshot& view, const Box& box, float error_radius);
 
-/// The camera of one frame, enough to redo a query's geometry.
-struct QueryCamera {
-  glm::mat4 view{1.0f};
-  glm::mat4 projection{1.0f};
-  glm::ivec2 viewport{1, 1};
-};
-
 /// The pixels the View's executor rasterizes for the query of a sphere
 /// (treecut/splat/query_executor.hpp): its window rectangle (exact tangent
 /// planes, 1/8 pixel wider on each side) clipped to the viewport, as the
@@ -67,7 +60,7 @@ struct QueryCamera {
 /// projection is not a perspective frustum: the executor then draws a quad
 /// or answers on the host, and relative_visibility() treats any sample as
 /// mu = 1.
-[[nodiscard]] double proxy_pixels(const QueryCamera& camera, glm::vec3 center, float radius);
+[[nodiscard]] double proxy_pixels(const ViewSnapshot& camera, glm::vec3 center, float radius);
 
 /// mu = unoccluded pixels / projected pixels in [0, 1]; 0 for no sample; 1
 /// for any sample when `projected_pixels` <= 0 (no analytic count: never

@@ -192,7 +192,7 @@ struct CullStats {
 /// one this frame: outside, crossing the near plane, eye inside its AABB).
 /// `normal`: the unit normal of its OBB's largest face.
 float occluder_weight(const SceneObject& object, glm::vec3 normal, const ScreenRect& rect,
-                      const FrameView& view, Facing facing = Facing::EyeToObject);
+                      const ViewSnapshot& view, Facing facing = Facing::EyeToObject);
 
 class HzmCuller {
  public:
@@ -207,12 +207,12 @@ class HzmCuller {
   [[nodiscard]] std::span<const std::uint32_t> candidates() const { return cos_; }
 
   /// The four phases of a frame, in this order (or cull() for all four).
-  void project(std::span<const SceneObject> objects, const FrameView& view, WorkerPool* pool);
-  void select_occluders(std::span<const SceneObject> objects, const FrameView& view,
+  void project(std::span<const SceneObject> objects, const ViewSnapshot& view, WorkerPool* pool);
+  void select_occluders(std::span<const SceneObject> objects, const ViewSnapshot& view,
                         WorkerPool* pool);
-  void build_hzm(std::span<const SceneObject> objects, const FrameView& view, WorkerPool* pool);
+  void build_hzm(std::span<const SceneObject> objects, const ViewSnapshot& view, WorkerPool* pool);
   void test(std::span<const SceneObject> objects, WorkerPool* pool);
-  void cull(std::span<const SceneObject> objects, const FrameView& view, WorkerPool* pool);
+  void cull(std::span<const SceneObject> objects, const ViewSnapshot& view, WorkerPool* pool);
 
   [[nodiscard]] std::span<const ScreenRect> rects() const { return rects_; }
   [[nodiscard]] std::span<const ObjectState> states() const { return states_; }
@@ -266,7 +266,7 @@ class HzmCuller {
 /// at or beyond the near plane and not beyond the far plane; ties to the
 /// lower index); visible[i] = 1 when object i owns a pixel. `ids`, when
 /// given, receives the id buffer (width x height, y up, ~0u = background).
-void reference_visibility(std::span<const SceneObject> objects, const FrameView& view,
+void reference_visibility(std::span<const SceneObject> objects, const ViewSnapshot& view,
                           std::vector<std::uint8_t>& visible, WorkerPool* pool,
                           std::vector<std::uint32_t>* ids = nullptr);
 

@@ -106,50 +106,19 @@ struct ScreenRect {
   [[nodiscard]] float area() const { return in_frustum ? (x1 - x0) * (y1 - y0) : 0.0f; }
 };
 
-/// A perspective camera in world space, prepared for projecting boxes and
-/// casting pixel rays. Built from a finalized ViewSnapshot whose projection
-/// is a perspective frustum (glm::perspective / glm::frustum form: w_clip =
-/// -z_eye, no skew); anything else is a std::invalid_argument.
-class FrameView {
- public:
-  explicit FrameView(const ViewSnapshot& view);
+/// Throws std::invalid_argument unless `view` is a perspective frustum with
+/// a viewport (ViewSnapshot::perspective_frustum()): what the screen
+/// rectangles and pixel rays of the culler need. The budget strategy checks
+/// its view with this, so the stage names a bad view as the strategy's error.
+void require_perspective_frustum(const ViewSnapshot& view);
 
-  [[nodiscard]] const ViewSnapshot& snapshot() const { return view_; }
-  [[nodiscard]] glm::ivec2 viewport() const { return view_.viewport; }
-  [[nodiscard]] float near_plane() const { return near_; }
-  [[nodiscard]] float far_plane() const { return far_; }
-  [[nodiscard]] glm::vec3 eye() const { return eye_; }
-  /// Unit viewing direction in world space (E of Eq. 3).
-  [[nodiscard]] glm::vec3 forward() const { return forward_; }
-
-  /// The clipped screen rectangle and nearest depth of a world AABB. A box
-  /// crossing the near plane: its 12 edges are clipped at the near plane and
-  /// the rectangle bounds the projected corners in front plus the edges'
-  /// crossing points (the rectangle of the box's part in front of the near
-  /// plane, exact), and its depth is the near plane's.
-  [[nodiscard]] ScreenRect project(const Box& box) const;
-
-  /// World direction of the ray through window point (x, y) (pixels, y up),
-  /// scaled so that its parameter t is the eye depth of the point reached.
-  [[nodiscard]] glm::vec3 ray_direction(float x, float y) const {
-    const float nx = 2.0f * x / static_cast<float>(view_.viewport.x) - 1.0f;
-    const float ny = 2.0f * y / static_cast<float>(view_.viewport.y) - 1.0f;
-    return ray_x_ * nx + ray_y_ * ny + ray_0_;
-  }
-  /// The same for normalized device coordinates, as an affine map:
-  /// direction = ray_x * ndc_x + ray_y * ndc_y + ray_0.
-  [[nodiscard]] glm::vec3 ray_x() const { return ray_x_; }
-  [[nodiscard]] glm::vec3 ray_y() const { return ray_y_; }
-  [[nodiscard]] glm::vec3 ray_0() const { return ray_0_; }
-
- private:
-  ViewSnapshot view_;
-  glm::mat4 view_projection_{1.0f};
-  glm::vec3 eye_{0.0f};
-  glm::vec3 forward_{0.0f, 0.0f, -1.0f};
-  glm::vec3 ray_x_{0.0f}, ray_y_{0.0f}, ray_0_{0.0f};
-  float near_ = 0.0f, far_ = 0.0f;
-};
+/// The clipped screen rectangle and nearest depth of a world AABB seen by
+/// `view` (finalized, a perspective frustum). A box crossing the near plane:
+/// its 12 edges are clipped at the near plane and the rectangle bounds the
+/// projected corners in front plus the edges' crossing points (the rectangle
+/// of the box's part in front of the near plane, exact), and its depth is
+/// the near plane's.
+[[nodiscard]] ScreenRect project_box(const ViewSnapshot& view, const Box& box);
 
 /// Entry and exit parameters of the ray o + t d through an oriented box
 /// whose frame is given as (origin in box coordinates, direction in box
