@@ -258,7 +258,7 @@ void run_bench_scene(const SceneBenchArgs& a) {
     add(label(aos, 0.9f, finer, cells), aos, 0.9f, finer, cells);
     for (Variant& v : variants) v.culler = std::make_unique<culling::HzmCuller>(v.params);
   }
-  culling::WorkerPool pool(2);
+  WorkerPool pool(2);
 
   std::vector<double> in_frustum_f, seen_f, hidden_f, culled_f, wrongly_f, accuracy_f;
   std::vector<double> missed_occluder_f;  // hidden occluders the HZM kept

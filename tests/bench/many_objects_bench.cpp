@@ -44,6 +44,7 @@ namespace {
 
 using namespace treecut::strategies::many;
 using namespace treecut::culling;
+using treecut::WorkerPool;
 using Clock = std::chrono::steady_clock;
 
 constexpr std::uint32_t kSeed = 1;

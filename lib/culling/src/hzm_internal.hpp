@@ -19,16 +19,4 @@ inline constexpr float kInf = std::numeric_limits<float>::infinity();
 /// Objects per chunk of the per-object passes.
 inline constexpr std::size_t kObjectGrain = 4096;
 
-/// body(begin, end, chunk) over the chunks of [0, n): on the pool, or on the
-/// calling thread when there is none.
-template <class Body>
-void for_chunks(WorkerPool* pool, std::size_t n, std::size_t grain, Body&& body) {
-  if (pool != nullptr) {
-    pool->run(n, grain, body);
-  } else {
-    const std::size_t chunks = WorkerPool::chunk_count(n, grain);
-    for (std::size_t c = 0; c < chunks; ++c) body(c * grain, std::min(n, (c + 1) * grain), c);
-  }
-}
-
 }  // namespace treecut::culling::detail

@@ -18,7 +18,6 @@
 #include "treecut/culling/hzm.hpp"
 
 namespace treecut::culling {
-using detail::for_chunks;
 using detail::kInf;
 using detail::kObjectGrain;
 

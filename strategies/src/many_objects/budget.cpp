@@ -19,16 +19,6 @@ constexpr double kMinDepth = 1e-6;
 // (rounds are parallel and nearly always few; the sort bounds the worst case).
 constexpr std::size_t kMaxRounds = 32;
 
-template <class Body>
-void for_chunks(culling::WorkerPool* pool, std::size_t n, Body&& body) {
-  if (pool != nullptr) {
-    pool->run(n, kGrain, body);
-  } else {
-    const std::size_t chunks = culling::WorkerPool::chunk_count(n, kGrain);
-    for (std::size_t c = 0; c < chunks; ++c) body(c * kGrain, std::min(n, (c + 1) * kGrain), c);
-  }
-}
-
 }  // namespace
 
 double eq1_term(const BudgetItem& item, const BudgetParams& params) {
@@ -52,7 +42,7 @@ std::vector<double> eq1_shares(std::span<const BudgetItem> items, const BudgetPa
 
 void budget_items(std::span<const culling::SceneObject> objects,
                   std::span<const culling::ScreenRect> rects, std::span<const std::uint8_t> visible,
-                  std::vector<BudgetItem>& items, culling::WorkerPool* pool) {
+                  std::vector<BudgetItem>& items, WorkerPool* pool) {
   // The objects' point counts as the dense array the strategy keeps.
   std::vector<std::uint32_t> points(objects.size());
   for (std::size_t i = 0; i < objects.size(); ++i) points[i] = objects[i].points;
@@ -61,9 +51,9 @@ void budget_items(std::span<const culling::SceneObject> objects,
 
 void budget_items(std::span<const std::uint32_t> points, std::span<const culling::ScreenRect> rects,
                   std::span<const std::uint8_t> visible, std::vector<BudgetItem>& items,
-                  culling::WorkerPool* pool) {
+                  WorkerPool* pool) {
   items.resize(points.size());
-  for_chunks(pool, points.size(), [&](std::size_t b, std::size_t e, std::size_t) {
+  for_chunks(pool, points.size(), kGrain, [&](std::size_t b, std::size_t e, std::size_t) {
     for (std::size_t i = b; i < e; ++i) {
       const bool v = (visible.empty() || visible[i] != 0) && rects[i].in_frustum;
       items[i] = {v ? rects[i].area() : 0.0f, rects[i].depth, v ? points[i] : 0u};
@@ -72,7 +62,7 @@ void budget_items(std::span<const std::uint32_t> points, std::span<const culling
 }
 
 BudgetStats allocate_budget(std::span<const BudgetItem> items, const BudgetParams& params,
-                            std::vector<std::uint32_t>& shares, culling::WorkerPool* pool) {
+                            std::vector<std::uint32_t>& shares, WorkerPool* pool) {
   const std::size_t m = items.size();
   BudgetStats stats;
   shares.assign(m, 0);
@@ -87,10 +77,10 @@ BudgetStats allocate_budget(std::span<const BudgetItem> items, const BudgetParam
     std::uint32_t points;
     double term;
   };
-  const std::size_t chunks = culling::WorkerPool::chunk_count(m, kGrain);
+  const std::size_t chunks = WorkerPool::chunk_count(m, kGrain);
   std::vector<std::vector<Active>> found(chunks);
   std::vector<std::size_t> chunk_pet(chunks);
-  for_chunks(pool, m, [&](std::size_t b, std::size_t e, std::size_t c) {
+  for_chunks(pool, m, kGrain, [&](std::size_t b, std::size_t e, std::size_t c) {
     std::size_t pet = 0;
     // eq1_term() with log(P_i) kept while P_i repeats (instances of one
     // model: a few distinct values among 48 k visible objects), the same

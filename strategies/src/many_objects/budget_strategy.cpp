@@ -26,13 +26,13 @@ std::uint64_t ns_since(Clock::time_point& t) {
 }
 
 // CPU time of the calling thread and the pool's workers, nanoseconds.
-std::uint64_t pool_cpu_ns(const culling::WorkerPool& pool) {
+std::uint64_t pool_cpu_ns(const WorkerPool& pool) {
   timespec ts{};
   clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
   return static_cast<std::uint64_t>(ts.tv_sec) * 1'000'000'000u +
          static_cast<std::uint64_t>(ts.tv_nsec) + pool.worker_cpu_ns();
 }
-std::uint64_t cpu_since(const culling::WorkerPool& pool, std::uint64_t& t) {
+std::uint64_t cpu_since(const WorkerPool& pool, std::uint64_t& t) {
   const std::uint64_t now = pool_cpu_ns(pool);
   const std::uint64_t d = now - t;
   t = now;
@@ -180,7 +180,7 @@ void BudgetStrategy::ensure_pool() {
   const auto threads = static_cast<unsigned>(param_at(kThreads));
   if (!pool_ || pool_->threads() != threads) {
     pool_.reset();  // its workers joined before the new ones start
-    pool_ = std::make_unique<culling::WorkerPool>(threads);
+    pool_ = std::make_unique<WorkerPool>(threads);
   }
 }
 
@@ -203,7 +203,7 @@ void BudgetStrategy::iterate_scene(const SceneIterationInput& input, SceneIterat
                            " objects, reset_scene saw " + std::to_string(n));
   }
   ensure_pool();
-  culling::WorkerPool* pool = pool_.get();
+  WorkerPool* pool = pool_.get();
   BudgetCounters c;
   c.objects = n;
   // The culler needs a perspective frustum (this throws otherwise: the

@@ -81,7 +81,7 @@ struct BudgetStats {
 /// thread count.
 BudgetStats allocate_budget(std::span<const BudgetItem> items, const BudgetParams& params,
                             std::vector<std::uint32_t>& shares,
-                            culling::WorkerPool* pool = nullptr);
+                            WorkerPool* pool = nullptr);
 
 /// The real-valued Eq. 1 share of every item without cap or rounding,
 /// N * t_i / sum t_j: the formula itself, for tests and documentation.
@@ -92,12 +92,12 @@ std::vector<double> eq1_shares(std::span<const BudgetItem> items, const BudgetPa
 /// others); `visible` empty = all.
 void budget_items(std::span<const culling::SceneObject> objects,
                   std::span<const culling::ScreenRect> rects, std::span<const std::uint8_t> visible,
-                  std::vector<BudgetItem>& items, culling::WorkerPool* pool = nullptr);
+                  std::vector<BudgetItem>& items, WorkerPool* pool = nullptr);
 /// The same with P_i given apart (points[i] = objects[i].points): what a
 /// caller that keeps them in an array passes, 4 bytes an object to read.
 void budget_items(std::span<const std::uint32_t> points, std::span<const culling::ScreenRect> rects,
                   std::span<const std::uint8_t> visible, std::vector<BudgetItem>& items,
-                  culling::WorkerPool* pool = nullptr);
+                  WorkerPool* pool = nullptr);
 
 struct CutParams {
   float curvature_weight = 0.5f;  ///< as the optimization strategy's parameter

@@ -124,7 +124,7 @@ class BudgetStrategy final : public Strategy, public SceneStrategy {
   std::vector<std::uint8_t> open_inside_;  // per open_ entry: its object's has_inner
   std::vector<glm::mat4> worlds_;
   std::vector<std::uint32_t> points_;  // P_i apart: Eq. 1 reads 4 bytes an object, not 156
-  std::unique_ptr<culling::WorkerPool> pool_;
+  std::unique_ptr<WorkerPool> pool_;
   std::unique_ptr<culling::HzmCuller> culler_;
   culling::HzmParams culler_params_;
   std::vector<std::uint8_t> visible_;

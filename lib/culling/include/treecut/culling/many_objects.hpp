@@ -20,21 +20,16 @@
 #pragma once
 
 #include <algorithm>
-#include <atomic>
-#include <condition_variable>
 #include <cstddef>
 #include <cstdint>
-#include <exception>
 #include <glm/mat3x3.hpp>
 #include <glm/mat4x4.hpp>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
-#include <mutex>
-#include <thread>
-#include <type_traits>
 #include <vector>
 
 #include "treecut/culling/box.hpp"
+#include "treecut/parallel.hpp"
 #include "treecut/view_snapshot.hpp"
 
 namespace treecut::culling {
@@ -152,85 +147,5 @@ RayHit ray_box(const Obb& box, glm::vec3 origin, glm::vec3 direction);
 /// transform (object to world) folded into `view`, finalized; what the
 /// single-model code (priorities, best_cut) expects.
 ViewSnapshot object_view(const ViewSnapshot& world_view, const glm::mat4& transform);
-
-/// A fixed set of worker threads for the data-parallel passes of a frame
-/// (the paper's "object-level parallelism" on CUDA threads, here on cores).
-/// run() splits [0, n) into chunks of `grain` indices that the workers and
-/// the calling thread take in turn; it returns when all are done. Results
-/// written per index (or per chunk, indexed by chunk) do not depend on the
-/// thread count or the schedule. One run() at a time (the Feedback Stage
-/// thread drives it); the first exception of a body is rethrown.
-class WorkerPool {
- public:
-  /// `threads` >= 1 participants, the calling thread included
-  /// (threads - 1 workers are started).
-  explicit WorkerPool(unsigned threads);
-  ~WorkerPool();
-  WorkerPool(const WorkerPool&) = delete;
-  WorkerPool& operator=(const WorkerPool&) = delete;
-
-  [[nodiscard]] unsigned threads() const { return static_cast<unsigned>(workers_.size()) + 1; }
-  /// CPU time the worker threads (not the caller) have used so far,
-  /// nanoseconds: read from their thread CPU clocks by the caller, so a
-  /// phase's CPU is the caller's thread CPU plus the difference of this
-  /// (what a phase costs on a machine where the wall clock counts waiting
-  /// for a core).
-  [[nodiscard]] std::uint64_t worker_cpu_ns() const;
-
-  /// body(begin, end, chunk) for every chunk [begin, end) of [0, n).
-  template <class Body>
-  void run(std::size_t n, std::size_t grain, Body&& body) {
-    if (n == 0) return;
-    grain = std::max<std::size_t>(grain, 1);
-    const std::size_t chunks = (n + grain - 1) / grain;
-    if (chunks == 1 || workers_.empty()) {
-      for (std::size_t c = 0; c < chunks; ++c) body(c * grain, std::min(n, (c + 1) * grain), c);
-      return;
-    }
-    using Fn = std::remove_reference_t<Body>;
-    struct Ctx {
-      Fn* body;
-      std::size_t n, grain;
-    } ctx{&body, n, grain};
-    dispatch(
-        chunks,
-        [](void* p, std::size_t c) {
-          auto* x = static_cast<Ctx*>(p);
-          (*x->body)(c * x->grain, std::min(x->n, (c + 1) * x->grain), c);
-        },
-        &ctx);
-  }
-  /// Chunks for n indices at this grain (to size per-chunk results).
-  [[nodiscard]] static std::size_t chunk_count(std::size_t n, std::size_t grain) {
-    grain = std::max<std::size_t>(grain, 1);
-    return (n + grain - 1) / grain;
-  }
-
- private:
-  using ChunkFn = void (*)(void*, std::size_t);
-  struct Job {
-    ChunkFn fn = nullptr;
-    void* ctx = nullptr;
-    std::uint32_t chunks = 0;
-    std::uint32_t generation = 0;
-  };
-  void dispatch(std::size_t chunks, ChunkFn fn, void* ctx);
-  // Claims and runs chunks of `job` until none is left or a newer job began.
-  void take_chunks(const Job& job);
-
-  std::vector<std::thread> workers_;
-  std::mutex mutex_;
-  std::condition_variable wake_;
-  std::condition_variable done_;
-  bool stop_ = false;  // guarded by mutex_
-  Job job_;            // the current job, guarded (workers copy it)
-  // generation << 32 | next chunk: a worker that wakes late cannot claim a
-  // chunk of a newer job with an older job's function.
-  std::atomic<std::uint64_t> next_{0};
-  // Chunks of the current job finished; the caller returns when all are,
-  // without waiting for workers that never woke (a loaded machine).
-  std::atomic<std::uint32_t> completed_{0};
-  std::exception_ptr error_;  // guarded
-};
 
 }  // namespace treecut::culling
