@@ -159,18 +159,13 @@ void run_bench_scene(const SceneBenchArgs& a) {
   if (n >= splat::kMaxSceneDrawObjects) {
     throw InputError(a.scene + ": more objects than the ObjectId reference can tell apart");
   }
-  std::vector<SceneObjectInput> inputs;
-  inputs.reserve(n);
-  for (const StageScene::Object& o : world.objects) {
-    inputs.push_back({world.models[o.model].get(), o.world, o.world_inverse, o.model});
-  }
 
   Side on, off;
   for (Side* s : {&on, &off}) {
     s->strategy = std::make_unique<strategies::BudgetStrategy>();
     apply_params(*s->strategy, a.params);
     s->strategy->set_param("culling", s == &on ? 1.0 : 0.0);
-    s->strategy->reset_scene(inputs);
+    s->strategy->reset_scene(world);
   }
   const auto points = static_cast<std::uint64_t>(on.strategy->param("points"));
   const auto aos = static_cast<std::size_t>(on.strategy->param("occluders"));
@@ -187,10 +182,9 @@ void run_bench_scene(const SceneBenchArgs& a) {
     const TreeCut all = TreeCut::leaf_cut(*m);
     leaves.emplace_back(all.nodes().begin(), all.nodes().end());
   }
-  for (const StageScene::Object& o : world.objects) full_points += leaves[o.model].size();
+  for (const SceneObject& o : world.objects) full_points += leaves[o.model].size();
   renderer.set_models(models);
-  std::vector<splat::SceneObjectDraw> draws;
-  for (const StageScene::Object& o : world.objects) draws.push_back({o.model, o.world});
+  const std::vector<SceneObject>& draws = world.objects;
   splat::SceneCutBuffer reference;
   reference.set_objects(renderer, draws);
   on.buffer.set_objects(renderer, draws);
@@ -271,7 +265,7 @@ void run_bench_scene(const SceneBenchArgs& a) {
     s.nodes.clear();
     s.offsets.clear();
     std::vector<QueryRequest> queries;
-    const SceneIterationInput in{inputs, view, nullptr, s.strategy->params_version(), {}, {}};
+    const SceneIterationInput in{world, view, nullptr, s.strategy->params_version(), {}, {}};
     SceneIterationOutput out;
     out.nodes = &s.nodes;
     out.offsets = &s.offsets;
@@ -358,7 +352,7 @@ void run_bench_scene(const SceneBenchArgs& a) {
     off.to_seen.push_back(to_seen_off);
 
     // Diagnosis on the same reference.
-    const std::span<const culling::SceneObject> objects = on.strategy->objects();
+    const std::span<const culling::ObjectBounds> objects = on.strategy->objects();
     for (Variant& v : variants) {
       v.culler->preprocess(objects);
       v.culler->cull(objects, view, &pool);

@@ -116,13 +116,9 @@ void run_render(const RenderArgs& a) {
       leaves.emplace_back(all.nodes().begin(), all.nodes().end());
     }
     renderer.set_models(models);
-    std::vector<splat::SceneObjectDraw> draws;
     std::vector<std::span<const NodeId>> lists;
-    for (const StageScene::Object& o : world->objects) {
-      draws.push_back({o.model, o.world});
-      lists.emplace_back(leaves[o.model]);
-    }
-    full_scene.set_objects(renderer, draws);
+    for (const SceneObject& o : world->objects) lists.emplace_back(leaves[o.model]);
+    full_scene.set_objects(renderer, world->objects);
     full_scene.upload(models, lists);
   } else if (a.psnr || a.stability > 0) {
     full.upload(h, TreeCut::leaf_cut(h).nodes());

@@ -50,10 +50,9 @@ std::shared_ptr<const Hierarchy> cube_model(std::size_t points, std::uint32_t se
   return std::make_shared<const Hierarchy>(build_from_points(std::move(p)));
 }
 
-SceneObjectInput object(const std::shared_ptr<const Hierarchy>& h, std::uint32_t model,
-                        glm::vec3 at, glm::vec3 scale) {
-  const glm::mat4 w = glm::scale(glm::translate(glm::mat4(1.0f), at), scale);
-  return {h.get(), w, glm::inverse(w), model};
+// An object of scene model `model` at `at`, scaled.
+SceneObject object(std::uint32_t model, glm::vec3 at, glm::vec3 scale) {
+  return place_object(model, glm::scale(glm::translate(glm::mat4(1.0f), at), scale));
 }
 
 // Empty when `ids` is a cut of `h` (every leaf under exactly one id).
@@ -84,12 +83,12 @@ struct Lists {
   }
 };
 
-Lists run(BudgetStrategy& s, std::span<const SceneObjectInput> objects, const ViewSnapshot& view,
+Lists run(BudgetStrategy& s, const StageScene& scene, const ViewSnapshot& view,
           const Lists* previous = nullptr) {
   Lists out;
   std::vector<QueryRequest> queries;
   const SceneIterationInput in{
-      objects,
+      scene,
       view,
       nullptr,
       s.params_version(),
@@ -113,11 +112,12 @@ TEST(BudgetStrategy, WalkthroughNeverExceedsTheBudgetAndListsAreCuts) {
   const auto cube = cube_model(3000, 1);
   const auto sphere = std::make_shared<const Hierarchy>(
       build_from_points(tools::generate_model(tools::ModelKind::Sphere, 2500, 2)));
-  std::vector<SceneObjectInput> objects;
+  StageScene scene;
+  scene.models = {cube, sphere};
   for (int x = 0; x < 8; ++x) {
     for (int z = 0; z < 8; ++z) {
       const bool c = (x + z) % 2 == 0;
-      objects.push_back(object(c ? cube : sphere, c ? 0 : 1,
+      scene.objects.push_back(object(c ? 0 : 1,
                                {4.0f * float(x), 0.0f, -4.0f * float(z)},
                                glm::vec3(c ? 2.0f : 1.0f, c ? 3.0f : 1.0f, 2.0f)));
     }
@@ -127,25 +127,25 @@ TEST(BudgetStrategy, WalkthroughNeverExceedsTheBudgetAndListsAreCuts) {
       BudgetStrategy s;
       s.set_param("points", n);
       s.set_param("threads", threads);
-      s.reset_scene(objects);
+      s.reset_scene(scene);
       for (int f = 0; f < 30; ++f) {
         const float t = float(f) / 29.0f;
         const glm::vec3 eye(-4.0f + 20.0f * t, 1.0f, 6.0f - 12.0f * t);
         const ViewSnapshot v = ViewSnapshot::look_at(eye, eye + glm::vec3(0.6f, -0.05f, -1.0f),
                                                      {320, 240}, 1.0f, 0.05f, 500.0f);
-        const Lists l = run(s, objects, v);
-        ASSERT_EQ(l.offsets.size(), objects.size() + 1);
+        const Lists l = run(s, scene, v);
+        ASSERT_EQ(l.offsets.size(), scene.objects.size() + 1);
         EXPECT_LE(cut_total(l), static_cast<std::size_t>(n)) << "frame " << f;
         EXPECT_EQ(s.last().selected, cut_total(l));
         EXPECT_LE(s.last().shares, static_cast<std::uint64_t>(n));
         EXPECT_EQ(s.last().visible + s.last().frustum_culled + s.last().occlusion_culled,
-                  objects.size());
+                  scene.objects.size());
         std::size_t drawn = 0;
-        for (std::size_t i = 0; i < objects.size(); ++i) {
+        for (std::size_t i = 0; i < scene.objects.size(); ++i) {
           const auto ids = l.of(i);
           if (ids.empty()) continue;
           ++drawn;
-          ASSERT_EQ(cut_problem(*objects[i].hierarchy, ids), "")
+          ASSERT_EQ(cut_problem(scene.hierarchy(i), ids), "")
               << "frame " << f << " object " << i;
           EXPECT_LE(ids.size(), s.shares()[i]);
           EXPECT_TRUE(s.visible()[i]);
@@ -161,13 +161,14 @@ TEST(BudgetStrategy, WalkthroughNeverExceedsTheBudgetAndListsAreCuts) {
 // beside the wall in view, one cube behind the camera.
 struct WallScene {
   std::shared_ptr<const Hierarchy> cube = cube_model(6000, 3);
-  std::vector<SceneObjectInput> objects{
-      object(cube, 0, {0.0f, 0.0f, -10.0f}, {12.0f, 8.0f, 0.5f}),  // 0: the wall
-      object(cube, 0, {0.0f, 0.0f, -20.0f}, {1.0f, 1.0f, 1.0f}),   // 1: behind it
-      object(cube, 0, {-4.5f, 0.0f, -6.0f}, {1.0f, 1.0f, 1.0f}),   // 2: left, seen
-      object(cube, 0, {4.5f, 0.0f, -6.0f}, {1.0f, 1.0f, 1.0f}),    // 3: right, seen
-      object(cube, 0, {0.0f, 0.0f, 10.0f}, {1.0f, 1.0f, 1.0f}),    // 4: behind the camera
-  };
+  StageScene scene{{cube},
+                   {
+                       object(0, {0.0f, 0.0f, -10.0f}, {12.0f, 8.0f, 0.5f}),  // 0: the wall
+                       object(0, {0.0f, 0.0f, -20.0f}, {1.0f, 1.0f, 1.0f}),   // 1: behind it
+                       object(0, {-4.5f, 0.0f, -6.0f}, {1.0f, 1.0f, 1.0f}),   // 2: left, seen
+                       object(0, {4.5f, 0.0f, -6.0f}, {1.0f, 1.0f, 1.0f}),    // 3: right, seen
+                       object(0, {0.0f, 0.0f, 10.0f}, {1.0f, 1.0f, 1.0f}),    // 4: behind the camera
+                   }};
   ViewSnapshot view = ViewSnapshot::look_at({0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, -1.0f}, {400, 300},
                                             1.2f, 0.1f, 200.0f);
 };
@@ -182,10 +183,10 @@ TEST(BudgetStrategy, CulledObjectGetsNothingAndItsShareGoesToVisibleOnes) {
     s->set_param("ct", 0.5);
   }
   off.set_param("culling", 0);
-  on.reset_scene(w.objects);
-  off.reset_scene(w.objects);
-  const Lists lon = run(on, w.objects, w.view);
-  const Lists loff = run(off, w.objects, w.view);
+  on.reset_scene(w.scene);
+  off.reset_scene(w.scene);
+  const Lists lon = run(on, w.scene, w.view);
+  const Lists loff = run(off, w.scene, w.view);
 
   EXPECT_GE(on.last().occluders, 1u);
   EXPECT_EQ(on.last().occlusion_culled, 1u);
@@ -214,22 +215,23 @@ TEST(BudgetStrategy, CulledObjectGetsNothingAndItsShareGoesToVisibleOnes) {
 
 TEST(BudgetStrategy, PetZeroesSmallObjects) {
   const auto cube = cube_model(2000, 4);
-  const std::vector<SceneObjectInput> objects{
-      object(cube, 0, {0.0f, 0.0f, -5.0f}, glm::vec3(1.0f)),    // near: large on screen
-      object(cube, 0, {3.0f, 0.0f, -150.0f}, glm::vec3(0.2f)),  // far and small: ~1 px^2
-  };
+  const StageScene scene{{cube},
+                         {
+                             object(0, {0.0f, 0.0f, -5.0f}, glm::vec3(1.0f)),    // near: large on screen
+                             object(0, {3.0f, 0.0f, -150.0f}, glm::vec3(0.2f)),  // far and small: ~1 px^2
+                         }};
   const ViewSnapshot v = ViewSnapshot::look_at({0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, -1.0f}, {320, 240},
                                                1.0f, 0.1f, 500.0f);
   BudgetStrategy s;
   s.set_param("points", 1500);
   s.set_param("culling", 0);
   s.set_param("pet", 0.0);
-  s.reset_scene(objects);
-  Lists l = run(s, objects, v);
+  s.reset_scene(scene);
+  Lists l = run(s, scene, v);
   ASSERT_GT(s.shares()[1], 0u) << "PET 0 draws the small object";
   EXPECT_FALSE(l.of(1).empty());
   s.set_param("pet", 50.0);
-  l = run(s, objects, v);
+  l = run(s, scene, v);
   EXPECT_EQ(s.shares()[1], 0u);
   EXPECT_TRUE(l.of(1).empty());
   EXPECT_EQ(s.last().below_pet, 1u);
@@ -239,10 +241,7 @@ TEST(BudgetStrategy, PetZeroesSmallObjects) {
 
 TEST(BudgetStrategy, ThroughTheFeedbackStageOnAScene) {
   WallScene w;
-  auto scene = std::make_shared<StageScene>();
-  scene->models = {w.cube};
-  for (const SceneObjectInput& o : w.objects)
-    scene->objects.push_back({0, o.world, o.world_inverse});
+  auto scene = std::make_shared<StageScene>(w.scene);
   const StrategyRegistry registry = strategies::builtin_registry();
   const StrategyFactory factory = [&registry] {
     auto s = registry.create("budget");
@@ -262,12 +261,12 @@ TEST(BudgetStrategy, ThroughTheFeedbackStageOnAScene) {
     stage.step();
     const FrameLists lists = stage.poll();
     const FrontList& front = lists.current;
-    ASSERT_EQ(front.object_offsets.size(), w.objects.size() + 1);
+    ASSERT_EQ(front.object_offsets.size(), w.scene.objects.size() + 1);
     if (f > 0) {
       EXPECT_LE(front.nodes.size(), 2000u) << "frame " << f;
       EXPECT_TRUE(front.object_offsets[2] == front.object_offsets[1]) << "the hidden cube drawn";
     }
-    for (std::size_t i = 0; i < w.objects.size(); ++i) {
+    for (std::size_t i = 0; i < w.scene.objects.size(); ++i) {
       const auto ids = front.nodes.subspan(front.object_offsets[i],
                                            front.object_offsets[i + 1] - front.object_offsets[i]);
       if (!ids.empty()) {

@@ -73,8 +73,10 @@ class HzmCulling : public ::testing::Test {
   // Checks one scene from one camera; returns the objects the HZM culled.
   std::size_t check(const std::vector<Placed>& placed, const splat::Camera& cam,
                     const std::string& what) {
-    std::vector<SceneObjectInput> inputs;
-    std::vector<splat::SceneObjectDraw> draws;
+    // The models are the fixture's: shared pointers that own nothing.
+    StageScene scene;
+    scene.models = {std::shared_ptr<const Hierarchy>(std::shared_ptr<const Hierarchy>(), &cube_),
+                    std::shared_ptr<const Hierarchy>(std::shared_ptr<const Hierarchy>(), &building_)};
     for (const Placed& p : placed) {
       glm::mat4 w = glm::translate(glm::mat4(1.0f), p.at);
       if (p.model == 1) {
@@ -83,19 +85,18 @@ class HzmCulling : public ::testing::Test {
         w = glm::rotate(w, -glm::half_pi<float>(), glm::vec3(1.0f, 0.0f, 0.0f));
       }
       w = glm::scale(w, p.size);
-      inputs.push_back({p.model == 0 ? &cube_ : &building_, w, glm::inverse(w), p.model});
-      draws.push_back({p.model, w});
+      scene.objects.push_back(place_object(p.model, w));
     }
     const ViewSnapshot view = splat::view_snapshot(cam, {kWidth, kHeight}, splat::Light{});
 
     strategies::BudgetStrategy s;
     s.set_param("pet", 0.0);
     s.set_param("points", 1000);
-    s.reset_scene(inputs);
+    s.reset_scene(scene);
     std::vector<NodeId> nodes;
     std::vector<std::uint32_t> offsets;
     std::vector<QueryRequest> queries;
-    const SceneIterationInput in{inputs, view, nullptr, s.params_version(), {}, {}};
+    const SceneIterationInput in{scene, view, nullptr, s.params_version(), {}, {}};
     SceneIterationOutput out;
     out.nodes = &nodes;
     out.offsets = &offsets;
@@ -109,7 +110,7 @@ class HzmCulling : public ::testing::Test {
     std::vector<std::span<const NodeId>> cuts;
     for (const Placed& p : placed) cuts.push_back(p.model == 0 ? a.nodes() : b.nodes());
     splat::SceneCutBuffer buffer;
-    buffer.set_objects(*renderer_, draws);
+    buffer.set_objects(*renderer_, scene.objects);
     buffer.upload(models, cuts);
     splat::RenderSettings ids;
     ids.mode = splat::SplatMode::ObjectId;

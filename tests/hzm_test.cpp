@@ -34,10 +34,10 @@ Obb turned_box(glm::vec3 center, glm::vec3 half, float yaw) {
 }
 
 // Random boxes in a cube of side 40 around the origin, some turned.
-std::vector<SceneObject> random_boxes(std::size_t n, std::uint32_t seed) {
+std::vector<ObjectBounds> random_boxes(std::size_t n, std::uint32_t seed) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<float> pos(-20.0f, 20.0f), size(0.2f, 4.0f), unit(0.0f, 1.0f);
-  std::vector<SceneObject> out;
+  std::vector<ObjectBounds> out;
   for (std::size_t i = 0; i < n; ++i) {
     const glm::vec3 c(pos(rng), pos(rng), pos(rng));
     const glm::vec3 h(size(rng), size(rng), size(rng));
@@ -49,8 +49,8 @@ std::vector<SceneObject> random_boxes(std::size_t n, std::uint32_t seed) {
 
 // A wall of boxes at z = 0 (a 6 x 4 grid of 2-unit boxes with 0.1 gaps) in
 // front of a field of small boxes behind it (z from -5 to -40).
-std::vector<SceneObject> wall_scene(std::uint32_t seed) {
-  std::vector<SceneObject> out;
+std::vector<ObjectBounds> wall_scene(std::uint32_t seed) {
+  std::vector<ObjectBounds> out;
   for (int i = 0; i < 6; ++i) {
     for (int j = 0; j < 4; ++j) {
       out.push_back(box_object(axis_box({-6.3f + 2.1f * static_cast<float>(i) + 1.0f,
@@ -70,7 +70,7 @@ std::vector<SceneObject> wall_scene(std::uint32_t seed) {
 
 // Every object the reference sees is potentially visible; returns how many
 // were culled (so a caller can also require that culling happened).
-std::size_t expect_conservative(const std::vector<SceneObject>& objects, const ViewSnapshot& snap,
+std::size_t expect_conservative(const std::vector<ObjectBounds>& objects, const ViewSnapshot& snap,
                                 const HzmParams& params, WorkerPool* pool) {
   const ViewSnapshot& view = snap;
   HzmCuller culler(params);
@@ -196,7 +196,7 @@ TEST(Hzm, an_occluder_the_others_hide_is_culled) {
   // Culling them changed nothing: a culler whose AOS holds only the kept
   // occluders (the culled ones no candidates, the AOS that much smaller: the
   // top weights of the rest are the kept ones) builds the same map.
-  std::vector<SceneObject> kept = objects;
+  std::vector<ObjectBounds> kept = objects;
   for (const std::uint32_t i : culler.active()) {
     if (culler.states()[i] == ObjectState::Occluded) kept[i].has_inner = false;
   }
@@ -377,7 +377,7 @@ TEST(Hzm, compactness_eq2) {
   EXPECT_LT(cp, 0.3f);
   EXPECT_GT(cp, 0.0f);
   // The candidate set follows the threshold.
-  std::vector<SceneObject> objects(3);
+  std::vector<ObjectBounds> objects(3);
   objects[0] = box_object(truth, 100);
   objects[1] = box_object(truth, 100);
   objects[1].compactness = cs;
@@ -492,7 +492,7 @@ TEST(Hzm, occluders_are_the_top_weights_of_eq3) {
     // The weights by hand: AABB volume * |N . E| / distance to the AABB.
     std::vector<std::pair<float, std::uint32_t>> w;
     for (std::uint32_t i = 0; i < objects.size(); ++i) {
-      const SceneObject& o = objects[i];
+      const ObjectBounds& o = objects[i];
       const ScreenRect r = project_box(view, o.bounds);
       if (!r.in_frustum || r.crosses_near) continue;
       int k = 0;

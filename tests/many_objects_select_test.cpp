@@ -30,10 +30,10 @@ TEST(ManyObjectsSelect, nth_element_per_chunk_picks_the_full_sorts_occluders) {
   // 20,000 buildings: five chunks of candidates. Compactness spread so that
   // the COS (compactness order) is not the object order and some objects
   // fall below CT; a few without an inner box.
-  std::vector<SceneObject> objects = box_city(20000, 3);
+  std::vector<ObjectBounds> objects = box_city(20000, 3);
   std::mt19937 rng(5);
   std::uniform_real_distribution<float> unit(0.0f, 1.0f);
-  for (SceneObject& o : objects) {
+  for (ObjectBounds& o : objects) {
     o.compactness = 0.3f + 0.7f * unit(rng);
     if (unit(rng) < 0.05f) o.has_inner = false;
   }
@@ -52,7 +52,7 @@ TEST(ManyObjectsSelect, nth_element_per_chunk_picks_the_full_sorts_occluders) {
         // The definition: every COS member's Eq. 3 weight, all sorted.
         std::vector<std::pair<float, std::uint32_t>> w;
         for (const std::uint32_t i : culler.candidates()) {
-          const SceneObject& o = objects[i];
+          const ObjectBounds& o = objects[i];
           int k = 0;
           for (int a = 1; a < 3; ++a)
             if (o.box.half[a] < o.box.half[k]) k = a;
@@ -74,14 +74,14 @@ TEST(ManyObjectsSelect, nth_element_per_chunk_picks_the_full_sorts_occluders) {
 }
 
 TEST(ManyObjectsSelect, budget_items_from_an_array_of_points) {
-  const std::vector<SceneObject> objects = box_city(10000, 4);
+  const std::vector<ObjectBounds> objects = box_city(10000, 4);
   const ViewSnapshot view = city_views(10000, 1, 4, {1280, 720})[0];
   HzmCuller culler;
   culler.preprocess(objects);
   WorkerPool pool(2);
   culler.cull(objects, view, &pool);
   std::vector<std::uint32_t> points;
-  for (const SceneObject& o : objects) points.push_back(o.points);
+  for (const ObjectBounds& o : objects) points.push_back(o.points);
   std::vector<BudgetItem> a, b;
   budget_items(objects, culler.rects(), culler.visible(), a, &pool);
   budget_items(points, culler.rects(), culler.visible(), b, &pool);

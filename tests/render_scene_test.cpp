@@ -97,7 +97,7 @@ class RenderScene : public ::testing::TestWithParam<SplatMode> {
     renderer_->draw(cut, cam, settings_, true);
     return Image{kWidth, kHeight, renderer_->read_pixels()};
   }
-  Image scene(std::span<const Hierarchy* const> models, std::span<const SceneObjectDraw> objects,
+  Image scene(std::span<const Hierarchy* const> models, std::span<const SceneObject> objects,
               std::span<const std::span<const NodeId>> cuts, const Camera& cam,
               FrameStats* stats = nullptr) {
     renderer_->set_models(models);
@@ -120,7 +120,7 @@ TEST_P(RenderScene, OneObjectWithTheIdentityIsThePlainDraw) {
   const std::vector<NodeId> nodes = bfs_cut(city_, 6000);
   const Image reference = plain(city_, nodes, camera_);
   const Hierarchy* models[] = {&city_};
-  const SceneObjectDraw objects[] = {{0, glm::mat4(1.0f)}};
+  const SceneObject objects[] = {place_object(0, glm::mat4(1.0f))};
   const std::span<const NodeId> cuts[] = {nodes};
   FrameStats stats;
   const Image drawn = scene(models, objects, cuts, camera_, &stats);
@@ -139,7 +139,7 @@ TEST_P(RenderScene, AMovedObjectLooksLikeItsModelFromTheCameraMovedBack) {
                              glm::normalize(glm::vec3(0.3f, 1.0f, 0.2f))),
                  glm::vec3(scale));
   const Hierarchy* models[] = {&city_};
-  const SceneObjectDraw objects[] = {{0, world}};
+  const SceneObject objects[] = {place_object(0, world)};
   const std::span<const NodeId> cuts[] = {nodes};
   const Image drawn = scene(models, objects, cuts, moved(camera_, world, scale));
   // The same image up to float rounding of positions (a splat edge moves by
@@ -162,7 +162,7 @@ TEST_P(RenderScene, TwoObjectsOfTwoModelsAreTheUnionOfEachAlone) {
   const glm::mat4 left = glm::translate(glm::mat4(1.0f), glm::vec3(-0.5f * w, 0.0f, 0.0f));
   const glm::mat4 right =
       glm::scale(glm::translate(glm::mat4(1.0f), glm::vec3(0.6f * w, 0, 0)), glm::vec3(0.25f * w));
-  const SceneObjectDraw objects[] = {{0, left}, {1, right}};
+  const SceneObject objects[] = {place_object(0, left), place_object(1, right)};
   const glm::vec3 lo = city_.bounds_min() - glm::vec3(w, 0.3f * w, 0.3f * w);
   const glm::vec3 hi = city_.bounds_max() + glm::vec3(w, 0.3f * w, 0.3f * w);
   const Camera cam = fit_camera(lo, hi, kAspect, glm::vec3(0.0f, -1.0f, 0.8f), glm::vec3(0, 0, 1));
@@ -196,11 +196,11 @@ TEST_P(RenderScene, DrawCallsDoNotGrowWithTheObjects) {
   std::size_t calls[2] = {0, 0};
   const std::size_t counts[2] = {10, 2000};
   for (int k = 0; k < 2; ++k) {
-    std::vector<SceneObjectDraw> objects;
+    std::vector<SceneObject> objects;
     std::vector<std::span<const NodeId>> cuts;
     for (std::size_t i = 0; i < counts[k]; ++i) {
       const float x = float(i % 50) * 3.0f, y = float(i / 50) * 3.0f;
-      objects.push_back({0, glm::translate(glm::mat4(1.0f), glm::vec3(x, y, 0.0f))});
+      objects.push_back(place_object(0, glm::translate(glm::mat4(1.0f), glm::vec3(x, y, 0.0f))));
       cuts.emplace_back(nodes);
     }
     const Camera cam = fit_camera(glm::vec3(-1.0f), glm::vec3(150.0f, 120.0f, 1.0f), kAspect,
@@ -230,7 +230,7 @@ TEST_P(RenderScene, AStretchedObjectCoversWhatItsStretchedPointsDo) {
   const TreeCut stretched_leaves = TreeCut::leaf_cut(stretched);
   const Image reference = plain(stretched, stretched_leaves.nodes(), cam);
   const Hierarchy* models[] = {&sphere_};
-  const SceneObjectDraw objects[] = {{0, glm::scale(glm::mat4(1.0f), s)}};
+  const SceneObject objects[] = {place_object(0, glm::scale(glm::mat4(1.0f), s))};
   const TreeCut leaves = TreeCut::leaf_cut(sphere_);
   const std::span<const NodeId> cuts[] = {leaves.nodes()};
   const Image drawn = scene(models, objects, cuts, cam);
@@ -263,7 +263,7 @@ TEST_F(RenderSceneChecks, BadTransformsModelsAndIdsAreRefused) {
   Renderer r(h_, {kWidth, kHeight});
   SceneCutBuffer buffer;
   const auto refuses = [&](const glm::mat4& m, const char* why) {
-    const SceneObjectDraw objects[] = {{0, glm::mat4(1.0f)}, {0, m}};
+    const SceneObject objects[] = {place_object(0, glm::mat4(1.0f)), place_object(0, m)};
     try {
       buffer.set_objects(r, objects);
       ADD_FAILURE() << why << ": accepted";
@@ -280,10 +280,10 @@ TEST_F(RenderSceneChecks, BadTransformsModelsAndIdsAreRefused) {
   nan[3][0] = std::numeric_limits<float>::quiet_NaN();
   refuses(nan, "not finite");
 
-  const SceneObjectDraw bad_model[] = {{1, glm::mat4(1.0f)}};
+  const SceneObject bad_model[] = {place_object(1, glm::mat4(1.0f))};
   EXPECT_THROW(buffer.set_objects(r, bad_model), std::invalid_argument);
 
-  const SceneObjectDraw one[] = {{0, glm::mat4(1.0f)}};
+  const SceneObject one[] = {place_object(0, glm::mat4(1.0f))};
   buffer.set_objects(r, one);
   const Hierarchy* models[] = {&h_};
   const std::vector<NodeId> past{static_cast<NodeId>(h_.node_count())};
@@ -309,10 +309,10 @@ TEST_F(RenderSceneChecks, ObjectIdPixelsAreTheObjectInFront) {
   const Hierarchy* models[] = {&h_, &other_};
   r.set_models(models);
   // Object 1 half behind object 0, object 2 apart; all three in view.
-  const SceneObjectDraw objects[] = {
-      {0, glm::mat4(1.0f)},
-      {1, glm::translate(glm::mat4(1.0f), glm::vec3(0.8f, 0.0f, -2.0f))},
-      {0, glm::translate(glm::mat4(1.0f), glm::vec3(-2.6f, 0.0f, 0.0f))}};
+  const SceneObject objects[] = {
+      place_object(0, glm::mat4(1.0f)),
+      place_object(1, glm::translate(glm::mat4(1.0f), glm::vec3(0.8f, 0.0f, -2.0f))),
+      place_object(0, glm::translate(glm::mat4(1.0f), glm::vec3(-2.6f, 0.0f, 0.0f)))};
   const TreeCut a = TreeCut::leaf_cut(h_), b = TreeCut::leaf_cut(other_);
   const std::span<const NodeId> none;
   const Camera cam = fit_camera(glm::vec3(-4.0f, -1.5f, -3.5f), glm::vec3(2.5f, 1.5f, 1.5f),

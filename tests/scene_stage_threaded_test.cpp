@@ -57,7 +57,7 @@ std::shared_ptr<const StageScene> row_scene(std::size_t n) {
     glm::mat4 w = glm::translate(glm::mat4(1.0f), glm::vec3(3.0f * float(i), 0.0f, 0.0f));
     w = glm::rotate(w, 0.3f * float(i), glm::vec3(0, 1, 0));
     w = glm::scale(w, i % 3 == 2 ? glm::vec3(1.0f, 1.5f, 0.7f) : glm::vec3(0.8f));
-    s->objects.push_back({static_cast<std::uint32_t>(i % 2), w, glm::inverse(w)});
+    s->objects.push_back(place_object(static_cast<std::uint32_t>(i % 2), w));
   }
   return s;
 }
@@ -151,7 +151,7 @@ TEST(SceneStage, AnObjectIsIteratedInItsModelSpace) {
   auto scene = std::make_shared<StageScene>();
   scene->models = {sphere};
   const glm::mat4 w = glm::translate(glm::mat4(1.0f), t);
-  scene->objects.push_back({0, w, glm::inverse(w)});
+  scene->objects.push_back(place_object(0, w));
   StageOptions options;
   options.launch = Launch::Manual;
   const auto make = [] { return std::make_unique<strategies::OptimizationStrategy>(); };
@@ -186,15 +186,15 @@ class EveryFirstStrategy final : public Strategy, public SceneStrategy {
     const TreeCut all = TreeCut::leaf_cut(in.hierarchy);
     out.nodes->assign(all.nodes().begin(), all.nodes().end());
   }
-  void reset_scene(std::span<const SceneObjectInput> objects) override {
+  void reset_scene(const StageScene& scene) override {
     ++resets;
-    objects_seen = objects.size();
+    objects_seen = scene.objects.size();
   }
   void iterate_scene(const SceneIterationInput& in, SceneIterationOutput& out) override {
     ++iterations;
-    const TreeCut all = TreeCut::leaf_cut(*in.objects[0].hierarchy);
+    const TreeCut all = TreeCut::leaf_cut(in.scene.hierarchy(0));
     out.nodes->assign(all.nodes().rbegin(), all.nodes().rend());  // unsorted: the stage sorts
-    out.offsets->assign(in.objects.size() + 1, static_cast<std::uint32_t>(all.size()));
+    out.offsets->assign(in.scene.objects.size() + 1, static_cast<std::uint32_t>(all.size()));
     out.offsets->front() = 0;
     out.result.converged = true;
   }
@@ -234,7 +234,7 @@ TEST(SceneStage, PerObjectStrategiesPastTheLimitAreRefusedNamingTheWayOut) {
   scene->models = {model_of(tools::ModelKind::Sphere, 4000, 4)};
   const std::uint64_t nodes = scene->models[0]->node_count();
   const std::size_t n = static_cast<std::size_t>(kMaxPerObjectNodes / nodes) + 1;
-  scene->objects.assign(n, StageScene::Object{});
+  scene->objects.assign(n, SceneObject{});
   ASSERT_GT(scene->object_nodes(), kMaxPerObjectNodes);
   StageOptions options;
   options.launch = Launch::Manual;

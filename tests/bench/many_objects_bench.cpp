@@ -51,7 +51,7 @@ constexpr std::uint32_t kSeed = 1;
 constexpr std::size_t kViews = 8;
 
 struct City {
-  std::vector<SceneObject> objects;
+  std::vector<ObjectBounds> objects;
   std::vector<treecut::ViewSnapshot> views;
 };
 
@@ -221,7 +221,7 @@ BENCHMARK(BM_Frame)
 // pool workers, BudgetCounters) per iteration.
 struct CityBlock {
   treecut::Scene scene;
-  std::vector<treecut::SceneObjectInput> inputs;
+  std::shared_ptr<const treecut::StageScene> stage;
   std::vector<treecut::ViewSnapshot> views;
 };
 
@@ -242,10 +242,7 @@ const CityBlock& city_block(std::size_t buildings) {
     treecut::SceneLoadOptions options;
     options.parse.generator = treecut::tools::scene_generator();
     slot->scene = treecut::load_scene(file, options);
-    for (const treecut::SceneObject& o : slot->scene.objects) {
-      slot->inputs.push_back(
-          {slot->scene.models[o.model].hierarchy.get(), o.world, o.world_inverse, o.model});
-    }
+    slot->stage = treecut::stage_scene(slot->scene);
     const treecut::splat::CameraPath path =
         treecut::tools::walk_path(treecut::tools::city_block_walkthrough(layout));
     const glm::vec3 lo = slot->scene.bounds_min, hi = slot->scene.bounds_max;
@@ -268,7 +265,7 @@ void BM_CityBlock(benchmark::State& state) {
   s.set_param("threads", static_cast<double>(state.range(1)));
   s.set_param("culling", static_cast<double>(state.range(2)));
   s.set_param("points", 1'000'000.0);
-  s.reset_scene(cb.inputs);
+  s.reset_scene(*cb.stage);
   std::vector<treecut::NodeId> nodes, previous;
   std::vector<std::uint32_t> offsets, previous_offsets;
   double w[6] = {}, c[6] = {};
@@ -277,7 +274,7 @@ void BM_CityBlock(benchmark::State& state) {
   const auto ms_of = [](std::uint64_t ns) { return static_cast<double>(ns) * 1e-6; };
   for (auto _ : state) {
     const treecut::ViewSnapshot& view = cb.views[frame++ % cb.views.size()];
-    treecut::SceneIterationInput in{cb.inputs, view, nullptr, 0, previous, previous_offsets};
+    treecut::SceneIterationInput in{*cb.stage, view, nullptr, 0, previous, previous_offsets};
     treecut::SceneIterationOutput out;
     out.nodes = &nodes;
     out.offsets = &offsets;
@@ -306,7 +303,7 @@ void BM_CityBlock(benchmark::State& state) {
     state.counters[std::string(names[i]) + "_cpu_ms"] = c[i] / n;
   }
   state.counters["select_cull_cpu_ms"] = (c[0] + c[1] + c[2] + c[3] + c[4]) / n;
-  state.counters["objects"] = static_cast<double>(cb.inputs.size());
+  state.counters["objects"] = static_cast<double>(cb.stage->objects.size());
   state.counters["visible"] = visible / n;
   state.counters["occluded"] = culled / n;
   state.counters["selected"] = selected / n;

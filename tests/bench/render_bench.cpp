@@ -584,10 +584,10 @@ void SceneObjects(benchmark::State& state) {
   const Hierarchy* models[] = {&sphere, &city};
   const auto objects = static_cast<std::size_t>(state.range(0));
   const auto side = static_cast<std::size_t>(std::ceil(std::sqrt(double(objects))));
-  std::vector<SceneObjectDraw> draws;
+  std::vector<SceneObject> draws;
   for (std::size_t i = 0; i < objects; ++i) {
     const glm::vec3 at(3.0f * float(i % side), 3.0f * float(i / side), 0.0f);
-    draws.push_back({static_cast<std::uint32_t>(i % 2), glm::translate(glm::mat4(1.0f), at)});
+    draws.push_back(place_object(static_cast<std::uint32_t>(i % 2), glm::translate(glm::mat4(1.0f), at)));
   }
   const auto coarse = [](const Hierarchy& h) {
     TreeCut cut = TreeCut::root_cut(h);

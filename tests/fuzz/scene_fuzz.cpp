@@ -57,8 +57,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   }
   if (d.objects.empty()) fail("accepted a scene without objects");
   if (d.objects.size() > options.max_objects) fail("more objects than the limit");
-  for (const treecut::SceneObjectDecl& o : d.objects) {
-    if (o.decl >= d.models.size()) fail("an object names no model declaration");
+  for (const treecut::SceneObject& o : d.objects) {
+    if (o.model >= d.models.size()) fail("an object names no model declaration");
     if (o.file >= d.files.size()) fail("an object names no file");
     // Badly conditioned but invertible transforms may pass; only a
     // non-finite one, or an inverse that is not one at all, is a bug.

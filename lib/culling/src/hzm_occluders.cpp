@@ -110,13 +110,13 @@ float eq3_weight(const Box& bounds, glm::vec3 normal, const ViewSnapshot& view, 
 
 }  // namespace
 
-float occluder_weight(const SceneObject& object, glm::vec3 normal, const ScreenRect& rect,
+float occluder_weight(const ObjectBounds& object, glm::vec3 normal, const ScreenRect& rect,
                       const ViewSnapshot& view, Facing facing) {
   if (!rect.in_frustum || rect.crosses_near || !object.has_inner) return 0.0f;
   return eq3_weight(object.bounds, normal, view, facing);
 }
 
-void HzmCuller::project(std::span<const SceneObject> objects, const ViewSnapshot& view,
+void HzmCuller::project(std::span<const ObjectBounds> objects, const ViewSnapshot& view,
                         WorkerPool* pool) {
   rects_.resize(objects.size());
   states_.assign(objects.size(), ObjectState::Outside);
@@ -129,7 +129,7 @@ void HzmCuller::project(std::span<const SceneObject> objects, const ViewSnapshot
   });
 }
 
-void HzmCuller::select_occluders(std::span<const SceneObject> objects, const ViewSnapshot& view,
+void HzmCuller::select_occluders(std::span<const ObjectBounds> objects, const ViewSnapshot& view,
                                  WorkerPool* pool) {
   const std::size_t n = by_index_.size();
   const std::size_t k = params_.active;
@@ -149,7 +149,7 @@ void HzmCuller::select_occluders(std::span<const SceneObject> objects, const Vie
       const Candidate& cand = by_index_[j];
       const ScreenRect& r = rects_[cand.object];
       if (!r.in_frustum || r.crosses_near) continue;
-      const SceneObject* o = copied ? nullptr : &objects[cand.object];
+      const ObjectBounds* o = copied ? nullptr : &objects[cand.object];
       if (o != nullptr && !o->has_inner) continue;
       const float w =
           eq3_weight(o != nullptr ? o->bounds : cand.bounds, cand.normal, view, params_.facing);
@@ -169,7 +169,7 @@ void HzmCuller::select_occluders(std::span<const SceneObject> objects, const Vie
   for (const Pick& p : all) aos_.push_back(p.object);
 }
 
-void HzmCuller::build_hzm(std::span<const SceneObject> objects, const ViewSnapshot& view,
+void HzmCuller::build_hzm(std::span<const ObjectBounds> objects, const ViewSnapshot& view,
                           WorkerPool* pool) {
   const glm::ivec2 vp = view.viewport;
   const int larger = std::max(vp.x, vp.y);
@@ -185,7 +185,7 @@ void HzmCuller::build_hzm(std::span<const SceneObject> objects, const ViewSnapsh
   occ.reserve(aos_.size());
   const float s = static_cast<float>(cell_);
   for (const std::uint32_t i : aos_) {
-    const SceneObject& o = objects[i];
+    const ObjectBounds& o = objects[i];
     const ScreenRect r = project_box(view, bounds_of(o.inner));
     if (!r.in_frustum || r.crosses_near) continue;
     OccluderRaster raster(o.inner, view);

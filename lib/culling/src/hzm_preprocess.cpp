@@ -218,9 +218,9 @@ std::optional<Obb> inner_box(std::span<const glm::vec3> points, const Obb& box, 
   return r;
 }
 
-void HzmCuller::preprocess(std::span<const SceneObject> objects) {
+void HzmCuller::preprocess(std::span<const ObjectBounds> objects) {
   // The AABBs apart: the projection of every object every frame then reads
-  // 24 bytes an object instead of a whole SceneObject's cache lines.
+  // 24 bytes an object instead of a whole ObjectBounds's cache lines.
   bounds_.resize(objects.size());
   for (std::size_t i = 0; i < objects.size(); ++i) bounds_[i] = objects[i].bounds;
   cos_.clear();

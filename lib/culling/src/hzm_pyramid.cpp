@@ -78,7 +78,7 @@ float HierarchicalZMap::max_over_at(int level, int x0, int y0, int x1, int y1) c
   return m;
 }
 
-void HzmCuller::test(std::span<const SceneObject> objects, WorkerPool* pool) {
+void HzmCuller::test(std::span<const ObjectBounds> objects, WorkerPool* pool) {
   states_.resize(objects.size());
   visible_.resize(objects.size());
   for_chunks(pool, objects.size(), kObjectGrain, [&](std::size_t b, std::size_t e, std::size_t) {
@@ -121,7 +121,7 @@ void HzmCuller::test(std::span<const SceneObject> objects, WorkerPool* pool) {
   }
 }
 
-void HzmCuller::cull(std::span<const SceneObject> objects, const ViewSnapshot& view,
+void HzmCuller::cull(std::span<const ObjectBounds> objects, const ViewSnapshot& view,
                      WorkerPool* pool) {
   require_perspective_frustum(view);
   project(objects, view, pool);

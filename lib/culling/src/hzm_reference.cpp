@@ -41,7 +41,7 @@ struct BoxRays {
 
 }  // namespace
 
-void reference_visibility(std::span<const SceneObject> objects, const ViewSnapshot& view,
+void reference_visibility(std::span<const ObjectBounds> objects, const ViewSnapshot& view,
                           std::vector<std::uint8_t>& visible, WorkerPool* pool,
                           std::vector<std::uint32_t>* ids) {
   require_perspective_frustum(view);

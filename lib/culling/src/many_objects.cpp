@@ -33,8 +33,8 @@ Obb transformed(const Obb& box, const glm::mat4& transform) {
   return r;
 }
 
-SceneObject box_object(const Obb& box, std::uint32_t points) {
-  SceneObject o;
+ObjectBounds box_object(const Obb& box, std::uint32_t points) {
+  ObjectBounds o;
   o.box = box;
   o.bounds = bounds_of(box);
   o.inner = box;
@@ -157,11 +157,11 @@ float lot_origin(std::size_t i) {
 
 }  // namespace
 
-std::vector<SceneObject> box_city(std::size_t count, std::uint32_t seed) {
+std::vector<ObjectBounds> box_city(std::size_t count, std::uint32_t seed) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<float> unit(0.0f, 1.0f);
   const std::size_t side = city_side(count);
-  std::vector<SceneObject> objects;
+  std::vector<ObjectBounds> objects;
   objects.reserve(count);
   for (std::size_t k = 0; k < count; ++k) {
     const std::size_t i = k % side, j = k / side;

@@ -52,21 +52,6 @@ namespace treecut {
 
 struct Scene;
 
-/// A scene as the stage carries it: the distinct hierarchies and, per
-/// object, which one and its transform. Shared and immutable once handed to
-/// a stage (the lists the renderer draws keep it alive, as a model's
-/// hierarchy). docs/architecture.md, "Scenes through the stage".
-struct StageScene {
-  struct Object {
-    std::uint32_t model = 0;        ///< index into `models`
-    glm::mat4 world{1.0f};          ///< model -> world
-    glm::mat4 world_inverse{1.0f};  ///< world -> model
-  };
-  std::vector<std::shared_ptr<const Hierarchy>> models;
-  std::vector<Object> objects;
-  /// The sum over objects of their model's node count (what per-object state costs).
-  [[nodiscard]] std::uint64_t object_nodes() const;
-};
 /// The stage's view of a loaded scene (treecut/scene.hpp): its models'
 /// hierarchies (shared, not copied) and its objects' transforms.
 std::shared_ptr<const StageScene> stage_scene(const Scene& scene);

@@ -29,6 +29,7 @@
 
 #include "treecut/hierarchy.hpp"
 #include "treecut/model_io.hpp"
+#include "treecut/scene_object.hpp"
 
 namespace treecut {
 
@@ -66,22 +67,6 @@ struct SceneModel {
   glm::vec3 box_min{0.0f}, box_max{0.0f};
   std::uint32_t instances = 0;  ///< objects that use it
   bool from_cache = false;      ///< a file model mapped from its cache
-};
-
-/// One object: an instance of a model placed in the world. Plain data,
-/// 180 bytes (the memory of one more instance of a model already loaded).
-struct SceneObject {
-  glm::mat4 world{1.0f};          ///< model -> world (an affine, invertible transform)
-  glm::mat4 world_inverse{1.0f};  ///< world -> model
-  /// World-space AABB of the model's splat box (its 8 corners transformed):
-  /// every splat of the object lies inside.
-  glm::vec3 aabb_min{0.0f}, aabb_max{0.0f};
-  /// World-space bounding sphere (centre, radius) of every splat: the smaller
-  /// of the transformed root sphere and the AABB's circumsphere.
-  glm::vec4 sphere{0.0f};
-  std::uint32_t model = 0;  ///< index into Scene::models
-  std::uint32_t file = 0;   ///< index into Scene::files (where the object line is)
-  std::uint32_t line = 0;   ///< its line number there
 };
 
 struct Scene {
@@ -137,17 +122,13 @@ struct SceneModelDecl {
   SceneModelSource source;
   std::uint32_t file = 0, line = 0;
 };
-/// An object line as parsed: its model declaration and its transform.
-struct SceneObjectDecl {
-  std::uint32_t decl = 0;  ///< index into SceneDescription::models
-  glm::mat4 world{1.0f};
-  glm::mat4 world_inverse{1.0f};
-  std::uint32_t file = 0, line = 0;
-};
 struct SceneDescription {
   std::vector<std::filesystem::path> files;
   std::vector<SceneModelDecl> models;  ///< every declaration, includes' too
-  std::vector<SceneObjectDecl> objects;
+  /// The object lines as parsed: transform, file and line, and `model` the
+  /// index of its declaration in `models` (load_scene maps declarations to
+  /// distinct models and fills the bounds).
+  std::vector<SceneObject> objects;
 };
 
 /// What makes the models of a scene's `generate NAME KIND SEED POINTS` lines.

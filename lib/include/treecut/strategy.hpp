@@ -68,6 +68,7 @@
 
 #include "treecut/counters.hpp"
 #include "treecut/hierarchy.hpp"
+#include "treecut/scene_object.hpp"
 #include "treecut/tree_cut.hpp"
 #include "treecut/view_snapshot.hpp"
 
@@ -200,17 +201,11 @@ class Strategy {
 // whole view). It keeps what per-object state it wants; the stage keeps no
 // TreeCut per object for it. Its iterate() is what runs on a single model.
 
-/// One object of a scene as a SceneStrategy sees it.
-struct SceneObjectInput {
-  const Hierarchy* hierarchy = nullptr;  ///< its model's, shared by every instance of the model
-  glm::mat4 world{1.0f};                 ///< model -> world
-  glm::mat4 world_inverse{1.0f};         ///< world -> model
-  std::uint32_t model = 0;               ///< which distinct model (index into the stage's scene)
-};
-
 /// What one scene iteration may read; valid for the duration of the call.
 struct SceneIterationInput {
-  std::span<const SceneObjectInput> objects;
+  /// The stage's scene: its objects (model, transforms, world bounds) and
+  /// their models' hierarchies (scene.hierarchy(i)).
+  const StageScene& scene;
   const ViewSnapshot& view;  ///< world space (the camera's view, no model matrix folded in)
   const std::atomic<bool>* cancel = nullptr;
   std::uint64_t params_version = 0;
@@ -241,9 +236,9 @@ struct SceneIterationOutput {
 class SceneStrategy {
  public:
   virtual ~SceneStrategy() = default;
-  /// Drops per-object state and sizes it for these objects. Called before the
-  /// first scene iteration and whenever the scene changes.
-  virtual void reset_scene(std::span<const SceneObjectInput> objects) = 0;
+  /// Drops per-object state and sizes it for this scene's objects. Called
+  /// before the first scene iteration and whenever the scene changes.
+  virtual void reset_scene(const StageScene& scene) = 0;
   /// One iteration over all objects.
   virtual void iterate_scene(const SceneIterationInput& input, SceneIterationOutput& output) = 0;
 

@@ -141,9 +141,9 @@ Scene load_scene(const std::filesystem::path& file, const SceneLoadOptions& opti
   std::vector<std::uint32_t> model_of_decl(d.models.size(), UINT32_MAX);
   std::vector<std::uint32_t> decl_of_model;
   for (const auto& o : d.objects) {
-    std::uint32_t& m = model_of_decl[o.decl];
+    std::uint32_t& m = model_of_decl[o.model];
     if (m != UINT32_MAX) continue;
-    const SceneModelDecl& decl = d.models[o.decl];
+    const SceneModelDecl& decl = d.models[o.model];
     const auto next = static_cast<std::uint32_t>(decl_of_model.size());
     if (decl.source.type == SceneModelSource::Type::File) {
       struct stat st {};
@@ -156,7 +156,7 @@ Scene load_scene(const std::filesystem::path& file, const SceneLoadOptions& opti
       m = by_kind.try_emplace({decl.source.kind, decl.source.seed, decl.source.points}, next)
               .first->second;
     }
-    if (m == next) decl_of_model.push_back(o.decl);
+    if (m == next) decl_of_model.push_back(o.model);
   }
 
   // 2. Load them, several at a time (each load is itself parallel inside:
@@ -229,9 +229,9 @@ Scene load_scene(const std::filesystem::path& file, const SceneLoadOptions& opti
   std::atomic<std::size_t> first_bad{SIZE_MAX};
   parallel_for(d.objects.size(), [&](std::size_t b, std::size_t e) {
     for (std::size_t i = b; i < e; ++i) {
-      const SceneObjectDecl& od = d.objects[i];
+      const SceneObject& od = d.objects[i];
       SceneObject& o = scene.objects[i];
-      o.model = model_of_decl[od.decl];
+      o.model = model_of_decl[od.model];
       o.world = od.world;
       o.world_inverse = od.world_inverse;
       o.file = od.file;

@@ -256,8 +256,8 @@ struct Parser {
                              " objects (the limit for a scene)");
           const Mat world = parent * parse_transform(t, 2);
           if (!invertible(world)) throw InputError(kNotInvertible);
-          SceneObjectDecl o;
-          o.decl = it->second;
+          SceneObject o;
+          o.model = it->second;  // the declaration (load_scene maps it)
           const Mat inverse = glm::inverse(world);
           // Checked in double: casting a double past the float range is undefined.
           for (int c = 0; c < 4; ++c)

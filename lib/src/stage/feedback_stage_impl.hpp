@@ -165,7 +165,6 @@ class FeedbackStage::Impl {
   // null but the first for a scene-level strategy) and a cut, whether the
   // cuts must be rebuilt from the front list, the object's view scratch.
   std::shared_ptr<const StageScene> scene_;
-  std::vector<SceneObjectInput> scene_inputs_;
   std::vector<std::unique_ptr<Strategy>> object_strategies_;
   SceneStrategy* scene_strategy_ = nullptr;
   std::unique_ptr<Strategy> failed_first_;  // see make_object_strategies

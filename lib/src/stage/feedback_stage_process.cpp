@@ -153,7 +153,7 @@ void FeedbackStage::Impl::process() {
 void FeedbackStage::Impl::process_scene(Outbox& out) {
   using Clock = std::chrono::steady_clock;
   const Clock::time_point t0 = out.started;
-  const std::size_t n = scene_inputs_.size();
+  const std::size_t n = scene_->objects.size();
   // Taken out of the inbox first: a failure below leaves nothing behind
   // for the next request to find.
   std::unique_ptr<Strategy> incoming = std::move(inbox_.strategy);
@@ -184,8 +184,8 @@ void FeedbackStage::Impl::process_scene(Outbox& out) {
     object_cuts_.resize(n);
     for (std::size_t i = 0; i < n; ++i) {
       const std::span<const NodeId> list = front_list(i);
-      object_cuts_[i] = list.empty() ? TreeCut::root_cut(*scene_inputs_[i].hierarchy)
-                                     : TreeCut::from_nodes(*scene_inputs_[i].hierarchy, list);
+      object_cuts_[i] = list.empty() ? TreeCut::root_cut(scene_->hierarchy(i))
+                                     : TreeCut::from_nodes(scene_->hierarchy(i), list);
     }
     cut_stale_ = false;
   }
@@ -212,7 +212,7 @@ void FeedbackStage::Impl::process_scene(Outbox& out) {
   std::uint64_t objects = 0;
   IterationResult total;
   if (scene_strategy_ != nullptr) {
-    const SceneIterationInput input{scene_inputs_, view_,
+    const SceneIterationInput input{*scene_, view_,
                                     &cancel_,      object_strategies_[0]->params_version(),
                                     front.nodes,   front.offsets};
     SceneIterationOutput output;
@@ -233,7 +233,7 @@ void FeedbackStage::Impl::process_scene(Outbox& out) {
     for (std::size_t i = 0; i < n; ++i) {
       const auto first = back.nodes.begin() + off[i], last = back.nodes.begin() + off[i + 1];
       if (first == last) continue;  // not drawn
-      if (std::string why = check_cut(*scene_inputs_[i].hierarchy, {first, last}); !why.empty()) {
+      if (std::string why = check_cut(scene_->hierarchy(i), {first, last}); !why.empty()) {
         invalid(i, why);
       }
       if (!std::is_sorted(first, last)) std::sort(first, last);
@@ -247,8 +247,8 @@ void FeedbackStage::Impl::process_scene(Outbox& out) {
     back.offsets.push_back(0);
     total.converged = true;
     for (std::size_t i = 0; i < n; ++i) {
-      const SceneObjectInput& o = scene_inputs_[i];
-      const Hierarchy& h = *o.hierarchy;
+      const SceneObject& o = scene_->objects[i];
+      const Hierarchy& h = scene_->hierarchy(i);
       if (!total.cancelled && !cancel_.load(std::memory_order_relaxed)) {
         // The object's model space: the view with its world matrix folded
         // in, so an unchanged strategy sees what it sees on a model.

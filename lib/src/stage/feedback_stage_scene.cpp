@@ -21,7 +21,7 @@ namespace treecut {
 
 std::uint64_t StageScene::object_nodes() const {
   std::uint64_t n = 0;
-  for (const Object& o : objects) {
+  for (const SceneObject& o : objects) {
     if (o.model < models.size() && models[o.model]) n += models[o.model]->node_count();
   }
   return n;
@@ -32,9 +32,7 @@ std::shared_ptr<const StageScene> stage_scene(const Scene& scene) {
   s->models.reserve(scene.models.size());
   for (const SceneModel& m : scene.models) s->models.push_back(m.hierarchy);
   s->objects.reserve(scene.objects.size());
-  for (const SceneObject& o : scene.objects) {
-    s->objects.push_back(StageScene::Object{o.model, o.world, o.world_inverse});
-  }
+  s->objects = scene.objects;
   return s;
 }
 
@@ -53,15 +51,12 @@ FeedbackStage::Impl::Impl(std::shared_ptr<const StageScene> scene, const Strateg
   if (n >= std::numeric_limits<std::uint32_t>::max()) {
     throw std::invalid_argument("FeedbackStage: too many objects");
   }
-  scene_inputs_.reserve(n);
   object_size_factor_[0].reserve(n);
   object_size_factor_[1].reserve(n);
-  for (const StageScene::Object& o : scene_->objects) {
+  for (const SceneObject& o : scene_->objects) {
     if (o.model >= scene_->models.size()) {
       throw std::invalid_argument("FeedbackStage: an object's model index is out of range");
     }
-    scene_inputs_.push_back(
-        SceneObjectInput{scene_->models[o.model].get(), o.world, o.world_inverse, o.model});
     // A strategy sizes a node by its model-space radius over its model-space
     // distance. Under a stretch that ratio is no bound of the world's: the
     // radius grows by up to sigma_max, the distance shrinks by down to
@@ -96,9 +91,7 @@ FeedbackStage::Impl::Impl(std::shared_ptr<const StageScene> scene, const Strateg
   make_object_strategies(std::move(first), factory);
   if (!scene_strategy_ && object_strategies_[0]->mode() == Strategy::Mode::Evolve) {
     object_cuts_.reserve(n);
-    for (const SceneObjectInput& o : scene_inputs_) {
-      object_cuts_.push_back(TreeCut::root_cut(*o.hierarchy));
-    }
+    for (std::size_t i = 0; i < n; ++i) object_cuts_.push_back(TreeCut::root_cut(scene_->hierarchy(i)));
   } else {
     cut_stale_ = true;
   }
@@ -148,9 +141,9 @@ void FeedbackStage::Impl::make_object_strategies(std::unique_ptr<Strategy> first
   made.push_back(std::move(first));
   try {
     if (scene_level != nullptr) {
-      scene_level->reset_scene(scene_inputs_);
+      scene_level->reset_scene(*scene_);
     } else {
-      const std::size_t n = scene_inputs_.size();
+      const std::size_t n = scene_->objects.size();
       made.reserve(n);
       for (std::size_t i = 1; i < n; ++i) {
         std::unique_ptr<Strategy> s = factory ? factory() : nullptr;
@@ -160,7 +153,7 @@ void FeedbackStage::Impl::make_object_strategies(std::unique_ptr<Strategy> first
         }
         made.push_back(std::move(s));
       }
-      for (std::size_t i = 0; i < n; ++i) made[i]->reset(*scene_inputs_[i].hierarchy);
+      for (std::size_t i = 0; i < n; ++i) made[i]->reset(scene_->hierarchy(i));
     }
   } catch (...) {
     failed_first_ = std::move(made.front());

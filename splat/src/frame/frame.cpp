@@ -98,10 +98,7 @@ FrameResult RenderThreadFrame::begin_scene(const FrameLists& lists) {
       held = renderer_->model_identity(i) == models_[i];
     }
     if (!held) renderer_->set_models(models_);
-    std::vector<SceneObjectDraw> draws;
-    draws.reserve(scene.objects.size());
-    for (const StageScene::Object& o : scene.objects) draws.push_back({o.model, o.world});
-    scene_cut_.set_objects(*renderer_, draws);
+    scene_cut_.set_objects(*renderer_, scene.objects);
     scene_ = &scene;
     switched = true;
   }

@@ -66,7 +66,7 @@ ObjectRecord object_record(const glm::mat4& world) {
 }
 
 void SceneCutBuffer::set_objects(const Renderer& renderer,
-                                 std::span<const SceneObjectDraw> objects) {
+                                 std::span<const SceneObject> objects) {
   if (objects.size() >= kMaxSceneDrawObjects) {
     throw std::invalid_argument("SceneCutBuffer: " + std::to_string(objects.size()) +
                                 " objects, at most " + std::to_string(kMaxSceneDrawObjects - 1));
@@ -87,7 +87,8 @@ void SceneCutBuffer::set_objects(const Renderer& renderer,
       throw std::invalid_argument("object " + std::to_string(i) + ": " + e.what());
     }
   }
-  objects_.assign(objects.begin(), objects.end());
+  object_models_.resize(objects.size());
+  for (std::size_t i = 0; i < objects.size(); ++i) object_models_[i] = objects[i].model;
   models_.clear();
   model_base_.clear();
   for (std::size_t m = 0; m < renderer.model_count(); ++m) {
@@ -103,9 +104,9 @@ void SceneCutBuffer::set_objects(const Renderer& renderer,
 
 void SceneCutBuffer::upload(std::span<const Hierarchy* const> models,
                             std::span<const std::span<const NodeId>> cuts) {
-  if (cuts.size() != objects_.size()) {
+  if (cuts.size() != object_models_.size()) {
     throw std::invalid_argument("SceneCutBuffer: " + std::to_string(cuts.size()) + " lists for " +
-                                std::to_string(objects_.size()) + " objects");
+                                std::to_string(object_models_.size()) + " objects");
   }
   if (!std::equal(models.begin(), models.end(), models_.begin(), models_.end())) {
     throw std::invalid_argument("SceneCutBuffer: other models than set_objects saw");
@@ -116,7 +117,7 @@ void SceneCutBuffer::upload(std::span<const Hierarchy* const> models,
   for (std::size_t i = 0; i < cuts.size(); ++i) {
     const std::span<const NodeId> cut = cuts[i];
     if (cut.empty()) continue;
-    const Hierarchy& h = *models[objects_[i].model];
+    const Hierarchy& h = *models[object_models_[i]];
     const auto counts = h.arrays().point_count;
     const std::size_t first = ids_.size();
     for (const NodeId n : cut) {
@@ -140,7 +141,7 @@ void SceneCutBuffer::upload(std::span<const Hierarchy* const> models,
     // baseVertex, baseInstance (the object: its record).
     cmds_.insert(cmds_.end(),
                  {static_cast<std::uint32_t>(cut.size()), 1u, static_cast<std::uint32_t>(first),
-                  model_base_[objects_[i].model], static_cast<std::uint32_t>(i)});
+                  model_base_[object_models_[i]], static_cast<std::uint32_t>(i)});
   }
   // Write the buffers the last draws did not read (CutBuffer::write).
   const std::size_t next = elements_[current_] ? 1 - current_ : current_;

@@ -40,7 +40,7 @@ std::vector<double> eq1_shares(std::span<const BudgetItem> items, const BudgetPa
   return t;
 }
 
-void budget_items(std::span<const culling::SceneObject> objects,
+void budget_items(std::span<const culling::ObjectBounds> objects,
                   std::span<const culling::ScreenRect> rects, std::span<const std::uint8_t> visible,
                   std::vector<BudgetItem>& items, WorkerPool* pool) {
   // The objects' point counts as the dense array the strategy keeps.

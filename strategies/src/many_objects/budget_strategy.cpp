@@ -77,17 +77,18 @@ void BudgetStrategy::iterate(const IterationInput& input, IterationOutput& outpu
   output.result.converged = true;  // a function of the view and parameters only
 }
 
-void BudgetStrategy::reset_scene(std::span<const SceneObjectInput> objects) {
+void BudgetStrategy::reset_scene(const StageScene& scene) {
+  const std::span<const SceneObject> objects = scene.objects;
   // Section 6.1 per distinct model (instances share it): the points are the
   // hierarchy's leaves, the box fitted to them, Eq. 2, and a box inside.
   std::uint32_t models = 0;
-  for (const SceneObjectInput& o : objects) models = std::max(models, o.model + 1);
+  for (const SceneObject& o : objects) models = std::max(models, o.model + 1);
   std::vector<ModelShape> shapes(models);
   std::vector<glm::vec3> points;
-  for (const SceneObjectInput& o : objects) {
+  for (const SceneObject& o : objects) {
     ModelShape& s = shapes[o.model];
     if (s.hierarchy != nullptr) continue;
-    const Hierarchy& h = *o.hierarchy;
+    const Hierarchy& h = *scene.models[o.model];
     s.hierarchy = &h;
     points.clear();
     float radius = 0.0f;
@@ -127,7 +128,7 @@ void BudgetStrategy::reset_scene(std::span<const SceneObjectInput> objects) {
       if (s.inner) s.open_face = face;
     }
   }
-  std::vector<culling::SceneObject> made(objects.size());
+  std::vector<culling::ObjectBounds> made(objects.size());
   open_.clear();
   open_planes_.clear();
   open_inside_.clear();
@@ -135,9 +136,9 @@ void BudgetStrategy::reset_scene(std::span<const SceneObjectInput> objects) {
   worlds_.resize(objects.size());
   points_.resize(objects.size());
   for (std::size_t i = 0; i < objects.size(); ++i) {
-    const SceneObjectInput& o = objects[i];
+    const SceneObject& o = objects[i];
     const ModelShape& s = shapes[o.model];
-    culling::SceneObject& x = made[i];
+    culling::ObjectBounds& x = made[i];
     x.box = culling::transformed(s.box, o.world);
     // The fitted box holds the splat centres; the splats' box moved holds
     // every pixel a splat can cover.
@@ -149,7 +150,7 @@ void BudgetStrategy::reset_scene(std::span<const SceneObjectInput> objects) {
     x.bounds.hi = glm::max(x.bounds.hi, b.hi);
     x.has_inner = s.inner.has_value();
     if (x.has_inner) x.inner = culling::transformed(*s.inner, o.world);
-    x.points = o.hierarchy->leaf_count();
+    x.points = scene.hierarchy(i).leaf_count();
     points_[i] = x.points;
     x.compactness = s.compactness;
     if (s.open_face >= 0) {
@@ -167,7 +168,7 @@ void BudgetStrategy::reset_scene(std::span<const SceneObjectInput> objects) {
       open_planes_.push_back(
           glm::dvec4(sign * glm::dvec3(q), sign * offset - static_cast<double>(s.box.half[k])));
     }
-    hierarchies_[i] = o.hierarchy;
+    hierarchies_[i] = &scene.hierarchy(i);
     worlds_[i] = o.world;
   }
   shapes_.swap(shapes);
@@ -198,8 +199,8 @@ void BudgetStrategy::ensure_culler() {
 
 void BudgetStrategy::iterate_scene(const SceneIterationInput& input, SceneIterationOutput& output) {
   const std::size_t n = objects_.size();
-  if (input.objects.size() != n) {
-    throw std::logic_error("budget: " + std::to_string(input.objects.size()) +
+  if (input.scene.objects.size() != n) {
+    throw std::logic_error("budget: " + std::to_string(input.scene.objects.size()) +
                            " objects, reset_scene saw " + std::to_string(n));
   }
   ensure_pool();

@@ -28,6 +28,7 @@
 #include <vector>
 
 #include "treecut/hierarchy.hpp"
+#include "treecut/scene_object.hpp"
 #include "treecut/splat/gl_objects.hpp"
 
 namespace treecut::splat {
@@ -60,11 +61,6 @@ static_assert(sizeof(ObjectRecord) == 64);
 /// invertible.
 ObjectRecord object_record(const glm::mat4& world);
 
-struct SceneObjectDraw {
-  std::uint32_t model = 0;  ///< index into the renderer's models (Renderer::set_models)
-  glm::mat4 world{1.0f};    ///< model -> world
-};
-
 /// The element and command buffers of a scene's cut, and its objects' records.
 class SceneCutBuffer {
  public:
@@ -72,7 +68,7 @@ class SceneCutBuffer {
   /// `renderer` holds now; their records go to the GPU here, once. Throws
   /// std::invalid_argument for a model index past the renderer's or a
   /// transform object_record() refuses (naming the object).
-  void set_objects(const Renderer& renderer, std::span<const SceneObjectDraw> objects);
+  void set_objects(const Renderer& renderer, std::span<const SceneObject> objects);
 
   /// One index list per object (set_objects' order; an empty list draws
   /// nothing), ids of the object's model, each drawn in ascending id order
@@ -86,7 +82,7 @@ class SceneCutBuffer {
   void upload(std::span<const Hierarchy* const> models,
               std::span<const std::span<const NodeId>> cuts);
 
-  [[nodiscard]] std::size_t object_count() const { return objects_.size(); }
+  [[nodiscard]] std::size_t object_count() const { return object_models_.size(); }
   /// Nodes in all lists.
   [[nodiscard]] std::size_t size() const { return size_; }
   /// Indirect commands (objects with a non-empty list).
@@ -101,7 +97,7 @@ class SceneCutBuffer {
   [[nodiscard]] const gl::Buffer& indirect() const { return indirect_[current_]; }
 
  private:
-  std::vector<SceneObjectDraw> objects_;
+  std::vector<std::uint32_t> object_models_;  // per object: its model (the records hold the rest)
   std::vector<const Hierarchy*> models_;
   std::vector<std::uint32_t> model_base_;
   gl::Buffer records_;

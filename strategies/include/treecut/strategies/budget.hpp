@@ -90,7 +90,7 @@ std::vector<double> eq1_shares(std::span<const BudgetItem> items, const BudgetPa
 /// Items from the screen rectangles of `objects` under `view`, with the area
 /// zeroed where `visible` is 0 (culled objects give their share to the
 /// others); `visible` empty = all.
-void budget_items(std::span<const culling::SceneObject> objects,
+void budget_items(std::span<const culling::ObjectBounds> objects,
                   std::span<const culling::ScreenRect> rects, std::span<const std::uint8_t> visible,
                   std::vector<BudgetItem>& items, WorkerPool* pool = nullptr);
 /// The same with P_i given apart (points[i] = objects[i].points): what a

@@ -89,12 +89,12 @@ class BudgetStrategy final : public Strategy, public SceneStrategy {
   void iterate(const IterationInput& input, IterationOutput& output) override;
   void reset(const Hierarchy& hierarchy) override;
 
-  void reset_scene(std::span<const SceneObjectInput> objects) override;
+  void reset_scene(const StageScene& scene) override;
   void iterate_scene(const SceneIterationInput& input, SceneIterationOutput& output) override;
 
   [[nodiscard]] const BudgetCounters& last() const { return last_; }
   /// The objects as the culler sees them (world boxes, compactness), from reset_scene().
-  [[nodiscard]] std::span<const culling::SceneObject> objects() const { return objects_; }
+  [[nodiscard]] std::span<const culling::ObjectBounds> objects() const { return objects_; }
   /// Per object of the last scene iteration: 1 when potentially visible.
   [[nodiscard]] std::span<const std::uint8_t> visible() const { return visible_; }
   /// Per object of the last scene iteration: its Eq. 1 share.
@@ -117,7 +117,7 @@ class BudgetStrategy final : public Strategy, public SceneStrategy {
   void ensure_culler();
 
   std::vector<ModelShape> shapes_;
-  std::vector<culling::SceneObject> objects_;
+  std::vector<culling::ObjectBounds> objects_;
   std::vector<const Hierarchy*> hierarchies_;
   std::vector<std::uint32_t> open_;        // objects whose model's inner box needs an open face
   std::vector<glm::dvec4> open_planes_;    // per open_ entry: eye inside when dot(xyz, eye) + w < 0

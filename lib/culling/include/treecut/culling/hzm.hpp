@@ -109,7 +109,7 @@ Obb fit_obb(std::span<const glm::vec3> points);
 enum class Facing : std::uint8_t { ViewDirection, EyeToObject };
 
 /// A box inside the solid that a closed surface of points bounds, for an
-/// object that is not a box (SceneObject::inner; nullopt: none found, the
+/// object that is not a box (ObjectBounds::inner; nullopt: none found, the
 /// object does not occlude). On a grid of `cells` a side over `box`: the
 /// cells holding points are the surface, the empty cells reached from the
 /// grid's border through empty cells are outside, the empty cells left are
@@ -191,7 +191,7 @@ struct CullStats {
 /// Eq. 3 weight of an object as an occluder under `view` (0 when it cannot be
 /// one this frame: outside, crossing the near plane, eye inside its AABB).
 /// `normal`: the unit normal of its OBB's largest face.
-float occluder_weight(const SceneObject& object, glm::vec3 normal, const ScreenRect& rect,
+float occluder_weight(const ObjectBounds& object, glm::vec3 normal, const ScreenRect& rect,
                       const ViewSnapshot& view, Facing facing = Facing::EyeToObject);
 
 class HzmCuller {
@@ -202,17 +202,17 @@ class HzmCuller {
   /// Section 6.1: the COS of `objects` (their compactness must be set) and
   /// each candidate's largest-face normal; a copy of the AABBs for the
   /// projection. Call again when objects change or move.
-  void preprocess(std::span<const SceneObject> objects);
+  void preprocess(std::span<const ObjectBounds> objects);
   /// COS: object indices, compactness descending (ties by index).
   [[nodiscard]] std::span<const std::uint32_t> candidates() const { return cos_; }
 
   /// The four phases of a frame, in this order (or cull() for all four).
-  void project(std::span<const SceneObject> objects, const ViewSnapshot& view, WorkerPool* pool);
-  void select_occluders(std::span<const SceneObject> objects, const ViewSnapshot& view,
+  void project(std::span<const ObjectBounds> objects, const ViewSnapshot& view, WorkerPool* pool);
+  void select_occluders(std::span<const ObjectBounds> objects, const ViewSnapshot& view,
                         WorkerPool* pool);
-  void build_hzm(std::span<const SceneObject> objects, const ViewSnapshot& view, WorkerPool* pool);
-  void test(std::span<const SceneObject> objects, WorkerPool* pool);
-  void cull(std::span<const SceneObject> objects, const ViewSnapshot& view, WorkerPool* pool);
+  void build_hzm(std::span<const ObjectBounds> objects, const ViewSnapshot& view, WorkerPool* pool);
+  void test(std::span<const ObjectBounds> objects, WorkerPool* pool);
+  void cull(std::span<const ObjectBounds> objects, const ViewSnapshot& view, WorkerPool* pool);
 
   [[nodiscard]] std::span<const ScreenRect> rects() const { return rects_; }
   [[nodiscard]] std::span<const ObjectState> states() const { return states_; }
@@ -240,7 +240,7 @@ class HzmCuller {
   std::vector<std::uint8_t> visible_;
   // The COS in object order, with what Eq. 3 reads of each (AABB, normal):
   // the frame's weights then stream through 40 bytes a candidate and the
-  // rectangles in order instead of a SceneObject's cache lines picked in
+  // rectangles in order instead of a ObjectBounds's cache lines picked in
   // compactness order (48 k of 100 k candidates are in a city block's
   // frustum).
   struct Candidate {
@@ -261,12 +261,12 @@ class HzmCuller {
   HierarchicalZMap hzm_;
 };
 
-/// The exact reference: every object's box (SceneObject::box) ray cast at
+/// The exact reference: every object's box (ObjectBounds::box) ray cast at
 /// every pixel center of its rectangle, front-most wins (the first surface
 /// at or beyond the near plane and not beyond the far plane; ties to the
 /// lower index); visible[i] = 1 when object i owns a pixel. `ids`, when
 /// given, receives the id buffer (width x height, y up, ~0u = background).
-void reference_visibility(std::span<const SceneObject> objects, const ViewSnapshot& view,
+void reference_visibility(std::span<const ObjectBounds> objects, const ViewSnapshot& view,
                           std::vector<std::uint8_t>& visible, WorkerPool* pool,
                           std::vector<std::uint32_t>* ids = nullptr);
 

@@ -5,7 +5,7 @@
 //   (../shared/papers/occlusion-culling-with-parallel-lod.txt, sections 5, 6),
 // on the CPU cores instead of CUDA.
 //
-// The input is a plain array of objects (SceneObject: a world oriented box,
+// The input is a plain array of objects (ObjectBounds: a world oriented box,
 // its world AABB, the points it has, its compactness), so a scene loader
 // plugs in later by filling that array. Everything here is world space: the
 // camera is a ViewSnapshot whose `view` maps world to eye (no model matrix
@@ -49,8 +49,10 @@ Box bounds_of(const Obb& box);
 /// axes, which then contains the transformed box only approximately).
 Obb transformed(const Obb& box, const glm::mat4& transform);
 
-/// One object of a scene, as the budget and the culler need it.
-struct SceneObject {
+/// The culling geometry of one scene object (treecut::SceneObject, the one
+/// scene object, is the object; this is what the budget and the culler read
+/// of it, kept in a dense array of their own, indexed as the scene's objects).
+struct ObjectBounds {
   /// The object's oriented bounding box in world space (object OBB moved by
   /// its transform): what the exact reference draws for a box object.
   Obb box;
@@ -69,7 +71,7 @@ struct SceneObject {
 
 /// A box object (a building): box, bounds and inner box all the same box,
 /// compactness 1.
-SceneObject box_object(const Obb& box, std::uint32_t points);
+ObjectBounds box_object(const Obb& box, std::uint32_t points);
 
 /// A seeded city of `count` box buildings (y up, ground at y = 0): lots of
 /// 20 x 20 units on a square grid, a street of 12 units after every fourth
@@ -78,7 +80,7 @@ SceneObject box_object(const Obb& box, std::uint32_t points);
 /// them turned about the vertical axis, and 2,000 to 200,000 points. The
 /// same seed gives the same city. For the tests and the benchmark; scene
 /// files come with the scene loader.
-std::vector<SceneObject> box_city(std::size_t count, std::uint32_t seed);
+std::vector<ObjectBounds> box_city(std::size_t count, std::uint32_t seed);
 /// Street-level cameras of a box_city(count, ...): `views` eyes at 1.7
 /// units along and across the streets, looking along them or obliquely,
 /// seeded.
