@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
 #include <charconv>
 #include <chrono>
@@ -268,7 +269,18 @@ void print_chc_table(const std::vector<ChcRun>& runs) {
   std::fflush(stdout);
 }
 
-void run_bench_occlusion(const OcclusionArgs& a) {
+// The part of the walk a run measures: the path, the end of the part, its
+// length in path seconds and the frames taken over it.
+struct OcclusionWalk {
+  splat::CameraPath path;
+  double to = 0.0;
+  double span = 0.0;
+  int frames = 0;
+};
+
+// Every option of bench occlusion checked before any work (exit 2 with one
+// line), and the frames of the walk.
+OcclusionWalk check_occlusion_args(const OcclusionArgs& a) {
   if (a.frames < 0) throw InputError("--frames must not be negative");
   if (!(a.fps > 0.0) || a.fps > 1000.0) throw InputError("--fps must be in (0, 1000]");
   if (a.block_size < 1) throw InputError("--block-size must be at least 1");
@@ -277,24 +289,106 @@ void run_bench_occlusion(const OcclusionArgs& a) {
       (a.compare_fan_out == a.fan_out || (a.compare_fan_out != 2 && a.compare_fan_out != 4))) {
     throw InputError("--compare-fan-out must be the other of 2 and 4");
   }
-  const splat::CameraPath path = splat::load_camera_path(a.path);  // exit 2 before any work
+  OcclusionWalk w{splat::load_camera_path(a.path), 0.0, 0.0, 0};  // exit 2 before any work
   if (!a.no_hlod && !a.csv_dir.empty()) check_hlod_csv(hlod_csv_path(a.csv_dir, a.scene));
-  const double to = walk_part_end(path, a.path, a.from, a.to);
+  w.to = walk_part_end(w.path, a.path, a.from, a.to);
   if (a.no_chc && a.no_hlod) throw InputError("--no-chc and --no-hlod leave nothing to run");
   // The path at 1 / fps steps (a walk at that frame rate), or `frames` evenly
   // spaced times; the first and last key included.
-  const double span = to - a.from;
+  w.span = w.to - a.from;
   // In double: a path of 1e300 s at 10 fps is no int (it wrapped negative).
-  const double walk_frames = 1.0 + std::floor(span * a.fps + 1e-9);
+  const double walk_frames = 1.0 + std::floor(w.span * a.fps + 1e-9);
   if (a.frames == 0 && !(walk_frames <= 1e6)) {
     char msg[200];
     std::snprintf(msg, sizeof msg,
                   ": %.6g s of path at %g fps is %.6g frames, more than 1000000; use --frames, "
                   "--fps, --from or --to",
-                  span, a.fps, walk_frames);
+                  w.span, a.fps, walk_frames);
     throw InputError(quoted_name(a.path) + msg);
   }
-  const int frames = a.frames > 0 ? a.frames : static_cast<int>(walk_frames);
+  w.frames = a.frames > 0 ? a.frames : static_cast<int>(walk_frames);
+  return w;
+}
+
+// The rows of the CHC table: the paper's six, then the diagnostic rows asked
+// for, then (compare) VFC, S&W, CHC and Ideal on the other tree of blocks.
+std::vector<ChcRun> chc_runs(const OcclusionArgs& a, bool compare) {
+  using culling::OcclusionMode;
+  std::vector<ChcRun> runs = {
+      {"VFC", {OcclusionMode::Vfc, 0, 0}, {}}, {"S&W", {OcclusionMode::StopAndWait, 0, 0}, {}},
+      {"CHC", {OcclusionMode::Chc, 0, 0}, {}}, {"Ideal", {OcclusionMode::Ideal, 0, 0}, {}},
+      {"CHC", {OcclusionMode::Chc, 2, 0}, {}}, {"CHC", {OcclusionMode::Chc, 0, 25}, {}},
+  };
+  // Diagnostics: Ideal with a glFlush after every block, the batches CHC's
+  // polls cut llvmpipe's work into, without any query or wait.
+  if (a.flush_row) {
+    runs.push_back({"Ideal, glFlush per block", {OcclusionMode::Ideal, 0, 0}, {}, true});
+  }
+  if (a.poll_every > 0) {
+    runs.push_back({"CHC, poll every " + std::to_string(a.poll_every) + " blocks",
+                    {OcclusionMode::Chc, 0, 0, a.poll_every},
+                    {}});
+  }
+  // Diagnostics: Ideal's draws with a box query before each (answers polled
+  // as CHC polls them, then ignored): the queries' own cost, draws equal.
+  if (a.probe_row) {
+    runs.push_back({"Ideal + a box query per block", {OcclusionMode::Ideal, 0, 0, 1, true}, {}});
+  }
+  if (compare) {
+    const std::string tag = ", fan-out " + std::to_string(a.compare_fan_out);
+    for (const OcclusionMode m : {OcclusionMode::Vfc, OcclusionMode::StopAndWait,
+                                  OcclusionMode::Chc, OcclusionMode::Ideal}) {
+      const char* name = m == OcclusionMode::Vfc           ? "VFC"
+                         : m == OcclusionMode::StopAndWait ? "S&W"
+                         : m == OcclusionMode::Chc         ? "CHC"
+                                                           : "Ideal";
+      runs.push_back({name + tag, {m, 0, 0}, {}, false, 1});
+    }
+  }
+  return runs;
+}
+
+// The frames of every run of the CHC table, into runs[r].frames; `trees`
+// and `devices`: the --block-fan-out tree and (compare) the other one.
+void measure_chc_runs(std::vector<ChcRun>& runs, std::array<const culling::HlodBlocks*, 2> trees,
+                      std::array<splat::GlOcclusionDevice*, 2> devices,
+                      const std::vector<splat::Camera>& cameras,
+                      const splat::RenderSettings& settings, glm::ivec2 size) {
+  using culling::OcclusionMode;
+  // Ideal replays, frame by frame, the leaf blocks S&W found visible for the
+  // same camera (S&W's frame runs just before).
+  std::vector<culling::BlockId> sw_set[2];
+  // Each method has its own traversal (its own previous frames), and the
+  // methods take turns frame by frame: every method sees the path in order,
+  // and a change of the machine's load (other processes on the 2 cores)
+  // falls on all of them alike instead of on whichever ran then.
+  std::vector<culling::ChcTraversal> traversals;
+  for (const ChcRun& run : runs) traversals.emplace_back(*trees[run.tree], run.options);
+  auto frame = [&](std::size_t r, std::size_t f) {
+    const ChcRun& run = runs[r];
+    splat::GlOcclusionDevice& dev = *devices[run.tree];
+    dev.set_flush_after_draw(run.flush_per_block);
+    dev.set_view_render_thread(cameras[f], settings);
+    if (run.options.mode == OcclusionMode::Ideal) traversals[r].set_ideal_leaves(sw_set[run.tree]);
+    const auto stats =
+        traversals[r].frame_render_thread(dev, cameras[f].view(size), true);
+    if (run.options.mode == OcclusionMode::StopAndWait) sw_set[run.tree] = traversals[r].drawn();
+    return stats;
+  };
+  // One untimed frame at the first camera: the GPU's caches warm, and CHC
+  // starts the path with a previous frame as it would in a walk. S&W comes
+  // before Ideal in `runs`: Ideal replays the set S&W found for this camera.
+  for (std::size_t r = 0; r < runs.size(); ++r) (void)frame(r, 0);
+  for (std::size_t f = 0; f < cameras.size(); ++f) {
+    for (std::size_t r = 0; r < runs.size(); ++r) runs[r].frames.push_back(frame(r, f));
+  }
+}
+
+void run_bench_occlusion(const OcclusionArgs& a) {
+  const OcclusionWalk walk = check_occlusion_args(a);
+  const splat::CameraPath& path = walk.path;
+  const double span = walk.span;
+  const int frames = walk.frames;
 
   SceneArgs scene_args;
   scene_args.model = a.scene;
@@ -338,70 +432,13 @@ void run_bench_occlusion(const OcclusionArgs& a) {
   std::printf(
       "path      %s: %d frames over %.1f s (%.1f to %.1f s of %.1f); means over the frames "
       "(frame ms: glFinish-ed wall time; wait ms: CPU blocked in query reads)\n",
-      a.path.c_str(), frames, span, a.from, to, path.duration());
+      a.path.c_str(), frames, span, a.from, walk.to, path.duration());
   std::fflush(stdout);
 
-  using culling::OcclusionMode;
-  std::vector<ChcRun> runs = {
-      {"VFC", {OcclusionMode::Vfc, 0, 0}, {}}, {"S&W", {OcclusionMode::StopAndWait, 0, 0}, {}},
-      {"CHC", {OcclusionMode::Chc, 0, 0}, {}}, {"Ideal", {OcclusionMode::Ideal, 0, 0}, {}},
-      {"CHC", {OcclusionMode::Chc, 2, 0}, {}}, {"CHC", {OcclusionMode::Chc, 0, 25}, {}},
-  };
-  // Diagnostics: Ideal with a glFlush after every block, the batches CHC's
-  // polls cut llvmpipe's work into, without any query or wait.
-  if (a.flush_row) {
-    runs.push_back({"Ideal, glFlush per block", {OcclusionMode::Ideal, 0, 0}, {}, true});
-  }
-  if (a.poll_every > 0) {
-    runs.push_back({"CHC, poll every " + std::to_string(a.poll_every) + " blocks",
-                    {OcclusionMode::Chc, 0, 0, a.poll_every},
-                    {}});
-  }
-  // Diagnostics: Ideal's draws with a box query before each (answers polled
-  // as CHC polls them, then ignored): the queries' own cost, draws equal.
-  if (a.probe_row) {
-    runs.push_back({"Ideal + a box query per block", {OcclusionMode::Ideal, 0, 0, 1, true}, {}});
-  }
-  if (compare) {
-    const std::string tag = ", fan-out " + std::to_string(a.compare_fan_out);
-    for (const OcclusionMode m : {OcclusionMode::Vfc, OcclusionMode::StopAndWait,
-                                  OcclusionMode::Chc, OcclusionMode::Ideal}) {
-      const char* name = m == OcclusionMode::Vfc           ? "VFC"
-                         : m == OcclusionMode::StopAndWait ? "S&W"
-                         : m == OcclusionMode::Chc         ? "CHC"
-                                                           : "Ideal";
-      runs.push_back({name + tag, {m, 0, 0}, {}, false, 1});
-    }
-  }
-  // Ideal replays, frame by frame, the leaf blocks S&W found visible for the
-  // same camera (S&W's frame runs just before).
-  std::vector<culling::BlockId> sw_set[2];
-  // Each method has its own traversal (its own previous frames), and the
-  // methods take turns frame by frame: every method sees the path in order,
-  // and a change of the machine's load (other processes on the 2 cores)
-  // falls on all of them alike instead of on whichever ran then.
-  std::vector<culling::ChcTraversal> traversals;
-  for (const ChcRun& run : runs)
-    traversals.emplace_back(run.tree == 0 ? blocks : other, run.options);
-  auto frame = [&](std::size_t r, std::size_t f) {
-    const ChcRun& run = runs[r];
-    splat::GlOcclusionDevice& dev = run.tree == 0 ? device : *other_device;
-    dev.set_flush_after_draw(run.flush_per_block);
-    dev.set_view_render_thread(cameras[f], settings);
-    if (run.options.mode == OcclusionMode::Ideal) traversals[r].set_ideal_leaves(sw_set[run.tree]);
-    const auto stats =
-        traversals[r].frame_render_thread(dev, cameras[f].view(size), true);
-    if (run.options.mode == OcclusionMode::StopAndWait) sw_set[run.tree] = traversals[r].drawn();
-    return stats;
-  };
-  // One untimed frame at the first camera: the GPU's caches warm, and CHC
-  // starts the path with a previous frame as it would in a walk. S&W comes
-  // before Ideal in `runs`: Ideal replays the set S&W found for this camera.
   if (!a.no_chc) {
-    for (std::size_t r = 0; r < runs.size(); ++r) (void)frame(r, 0);
-    for (std::size_t f = 0; f < cameras.size(); ++f) {
-      for (std::size_t r = 0; r < runs.size(); ++r) runs[r].frames.push_back(frame(r, f));
-    }
+    std::vector<ChcRun> runs = chc_runs(a, compare);
+    measure_chc_runs(runs, {&blocks, &other}, {&device, other_device.get()}, cameras, settings,
+                     size);
     print_chc_table(runs);
   }
   if (!a.no_hlod) {
@@ -420,21 +457,59 @@ void run_bench_occlusion(const OcclusionArgs& a) {
   }
 }
 
-}  // namespace
+struct BuildArgs {
+  std::vector<std::string> models;
+  int repeat = 5;
+  unsigned threads = 0;
+};
 
-void add_bench_commands(CLI::App& app) {
-  auto* bench = app.add_subcommand("bench", "Benchmarks that print tables for the README");
-  bench->require_subcommand(1);
+// bench build: every model built `repeat` times, each in a child process;
+// one table row per model.
+void run_bench_build(const BuildArgs& args) {
+  // Every input is checked before the first run: a FIFO or a folder is
+  // refused at once (a child would block on it), a bad gen: spec too.
+  for (const auto& model : args.models) {
+    if (model.rfind("gen:", 0) == 0) {
+      (void)parse_gen_spec(model);
+    } else {
+      require_regular_file(model);
+    }
+  }
+  bool header = false;
+  for (const auto& model : args.models) {
+    std::vector<double> read, attr, hier, total, peak;
+    Sample last;
+    for (int i = 0; i < args.repeat; ++i) {
+      last = run_in_child(model, args.threads);
+      read.push_back(last.read), attr.push_back(last.attributes), hier.push_back(last.build);
+      total.push_back(last.total), peak.push_back(static_cast<double>(last.peak_bytes));
+    }
+    const double pk = median(peak);
+    // The header follows the first successful model: a malformed first PLY
+    // prints one line (its error) and nothing else.
+    if (!header) {
+      std::printf(
+          "| model | points | nodes | read s | attributes s | hierarchy s | total s (median of "
+          "%d) | peak MiB | peak B/point |\n",
+          args.repeat);
+      std::printf("|---|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+      header = true;
+    }
+    std::printf("| %s | %llu | %llu | %.3f | %.3f | %.3f | %.3f | %.0f | %.1f |\n",
+                std::filesystem::path(model).filename().string().c_str(),
+                static_cast<unsigned long long>(last.points),
+                static_cast<unsigned long long>(last.nodes), median(read), median(attr),
+                median(hier), median(total), pk / (1024.0 * 1024.0),
+                pk / static_cast<double>(std::max<std::uint64_t>(last.points, 1)));
+    std::fflush(stdout);
+  }
+}
 
-  struct BuildArgs {
-    std::vector<std::string> models;
-    int repeat = 5;
-    unsigned threads = 0;
-  };
+void add_bench_build_command(CLI::App& bench) {
   auto args = std::make_shared<BuildArgs>();
-  auto* build = bench->add_subcommand("build",
-                                      "PLY -> ready hierarchy (read, normals/radii/curvature, "
-                                      "build): median wall time and peak memory");
+  auto* build = bench.add_subcommand("build",
+                                     "PLY -> ready hierarchy (read, normals/radii/curvature, "
+                                     "build): median wall time and peak memory");
   build
       ->add_option("MODELS", args->models,
                    "PLY files, or gen:KIND:POINTS for an in-memory generated model")
@@ -444,48 +519,12 @@ void add_bench_commands(CLI::App& app) {
       ->check(whole_number(1, 100));
   build->add_option("-t,--threads", args->threads, "Worker threads (0 = all)")
       ->check(whole_number(0, 1024));
-  build->callback([args] {
-    // Every input is checked before the first run: a FIFO or a folder is
-    // refused at once (a child would block on it), a bad gen: spec too.
-    for (const auto& model : args->models) {
-      if (model.rfind("gen:", 0) == 0) {
-        (void)parse_gen_spec(model);
-      } else {
-        require_regular_file(model);
-      }
-    }
-    bool header = false;
-    for (const auto& model : args->models) {
-      std::vector<double> read, attr, hier, total, peak;
-      Sample last;
-      for (int i = 0; i < args->repeat; ++i) {
-        last = run_in_child(model, args->threads);
-        read.push_back(last.read), attr.push_back(last.attributes), hier.push_back(last.build);
-        total.push_back(last.total), peak.push_back(static_cast<double>(last.peak_bytes));
-      }
-      const double pk = median(peak);
-      // The header follows the first successful model: a malformed first PLY
-      // prints one line (its error) and nothing else.
-      if (!header) {
-        std::printf(
-            "| model | points | nodes | read s | attributes s | hierarchy s | total s (median of "
-            "%d) | peak MiB | peak B/point |\n",
-            args->repeat);
-        std::printf("|---|---:|---:|---:|---:|---:|---:|---:|---:|\n");
-        header = true;
-      }
-      std::printf("| %s | %llu | %llu | %.3f | %.3f | %.3f | %.3f | %.0f | %.1f |\n",
-                  std::filesystem::path(model).filename().string().c_str(),
-                  static_cast<unsigned long long>(last.points),
-                  static_cast<unsigned long long>(last.nodes), median(read), median(attr),
-                  median(hier), median(total), pk / (1024.0 * 1024.0),
-                  pk / static_cast<double>(std::max<std::uint64_t>(last.points, 1)));
-      std::fflush(stdout);
-    }
-  });
+  build->callback([args] { run_bench_build(*args); });
+}
 
+void add_bench_occlusion_command(CLI::App& bench) {
   auto occ = std::make_shared<OcclusionArgs>();
-  auto* occlusion = bench->add_subcommand(
+  auto* occlusion = bench.add_subcommand(
       "occlusion",
       "Occlusion culling on a walkthrough, headless: the CHC table (VFC, S&W, CHC, Ideal, CHC "
       "t_av=2, CHC n_vp=25; docs/occlusion.md)");
@@ -539,7 +578,15 @@ void add_bench_commands(CLI::App& app) {
   occlusion->add_flag("--no-hlod", occ->no_hlod, "Print the CHC table only");
   occlusion->add_flag("--no-chc", occ->no_chc, "Print the HLOD table only");
   occlusion->callback([occ] { run_bench_occlusion(*occ); });
+}
 
+}  // namespace
+
+void add_bench_commands(CLI::App& app) {
+  auto* bench = app.add_subcommand("bench", "Benchmarks that print tables for the README");
+  bench->require_subcommand(1);
+  add_bench_build_command(*bench);
+  add_bench_occlusion_command(*bench);
   add_bench_scene_command(*bench);
 }
 

@@ -311,9 +311,80 @@ void generate_scene_file(const SceneGenArgs& a) {
   }
 }
 
-}  // namespace
+struct GenArgs {
+  std::string kind;
+  std::string out;
+  std::vector<std::string> source;
+  std::string walk;
+  std::size_t objects = 0;
+  std::size_t points = 200000;
+  std::uint64_t seed = 1;
+};
 
-void add_model_commands(CLI::App& app) {
+// gen KIND for a scene kind (city-block, hall): the scene file, its models
+// generated when it loads. `points_given`: -n was on the command line.
+void generate_scene_kind(const GenArgs& g, bool points_given) {
+  SceneGenArgs a;
+  a.kind = g.kind;
+  a.out = g.out.empty() ? std::filesystem::path("assets") / (a.kind + ".scene")
+                        : std::filesystem::path(g.out);
+  a.sources = g.source;
+  a.walk = g.walk;
+  a.seed = g.seed;
+  // -n is the points of each generated model (buildings, ground tiles).
+  a.points = points_given ? g.points : 20000;
+  a.objects = g.objects ? g.objects : (a.kind == "hall" ? 1000 : 20000);
+  generate_scene_file(a);
+}
+
+// gen KIND for a model kind: its options checked, then the PLY (and the
+// walkthrough path with --walk) written.
+void generate_model_kind(const GenArgs& g) {
+  if (g.objects) throw InputError("gen " + g.kind + ": --objects is only for city-block and hall");
+  if (g.source.size() > 1) throw InputError("gen " + g.kind + ": one --source only");
+  const tools::ModelKind kind = tools::parse_model_kind(g.kind);
+  if (kind == tools::ModelKind::Field && g.source.empty())
+    throw InputError("gen field: needs --source PLY (the model to copy)");
+  if (kind != tools::ModelKind::Field && !g.source.empty())
+    throw InputError("gen " + g.kind + ": --source is only for field");
+  if (!g.walk.empty() && kind != tools::ModelKind::City && kind != tools::ModelKind::Field &&
+      kind != tools::ModelKind::Plant)
+    throw InputError("gen " + g.kind + ": --walk is only for city, field and plant");
+  const std::filesystem::path out = g.out.empty()
+                                        ? std::filesystem::path("assets") / (g.kind + ".ply")
+                                        : std::filesystem::path(g.out);
+  std::vector<std::pair<std::filesystem::path, std::string>> outputs{{out, "the model (-o)"}};
+  if (!g.walk.empty()) outputs.emplace_back(g.walk, "the camera path (--walk)");
+  std::vector<std::pair<std::filesystem::path, std::string>> inputs;
+  for (const auto& s : g.source) inputs.emplace_back(s, "the source scan (--source)");
+  check_distinct_files(outputs, inputs);
+  check_ply_output(out);
+  if (!g.walk.empty()) check_walk_output(g.walk);
+  PointSet source;
+  if (kind == tools::ModelKind::Field) {
+    require_regular_file(g.source.front());
+    source = load_ply(g.source.front());
+    complete_attributes(source);
+  }
+  if (out.has_parent_path()) {
+    std::error_code ec;
+    std::filesystem::create_directories(out.parent_path(), ec);
+    if (ec) throw std::runtime_error(system_error_text(out.parent_path(), ec.value()));
+  }
+  PointSet ps = kind == tools::ModelKind::Field
+                    ? tools::generate_field(tools::prepare_field_source(source), g.points, g.seed)
+                    : tools::generate_model(kind, g.points, g.seed);
+  save_ply(out, ps);
+  std::printf("wrote %s (%zu points)\n", quoted_name(out).c_str(), ps.size());
+  if (!g.walk.empty()) {
+    const splat::CameraPath path = tools::walk_path(tools::scene_walkthrough(kind));
+    save_camera_path(g.walk, path);
+    std::printf("wrote %s (%zu keys, %.1f s)\n", quoted_name(g.walk).c_str(), path.keys.size(),
+                path.duration());
+  }
+}
+
+void add_build_command(CLI::App& app) {
   auto build_args = std::make_shared<ModelArgs>();
   auto* build =
       app.add_subcommand("build", "Build (or refresh) the hierarchy cache of a PLY model");
@@ -344,7 +415,9 @@ void add_model_commands(CLI::App& app) {
     bar.finish();
     print_summary(build_args->model, m);
   });
+}
 
+void add_info_command(CLI::App& app) {
   auto info_args = std::make_shared<ModelArgs>();
   auto* info =
       app.add_subcommand("info", "Summarize a model (PLY, through its cache) or a cache file");
@@ -367,16 +440,9 @@ void add_model_commands(CLI::App& app) {
     bar.finish();
     print_summary(info_args->model, m);
   });
+}
 
-  struct GenArgs {
-    std::string kind;
-    std::string out;
-    std::vector<std::string> source;
-    std::string walk;
-    std::size_t objects = 0;
-    std::size_t points = 200000;
-    std::uint64_t seed = 1;
-  };
+void add_gen_command(CLI::App& app) {
   auto gen_args = std::make_shared<GenArgs>();
   auto* gen = app.add_subcommand(
       "gen",
@@ -407,65 +473,19 @@ void add_model_commands(CLI::App& app) {
       ->check(non_empty_path());
   gen->callback([gen_args, gen] {
     if (gen_args->kind == "city-block" || gen_args->kind == "hall") {
-      SceneGenArgs a;
-      a.kind = gen_args->kind;
-      a.out = gen_args->out.empty() ? std::filesystem::path("assets") / (a.kind + ".scene")
-                                    : std::filesystem::path(gen_args->out);
-      a.sources = gen_args->source;
-      a.walk = gen_args->walk;
-      a.seed = gen_args->seed;
-      // -n is the points of each generated model (buildings, ground tiles).
-      a.points = gen->count("--points") ? gen_args->points : 20000;
-      a.objects = gen_args->objects ? gen_args->objects : (a.kind == "hall" ? 1000 : 20000);
-      generate_scene_file(a);
+      generate_scene_kind(*gen_args, gen->count("--points") != 0);
       return;
     }
-    if (gen_args->objects)
-      throw InputError("gen " + gen_args->kind + ": --objects is only for city-block and hall");
-    if (gen_args->source.size() > 1)
-      throw InputError("gen " + gen_args->kind + ": one --source only");
-    const tools::ModelKind kind = tools::parse_model_kind(gen_args->kind);
-    if (kind == tools::ModelKind::Field && gen_args->source.empty())
-      throw InputError("gen field: needs --source PLY (the model to copy)");
-    if (kind != tools::ModelKind::Field && !gen_args->source.empty())
-      throw InputError("gen " + gen_args->kind + ": --source is only for field");
-    if (!gen_args->walk.empty() && kind != tools::ModelKind::City &&
-        kind != tools::ModelKind::Field && kind != tools::ModelKind::Plant)
-      throw InputError("gen " + gen_args->kind + ": --walk is only for city, field and plant");
-    const std::filesystem::path out =
-        gen_args->out.empty() ? std::filesystem::path("assets") / (gen_args->kind + ".ply")
-                              : std::filesystem::path(gen_args->out);
-    std::vector<std::pair<std::filesystem::path, std::string>> outputs{{out, "the model (-o)"}};
-    if (!gen_args->walk.empty()) outputs.emplace_back(gen_args->walk, "the camera path (--walk)");
-    std::vector<std::pair<std::filesystem::path, std::string>> inputs;
-    for (const auto& s : gen_args->source) inputs.emplace_back(s, "the source scan (--source)");
-    check_distinct_files(outputs, inputs);
-    check_ply_output(out);
-    if (!gen_args->walk.empty()) check_walk_output(gen_args->walk);
-    PointSet source;
-    if (kind == tools::ModelKind::Field) {
-      require_regular_file(gen_args->source.front());
-      source = load_ply(gen_args->source.front());
-      complete_attributes(source);
-    }
-    if (out.has_parent_path()) {
-      std::error_code ec;
-      std::filesystem::create_directories(out.parent_path(), ec);
-      if (ec) throw std::runtime_error(system_error_text(out.parent_path(), ec.value()));
-    }
-    PointSet ps = kind == tools::ModelKind::Field
-                      ? tools::generate_field(tools::prepare_field_source(source), gen_args->points,
-                                              gen_args->seed)
-                      : tools::generate_model(kind, gen_args->points, gen_args->seed);
-    save_ply(out, ps);
-    std::printf("wrote %s (%zu points)\n", quoted_name(out).c_str(), ps.size());
-    if (!gen_args->walk.empty()) {
-      const splat::CameraPath path = tools::walk_path(tools::scene_walkthrough(kind));
-      save_camera_path(gen_args->walk, path);
-      std::printf("wrote %s (%zu keys, %.1f s)\n", quoted_name(gen_args->walk).c_str(),
-                  path.keys.size(), path.duration());
-    }
+    generate_model_kind(*gen_args);
   });
+}
+
+}  // namespace
+
+void add_model_commands(CLI::App& app) {
+  add_build_command(app);
+  add_info_command(app);
+  add_gen_command(app);
 }
 
 }  // namespace treecut::cli

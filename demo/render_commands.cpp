@@ -57,10 +57,8 @@ struct RenderArgs {
   double target_fps = 0.0;  // > 0: the viewer's governor adapts the strategy's knob
 };
 
-void run_render(const RenderArgs& a) {
-  if (a.frames < 1) throw InputError("--frames must be at least 1");
-  const splat::RenderSettings settings = render_settings(a.scene);  // validates --mode early
-  const StrategyRegistry registry = make_registry(a.scene);
+// Every input of render checked before any output (exit 2 with one line).
+void check_render_inputs(const RenderArgs& a, const StrategyRegistry& registry) {
   check_params(registry, a.scene.strategies, a.scene.params);  // exit 2 before any work
   for (const std::string& name : a.scene.strategies) {
     if (a.target_fps > 0.0 &&
@@ -69,20 +67,12 @@ void run_render(const RenderArgs& a) {
     }
   }
   check_output_folder(a.out, a.scene.strategies, {a.scene.model, a.path});
-  const float aspect = float(a.width) / float(a.height);
-  splat::CameraPath path;
-  if (!a.path.empty()) path = splat::load_camera_path(a.path);
+}
 
-  const Scene scene = load_scene(a.scene);
-  const Hierarchy& h = *scene.hierarchy;
-  // A scene file: its objects go through the stage (per object, or a
-  // scene-level strategy) and are drawn by draw_scene in one call per pass.
-  const std::shared_ptr<const StageScene>& world = scene.world;
-  if (a.path.empty())
-    path = splat::orbit_path(scene.bounds_min, scene.bounds_max, aspect, a.orbit_seconds, 73,
-                             scene.up);
-  if (world) {
-    // Past the per-object limit: refused before any output, naming the file.
+// The scene or model line; a scene past a strategy's per-object limit is
+// refused first, before any output, naming the file.
+void describe_scene(const RenderArgs& a, const StrategyRegistry& registry, const Scene& scene) {
+  if (const std::shared_ptr<const StageScene>& world = scene.world) {
     for (const std::string& name : a.scene.strategies) {
       if (const std::string why =
               per_object_limit_problem(*world, *make_strategy(registry, name, {}));
@@ -94,20 +84,20 @@ void run_render(const RenderArgs& a) {
                 scene.label.c_str(), world->objects.size(), world->models.size(),
                 static_cast<unsigned long long>(scene.instanced_points));
   } else {
+    const Hierarchy& h = *scene.hierarchy;
     std::printf("model     %s: %u points, %u nodes\n", scene.label.c_str(), h.leaf_count(),
                 h.node_count());
   }
+}
 
-  splat::OsmesaContext context(a.width, a.height);
-  std::printf("renderer  %s, %dx%d, %s splats\n", splat::GlContext::renderer_string().c_str(),
-              a.width, a.height, std::string(splat::splat_mode_name(settings.mode)).c_str());
-  splat::Renderer renderer(h, {a.width, a.height});
-  const glm::ivec2 size(a.width, a.height);
-  splat::CutBuffer full;
-  splat::SceneCutBuffer full_scene;
+// The full-detail reference of --psnr and --stability: a model's leaves, or
+// every object of a scene at its model's leaves (one leaf list per model,
+// shared by its instances).
+void upload_full_detail(const RenderArgs& a, const Scene& scene, splat::Renderer& renderer,
+                        splat::CutBuffer& full, splat::SceneCutBuffer& full_scene) {
+  const Hierarchy& h = *scene.hierarchy;
+  const std::shared_ptr<const StageScene>& world = scene.world;
   if ((a.psnr || a.stability > 0) && world) {
-    // Full detail of a scene: every object at its model's leaves (one leaf
-    // list per model, shared by its instances).
     std::vector<const Hierarchy*> models;
     std::vector<std::vector<NodeId>> leaves;
     for (const auto& m : world->models) {
@@ -123,14 +113,322 @@ void run_render(const RenderArgs& a) {
   } else if (a.psnr || a.stability > 0) {
     full.upload(h, TreeCut::leaf_cut(h).nodes());
   }
-  auto draw_full = [&](const splat::Camera& c) {
-    if (world) {
+}
+
+// What every strategy's run draws with: the scene along the path, the
+// renderer and the full-detail reference.
+struct RenderRig {
+  const RenderArgs& a;
+  const Scene& scene;
+  const splat::CameraPath& path;
+  const splat::RenderSettings& settings;
+  glm::ivec2 size;
+  splat::Renderer& renderer;
+  const splat::CutBuffer& full;
+  const splat::SceneCutBuffer& full_scene;
+
+  [[nodiscard]] splat::Camera camera_at(double t) const {
+    splat::Camera c = path.at(t);
+    splat::fit_clip_planes(c, scene.center, scene.radius);
+    return c;
+  }
+  void draw_full(const splat::Camera& c) const {
+    if (scene.world) {
       renderer.draw_scene(full_scene, c, settings, true);
     } else {
       renderer.draw(full, c, settings, true);
     }
+  }
+  [[nodiscard]] splat::Image grab() const {
+    return splat::Image{a.width, a.height, renderer.read_pixels()};
+  }
+};
+
+StageOptions render_stage_options(const RenderArgs& a) {
+  StageOptions stage_options;
+  stage_options.launch = a.sync ? Launch::Manual : Launch::Thread;
+  // llvmpipe keeps both cores busy while it draws: the stage takes what is left.
+  stage_options.priority = StagePriority::Idle;
+  configure_stage(stage_options, a.scene);
+  return stage_options;
+}
+
+// What the last frame() call measured, beside its time.
+struct LastFrame {
+  splat::QueryStats before;  // the executor's totals before the frame
+  splat::FrameResult result;
+  double cpu_ms = 0.0;  // its render-thread CPU time
+};
+
+std::size_t cut_size(const splat::RenderThreadFrame& frame_loop, bool scene) {
+  return scene ? frame_loop.scene_cut().size() : frame_loop.cut().size();
+}
+
+// The row of frame f (time t, drawn in `ms`): the stage's counters and this
+// frame's queries (the difference of the executor's totals).
+FrameRow frame_row(int f, double t, double ms, const StageCounters& counters,
+                   const splat::RenderThreadFrame& frame_loop, bool scene, const LastFrame& last,
+                   const splat::QueryStats& q) {
+  FrameRow row;
+  row.frame = f;
+  row.time_s = t;
+  row.frame_ms = ms;
+  row.cut_size = cut_size(frame_loop, scene);
+  row.points = scene ? frame_loop.scene_cut().points() : frame_loop.cut().points();
+  row.objects = last.result.objects;
+  row.draw_calls = last.result.stats.draw_calls;
+  row.render_cpu_ms = last.cpu_ms;
+  row.iteration_ms = double(counters.iteration_ns_last) * 1e-6;
+  row.exchanges = counters.exchanges;
+  row.iterations = counters.iterations;
+  row.converged = counters.converged;
+  row.queries_issued = q.issued - last.before.issued;
+  row.queries_answered = q.answered - last.before.answered;
+  row.queries_pending = q.pending;
+  if (row.queries_answered > 0) {
+    row.query_latency_frames_mean =
+        double(q.latency_frames_total - last.before.latency_frames_total) /
+        double(row.queries_answered);
+    row.query_latency_frames_max = q.latency_frames_max_last;
+  }
+  row.query_cpu_us = double(q.cpu_ns_total - last.before.cpu_ns_total) * 1e-3;
+  // The named counters of the last completed iteration (with --sync, the
+  // one after this frame), whatever the strategy publishes.
+  row.counters = counters.last.counters;
+  return row;
+}
+
+// The frame just drawn as frame_NNNNN.png in `dir`, and its PSNR against
+// full detail (which draws over it).
+void record_image(const RenderRig& rig, const std::filesystem::path& dir, int f,
+                  const splat::Camera& cam, FrameRow& row) {
+  const RenderArgs& a = rig.a;
+  if (a.no_png && !a.psnr) return;
+  const splat::Image lod = rig.grab();
+  if (!a.no_png) {
+    char file[32];
+    std::snprintf(file, sizeof file, "frame_%05d.png", f);
+    splat::write_png(dir / file, lod);
+  }
+  if (a.psnr) {
+    rig.draw_full(cam);
+    const splat::Image reference = rig.grab();
+    row.psnr_db = splat::psnr(lod, reference);
+    row.psnr_luma_db = luma_psnr(lod, reference);
+  }
+}
+
+// Static camera at the end of the path: let the strategy converge, then
+// count the pixels that still change from one frame to the next. `frame`
+// draws one frame.
+template <class Frame>
+void measure_stability(const RenderRig& rig, Frame& frame, const Controller& controller,
+                       const splat::RenderThreadFrame& frame_loop, const splat::Camera& cam,
+                       RunSummary& run) {
+  for (int i = 0; i < 600 && !controller.stage().counters().converged; ++i) frame(cam);
+  run.stability_converged = controller.stage().counters().converged;
+  splat::Image previous = rig.grab();
+  double sum = 0.0, worst = 0.0;
+  for (int i = 0; i < rig.a.stability; ++i) {
+    frame(cam);
+    splat::Image current = rig.grab();
+    const double changed = splat::changed_fraction(previous, current);
+    sum += changed;
+    worst = std::max(worst, changed);
+    previous = std::move(current);
+  }
+  run.stability_frames = rig.a.stability;
+  run.stability_changed = sum / rig.a.stability;
+  run.stability_max = worst;
+  run.converged_cut = cut_size(frame_loop, rig.scene.world != nullptr);
+  rig.draw_full(cam);
+  run.converged_psnr = splat::psnr(previous, rig.grab());
+}
+
+// The run's query totals and, for a scene, its size and the peak memory.
+void add_run_totals(RunSummary& run, const splat::QueryStats& queries, std::uint64_t frames,
+                    const StageScene* world) {
+  run.queries = queries;
+  run.query_frames = frames;
+  if (world) {
+    run.objects = world->objects.size();
+    run.models = world->models.size();
+    run.object_nodes = world->object_nodes();
+    rusage usage{};
+    getrusage(RUSAGE_SELF, &usage);
+    run.peak_rss_mib = double(usage.ru_maxrss) / 1024.0;  // Linux: KiB
+  }
+}
+
+// The summary line of a strategy's run, and the scene, queries, counters,
+// shortfall and governor lines where they apply.
+void print_run(const RenderArgs& a, const std::string& name, const RunSummary& run, bool scene,
+               const splat::QueryStats& q, const Controller& controller,
+               const StageOptions& stage_options,
+               const std::optional<splat::FrameRateGovernor>& governor) {
+  std::printf(
+      "%-13s %d frames: frame %.2f ms (median %.2f), cut %.0f nodes, iteration %.2f ms, "
+      "%llu exchanges",
+      name.c_str(), a.frames, mean_of(run.rows, &FrameRow::frame_ms), median_frame_ms(run.rows),
+      std::accumulate(run.rows.begin(), run.rows.end(), 0.0,
+                      [](double s, const FrameRow& r) { return s + double(r.cut_size); }) /
+          double(run.rows.size()),
+      mean_of(run.rows, &FrameRow::iteration_ms),
+      static_cast<unsigned long long>(run.rows.back().exchanges));
+  if (a.psnr) {
+    const double mean = mean_psnr(run.rows);
+    if (std::isfinite(mean))
+      std::printf(", PSNR %.2f dB", mean);
+    else
+      std::printf(", PSNR %s dB (identical to full detail)", psnr_text(mean).c_str());
+    std::printf(", luma PSNR %.2f dB", mean_of(run.rows, &FrameRow::psnr_luma_db));
+  }
+  if (a.stability > 0) {
+    std::printf(", stability %.5f changed (max %.5f)%s", run.stability_changed, run.stability_max,
+                run.stability_converged ? "" : " [not converged]");
+  }
+  std::printf("\n");
+  if (scene) {
+    std::printf(
+        "scene     %s: %zu objects, %.1f draw calls per frame, render thread %.3f ms CPU per "
+        "frame, stage iteration %.2f ms, peak RSS %.0f MiB\n",
+        name.c_str(), run.objects,
+        std::accumulate(run.rows.begin(), run.rows.end(), 0.0,
+                        [](double s, const FrameRow& r) { return s + double(r.draw_calls); }) /
+            double(run.rows.size()),
+        mean_of(run.rows, &FrameRow::render_cpu_ms), mean_of(run.rows, &FrameRow::iteration_ms),
+        run.peak_rss_mib);
+  }
+  // Only a strategy that posts GPU queries gets this line.
+  if (q.issued > 0 || q.answered > 0) {
+    std::printf(
+        "queries   %s: %llu issued, %llu answered (%llu occluded), %zu pending, "
+        "%llu dropped, latency %.2f frames (max %llu), %.3f ms per frame\n",
+        name.c_str(), static_cast<unsigned long long>(q.issued),
+        static_cast<unsigned long long>(q.answered), static_cast<unsigned long long>(q.occluded),
+        q.pending, static_cast<unsigned long long>(q.dropped), q.latency_frames_mean(),
+        static_cast<unsigned long long>(q.latency_frames_max),
+        double(q.cpu_ns_total) * 1e-6 / double(std::max<std::uint64_t>(controller.frame(), 1)));
+  }
+  if (const std::string line = counters_line(run.rows); !line.empty()) {
+    std::printf("counters  %s: %s\n", name.c_str(), line.c_str());
+  }
+  // Fewer iterations than the path needed: say so (the frames lag or show the root).
+  if (const std::string late =
+          stage_shortfall(name, controller.stage().counters(), stage_options,
+                          static_cast<int>(controller.stage().counters().frames));
+      !late.empty()) {
+    std::fflush(stdout);
+    print_warning(late);
+  }
+  if (governor) {
+    std::printf("governor  %s = %.6g at the end, model %.2f ms + %.4g us/splat\n",
+                governor->param().c_str(), governor->value(), governor->fixed_ms(),
+                governor->per_splat_ms() * 1e3);
+  }
+}
+
+// One strategy along the path (its frames into `dir`), then its
+// stability, its files and its lines.
+RunSummary run_strategy(const RenderRig& rig, const StrategyRegistry& registry,
+                        const std::string& name, const std::filesystem::path& dir) {
+  const RenderArgs& a = rig.a;
+  const std::shared_ptr<const StageScene>& world = rig.scene.world;
+  const Hierarchy& h = *rig.scene.hierarchy;
+  splat::Camera cam = rig.camera_at(0.0);
+  const StageOptions stage_options = render_stage_options(a);
+  // A scene's per-object instances come from this factory (make_strategy
+  // with the same parameters); a model's one instance too.
+  const StrategyFactory factory = [&registry, &name, &a] {
+    return make_strategy(registry, name, a.scene.params);
   };
-  auto grab = [&] { return splat::Image{a.width, a.height, renderer.read_pixels()}; };
+  std::unique_ptr<Strategy> strategy = world ? nullptr : factory();
+  // The viewer's governor (--target-fps), fed the same way: frame time and
+  // the splats that frame drew.
+  std::optional<splat::FrameRateGovernor> governor;
+  if (a.target_fps > 0.0) {
+    governor = splat::FrameRateGovernor::for_strategy(
+        *factory(), world ? static_cast<std::size_t>(world->object_nodes()) : h.node_count());
+  }
+  // The scene's hierarchy itself (no copy): the renderer's vertex buffer is
+  // of the hierarchy in the stage's lists, so it is never uploaded again.
+  std::optional<Controller> controller_storage;
+  const ViewSnapshot first_view = splat::view_snapshot(cam, rig.size, rig.settings.light);
+  if (world) {
+    controller_storage.emplace(world, factory, first_view, stage_options);
+  } else {
+    controller_storage.emplace(Model{rig.scene.hierarchy, TreeCut::root_cut(h)},
+                               std::move(strategy), first_view, stage_options);
+  }
+  Controller& controller = *controller_storage;
+  splat::QueryExecutor queries;
+  splat::RenderThreadFrame frame_loop(controller, rig.renderer, &queries);
+  LastFrame last;
+  auto frame = [&](const splat::Camera& c) {
+    last.before = queries.stats();
+    const double cpu0 = thread_cpu_ms();
+    const auto t0 = std::chrono::steady_clock::now();
+    last.result = frame_loop.run_render_thread(c, rig.settings, true);
+    const double ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    last.cpu_ms = thread_cpu_ms() - cpu0;
+    if (governor) {
+      if (auto v = governor->update(ms, last.result.stats.splats, a.target_fps)) {
+        controller.set_param(governor->param(), *v);
+      }
+    }
+    // Synchronous mode: the stage's iteration runs here, outside the frame time.
+    if (a.sync) controller.stage().step();
+    return ms;
+  };
+
+  RunSummary run;
+  run.strategy = name;
+  for (int i = 0; i < a.warmup; ++i) frame(cam);
+  for (int f = 0; f < a.frames; ++f) {
+    const double t = a.frames > 1 ? rig.path.duration() * f / (a.frames - 1) : 0.0;
+    cam = rig.camera_at(t);
+    const double ms = frame(cam);
+    FrameRow row = frame_row(f, t, ms, controller.stage().counters(), frame_loop, world != nullptr,
+                             last, queries.stats());
+    record_image(rig, dir, f, cam, row);
+    run.rows.push_back(row);
+  }
+  if (a.stability > 0) measure_stability(rig, frame, controller, frame_loop, cam, run);
+
+  add_run_totals(run, queries.stats(), controller.frame(), world.get());
+  write_stats_csv(dir / "stats.csv", run.rows);
+  write_file_atomically(dir / "summary.json", summary_json(run));
+  print_run(a, name, run, world != nullptr, queries.stats(), controller, stage_options, governor);
+  return run;
+}
+
+void run_render(const RenderArgs& a) {
+  if (a.frames < 1) throw InputError("--frames must be at least 1");
+  const splat::RenderSettings settings = render_settings(a.scene);  // validates --mode early
+  const StrategyRegistry registry = make_registry(a.scene);
+  check_render_inputs(a, registry);
+  const float aspect = float(a.width) / float(a.height);
+  splat::CameraPath path;
+  if (!a.path.empty()) path = splat::load_camera_path(a.path);
+
+  const Scene scene = load_scene(a.scene);
+  // A scene file: its objects go through the stage (per object, or a
+  // scene-level strategy) and are drawn by draw_scene in one call per pass.
+  if (a.path.empty())
+    path = splat::orbit_path(scene.bounds_min, scene.bounds_max, aspect, a.orbit_seconds, 73,
+                             scene.up);
+  describe_scene(a, registry, scene);
+
+  splat::OsmesaContext context(a.width, a.height);
+  std::printf("renderer  %s, %dx%d, %s splats\n", splat::GlContext::renderer_string().c_str(),
+              a.width, a.height, std::string(splat::splat_mode_name(settings.mode)).c_str());
+  splat::Renderer renderer(*scene.hierarchy, {a.width, a.height});
+  splat::CutBuffer full;
+  splat::SceneCutBuffer full_scene;
+  upload_full_detail(a, scene, renderer, full, full_scene);
+  const RenderRig rig{a,        scene, path,      settings, glm::ivec2(a.width, a.height),
+                      renderer, full,  full_scene};
 
   const std::filesystem::path out(a.out);
   make_output_folder(out);
@@ -139,213 +437,7 @@ void run_render(const RenderArgs& a) {
   for (const std::string& name : a.scene.strategies) {
     const std::filesystem::path dir = a.scene.strategies.size() > 1 ? out / name : out;
     make_output_folder(dir);
-    auto camera_at = [&](double t) {
-      splat::Camera c = path.at(t);
-      splat::fit_clip_planes(c, scene.center, scene.radius);
-      return c;
-    };
-    splat::Camera cam = camera_at(0.0);
-    StageOptions stage_options;
-    stage_options.launch = a.sync ? Launch::Manual : Launch::Thread;
-    // llvmpipe keeps both cores busy while it draws: the stage takes what is left.
-    stage_options.priority = StagePriority::Idle;
-    configure_stage(stage_options, a.scene);
-    // A scene's per-object instances come from this factory (make_strategy
-    // with the same parameters); a model's one instance too.
-    const StrategyFactory factory = [&registry, &name, &a] {
-      return make_strategy(registry, name, a.scene.params);
-    };
-    std::unique_ptr<Strategy> strategy = world ? nullptr : factory();
-    // The viewer's governor (--target-fps), fed the same way: frame time and
-    // the splats that frame drew.
-    std::optional<splat::FrameRateGovernor> governor;
-    if (a.target_fps > 0.0) {
-      governor = splat::FrameRateGovernor::for_strategy(
-          *factory(), world ? static_cast<std::size_t>(world->object_nodes()) : h.node_count());
-    }
-    // The scene's hierarchy itself (no copy): the renderer's vertex buffer is
-    // of the hierarchy in the stage's lists, so it is never uploaded again.
-    std::optional<Controller> controller_storage;
-    if (world) {
-      controller_storage.emplace(world, factory, splat::view_snapshot(cam, size, settings.light),
-                                 stage_options);
-    } else {
-      controller_storage.emplace(Model{scene.hierarchy, TreeCut::root_cut(h)}, std::move(strategy),
-                                 splat::view_snapshot(cam, size, settings.light), stage_options);
-    }
-    Controller& controller = *controller_storage;
-    splat::QueryExecutor queries;
-    splat::RenderThreadFrame frame_loop(controller, renderer, &queries);
-    const splat::CutBuffer& cut = frame_loop.cut();
-    splat::QueryStats before;       // the executor's totals before the frame
-    splat::FrameResult last_frame;  // of the last frame() call
-    double last_cpu_ms = 0.0;       // its render-thread CPU time
-    auto frame = [&](const splat::Camera& c) {
-      before = queries.stats();
-      const double cpu0 = thread_cpu_ms();
-      const auto t0 = std::chrono::steady_clock::now();
-      last_frame = frame_loop.run_render_thread(c, settings, true);
-      const double ms =
-          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-      last_cpu_ms = thread_cpu_ms() - cpu0;
-      if (governor) {
-        if (auto v = governor->update(ms, last_frame.stats.splats, a.target_fps)) {
-          controller.set_param(governor->param(), *v);
-        }
-      }
-      // Synchronous mode: the stage's iteration runs here, outside the frame time.
-      if (a.sync) controller.stage().step();
-      return ms;
-    };
-
-    RunSummary run;
-    run.strategy = name;
-    for (int i = 0; i < a.warmup; ++i) frame(cam);
-    for (int f = 0; f < a.frames; ++f) {
-      const double t = a.frames > 1 ? path.duration() * f / (a.frames - 1) : 0.0;
-      cam = camera_at(t);
-      FrameRow row;
-      row.frame = f;
-      row.time_s = t;
-      row.frame_ms = frame(cam);
-      const StageCounters& counters = controller.stage().counters();
-      row.cut_size = world ? frame_loop.scene_cut().size() : cut.size();
-      row.points = world ? frame_loop.scene_cut().points() : cut.points();
-      row.objects = last_frame.objects;
-      row.draw_calls = last_frame.stats.draw_calls;
-      row.render_cpu_ms = last_cpu_ms;
-      row.iteration_ms = double(counters.iteration_ns_last) * 1e-6;
-      row.exchanges = counters.exchanges;
-      row.iterations = counters.iterations;
-      row.converged = counters.converged;
-      // This frame's queries: the difference of the executor's totals.
-      const splat::QueryStats& q = queries.stats();
-      row.queries_issued = q.issued - before.issued;
-      row.queries_answered = q.answered - before.answered;
-      row.queries_pending = q.pending;
-      if (row.queries_answered > 0) {
-        row.query_latency_frames_mean =
-            double(q.latency_frames_total - before.latency_frames_total) /
-            double(row.queries_answered);
-        row.query_latency_frames_max = q.latency_frames_max_last;
-      }
-      row.query_cpu_us = double(q.cpu_ns_total - before.cpu_ns_total) * 1e-3;
-      // The named counters of the last completed iteration (with --sync, the
-      // one after this frame), whatever the strategy publishes.
-      row.counters = counters.last.counters;
-      if (!a.no_png || a.psnr) {
-        const splat::Image lod = grab();
-        if (!a.no_png) {
-          char file[32];
-          std::snprintf(file, sizeof file, "frame_%05d.png", f);
-          splat::write_png(dir / file, lod);
-        }
-        if (a.psnr) {
-          draw_full(cam);
-          const splat::Image reference = grab();
-          row.psnr_db = splat::psnr(lod, reference);
-          row.psnr_luma_db = luma_psnr(lod, reference);
-        }
-      }
-      run.rows.push_back(row);
-    }
-
-    if (a.stability > 0) {
-      // Static camera at the end of the path: let the strategy converge, then
-      // count the pixels that still change from one frame to the next.
-      for (int i = 0; i < 600 && !controller.stage().counters().converged; ++i) frame(cam);
-      run.stability_converged = controller.stage().counters().converged;
-      splat::Image previous = grab();
-      double sum = 0.0, worst = 0.0;
-      for (int i = 0; i < a.stability; ++i) {
-        frame(cam);
-        splat::Image current = grab();
-        const double changed = splat::changed_fraction(previous, current);
-        sum += changed;
-        worst = std::max(worst, changed);
-        previous = std::move(current);
-      }
-      run.stability_frames = a.stability;
-      run.stability_changed = sum / a.stability;
-      run.stability_max = worst;
-      run.converged_cut = world ? frame_loop.scene_cut().size() : cut.size();
-      draw_full(cam);
-      run.converged_psnr = splat::psnr(previous, grab());
-    }
-
-    run.queries = queries.stats();
-    run.query_frames = controller.frame();
-    if (world) {
-      run.objects = world->objects.size();
-      run.models = world->models.size();
-      run.object_nodes = world->object_nodes();
-      rusage usage{};
-      getrusage(RUSAGE_SELF, &usage);
-      run.peak_rss_mib = double(usage.ru_maxrss) / 1024.0;  // Linux: KiB
-    }
-    write_stats_csv(dir / "stats.csv", run.rows);
-    write_file_atomically(dir / "summary.json", summary_json(run));
-    std::printf(
-        "%-13s %d frames: frame %.2f ms (median %.2f), cut %.0f nodes, iteration %.2f ms, "
-        "%llu exchanges",
-        name.c_str(), a.frames, mean_of(run.rows, &FrameRow::frame_ms), median_frame_ms(run.rows),
-        std::accumulate(run.rows.begin(), run.rows.end(), 0.0,
-                        [](double s, const FrameRow& r) { return s + double(r.cut_size); }) /
-            double(run.rows.size()),
-        mean_of(run.rows, &FrameRow::iteration_ms),
-        static_cast<unsigned long long>(run.rows.back().exchanges));
-    if (a.psnr) {
-      const double mean = mean_psnr(run.rows);
-      if (std::isfinite(mean))
-        std::printf(", PSNR %.2f dB", mean);
-      else
-        std::printf(", PSNR %s dB (identical to full detail)", psnr_text(mean).c_str());
-      std::printf(", luma PSNR %.2f dB", mean_of(run.rows, &FrameRow::psnr_luma_db));
-    }
-    if (a.stability > 0) {
-      std::printf(", stability %.5f changed (max %.5f)%s", run.stability_changed, run.stability_max,
-                  run.stability_converged ? "" : " [not converged]");
-    }
-    std::printf("\n");
-    if (world) {
-      std::printf(
-          "scene     %s: %zu objects, %.1f draw calls per frame, render thread %.3f ms CPU per "
-          "frame, stage iteration %.2f ms, peak RSS %.0f MiB\n",
-          name.c_str(), run.objects,
-          std::accumulate(run.rows.begin(), run.rows.end(), 0.0,
-                          [](double s, const FrameRow& r) { return s + double(r.draw_calls); }) /
-              double(run.rows.size()),
-          mean_of(run.rows, &FrameRow::render_cpu_ms), mean_of(run.rows, &FrameRow::iteration_ms),
-          run.peak_rss_mib);
-    }
-    // Only a strategy that posts GPU queries gets this line.
-    if (const splat::QueryStats& q = queries.stats(); q.issued > 0 || q.answered > 0) {
-      std::printf(
-          "queries   %s: %llu issued, %llu answered (%llu occluded), %zu pending, "
-          "%llu dropped, latency %.2f frames (max %llu), %.3f ms per frame\n",
-          name.c_str(), static_cast<unsigned long long>(q.issued),
-          static_cast<unsigned long long>(q.answered), static_cast<unsigned long long>(q.occluded),
-          q.pending, static_cast<unsigned long long>(q.dropped), q.latency_frames_mean(),
-          static_cast<unsigned long long>(q.latency_frames_max),
-          double(q.cpu_ns_total) * 1e-6 / double(std::max<std::uint64_t>(controller.frame(), 1)));
-    }
-    if (const std::string line = counters_line(run.rows); !line.empty()) {
-      std::printf("counters  %s: %s\n", name.c_str(), line.c_str());
-    }
-    // Fewer iterations than the path needed: say so (the frames lag or show the root).
-    if (const std::string late =
-            stage_shortfall(name, controller.stage().counters(), stage_options,
-                            static_cast<int>(controller.stage().counters().frames));
-        !late.empty()) {
-      std::fflush(stdout);
-      print_warning(late);
-    }
-    if (governor) {
-      std::printf("governor  %s = %.6g at the end, model %.2f ms + %.4g us/splat\n",
-                  governor->param().c_str(), governor->value(), governor->fixed_ms(),
-                  governor->per_splat_ms() * 1e3);
-    }
-    runs.push_back(std::move(run));
+    runs.push_back(run_strategy(rig, registry, name, dir));
   }
   write_plot_svg(out / "plot.svg", runs, scene.label + ": frame time and cut size per strategy");
   std::printf("wrote     %s (stats.csv, summary.json, plot.svg%s)\n", quoted_name(out).c_str(),

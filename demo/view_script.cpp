@@ -60,6 +60,105 @@ double parse_real(std::string_view token, const std::string& where) {
   return v;
 }
 
+// Exactly `args` words after the verb, else an error saying what it takes.
+void require_arguments(const std::vector<std::string_view>& words, std::size_t args,
+                       const char* what, const std::string& where, const std::string& verb) {
+  if (words.size() - 1 < args) throw InputError(where + verb + " needs " + what);
+  if (words.size() - 1 > args)
+    throw InputError(where + verb + " takes " + what + ", not " + shown(words[args + 1]));
+}
+
+// play, screenshot, strategy, mode: one argument, checked now so that a bad
+// one fails before the window opens. A `strategy` line changes `strategy`,
+// the one later `param` lines are checked against.
+void check_named_argument(ScriptCommand& c, const std::vector<std::string_view>& words,
+                          const std::string& where, const std::filesystem::path& file,
+                          const ScriptChecks& checks, std::string& strategy) {
+  require_arguments(words, 1, c.verb == "play" ? "a camera path" : "an argument", where, c.verb);
+  c.arg = std::string(words[1]);
+  // A screenshot is a PNG name in --screenshot-dir, never a path out of it.
+  if (c.verb == "screenshot" &&
+      (c.arg.find('/') != std::string::npos || c.arg == "." || c.arg == ".."))
+    throw InputError(where + "screenshot takes a file name in --screenshot-dir, not the path " +
+                     shown(words[1]));
+  try {
+    if (c.verb == "play") {
+      c.arg = (file.parent_path() / c.arg).string();
+      (void)splat::load_camera_path(c.arg);  // fail before the window opens
+    } else if (c.verb == "mode") {
+      (void)splat::parse_splat_mode(c.arg);
+    } else if (c.verb == "strategy" && checks.registry != nullptr) {
+      const std::unique_ptr<Strategy> s = checks.registry->create(c.arg);
+      if (const std::string why = scene_strategy_problem(*s); !checks.scene.empty() && !why.empty())
+        throw InputError(quoted_name(checks.scene) + ": " + why);
+      strategy = c.arg;
+    }
+  } catch (const InputError& e) {
+    // The path's own FILE:LINE (or the registry's reason) after ours.
+    throw InputError(where + c.verb + ": " + e.what());
+  }
+}
+
+// param NAME VALUE: with a registry, NAME must be a parameter of `strategy`
+// and VALUE in its range.
+void check_param_command(ScriptCommand& c, const std::vector<std::string_view>& words,
+                         const std::string& where, const std::string& at,
+                         const ScriptChecks& checks, const std::string& strategy) {
+  require_arguments(words, 2, "NAME VALUE", where, c.verb);
+  c.arg = std::string(words[1]);
+  c.number = parse_real(words[2], at);
+  if (checks.registry != nullptr) {
+    const auto specs = checks.registry->create(strategy)->param_specs();
+    const auto spec = std::find_if(specs.begin(), specs.end(),
+                                   [&](const ParamSpec& s) { return s.name == c.arg; });
+    if (spec == specs.end())
+      throw InputError(at + "strategy '" + strategy + "' has no parameter " + shown(c.arg));
+    if (const std::string why = check_param(*spec, c.number); !why.empty())
+      throw InputError(at + why);
+  }
+}
+
+// One command line after the header (its words), checked; `where` is
+// "FILE:LINE: ".
+ScriptCommand parse_command(const std::vector<std::string_view>& words, int line,
+                            const std::string& where, const std::filesystem::path& file,
+                            const ScriptChecks& checks, std::string& strategy) {
+  ScriptCommand c;
+  c.verb = std::string(words[0]);
+  c.line = line;
+  const std::string at = where + c.verb + ": ";
+  if (c.verb == "frames" || c.verb == "converge") {
+    require_arguments(words, 1, "a count", where, c.verb);
+    c.number = parse_count(words[1], at);
+  } else if (c.verb == "play" || c.verb == "screenshot" || c.verb == "strategy" ||
+             c.verb == "mode") {
+    check_named_argument(c, words, where, file, checks, strategy);
+  } else if (c.verb == "open") {
+    // Another model, resolved like `play`; it must be a regular file now (a
+    // missing one fails before the window opens), whether it loads is seen
+    // when the viewer opens it.
+    require_arguments(words, 1, "a model file (PLY or .tch)", where, c.verb);
+    c.arg = (file.parent_path() / std::string(words[1])).string();
+    try {
+      require_regular_file(c.arg);
+    } catch (const InputError& e) {
+      throw InputError(where + c.verb + ": " + e.what());
+    }
+  } else if (c.verb == "param") {
+    check_param_command(c, words, where, at, checks, strategy);
+  } else if (c.verb == "orbit") {
+    require_arguments(words, 1, "degrees", where, c.verb);
+    c.number = parse_real(words[1], at);
+    if (std::abs(c.number) > kMaxOrbitDegrees)
+      throw InputError(at + shown(words[1]) + " is out of range (-360 to 360 degrees)");
+  } else if (c.verb == "exit" || c.verb == "fit") {
+    require_arguments(words, 0, "no argument", where, c.verb);
+  } else {
+    throw InputError(where + "unknown command " + shown(c.verb));
+  }
+  return c;
+}
+
 }  // namespace
 
 std::vector<ScriptCommand> parse_view_script(std::string_view text,
@@ -86,79 +185,7 @@ std::vector<ScriptCommand> parse_view_script(std::string_view text,
       header = true;
       continue;
     }
-    ScriptCommand c;
-    c.verb = std::string(words[0]);
-    c.line = n;
-    const std::string at = where + c.verb + ": ";
-    auto want = [&](std::size_t args, const char* what) {
-      if (words.size() - 1 < args) throw InputError(where + c.verb + " needs " + what);
-      if (words.size() - 1 > args)
-        throw InputError(where + c.verb + " takes " + what + ", not " + shown(words[args + 1]));
-    };
-    if (c.verb == "frames" || c.verb == "converge") {
-      want(1, "a count");
-      c.number = parse_count(words[1], at);
-    } else if (c.verb == "play" || c.verb == "screenshot" || c.verb == "strategy" ||
-               c.verb == "mode") {
-      want(1, c.verb == "play" ? "a camera path" : "an argument");
-      c.arg = std::string(words[1]);
-      // A screenshot is a PNG name in --screenshot-dir, never a path out of it.
-      if (c.verb == "screenshot" &&
-          (c.arg.find('/') != std::string::npos || c.arg == "." || c.arg == ".."))
-        throw InputError(where + "screenshot takes a file name in --screenshot-dir, not the path " +
-                         shown(words[1]));
-      try {
-        if (c.verb == "play") {
-          c.arg = (file.parent_path() / c.arg).string();
-          (void)splat::load_camera_path(c.arg);  // fail before the window opens
-        } else if (c.verb == "mode") {
-          (void)splat::parse_splat_mode(c.arg);
-        } else if (c.verb == "strategy" && checks.registry != nullptr) {
-          const std::unique_ptr<Strategy> s = checks.registry->create(c.arg);
-          if (const std::string why = scene_strategy_problem(*s);
-              !checks.scene.empty() && !why.empty())
-            throw InputError(quoted_name(checks.scene) + ": " + why);
-          strategy = c.arg;
-        }
-      } catch (const InputError& e) {
-        // The path's own FILE:LINE (or the registry's reason) after ours.
-        throw InputError(where + c.verb + ": " + e.what());
-      }
-    } else if (c.verb == "open") {
-      // Another model, resolved like `play`; it must be a regular file now (a
-      // missing one fails before the window opens), whether it loads is seen
-      // when the viewer opens it.
-      want(1, "a model file (PLY or .tch)");
-      c.arg = (file.parent_path() / std::string(words[1])).string();
-      try {
-        require_regular_file(c.arg);
-      } catch (const InputError& e) {
-        throw InputError(where + c.verb + ": " + e.what());
-      }
-    } else if (c.verb == "param") {
-      want(2, "NAME VALUE");
-      c.arg = std::string(words[1]);
-      c.number = parse_real(words[2], at);
-      if (checks.registry != nullptr) {
-        const auto specs = checks.registry->create(strategy)->param_specs();
-        const auto spec = std::find_if(specs.begin(), specs.end(),
-                                       [&](const ParamSpec& s) { return s.name == c.arg; });
-        if (spec == specs.end())
-          throw InputError(at + "strategy '" + strategy + "' has no parameter " + shown(c.arg));
-        if (const std::string why = check_param(*spec, c.number); !why.empty())
-          throw InputError(at + why);
-      }
-    } else if (c.verb == "orbit") {
-      want(1, "degrees");
-      c.number = parse_real(words[1], at);
-      if (std::abs(c.number) > kMaxOrbitDegrees)
-        throw InputError(at + shown(words[1]) + " is out of range (-360 to 360 degrees)");
-    } else if (c.verb == "exit" || c.verb == "fit") {
-      want(0, "no argument");
-    } else {
-      throw InputError(where + "unknown command " + shown(c.verb));
-    }
-    out.push_back(std::move(c));
+    out.push_back(parse_command(words, n, where, file, checks, strategy));
   }
   if (!header) throw InputError(name + ": empty script (no 'treecut-view-script 1' line)");
   return out;

@@ -81,6 +81,152 @@ class Selection {
   return size * ((1.0f - curvature_weight) + curvature_weight * a.priority[n]);
 }
 
+// One iteration's settings and the hysteresis marks it reads and writes
+// (OptimizationStrategy::last_op_: iteration << 1 | refined, per node).
+struct Pass {
+  std::size_t max_nodes;
+  std::size_t k;
+  float threshold;
+  float weight;
+  float min_size;
+  std::vector<std::uint32_t>& last_op;
+  std::uint32_t view_start;  // first iteration of the current view
+  std::uint32_t iteration;
+
+  // A node coarsened under the current view is not refined again under it.
+  [[nodiscard]] bool refine_blocked(NodeId n) const {
+    const std::uint32_t op = last_op[n];
+    return (op & kRefinedBit) == 0 && (op >> 1) >= view_start;
+  }
+  // A node refined in the previous iteration is not coarsened.
+  [[nodiscard]] bool coarsen_blocked(NodeId n) const {
+    return last_op[n] == ((iteration - 1) << 1 | kRefinedBit);
+  }
+};
+
+// Evaluate: one pass over the cut, keeping the k highest refinable nodes
+// (in `high`) and the k lowest coarsenable parents (in `low`; a parent is
+// seen once, at its first child). The hot loop of the strategy: inlined
+// into iterate(), as it was before this was a function of its own.
+[[gnu::always_inline]] inline void evaluate_cut(const Hierarchy& h, const ViewSnapshot& view,
+                                                const TreeCut& cut, const IterationInput& input,
+                                                const Pass& pass, std::vector<Candidate>& high,
+                                                std::vector<Candidate>& low, IterationResult& r) {
+  const HierarchyArrays& a = h.arrays();
+  high.clear();
+  low.clear();
+  Selection highs(high, pass.k, std::greater<Candidate>{});  // keeps the highest
+  Selection lows(low, pass.k, std::less<Candidate>{});       // keeps the lowest
+  const std::span<const NodeId> nodes = cut.nodes();
+  for (std::size_t i = 0; i < nodes.size(); ++i) {
+    const NodeId n = nodes[i];
+    if ((i & 4095) == 0 && input.cancelled()) {
+      r.cancelled = true;
+      break;
+    }
+    // The cut is unordered, so every node is a cache miss: fetch ahead.
+    if (i + kPrefetch < nodes.size()) {
+      const NodeId ahead = nodes[i + kPrefetch];
+      __builtin_prefetch(&a.center_radius[ahead]);
+      __builtin_prefetch(&a.priority[ahead]);
+      __builtin_prefetch(&a.parent[ahead]);
+      __builtin_prefetch(&a.child_count[ahead]);
+    }
+    float size = 0.0f;
+    const float p = view_priority(a, view, n, pass.weight, size);
+    const Candidate self = candidate(p, n);
+    if (a.child_count[n] != 0 && size >= pass.min_size && highs.admits(self)) {
+      if (pass.refine_blocked(n)) {
+        ++r.blocked;
+      } else {
+        highs.add(self);
+      }
+    }
+    // Parents are ranked at their first child. p(parent) >= p(n) (monotone
+    // priorities), so a node above the k-th lowest rejects its parent unseen.
+    if (!lows.admits(candidate(p, 0))) continue;
+    if (!h.is_first_child(n)) continue;
+    const NodeId parent = a.parent[n];
+    // Rank before the coarsenability test, which touches the cut's slot map.
+    float parent_size = 0.0f;
+    const Candidate c = candidate(view_priority(a, view, parent, pass.weight, parent_size), parent);
+    if (!lows.admits(c) || !cut.can_coarsen(h, parent)) continue;
+    if (pass.coarsen_blocked(parent)) {
+      ++r.blocked;
+    } else {
+      lows.add(c);
+    }
+  }
+  r.visited = nodes.size();
+}
+
+// Apply: refine in descending priority while there is room; make room by
+// coarsening the lowest parents, but only for a gain above the threshold.
+// Inlined into iterate() like the evaluation.
+[[gnu::always_inline]] inline void apply_candidates(const Hierarchy& h, TreeCut& cut,
+                                                    const Pass& pass, std::vector<Candidate>& high,
+                                                    std::vector<Candidate>& low,
+                                                    IterationResult& r) {
+  const HierarchyArrays& a = h.arrays();
+  const std::uint32_t refined_mark = pass.iteration << 1 | kRefinedBit;
+  const std::uint32_t coarsened_mark = pass.iteration << 1;
+  // Heaps over the selection buffers (O(k)), popped lazily and at most k
+  // times: an iteration that stops early pays O(log k) per candidate used,
+  // not a sort of k.
+  const auto higher = std::less<Candidate>{};    // max-heap order: highest on top
+  const auto lower = std::greater<Candidate>{};  // min-heap order: lowest on top
+  std::make_heap(high.begin(), high.end(), higher);
+  std::make_heap(low.begin(), low.end(), lower);
+  std::size_t high_left = pass.k;
+  std::size_t low_left = pass.k;
+  const auto pop = [](std::vector<Candidate>& heap, auto order) {
+    std::pop_heap(heap.begin(), heap.end(), order);
+    heap.pop_back();
+  };
+  const auto coarsen_next = [&](float must_beat, bool forced) {
+    while (!low.empty() && low_left > 0) {
+      const float p = priority_of(low.front());
+      const NodeId parent = node_of(low.front());
+      if (!cut.can_coarsen(h, parent)) {  // a child was refined meanwhile
+        pop(low, lower);
+        --low_left;
+        continue;
+      }
+      if (!forced && !(p + pass.threshold < must_beat)) return false;
+      pop(low, lower);
+      --low_left;
+      cut.coarsen(h, parent);
+      pass.last_op[parent] = coarsened_mark;
+      ++r.coarsened;
+      return true;
+    }
+    return false;
+  };
+  // A lowered budget: shrink first, whatever the gain.
+  while (cut.size() > pass.max_nodes && coarsen_next(0.0f, true)) {
+  }
+  while (!high.empty() && high_left > 0) {
+    const float p = priority_of(high.front());
+    const NodeId n = node_of(high.front());
+    pop(high, higher);
+    --high_left;
+    if (!cut.contains(n)) continue;  // its parent was coarsened above
+    const std::size_t grow = a.child_count[n] - 1u;
+    bool room = true;
+    while (cut.size() + grow > pass.max_nodes) {
+      if (!coarsen_next(p, false)) {
+        room = false;
+        break;
+      }
+    }
+    if (!room) break;  // every later candidate has a lower priority
+    if (!cut.contains(n)) continue;
+    cut.refine(h, n);
+    pass.last_op[n] = refined_mark;
+    ++r.refined;
+  }
+}
+
 }  // namespace
 
 OptimizationStrategy::OptimizationStrategy()
@@ -137,126 +283,13 @@ void OptimizationStrategy::iterate(const IterationInput& input, IterationOutput&
     last_params_ = input.params_version;
     view_start_ = iteration_;
   }
-  const auto refine_blocked = [&](NodeId n) {
-    const std::uint32_t op = last_op_[n];
-    return (op & kRefinedBit) == 0 && (op >> 1) >= view_start_;
-  };
-  const auto coarsen_blocked = [&](NodeId n) {
-    return last_op_[n] == ((iteration_ - 1) << 1 | kRefinedBit);
-  };
-  const std::uint32_t refined_mark = iteration_ << 1 | kRefinedBit;
-  const std::uint32_t coarsened_mark = iteration_ << 1;
+  const Pass pass{max_nodes, k, threshold, weight, min_size, last_op_, view_start_, iteration_};
 
   // The pass reads the node arrays at every cut node: in id order they are
   // read with ascending addresses instead of at random.
   cut.keep_sorted(sort_scratch_);
-
-  // Evaluate: one pass over the cut, keeping the k highest refinable nodes and
-  // the k lowest coarsenable parents (a parent is seen once, at its first child).
-  const HierarchyArrays& a = h.arrays();
-  high_.clear();
-  low_.clear();
-  Selection highs(high_, k, std::greater<Candidate>{});  // keeps the highest
-  Selection lows(low_, k, std::less<Candidate>{});       // keeps the lowest
-  const std::span<const NodeId> nodes = cut.nodes();
-  for (std::size_t i = 0; i < nodes.size(); ++i) {
-    const NodeId n = nodes[i];
-    if ((i & 4095) == 0 && input.cancelled()) {
-      r.cancelled = true;
-      break;
-    }
-    // The cut is unordered, so every node is a cache miss: fetch ahead.
-    if (i + kPrefetch < nodes.size()) {
-      const NodeId ahead = nodes[i + kPrefetch];
-      __builtin_prefetch(&a.center_radius[ahead]);
-      __builtin_prefetch(&a.priority[ahead]);
-      __builtin_prefetch(&a.parent[ahead]);
-      __builtin_prefetch(&a.child_count[ahead]);
-    }
-    float size = 0.0f;
-    const float p = view_priority(a, view, n, weight, size);
-    const Candidate self = candidate(p, n);
-    if (a.child_count[n] != 0 && size >= min_size && highs.admits(self)) {
-      if (refine_blocked(n)) {
-        ++r.blocked;
-      } else {
-        highs.add(self);
-      }
-    }
-    // Parents are ranked at their first child. p(parent) >= p(n) (monotone
-    // priorities), so a node above the k-th lowest rejects its parent unseen.
-    if (!lows.admits(candidate(p, 0))) continue;
-    if (!h.is_first_child(n)) continue;
-    const NodeId parent = a.parent[n];
-    // Rank before the coarsenability test, which touches the cut's slot map.
-    float parent_size = 0.0f;
-    const Candidate c = candidate(view_priority(a, view, parent, weight, parent_size), parent);
-    if (!lows.admits(c) || !cut.can_coarsen(h, parent)) continue;
-    if (coarsen_blocked(parent)) {
-      ++r.blocked;
-    } else {
-      lows.add(c);
-    }
-  }
-  r.visited = nodes.size();
-  // Heaps over the selection buffers (O(k)), popped lazily and at most k
-  // times: an iteration that stops early pays O(log k) per candidate used,
-  // not a sort of k.
-  const auto higher = std::less<Candidate>{};    // max-heap order: highest on top
-  const auto lower = std::greater<Candidate>{};  // min-heap order: lowest on top
-  std::make_heap(high_.begin(), high_.end(), higher);
-  std::make_heap(low_.begin(), low_.end(), lower);
-  std::size_t high_left = k;
-  std::size_t low_left = k;
-  const auto pop = [](std::vector<Candidate>& heap, auto order) {
-    std::pop_heap(heap.begin(), heap.end(), order);
-    heap.pop_back();
-  };
-
-  // Apply: refine in descending priority while there is room; make room by
-  // coarsening the lowest parents, but only for a gain above the threshold.
-  const auto coarsen_next = [&](float must_beat, bool forced) {
-    while (!low_.empty() && low_left > 0) {
-      const float p = priority_of(low_.front());
-      const NodeId parent = node_of(low_.front());
-      if (!cut.can_coarsen(h, parent)) {  // a child was refined meanwhile
-        pop(low_, lower);
-        --low_left;
-        continue;
-      }
-      if (!forced && !(p + threshold < must_beat)) return false;
-      pop(low_, lower);
-      --low_left;
-      cut.coarsen(h, parent);
-      last_op_[parent] = coarsened_mark;
-      ++r.coarsened;
-      return true;
-    }
-    return false;
-  };
-  // A lowered budget: shrink first, whatever the gain.
-  while (cut.size() > max_nodes && coarsen_next(0.0f, true)) {
-  }
-  while (!high_.empty() && high_left > 0) {
-    const float p = priority_of(high_.front());
-    const NodeId n = node_of(high_.front());
-    pop(high_, higher);
-    --high_left;
-    if (!cut.contains(n)) continue;  // its parent was coarsened above
-    const std::size_t grow = a.child_count[n] - 1u;
-    bool room = true;
-    while (cut.size() + grow > max_nodes) {
-      if (!coarsen_next(p, false)) {
-        room = false;
-        break;
-      }
-    }
-    if (!room) break;  // every later candidate has a lower priority
-    if (!cut.contains(n)) continue;
-    cut.refine(h, n);
-    last_op_[n] = refined_mark;
-    ++r.refined;
-  }
+  evaluate_cut(h, view, cut, input, pass, high_, low_, r);
+  apply_candidates(h, cut, pass, high_, low_, r);
   r.cut_size = cut.size();
   r.converged = !r.cancelled && r.refined == 0 && r.coarsened == 0;
 }

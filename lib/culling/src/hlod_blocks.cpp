@@ -157,6 +157,94 @@ void split_items(const Hierarchy& h, std::uint32_t block_size, std::vector<NodeI
   }
 }
 
+// The fan-out 2 step of a block that is split: its subtrees `own` into two
+// groups (split_items), each group's roots in id order (collect_representation's
+// heap does not need it; it keeps roots(b) tidy for tests and the LCA cheap).
+// `items` ends with the first group's roots, then the second's; returns the
+// first group's count.
+std::size_t split_in_two(const Hierarchy& h, std::uint32_t block_size, std::span<const NodeId> own,
+                         std::vector<NodeId>& items) {
+  items.assign(own.begin(), own.end());
+  std::size_t left = 0;
+  split_items(h, block_size, items, left);
+  std::sort(items.begin(), items.begin() + static_cast<std::ptrdiff_t>(left));
+  std::sort(items.begin() + static_cast<std::ptrdiff_t>(left), items.end());
+  return left;
+}
+
+// The representation limit of an interior block: block_size, or its root
+// count when that is larger (a cut cannot be coarser than the block's own
+// subtrees).
+std::uint32_t interior_limit(std::uint32_t block_size, std::span<const NodeId> roots) {
+  return std::max<std::uint32_t>(block_size, static_cast<std::uint32_t>(roots.size()));
+}
+
+// The node count of each block's representation (the first `count` blocks
+// of `b`, whose roots, children and leaf counts are set): a leaf block's is
+// its leaf count, an interior block's needs the walk.
+std::vector<std::uint64_t> representation_sizes(const Hierarchy& h, const HlodBlocks& b,
+                                                std::size_t count, std::uint32_t block_size) {
+  std::vector<std::uint64_t> sizes(count);
+  parallel_for(
+      count,
+      [&](std::size_t lo, std::size_t hi) {
+        std::vector<NodeId> queue, out;
+        for (std::size_t i = lo; i < hi; ++i) {
+          const auto id = static_cast<BlockId>(i);
+          if (b.is_leaf(id)) {
+            sizes[i] = b.leaf_count(id);
+            continue;
+          }
+          collect_representation(h, b.roots(id), interior_limit(block_size, b.roots(id)), queue,
+                                 out);
+          sizes[i] = out.size();
+        }
+      },
+      0, 64);
+  return sizes;
+}
+
+// The box of a representation: its splats' spheres, widened for the
+// descendants that may reach past them.
+Box representation_box(const HierarchyArrays& a, std::span<const NodeId> rep) {
+  glm::vec3 mn(std::numeric_limits<float>::max()), mx(-std::numeric_limits<float>::max());
+  float slack = 0.0f;
+  for (const NodeId n : rep) {
+    const glm::vec4 s = a.center_radius[n];
+    const glm::vec3 c(s);
+    mn = glm::min(mn, c - s.w);
+    mx = glm::max(mx, c + s.w);
+    slack = std::max(slack, s.w);
+  }
+  // Descendants may reach past their ancestor's sphere by the builder's
+  // rounding (check_invariants allows 1e-5 of the radius per level); a
+  // relative margin keeps the box conservative for them.
+  const glm::vec3 margin = glm::vec3(slack * 1e-4f) + 1e-6f * glm::max(glm::abs(mn), glm::abs(mx));
+  return {mn - margin, mx + margin};
+}
+
+// Every block writes its representation into its range of `rep` (the
+// offsets `rep_begin`) and its box into `box`.
+void write_representations(const Hierarchy& h, const HlodBlocks& b, std::size_t count,
+                           std::uint32_t block_size, std::span<const std::uint64_t> rep_begin,
+                           std::vector<NodeId>& rep, std::vector<Box>& box) {
+  parallel_for(
+      count,
+      [&](std::size_t lo, std::size_t hi) {
+        std::vector<NodeId> queue, out;
+        for (std::size_t i = lo; i < hi; ++i) {
+          const auto id = static_cast<BlockId>(i);
+          collect_representation(
+              h, b.roots(id), b.is_leaf(id) ? block_size : interior_limit(block_size, b.roots(id)),
+              queue, out);
+          std::copy(out.begin(), out.end(),
+                    rep.begin() + static_cast<std::ptrdiff_t>(rep_begin[i]));
+          box[i] = representation_box(h.arrays(), out);
+        }
+      },
+      0, 64);
+}
+
 }  // namespace
 
 HlodBlocks HlodBlocks::build(const Hierarchy& h, std::uint32_t block_size, unsigned fan_out) {
@@ -207,14 +295,8 @@ HlodBlocks HlodBlocks::build(const Hierarchy& h, std::uint32_t block_size, unsig
       }
       continue;
     }
-    items.assign(own.begin(), own.end());
-    std::size_t left = 0;
-    split_items(h, block_size, items, left);
+    const std::size_t left = split_in_two(h, block_size, own, items);
     b.child_count_.push_back(2);
-    // Each group's roots in id order (collect_representation's heap does not
-    // need it; it keeps roots(b) tidy for tests and the LCA cheap).
-    std::sort(items.begin(), items.begin() + static_cast<std::ptrdiff_t>(left));
-    std::sort(items.begin() + static_cast<std::ptrdiff_t>(left), items.end());
     add_child({items.data(), left});
     add_child({items.data() + left, items.size() - left});
   }
@@ -230,60 +312,13 @@ HlodBlocks HlodBlocks::build(const Hierarchy& h, std::uint32_t block_size, unsig
   for (std::size_t i = 0; i < count; ++i) b.by_root_[i] = {b.root_[i], static_cast<BlockId>(i)};
   std::sort(b.by_root_.begin(), b.by_root_.end());
 
-  // Representations: sizes first (a leaf block's is its leaf count; an
-  // interior block's needs the walk), then every block writes its own range.
-  // An interior block's limit is block_size, or its root count when that is
-  // larger (a cut cannot be coarser than the block's own subtrees).
-  auto limit_of = [&](std::size_t i) {
-    return std::max<std::uint32_t>(
-        block_size, static_cast<std::uint32_t>(b.roots(static_cast<BlockId>(i)).size()));
-  };
-  std::vector<std::uint64_t> sizes(count);
-  parallel_for(
-      count,
-      [&](std::size_t lo, std::size_t hi) {
-        std::vector<NodeId> queue, out;
-        for (std::size_t i = lo; i < hi; ++i) {
-          if (b.child_count_[i] == 0) {
-            sizes[i] = b.leaves_[i];
-            continue;
-          }
-          collect_representation(h, b.roots(static_cast<BlockId>(i)), limit_of(i), queue, out);
-          sizes[i] = out.size();
-        }
-      },
-      0, 64);
+  // Representations: sizes first, then every block writes its own range.
+  const std::vector<std::uint64_t> sizes = representation_sizes(h, b, count, block_size);
   b.rep_begin_.assign(count + 1, 0);
   for (std::size_t i = 0; i < count; ++i) b.rep_begin_[i + 1] = b.rep_begin_[i] + sizes[i];
   b.rep_.resize(b.rep_begin_[count]);
   b.box_.resize(count);
-  parallel_for(
-      count,
-      [&](std::size_t lo, std::size_t hi) {
-        std::vector<NodeId> queue, out;
-        for (std::size_t i = lo; i < hi; ++i) {
-          collect_representation(h, b.roots(static_cast<BlockId>(i)),
-                                 b.child_count_[i] == 0 ? block_size : limit_of(i), queue, out);
-          std::copy(out.begin(), out.end(),
-                    b.rep_.begin() + static_cast<std::ptrdiff_t>(b.rep_begin_[i]));
-          glm::vec3 mn(std::numeric_limits<float>::max()), mx(-std::numeric_limits<float>::max());
-          float slack = 0.0f;
-          for (const NodeId n : out) {
-            const glm::vec4 s = a.center_radius[n];
-            const glm::vec3 c(s);
-            mn = glm::min(mn, c - s.w);
-            mx = glm::max(mx, c + s.w);
-            slack = std::max(slack, s.w);
-          }
-          // Descendants may reach past their ancestor's sphere by the
-          // builder's rounding (check_invariants allows 1e-5 of the radius per
-          // level); a relative margin keeps the box conservative for them.
-          const glm::vec3 margin =
-              glm::vec3(slack * 1e-4f) + 1e-6f * glm::max(glm::abs(mn), glm::abs(mx));
-          b.box_[i] = {mn - margin, mx + margin};
-        }
-      },
-      0, 64);
+  write_representations(h, b, count, block_size, b.rep_begin_, b.rep_, b.box_);
   return b;
 }
 

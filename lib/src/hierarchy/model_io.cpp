@@ -89,55 +89,137 @@ bool same_identity(const CacheKey& a, const CacheKey& b) {
          a.source_ctime_ns == b.source_ctime_ns;
 }
 
+void report_stage(const OpenOptions& options, std::string_view name) {
+  if (options.progress) options.progress(name, 0, 1);
+}
+
+// MODEL is a treecut cache: loaded as it is.
+OpenedModel open_cache_file(const std::filesystem::path& model) {
+  OpenedModel out;
+  std::string why;
+  auto t0 = std::chrono::steady_clock::now();
+  auto h = load_cache(model, std::nullopt, &why);
+  if (!h) throw InputError(quoted_name(model) + ": " + why);
+  out.hierarchy = std::move(*h);
+  out.cache = model;
+  out.from_cache = true;
+  out.cache_seconds = seconds_since(t0);
+  return out;
+}
+
+// Why `cache` cannot be the model's cache (empty: it can): none at all, or
+// the model itself (an error when the caller named it).
+std::string cache_problem(const std::filesystem::path& model, const std::filesystem::path& cache,
+                          const OpenOptions& options) {
+  std::string no_cache;
+  if (cache.empty()) {
+    no_cache =
+        "no cache folder (HOME and XDG_CACHE_HOME are unset and there is no usable temporary "
+        "folder)";
+  } else if (same_file(cache, model)) {
+    no_cache = quoted_name(cache) + ": is the model itself (" + quoted_name(model) +
+               "); refusing to write a cache over it";
+    if (options.cache_path) throw InputError(no_cache);
+  }
+  return no_cache;
+}
+
+CacheKey hash_model(const std::filesystem::path& model, std::uint32_t bits, OpenedModel& out) {
+  const auto t0 = std::chrono::steady_clock::now();
+  CacheKey k = cache_key_for(model, bits);
+  out.hash_seconds = seconds_since(t0);
+  out.hashed = true;
+  return k;
+}
+
+// Read, attributes, hierarchy: the model built into `out`, each stage timed.
+void read_and_build(const std::filesystem::path& model, std::uint32_t bits, const CacheKey& key,
+                    const OpenOptions& options, OpenedModel& out) {
+  report_stage(options, "read");
+  auto t0 = std::chrono::steady_clock::now();
+  // The key (and the cache it names) is for the bytes hashed before the
+  // read: a model replaced or edited meanwhile (`cp new.ply model.ply` during
+  // a load) would give a hierarchy of one content under the key of another,
+  // or a parse error about bytes the user never wrote.
+  const auto changed = [&] { return !same_identity(cache_identity_of(model, bits), key); };
+  const auto changed_error = [&] {
+    return FileChangedError(quoted_name(model) +
+                            ": changed while being read (its size, times or inode moved)");
+  };
+  PointSet points;
+  try {
+    points = load_ply(model, &out.ply, options.warn);
+  } catch (const InputError&) {
+    if (changed()) throw changed_error();
+    throw;
+  }
+  out.read_seconds = seconds_since(t0);
+  if (changed()) throw changed_error();
+  out.input_points = points.size();
+  report_stage(options, "attributes");
+  t0 = std::chrono::steady_clock::now();
+  complete_attributes(points, options.attributes);
+  out.attribute_seconds = seconds_since(t0);
+  report_stage(options, "hierarchy");
+  BuildOptions build = options.build;
+  if (options.progress)
+    build.progress = [&](std::size_t done, std::size_t total) {
+      if (options.build.progress) options.build.progress(done, total);
+      options.progress("hierarchy", done, total);
+    };
+  t0 = std::chrono::steady_clock::now();
+  out.hierarchy = build_hierarchy(std::move(points), build);
+  out.build_seconds = seconds_since(t0);
+}
+
+// The built hierarchy saved as the model's cache; failing to is an error
+// only when the cache is required, else a note and a warning.
+void write_model_cache(const CacheKey& key, const OpenOptions& options, OpenedModel& out) {
+  report_stage(options, "cache");
+  const auto t0 = std::chrono::steady_clock::now();
+  // The default cache folder is treecut's own: what killed writers left
+  // there (a cache's temporary of hundreds of MB after a kill -9) goes,
+  // whichever model it was for. Elsewhere only the target's own
+  // temporaries are removed (AtomicFile).
+  if (!options.cache_path) {
+    static std::once_flag swept;
+    std::call_once(swept, [&] { remove_stale_temporaries(out.cache.parent_path(), ".tch"); });
+  }
+  try {
+    save_cache(out.hierarchy, key, out.cache);
+    out.cache_written = true;
+  } catch (const std::exception& e) {
+    if (options.require_cache) throw;
+    // A read-only cache folder must not stop anyone from viewing a model.
+    out.cache_note = e.what();
+    if (options.warn) options.warn(std::string(e.what()) + " (continuing without a cache)");
+  }
+  out.cache_seconds += seconds_since(t0);
+}
+
 }  // namespace
 
 OpenedModel open_model(const std::filesystem::path& model, const OpenOptions& options) {
-  OpenedModel out;
   // Checked without opening: a FIFO would block, a directory is "no such file" to ifstream.
   require_regular_file(model);
-  if (looks_like_cache(model)) {
-    std::string why;
-    auto t0 = std::chrono::steady_clock::now();
-    auto h = load_cache(model, std::nullopt, &why);
-    if (!h) throw InputError(quoted_name(model) + ": " + why);
-    out.hierarchy = std::move(*h);
-    out.cache = model;
-    out.from_cache = true;
-    out.cache_seconds = seconds_since(t0);
-    return out;
-  }
+  if (looks_like_cache(model)) return open_cache_file(model);
   // A .tch that is not a cache is named as such, not as a bad PLY (unless it
   // is a PLY under that name).
   if (model.extension() == ".tch" && !file_starts_with(model, "ply"))
     throw InputError(quoted_name(model) +
                      ": not a treecut cache (it does not start with a cache's signature)");
+  OpenedModel out;
   const std::uint32_t bits = options_bits(options.attributes, options.build);
   out.cache = options.cache_path ? *options.cache_path : default_cache_path(model);
   // A cache that cannot be: named by the caller, an error; the default one,
   // a warning, and the model opens without it.
-  std::string no_cache;
-  if (out.cache.empty()) {
-    no_cache =
-        "no cache folder (HOME and XDG_CACHE_HOME are unset and there is no usable temporary "
-        "folder)";
-  } else if (same_file(out.cache, model)) {
-    no_cache = quoted_name(out.cache) + ": is the model itself (" + quoted_name(model) +
-               "); refusing to write a cache over it";
-    if (options.cache_path) throw InputError(no_cache);
-  }
+  const std::string no_cache = cache_problem(model, out.cache, options);
   const bool use_cache = options.use_cache && no_cache.empty();
   if (options.use_cache && !no_cache.empty()) {
     if (options.require_cache) throw std::runtime_error(no_cache);
     out.cache_note = no_cache;
     if (options.warn) options.warn(no_cache + " (continuing without a cache)");
   }
-  auto hash_model = [&] {
-    const auto t0 = std::chrono::steady_clock::now();
-    CacheKey k = cache_key_for(model, bits);
-    out.hash_seconds = seconds_since(t0);
-    out.hashed = true;
-    return k;
-  };
   const FileKind kind = use_cache ? file_kind(out.cache) : FileKind::Missing;
   std::optional<CacheKey> key;
   bool write_cache = use_cache;
@@ -166,69 +248,11 @@ OpenedModel open_model(const std::filesystem::path& model, const OpenOptions& op
     if (options.warn) options.warn(quoted_name(out.cache) + ": " + out.cache_note + "; rebuilding");
     key = found.key;
   } else {
-    key = hash_model();
+    key = hash_model(model, bits, out);
   }
   if (write_cache && options.require_cache) probe_cache_destination(out.cache);
-  auto stage = [&](std::string_view name) {
-    if (options.progress) options.progress(name, 0, 1);
-  };
-  stage("read");
-  auto t0 = std::chrono::steady_clock::now();
-  // The key (and the cache it names) is for the bytes hashed before the
-  // read: a model replaced or edited meanwhile (`cp new.ply model.ply` during
-  // a load) would give a hierarchy of one content under the key of another,
-  // or a parse error about bytes the user never wrote.
-  const auto changed = [&] { return !same_identity(cache_identity_of(model, bits), *key); };
-  const auto changed_error = [&] {
-    return FileChangedError(quoted_name(model) +
-                            ": changed while being read (its size, times or inode moved)");
-  };
-  PointSet points;
-  try {
-    points = load_ply(model, &out.ply, options.warn);
-  } catch (const InputError&) {
-    if (changed()) throw changed_error();
-    throw;
-  }
-  out.read_seconds = seconds_since(t0);
-  if (changed()) throw changed_error();
-  out.input_points = points.size();
-  stage("attributes");
-  t0 = std::chrono::steady_clock::now();
-  complete_attributes(points, options.attributes);
-  out.attribute_seconds = seconds_since(t0);
-  stage("hierarchy");
-  BuildOptions build = options.build;
-  if (options.progress)
-    build.progress = [&](std::size_t done, std::size_t total) {
-      if (options.build.progress) options.build.progress(done, total);
-      options.progress("hierarchy", done, total);
-    };
-  t0 = std::chrono::steady_clock::now();
-  out.hierarchy = build_hierarchy(std::move(points), build);
-  out.build_seconds = seconds_since(t0);
-  if (write_cache) {
-    stage("cache");
-    t0 = std::chrono::steady_clock::now();
-    // The default cache folder is treecut's own: what killed writers left
-    // there (a cache's temporary of hundreds of MB after a kill -9) goes,
-    // whichever model it was for. Elsewhere only the target's own
-    // temporaries are removed (AtomicFile).
-    if (!options.cache_path) {
-      static std::once_flag swept;
-      std::call_once(swept, [&] { remove_stale_temporaries(out.cache.parent_path(), ".tch"); });
-    }
-    try {
-      save_cache(out.hierarchy, *key, out.cache);
-      out.cache_written = true;
-    } catch (const std::exception& e) {
-      if (options.require_cache) throw;
-      // A read-only cache folder must not stop anyone from viewing a model.
-      out.cache_note = e.what();
-      if (options.warn) options.warn(std::string(e.what()) + " (continuing without a cache)");
-    }
-    out.cache_seconds += seconds_since(t0);
-  }
+  read_and_build(model, bits, *key, options, out);
+  if (write_cache) write_model_cache(*key, options, out);
   return out;
 }
 

@@ -50,6 +50,76 @@ float quantile(std::span<const glm::vec3> positions, int axis, float q) {
   return values[k];
 }
 
+// Per direction (axis, sign): the points in the layer at that end of the
+// robust extent and the bounding rectangle of the layer across the other two
+// axes; index 2 * axis + (negative ? 1 : 0).
+struct Layer {
+  std::size_t count = 0;
+  glm::vec2 min{INFINITY}, max{-INFINITY};
+};
+
+// What one pass over the points gathers: the six layers and the sum of the
+// defined normals (the mean normal of steps 2 and 4).
+struct PointScan {
+  std::array<Layer, 6> layers;
+  glm::dvec3 flux{0.0};
+  std::size_t defined = 0;
+};
+
+PointScan scan_points(std::span<const glm::vec3> positions, std::span<const glm::vec3> normals,
+                      const glm::vec3& lo, const glm::vec3& hi, const glm::vec3& extent) {
+  const std::size_t n = positions.size();
+  const bool with_normals = normals.size() == n;
+  PointScan scan;
+  for (std::size_t i = 0; i < n; ++i) {
+    const glm::vec3& p = positions[i];
+    for (int k = 0; k < 3; ++k) {
+      if (!(extent[k] > 0.0f)) continue;
+      const float band = kLayer * extent[k];
+      const glm::vec2 across(p[(k + 1) % 3], p[(k + 2) % 3]);
+      for (int side = 0; side < 2; ++side) {
+        const bool in = side == 0 ? p[k] <= lo[k] + band : p[k] >= hi[k] - band;
+        if (!in) continue;
+        Layer& layer = scan.layers[static_cast<std::size_t>(2 * k + side)];
+        ++layer.count;
+        layer.min = glm::min(layer.min, across);
+        layer.max = glm::max(layer.max, across);
+      }
+    }
+    if (with_normals && normals[i] != glm::vec3(0.0f)) {
+      scan.flux += glm::dvec3(normals[i]);
+      ++scan.defined;
+    }
+  }
+  return scan;
+}
+
+// Step 1: the direction whose layer holds the largest share of the `n`
+// points among those that hold enough of them over enough of the
+// cross-section (-1: none); its share in `best_share`.
+int ground_layer(const std::array<Layer, 6>& layers, const glm::vec3& lo, const glm::vec3& hi,
+                 const glm::vec3& extent, std::size_t n, double& best_share) {
+  int best_layer = -1;
+  best_share = 0.0;
+  for (int d = 0; d < 6; ++d) {
+    const int k = d / 2, u = (k + 1) % 3, v = (k + 2) % 3;
+    const Layer& layer = layers[static_cast<std::size_t>(d)];
+    if (layer.count == 0 || !(extent[u] > 0.0f) || !(extent[v] > 0.0f)) continue;
+    // Clamped to the robust extent: an outlier does not widen the layer.
+    const glm::vec2 cross_lo(lo[u], lo[v]), cross_hi(hi[u], hi[v]);
+    const glm::vec2 size =
+        glm::clamp(layer.max, cross_lo, cross_hi) - glm::clamp(layer.min, cross_lo, cross_hi);
+    const double footprint =
+        static_cast<double>(size.x) * size.y / (static_cast<double>(extent[u]) * extent[v]);
+    const double share = static_cast<double>(layer.count) / static_cast<double>(n);
+    if (share >= kMinLayerShare && footprint >= kMinFootprint && share > best_share) {
+      best_share = share;
+      best_layer = d;
+    }
+  }
+  return best_layer;
+}
+
 }  // namespace
 
 glm::vec3 UpAxis::vector() const {
@@ -79,7 +149,6 @@ UpAxis next_up_axis(const UpAxis& current) {
 UpAxis detect_up_axis(std::span<const glm::vec3> positions, std::span<const glm::vec3> normals) {
   const std::size_t n = positions.size();
   if (n == 0) return make(2, false, "no points; default z");
-  const bool with_normals = normals.size() == n;
 
   glm::vec3 lo, hi, extent;
   for (int k = 0; k < 3; ++k) {
@@ -88,54 +157,11 @@ UpAxis detect_up_axis(std::span<const glm::vec3> positions, std::span<const glm:
     extent[k] = hi[k] - lo[k];
   }
 
-  // 1. A ground or a base. Per direction (axis, sign): the points in the layer
-  // and the bounding rectangle of the layer across the other two axes.
-  struct Layer {
-    std::size_t count = 0;
-    glm::vec2 min{INFINITY}, max{-INFINITY};
-  };
-  std::array<Layer, 6> layers;  // index 2 * axis + (negative ? 1 : 0)
-  glm::dvec3 flux(0.0);
-  std::size_t defined = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    const glm::vec3& p = positions[i];
-    for (int k = 0; k < 3; ++k) {
-      if (!(extent[k] > 0.0f)) continue;
-      const float band = kLayer * extent[k];
-      const glm::vec2 across(p[(k + 1) % 3], p[(k + 2) % 3]);
-      for (int side = 0; side < 2; ++side) {
-        const bool in = side == 0 ? p[k] <= lo[k] + band : p[k] >= hi[k] - band;
-        if (!in) continue;
-        Layer& layer = layers[static_cast<std::size_t>(2 * k + side)];
-        ++layer.count;
-        layer.min = glm::min(layer.min, across);
-        layer.max = glm::max(layer.max, across);
-      }
-    }
-    if (with_normals && normals[i] != glm::vec3(0.0f)) {
-      flux += glm::dvec3(normals[i]);
-      ++defined;
-    }
-  }
-  int best_layer = -1;
+  // 1. A ground or a base.
+  const PointScan scan = scan_points(positions, normals, lo, hi, extent);
   double best_share = 0.0;
-  for (int d = 0; d < 6; ++d) {
-    const int k = d / 2, u = (k + 1) % 3, v = (k + 2) % 3;
-    const Layer& layer = layers[static_cast<std::size_t>(d)];
-    if (layer.count == 0 || !(extent[u] > 0.0f) || !(extent[v] > 0.0f)) continue;
-    // Clamped to the robust extent: an outlier does not widen the layer.
-    const glm::vec2 cross_lo(lo[u], lo[v]), cross_hi(hi[u], hi[v]);
-    const glm::vec2 size =
-        glm::clamp(layer.max, cross_lo, cross_hi) - glm::clamp(layer.min, cross_lo, cross_hi);
-    const double footprint =
-        static_cast<double>(size.x) * size.y / (static_cast<double>(extent[u]) * extent[v]);
-    const double share = static_cast<double>(layer.count) / static_cast<double>(n);
-    if (share >= kMinLayerShare && footprint >= kMinFootprint && share > best_share) {
-      best_share = share;
-      best_layer = d;
-    }
-  }
-  if (best_layer >= 0) {
+  if (const int best_layer = ground_layer(scan.layers, lo, hi, extent, n, best_share);
+      best_layer >= 0) {
     const int k = best_layer / 2;
     const bool negative = best_layer % 2 == 1;
     return make(k, negative,
@@ -144,7 +170,8 @@ UpAxis detect_up_axis(std::span<const glm::vec3> positions, std::span<const glm:
   }
 
   // 2. and 4. need the mean normal; the strongest direction and the runner-up.
-  const glm::dvec3 mean = defined > 0 ? flux / static_cast<double>(defined) : glm::dvec3(0.0);
+  const glm::dvec3 mean =
+      scan.defined > 0 ? scan.flux / static_cast<double>(scan.defined) : glm::dvec3(0.0);
   int strongest = 0;
   for (int k = 1; k < 3; ++k) {
     if (std::fabs(mean[k]) > std::fabs(mean[strongest])) strongest = k;
@@ -156,8 +183,9 @@ UpAxis detect_up_axis(std::span<const glm::vec3> positions, std::span<const glm:
   const double facing = std::fabs(mean[strongest]);
   const bool facing_negative = mean[strongest] < 0.0;
   auto normal_reason = [&](const char* what) {
-    return std::string(what) + (facing_negative ? "" : "+") + axis_name(strongest, facing_negative) + ": mean n." +
-           "xyz"[strongest] + " = " + format("%.3f", mean[strongest]);
+    return std::string(what) + (facing_negative ? "" : "+") +
+           axis_name(strongest, facing_negative) + ": mean n." + "xyz"[strongest] + " = " +
+           format("%.3f", mean[strongest]);
   };
   if (facing >= kFacing) {
     return make(strongest, facing_negative, normal_reason("normals face "));

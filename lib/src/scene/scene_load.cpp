@@ -96,49 +96,14 @@ void splat_box(const Hierarchy& h, glm::vec3& lo, glm::vec3& hi) {
   }
 }
 
-}  // namespace
-
-std::uint64_t Scene::instanced_points() const {
-  std::uint64_t n = 0;
-  for (const auto& o : objects) n += models[o.model].hierarchy->leaf_count();
-  return n;
-}
-
-std::uint64_t Scene::distinct_points() const {
-  std::uint64_t n = 0;
-  for (const auto& m : models) n += m.hierarchy->leaf_count();
-  return n;
-}
-
-std::string Scene::where(const SceneObject& object) const {
-  return quoted_name(files[object.file]) + ":" + std::to_string(object.line);
-}
-
-double SceneMemory::per_object_bytes() const {
-  return objects ? static_cast<double>(hierarchy_bytes + object_bytes) / double(objects) : 0.0;
-}
-
-SceneMemory scene_memory(const Scene& scene) {
-  SceneMemory m;
-  m.objects = scene.objects.size();
-  for (const auto& model : scene.models) m.hierarchy_bytes += model.hierarchy->memory_bytes();
-  m.object_bytes =
-      scene.objects.size() * sizeof(SceneObject) + scene.models.size() * sizeof(SceneModel);
-  for (const auto& o : scene.objects)
-    m.unshared_bytes += scene.models[o.model].hierarchy->memory_bytes();
-  return m;
-}
-
-Scene load_scene(const std::filesystem::path& file, const SceneLoadOptions& options) {
-  SceneDescription d = parse_scene_file(file, options.parse);
-  Scene scene;
-  scene.files = std::move(d.files);
-
-  // 1. Distinct models, in order of first use; declarations no object uses
-  //    are not loaded.
+// 1. Distinct models, in order of first use; declarations no object uses
+//    are not loaded. Fills model_of_decl (UINT32_MAX: unused) and returns
+//    the declaration of each model.
+std::vector<std::uint32_t> distinct_models(const SceneDescription& d, const Scene& scene,
+                                           std::vector<std::uint32_t>& model_of_decl) {
   std::map<std::pair<dev_t, ino_t>, std::uint32_t> by_file;
   std::map<std::tuple<std::string, std::uint64_t, std::uint64_t>, std::uint32_t> by_kind;
-  std::vector<std::uint32_t> model_of_decl(d.models.size(), UINT32_MAX);
+  model_of_decl.assign(d.models.size(), UINT32_MAX);
   std::vector<std::uint32_t> decl_of_model;
   for (const auto& o : d.objects) {
     std::uint32_t& m = model_of_decl[o.model];
@@ -158,10 +123,15 @@ Scene load_scene(const std::filesystem::path& file, const SceneLoadOptions& opti
     }
     if (m == next) decl_of_model.push_back(o.model);
   }
+  return decl_of_model;
+}
 
-  // 2. Load them, several at a time (each load is itself parallel inside:
-  //    a few large models keep the cores busy either way, many small ones
-  //    would not).
+// 2. Load them, several at a time (each load is itself parallel inside: a
+//    few large models keep the cores busy either way, many small ones would
+//    not), into scene.models; the first failure (in model order) is thrown
+//    naming its declaration.
+void load_models(const SceneDescription& d, const std::vector<std::uint32_t>& decl_of_model,
+                 const SceneLoadOptions& options, Scene& scene) {
   const std::size_t count = decl_of_model.size();
   std::vector<std::shared_ptr<const Hierarchy>> loaded(count);
   // char, not bool: the workers write neighbouring elements at once.
@@ -222,8 +192,46 @@ Scene load_scene(const std::filesystem::path& file, const SceneLoadOptions& opti
     m.from_cache = cached[i] != 0;
     splat_box(*m.hierarchy, m.box_min, m.box_max);
   }
+}
 
-  // 3. The objects' world bounds.
+// The object's world bounds: its model's splat box through the world
+// matrix, rounded outwards to floats, and the smaller of two spheres (the
+// model's root sphere moved, the box's). False when they do not fit in floats.
+bool place_object(const SceneModel& m, SceneObject& o) {
+  const glm::dmat4 w(o.world);
+  glm::dvec3 lo(INFINITY), hi(-INFINITY);
+  for (int c = 0; c < 8; ++c) {
+    const glm::dvec3 corner(c & 1 ? m.box_max.x : m.box_min.x, c & 2 ? m.box_max.y : m.box_min.y,
+                            c & 4 ? m.box_max.z : m.box_min.z);
+    const glm::dvec3 p(w * glm::dvec4(corner, 1.0));
+    lo = glm::min(lo, p);
+    hi = glm::max(hi, p);
+  }
+  o.aabb_min = {down(lo.x), down(lo.y), down(lo.z)};
+  o.aabb_max = {up(hi.x), up(hi.y), up(hi.z)};
+  bool finite = true;
+  for (int k = 0; k < 3; ++k)
+    finite = finite && std::isfinite(o.aabb_min[k]) && std::isfinite(o.aabb_max[k]);
+  if (finite) {
+    const glm::dvec3 root = glm::dvec3(m.hierarchy->center(0));
+    const glm::dvec3 c1(w * glm::dvec4(root, 1.0));
+    const double r1 = double(m.hierarchy->radius(0)) * max_stretch(glm::dmat3(w));
+    const glm::dvec3 c2 = 0.5 * (lo + hi);
+    const double r2 = 0.5 * glm::length(hi - lo);
+    // The root sphere is inside the AABB's range: its centre fits a float.
+    const bool first = r1 <= r2;
+    const glm::dvec3 c = first ? c1 : c2;
+    o.sphere = glm::vec4(glm::vec3(c), up((first ? r1 : r2) * (1.0 + 1e-6)));
+    finite = std::isfinite(o.sphere.w);
+  }
+  return finite;
+}
+
+// 3. The objects, their world bounds (the first object whose bounds do not
+//    fit in floats is an error), the models' instance counts and the
+//    scene's bounds.
+void place_objects(const SceneDescription& d, const std::vector<std::uint32_t>& model_of_decl,
+                   Scene& scene) {
   scene.objects.resize(d.objects.size());
   std::atomic<bool> failed{false};
   std::atomic<std::size_t> first_bad{SIZE_MAX};
@@ -236,35 +244,7 @@ Scene load_scene(const std::filesystem::path& file, const SceneLoadOptions& opti
       o.world_inverse = od.world_inverse;
       o.file = od.file;
       o.line = od.line;
-      const SceneModel& m = scene.models[o.model];
-      const glm::dmat4 w(o.world);
-      glm::dvec3 lo(INFINITY), hi(-INFINITY);
-      for (int c = 0; c < 8; ++c) {
-        const glm::dvec3 corner(c & 1 ? m.box_max.x : m.box_min.x,
-                                c & 2 ? m.box_max.y : m.box_min.y,
-                                c & 4 ? m.box_max.z : m.box_min.z);
-        const glm::dvec3 p(w * glm::dvec4(corner, 1.0));
-        lo = glm::min(lo, p);
-        hi = glm::max(hi, p);
-      }
-      o.aabb_min = {down(lo.x), down(lo.y), down(lo.z)};
-      o.aabb_max = {up(hi.x), up(hi.y), up(hi.z)};
-      bool finite = true;
-      for (int k = 0; k < 3; ++k)
-        finite = finite && std::isfinite(o.aabb_min[k]) && std::isfinite(o.aabb_max[k]);
-      if (finite) {
-        const glm::dvec3 root = glm::dvec3(m.hierarchy->center(0));
-        const glm::dvec3 c1(w * glm::dvec4(root, 1.0));
-        const double r1 = double(m.hierarchy->radius(0)) * max_stretch(glm::dmat3(w));
-        const glm::dvec3 c2 = 0.5 * (lo + hi);
-        const double r2 = 0.5 * glm::length(hi - lo);
-        // The root sphere is inside the AABB's range: its centre fits a float.
-        const bool first = r1 <= r2;
-        const glm::dvec3 c = first ? c1 : c2;
-        o.sphere = glm::vec4(glm::vec3(c), up((first ? r1 : r2) * (1.0 + 1e-6)));
-        finite = std::isfinite(o.sphere.w);
-      }
-      if (!finite) {
+      if (!place_object(scene.models[o.model], o)) {
         failed = true;
         std::size_t cur = first_bad.load();
         while (i < cur && !first_bad.compare_exchange_weak(cur, i)) {
@@ -283,6 +263,49 @@ Scene load_scene(const std::filesystem::path& file, const SceneLoadOptions& opti
     scene.bounds_min = glm::min(scene.bounds_min, o.aabb_min);
     scene.bounds_max = glm::max(scene.bounds_max, o.aabb_max);
   }
+}
+
+}  // namespace
+
+std::uint64_t Scene::instanced_points() const {
+  std::uint64_t n = 0;
+  for (const auto& o : objects) n += models[o.model].hierarchy->leaf_count();
+  return n;
+}
+
+std::uint64_t Scene::distinct_points() const {
+  std::uint64_t n = 0;
+  for (const auto& m : models) n += m.hierarchy->leaf_count();
+  return n;
+}
+
+std::string Scene::where(const SceneObject& object) const {
+  return quoted_name(files[object.file]) + ":" + std::to_string(object.line);
+}
+
+double SceneMemory::per_object_bytes() const {
+  return objects ? static_cast<double>(hierarchy_bytes + object_bytes) / double(objects) : 0.0;
+}
+
+SceneMemory scene_memory(const Scene& scene) {
+  SceneMemory m;
+  m.objects = scene.objects.size();
+  for (const auto& model : scene.models) m.hierarchy_bytes += model.hierarchy->memory_bytes();
+  m.object_bytes =
+      scene.objects.size() * sizeof(SceneObject) + scene.models.size() * sizeof(SceneModel);
+  for (const auto& o : scene.objects)
+    m.unshared_bytes += scene.models[o.model].hierarchy->memory_bytes();
+  return m;
+}
+
+Scene load_scene(const std::filesystem::path& file, const SceneLoadOptions& options) {
+  SceneDescription d = parse_scene_file(file, options.parse);
+  Scene scene;
+  scene.files = std::move(d.files);
+  std::vector<std::uint32_t> model_of_decl;
+  const std::vector<std::uint32_t> decl_of_model = distinct_models(d, scene, model_of_decl);
+  load_models(d, decl_of_model, options, scene);
+  place_objects(d, model_of_decl, scene);
   return scene;
 }
 

@@ -88,6 +88,12 @@ class FeedbackStage::Impl {
     std::uint64_t objects = 0;  // a scene: objects iterated
     std::exception_ptr error;
   };
+  // What a scene's iteration adds up (feedback_stage_process.cpp).
+  struct SceneTotals {
+    IterationResult result;
+    std::uint64_t objects = 0;     // objects iterated
+    std::uint64_t publish_ns = 0;  // of it, checking and sorting the lists
+  };
   // Render-thread inputs not yet handed over.
   struct Pending {
     ViewSnapshot view;
@@ -104,6 +110,10 @@ class FeedbackStage::Impl {
   [[nodiscard]] State await_request();
   void process();
   void process_scene(Outbox& out);
+  [[nodiscard]] bool extract_scene();
+  void iterate_scene_strategy(Outbox& out, SceneTotals& totals);
+  void iterate_object_strategies(bool evolve, Outbox& out, SceneTotals& totals);
+  void iterate_object(std::size_t i, bool evolve, Outbox& out, SceneTotals& totals);
   void fail(Outbox& out);
   void make_object_strategies(std::unique_ptr<Strategy> first, const StrategyFactory& factory);
   void check_scene_strategy(const Strategy& probe) const;

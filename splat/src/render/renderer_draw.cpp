@@ -177,117 +177,12 @@ FrameStats Renderer::render(const CutBuffer* cut, const SceneCutBuffer* scene,
   draw_calls_ = 0;
   const ViewSnapshot frame = camera.view(size_);
 
-  auto set_common = [&](const gl::Program& program, const Uniforms& u) {
-    set_common_uniforms(program, u, frame, settings, fade_weight);
-  };
-
   gl::Viewport(0, 0, size_.x, size_.y);
   gl::Disable(GL_BLEND);
   gl::Enable(GL_DEPTH_TEST);
   gl::DepthMask(GL_TRUE);
   gl::ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
-  const glm::vec4 background(settings.background, 1.0f);
-
-  auto run_hook = [&](GLuint fbo) {
-    if (query_hook_ == nullptr) return;
-    gl::BindFramebuffer(GL_FRAMEBUFFER, fbo);
-    gl::ColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
-    gl::DepthMask(GL_FALSE);
-    query_hook_->run(frame);
-    gl::ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
-    gl::DepthMask(GL_TRUE);
-  };
-
-  switch (settings.mode) {
-    case SplatMode::Fast: {
-      clear_color(scene_fbo_, 0, background);
-      clear_depth(scene_fbo_);
-      gl::BindFramebuffer(GL_FRAMEBUFFER, scene_fbo_.id());
-      gl::DepthFunc(GL_LESS);
-      set_common(fast_, fast_u_);
-      gl::ProgramUniform1f(fast_.id(), fast_u_.depth_offset, 0.0f);
-      draw_runs(elements, fast_, fast_u_, hook, frame, scene_fbo_.id(), true);
-      run_hook(scene_fbo_.id());
-      break;
-    }
-    case SplatMode::HighQuality: {
-      // Pass 1: visibility, pushed back by depth_offset radii; the ranges in
-      // their order, with the hook between them.
-      clear_depth(visibility_fbo_);
-      gl::BindFramebuffer(GL_FRAMEBUFFER, visibility_fbo_.id());
-      gl::DepthFunc(GL_LESS);
-      set_common(hq_visibility_, hq_visibility_u_);
-      gl::ProgramUniform1f(hq_visibility_.id(), hq_visibility_u_.depth_offset,
-                           settings.depth_offset);
-      draw_runs(elements, hq_visibility_, hq_visibility_u_, hook, frame, visibility_fbo_.id(),
-                true);
-      run_hook(visibility_fbo_.id());
-
-      // Pass 2: attributes of every splat in front of the offset surface.
-      // Additive blending in half floats depends on the order, so the ranges
-      // go in buffer order: the primitive order of the one-call draw.
-      if (!whole) plan_runs(*cut, ranges, true);
-      clear_color(accum_fbo_, 0, glm::vec4(0.0f));
-      clear_color(accum_fbo_, 1, glm::vec4(0.0f));
-      gl::BindFramebuffer(GL_FRAMEBUFFER, accum_fbo_.id());
-      gl::DepthFunc(GL_LEQUAL);
-      gl::DepthMask(GL_FALSE);
-      gl::Enable(GL_BLEND);
-      gl::BlendEquation(GL_FUNC_ADD);
-      gl::BlendFunc(GL_ONE, GL_ONE);
-      set_common(hq_attributes_, hq_attributes_u_);
-      gl::ProgramUniform1f(hq_attributes_.id(), hq_attributes_u_.depth_offset, 0.0f);
-      draw_runs(elements, hq_attributes_, hq_attributes_u_, nullptr, frame, accum_fbo_.id(), false);
-      gl::Disable(GL_BLEND);
-      gl::DepthMask(GL_TRUE);
-
-      // Pass 3: normalization and per-pixel lighting.
-      clear_color(scene_fbo_, 0, background);
-      gl::BindFramebuffer(GL_FRAMEBUFFER, scene_fbo_.id());
-      gl::Disable(GL_DEPTH_TEST);
-      set_common(hq_normalize_, hq_normalize_u_);
-      const glm::mat4 inv_view_proj = glm::inverse(frame.derived.view_projection);
-      gl::ProgramUniformMatrix4fv(hq_normalize_.id(), hq_normalize_u_.inv_view_proj, 1, GL_FALSE,
-                                  glm::value_ptr(inv_view_proj));
-      gl::UseProgram(hq_normalize_.id());
-      gl::BindTextureUnit(0, accum_color_.id());
-      gl::BindTextureUnit(1, accum_normal_.id());
-      gl::BindTextureUnit(2, depth_.id());
-      gl::BindVertexArray(empty_vao_.id());
-      gl::DrawArrays(GL_TRIANGLES, 0, 3);
-      gl::BindTextureUnit(0, 0);
-      gl::BindTextureUnit(1, 0);
-      gl::BindTextureUnit(2, 0);
-      gl::Enable(GL_DEPTH_TEST);
-      break;
-    }
-    case SplatMode::ObjectId: {
-      // White = no object: an index would need 2^24 - 1 objects to mean it.
-      clear_color(scene_fbo_, 0, glm::vec4(1.0f));
-      clear_depth(scene_fbo_);
-      gl::BindFramebuffer(GL_FRAMEBUFFER, scene_fbo_.id());
-      gl::DepthFunc(GL_LESS);
-      set_common(object_id_, object_id_u_);
-      gl::ProgramUniform1f(object_id_.id(), object_id_u_.depth_offset, 0.0f);
-      draw_runs(elements, object_id_, object_id_u_, hook, frame, scene_fbo_.id(), true);
-      run_hook(scene_fbo_.id());
-      break;
-    }
-    case SplatMode::FixedSize: {
-      clear_color(scene_fbo_, 0, background);
-      clear_depth(scene_fbo_);
-      gl::BindFramebuffer(GL_FRAMEBUFFER, scene_fbo_.id());
-      gl::DepthFunc(GL_LESS);
-      gl::Enable(GL_PROGRAM_POINT_SIZE);
-      set_common(fixed_, fixed_u_);
-      gl::ProgramUniform1f(fixed_.id(), fixed_u_.point_size,
-                           std::max(settings.point_size_px, 1.0f));
-      draw_runs(elements, fixed_, fixed_u_, hook, frame, scene_fbo_.id(), true);
-      gl::Disable(GL_PROGRAM_POINT_SIZE);
-      run_hook(scene_fbo_.id());
-      break;
-    }
-  }
+  draw_passes(elements, frame, settings, fade_weight, hook, cut, ranges, whole);
   gl::BindVertexArray(0);
   gl::UseProgram(0);
   gl::BindFramebuffer(GL_FRAMEBUFFER, 0);
@@ -303,6 +198,121 @@ FrameStats Renderer::render(const CutBuffer* cut, const SceneCutBuffer* scene,
   stats.cpu_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return stats;
+}
+
+// The query hook of the frame (if any), after the frame's draws into `fbo`,
+// with color and depth writes off.
+void Renderer::run_query_hook(GLuint fbo, const ViewSnapshot& frame) {
+  if (query_hook_ == nullptr) return;
+  gl::BindFramebuffer(GL_FRAMEBUFFER, fbo);
+  gl::ColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+  gl::DepthMask(GL_FALSE);
+  query_hook_->run(frame);
+  gl::ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+  gl::DepthMask(GL_TRUE);
+}
+
+// The passes of settings.mode over the planned runs of `elements`.
+void Renderer::draw_passes(GLuint elements, const ViewSnapshot& frame, const RenderSettings& settings,
+                           float fade_weight, RangeHook* hook, const CutBuffer* cut,
+                           std::span<const CutRange> ranges, bool whole) {
+  const glm::vec4 background(settings.background, 1.0f);
+  switch (settings.mode) {
+    case SplatMode::Fast: {
+      clear_color(scene_fbo_, 0, background);
+      clear_depth(scene_fbo_);
+      gl::BindFramebuffer(GL_FRAMEBUFFER, scene_fbo_.id());
+      gl::DepthFunc(GL_LESS);
+      set_common_uniforms(fast_, fast_u_, frame, settings, fade_weight);
+      gl::ProgramUniform1f(fast_.id(), fast_u_.depth_offset, 0.0f);
+      draw_runs(elements, fast_, fast_u_, hook, frame, scene_fbo_.id(), true);
+      run_query_hook(scene_fbo_.id(), frame);
+      break;
+    }
+    case SplatMode::HighQuality:
+      draw_high_quality(elements, frame, settings, fade_weight, hook, cut, ranges, whole);
+      break;
+    case SplatMode::ObjectId: {
+      // White = no object: an index would need 2^24 - 1 objects to mean it.
+      clear_color(scene_fbo_, 0, glm::vec4(1.0f));
+      clear_depth(scene_fbo_);
+      gl::BindFramebuffer(GL_FRAMEBUFFER, scene_fbo_.id());
+      gl::DepthFunc(GL_LESS);
+      set_common_uniforms(object_id_, object_id_u_, frame, settings, fade_weight);
+      gl::ProgramUniform1f(object_id_.id(), object_id_u_.depth_offset, 0.0f);
+      draw_runs(elements, object_id_, object_id_u_, hook, frame, scene_fbo_.id(), true);
+      run_query_hook(scene_fbo_.id(), frame);
+      break;
+    }
+    case SplatMode::FixedSize: {
+      clear_color(scene_fbo_, 0, background);
+      clear_depth(scene_fbo_);
+      gl::BindFramebuffer(GL_FRAMEBUFFER, scene_fbo_.id());
+      gl::DepthFunc(GL_LESS);
+      gl::Enable(GL_PROGRAM_POINT_SIZE);
+      set_common_uniforms(fixed_, fixed_u_, frame, settings, fade_weight);
+      gl::ProgramUniform1f(fixed_.id(), fixed_u_.point_size,
+                           std::max(settings.point_size_px, 1.0f));
+      draw_runs(elements, fixed_, fixed_u_, hook, frame, scene_fbo_.id(), true);
+      gl::Disable(GL_PROGRAM_POINT_SIZE);
+      run_query_hook(scene_fbo_.id(), frame);
+      break;
+    }
+  }
+}
+
+// High quality (Botsch et al.): visibility, attributes, normalization.
+void Renderer::draw_high_quality(GLuint elements, const ViewSnapshot& frame,
+                                 const RenderSettings& settings, float fade_weight, RangeHook* hook,
+                                 const CutBuffer* cut, std::span<const CutRange> ranges,
+                                 bool whole) {
+  // Pass 1: visibility, pushed back by depth_offset radii; the ranges in
+  // their order, with the hook between them.
+  clear_depth(visibility_fbo_);
+  gl::BindFramebuffer(GL_FRAMEBUFFER, visibility_fbo_.id());
+  gl::DepthFunc(GL_LESS);
+  set_common_uniforms(hq_visibility_, hq_visibility_u_, frame, settings, fade_weight);
+  gl::ProgramUniform1f(hq_visibility_.id(), hq_visibility_u_.depth_offset, settings.depth_offset);
+  draw_runs(elements, hq_visibility_, hq_visibility_u_, hook, frame, visibility_fbo_.id(), true);
+  run_query_hook(visibility_fbo_.id(), frame);
+
+  // Pass 2: attributes of every splat in front of the offset surface.
+  // Additive blending in half floats depends on the order, so the ranges
+  // go in buffer order: the primitive order of the one-call draw.
+  if (!whole) plan_runs(*cut, ranges, true);
+  clear_color(accum_fbo_, 0, glm::vec4(0.0f));
+  clear_color(accum_fbo_, 1, glm::vec4(0.0f));
+  gl::BindFramebuffer(GL_FRAMEBUFFER, accum_fbo_.id());
+  gl::DepthFunc(GL_LEQUAL);
+  gl::DepthMask(GL_FALSE);
+  gl::Enable(GL_BLEND);
+  gl::BlendEquation(GL_FUNC_ADD);
+  gl::BlendFunc(GL_ONE, GL_ONE);
+  set_common_uniforms(hq_attributes_, hq_attributes_u_, frame, settings, fade_weight);
+  gl::ProgramUniform1f(hq_attributes_.id(), hq_attributes_u_.depth_offset, 0.0f);
+  draw_runs(elements, hq_attributes_, hq_attributes_u_, nullptr, frame, accum_fbo_.id(), false);
+  gl::Disable(GL_BLEND);
+  gl::DepthMask(GL_TRUE);
+
+  // Pass 3: normalization and per-pixel lighting.
+  const glm::vec4 background(settings.background, 1.0f);
+  clear_color(scene_fbo_, 0, background);
+  gl::BindFramebuffer(GL_FRAMEBUFFER, scene_fbo_.id());
+  gl::Disable(GL_DEPTH_TEST);
+  set_common_uniforms(hq_normalize_, hq_normalize_u_, frame, settings, fade_weight);
+  const glm::mat4 inv_view_proj = glm::inverse(frame.derived.view_projection);
+  gl::ProgramUniformMatrix4fv(hq_normalize_.id(), hq_normalize_u_.inv_view_proj, 1, GL_FALSE,
+                              glm::value_ptr(inv_view_proj));
+  gl::UseProgram(hq_normalize_.id());
+  gl::BindTextureUnit(0, accum_color_.id());
+  gl::BindTextureUnit(1, accum_normal_.id());
+  gl::BindTextureUnit(2, depth_.id());
+  gl::BindVertexArray(empty_vao_.id());
+  gl::DrawArrays(GL_TRIANGLES, 0, 3);
+  gl::BindTextureUnit(0, 0);
+  gl::BindTextureUnit(1, 0);
+  gl::BindTextureUnit(2, 0);
+  gl::Enable(GL_DEPTH_TEST);
 }
 
 }  // namespace treecut::splat

@@ -19,64 +19,22 @@ constexpr double kMinDepth = 1e-6;
 // (rounds are parallel and nearly always few; the sort bounds the worst case).
 constexpr std::size_t kMaxRounds = 32;
 
-}  // namespace
 
-double eq1_term(const BudgetItem& item, const BudgetParams& params) {
-  if (item.points == 0 || !(item.area > 0.0f) || item.area < params.pet) return 0.0;
-  const double beta = params.alpha - 1.0;
-  const double depth = std::max(static_cast<double>(item.depth), kMinDepth);
-  // w^(1/alpha) = (A / D)^(1/alpha) * P^(beta/alpha), in logarithms so that a
-  // large P^beta cannot overflow.
-  const double log_w =
-      std::log(item.area / depth) + beta * std::log(static_cast<double>(item.points));
-  return std::exp(log_w / params.alpha);
-}
+// An object with a term t_i > 0: its index, P_i and t_i.
+struct Active {
+  std::uint32_t index;
+  std::uint32_t points;
+  double term;
+};
 
-std::vector<double> eq1_shares(std::span<const BudgetItem> items, const BudgetParams& params) {
-  std::vector<double> t(items.size());
-  double sum = 0.0;
-  for (std::size_t i = 0; i < items.size(); ++i) sum += t[i] = eq1_term(items[i], params);
-  for (double& x : t) x = sum > 0.0 ? static_cast<double>(params.total) * x / sum : 0.0;
-  return t;
-}
-
-void budget_items(std::span<const culling::ObjectBounds> objects,
-                  std::span<const culling::ScreenRect> rects, std::span<const std::uint8_t> visible,
-                  std::vector<BudgetItem>& items, WorkerPool* pool) {
-  // The objects' point counts as the dense array the strategy keeps.
-  std::vector<std::uint32_t> points(objects.size());
-  for (std::size_t i = 0; i < objects.size(); ++i) points[i] = objects[i].points;
-  budget_items(points, rects, visible, items, pool);
-}
-
-void budget_items(std::span<const std::uint32_t> points, std::span<const culling::ScreenRect> rects,
-                  std::span<const std::uint8_t> visible, std::vector<BudgetItem>& items,
-                  WorkerPool* pool) {
-  items.resize(points.size());
-  for_chunks(pool, points.size(), kGrain, [&](std::size_t b, std::size_t e, std::size_t) {
-    for (std::size_t i = b; i < e; ++i) {
-      const bool v = (visible.empty() || visible[i] != 0) && rects[i].in_frustum;
-      items[i] = {v ? rects[i].area() : 0.0f, rects[i].depth, v ? points[i] : 0u};
-    }
-  });
-}
-
-BudgetStats allocate_budget(std::span<const BudgetItem> items, const BudgetParams& params,
-                            std::vector<std::uint32_t>& shares, WorkerPool* pool) {
+// Pass 1 over all objects: the terms t_i = w_i^(1/alpha), keeping the
+// objects with t_i > 0 (most of a large scene is culled or below PET); the
+// rest works on that list. Per-chunk lists and sums are joined in chunk
+// order, so nothing depends on the schedule. The objects below PET are
+// counted into stats.below_pet.
+std::vector<Active> active_objects(std::span<const BudgetItem> items, const BudgetParams& params,
+                                   WorkerPool* pool, BudgetStats& stats) {
   const std::size_t m = items.size();
-  BudgetStats stats;
-  shares.assign(m, 0);
-  if (m == 0 || params.total == 0) return stats;
-
-  // Pass 1 over all objects: the terms t_i = w_i^(1/alpha), keeping the
-  // objects with t_i > 0 (most of a large scene is culled or below PET);
-  // the rest works on that list. Per-chunk lists and sums are joined in
-  // chunk order, so nothing depends on the schedule.
-  struct Active {
-    std::uint32_t index;
-    std::uint32_t points;
-    double term;
-  };
   const std::size_t chunks = WorkerPool::chunk_count(m, kGrain);
   std::vector<std::vector<Active>> found(chunks);
   std::vector<std::size_t> chunk_pet(chunks);
@@ -111,16 +69,23 @@ BudgetStats allocate_budget(std::span<const BudgetItem> items, const BudgetParam
     act.insert(act.end(), found[c].begin(), found[c].end());
     stats.below_pet += chunk_pet[c];
   }
+  return act;
+}
+
+// Water filling: an object is capped when lambda * t_i >= P_i; the capped
+// points leave the budget and their terms the sum. Every round caps all
+// objects above the current lambda, which only grows, so the capped set
+// only grows and the rounds end. Marks `capped`, counts the rounds and the
+// capped objects into stats; returns the final lambda.
+// Inlined, as are the shares below: allocate_budget is benchmarked, and
+// this keeps its code one function's, as before it was split.
+[[gnu::always_inline]] inline double water_fill(const std::vector<Active>& act,
+                                                const BudgetParams& params,
+                                                std::vector<std::uint8_t>& capped,
+                                                BudgetStats& stats) {
   const std::size_t a = act.size();
-  if (a == 0) return stats;
   double sum = 0.0;
   for (const Active& x : act) sum += x.term;
-
-  // Water filling: an object is capped when lambda * t_i >= P_i; the capped
-  // points leave the budget and their terms the sum. Every round caps all
-  // objects above the current lambda, which only grows, so the capped set
-  // only grows and the rounds end.
-  std::vector<std::uint8_t> capped(a, 0);
   double remaining = static_cast<double>(params.total);
   std::uint64_t capped_points = 0;
   double lambda = remaining / sum;
@@ -163,11 +128,18 @@ BudgetStats allocate_budget(std::span<const BudgetItem> items, const BudgetParam
       if (!(sum > 1e-300)) break;
     }
   }
-  lambda = sum > 1e-300 && remaining > 0.0 ? remaining / sum : 0.0;
-  stats.lambda = lambda;
+  return sum > 1e-300 && remaining > 0.0 ? remaining / sum : 0.0;
+}
 
-  // Integer shares: floors, then the points left to the largest fractions.
-  std::vector<std::uint32_t> share(a);
+// Integer shares: floors, then the points left to the largest fractions,
+// then (float rounding of lambda) any overshoot of N taken back. Returns
+// the sum of the shares.
+[[gnu::always_inline]] inline std::uint64_t integer_shares(const std::vector<Active>& act,
+                                                           const std::vector<std::uint8_t>& capped,
+                                                           double lambda,
+                                                           const BudgetParams& params,
+                                                           std::vector<std::uint32_t>& share) {
+  const std::size_t a = act.size();
   std::vector<float> fraction(a, -1.0f);  // -1: full (capped or at P_i)
   std::uint64_t total = 0, room = 0;
   for (std::size_t k = 0; k < a; ++k) {
@@ -220,6 +192,66 @@ BudgetStats allocate_budget(std::span<const BudgetItem> items, const BudgetParam
     fraction[worst] = 2.0f;
     --total;
   }
+  return total;
+}
+
+}  // namespace
+
+double eq1_term(const BudgetItem& item, const BudgetParams& params) {
+  if (item.points == 0 || !(item.area > 0.0f) || item.area < params.pet) return 0.0;
+  const double beta = params.alpha - 1.0;
+  const double depth = std::max(static_cast<double>(item.depth), kMinDepth);
+  // w^(1/alpha) = (A / D)^(1/alpha) * P^(beta/alpha), in logarithms so that a
+  // large P^beta cannot overflow.
+  const double log_w =
+      std::log(item.area / depth) + beta * std::log(static_cast<double>(item.points));
+  return std::exp(log_w / params.alpha);
+}
+
+std::vector<double> eq1_shares(std::span<const BudgetItem> items, const BudgetParams& params) {
+  std::vector<double> t(items.size());
+  double sum = 0.0;
+  for (std::size_t i = 0; i < items.size(); ++i) sum += t[i] = eq1_term(items[i], params);
+  for (double& x : t) x = sum > 0.0 ? static_cast<double>(params.total) * x / sum : 0.0;
+  return t;
+}
+
+void budget_items(std::span<const culling::ObjectBounds> objects,
+                  std::span<const culling::ScreenRect> rects, std::span<const std::uint8_t> visible,
+                  std::vector<BudgetItem>& items, WorkerPool* pool) {
+  // The objects' point counts as the dense array the strategy keeps.
+  std::vector<std::uint32_t> points(objects.size());
+  for (std::size_t i = 0; i < objects.size(); ++i) points[i] = objects[i].points;
+  budget_items(points, rects, visible, items, pool);
+}
+
+void budget_items(std::span<const std::uint32_t> points, std::span<const culling::ScreenRect> rects,
+                  std::span<const std::uint8_t> visible, std::vector<BudgetItem>& items,
+                  WorkerPool* pool) {
+  items.resize(points.size());
+  for_chunks(pool, points.size(), kGrain, [&](std::size_t b, std::size_t e, std::size_t) {
+    for (std::size_t i = b; i < e; ++i) {
+      const bool v = (visible.empty() || visible[i] != 0) && rects[i].in_frustum;
+      items[i] = {v ? rects[i].area() : 0.0f, rects[i].depth, v ? points[i] : 0u};
+    }
+  });
+}
+
+BudgetStats allocate_budget(std::span<const BudgetItem> items, const BudgetParams& params,
+                            std::vector<std::uint32_t>& shares, WorkerPool* pool) {
+  const std::size_t m = items.size();
+  BudgetStats stats;
+  shares.assign(m, 0);
+  if (m == 0 || params.total == 0) return stats;
+
+  const std::vector<Active> act = active_objects(items, params, pool, stats);
+  const std::size_t a = act.size();
+  if (a == 0) return stats;
+  std::vector<std::uint8_t> capped(a, 0);
+  const double lambda = water_fill(act, params, capped, stats);
+  stats.lambda = lambda;
+  std::vector<std::uint32_t> share(a);
+  const std::uint64_t total = integer_shares(act, capped, lambda, params, share);
   for (std::size_t k = 0; k < a; ++k) {
     shares[act[k].index] = share[k];
     stats.receiving += share[k] > 0;

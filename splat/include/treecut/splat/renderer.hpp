@@ -329,6 +329,15 @@ class Renderer {
   void plan_runs(const CutBuffer& cut, std::span<const CutRange> ranges, bool sorted);
   void draw_runs(GLuint elements, const gl::Program& program, const Uniforms& u, RangeHook* hook,
                  const ViewSnapshot& frame, GLuint fbo, bool depth_writes);
+  // render()'s passes (renderer_draw.cpp): those of the mode, high quality's
+  // three, and the query hook after a pass.
+  void draw_passes(GLuint elements, const ViewSnapshot& frame, const RenderSettings& settings,
+                   float fade_weight, RangeHook* hook, const CutBuffer* cut,
+                   std::span<const CutRange> ranges, bool whole);
+  void draw_high_quality(GLuint elements, const ViewSnapshot& frame, const RenderSettings& settings,
+                         float fade_weight, RangeHook* hook, const CutBuffer* cut,
+                         std::span<const CutRange> ranges, bool whole);
+  void run_query_hook(GLuint fbo, const ViewSnapshot& frame);
 
   glm::ivec2 size_{0};
   std::uint32_t node_count_ = 0;
