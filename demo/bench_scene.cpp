@@ -3,7 +3,7 @@
 // walkthrough, with HZM culling on and off at the same budget N, against the
 // exact reference of the renderer: every object in the frustum drawn at full
 // detail (its model's leaves) in SplatMode::ObjectId and read back, as
-// tests/hzm_gl_test.cpp does. Per frame:
+// tests/culling/hzm_gl_test.cpp does. Per frame:
 //   - accuracy: objects the HZM culled / objects truly hidden (in the
 //     strategy's frustum and no pixel of their id), and the wrongly culled
 //     (culled with a pixel: must be 0);

@@ -1,5 +1,5 @@
 // A plugin whose strategies break the rules of docs/plugin-guide.md, one rule
-// each, so tests can check what the host makes of it (plugin_test, built by
+// each, so tests can check what the host makes of it (plugin_gl_test, built by
 // tests/plugin.cmake): every error names the strategy and this file.
 #include <chrono>
 #include <memory>

@@ -1,5 +1,5 @@
 // Shared libraries that no host should have to survive loading, one per
-// TREECUT_ODD variant (tests/plugin.cmake builds each): plugin_test checks
+// TREECUT_ODD variant (tests/plugin.cmake builds each): plugin_gl_test checks
 // that `load_plugin` names them instead of dying or exiting with them.
 //   crash:  the constructor crashes (as a bad pointer in a complete dynamic
 //           section crashes the dynamic loader itself);

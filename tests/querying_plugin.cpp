@@ -1,5 +1,5 @@
 // A plugin with a strategy that posts GPU queries (built by
-// tests/plugin.cmake): render_command_test needs one with a fixed, known set
+// tests/plugin.cmake): render_command_gl_test needs one with a fixed, known set
 // of requests to see the query columns of stats.csv and the queries block of
 // summary.json filled in by a real run (the built-in `hoq` queries too, but
 // what it asks depends on its answers).

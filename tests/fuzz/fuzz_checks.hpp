@@ -1,6 +1,6 @@
 // What must hold for any input the loaders accept, shared by the fuzz targets
 // (tests/fuzz/*_fuzz.cpp) and the replay of their regressions
-// (tests/fuzz_regression_test.cpp). Each check returns an empty string or the
+// (tests/core/fuzz_regression_test.cpp). Each check returns an empty string or the
 // first problem. Header-only: the fuzz targets and the tests build it with
 // their own flags.
 #pragma once

@@ -1,5 +1,5 @@
-// The test programs' precompiled header (tests/CMakeLists.txt,
-// treecut_test_pch): GoogleTest, the standard library and the project
+// The CPU test programs' precompiled header (tests/CMakeLists.txt,
+// treecut_test_cpu_pch; the GL programs' adds the renderer): GoogleTest, the standard library and the project
 // headers that most test files include. Parsing them was about half of a
 // test file's compile (8.2 s -> 4.6 s for event_queue_test with GCC -O1);
 // compiled once, every test program reuses it. A test file still includes
@@ -30,8 +30,6 @@
 #include "treecut/model.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/ply.hpp"
-#include "treecut/splat/context.hpp"
-#include "treecut/splat/renderer.hpp"
 #include "treecut/strategies/builtin.hpp"
 #include "treecut/tools/generate.hpp"
 #include "treecut/tree_cut.hpp"

@@ -5,7 +5,7 @@
 // if parked), the list buffers' uses and the boost of a starved stage. No
 // lock, and no allocation once the pending vectors have grown: these functions
 // stay in one file so that poll() inlines them as before the split
-// (RenderThread.PollExchangeAndRequestNeverAllocate, tests/poll_alloc_test.cpp). See
+// (RenderThread.PollExchangeAndRequestNeverAllocate, tests/core/poll_alloc_test.cpp). See
 // feedback_stage.hpp and docs/threading.md for the ownership rules this file relies on.
 // Model-checked: tests/model/exchange.pml is this protocol in Promela, with the same names (states,
 // buffer uses, poll/exchange/request/retire); change both.

@@ -5,7 +5,7 @@
 // margin of 1e-6 and every result an absolute one of 1e-6 units, so rounding
 // errors (of the order of 1e-15 in double) can only make an event earlier,
 // never later. The event_queue strategy's exactness against topdown
-// (tests/event_queue_test.cpp) rests on these bounds.
+// (tests/strategies/event_queue_gl_test.cpp) rests on these bounds.
 #include <algorithm>
 #include <cmath>
 #include <glm/mat4x4.hpp>

@@ -22,7 +22,7 @@
 //   traversal asks for an answer that is not there (stop-and-wait's every
 //   query; CHC's with an empty traversal queue): that read blocks in the
 //   driver, and its time is the frame's wait_ms and counts as a blocking
-//   read (tests/chc_gl_test.cpp checks both with interposed entry points).
+//   read (tests/culling/chc_gl_test.cpp checks both with interposed entry points).
 //
 // Render thread only, with the renderer's context current. The renderer and
 // the blocks must outlive the device; the blocks must be of the renderer's

@@ -258,7 +258,7 @@ class Renderer {
   /// pass is a minimum (order-free), hq's additive attribute pass draws the
   /// ranges in buffer order (the one-call primitive order), and fast/fixed
   /// color can differ only where two splats have exactly the same depth at
-  /// a pixel (the first drawn wins; tests/render_ranges_test.cpp). A range
+  /// a pixel (the first drawn wins; tests/splat/render_ranges_gl_test.cpp). A range
   /// past the list is clipped. A fading cut fades each range's entering part
   /// and draws the leaving run after the last range. FrameStats::splats
   /// counts the splats of the ranges (FrameStats::points is 0).

@@ -4,7 +4,7 @@
 // the view direction turn (in units of omega) before its fold/unfold test
 // (refinement_criterion.hpp, the same test as `topdown`) can change; an
 // iteration tests only the nodes whose time has come on either clock. The result equals `topdown`'s
-// under the same view, node for node (tests/event_queue_test.cpp).
+// under the same view, node for node (tests/strategies/event_queue_gl_test.cpp).
 //
 // The queue is the paper's faster form: circular buffers of lists, one per
 // fraction of a unit of each clock. Each list is an array of node ids and every node

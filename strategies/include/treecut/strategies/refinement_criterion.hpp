@@ -146,7 +146,7 @@ EventTime potential_fold_event(const CriterionConstants& cam, const glm::vec4& c
 /// unfold_test and the event time for its result in one: {pass, the fold
 /// event} when it passes, {false, the unfold event} when not; the very values
 /// of unfold_test, potential_fold_event and potential_unfold_event (the same
-/// code on the intermediate values of look(); tests/event_queue_test.cpp
+/// code on the intermediate values of look(); tests/strategies/event_queue_gl_test.cpp
 /// compares them), at about half the cost of calling them one after the other.
 struct Decision {
   EventTime t;

@@ -6,7 +6,7 @@
 //
 // Pure C++, no GL: the GL device (treecut/splat/occlusion_device_gl.hpp) does
 // it with GL query objects and the renderer's in-frame range draws; the tests
-// use a CPU device (tests/chc_test.cpp). The CHC traversal
+// use a CPU device (tests/culling/chc_test.cpp). The CHC traversal
 // (treecut/culling/chc.hpp) is the first user; the HOQ in-frame modes
 // (Charalambos et al. 2007) need the same four operations (box queries, a
 // block's representation drawn inside a query, polling, plain draws of

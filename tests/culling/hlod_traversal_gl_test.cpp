@@ -4,7 +4,7 @@
 //  - Coh(B) reads GL_QUERY_RESULT only after GL_QUERY_RESULT_AVAILABLE said
 //    true for that query, or in a read the device counts as a wait, and
 //    never such a wait while its traversal queue has blocks (the interposer
-//    of tests/chc_gl_test.cpp, with availability hidden for a while to make
+//    of tests/culling/chc_gl_test.cpp, with availability hidden for a while to make
 //    the check live);
 //  - Coh(B)'s image against Bool's (the paper's reference) along the walk:
 //    PSNR >= 30 dB on average (section 5.2 of the paper);

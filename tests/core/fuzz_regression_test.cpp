@@ -15,7 +15,7 @@
 #include <vector>
 
 #include "hierarchy/cache_checksum.hpp"
-#include "fuzz/fuzz_checks.hpp"
+#include "../fuzz/fuzz_checks.hpp"
 #include "test_support.hpp"
 #include "treecut/cache.hpp"
 #include "treecut/error.hpp"

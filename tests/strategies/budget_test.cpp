@@ -14,7 +14,7 @@
 #include <random>
 #include <vector>
 
-#include "support/test_support.hpp"
+#include "test_support.hpp"
 #include "treecut/culling/hzm.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/ply.hpp"

@@ -1,5 +1,5 @@
 // Tests of the renderer's non-GL parts: cameras, camera paths and image
-// metrics (the target-frame-rate governor: frame_rate_test.cpp).
+// metrics (the target-frame-rate governor: frame_rate_gl_test.cpp).
 #include <gtest/gtest.h>
 
 #include <cmath>
