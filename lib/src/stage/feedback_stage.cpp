@@ -1,12 +1,12 @@
 // FeedbackStage on one model: the constructor (the model's cut, sorted once,
-// is the first front list) and the naming of strategies and their failures
-// that the rest of the stage uses. The wait/process exchange of "Parallel
+// is the first front list). The wait/process exchange of "Parallel
 // TreeCut Manipulation" (Marton, Schiffner et al.), section 3, figure 2, is
 // split by job beside this file: feedback_stage_thread.cpp (the stage
 // thread: start, Wait, shutdown), feedback_stage_process.cpp (Process:
 // Extract, Iterate, Publish), feedback_stage_exchange.cpp (the render
 // thread's poll, request and exchange), feedback_stage_inputs.cpp (inputs
-// for the next request), feedback_stage_scene.cpp (a stage on a scene). See
+// for the next request), feedback_stage_scene.cpp (a stage on a scene),
+// feedback_stage_errors.cpp (a strategy's failure, named). See
 // feedback_stage.hpp and docs/threading.md for the ownership rules.
 #include "treecut/feedback_stage.hpp"
 
@@ -40,21 +40,6 @@ constexpr bool kCheckedBuild = false;
 bool validate_cuts_by_default() {
   return kCheckedBuild;
 }
-
-std::string describe_strategy(std::string_view name, std::string_view origin) {
-  std::string d = "strategy '" + std::string(name) + "'";
-  if (origin == "built-in") {
-    d += " (built-in)";
-  } else if (!origin.empty()) {
-    d += " (plugin " + std::string(origin) + ")";
-  }
-  return d;
-}
-
-StrategyError::StrategyError(std::string strategy, std::string origin, const std::string& problem)
-    : std::runtime_error(describe_strategy(strategy, origin) + ": " + problem),
-      strategy_(std::move(strategy)),
-      origin_(std::move(origin)) {}
 
 FeedbackStage::Impl::Impl(Model model, std::unique_ptr<Strategy> strategy, StageOptions options)
     : options_(options) {

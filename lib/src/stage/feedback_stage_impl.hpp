@@ -190,6 +190,13 @@ class FeedbackStage::Impl {
 
 namespace treecut::detail {
 
+/// Nanoseconds from a to b (the stage's phase timings).
+inline std::uint64_t ns_between(std::chrono::steady_clock::time_point a,
+                                std::chrono::steady_clock::time_point b) {
+  return static_cast<std::uint64_t>(
+      std::chrono::duration_cast<std::chrono::nanoseconds>(b - a).count());
+}
+
 #if defined(__linux__)
 // Lowers a stage thread (by its handle and tid; Linux keeps a nice value per thread, so
 // PRIO_PROCESS with a thread id changes that thread only). `idle` chooses SCHED_IDLE over nice +19
