@@ -6,19 +6,7 @@
 #   cmake -DBUILD_DIR=... -DSOURCE_DIR=... -DWORK_DIR=... -DMODEL=a.ply
 #         -DGENERATOR=... -DCXX_COMPILER=... [-DBUILD_TYPE=...] [-DEXTRA_FLAGS=...]
 #         -P cmake/embedding_roundtrip.cmake
-foreach(var BUILD_DIR SOURCE_DIR WORK_DIR MODEL GENERATOR CXX_COMPILER)
-  if(NOT DEFINED ${var} OR "${${var}}" STREQUAL "")
-    message(FATAL_ERROR "embedding_roundtrip: ${var} is not set")
-  endif()
-endforeach()
-
-function(run what)
-  execute_process(COMMAND ${ARGN} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE out)
-  if(NOT rc EQUAL 0)
-    message(FATAL_ERROR "embedding_roundtrip: ${what} failed (${rc}):\n${out}")
-  endif()
-  set(run_output "${out}" PARENT_SCOPE)
-endfunction()
+include(${CMAKE_CURRENT_LIST_DIR}/package_roundtrip.cmake)
 
 # The one fenced block of LANGUAGE in the doc.
 function(doc_block language out_file)
@@ -35,17 +23,10 @@ function(doc_block language out_file)
   file(WRITE "${out_file}" "${block}")
 endfunction()
 
-file(REMOVE_RECURSE "${WORK_DIR}")
-set(prefix "${WORK_DIR}/prefix")
-run("install" ${CMAKE_COMMAND} --install "${BUILD_DIR}" --prefix "${prefix}"
-    --component treecut_development)
+roundtrip_begin(embedding_roundtrip BUILD_DIR SOURCE_DIR WORK_DIR MODEL GENERATOR CXX_COMPILER)
 doc_block(cmake "${WORK_DIR}/src/CMakeLists.txt")
 doc_block(cpp "${WORK_DIR}/src/embed.cpp")
-run("configure" ${CMAKE_COMMAND} -S "${WORK_DIR}/src" -B "${WORK_DIR}/build" -G "${GENERATOR}"
-    "-DCMAKE_PREFIX_PATH=${prefix}" "-DCMAKE_BUILD_TYPE=${BUILD_TYPE}"
-    "-DCMAKE_CXX_COMPILER=${CXX_COMPILER}" "-DCMAKE_CXX_FLAGS=${EXTRA_FLAGS}"
-    "-DCMAKE_EXE_LINKER_FLAGS=${EXTRA_FLAGS}")
-run("build" ${CMAKE_COMMAND} --build "${WORK_DIR}/build")
+build_against_package("embed" "${WORK_DIR}/src" "${WORK_DIR}/build" CMAKE_EXE_LINKER_FLAGS)
 set(png "${WORK_DIR}/last.png")
 # Its own cache folder: the run maps or builds MODEL's hierarchy there.
 run("embed" ${CMAKE_COMMAND} -E env "XDG_CACHE_HOME=${WORK_DIR}/cache"

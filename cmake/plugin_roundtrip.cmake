@@ -1,27 +1,8 @@
 # Script (cmake -P) behind the example_plugin_roundtrip test; see tests/plugin.cmake.
-foreach(var BUILD_DIR SOURCE_DIR WORK_DIR PLUGIN_TEST GENERATOR CXX_COMPILER)
-  if(NOT DEFINED ${var} OR "${${var}}" STREQUAL "")
-    message(FATAL_ERROR "plugin_roundtrip: ${var} is not set")
-  endif()
-endforeach()
-
-function(run what)
-  execute_process(COMMAND ${ARGN} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE out)
-  if(NOT rc EQUAL 0)
-    message(FATAL_ERROR "plugin_roundtrip: ${what} failed (${rc}):\n${out}")
-  endif()
-  set(run_output "${out}" PARENT_SCOPE)
-endfunction()
-
-file(REMOVE_RECURSE "${WORK_DIR}")
-set(prefix "${WORK_DIR}/prefix")
-run("install" ${CMAKE_COMMAND} --install "${BUILD_DIR}" --prefix "${prefix}"
-    --component treecut_development)
-run("plugin configure" ${CMAKE_COMMAND} -S "${SOURCE_DIR}/strategies/example_plugin"
-    -B "${WORK_DIR}/build" -G "${GENERATOR}" "-DCMAKE_PREFIX_PATH=${prefix}"
-    "-DCMAKE_BUILD_TYPE=${BUILD_TYPE}" "-DCMAKE_CXX_COMPILER=${CXX_COMPILER}"
-    "-DCMAKE_CXX_FLAGS=${EXTRA_FLAGS}" "-DCMAKE_MODULE_LINKER_FLAGS=${EXTRA_FLAGS}")
-run("plugin build" ${CMAKE_COMMAND} --build "${WORK_DIR}/build")
+include(${CMAKE_CURRENT_LIST_DIR}/package_roundtrip.cmake)
+roundtrip_begin(plugin_roundtrip BUILD_DIR SOURCE_DIR WORK_DIR PLUGIN_TEST GENERATOR CXX_COMPILER)
+build_against_package("plugin" "${SOURCE_DIR}/strategies/example_plugin" "${WORK_DIR}/build"
+                      CMAKE_MODULE_LINKER_FLAGS)
 set(plugin "${WORK_DIR}/build/libtreecut_example_plugin.so")
 if(NOT EXISTS "${plugin}")
   message(FATAL_ERROR "plugin_roundtrip: ${plugin} was not built")
