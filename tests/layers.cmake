@@ -9,7 +9,7 @@
 # splat or demo header; lib/culling/ none of strategies, splat or demo;
 # splat/ none of strategies or demo; strategies/ none of splat or demo.
 # demo/ includes demo/tools/ (treecut::tools), so treecut/tools/ counts as
-# demo's.
+# demo's, and so does the umbrella header treecut/treecut.hpp (demo/umbrella).
 #
 #     cmake -DROOT=<a source tree> -P tests/layers.cmake
 #
@@ -29,13 +29,14 @@ endif()
 # layer | its folders | the include prefixes it must not use
 set(layer_names core culling splat strategies)
 set(core_dirs lib/include lib/src)
-set(core_banned "treecut/culling/" "treecut/strategies/" "treecut/splat/" "treecut/tools/")
+set(core_banned "treecut/culling/" "treecut/strategies/" "treecut/splat/" "treecut/tools/"
+                "treecut/treecut.hpp")
 set(culling_dirs lib/culling)
-set(culling_banned "treecut/strategies/" "treecut/splat/" "treecut/tools/")
+set(culling_banned "treecut/strategies/" "treecut/splat/" "treecut/tools/" "treecut/treecut.hpp")
 set(splat_dirs splat)
-set(splat_banned "treecut/strategies/" "treecut/tools/")
+set(splat_banned "treecut/strategies/" "treecut/tools/" "treecut/treecut.hpp")
 set(strategies_dirs strategies)
-set(strategies_banned "treecut/splat/" "treecut/tools/")
+set(strategies_banned "treecut/splat/" "treecut/tools/" "treecut/treecut.hpp")
 
 set(problems 0)
 foreach(layer IN LISTS layer_names)
