@@ -55,6 +55,148 @@ double median_of(const std::vector<Row>& rows, double Row::*field) {
   return v.empty() ? 0.0 : median(std::move(v));
 }
 
+// The methods' rows, in this order: the four in-frame traversals, then the
+// stage strategy.
+constexpr std::size_t kBool = 0, kSwB = 1, kSimp = 2, kCoh = 3, kHoq = 4;
+
+// One frame of an in-frame traversal (Bool, SW(B), Simp(B), Coh(B)) on the
+// occlusion device.
+Row traversal_row(culling::HlodTraversal& traversal, splat::GlOcclusionDevice& device,
+                  const splat::Camera& cam, const HlodBenchInput& in) {
+  Row row;
+  device.set_view_render_thread(cam, in.settings);
+  const culling::HlodFrameStats s = traversal.frame_render_thread(device, cam.view(in.size), true);
+  row.frame_ms = s.frame_ms;
+  row.drawn = double(s.drawn);
+  row.splats = double(s.splats);
+  row.rarn = double(s.rarn);
+  row.delayed = double(s.delayed_drawn);
+  row.delayed_all = double(s.delayed);
+  row.queries = double(s.queries);
+  row.wait_ms = s.wait_ms;
+  row.d_shift_up = double(s.delayed_drawn_shift_up);
+  row.d_new = double(s.delayed_drawn_new);
+  row.d_hidden = double(s.delayed_drawn_hidden);
+  row.stopped_hidden = double(s.stopped_hidden);
+  return row;
+}
+
+// One frame of the stage strategy `hoq` through the frame layer, as
+// `treecut render --sync`: the frame timed, then the stage's iteration.
+Row stage_hoq_row(splat::RenderThreadFrame& frame_loop, Controller& controller,
+                  const strategies::HoqStrategy& hoq, const splat::QueryExecutor& queries,
+                  const splat::Camera& cam, const splat::RenderSettings& settings) {
+  Row row;
+  const std::uint64_t issued = queries.stats().issued;
+  const auto t0 = std::chrono::steady_clock::now();
+  const splat::FrameResult fr = frame_loop.run_render_thread(cam, settings, true);
+  row.frame_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  controller.stage().step();  // outside the frame time, as render --sync
+  const strategies::HoqCounters& c = hoq.last();
+  row.drawn = double(c.drawn);
+  row.splats = double(fr.stats.splats);
+  row.rarn = double(c.rarn);
+  // The stage form's D: blocks whose decision waits for an answer (drawn
+  // at their level meanwhile, or shift-up candidates).
+  row.delayed = double(c.delayed);
+  row.delayed_all = double(c.delayed);
+  row.queries = double(queries.stats().issued - issued);
+  return row;
+}
+
+// Per frame of the path, 1 where the PSNR is measured: PSNR_FRAMES evenly
+// spread over its N frames.
+std::vector<std::uint8_t> psnr_frame_marks(std::size_t n, int psnr_frames) {
+  std::vector<std::uint8_t> psnr_frame(n, 0);
+  const std::size_t k = std::min<std::size_t>(std::max(psnr_frames, 0), n);
+  for (std::size_t i = 0; i < k; ++i) psnr_frame[k == 1 ? 0 : i * (n - 1) / (k - 1)] = 1;
+  return psnr_frame;
+}
+
+// The paper's table 1 (one line per method) and Coh(B)'s analysis line.
+void print_table(const std::vector<Method>& methods, float tau) {
+  const double coh_ms = mean_of(methods[kCoh].rows, &Row::frame_ms);
+  std::printf(
+      "\nHLOD refinement (Charalambos et al. 2007), tau = %.2f px, s = t = 0.5; DN = HLOD blocks "
+      "drawn; speed-up = method's frame ms / Coh(B)'s\n",
+      double(tau));
+  std::printf(
+      "| method | DN | splats | RARN | D | D / DN | all delays | queries | wait ms | frame ms "
+      "(mean) | frame ms (median) | speed-up of Coh(B) |\n");
+  std::printf("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+  for (const Method& m : methods) {
+    const double dn = mean_of(m.rows, &Row::drawn);
+    const double d = mean_of(m.rows, &Row::delayed);
+    const double ms = mean_of(m.rows, &Row::frame_ms);
+    std::printf(
+        "| %s | %.1f | %.0f | %.2f | %.2f | %.2f%% | %.2f | %.1f | %.3f | %.2f | %.2f | "
+        "%.2f |\n",
+        m.name.c_str(), dn, mean_of(m.rows, &Row::splats), mean_of(m.rows, &Row::rarn), d,
+        dn > 0 ? 100.0 * d / dn : 0.0, mean_of(m.rows, &Row::delayed_all),
+        mean_of(m.rows, &Row::queries), mean_of(m.rows, &Row::wait_ms), ms,
+        median_of(m.rows, &Row::frame_ms), coh_ms > 0 ? ms / coh_ms : 0.0);
+  }
+  const std::vector<Row>& c = methods[kCoh].rows;
+  std::printf(
+      "Coh(B) per frame: D by cause: shift-up %.2f, new to the traversal %.2f, hidden last "
+      "frame %.2f; stops drawn and found hidden %.2f (Simp(B) %.2f); splats per drawn block: "
+      "Bool %.0f, SW(B) %.0f, Coh(B) %.0f\n",
+      mean_of(c, &Row::d_shift_up), mean_of(c, &Row::d_new), mean_of(c, &Row::d_hidden),
+      mean_of(c, &Row::stopped_hidden), mean_of(methods[kSimp].rows, &Row::stopped_hidden),
+      mean_of(methods[kBool].rows, &Row::splats) /
+          std::max(mean_of(methods[kBool].rows, &Row::drawn), 1e-9),
+      mean_of(methods[kSwB].rows, &Row::splats) /
+          std::max(mean_of(methods[kSwB].rows, &Row::drawn), 1e-9),
+      mean_of(c, &Row::splats) / std::max(mean_of(c, &Row::drawn), 1e-9));
+}
+
+// The PSNR (section 5.2) of Coh(B) and the stage strategy against Bool's images.
+void print_psnr(const std::vector<Method>& methods) {
+  for (const std::size_t m : {kCoh, kHoq}) {
+    double sum = 0.0, low = std::numeric_limits<double>::infinity();
+    int count = 0, capped = 0;
+    for (const Row& r : methods[m].rows) {
+      if (!std::isfinite(r.psnr)) continue;
+      sum += r.psnr;
+      low = std::min(low, r.psnr);
+      ++count;
+      capped += r.psnr >= kLumaPsnrCap ? 1 : 0;
+    }
+    std::printf(
+        "PSNR (luma) of %s against Bool on %d frames: mean %.2f dB, min %.2f dB (%d frames "
+        "identical, counted as %.0f dB)\n",
+        methods[m].name.c_str(), count, count > 0 ? sum / count : 0.0, count > 0 ? low : 0.0,
+        capped, kLumaPsnrCap);
+  }
+}
+
+// The per-frame CSV (kCsvHeader) of the path's N frames, every method a line.
+void write_csv(const std::filesystem::path& csv, const std::vector<Method>& methods,
+               std::size_t n) {
+  std::ostringstream o;
+  o << kCsvHeader << "\n";
+  for (std::size_t f = 0; f < n; ++f) {
+    for (const Method& m : methods) {
+      const Row& r = m.rows[f];
+      char line[256];
+      std::snprintf(line, sizeof line, "%zu,%s,%.4f,%.0f,%.0f,%.0f,%.0f,%.0f,%.0f,%.4f,", f,
+                    m.name.c_str(), r.frame_ms, r.drawn, r.splats, r.rarn, r.delayed, r.delayed_all,
+                    r.queries, r.wait_ms);
+      o << line;
+      if (std::isfinite(r.psnr)) o << r.psnr;
+      o << "\n";
+    }
+  }
+  if (!csv.parent_path().empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(csv.parent_path(), ec);
+    if (ec) throw std::runtime_error(quoted_name(csv.parent_path()) + ": " + ec.message());
+  }
+  write_file_atomically(csv, o.str());
+  std::printf("csv       %s\n", csv.string().c_str());
+}
+
 }  // namespace
 
 std::filesystem::path hlod_csv_path(const std::filesystem::path& dir, const std::string& scene) {
@@ -82,7 +224,6 @@ void run_hlod_table(const HlodBenchInput& in) {
     methods.push_back({std::string(culling::hlod_mode_name(m)), {}});
   }
   methods.push_back({"hoq (stage)", {}});  // no comma: a CSV field
-  const std::size_t kBool = 0, kSwB = 1, kSimp = 2, kCoh = 3, kHoq = 4;
 
   // The stage strategy through the frame layer, as `treecut render --sync`:
   // its queries go through the executor, its iteration runs after the frame.
@@ -98,41 +239,8 @@ void run_hlod_table(const HlodBenchInput& in) {
   splat::RenderThreadFrame frame_loop(controller, renderer, &queries);
 
   auto run = [&](std::size_t m, const splat::Camera& cam) {
-    Row row;
-    if (m == kHoq) {
-      const std::uint64_t issued = queries.stats().issued;
-      const auto t0 = std::chrono::steady_clock::now();
-      const splat::FrameResult fr = frame_loop.run_render_thread(cam, in.settings, true);
-      row.frame_ms =
-          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-      controller.stage().step();  // outside the frame time, as render --sync
-      const strategies::HoqCounters& c = hoq->last();
-      row.drawn = double(c.drawn);
-      row.splats = double(fr.stats.splats);
-      row.rarn = double(c.rarn);
-      // The stage form's D: blocks whose decision waits for an answer (drawn
-      // at their level meanwhile, or shift-up candidates).
-      row.delayed = double(c.delayed);
-      row.delayed_all = double(c.delayed);
-      row.queries = double(queries.stats().issued - issued);
-      return row;
-    }
-    device.set_view_render_thread(cam, in.settings);
-    const culling::HlodFrameStats s =
-        traversals[m].frame_render_thread(device, cam.view(size), true);
-    row.frame_ms = s.frame_ms;
-    row.drawn = double(s.drawn);
-    row.splats = double(s.splats);
-    row.rarn = double(s.rarn);
-    row.delayed = double(s.delayed_drawn);
-    row.delayed_all = double(s.delayed);
-    row.queries = double(s.queries);
-    row.wait_ms = s.wait_ms;
-    row.d_shift_up = double(s.delayed_drawn_shift_up);
-    row.d_new = double(s.delayed_drawn_new);
-    row.d_hidden = double(s.delayed_drawn_hidden);
-    row.stopped_hidden = double(s.stopped_hidden);
-    return row;
+    if (m == kHoq) return stage_hoq_row(frame_loop, controller, *hoq, queries, cam, in.settings);
+    return traversal_row(traversals[m], device, cam, in);
   };
   auto grab = [&] { return splat::Image{size.x, size.y, renderer.read_pixels()}; };
 
@@ -142,11 +250,8 @@ void run_hlod_table(const HlodBenchInput& in) {
   for (int i = 0; i < kWarmup; ++i) {
     for (std::size_t m = 0; m < methods.size(); ++m) (void)run(m, in.cameras.front());
   }
-  // PSNR frames: `psnr_frames` evenly spread over the path.
   const std::size_t n = in.cameras.size();
-  std::vector<std::uint8_t> psnr_frame(n, 0);
-  const std::size_t k = std::min<std::size_t>(std::max(in.psnr_frames, 0), n);
-  for (std::size_t i = 0; i < k; ++i) psnr_frame[k == 1 ? 0 : i * (n - 1) / (k - 1)] = 1;
+  const std::vector<std::uint8_t> psnr_frame = psnr_frame_marks(n, in.psnr_frames);
   for (std::size_t f = 0; f < n; ++f) {
     splat::Image reference;
     for (std::size_t m = 0; m < methods.size(); ++m) {
@@ -163,82 +268,10 @@ void run_hlod_table(const HlodBenchInput& in) {
     }
   }
 
-  const double coh_ms = mean_of(methods[kCoh].rows, &Row::frame_ms);
-  std::printf(
-      "\nHLOD refinement (Charalambos et al. 2007), tau = %.2f px, s = t = 0.5; DN = HLOD blocks "
-      "drawn; speed-up = method's frame ms / Coh(B)'s\n",
-      double(in.tau));
-  std::printf(
-      "| method | DN | splats | RARN | D | D / DN | all delays | queries | wait ms | frame ms "
-      "(mean) | frame ms (median) | speed-up of Coh(B) |\n");
-  std::printf("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
-  for (const Method& m : methods) {
-    const double dn = mean_of(m.rows, &Row::drawn);
-    const double d = mean_of(m.rows, &Row::delayed);
-    const double ms = mean_of(m.rows, &Row::frame_ms);
-    std::printf(
-        "| %s | %.1f | %.0f | %.2f | %.2f | %.2f%% | %.2f | %.1f | %.3f | %.2f | %.2f | "
-        "%.2f |\n",
-        m.name.c_str(), dn, mean_of(m.rows, &Row::splats), mean_of(m.rows, &Row::rarn), d,
-        dn > 0 ? 100.0 * d / dn : 0.0, mean_of(m.rows, &Row::delayed_all),
-        mean_of(m.rows, &Row::queries), mean_of(m.rows, &Row::wait_ms), ms,
-        median_of(m.rows, &Row::frame_ms), coh_ms > 0 ? ms / coh_ms : 0.0);
-  }
-  {
-    const std::vector<Row>& c = methods[kCoh].rows;
-    std::printf(
-        "Coh(B) per frame: D by cause: shift-up %.2f, new to the traversal %.2f, hidden last "
-        "frame %.2f; stops drawn and found hidden %.2f (Simp(B) %.2f); splats per drawn block: "
-        "Bool %.0f, SW(B) %.0f, Coh(B) %.0f\n",
-        mean_of(c, &Row::d_shift_up), mean_of(c, &Row::d_new), mean_of(c, &Row::d_hidden),
-        mean_of(c, &Row::stopped_hidden), mean_of(methods[kSimp].rows, &Row::stopped_hidden),
-        mean_of(methods[kBool].rows, &Row::splats) /
-            std::max(mean_of(methods[kBool].rows, &Row::drawn), 1e-9),
-        mean_of(methods[kSwB].rows, &Row::splats) /
-            std::max(mean_of(methods[kSwB].rows, &Row::drawn), 1e-9),
-        mean_of(c, &Row::splats) / std::max(mean_of(c, &Row::drawn), 1e-9));
-  }
-  for (const std::size_t m : {kCoh, kHoq}) {
-    double sum = 0.0, low = std::numeric_limits<double>::infinity();
-    int count = 0, capped = 0;
-    for (const Row& r : methods[m].rows) {
-      if (!std::isfinite(r.psnr)) continue;
-      sum += r.psnr;
-      low = std::min(low, r.psnr);
-      ++count;
-      capped += r.psnr >= kLumaPsnrCap ? 1 : 0;
-    }
-    std::printf(
-        "PSNR (luma) of %s against Bool on %d frames: mean %.2f dB, min %.2f dB (%d frames "
-        "identical, counted as %.0f dB)\n",
-        methods[m].name.c_str(), count, count > 0 ? sum / count : 0.0, count > 0 ? low : 0.0,
-        capped, kLumaPsnrCap);
-  }
+  print_table(methods, in.tau);
+  print_psnr(methods);
   std::fflush(stdout);
-
-  if (!in.csv.empty()) {
-    std::ostringstream o;
-    o << kCsvHeader << "\n";
-    for (std::size_t f = 0; f < n; ++f) {
-      for (const Method& m : methods) {
-        const Row& r = m.rows[f];
-        char line[256];
-        std::snprintf(line, sizeof line, "%zu,%s,%.4f,%.0f,%.0f,%.0f,%.0f,%.0f,%.0f,%.4f,", f,
-                      m.name.c_str(), r.frame_ms, r.drawn, r.splats, r.rarn, r.delayed,
-                      r.delayed_all, r.queries, r.wait_ms);
-        o << line;
-        if (std::isfinite(r.psnr)) o << r.psnr;
-        o << "\n";
-      }
-    }
-    if (!in.csv.parent_path().empty()) {
-      std::error_code ec;
-      std::filesystem::create_directories(in.csv.parent_path(), ec);
-      if (ec) throw std::runtime_error(quoted_name(in.csv.parent_path()) + ": " + ec.message());
-    }
-    write_file_atomically(in.csv, o.str());
-    std::printf("csv       %s\n", in.csv.string().c_str());
-  }
+  if (!in.csv.empty()) write_csv(in.csv, methods, n);
 }
 
 }  // namespace treecut::cli

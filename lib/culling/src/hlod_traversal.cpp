@@ -169,8 +169,7 @@ void HlodTraversal::answer(const Pending& p, std::uint64_t samples) {
   if (options_.mode == HlodMode::Bool) {
     bias_[b] = visible ? 1.0f : 0.0f;  // the answer only as visible or not
   } else {
-    const double pixels =
-        box_projected_pixels(*view_, blocks_->box(b));
+    const double pixels = box_projected_pixels(*view_, blocks_->box(b));
     const float mu = hoq::relative_visibility(
         static_cast<std::uint32_t>(std::min<std::uint64_t>(samples, 0xffffffffu)), pixels);
     bias_[b] = hoq::sigmoid_bias(mu, options_.s, options_.t);
@@ -207,6 +206,39 @@ void HlodTraversal::answer(const Pending& p, std::uint64_t samples) {
       break;
     case Kind::Refined:
       break;  // its children are traversed already; the answer keeps its bias current
+  }
+}
+
+// Coh(B): the paper's PredictRefinement (figure 3) from last frame's state,
+// and its action: Refine, Stop (query and draw) or Delay (query, wait).
+[[gnu::always_inline]] inline void HlodTraversal::visit_coh_b(BlockId b, float block_sse,
+                                                              bool visited_last, bool was_visible,
+                                                              bool was_stopped, bool was_outside) {
+  children_.clear();
+  if (visited_last && !was_stopped && !blocks_->is_leaf(b)) {
+    const BlockId first = blocks_->first_child(b);
+    for (BlockId c = first; c < first + blocks_->child_count(b); ++c) {
+      children_.push_back({stop_[c] != 0, bias_[c], sse(c)});
+    }
+  }
+  const hoq::NodeState ns{visited_last, was_visible, was_stopped, bias_[b]};
+  switch (hoq::predict_refinement(ns, block_sse, children_, options_.tau)) {
+    case hoq::Prediction::Refine:
+      push_children(b);
+      return;
+    case hoq::Prediction::Stop:
+      query(b, Kind::Drawn, block_sse);
+      draw(b);
+      return;
+    case hoq::Prediction::Delay: {
+      ++stats_.delayed;
+      const Why why = !visited_last || was_outside ? Why::New
+                      : !was_visible               ? Why::Hidden
+                                                   : Why::ShiftUp;
+      if (why == Why::ShiftUp) ++stats_.delayed_shift_up;
+      query(b, Kind::Delayed, block_sse, why);
+      return;
+    }
   }
 }
 
@@ -279,35 +311,9 @@ void HlodTraversal::visit(const Entry& e) {
       }
       return;
     }
-    case HlodMode::CohB: {
-      children_.clear();
-      if (visited_last && !was_stopped && !leaf) {
-        const BlockId first = blocks_->first_child(b);
-        for (BlockId c = first; c < first + blocks_->child_count(b); ++c) {
-          children_.push_back({stop_[c] != 0, bias_[c], sse(c)});
-        }
-      }
-      const hoq::NodeState ns{visited_last, was_visible, was_stopped, bias_[b]};
-      switch (hoq::predict_refinement(ns, block_sse, children_, tau)) {
-        case hoq::Prediction::Refine:
-          push_children(b);
-          return;
-        case hoq::Prediction::Stop:
-          query(b, Kind::Drawn, block_sse);
-          draw(b);
-          return;
-        case hoq::Prediction::Delay: {
-          ++stats_.delayed;
-          const Why why = !visited_last || was_outside ? Why::New
-                          : !was_visible               ? Why::Hidden
-                                                       : Why::ShiftUp;
-          if (why == Why::ShiftUp) ++stats_.delayed_shift_up;
-          query(b, Kind::Delayed, block_sse, why);
-          return;
-        }
-      }
+    case HlodMode::CohB:
+      visit_coh_b(b, block_sse, visited_last, was_visible, was_stopped, was_outside);
       return;
-    }
   }
 }
 

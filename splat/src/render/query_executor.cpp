@@ -184,7 +184,8 @@ bool QueryExecutor::answer_on_host(const Queued& q, const ViewSnapshot& view) {
   const glm::vec3 d = glm::vec3(s) - view.derived.eye;
   if (d.x * d.x + d.y * d.y + d.z * d.z <= s.w * s.w) {
     // The eye inside the sphere: it covers the whole view.
-    answer(q, r.kind == QueryKind::AnySamples ? 1u : std::uint32_t(view.viewport.x * view.viewport.y),
+    answer(q,
+           r.kind == QueryKind::AnySamples ? 1u : std::uint32_t(view.viewport.x * view.viewport.y),
            frame_);
     return true;
   }
@@ -265,15 +266,8 @@ void QueryExecutor::poll_render_thread() {
   }
 }
 
-void QueryExecutor::issue_render_thread(const ViewSnapshot& view, std::size_t end) {
-  if (ring_count_ > 0 && ring_[(ring_head_ + ring_count_ - 1) % ring_.size()].fence == nullptr) {
-    return;  // run() twice in one frame: one batch per frame, the rest waits
-  }
-  if (ring_count_ == ring_.size()) {
-    ++stats_.ring_full;  // every slot still on the GPU: the requests wait a frame
-    return;
-  }
-  Batch& b = ring_[(ring_head_ + ring_count_) % ring_.size()];
+void QueryExecutor::collect_proxies_render_thread(Batch& b, const ViewSnapshot& view,
+                                                  std::size_t end) {
   b.requests.clear();
   staging_.clear();
   staging_quads_.clear();
@@ -299,29 +293,30 @@ void QueryExecutor::issue_render_thread(const ViewSnapshot& view, std::size_t en
     }
   }
   queue_next_ = end;
-  const std::size_t n_points = b.requests.size();
-  const std::size_t n_quads = quad_requests_.size();
-  b.requests.insert(b.requests.end(), quad_requests_.begin(), quad_requests_.end());
-  if (b.requests.empty()) return;
+}
+
+void QueryExecutor::reserve_batch_buffer(Batch& b, std::size_t n) {
+  if (b.capacity >= n) return;
+  // Grown to a power of two: a few sizes over a run, then reused.
+  std::size_t cap = 256;
+  while (cap < n) cap *= 2;
+  // Counters and proxies in one buffer, mapped once, persistent and
+  // coherent: the batch is written straight into the mapping (a
+  // glNamedBufferSubData may make the driver synchronize), and a read after
+  // the fence needs only GL_CLIENT_MAPPED_BUFFER_BARRIER_BIT.
+  constexpr GLbitfield kMap =
+      GL_MAP_READ_BIT | GL_MAP_WRITE_BIT | GL_MAP_PERSISTENT_BIT | GL_MAP_COHERENT_BIT;
+  const std::size_t bytes = cap * (sizeof(std::uint32_t) + sizeof(glm::vec4)) + 16;
+  b.buffer = gl::Buffer::create(bytes, nullptr, kMap);
+  b.mapped = static_cast<std::byte*>(
+      gl::MapNamedBufferRange(b.buffer.id(), 0, static_cast<GLsizeiptr>(bytes), kMap));
+  if (b.mapped == nullptr) throw gl::GlError("QueryExecutor: cannot map the sample counters");
+  if (b.capacity == 0) ++stats_.pool_size;
+  b.capacity = cap;
+}
+
+std::size_t QueryExecutor::write_batch(Batch& b, std::size_t n_points, std::size_t n_quads) {
   const std::size_t n = b.requests.size();
-  if (b.capacity < n) {
-    // Grown to a power of two: a few sizes over a run, then reused.
-    std::size_t cap = 256;
-    while (cap < n) cap *= 2;
-    // Counters and proxies in one buffer, mapped once, persistent and
-    // coherent: the batch is written straight into the mapping (a
-    // glNamedBufferSubData may make the driver synchronize), and a read after
-    // the fence needs only GL_CLIENT_MAPPED_BUFFER_BARRIER_BIT.
-    constexpr GLbitfield kMap =
-        GL_MAP_READ_BIT | GL_MAP_WRITE_BIT | GL_MAP_PERSISTENT_BIT | GL_MAP_COHERENT_BIT;
-    const std::size_t bytes = cap * (sizeof(std::uint32_t) + sizeof(glm::vec4)) + 16;
-    b.buffer = gl::Buffer::create(bytes, nullptr, kMap);
-    b.mapped = static_cast<std::byte*>(
-        gl::MapNamedBufferRange(b.buffer.id(), 0, static_cast<GLsizeiptr>(bytes), kMap));
-    if (b.mapped == nullptr) throw gl::GlError("QueryExecutor: cannot map the sample counters");
-    if (b.capacity == 0) ++stats_.pool_size;
-    b.capacity = cap;
-  }
   // n zeroed counters, then (16-byte aligned) the points and the quads'
   // spheres. The slot's last batch was read after its fence: the GPU is
   // done with this memory.
@@ -335,6 +330,12 @@ void QueryExecutor::issue_render_thread(const ViewSnapshot& view, std::size_t en
     std::memcpy(b.mapped + data_at + n_points * sizeof(glm::vec4), staging_quads_.data(),
                 n_quads * sizeof(glm::vec4));
   }
+  return data_at;
+}
+
+void QueryExecutor::draw_batch_render_thread(const Batch& b, const ViewSnapshot& view,
+                                             std::size_t data_at, std::size_t n_points,
+                                             std::size_t n_quads) {
   begin_proxy_state();
   gl::BindBufferBase(GL_SHADER_STORAGE_BUFFER, kCounterBinding, b.buffer.id());
   if (n_points > 0) {
@@ -362,6 +363,27 @@ void QueryExecutor::issue_render_thread(const ViewSnapshot& view, std::size_t en
   // No barrier and fence here: fence_last_batch_render_thread() sets them
   // when the next frame begins (see there).
   end_proxy_state();
+}
+
+void QueryExecutor::issue_render_thread(const ViewSnapshot& view, std::size_t end) {
+  if (ring_count_ > 0 && ring_[(ring_head_ + ring_count_ - 1) % ring_.size()].fence == nullptr) {
+    return;  // run() twice in one frame: one batch per frame, the rest waits
+  }
+  if (ring_count_ == ring_.size()) {
+    ++stats_.ring_full;  // every slot still on the GPU: the requests wait a frame
+    return;
+  }
+  Batch& b = ring_[(ring_head_ + ring_count_) % ring_.size()];
+  collect_proxies_render_thread(b, view, end);
+  const std::size_t n_points = b.requests.size();
+  const std::size_t n_quads = quad_requests_.size();
+  // Points first: the same order as the counters.
+  b.requests.insert(b.requests.end(), quad_requests_.begin(), quad_requests_.end());
+  if (b.requests.empty()) return;
+  const std::size_t n = b.requests.size();
+  reserve_batch_buffer(b, n);
+  const std::size_t data_at = write_batch(b, n_points, n_quads);
+  draw_batch_render_thread(b, view, data_at, n_points, n_quads);
   b.frame_issued = frame_;
   ++ring_count_;
   ++stats_.batches;

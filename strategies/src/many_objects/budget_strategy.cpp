@@ -43,6 +43,19 @@ std::uint64_t cpu_since(const WorkerPool& pool, std::uint64_t& t) {
 // a few objects a chunk already balance the two threads.
 constexpr std::size_t kLodGrain = 4;
 
+// Cancelled: the lists before stay (a valid scene list by definition).
+void keep_previous_lists(const SceneIterationInput& input, SceneIterationOutput& output,
+                         std::size_t n) {
+  output.nodes->assign(input.previous.begin(), input.previous.end());
+  output.offsets->assign(input.previous_offsets.begin(), input.previous_offsets.end());
+  if (output.offsets->size() != n + 1) output.offsets->assign(n + 1, 0);
+  if (output.offsets->back() != output.nodes->size()) {
+    output.nodes->clear();
+    output.offsets->assign(n + 1, 0);
+  }
+  output.result.cancelled = true;
+}
+
 std::vector<ParamSpec> budget_specs() {
   return {
       {"points", "N: points (splats) for the whole scene, shared by Eq. 1", 1'000'000.0, 0.0, 1e9,
@@ -197,6 +210,117 @@ void BudgetStrategy::ensure_culler() {
   }
 }
 
+// The clocks of one scene iteration's phases: each lap is the wall and CPU
+// time since the previous lap (or since the clock was made).
+struct BudgetStrategy::PhaseClock {
+  explicit PhaseClock(const WorkerPool& p) : pool(p), t(Clock::now()), cpu(pool_cpu_ns(p)) {}
+  void lap(std::uint64_t& wall_ns, std::uint64_t& cpu_ns) {
+    wall_ns = ns_since(t);
+    cpu_ns = cpu_since(pool, cpu);
+  }
+  const WorkerPool& pool;
+  Clock::time_point t;
+  std::uint64_t cpu;
+};
+
+bool BudgetStrategy::update_open_faces(const ViewSnapshot& view) {
+  // Objects open on one face occlude only while the eye is on its inner side.
+  const glm::dvec3 eye(view.derived.eye);
+  bool moved = false;
+  for (std::size_t j = 0; j < open_.size(); ++j) {
+    const glm::dvec4& p = open_planes_[j];
+    const std::uint8_t inside = glm::dot(glm::dvec3(p), eye) + p.w < 0.0 ? 1 : 0;
+    // The dense copy of has_inner: the SceneObjects (156 bytes each) are
+    // touched only where it changes.
+    if (open_inside_[j] != inside) {
+      open_inside_[j] = inside;
+      objects_[open_[j]].has_inner = inside != 0;
+      moved = true;
+    }
+  }
+  return moved;
+}
+
+void BudgetStrategy::cull(const ViewSnapshot& view, WorkerPool* pool, PhaseClock& clock,
+                          BudgetCounters& c) {
+  const std::size_t n = objects_.size();
+  culling::HzmCuller& culler = *culler_;
+  const bool culling = param_at(kCulling) != 0.0;
+  culler.project(objects_, view, pool);
+  clock.lap(c.project_ns, c.project_cpu_ns);
+  if (!culling) {
+    visible_.resize(n);
+    const auto rects = culler.rects();
+    for (std::size_t i = 0; i < n; ++i) {
+      visible_[i] = rects[i].in_frustum ? 1 : 0;
+      c.frustum_culled += rects[i].in_frustum ? 0 : 1;
+      c.visible += visible_[i];
+    }
+    return;
+  }
+  culler.select_occluders(objects_, view, pool);
+  clock.lap(c.select_ns, c.select_cpu_ns);
+  culler.build_hzm(objects_, view, pool);
+  clock.lap(c.hzm_ns, c.hzm_cpu_ns);
+  culler.test(objects_, pool);
+  clock.lap(c.test_ns, c.test_cpu_ns);
+  visible_.assign(culler.visible().begin(), culler.visible().end());
+  c.occluders = culler.active().size();
+  // The counts from the states (a byte an object; Outside is exactly the
+  // frustum culled), not from the rectangles (24 bytes an object).
+  const auto states = culler.states();
+  for (std::size_t i = 0; i < n; ++i) {
+    c.occlusion_culled += states[i] == culling::ObjectState::Occluded ? 1 : 0;
+    c.frustum_culled += states[i] == culling::ObjectState::Outside ? 1 : 0;
+    c.visible += visible_[i];
+  }
+}
+
+void BudgetStrategy::share_budget(WorkerPool* pool, BudgetCounters& c) {
+  // Eq. 1 over the visible set: a culled object's area is 0, its share goes
+  // to the others.
+  many::BudgetParams bp;
+  bp.total = static_cast<std::uint64_t>(param_at(kPoints));
+  bp.alpha = param_at(kAlpha);
+  bp.pet = param_at(kPet);
+  many::budget_items(points_, culler_->rects(), visible_, items_, pool);
+  const many::BudgetStats bs = many::allocate_budget(items_, bp, shares_, pool);
+  c.below_pet = bs.below_pet;
+  c.receiving = bs.receiving;
+  c.shares = bs.total;
+}
+
+std::size_t BudgetStrategy::select_cuts(const ViewSnapshot& view, WorkerPool& pool,
+                                        SceneIterationOutput& output) {
+  const std::size_t n = objects_.size();
+  // Each share a cut of its object's hierarchy, objects in parallel (each
+  // writes only its own list).
+  pool.run(n, kLodGrain, [&](std::size_t b, std::size_t e, std::size_t) {
+    for (std::size_t i = b; i < e; ++i) {
+      if (shares_[i] == 0) {
+        cuts_[i].clear();
+        continue;
+      }
+      const ViewSnapshot v = culling::object_view(view, worlds_[i]);
+      // Into the object's list of the last iteration: its storage is reused.
+      many::best_cut(*hierarchies_[i], v, shares_[i], cuts_[i]);
+    }
+  });
+  // The lists back to back, object i's at offsets[i] .. offsets[i + 1].
+  output.offsets->resize(n + 1);
+  (*output.offsets)[0] = 0;
+  std::size_t total = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    total += cuts_[i].size();
+    (*output.offsets)[i + 1] = static_cast<std::uint32_t>(total);
+  }
+  output.nodes->reserve(total);
+  for (std::size_t i = 0; i < n; ++i) {
+    output.nodes->insert(output.nodes->end(), cuts_[i].begin(), cuts_[i].end());
+  }
+  return total;
+}
+
 void BudgetStrategy::iterate_scene(const SceneIterationInput& input, SceneIterationOutput& output) {
   const std::size_t n = objects_.size();
   if (input.scene.objects.size() != n) {
@@ -213,117 +337,19 @@ void BudgetStrategy::iterate_scene(const SceneIterationInput& input, SceneIterat
   culling::require_perspective_frustum(view);
   // From here on everything but best_cut is "select + cull" (the open-face
   // check and a preprocess it needs count as projection).
-  Clock::time_point t = Clock::now();
-  std::uint64_t cpu = pool_cpu_ns(*pool);
-  // Objects open on one face occlude only while the eye is on its inner side.
-  const glm::dvec3 eye(view.derived.eye);
-  bool moved = false;
-  for (std::size_t j = 0; j < open_.size(); ++j) {
-    const glm::dvec4& p = open_planes_[j];
-    const std::uint8_t inside = glm::dot(glm::dvec3(p), eye) + p.w < 0.0 ? 1 : 0;
-    // The dense copy of has_inner: the SceneObjects (156 bytes each) are
-    // touched only where it changes.
-    if (open_inside_[j] != inside) {
-      open_inside_[j] = inside;
-      objects_[open_[j]].has_inner = inside != 0;
-      moved = true;
-    }
-  }
+  PhaseClock clock(*pool);
+  const bool moved = update_open_faces(view);
   const bool made_culler = !culler_;
   ensure_culler();
   if (moved && !made_culler) culler_->preprocess(objects_);
 
-  const auto stop_with_previous = [&] {
-    // Cancelled: the lists before stay (a valid scene list by definition).
-    output.nodes->assign(input.previous.begin(), input.previous.end());
-    output.offsets->assign(input.previous_offsets.begin(), input.previous_offsets.end());
-    if (output.offsets->size() != n + 1) output.offsets->assign(n + 1, 0);
-    if (output.offsets->back() != output.nodes->size()) {
-      output.nodes->clear();
-      output.offsets->assign(n + 1, 0);
-    }
-    output.result.cancelled = true;
-  };
-
-  culling::HzmCuller& culler = *culler_;
-  const bool culling = param_at(kCulling) != 0.0;
-  culler.project(objects_, view, pool);
-  c.project_ns = ns_since(t);
-  c.project_cpu_ns = cpu_since(*pool, cpu);
-  if (culling) {
-    culler.select_occluders(objects_, view, pool);
-    c.select_ns = ns_since(t);
-    c.select_cpu_ns = cpu_since(*pool, cpu);
-    culler.build_hzm(objects_, view, pool);
-    c.hzm_ns = ns_since(t);
-    c.hzm_cpu_ns = cpu_since(*pool, cpu);
-    culler.test(objects_, pool);
-    c.test_ns = ns_since(t);
-    c.test_cpu_ns = cpu_since(*pool, cpu);
-    visible_.assign(culler.visible().begin(), culler.visible().end());
-    c.occluders = culler.active().size();
-    // The counts from the states (a byte an object; Outside is exactly the
-    // frustum culled), not from the rectangles (24 bytes an object).
-    const auto states = culler.states();
-    for (std::size_t i = 0; i < n; ++i) {
-      c.occlusion_culled += states[i] == culling::ObjectState::Occluded ? 1 : 0;
-      c.frustum_culled += states[i] == culling::ObjectState::Outside ? 1 : 0;
-      c.visible += visible_[i];
-    }
-  } else {
-    visible_.resize(n);
-    const auto rects = culler.rects();
-    for (std::size_t i = 0; i < n; ++i) {
-      visible_[i] = rects[i].in_frustum ? 1 : 0;
-      c.frustum_culled += rects[i].in_frustum ? 0 : 1;
-      c.visible += visible_[i];
-    }
-  }
-  const auto rects = culler.rects();
-  if (input.cancelled()) return stop_with_previous();
-
-  // Eq. 1 over the visible set: a culled object's area is 0, its share goes
-  // to the others.
-  many::BudgetParams bp;
-  bp.total = static_cast<std::uint64_t>(param_at(kPoints));
-  bp.alpha = param_at(kAlpha);
-  bp.pet = param_at(kPet);
-  many::budget_items(points_, rects, visible_, items_, pool);
-  const many::BudgetStats bs = many::allocate_budget(items_, bp, shares_, pool);
-  c.below_pet = bs.below_pet;
-  c.receiving = bs.receiving;
-  c.shares = bs.total;
-  c.budget_ns = ns_since(t);
-  c.budget_cpu_ns = cpu_since(*pool, cpu);
-  if (input.cancelled()) return stop_with_previous();
-
-  // Each share a cut of its object's hierarchy, objects in parallel (each
-  // writes only its own list).
-  pool->run(n, kLodGrain, [&](std::size_t b, std::size_t e, std::size_t) {
-    for (std::size_t i = b; i < e; ++i) {
-      if (shares_[i] == 0) {
-        cuts_[i].clear();
-        continue;
-      }
-      const ViewSnapshot v = culling::object_view(input.view, worlds_[i]);
-      // Into the object's list of the last iteration: its storage is reused.
-      many::best_cut(*hierarchies_[i], v, shares_[i], cuts_[i]);
-    }
-  });
-  output.offsets->resize(n + 1);
-  (*output.offsets)[0] = 0;
-  std::size_t total = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    total += cuts_[i].size();
-    (*output.offsets)[i + 1] = static_cast<std::uint32_t>(total);
-  }
-  output.nodes->reserve(total);
-  for (std::size_t i = 0; i < n; ++i) {
-    output.nodes->insert(output.nodes->end(), cuts_[i].begin(), cuts_[i].end());
-  }
-  c.selected = total;
-  c.lod_ns = ns_since(t);
-  c.lod_cpu_ns = cpu_since(*pool, cpu);
+  cull(view, pool, clock, c);
+  if (input.cancelled()) return keep_previous_lists(input, output, n);
+  share_budget(pool, c);
+  clock.lap(c.budget_ns, c.budget_cpu_ns);
+  if (input.cancelled()) return keep_previous_lists(input, output, n);
+  c.selected = select_cuts(view, *pool, output);
+  clock.lap(c.lod_ns, c.lod_cpu_ns);
 
   output.result.visited = n;
   output.result.culled = c.frustum_culled + c.occlusion_culled;

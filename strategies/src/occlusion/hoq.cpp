@@ -150,6 +150,165 @@ void HoqStrategy::children_states(culling::BlockId b, const ViewSnapshot& view) 
   }
 }
 
+// The paper's Refine: the children are traversed now, no query nor drawing
+// for the block itself. A refined block is visible when one of its children
+// is (pulled up).
+[[gnu::always_inline]] inline void HoqStrategy::refine(const Visit& v, const IterationInput& input,
+                                                       IterationOutput& output) {
+  if (!v.was_refined) ++last_.refined;
+  state_[v.block].stop = false;
+  const culling::BlockId first = blocks_.first_child(v.block);
+  bool any = false;
+  for (culling::BlockId c = first; c < first + blocks_.child_count(v.block); ++c) {
+    visit(c, input, output);
+    any = any || state_[c].visible;
+  }
+  state_[v.block].visible = any;
+}
+
+// A delayed block (the paper's case 3, its node in the query queue): decided
+// once the answer it waits for is in, else kept as the delay began.
+[[gnu::always_inline]] inline void HoqStrategy::decide_delayed(const Visit& v,
+                                                               const IterationInput& input,
+                                                               IterationOutput& output) {
+  const culling::BlockId b = v.block;
+  BlockState& s = state_[b];
+  if (s.answer_frame > s.delay_after) {
+    // The answer the decision waited for (the paper's query queue): cull
+    // an invisible block, stop where VMSSE <= tau, else refine.
+    const Delay kind = s.delay;
+    s.delay = Delay::None;
+    const bool stop_here = !s.visible || culling::hoq::vmsse(s.bias, v.sse) <= v.tau;
+    if (stop_here) {
+      if (kind == Delay::ShiftUp) ++last_.coarsened;
+      s.stop_bias = s.bias;
+      terminal(b, !s.visible);
+      query(b, input, output);
+      return;
+    }
+    if (kind != Delay::ShiftUp) {
+      // Kept at its level while it waited: drawn too coarse since it
+      // entered, or since the answer that found it visible was issued.
+      ++last_.late_refined;
+      last_.late_frames +=
+          frame_ + 1 - (kind == Delay::Front ? s.delay_frame : std::min(s.answer_frame, frame_));
+    }
+    refine(v, input, output);
+    return;
+  }
+  if (s.delay == Delay::ShiftUp) {
+    // Still waiting; a child that now needs refinement ends the candidacy.
+    children_states(b, input.view);
+    const culling::hoq::NodeState ns{true, true, false, s.bias};
+    if (culling::hoq::predict_refinement(ns, v.sse, children_, v.tau) ==
+        culling::hoq::Prediction::Refine) {
+      s.delay = Delay::None;
+    } else {
+      ++last_.delayed;
+      ++last_.delayed_shift_up;
+      query(b, input, output);
+    }
+    refine(v, input, output);
+    return;
+  }
+  // A delayed termination block keeps its state (its level) until its answer.
+  if (s.visible) ++last_.delayed;
+  terminal(b, !s.visible);
+  query(b, input, output);
+}
+
+// The paper's Refine as predicted, with the too-coarse drawings it reveals:
+// a disocclusion, or RARN.
+[[gnu::always_inline]] inline void HoqStrategy::refine_predicted(const Visit& v,
+                                                                 const IterationInput& input,
+                                                                 IterationOutput& output) {
+  const BlockState& s = state_[v.block];
+  if (v.was_terminal && s.culled) {
+    // Culled (hidden) at its last visit, visible in the newer answer and
+    // needing refinement: a disocclusion, drawn too coarse since that
+    // answer was issued (the same as a Hidden delay resolved to refine).
+    ++last_.late_refined;
+    last_.late_frames += frame_ + 1 - std::min(s.answer_frame, frame_);
+  } else if (v.was_terminal && culling::hoq::vmsse(s.stop_bias, v.sse) <= v.tau) {
+    // Drawn (Stop) and refined because a newer answer raised the bias
+    // (the old one would still stop): the paper's RARN, drawn too coarse
+    // from the frame the answer was issued in to the frame its
+    // refinement can be drawn.
+    ++last_.rarn;
+    last_.rarn_frames += frame_ + 1 - std::min(s.answer_frame, frame_);
+  }
+  refine(v, input, output);
+}
+
+// The paper's Delay as predicted: the decision waits for the block's answer.
+[[gnu::always_inline]] inline void HoqStrategy::delay_decision(const Visit& v,
+                                                               const IterationInput& input,
+                                                               IterationOutput& output) {
+  const culling::BlockId b = v.block;
+  BlockState& s = state_[b];
+  s.delay_frame = frame_;
+  if (v.was_refined) {
+    // A candidate to shift up: its children stay drawn while its own
+    // answer is on its way.
+    s.delay = Delay::ShiftUp;
+    s.delay_after = frame_;
+    ++last_.delayed;
+    ++last_.delayed_shift_up;
+    query(b, input, output);
+    refine(v, input, output);
+    return;
+  }
+  if (!v.was_visited) {
+    // New in the traversal: any answer issued from now on will do. With
+    // assume_visible it is drawn as if visible and unmodulated (bias 1,
+    // VMSSE = SSE: never too coarse) while it waits, so a block whose
+    // SSE exceeds tau is refined now instead of a round trip per level.
+    if (param_at(kAssumeVisible) != 0.0 && v.sse > v.tau) {
+      refine(v, input, output);
+      return;
+    }
+    s.delay = Delay::Front;
+    s.delay_after = frame_;
+    ++last_.delayed;
+    terminal(b, false);
+    query(b, input, output);
+    return;
+  }
+  // Invisible last frame: the next answer will do; culled until then.
+  s.delay = Delay::Hidden;
+  s.delay_after = s.answer_frame;
+  terminal(b, true);
+  query(b, input, output);
+}
+
+// PredictRefinement (the paper's figure 3) from the last iteration's state,
+// and its action: Stop (query and draw), Refine, or Delay.
+[[gnu::always_inline]] inline void HoqStrategy::follow_prediction(const Visit& v,
+                                                                  const IterationInput& input,
+                                                                  IterationOutput& output) {
+  BlockState& s = state_[v.block];
+  culling::hoq::NodeState ns{v.was_visited, s.visible, v.was_terminal, s.bias};
+  if (v.was_refined) children_states(v.block, input.view);
+  const culling::hoq::Prediction p = culling::hoq::predict_refinement(
+      ns, v.sse,
+      v.was_refined ? std::span<const culling::hoq::ChildState>(children_)
+                    : std::span<const culling::hoq::ChildState>(),
+      v.tau);
+  switch (p) {
+    case culling::hoq::Prediction::Stop:
+      s.stop_bias = s.bias;
+      terminal(v.block, false);
+      query(v.block, input, output);
+      return;
+    case culling::hoq::Prediction::Refine:
+      refine_predicted(v, input, output);
+      return;
+    case culling::hoq::Prediction::Delay:
+      delay_decision(v, input, output);
+      return;
+  }
+}
+
 void HoqStrategy::visit(culling::BlockId b, const IterationInput& input, IterationOutput& output) {
   const ViewSnapshot& view = input.view;
   const float tau = static_cast<float>(param_at(kTheta));
@@ -171,18 +330,6 @@ void HoqStrategy::visit(culling::BlockId b, const IterationInput& input, Iterati
   s.visited = iteration_;
   ++output.result.visited;
 
-  auto refine = [&] {
-    if (!was_refined) ++last_.refined;
-    s.stop = false;
-    const culling::BlockId first = blocks_.first_child(b);
-    bool any = false;
-    for (culling::BlockId c = first; c < first + blocks_.child_count(b); ++c) {
-      visit(c, input, output);
-      any = any || state_[c].visible;
-    }
-    // Pulled up: a refined block is visible when one of its children is.
-    state_[b].visible = any;
-  };
   const glm::vec4 sphere = input.hierarchy.arrays().center_radius[blocks_.root(b)];
   if (view.outside_frustum(glm::vec3(sphere), sphere.w)) {
     // Culled without a query, at the highest block found outside: its
@@ -206,118 +353,11 @@ void HoqStrategy::visit(culling::BlockId b, const IterationInput& input, Iterati
     return;
   }
   const float sse = culling::hoq::block_sse(view, blocks_.box(b), error_radius_[b]);
-
+  const Visit v{b, was_visited, was_refined, was_terminal, sse, tau};
   if (s.delay != Delay::None) {
-    if (s.answer_frame > s.delay_after) {
-      // The answer the decision waited for (the paper's query queue): cull
-      // an invisible block, stop where VMSSE <= tau, else refine.
-      const Delay kind = s.delay;
-      s.delay = Delay::None;
-      const bool stop_here = !s.visible || culling::hoq::vmsse(s.bias, sse) <= tau;
-      if (stop_here) {
-        if (kind == Delay::ShiftUp) ++last_.coarsened;
-        s.stop_bias = s.bias;
-        terminal(b, !s.visible);
-        query(b, input, output);
-        return;
-      }
-      if (kind != Delay::ShiftUp) {
-        // Kept at its level while it waited: drawn too coarse since it
-        // entered, or since the answer that found it visible was issued.
-        ++last_.late_refined;
-        last_.late_frames +=
-            frame_ + 1 - (kind == Delay::Front ? s.delay_frame : std::min(s.answer_frame, frame_));
-      }
-      refine();
-      return;
-    }
-    if (s.delay == Delay::ShiftUp) {
-      // Still waiting; a child that now needs refinement ends the candidacy.
-      children_states(b, view);
-      const culling::hoq::NodeState ns{true, true, false, s.bias};
-      if (culling::hoq::predict_refinement(ns, sse, children_, tau) ==
-          culling::hoq::Prediction::Refine) {
-        s.delay = Delay::None;
-      } else {
-        ++last_.delayed;
-        ++last_.delayed_shift_up;
-        query(b, input, output);
-      }
-      refine();
-      return;
-    }
-    // A delayed termination block keeps its state (its level) until its answer.
-    if (s.visible) ++last_.delayed;
-    terminal(b, !s.visible);
-    query(b, input, output);
-    return;
-  }
-
-  culling::hoq::NodeState ns{was_visited, s.visible, was_terminal, s.bias};
-  if (was_refined) children_states(b, view);
-  const culling::hoq::Prediction p = culling::hoq::predict_refinement(
-      ns, sse,
-      was_refined ? std::span<const culling::hoq::ChildState>(children_)
-                  : std::span<const culling::hoq::ChildState>(),
-      tau);
-  switch (p) {
-    case culling::hoq::Prediction::Stop:
-      s.stop_bias = s.bias;
-      terminal(b, false);
-      query(b, input, output);
-      return;
-    case culling::hoq::Prediction::Refine:
-      if (was_terminal && s.culled) {
-        // Culled (hidden) at its last visit, visible in the newer answer and
-        // needing refinement: a disocclusion, drawn too coarse since that
-        // answer was issued (the same as a Hidden delay resolved to refine).
-        ++last_.late_refined;
-        last_.late_frames += frame_ + 1 - std::min(s.answer_frame, frame_);
-      } else if (was_terminal && culling::hoq::vmsse(s.stop_bias, sse) <= tau) {
-        // Drawn (Stop) and refined because a newer answer raised the bias
-        // (the old one would still stop): the paper's RARN, drawn too coarse
-        // from the frame the answer was issued in to the frame its
-        // refinement can be drawn.
-        ++last_.rarn;
-        last_.rarn_frames += frame_ + 1 - std::min(s.answer_frame, frame_);
-      }
-      refine();
-      return;
-    case culling::hoq::Prediction::Delay:
-      s.delay_frame = frame_;
-      if (was_refined) {
-        // A candidate to shift up: its children stay drawn while its own
-        // answer is on its way.
-        s.delay = Delay::ShiftUp;
-        s.delay_after = frame_;
-        ++last_.delayed;
-        ++last_.delayed_shift_up;
-        query(b, input, output);
-        refine();
-        return;
-      }
-      if (!was_visited) {
-        // New in the traversal: any answer issued from now on will do. With
-        // assume_visible it is drawn as if visible and unmodulated (bias 1,
-        // VMSSE = SSE: never too coarse) while it waits, so a block whose
-        // SSE exceeds tau is refined now instead of a round trip per level.
-        if (param_at(kAssumeVisible) != 0.0 && sse > tau) {
-          refine();
-          return;
-        }
-        s.delay = Delay::Front;
-        s.delay_after = frame_;
-        ++last_.delayed;
-        terminal(b, false);
-        query(b, input, output);
-        return;
-      }
-      // Invisible last frame: the next answer will do; culled until then.
-      s.delay = Delay::Hidden;
-      s.delay_after = s.answer_frame;
-      terminal(b, true);
-      query(b, input, output);
-      return;
+    decide_delayed(v, input, output);
+  } else {
+    follow_prediction(v, input, output);
   }
 }
 

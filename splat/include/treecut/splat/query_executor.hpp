@@ -190,6 +190,15 @@ class QueryExecutor final : public QueryHook {
   void fence_last_batch_render_thread();
   void poll_render_thread();
   void issue_render_thread(const ViewSnapshot& view, std::size_t end);
+  // The steps of issue_render_thread(): the requests up to END answered on
+  // the host or sorted into B's points and the quads (staging_*,
+  // quad_requests_); B's buffer grown to N proxies; the counters zeroed and
+  // the proxies written (returns the proxies' offset); the proxies drawn.
+  void collect_proxies_render_thread(Batch& b, const ViewSnapshot& view, std::size_t end);
+  void reserve_batch_buffer(Batch& b, std::size_t n);
+  std::size_t write_batch(Batch& b, std::size_t n_points, std::size_t n_quads);
+  void draw_batch_render_thread(const Batch& b, const ViewSnapshot& view, std::size_t data_at,
+                                std::size_t n_points, std::size_t n_quads);
   void begin_proxy_state();
   void end_proxy_state();
   void answer(const Queued& q, std::uint32_t samples, std::uint64_t issued);

@@ -116,6 +116,17 @@ class BudgetStrategy final : public Strategy, public SceneStrategy {
   void ensure_pool();
   void ensure_culler();
 
+  // The phases of iterate_scene() (budget_strategy.cpp).
+  struct PhaseClock;
+  /// The open faces' eye-inside test: true when an object's inner box came or went.
+  bool update_open_faces(const ViewSnapshot& view);
+  /// Projection and frustum culling, with culling on Eq. 3, the HZM and Eq. 5.
+  void cull(const ViewSnapshot& view, WorkerPool* pool, PhaseClock& clock, BudgetCounters& c);
+  /// The shares of Eq. 1 (shares_) over the potentially visible objects.
+  void share_budget(WorkerPool* pool, BudgetCounters& c);
+  /// Each share's best cut, written to OUTPUT as the scene's lists; their total size.
+  std::size_t select_cuts(const ViewSnapshot& view, WorkerPool& pool, SceneIterationOutput& output);
+
   std::vector<ModelShape> shapes_;
   std::vector<culling::ObjectBounds> objects_;
   std::vector<const Hierarchy*> hierarchies_;

@@ -118,9 +118,25 @@ class HoqStrategy final : public Strategy {
     Delay delay = Delay::None;
   };
 
+  // What visit() found for a block: what it was at its last visit, its SSE
+  // now and tau; read by the steps that decide it (inlined into visit()).
+  struct Visit {
+    culling::BlockId block;
+    bool was_visited;
+    bool was_refined;
+    bool was_terminal;
+    float sse;
+    float tau;
+  };
+
   void build_blocks(const Hierarchy& h);
   void take_answers(const IterationInput& input);
   void visit(culling::BlockId b, const IterationInput& input, IterationOutput& output);
+  void refine(const Visit& v, const IterationInput& input, IterationOutput& output);
+  void decide_delayed(const Visit& v, const IterationInput& input, IterationOutput& output);
+  void follow_prediction(const Visit& v, const IterationInput& input, IterationOutput& output);
+  void refine_predicted(const Visit& v, const IterationInput& input, IterationOutput& output);
+  void delay_decision(const Visit& v, const IterationInput& input, IterationOutput& output);
   void terminal(culling::BlockId b, bool known_invisible);
   void query(culling::BlockId b, const IterationInput& input, IterationOutput& output);
   void children_states(culling::BlockId b, const ViewSnapshot& view);

@@ -150,6 +150,8 @@ class HlodTraversal {
   void pull_up(BlockId b);
   void answer(const Pending& p, std::uint64_t samples);
   void visit(const Entry& e);
+  void visit_coh_b(BlockId b, float block_sse, bool visited_last, bool was_visible,
+                   bool was_stopped, bool was_outside);
   void query(BlockId b, Kind kind, float sse, Why why = Why::None);
   [[nodiscard]] float sse(BlockId b) const;
 
