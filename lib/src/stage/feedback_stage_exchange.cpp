@@ -2,7 +2,8 @@
 // Schiffner et al.), section 3, figure 2: poll() once per frame (the
 // lock-free query of the state), the Exchange of back and front list (O(1),
 // indices only), request() (the inbox filled, Process stored, the stage woken
-// if parked), the list buffers' uses and the boost of a starved stage. No
+// if parked), the list buffers' uses and the detection of a starved stage
+// (its boost: feedback_stage_priority.cpp). No
 // lock, and no allocation once the pending vectors have grown: these functions
 // stay in one file so that poll() inlines them as before the split
 // (RenderThread.PollExchangeAndRequestNeverAllocate, tests/core/poll_alloc_test.cpp). See
@@ -18,33 +19,7 @@
 #include "feedback_stage_impl.hpp"
 #include "treecut/feedback_stage.hpp"
 
-#if defined(__linux__)
-#include <pthread.h>
-#include <sched.h>
-#include <sys/resource.h>
-#endif
-
 namespace treecut {
-
-// Render thread: raises the stage thread to the priority it started with
-// (starved request, shutdown), or lowers it again.
-void FeedbackStage::Impl::set_boost(bool on) {
-#if defined(__linux__)
-  if (on == boosted_ || !boostable_.load(std::memory_order_acquire)) return;
-  boosted_ = on;
-  if (on) {
-    ++counters_.boosts;
-    const sched_param param{};
-    (void)pthread_setschedparam(thread_.native_handle(), SCHED_OTHER, &param);
-    (void)setpriority(PRIO_PROCESS, static_cast<id_t>(stage_tid_), base_nice_);
-  } else {
-    detail::apply_low_priority(thread_.native_handle(), stage_tid_, base_nice_, options_.priority,
-                               true);
-  }
-#else
-  (void)on;
-#endif
-}
 
 FrontList FeedbackStage::Impl::list_of(std::uint32_t index) const {
   const ListBuffer& b = buffers_[index];

@@ -1,5 +1,6 @@
 // The stage thread of "Parallel TreeCut Manipulation" (Marton, Schiffner et
-// al.), section 3, figure 2: its start (a lowered priority), its loop
+// al.), section 3, figure 2: its start (its priority lowered, as
+// feedback_stage_priority.cpp does it), its loop
 // (await_request: spin, poll, park until Process or Exit; then process()),
 // step() for Launch::Manual, and the destructor's shutdown (cancel, wait for
 // a running iteration, Exit, join). See feedback_stage.hpp and
@@ -26,27 +27,6 @@
 #endif
 
 namespace treecut {
-
-#if defined(__linux__)
-namespace detail {
-
-// Declared, and explained, in feedback_stage_impl.hpp.
-void apply_low_priority(pthread_t thread, int tid, int base_nice, StagePriority priority,
-                        bool idle) {
-  if (priority == StagePriority::Low) {
-    (void)setpriority(PRIO_PROCESS, static_cast<id_t>(tid), std::min(base_nice + 10, 19));
-  } else if (priority == StagePriority::Idle) {
-    if (idle) {
-      const sched_param param{};
-      (void)pthread_setschedparam(thread, SCHED_IDLE, &param);
-    } else {
-      (void)setpriority(PRIO_PROCESS, static_cast<id_t>(tid), 19);
-    }
-  }
-}
-
-}  // namespace detail
-#endif
 
 FeedbackStage::Impl::~Impl() {
   cancel_.store(true, std::memory_order_relaxed);
