@@ -3,6 +3,10 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+#include <system_error>
 #include <limits>
 
 #include "treecut/error.hpp"
@@ -41,6 +45,16 @@ void check_bench_csv(const std::filesystem::path& csv, std::string_view header,
     throw InputError(quoted_name(csv) + ": exists and is not a " + std::string(what) +
                      " CSV; not overwritten");
   }
+}
+
+void write_bench_csv(const std::filesystem::path& csv, const std::string& text) {
+  if (!csv.parent_path().empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(csv.parent_path(), ec);
+    if (ec) throw std::runtime_error(quoted_name(csv.parent_path()) + ": " + ec.message());
+  }
+  write_file_atomically(csv, text);
+  std::printf("csv       %s\n", csv.string().c_str());
 }
 
 double median(std::vector<double> v) {

@@ -24,6 +24,11 @@ namespace treecut::cli {
 void check_bench_csv(const std::filesystem::path& csv, std::string_view header,
                      std::string_view what);
 
+/// Writes a bench's CSV (checked before by check_bench_csv): its folder made
+/// if missing, the file replaced whole (write_file_atomically), and the
+/// "csv       FILE" line printed.
+void write_bench_csv(const std::filesystem::path& csv, const std::string& text);
+
 /// The median; NaN for no values.
 [[nodiscard]] double median(std::vector<double> v);
 

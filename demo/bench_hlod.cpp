@@ -188,13 +188,7 @@ void write_csv(const std::filesystem::path& csv, const std::vector<Method>& meth
       o << "\n";
     }
   }
-  if (!csv.parent_path().empty()) {
-    std::error_code ec;
-    std::filesystem::create_directories(csv.parent_path(), ec);
-    if (ec) throw std::runtime_error(quoted_name(csv.parent_path()) + ": " + ec.message());
-  }
-  write_file_atomically(csv, o.str());
-  std::printf("csv       %s\n", csv.string().c_str());
+  write_bench_csv(csv, o.str());
 }
 
 }  // namespace

@@ -522,13 +522,7 @@ void write_scene_csv(const std::filesystem::path& csv, int frames, const Accurac
       << csv_number(at(on.iteration_ms)) << ',' << csv_number(at(off.iteration_ms)) << ','
       << csv_number(at(on.psnr)) << ',' << csv_number(at(off.psnr)) << "\n";
   }
-  if (!csv.parent_path().empty()) {
-    std::error_code ec;
-    std::filesystem::create_directories(csv.parent_path(), ec);
-    if (ec) throw std::runtime_error(quoted_name(csv.parent_path()) + ": " + ec.message());
-  }
-  write_file_atomically(csv, o.str());
-  std::printf("csv       %s\n", csv.string().c_str());
+  write_bench_csv(csv, o.str());
 }
 
 void run_bench_scene(const SceneBenchArgs& a) {
