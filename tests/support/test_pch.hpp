@@ -1,5 +1,5 @@
-// The CPU test programs' precompiled header (tests/CMakeLists.txt,
-// treecut_test_cpu_pch; the GL programs' adds the renderer): GoogleTest, the standard library and the project
+// The test programs' precompiled header (tests/CMakeLists.txt,
+// treecut_test_pch; no renderer header, so CPU programs can use it): GoogleTest, the standard library and the project
 // headers that most test files include. Parsing them was about half of a
 // test file's compile (8.2 s -> 4.6 s for event_queue_test with GCC -O1);
 // compiled once, every test program reuses it. A test file still includes
