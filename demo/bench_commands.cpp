@@ -25,6 +25,7 @@
 #include "bench_hlod.hpp"
 #include "bench_scene.hpp"
 #include "commands.hpp"
+#include "headless_gl.hpp"
 #include "option_checks.hpp"
 #include "treecut/culling/chc.hpp"
 #include "treecut/culling/hlod_blocks.hpp"
@@ -175,6 +176,7 @@ double mean(const std::vector<double>& v) {
 
 struct OcclusionArgs {
   std::string scene;
+  std::string gl = "auto";  // headless back end (--gl)
   std::string path;
   double fps = 10.0;
   int frames = 0;  // > 0: that many frames evenly spaced instead of every 1 / fps s
@@ -370,8 +372,7 @@ void measure_chc_runs(std::vector<ChcRun>& runs, std::array<const culling::HlodB
     dev.set_flush_after_draw(run.flush_per_block);
     dev.set_view_render_thread(cameras[f], settings);
     if (run.options.mode == OcclusionMode::Ideal) traversals[r].set_ideal_leaves(sw_set[run.tree]);
-    const auto stats =
-        traversals[r].frame_render_thread(dev, cameras[f].view(size), true);
+    const auto stats = traversals[r].frame_render_thread(dev, cameras[f].view(size), true);
     if (run.options.mode == OcclusionMode::StopAndWait) sw_set[run.tree] = traversals[r].drawn();
     return stats;
   };
@@ -404,7 +405,7 @@ void run_bench_occlusion(const OcclusionArgs& a) {
               : culling::HlodBlocks();
 
   const glm::ivec2 size(a.width, a.height);
-  splat::OsmesaContext context(a.width, a.height);
+  const std::unique_ptr<splat::GlContext> context = open_headless(a.gl, a.width, a.height);
   splat::Renderer renderer(h, size);
   splat::GlOcclusionDevice device(renderer, blocks);
   std::unique_ptr<splat::GlOcclusionDevice> other_device;
@@ -428,7 +429,7 @@ void run_bench_occlusion(const OcclusionArgs& a) {
                 other.block_count(), other.leaf_block_count());
   }
   std::printf("renderer  %s, %dx%d, fast splats, full detail (leaf blocks)\n",
-              splat::GlContext::renderer_string().c_str(), a.width, a.height);
+              renderer_line(*context).c_str(), a.width, a.height);
   std::printf(
       "path      %s: %d frames over %.1f s (%.1f to %.1f s of %.1f); means over the frames "
       "(frame ms: glFinish-ed wall time; wait ms: CPU blocked in query reads)\n",
@@ -544,6 +545,7 @@ void add_bench_occlusion_command(CLI::App& bench) {
       ->check(finite_number(0.0, 1e6));
   occlusion->add_option("--to", occ->to, "End of the part of the path measured (default: its end)")
       ->check(finite_number(0.0, 1e6));
+  add_gl_option(occlusion, &occ->gl);
   occlusion->add_option("--width", occ->width, "Width in pixels")->check(whole_number(16, 8192));
   occlusion->add_option("--height", occ->height, "Height in pixels")->check(whole_number(16, 8192));
   occlusion->add_option("--block-size", occ->block_size, "HLOD block size (splats per block)")

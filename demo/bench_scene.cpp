@@ -36,6 +36,7 @@
 #include <vector>
 
 #include "bench_common.hpp"
+#include "headless_gl.hpp"
 #include "option_checks.hpp"
 #include "render_reports.hpp"
 #include "treecut/culling/hzm.hpp"
@@ -66,6 +67,7 @@ constexpr const char* kCsvHeader =
 
 struct SceneBenchArgs {
   std::string scene;
+  std::string gl = "auto";  // headless back end (--gl)
   std::string path;
   int frames = 12;
   // The part of the walk measured, in path seconds (to < 0: its end): the
@@ -542,7 +544,7 @@ void run_bench_scene(const SceneBenchArgs& a) {
   const auto ct = static_cast<float>(on.strategy->param("ct"));
 
   const glm::ivec2 size(a.width, a.height);
-  splat::OsmesaContext context(a.width, a.height);
+  const std::unique_ptr<splat::GlContext> context = open_headless(a.gl, a.width, a.height);
   splat::Renderer renderer(*scene.hierarchy, size);
   const FullDetail full = full_detail(world);
   renderer.set_models(full.models);
@@ -562,7 +564,7 @@ void run_bench_scene(const SceneBenchArgs& a) {
   std::printf(
       "renderer  %s, %dx%d, fast splats; reference: ObjectId image of the objects in "
       "the frustum at full detail\n",
-      splat::GlContext::renderer_string().c_str(), a.width, a.height);
+      renderer_line(*context).c_str(), a.width, a.height);
   std::printf(
       "path      %s: %d frames from %.1f to %.1f s of %.1f; budget N = %llu, AOS %zu, CT %.2f\n",
       a.path.c_str(), frames, a.from, in.to, path.duration(),
@@ -624,6 +626,7 @@ void add_bench_scene_command(CLI::App& bench) {
   cmd->add_option("-p,--param", args->params,
                   "Budget strategy parameter name=value (points, alpha, pet, occluders, ct, "
                   "threads; culling is run both ways)");
+  add_gl_option(cmd, &args->gl);
   cmd->add_option("--width", args->width, "Width in pixels")
       ->check(whole_number(16, 8192))
       ->capture_default_str();

@@ -14,6 +14,7 @@
 #include <optional>
 
 #include "commands.hpp"
+#include "headless_gl.hpp"
 #include "messages.hpp"
 #include "option_checks.hpp"
 #include "render_reports.hpp"
@@ -43,6 +44,7 @@ double thread_cpu_ms() {
 
 struct RenderArgs {
   SceneArgs scene;
+  std::string gl = "auto";  // headless back end (--gl)
   std::string path;
   std::string out = "render-out";
   int frames = 120;
@@ -126,6 +128,7 @@ struct RenderRig {
   splat::Renderer& renderer;
   const splat::CutBuffer& full;
   const splat::SceneCutBuffer& full_scene;
+  std::string renderer_name;  // renderer_line(): what summary.json names
 
   [[nodiscard]] splat::Camera camera_at(double t) const {
     splat::Camera c = path.at(t);
@@ -384,6 +387,7 @@ RunSummary run_strategy(const RenderRig& rig, const StrategyRegistry& registry,
 
   RunSummary run;
   run.strategy = name;
+  run.renderer = rig.renderer_name;
   for (int i = 0; i < a.warmup; ++i) frame(cam);
   for (int f = 0; f < a.frames; ++f) {
     const double t = a.frames > 1 ? rig.path.duration() * f / (a.frames - 1) : 0.0;
@@ -420,15 +424,22 @@ void run_render(const RenderArgs& a) {
                              scene.up);
   describe_scene(a, registry, scene);
 
-  splat::OsmesaContext context(a.width, a.height);
-  std::printf("renderer  %s, %dx%d, %s splats\n", splat::GlContext::renderer_string().c_str(),
-              a.width, a.height, std::string(splat::splat_mode_name(settings.mode)).c_str());
+  const std::unique_ptr<splat::GlContext> context = open_headless(a.gl, a.width, a.height);
+  std::printf("renderer  %s, %dx%d, %s splats\n", renderer_line(*context).c_str(), a.width,
+              a.height, std::string(splat::splat_mode_name(settings.mode)).c_str());
   splat::Renderer renderer(*scene.hierarchy, {a.width, a.height});
   splat::CutBuffer full;
   splat::SceneCutBuffer full_scene;
   upload_full_detail(a, scene, renderer, full, full_scene);
-  const RenderRig rig{a,        scene, path,      settings, glm::ivec2(a.width, a.height),
-                      renderer, full,  full_scene};
+  const RenderRig rig{a,
+                      scene,
+                      path,
+                      settings,
+                      glm::ivec2(a.width, a.height),
+                      renderer,
+                      full,
+                      full_scene,
+                      renderer_line(*context)};
 
   const std::filesystem::path out(a.out);
   make_output_folder(out);
@@ -461,6 +472,7 @@ void add_render_commands(CLI::App& app) {
   render->add_option("-o,--out", ra->out, "Output folder")
       ->check(non_empty_path())
       ->capture_default_str();
+  add_gl_option(render, &ra->gl);
   render->add_option("--width", ra->width, "Frame width")
       ->check(whole_number(16, 8192))
       ->capture_default_str();

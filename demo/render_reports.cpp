@@ -228,6 +228,7 @@ std::string summary_json(const RunSummary& s) {
   nlohmann::ordered_json j;
   j["written_by"] = "treecut render";
   j["strategy"] = s.strategy;
+  j["renderer"] = s.renderer;
   j["frames"] = s.rows.size();
   j["mean_frame_ms"] = number_json(mean_of(s.rows, &FrameRow::frame_ms));
   j["median_frame_ms"] = number_json(median_frame_ms(s.rows));

@@ -57,6 +57,7 @@ double luma_psnr(const splat::Image& a, const splat::Image& b);
 
 struct RunSummary {
   std::string strategy;
+  std::string renderer;  ///< GL_RENDERER / GL_VERSION (back end)
   std::vector<FrameRow> rows;
   double stability_changed = std::numeric_limits<double>::quiet_NaN();  // mean fraction
   double stability_max = std::numeric_limits<double>::quiet_NaN();

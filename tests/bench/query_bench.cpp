@@ -61,9 +61,9 @@ constexpr int kWidth = 1280;
 constexpr int kHeight = 720;
 
 splat::GlContext& context() {
-  static splat::OsmesaContext ctx(kWidth, kHeight);
-  ctx.make_current();
-  return ctx;
+  static const std::unique_ptr<splat::GlContext> ctx = splat::make_headless_context(kWidth, kHeight);
+  ctx->make_current();
+  return *ctx;
 }
 
 double median(std::vector<double> v) {

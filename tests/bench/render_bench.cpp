@@ -77,8 +77,8 @@ const glm::ivec2 kSize(kWidth, kHeight);
 constexpr float kAspect = float(kWidth) / float(kHeight);
 
 GlContext& context() {
-  static OsmesaContext ctx(kWidth, kHeight);
-  return ctx;
+  static const std::unique_ptr<GlContext> ctx = make_headless_context(kWidth, kHeight);
+  return *ctx;
 }
 
 const Hierarchy* model(const std::string& asset) {

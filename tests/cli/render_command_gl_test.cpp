@@ -1,4 +1,4 @@
-// `treecut render` as a user runs it: headless (OSMesa) on a generated model,
+// `treecut render` as a user runs it: headless (EGL or OSMesa) on a generated model,
 // N PNG frames, stats.csv with the columns docs/rendering.md documents, a
 // finite PSNR with --psnr, summary.json and plot.svg; bad input exits with 2
 // and leaves no output folder behind.
@@ -145,6 +145,32 @@ TEST(RenderCommand, WritesFramesStatsSummaryAndAFinitePsnr) {
   EXPECT_TRUE(fs::is_regular_file(dir / "plot.svg"));
 }
 
+// Both headless back ends (--gl): an EGL device (here Mesa's software one)
+// and OSMesa, both llvmpipe on this machine, draw the same frames; each
+// report names its renderer and back end.
+TEST(RenderCommand, BothHeadlessBackEndsDrawTheSameFramesAndSaySo) {
+  const fs::path scratch = treecut::test::scratch_dir("render_command_gl");
+  std::string frames[2];
+  const char* backends[2] = {"egl", "osmesa"};
+  for (int i = 0; i < 2; ++i) {
+    const fs::path dir = scratch / backends[i];
+    const treecut::test::CommandResult r = treecut::test::run_treecut(
+        kSmallRun + "--frames 2 --gl " + backends[i] + " -o " + treecut::test::quote(dir));
+    ASSERT_EQ(r.code, 0) << backends[i] << "\n" << r.out;
+    const std::string tag = std::string("(") + backends[i];
+    const auto line = r.out.find("renderer  ");
+    ASSERT_NE(line, std::string::npos) << r.out;
+    EXPECT_NE(r.out.substr(line, r.out.find('\n', line) - line).find(tag), std::string::npos)
+        << r.out;
+    const auto summary = nlohmann::json::parse(read_text(dir / "summary.json"));
+    EXPECT_NE(summary.at("renderer").get<std::string>().find(tag), std::string::npos)
+        << summary.dump();
+    frames[i] = read_text(dir / "frame_00001.png");
+    EXPECT_FALSE(frames[i].empty()) << backends[i];
+  }
+  EXPECT_TRUE(frames[0] == frames[1]) << "EGL's and OSMesa's llvmpipe drew different frames";
+}
+
 TEST(RenderCommand, NoPngWritesStatisticsOnly) {
   const fs::path dir = treecut::test::scratch_dir("render_command_nopng") / "out";
   const treecut::test::CommandResult r =
@@ -266,6 +292,7 @@ TEST(RenderCommand, BadInputExitsWithTwoAndWritesNothing) {
       {"unknown parameter", "-p no_such_param=1"},
       {"parameter out of range", "-p max_nodes=0"},
       {"unknown splat mode", "--mode glossy"},
+      {"unknown GL back end", "--gl vulkan"},
       {"zero frames", "--frames 0"},
       {"missing model", treecut::test::quote(scratch / "missing.ply")},
       {"malformed model", treecut::test::quote(bad_ply)},

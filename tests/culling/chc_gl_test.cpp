@@ -87,8 +87,8 @@ std::vector<Camera> walk_cameras(tools::ModelKind kind, const Hierarchy& h, int 
 class ChcGl : public ::testing::TestWithParam<SceneCase> {
  protected:
   static void SetUpTestSuite() {
-    static OsmesaContext ctx(kWidth, kHeight);
-    ctx.make_current();
+    static const std::unique_ptr<GlContext> ctx = make_headless_context(kWidth, kHeight);
+    ctx->make_current();
   }
   void SetUp() override {
     h_ = scene(GetParam().kind, GetParam().points);

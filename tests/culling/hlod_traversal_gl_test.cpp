@@ -84,8 +84,8 @@ using test::QueryCheck;  // tests/support/query_check.hpp
 class HlodGl : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    static OsmesaContext ctx(kWidth, kHeight);
-    ctx.make_current();
+    static const std::unique_ptr<GlContext> ctx = make_headless_context(kWidth, kHeight);
+    ctx->make_current();
   }
   void SetUp() override {
     h_ = city();

@@ -66,8 +66,8 @@ struct Placed {
 class HzmCulling : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    static splat::OsmesaContext ctx(kWidth, kHeight);
-    ctx.make_current();
+    static const std::unique_ptr<splat::GlContext> ctx = splat::make_headless_context(kWidth, kHeight);
+    ctx->make_current();
   }
 
   // Checks one scene from one camera; returns the objects the HZM culled.

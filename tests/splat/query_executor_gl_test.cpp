@@ -42,9 +42,9 @@ constexpr int kWidth = 160;
 constexpr int kHeight = 120;
 
 GlContext& context() {
-  static OsmesaContext ctx(kWidth, kHeight);
-  ctx.make_current();
-  return ctx;
+  static const std::unique_ptr<GlContext> ctx = make_headless_context(kWidth, kHeight);
+  ctx->make_current();
+  return *ctx;
 }
 
 // A closed square wall in the plane z = 0, x and y in [-1, 1], facing +z.

@@ -25,8 +25,8 @@ constexpr int kHeight = 150;
 class RenderCutBuffer : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    static OsmesaContext ctx(kWidth, kHeight);
-    ctx.make_current();
+    static const std::unique_ptr<GlContext> ctx = make_headless_context(kWidth, kHeight);
+    ctx->make_current();
   }
   void SetUp() override {
     renderer_ = std::make_unique<Renderer>(h_, glm::ivec2(kWidth, kHeight));

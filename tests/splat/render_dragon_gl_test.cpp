@@ -20,9 +20,9 @@ constexpr int kWidth = 320;
 constexpr int kHeight = 240;
 
 GlContext& context() {
-  static OsmesaContext ctx(kWidth, kHeight);
-  ctx.make_current();
-  return ctx;
+  static const std::unique_ptr<GlContext> ctx = make_headless_context(kWidth, kHeight);
+  ctx->make_current();
+  return *ctx;
 }
 
 std::array<std::uint8_t, 3> background_bytes(const RenderSettings& s) {

@@ -65,8 +65,8 @@ bool far_pixel(const Image& a, const Image& b, std::size_t i) {
 class RenderFade : public ::testing::TestWithParam<SplatMode> {
  protected:
   static void SetUpTestSuite() {
-    static OsmesaContext ctx(kWidth, kHeight);
-    ctx.make_current();
+    static const std::unique_ptr<GlContext> ctx = make_headless_context(kWidth, kHeight);
+    ctx->make_current();
   }
   void SetUp() override {
     renderer_ = std::make_unique<Renderer>(*h_, glm::ivec2(kWidth, kHeight));

@@ -81,8 +81,8 @@ Camera moved(const Camera& c, const glm::mat4& world, float scale) {
 class RenderScene : public ::testing::TestWithParam<SplatMode> {
  protected:
   static void SetUpTestSuite() {
-    static OsmesaContext ctx(kWidth, kHeight);
-    ctx.make_current();
+    static const std::unique_ptr<GlContext> ctx = make_headless_context(kWidth, kHeight);
+    ctx->make_current();
   }
   void SetUp() override {
     renderer_ = std::make_unique<Renderer>(city_, glm::ivec2(kWidth, kHeight));
@@ -252,8 +252,8 @@ INSTANTIATE_TEST_SUITE_P(Modes, RenderScene,
 class RenderSceneChecks : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    static OsmesaContext ctx(kWidth, kHeight);
-    ctx.make_current();
+    static const std::unique_ptr<GlContext> ctx = make_headless_context(kWidth, kHeight);
+    ctx->make_current();
   }
   Hierarchy h_ = build_from_points(tools::generate_model(tools::ModelKind::Sphere, 2000, 1));
   Hierarchy other_ = build_from_points(tools::generate_model(tools::ModelKind::Sphere, 1000, 2));

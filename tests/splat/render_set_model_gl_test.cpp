@@ -35,8 +35,8 @@ constexpr int kWidth = 200;
 constexpr int kHeight = 150;
 
 void context() {
-  static OsmesaContext ctx(kWidth, kHeight);
-  ctx.make_current();
+  static const std::unique_ptr<GlContext> ctx = make_headless_context(kWidth, kHeight);
+  ctx->make_current();
 }
 
 std::shared_ptr<const Hierarchy> sphere(std::size_t points, glm::u8vec4 color) {

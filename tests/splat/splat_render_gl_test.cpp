@@ -26,9 +26,9 @@ constexpr int kHeight = 240;
 
 // One context per test program (a process uses one GL back end).
 GlContext& context() {
-  static OsmesaContext ctx(kWidth, kHeight);
-  ctx.make_current();
-  return ctx;
+  static const std::unique_ptr<GlContext> ctx = make_headless_context(kWidth, kHeight);
+  ctx->make_current();
+  return *ctx;
 }
 
 const Hierarchy& sphere() {

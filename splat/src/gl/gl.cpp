@@ -43,6 +43,11 @@ bool loaded() {
   return g_backend != nullptr;
 }
 
+const char* loaded_backend() {
+  std::lock_guard lock(g_mutex);
+  return g_backend;
+}
+
 void check(const char* what) {
   GLenum first = GL_NO_ERROR;
   for (GLenum e = GetError(); e != GL_NO_ERROR; e = GetError()) {

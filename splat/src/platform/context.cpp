@@ -9,6 +9,7 @@
 #include <string>
 
 #include "treecut/splat/gl.hpp"
+#include "mesa_cache.hpp"
 
 #define GLFW_INCLUDE_NONE
 #include <GLFW/glfw3.h>
@@ -20,6 +21,30 @@ std::string GlContext::renderer_string() {
   const auto* version = reinterpret_cast<const char*>(gl::GetString(GL_VERSION));
   return std::string(renderer != nullptr ? renderer : "?") + " / " +
          (version != nullptr ? version : "?");
+}
+
+// Mesa keeps compiled shaders in $XDG_CACHE_HOME/mesa_shader_cache (or
+// ~/.cache/...); when it cannot make that folder it prints a line of its own
+// ("Failed to create ... for shader cache (Permission denied)---disabling")
+// beside treecut's one line. Where the folder cannot be made, the cache is
+// disabled up front (as Mesa would do anyway), unless the user chose.
+void quiet_mesa_shader_cache() {
+  if (std::getenv("MESA_SHADER_CACHE_DISABLE") != nullptr ||
+      std::getenv("MESA_SHADER_CACHE_DIR") != nullptr ||
+      std::getenv("MESA_GLSL_CACHE_DISABLE") != nullptr ||
+      std::getenv("MESA_GLSL_CACHE_DIR") != nullptr)
+    return;
+  std::filesystem::path dir;
+  if (const char* xdg = std::getenv("XDG_CACHE_HOME"); xdg != nullptr && *xdg != '\0')
+    dir = xdg;
+  else if (const char* home = std::getenv("HOME"); home != nullptr && *home != '\0')
+    dir = std::filesystem::path(home) / ".cache";
+  else
+    return;  // Mesa looks the home folder up itself
+  std::error_code ec;
+  std::filesystem::create_directories(dir / "mesa_shader_cache", ec);
+  if (ec || ::access((dir / "mesa_shader_cache").c_str(), W_OK | X_OK) != 0)
+    ::setenv("MESA_SHADER_CACHE_DISABLE", "true", 0);
 }
 
 // ---------------------------------------------------------------------------
@@ -50,30 +75,6 @@ struct OsmesaLibrary {
   DestroyContextFn destroy = nullptr;
   GetProcAddressFn get_proc = nullptr;
 };
-
-// Mesa keeps compiled shaders in $XDG_CACHE_HOME/mesa_shader_cache (or
-// ~/.cache/...); when it cannot make that folder it prints a line of its own
-// ("Failed to create ... for shader cache (Permission denied)---disabling")
-// beside treecut's one line. Where the folder cannot be made, the cache is
-// disabled up front (as Mesa would do anyway), unless the user chose.
-void quiet_mesa_shader_cache() {
-  if (std::getenv("MESA_SHADER_CACHE_DISABLE") != nullptr ||
-      std::getenv("MESA_SHADER_CACHE_DIR") != nullptr ||
-      std::getenv("MESA_GLSL_CACHE_DISABLE") != nullptr ||
-      std::getenv("MESA_GLSL_CACHE_DIR") != nullptr)
-    return;
-  std::filesystem::path dir;
-  if (const char* xdg = std::getenv("XDG_CACHE_HOME"); xdg != nullptr && *xdg != '\0')
-    dir = xdg;
-  else if (const char* home = std::getenv("HOME"); home != nullptr && *home != '\0')
-    dir = std::filesystem::path(home) / ".cache";
-  else
-    return;  // Mesa looks the home folder up itself
-  std::error_code ec;
-  std::filesystem::create_directories(dir / "mesa_shader_cache", ec);
-  if (ec || ::access((dir / "mesa_shader_cache").c_str(), W_OK | X_OK) != 0)
-    ::setenv("MESA_SHADER_CACHE_DISABLE", "true", 0);
-}
 
 // Opened once per process and never closed: the GL entry points loaded from it
 // stay valid for the life of the process.

@@ -140,13 +140,16 @@ class GlError : public std::runtime_error {
 using ProcResolver = void* (*)(const char* name);
 
 /// Loads every entry point through `resolve` for the back end called
-/// `backend` ("osmesa", "glfw"). Idempotent for the same back end; throws
+/// `backend` ("egl", "osmesa", "glfw"). Idempotent for the same back end; throws
 /// GlError if an entry point is missing or another back end loaded them first.
 /// Render thread only, with a context of that back end current.
 void load(const char* backend, ProcResolver resolve);
 
 /// True once load() succeeded.
 bool loaded();
+/// The back end that loaded the entry points ("egl", "osmesa", "glfw"), or
+/// null before load().
+const char* loaded_backend();
 
 /// Throws GlError naming `what` if glGetError reports an error (drains all).
 void check(const char* what);
