@@ -28,6 +28,7 @@
 #include "headless_gl.hpp"
 #include "option_checks.hpp"
 #include "treecut/culling/chc.hpp"
+#include "treecut/culling/gpu_latency.hpp"
 #include "treecut/culling/hlod_blocks.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
@@ -201,6 +202,9 @@ struct OcclusionArgs {
   std::string csv_dir;
   bool no_hlod = false;
   std::uint32_t poll_every = 0;  // > 0: a CHC row polling every that many blocks
+  // The GPU-latency model (culling/gpu_latency.hpp): every method's device
+  // answers this late; the stage strategy's executor too (in frames).
+  std::string latency = "0";
 };
 
 // One method of the CHC table and what each frame of the path did.
@@ -248,6 +252,7 @@ void print_chc_table(const std::vector<ChcRun>& runs) {
   for (const ChcRun& r : runs) {
     const bool queries = r.options.mode == culling::OcclusionMode::StopAndWait ||
                          r.options.mode == culling::OcclusionMode::Chc ||
+                         r.options.mode == culling::OcclusionMode::ChcPlusPlus ||
                          r.options.ideal_probe_queries;
     const double ms = mean(column(r, frame_ms));
     char q[32] = "---", b[32] = "---", w[32] = "---", dr[32] = "---";
@@ -278,6 +283,7 @@ struct OcclusionWalk {
   double to = 0.0;
   double span = 0.0;
   int frames = 0;
+  culling::GpuLatency latency;
 };
 
 // Every option of bench occlusion checked before any work (exit 2 with one
@@ -291,7 +297,13 @@ OcclusionWalk check_occlusion_args(const OcclusionArgs& a) {
       (a.compare_fan_out == a.fan_out || (a.compare_fan_out != 2 && a.compare_fan_out != 4))) {
     throw InputError("--compare-fan-out must be the other of 2 and 4");
   }
-  OcclusionWalk w{splat::load_camera_path(a.path), 0.0, 0.0, 0};  // exit 2 before any work
+  culling::GpuLatency latency;
+  try {
+    latency = culling::parse_gpu_latency(a.latency);
+  } catch (const std::invalid_argument& e) {
+    throw InputError(std::string("--latency: ") + e.what());
+  }
+  OcclusionWalk w{splat::load_camera_path(a.path), 0.0, 0.0, 0, latency};  // exit 2 before any work
   if (!a.no_hlod && !a.csv_dir.empty()) check_hlod_csv(hlod_csv_path(a.csv_dir, a.scene));
   w.to = walk_part_end(w.path, a.path, a.from, a.to);
   if (a.no_chc && a.no_hlod) throw InputError("--no-chc and --no-hlod leave nothing to run");
@@ -320,6 +332,9 @@ std::vector<ChcRun> chc_runs(const OcclusionArgs& a, bool compare) {
       {"VFC", {OcclusionMode::Vfc, 0, 0}, {}}, {"S&W", {OcclusionMode::StopAndWait, 0, 0}, {}},
       {"CHC", {OcclusionMode::Chc, 0, 0}, {}}, {"Ideal", {OcclusionMode::Ideal, 0, 0}, {}},
       {"CHC", {OcclusionMode::Chc, 2, 0}, {}}, {"CHC", {OcclusionMode::Chc, 0, 25}, {}},
+      // CHC++ (chc_plus_plus.cpp): exact, then with randomized t_av.
+      {"CHC++", {OcclusionMode::ChcPlusPlus, 0, 0}, {}},
+      {"CHC++", {OcclusionMode::ChcPlusPlus, 4, 0}, {}},
   };
   // Diagnostics: Ideal with a glFlush after every block, the batches CHC's
   // polls cut llvmpipe's work into, without any query or wait.
@@ -355,7 +370,8 @@ std::vector<ChcRun> chc_runs(const OcclusionArgs& a, bool compare) {
 void measure_chc_runs(std::vector<ChcRun>& runs, std::array<const culling::HlodBlocks*, 2> trees,
                       std::array<splat::GlOcclusionDevice*, 2> devices,
                       const std::vector<splat::Camera>& cameras,
-                      const splat::RenderSettings& settings, glm::ivec2 size) {
+                      const splat::RenderSettings& settings, glm::ivec2 size,
+                      culling::GpuLatency latency) {
   using culling::OcclusionMode;
   // Ideal replays, frame by frame, the leaf blocks S&W found visible for the
   // same camera (S&W's frame runs just before).
@@ -365,14 +381,20 @@ void measure_chc_runs(std::vector<ChcRun>& runs, std::array<const culling::HlodB
   // and a change of the machine's load (other processes on the 2 cores)
   // falls on all of them alike instead of on whichever ran then.
   std::vector<culling::ChcTraversal> traversals;
-  for (const ChcRun& run : runs) traversals.emplace_back(*trees[run.tree], run.options);
+  // Each method its own latency model: its frames are its own (the methods
+  // take turns on one GL device).
+  std::vector<culling::LatentOcclusionDevice> latent;
+  for (const ChcRun& run : runs) {
+    traversals.emplace_back(*trees[run.tree], run.options);
+    latent.emplace_back(*devices[run.tree], latency);
+  }
   auto frame = [&](std::size_t r, std::size_t f) {
     const ChcRun& run = runs[r];
     splat::GlOcclusionDevice& dev = *devices[run.tree];
     dev.set_flush_after_draw(run.flush_per_block);
     dev.set_view_render_thread(cameras[f], settings);
     if (run.options.mode == OcclusionMode::Ideal) traversals[r].set_ideal_leaves(sw_set[run.tree]);
-    const auto stats = traversals[r].frame_render_thread(dev, cameras[f].view(size), true);
+    const auto stats = traversals[r].frame_render_thread(latent[r], cameras[f].view(size), true);
     if (run.options.mode == OcclusionMode::StopAndWait) sw_set[run.tree] = traversals[r].drawn();
     return stats;
   };
@@ -383,6 +405,8 @@ void measure_chc_runs(std::vector<ChcRun>& runs, std::array<const culling::HlodB
   for (std::size_t f = 0; f < cameras.size(); ++f) {
     for (std::size_t r = 0; r < runs.size(); ++r) runs[r].frames.push_back(frame(r, f));
   }
+  // Queries still in flight (CHC++'s carried answers) go back to the pool.
+  for (std::size_t r = 0; r < runs.size(); ++r) traversals[r].release_render_thread(latent[r]);
 }
 
 void run_bench_occlusion(const OcclusionArgs& a) {
@@ -434,12 +458,14 @@ void run_bench_occlusion(const OcclusionArgs& a) {
       "path      %s: %d frames over %.1f s (%.1f to %.1f s of %.1f); means over the frames "
       "(frame ms: glFinish-ed wall time; wait ms: CPU blocked in query reads)\n",
       a.path.c_str(), frames, span, a.from, walk.to, path.duration());
+  std::printf("latency   %s (GPU-latency model: answers no earlier than that after their issue)\n",
+              culling::describe(walk.latency).c_str());
   std::fflush(stdout);
 
   if (!a.no_chc) {
     std::vector<ChcRun> runs = chc_runs(a, compare);
     measure_chc_runs(runs, {&blocks, &other}, {&device, other_device.get()}, cameras, settings,
-                     size);
+                     size, walk.latency);
     print_chc_table(runs);
   }
   if (!a.no_hlod) {
@@ -453,6 +479,7 @@ void run_bench_occlusion(const OcclusionArgs& a) {
     hlod.size = size;
     hlod.tau = a.hlod_tau;
     hlod.psnr_frames = a.psnr_frames;
+    hlod.latency = walk.latency;
     if (!a.csv_dir.empty()) hlod.csv = hlod_csv_path(a.csv_dir, a.scene);
     run_hlod_table(hlod);
   }
@@ -577,6 +604,9 @@ void add_bench_occlusion_command(CLI::App& bench) {
       ->add_option("--csv", occ->csv_dir,
                    "Folder for the HLOD table's per-frame CSV (occlusion_SCENE.csv)")
       ->check(non_empty_path());
+  occlusion->add_option("--latency", occ->latency,
+                        "GPU-latency model: answers no earlier than N frames (Nf) or N "
+                        "microseconds (Nus) after their issue (default 0: as the device answers)");
   occlusion->add_flag("--no-hlod", occ->no_hlod, "Print the CHC table only");
   occlusion->add_flag("--no-chc", occ->no_chc, "Print the HLOD table only");
   occlusion->callback([occ] { run_bench_occlusion(*occ); });

@@ -28,11 +28,15 @@ namespace treecut::cli {
 namespace {
 
 constexpr const char* kCsvHeader =
-    "frame,method,frame_ms,drawn_blocks,splats,rarn,delayed,delays,queries,wait_ms,psnr_luma_db";
+    "frame,method,frame_ms,drawn_blocks,splats,rarn,delayed,delays,queries,wait_ms,psnr_luma_db,"
+    "blocking_reads,late_refined";
 
 struct Row {
   double frame_ms = 0.0;
   double drawn = 0, splats = 0, rarn = 0, delayed = 0, delayed_all = 0, queries = 0, wait_ms = 0;
+  // Reads that waited, and drawn blocks refined a frame late (their answer
+  // carried: Coh(B) carried; the stage strategy's late refinements).
+  double blocking = 0, late = 0;
   // D by cause and the stops drawn although hidden (the analysis of DN / SW(B)).
   double d_shift_up = 0, d_new = 0, d_hidden = 0, stopped_hidden = 0;
   double psnr = std::numeric_limits<double>::quiet_NaN();
@@ -55,16 +59,16 @@ double median_of(const std::vector<Row>& rows, double Row::*field) {
   return v.empty() ? 0.0 : median(std::move(v));
 }
 
-// The methods' rows, in this order: the four in-frame traversals, then the
-// stage strategy.
-constexpr std::size_t kBool = 0, kSwB = 1, kSimp = 2, kCoh = 3, kHoq = 4;
+// The methods' rows, in this order: the four in-frame traversals, Coh(B)
+// with carried answers (HlodOptions::carry_answers), then the stage strategy.
+constexpr std::size_t kBool = 0, kSwB = 1, kSimp = 2, kCoh = 3, kCohCarried = 4, kHoq = 5;
 
 // One frame of an in-frame traversal (Bool, SW(B), Simp(B), Coh(B)) on the
 // occlusion device.
-Row traversal_row(culling::HlodTraversal& traversal, splat::GlOcclusionDevice& device,
+Row traversal_row(culling::HlodTraversal& traversal, culling::LatentOcclusionDevice& device,
                   const splat::Camera& cam, const HlodBenchInput& in) {
   Row row;
-  device.set_view_render_thread(cam, in.settings);
+  in.device->set_view_render_thread(cam, in.settings);
   const culling::HlodFrameStats s = traversal.frame_render_thread(device, cam.view(in.size), true);
   row.frame_ms = s.frame_ms;
   row.drawn = double(s.drawn);
@@ -78,6 +82,8 @@ Row traversal_row(culling::HlodTraversal& traversal, splat::GlOcclusionDevice& d
   row.d_new = double(s.delayed_drawn_new);
   row.d_hidden = double(s.delayed_drawn_hidden);
   row.stopped_hidden = double(s.stopped_hidden);
+  row.blocking = double(s.blocking_reads);
+  row.late = double(s.late_refined);
   return row;
 }
 
@@ -102,6 +108,7 @@ Row stage_hoq_row(splat::RenderThreadFrame& frame_loop, Controller& controller,
   row.delayed = double(c.delayed);
   row.delayed_all = double(c.delayed);
   row.queries = double(queries.stats().issued - issued);
+  row.late = double(c.late_refined);
   return row;
 }
 
@@ -122,19 +129,20 @@ void print_table(const std::vector<Method>& methods, float tau) {
       "drawn; speed-up = method's frame ms / Coh(B)'s\n",
       double(tau));
   std::printf(
-      "| method | DN | splats | RARN | D | D / DN | all delays | queries | wait ms | frame ms "
-      "(mean) | frame ms (median) | speed-up of Coh(B) |\n");
-  std::printf("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+      "| method | DN | splats | RARN | late refined | D | D / DN | all delays | queries | blocking "
+      "reads | wait ms | frame ms (mean) | frame ms (median) | speed-up of Coh(B) |\n");
+  std::printf("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
   for (const Method& m : methods) {
     const double dn = mean_of(m.rows, &Row::drawn);
     const double d = mean_of(m.rows, &Row::delayed);
     const double ms = mean_of(m.rows, &Row::frame_ms);
     std::printf(
-        "| %s | %.1f | %.0f | %.2f | %.2f | %.2f%% | %.2f | %.1f | %.3f | %.2f | %.2f | "
-        "%.2f |\n",
-        m.name.c_str(), dn, mean_of(m.rows, &Row::splats), mean_of(m.rows, &Row::rarn), d,
-        dn > 0 ? 100.0 * d / dn : 0.0, mean_of(m.rows, &Row::delayed_all),
-        mean_of(m.rows, &Row::queries), mean_of(m.rows, &Row::wait_ms), ms,
+        "| %s | %.1f | %.0f | %.2f | %.2f | %.2f | %.2f%% | %.2f | %.1f | %.2f | %.3f | %.2f | "
+        "%.2f | %.2f |\n",
+        m.name.c_str(), dn, mean_of(m.rows, &Row::splats), mean_of(m.rows, &Row::rarn),
+        mean_of(m.rows, &Row::late), d, dn > 0 ? 100.0 * d / dn : 0.0,
+        mean_of(m.rows, &Row::delayed_all), mean_of(m.rows, &Row::queries),
+        mean_of(m.rows, &Row::blocking), mean_of(m.rows, &Row::wait_ms), ms,
         median_of(m.rows, &Row::frame_ms), coh_ms > 0 ? ms / coh_ms : 0.0);
   }
   const std::vector<Row>& c = methods[kCoh].rows;
@@ -153,7 +161,7 @@ void print_table(const std::vector<Method>& methods, float tau) {
 
 // The PSNR (section 5.2) of Coh(B) and the stage strategy against Bool's images.
 void print_psnr(const std::vector<Method>& methods) {
-  for (const std::size_t m : {kCoh, kHoq}) {
+  for (const std::size_t m : {kCoh, kCohCarried, kHoq}) {
     double sum = 0.0, low = std::numeric_limits<double>::infinity();
     int count = 0, capped = 0;
     for (const Row& r : methods[m].rows) {
@@ -185,7 +193,7 @@ void write_csv(const std::filesystem::path& csv, const std::vector<Method>& meth
                     r.queries, r.wait_ms);
       o << line;
       if (std::isfinite(r.psnr)) o << r.psnr;
-      o << "\n";
+      o << "," << r.blocking << "," << r.late << "\n";
     }
   }
   write_bench_csv(csv, o.str());
@@ -205,11 +213,12 @@ void run_hlod_table(const HlodBenchInput& in) {
   using culling::HlodMode;
   const Hierarchy& h = *in.hierarchy;
   splat::Renderer& renderer = *in.renderer;
-  splat::GlOcclusionDevice& device = *in.device;
   const glm::ivec2 size = in.size;
   const HlodMode modes[] = {HlodMode::Bool, HlodMode::SwB, HlodMode::SimpB, HlodMode::CohB};
   std::vector<Method> methods;
   std::vector<culling::HlodTraversal> traversals;
+  // Each method its own latency model (its frames are its own).
+  std::vector<culling::LatentOcclusionDevice> latent;
   for (const HlodMode m : modes) {
     culling::HlodOptions o;
     o.mode = m;
@@ -217,6 +226,12 @@ void run_hlod_table(const HlodBenchInput& in) {
     traversals.emplace_back(h, *in.blocks, o);
     methods.push_back({std::string(culling::hlod_mode_name(m)), {}});
   }
+  culling::HlodOptions carried;
+  carried.tau = in.tau;
+  carried.carry_answers = true;
+  traversals.emplace_back(h, *in.blocks, carried);
+  methods.push_back({"Coh(B) carried", {}});
+  for (std::size_t m = 0; m < traversals.size(); ++m) latent.emplace_back(*in.device, in.latency);
   methods.push_back({"hoq (stage)", {}});  // no comma: a CSV field
 
   // The stage strategy through the frame layer, as `treecut render --sync`:
@@ -229,12 +244,14 @@ void run_hlod_table(const HlodBenchInput& in) {
   Controller controller(Model{in.hierarchy, TreeCut::root_cut(h)}, std::move(hoq_owned),
                         splat::view_snapshot(in.cameras.front(), size, in.settings.light),
                         stage_options);
-  splat::QueryExecutor queries;
+  splat::QueryExecutorOptions executor_options;
+  executor_options.min_answer_frames = std::max<std::uint64_t>(1, in.latency.frames);
+  splat::QueryExecutor queries(executor_options);
   splat::RenderThreadFrame frame_loop(controller, renderer, &queries);
 
   auto run = [&](std::size_t m, const splat::Camera& cam) {
     if (m == kHoq) return stage_hoq_row(frame_loop, controller, *hoq, queries, cam, in.settings);
-    return traversal_row(traversals[m], device, cam, in);
+    return traversal_row(traversals[m], latent[m], cam, in);
   };
   auto grab = [&] { return splat::Image{size.x, size.y, renderer.read_pixels()}; };
 
@@ -250,7 +267,7 @@ void run_hlod_table(const HlodBenchInput& in) {
     splat::Image reference;
     for (std::size_t m = 0; m < methods.size(); ++m) {
       Row row = run(m, in.cameras[f]);
-      if (psnr_frame[f] != 0 && (m == kBool || m == kCoh || m == kHoq)) {
+      if (psnr_frame[f] != 0 && (m == kBool || m == kCoh || m == kCohCarried || m == kHoq)) {
         splat::Image image = grab();
         if (m == kBool) {
           reference = std::move(image);
@@ -262,6 +279,7 @@ void run_hlod_table(const HlodBenchInput& in) {
     }
   }
 
+  for (std::size_t m = 0; m < traversals.size(); ++m) traversals[m].release_render_thread(latent[m]);
   print_table(methods, in.tau);
   print_psnr(methods);
   std::fflush(stdout);

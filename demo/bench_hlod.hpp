@@ -1,6 +1,7 @@
 // treecut bench occlusion, the HLOD table (Charalambos et al. 2007,
 // ../shared/papers/hoq-driven-hlod-refinement.txt, table 1): Bool, SW(B),
-// Simp(B), Coh(B) in-frame (strategies/hlod_traversal.hpp) and the `hoq`
+// Simp(B), Coh(B) in-frame (strategies/hlod_traversal.hpp), Coh(B) with
+// its answers carried under a GPU's latency, and the `hoq`
 // stage strategy through the frame layer (as `treecut render --sync`), on the
 // walkthrough's cameras; the luminance PSNR of Coh(B) and hoq against Bool;
 // per-frame CSV for tests/bench/occlusion_plot.py.
@@ -11,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "treecut/culling/gpu_latency.hpp"
 #include "treecut/culling/hlod_blocks.hpp"
 #include "treecut/hierarchy.hpp"
 #include "treecut/splat/camera.hpp"
@@ -29,6 +31,8 @@ struct HlodBenchInput {
   glm::ivec2 size{1280, 720};
   float tau = 1.0f;
   int psnr_frames = 20;
+  /// The GPU-latency model of every method (the executor's in frames).
+  culling::GpuLatency latency;
   /// Non-empty: the per-frame CSV goes to this file (checked by
   /// check_hlod_csv before any work).
   std::filesystem::path csv;

@@ -28,6 +28,7 @@
 #include "test_support.hpp"
 #include "treecut/attributes.hpp"
 #include "treecut/culling/chc.hpp"
+#include "treecut/culling/gpu_latency.hpp"
 #include "treecut/hierarchy.hpp"
 #include "treecut/splat/camera.hpp"
 #include "treecut/splat/context.hpp"
@@ -173,6 +174,35 @@ TEST_P(ChcGl, NothingVisibleIsCulledUnderExactSettings) {
               all_frames);
 }
 
+// CHC++ (chc_plus_plus.cpp) under the GPU-latency model at 0, 1 and 2
+// frames: conservative every frame of the walk (the reference finds none of
+// the blocks it culls visible), and its only blocking reads are its drains.
+TEST_P(ChcGl, ChcPlusPlusCullsNothingVisibleUnderGpuLatency) {
+  const auto cameras = walk_cameras(GetParam().kind, *h_, 7);
+  for (const std::uint32_t frames : {0u, 1u, 2u}) {
+    culling::LatentOcclusionDevice latent(*device_, {frames, 0.0});
+    ChcTraversal chc(blocks_, {OcclusionMode::ChcPlusPlus});
+    std::uint64_t queries = 0, blocking = 0, drains = 0, culled_total = 0;
+    for (std::size_t f = 0; f < cameras.size(); ++f) {
+      const std::vector<BlockId> in = in_frustum(cameras[f]);
+      device_->set_view_render_thread(cameras[f], settings_);
+      const ChcFrameStats s = chc.frame_render_thread(latent, cameras[f].view({kWidth, kHeight}));
+      const std::set<BlockId> drawn(chc.drawn().begin(), chc.drawn().end());
+      std::vector<BlockId> culled;
+      for (const BlockId b : in)
+        if (drawn.count(b) == 0) culled.push_back(b);
+      EXPECT_TRUE(reference(cameras[f], in, culled).empty())
+          << "latency " << frames << " frame " << f;
+      queries += s.queries, blocking += s.blocking_reads, drains += s.drains;
+      culled_total += culled.size();
+    }
+    chc.release_render_thread(latent);
+    EXPECT_GT(queries, 0u);
+    EXPECT_GT(culled_total, 20u) << "the walk has occlusion to find";
+    EXPECT_LE(blocking, drains) << frames;
+  }
+}
+
 TEST_P(ChcGl, StopAndWaitAndIdealDrawTheSameSetAndChcConvergesToIt) {
   const Camera c = walk_cameras(GetParam().kind, *h_, 9)[4];  // street level
   const auto view = c.view({kWidth, kHeight});
@@ -259,14 +289,17 @@ TEST(BenchOcclusion, PrintsTheChcTableOfAWalk) {
       test::quote(std::filesystem::path(TREECUT_SOURCE_DIR) / "assets/paths/city_walk.campath");
   const auto r = test::run_treecut("bench occlusion " + test::quote(model) + " --path " + walk +
                                    " --frames 3 --width 160 --height 90 --block-size 200"
-                                   " --compare-fan-out 4");
+                                   " --compare-fan-out 4 --latency 1f");
   ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("\nlatency   1 frame (GPU-latency model"), std::string::npos) << r.out;
   EXPECT_EQ(count(r.out, "| VFC | 0 | 0 |"), 1) << r.out;
   EXPECT_EQ(count(r.out, "| S&W | 0 | 0 |"), 1);
   EXPECT_EQ(count(r.out, "| CHC | 0 | 0 |"), 1);
   EXPECT_EQ(count(r.out, "| Ideal | 0 | 0 |"), 1);
   EXPECT_EQ(count(r.out, "| CHC | 2 | 0 |"), 1);
   EXPECT_EQ(count(r.out, "| CHC | 0 | 25 |"), 1);
+  EXPECT_EQ(count(r.out, "| CHC++ | 0 | 0 |"), 1);
+  EXPECT_EQ(count(r.out, "| CHC++ | 4 | 0 |"), 1);
   EXPECT_NE(r.out.find("3 frames"), std::string::npos) << r.out;
   // The 4-ary tree's rows beside the binary tree's, in the same run.
   EXPECT_NE(r.out.find("fan-out 2, built"), std::string::npos) << r.out;
@@ -314,6 +347,12 @@ TEST(BenchOcclusion, RefusesBadInputWithOneLineAndExitCode2) {
     EXPECT_EQ(count(b.out, "\n"), 1) << b.out;
     EXPECT_NE(b.out.find("fan-out"), std::string::npos) << b.out;
   }
+  const auto latency = test::run_treecut("bench occlusion " + test::quote(model) + " --path " +
+                                         walk + " --latency 3x");
+  EXPECT_EQ(latency.code, 2);
+  EXPECT_EQ(latency.out,
+            "treecut: --latency: latency '3x': the unit is f (frames) or us (microseconds) "
+            "(examples: 0, 1f, 2frames, 300us)\n");
 }
 
 }  // namespace

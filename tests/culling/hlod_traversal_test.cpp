@@ -8,7 +8,10 @@
 //    it only after its answer was read;
 //  - SW(B) draws no more blocks than Bool where the scene is occluded;
 //  - Coh(B) never reads an answer before it is available while the
-//    traversal queue has work.
+//    traversal queue has work;
+//  - under a frame or two of GPU latency (gpu_latency.hpp) Coh(B) with
+//    carried answers blocks only in its drains, where the paper's form
+//    blocks on most answers, and still converges to SW(B)'s blocks.
 #include "treecut/culling/hlod_traversal.hpp"
 
 #include <gtest/gtest.h>
@@ -22,6 +25,7 @@
 #include <vector>
 
 #include "treecut/attributes.hpp"
+#include "treecut/culling/gpu_latency.hpp"
 #include "treecut/hierarchy.hpp"
 #include "treecut/tools/generate.hpp"
 
@@ -366,6 +370,71 @@ TEST_F(HlodTraversalTest, CohBNeverReadsAnAnswerBeforeItIsAvailableWhileThereIsW
   HlodTraversal sw(*h_, blocks_, options(HlodMode::SwB));
   run(sw, d, near_);
   EXPECT_GT(d.blocked_with_work, 0u);
+}
+
+// Under the latency model: the scripted device answers at once, the model
+// `frames` frames after the issue.
+HlodFrameStats run_latent(HlodTraversal& t, ScriptedDevice& d,
+                          treecut::culling::LatentOcclusionDevice& latent, const ViewSnapshot& v) {
+  d.view = &v;
+  return t.frame_render_thread(latent, v);
+}
+
+TEST_F(HlodTraversalTest, CarriedCohBBlocksOnlyInItsDrainsUnderLatency) {
+  for (const std::uint32_t frames : {1u, 2u}) {
+    std::uint64_t queries[2] = {}, blocking[2] = {}, drains = 0, late = 0, carried = 0;
+    for (int c = 0; c < 2; ++c) {
+      ScriptedDevice d(blocks_, 0);
+      treecut::culling::LatentOcclusionDevice latent(d, {frames, 0.0});
+      HlodOptions o = options(HlodMode::CohB);
+      o.carry_answers = c == 1;
+      HlodTraversal t(*h_, blocks_, o);
+      for (int i = 0; i <= 20; ++i) {
+        // Nearer blocks half hidden, so biases change as the camera moves.
+        d.fraction = [i](BlockId b) { return (b + static_cast<BlockId>(i)) % 3 == 0 ? 0.2 : 1.0; };
+        const HlodFrameStats s = run_latent(t, d, latent, view_at(*h_, 1.2f + 0.1f * float(i)));
+        queries[c] += s.queries;
+        blocking[c] += s.blocking_reads;
+        if (c == 1) drains += s.drains, late += s.late_refined, carried += s.carried_answers;
+      }
+      t.release_render_thread(latent);
+    }
+    EXPECT_GE(blocking[0], queries[0] / 2) << "the paper's Coh(B) reads in-frame: " << frames;
+    EXPECT_LE(blocking[1], drains) << frames;
+    EXPECT_LT(4 * blocking[1], blocking[0]) << frames;
+    EXPECT_GT(carried, 0u) << frames;
+    EXPECT_GT(late, 0u) << "a drawn block whose late answer says refine, refines: " << frames;
+  }
+}
+
+TEST_F(HlodTraversalTest, CarriedCohBConvergesToStopAndWaitOnAStillViewUnderLatency) {
+  const glm::vec3 c = 0.5f * (h_->bounds_min() + h_->bounds_max());
+  auto fraction = [this, c](BlockId b) {
+    const glm::vec3 m = 0.5f * (blocks_.box(b).lo + blocks_.box(b).hi);
+    if (m.x < c.x - 0.2f * (c.x - h_->bounds_min().x)) return 0.0;
+    if (m.y < c.y) return 0.1;
+    return 1.0;
+  };
+  ScriptedDevice ds(blocks_, 0);
+  ds.fraction = fraction;
+  HlodTraversal sw(*h_, blocks_, options(HlodMode::SwB));
+  const std::uint64_t ideal = run(sw, ds, near_).drawn;
+  for (const std::uint32_t frames : {1u, 2u}) {
+    ScriptedDevice d(blocks_, 0);
+    d.fraction = fraction;
+    treecut::culling::LatentOcclusionDevice latent(d, {frames, 0.0});
+    HlodOptions o = options(HlodMode::CohB);
+    o.carry_answers = true;
+    HlodTraversal t(*h_, blocks_, o);
+    HlodFrameStats s;
+    for (int i = 0; i < 12; ++i) s = run_latent(t, d, latent, near_);
+    EXPECT_EQ(s.drawn, ideal) << frames;
+    // Converged: the hidden blocks still wait for their answers (figure 3
+    // delays a block invisible last frame), in one drain a frame.
+    EXPECT_EQ(s.drains, 1u) << frames;
+    EXPECT_LE(s.blocking_reads, s.drains) << frames;
+    t.release_render_thread(latent);
+  }
 }
 
 }  // namespace

@@ -429,6 +429,28 @@ std::vector<QueryRequest> probe_requests(std::uint32_t offset) {
   return r;
 }
 
+// The GPU-latency model (culling/gpu_latency.hpp): answers read no earlier
+// than min_answer_frames frames after their batch was issued, the same
+// answers as without it.
+TEST_F(QueryExecutorTest, AMinimumAnswerAgeHoldsAnswersBackAndKeepsThem) {
+  std::map<std::uint32_t, std::uint32_t> samples[2];
+  for (int i = 0; i < 2; ++i) {
+    QueryExecutorOptions o;
+    o.min_batch = 0;
+    o.min_answer_frames = i == 0 ? 1 : 3;
+    renderer_->set_query_hook(nullptr);
+    executor_ = std::make_unique<QueryExecutor>(o);
+    renderer_->set_query_hook(executor_.get());
+    std::uint64_t f = 0;
+    for (const auto& [tag, r] : run_to_completion(list_of(probe_requests(0), 1), f)) {
+      samples[i][tag] = r.samples_passed;
+      EXPECT_GE(r.frame_read - r.frame_issued, o.min_answer_frames) << "tag " << tag;
+    }
+    EXPECT_EQ(samples[i].size(), probes().size());
+  }
+  EXPECT_EQ(samples[0], samples[1]);
+}
+
 TEST_F(QueryExecutorTest, ATrickleBelowTheMinimumBatchGoesOutAfterMaxDeferFramesAsOneBatch) {
   constexpr std::uint64_t kDefer = 3;
   use_executor(1000, kDefer);

@@ -24,6 +24,8 @@ std::string_view occlusion_mode_name(OcclusionMode mode) {
       return "chc";
     case OcclusionMode::Ideal:
       return "ideal";
+    case OcclusionMode::ChcPlusPlus:
+      return "chc++";
   }
   return "?";
 }
@@ -49,8 +51,12 @@ void ChcTraversal::reset() {
   last_visited_.assign(n, 0);
   visible_query_.assign(n, 0);
   drawn_frame_.assign(n, 0);
+  in_flight_.assign(n, 0);
   drawn_.clear();
   classified_.clear();
+  // Queries still in flight name blocks whose state is gone: their answers
+  // are read (the handles go back to the device) and ignored.
+  for (Carried& c : carried_) c.frame = 0;
 }
 
 void ChcTraversal::set_ideal_leaves(std::span<const BlockId> leaves) {
@@ -70,6 +76,13 @@ void ChcTraversal::push(BlockId b, const ViewSnapshot& view) {
   wait_at_push_ = device_->frame_stats().wait_ms;
   heap_.push_back({blocks_->box(b).distance_to(view.derived.eye), b});
   std::push_heap(heap_.begin(), heap_.end(), heap_less);
+}
+
+ChcTraversal::Entry ChcTraversal::pop_nearest() {
+  std::pop_heap(heap_.begin(), heap_.end(), heap_less);
+  const Entry e = heap_.back();
+  heap_.pop_back();
+  return e;
 }
 
 void ChcTraversal::draw(BlockId b, OcclusionDeviceRenderThread& device) {
@@ -114,16 +127,17 @@ ChcFrameStats ChcTraversal::frame_render_thread(OcclusionDeviceRenderThread& dev
   std::uint32_t since_poll = interval;
   device.begin_frame_render_thread();
   device_ = &device;
-  push(0, view);
-  while (!heap_.empty() || pending_head_ < pending_.size()) {
-    read_answers(view, device, interval, since_poll);
-    // Part 2: the hierarchical traversal, front to back.
-    if (heap_.empty()) continue;
-    std::pop_heap(heap_.begin(), heap_.end(), heap_less);
-    const Entry e = heap_.back();
-    heap_.pop_back();
-    ++since_poll;
-    visit(e, view, device, stats);
+  if (options_.mode == OcclusionMode::ChcPlusPlus) {
+    traverse_chc_plus_plus(view, device, stats);
+  } else {
+    push(0, view);
+    while (!heap_.empty() || pending_head_ < pending_.size()) {
+      read_answers(view, device, interval, since_poll);
+      // Part 2: the hierarchical traversal, front to back.
+      if (heap_.empty()) continue;
+      ++since_poll;
+      visit(pop_nearest(), view, device, stats);
+    }
   }
   device.end_frame_render_thread(finish);
 
@@ -154,12 +168,18 @@ void ChcTraversal::read_answers(const ViewSnapshot& view, OcclusionDeviceRenderT
     const Pending p = pending_[pending_head_++];
     const std::uint64_t samples = device.result_render_thread(p.query);
     if (options_.mode == OcclusionMode::Ideal) continue;  // a probe: ignored
-    if (answer_visible(samples)) {
-      pull_up(p.block);
-      visible_query_[p.block] = frame_;
-      traverse(p.block, view, device);  // pull-down (a leaf drawn when queried is not redrawn)
-    }
+    apply_answer(p, samples, view, device);
   }
+}
+
+// An answer read in the frame it was issued in: a visible block is pulled up
+// and opened (pull-down: a leaf drawn when queried is not redrawn).
+void ChcTraversal::apply_answer(const Pending& p, std::uint64_t samples, const ViewSnapshot& view,
+                                OcclusionDeviceRenderThread& device) {
+  if (!answer_visible(samples)) return;
+  pull_up(p.block);
+  visible_query_[p.block] = frame_;
+  traverse(p.block, view, device);
 }
 
 // One block taken from the traversal queue: culled, opened, queried or drawn
@@ -204,6 +224,8 @@ void ChcTraversal::visit(const Entry& e, const ViewSnapshot& view,
         ++stats.queries;
       }
       break;
+    case OcclusionMode::ChcPlusPlus:
+      break;  // visit_chc_plus_plus
     case OcclusionMode::Chc: {
       const bool opened = was_visible && !leaf;
       if (opened || near) {

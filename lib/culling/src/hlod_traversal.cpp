@@ -124,7 +124,9 @@ void HlodTraversal::reset() {
   outside_.assign(n, 0);
   bias_.assign(n, 1.0f);
   drawn_frame_.assign(n, 0);
+  answer_frame_.assign(n, 0);
   drawn_.clear();
+  for (Pending& c : carried_) c.frame = 0;  // names state that is gone: read, ignored
 }
 
 float HlodTraversal::sse(BlockId b) const {
@@ -159,21 +161,29 @@ void HlodTraversal::pull_up(BlockId b) {
 }
 
 void HlodTraversal::query(BlockId b, Kind kind, float block_sse, Why why) {
-  pending_.push_back({b, device_->query_box_render_thread(b), kind, block_sse, why});
+  const double pixels =
+      options_.mode == HlodMode::Bool ? 0.0 : box_projected_pixels(*view_, blocks_->box(b));
+  pending_.push_back({b, device_->query_box_render_thread(b), kind, block_sse, why, pixels, frame_});
   ++stats_.queries;
+}
+
+// The answer's bias (Bool: the answer only as visible or not), for the
+// camera the query was issued with.
+void HlodTraversal::take_bias(const Pending& p, std::uint64_t samples) {
+  answer_frame_[p.block] = p.frame;
+  if (options_.mode == HlodMode::Bool) {
+    bias_[p.block] = samples > 0 ? 1.0f : 0.0f;
+    return;
+  }
+  const float mu = hoq::relative_visibility(
+      static_cast<std::uint32_t>(std::min<std::uint64_t>(samples, 0xffffffffu)), p.pixels);
+  bias_[p.block] = hoq::sigmoid_bias(mu, options_.s, options_.t);
 }
 
 void HlodTraversal::answer(const Pending& p, std::uint64_t samples) {
   const BlockId b = p.block;
   const bool visible = samples > 0;
-  if (options_.mode == HlodMode::Bool) {
-    bias_[b] = visible ? 1.0f : 0.0f;  // the answer only as visible or not
-  } else {
-    const double pixels = box_projected_pixels(*view_, blocks_->box(b));
-    const float mu = hoq::relative_visibility(
-        static_cast<std::uint32_t>(std::min<std::uint64_t>(samples, 0xffffffffu)), pixels);
-    bias_[b] = hoq::sigmoid_bias(mu, options_.s, options_.t);
-  }
+  take_bias(p, samples);
   if (visible) pull_up(b);
   const bool leaf = blocks_->is_leaf(b);
   const bool stops = leaf || hoq::vmsse(bias_[b], p.sse) <= options_.tau;
@@ -317,6 +327,93 @@ void HlodTraversal::visit(const Entry& e) {
   }
 }
 
+HlodTraversal::Entry HlodTraversal::pop_nearest() {
+  std::pop_heap(heap_.begin(), heap_.end(),
+                [](const Entry& x, const Entry& y) { return heap_less(x, y); });
+  const Entry e = heap_.back();
+  heap_.pop_back();
+  return e;
+}
+
+// The query queue in issue order, as far as the answers are there (or read
+// ahead by the drain); with `wait_for_each`, the next one even if it is not
+// (waiting), stopping once the traversal queue has work again, except in
+// SwB, which reads them all.
+void HlodTraversal::read_available(bool wait_for_each) {
+  while (pending_head_ < pending_.size()) {
+    Pending& p = pending_[pending_head_];
+    if (!p.read) {
+      if (!wait_for_each && !device_->result_available_render_thread(p.query)) break;
+      p.samples = device_->result_render_thread(p.query);
+      p.read = true;
+    }
+    ++pending_head_;
+    answer(p, p.samples);
+    if (wait_for_each && options_.mode != HlodMode::SwB && !heap_.empty()) break;
+  }
+}
+
+// carry_answers, the traversal queue empty: the answers no decision of this
+// frame needs and that are not there go to a later frame (a drawn block
+// stays visible until its answer); of those a decision needs (Delay), the
+// newest is waited for, after which the older ones are there. False when
+// nothing is left to wait for.
+bool HlodTraversal::carry_or_drain() {
+  std::size_t keep = pending_head_;
+  std::size_t newest_needed = pending_.size();
+  for (std::size_t i = pending_head_; i < pending_.size(); ++i) {
+    Pending& p = pending_[i];
+    const bool needed = p.kind == Kind::Delayed;
+    if (needed || p.read || device_->result_available_render_thread(p.query)) {
+      if (needed && !p.read) newest_needed = keep;
+      pending_[keep++] = p;
+      continue;
+    }
+    if (p.kind == Kind::Drawn) pull_up(p.block);  // visible until its answer says otherwise
+    carried_.push_back(p);
+  }
+  pending_.resize(keep);
+  if (newest_needed < pending_.size()) {
+    Pending& p = pending_[newest_needed];
+    p.samples = device_->result_render_thread(p.query);
+    p.read = true;
+    ++stats_.drains;
+  }
+  return pending_head_ < pending_.size();
+}
+
+// Earlier frames' answers that are there, in issue order: their bias and
+// visibility for this frame's predictions (an answer older than the one
+// taken is ignored). A drawn block whose answer says refine refines now, by
+// figure 3's prediction (stopped, VMSSE > tau): a late RARN.
+void HlodTraversal::take_carried_answers() {
+  std::size_t keep = 0;
+  bool waiting = false;
+  for (const Pending& c : carried_) {
+    if (waiting || !device_->result_available_render_thread(c.query)) {
+      waiting = true;
+      carried_[keep++] = c;
+      continue;
+    }
+    const std::uint64_t samples = device_->result_render_thread(c.query);
+    if (c.frame == 0 || c.frame < answer_frame_[c.block]) continue;
+    ++stats_.carried_answers;
+    take_bias(c, samples);
+    const bool visible = samples > 0;
+    if (!visible) visible_[c.block] = 0;
+    if (c.kind != Kind::Drawn) continue;
+    const bool stops = blocks_->is_leaf(c.block) || hoq::vmsse(bias_[c.block], c.sse) <= options_.tau;
+    if (visible && !stops) ++stats_.late_refined;
+    if (!visible) ++stats_.stopped_hidden;
+  }
+  carried_.resize(keep);
+}
+
+void HlodTraversal::release_render_thread(OcclusionDeviceRenderThread& device) {
+  for (const Pending& c : carried_) (void)device.result_render_thread(c.query);
+  carried_.clear();
+}
+
 HlodFrameStats HlodTraversal::frame_render_thread(OcclusionDeviceRenderThread& device,
                                                   const ViewSnapshot& view, bool finish) {
   const auto start = std::chrono::steady_clock::now();
@@ -328,23 +425,23 @@ HlodFrameStats HlodTraversal::frame_render_thread(OcclusionDeviceRenderThread& d
   pending_.clear();
   pending_head_ = 0;
   drawn_.clear();
-  auto heap_cmp = [](const Entry& x, const Entry& y) { return heap_less(x, y); };
   device.begin_frame_render_thread();
+  const bool carry = options_.carry_answers && options_.mode != HlodMode::SwB;
+  if (carry) take_carried_answers();
   push(0);
-  while (!heap_.empty() || pending_head_ < pending_.size()) {
-    while (pending_head_ < pending_.size()) {
-      const bool read = options_.mode == HlodMode::SwB || heap_.empty() ||
-                        device.result_available_render_thread(pending_[pending_head_].query);
-      if (!read) break;
-      const Pending p = pending_[pending_head_++];
-      answer(p, device.result_render_thread(p.query));
+  while (true) {
+    read_available(options_.mode == HlodMode::SwB);  // SwB waits for every answer
+    if (!heap_.empty()) {
+      visit(pop_nearest());
+    } else if (pending_head_ == pending_.size()) {
+      break;
+    } else if (!carry) {
+      read_available(true);  // nothing else to do: wait (the paper's form)
+    } else if (!carry_or_drain()) {
+      break;
     }
-    if (heap_.empty()) continue;
-    std::pop_heap(heap_.begin(), heap_.end(), heap_cmp);
-    const Entry e = heap_.back();
-    heap_.pop_back();
-    visit(e);
   }
+  stats_.carried_pending = carried_.size();
   device.end_frame_render_thread(finish);
   const DeviceFrameStats& d = device.frame_stats();
   stats_.drawn = drawn_.size();

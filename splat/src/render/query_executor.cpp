@@ -59,12 +59,22 @@ void main() {
 }
 )";
 
+// kCounterLanes counters per request, one per pixel of a 4 x 4 tile, summed
+// on the host: a proxy covering much of the screen (a block near a
+// street-level eye) adds to 16 addresses instead of one. On llvmpipe an
+// atomic is cheap; on a GPU the additions to one address serialize, the
+// first suspect of the 264 ms frames of `hoq` on an H200 (issue 28).
 constexpr const char* kBatchFragment = R"(#version 450 core
 layout(early_fragment_tests) in;
 flat in uint v_slot;
+uniform uint u_count;
 layout(std430, binding = 0) buffer Counters { uint counts[]; };
-void main() { atomicAdd(counts[v_slot], 1u); }
+void main() {
+  uint lane = (uint(gl_FragCoord.x) & 3u) | ((uint(gl_FragCoord.y) & 3u) << 2);
+  atomicAdd(counts[lane * u_count + v_slot], 1u);
+}
 )";
+constexpr std::size_t kCounterLanes = 16;
 
 // The counters' binding point (the renderer binds no storage buffers).
 constexpr GLuint kCounterBinding = 0;
@@ -103,8 +113,10 @@ QueryExecutor::QueryExecutor(QueryExecutorOptions options) : options_(options) {
   u_view_ = gl::GetUniformLocation(proxy_.id(), "u_view");
   u_proj_ = gl::GetUniformLocation(proxy_.id(), "u_proj");
   u_base_ = gl::GetUniformLocation(proxy_.id(), "u_base");
+  u_count_ = gl::GetUniformLocation(proxy_.id(), "u_count");
   vao_ = vec4_attribute(1);
   point_proxy_ = link_program(kPointVertex, kBatchFragment, "query point proxy");
+  u_point_count_ = gl::GetUniformLocation(point_proxy_.id(), "u_count");
   point_vao_ = vec4_attribute(0);
   GLfloat range[2] = {1.0f, 1.0f};
   gl::GetFloatv(GL_POINT_SIZE_RANGE, range);
@@ -242,6 +254,7 @@ void QueryExecutor::poll_render_thread() {
   while (ring_count_ > 0) {
     Batch& b = ring_[ring_head_];
     if (b.fence == nullptr) break;  // issued this frame: fenced when the next one begins
+    if (frame_ < b.frame_issued + options_.min_answer_frames) break;  // the latency model
     // Timeout 0: a status check, never a wait.
     const GLenum status = gl::ClientWaitSync(b.fence, 0, 0);
     if (status == GL_WAIT_FAILED) throw gl::GlError("QueryExecutor: glClientWaitSync failed");
@@ -250,10 +263,15 @@ void QueryExecutor::poll_render_thread() {
     b.fence = nullptr;
     // Signaled: the counters in the mapping are final (the barrier before
     // the fence made the shader's atomics visible to the mapping).
-    for (std::size_t i = 0; i < b.requests.size(); ++i) {
+    const std::size_t n = b.requests.size();
+    for (std::size_t i = 0; i < n; ++i) {
       const Queued& q = b.requests[i];
       std::uint32_t c = 0;
-      std::memcpy(&c, b.mapped + i * sizeof(std::uint32_t), sizeof c);
+      for (std::size_t lane = 0; lane < kCounterLanes; ++lane) {
+        std::uint32_t part = 0;
+        std::memcpy(&part, b.mapped + (lane * n + i) * sizeof(std::uint32_t), sizeof part);
+        c += part;
+      }
       answer(q, q.request.kind == QueryKind::AnySamples ? (c > 0 ? 1u : 0u) : c, b.frame_issued);
     }
     b.requests.clear();
@@ -306,7 +324,7 @@ void QueryExecutor::reserve_batch_buffer(Batch& b, std::size_t n) {
   // the fence needs only GL_CLIENT_MAPPED_BUFFER_BARRIER_BIT.
   constexpr GLbitfield kMap =
       GL_MAP_READ_BIT | GL_MAP_WRITE_BIT | GL_MAP_PERSISTENT_BIT | GL_MAP_COHERENT_BIT;
-  const std::size_t bytes = cap * (sizeof(std::uint32_t) + sizeof(glm::vec4)) + 16;
+  const std::size_t bytes = cap * (kCounterLanes * sizeof(std::uint32_t) + sizeof(glm::vec4)) + 16;
   b.buffer = gl::Buffer::create(bytes, nullptr, kMap);
   b.mapped = static_cast<std::byte*>(
       gl::MapNamedBufferRange(b.buffer.id(), 0, static_cast<GLsizeiptr>(bytes), kMap));
@@ -320,8 +338,9 @@ std::size_t QueryExecutor::write_batch(Batch& b, std::size_t n_points, std::size
   // n zeroed counters, then (16-byte aligned) the points and the quads'
   // spheres. The slot's last batch was read after its fence: the GPU is
   // done with this memory.
-  const std::size_t data_at = (n * sizeof(std::uint32_t) + 15) / 16 * 16;
-  std::memset(b.mapped, 0, n * sizeof(std::uint32_t));
+  const std::size_t counters = kCounterLanes * n * sizeof(std::uint32_t);
+  const std::size_t data_at = (counters + 15) / 16 * 16;
+  std::memset(b.mapped, 0, counters);
   // (memcpy from an empty vector's data() may be from a null pointer: UB)
   if (n_points > 0) {
     std::memcpy(b.mapped + data_at, staging_.data(), n_points * sizeof(glm::vec4));
@@ -338,6 +357,9 @@ void QueryExecutor::draw_batch_render_thread(const Batch& b, const ViewSnapshot&
                                              std::size_t n_quads) {
   begin_proxy_state();
   gl::BindBufferBase(GL_SHADER_STORAGE_BUFFER, kCounterBinding, b.buffer.id());
+  const auto n = static_cast<GLuint>(n_points + n_quads);
+  gl::ProgramUniform1ui(point_proxy_.id(), u_point_count_, n);
+  gl::ProgramUniform1ui(proxy_.id(), u_count_, n);
   if (n_points > 0) {
     gl::GetIntegerv(GL_PROGRAM_POINT_SIZE, &program_point_size_);
     if (program_point_size_ == 0) gl::Enable(GL_PROGRAM_POINT_SIZE);

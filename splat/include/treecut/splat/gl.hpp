@@ -91,6 +91,7 @@ namespace treecut::gl {
   X(PFNGLUSEPROGRAMPROC, UseProgram)                                   \
   X(PFNGLGETUNIFORMLOCATIONPROC, GetUniformLocation)                   \
   X(PFNGLPROGRAMUNIFORM1IPROC, ProgramUniform1i)                       \
+  X(PFNGLPROGRAMUNIFORM1UIPROC, ProgramUniform1ui)                     \
   X(PFNGLPROGRAMUNIFORM1FPROC, ProgramUniform1f)                       \
   X(PFNGLPROGRAMUNIFORM2FPROC, ProgramUniform2f)                       \
   X(PFNGLPROGRAMUNIFORM3FPROC, ProgramUniform3f)                       \

@@ -30,8 +30,10 @@
 //   depth writes off, depth clamping on (a proxy in front of the near plane
 //   passes instead of being clipped away), GL_LEQUAL. The fragment shader
 //   runs after the depth test (early_fragment_tests) and adds 1 per fragment
-//   to its request's counter in a shader storage buffer: on a single-sampled
-//   target exactly what GL_SAMPLES_PASSED counts. QueryKind::AnySamples
+//   to one of its request's 16 counters in a shader storage buffer (one per
+//   pixel of a 4 x 4 tile, so a large proxy's fragments do not all add to one
+//   address; the host sums them): on a single-sampled target exactly what
+//   GL_SAMPLES_PASSED counts. QueryKind::AnySamples
 //   answers count > 0.
 // - The proxy of a node, usually ONE point (a point costs llvmpipe a small
 //   fraction of a strip of two triangles): the host computes the window
@@ -99,6 +101,10 @@ struct QueryExecutorOptions {
   /// Point proxies where they fit (see above); false: every proxy a quad
   /// (for the tests and the benchmark's comparison).
   bool point_proxies = true;
+  /// The GPU-latency model (culling/gpu_latency.hpp): a batch's answers are
+  /// read no earlier than this many frames after the frame it was issued in
+  /// (its fence signaled or not). 1, the least, is what a fence allows.
+  std::uint64_t min_answer_frames = 1;
 };
 
 /// Counters of the executor (cesium-native's tilesOccluded /
@@ -223,7 +229,7 @@ class QueryExecutor final : public QueryHook {
   gl::VertexArray point_vao_;   // points: per-vertex
   gl::Program proxy_;           // quads
   gl::Program point_proxy_;
-  GLint u_view_ = -1, u_proj_ = -1, u_base_ = -1;
+  GLint u_view_ = -1, u_proj_ = -1, u_base_ = -1, u_count_ = -1, u_point_count_ = -1;
   GLint depth_func_ = GL_LESS;
   GLint program_point_size_ = 0;
   float max_point_size_ = 1.0f;  // GL_POINT_SIZE_RANGE's max

@@ -27,6 +27,16 @@
 //     traversal runs with the set as an oracle, so the draw order is the
 //     same front-to-back order. `treecut bench occlusion` records the set of
 //     each frame in its StopAndWait pass over the path and replays it.
+//   - ChcPlusPlus: CHC made for a GPU's latency, after CHC++ (O. Mattausch,
+//     J. Bittner, M. Wimmer, "CHC++: Coherent Hierarchical Culling
+//     Revisited", Eurographics 2008; not in ../shared/papers, our reading in
+//     chc_plus_plus.cpp): answers are read only when available while other
+//     work exists, previously invisible nodes are queried in batches (the
+//     i-queue), a previously visible leaf is drawn at once and queried at the
+//     end of the frame against the complete depth (the v-queue) with its
+//     answer taken in a later frame (carried: never waited for), t_av is
+//     randomized per node, and the answers the frame needs are drained with
+//     one wait for the newest (a GPU answers in order).
 // Options (the paper's section 5): assume_visible_frames (t_av: a leaf found
 // visible by a query is assumed visible for the next t_av frames, no query)
 // and min_visible_samples (n_vp: an answer below n_vp samples counts as
@@ -52,15 +62,18 @@
 
 namespace treecut::culling {
 
-enum class OcclusionMode { Vfc, StopAndWait, Chc, Ideal };
+enum class OcclusionMode { Vfc, StopAndWait, Chc, Ideal, ChcPlusPlus };
 
-/// "vfc", "sw", "chc", "ideal".
+/// "vfc", "sw", "chc", "ideal", "chc++".
 std::string_view occlusion_mode_name(OcclusionMode mode);
 
 struct ChcOptions {
   OcclusionMode mode = OcclusionMode::Chc;
   /// t_av: frames a leaf found visible by a query is assumed visible without
-  /// a new query (0: query every frame). Chc only.
+  /// a new query (0: query every frame). Chc: t_av frames; ChcPlusPlus: a
+  /// number of frames drawn per node and answer from [1, t_av] (CHC++'s
+  /// randomization: the queries of a region that became visible at once do
+  /// not all fall due in the same frame again).
   std::uint32_t assume_visible_frames = 0;
   /// n_vp: answers below this many samples count as occluded (0 or 1: exact).
   std::uint64_t min_visible_samples = 0;
@@ -73,6 +86,9 @@ struct ChcOptions {
   /// answers read as CHC reads them and ignored. Ideal's draws with CHC's
   /// query traffic: the difference to Ideal is the queries' own cost.
   bool ideal_probe_queries = false;
+  /// ChcPlusPlus: queries of previously invisible nodes are issued when this
+  /// many are queued (or when the traversal queue runs dry): the i-queue.
+  std::uint32_t batch_size = 32;
 };
 
 /// What one frame did.
@@ -88,6 +104,15 @@ struct ChcFrameStats {
   std::uint64_t splats_drawn = 0;    ///< their splats
   std::uint64_t leaves_visible = 0;  ///< leaf blocks classified visible at the end of the frame
   std::uint64_t frustum_culled = 0;  ///< blocks taken from the traversal queue outside the frustum
+  /// ChcPlusPlus: answers read this frame of queries issued in an earlier
+  /// frame (the v-queue's, taken when available, never waited for).
+  std::uint64_t carried_answers = 0;
+  /// ChcPlusPlus: queries still in flight when the frame ended (carried).
+  std::uint64_t carried_pending = 0;
+  /// ChcPlusPlus: the times the frame had to wait (one blocking read of the
+  /// newest answer needed, after which the older ones are there).
+  std::uint64_t drains = 0;
+  std::uint64_t batches = 0;  ///< ChcPlusPlus: i-queue batches issued
   double frame_ms = 0.0;  ///< wall time from begin to end of frame (GPU finished if asked)
 };
 
@@ -104,8 +129,14 @@ class ChcTraversal {
   /// Ideal mode: the leaf blocks to draw in the next frame (the StopAndWait
   /// set of the same camera). Ids that are not leaf blocks are ignored.
   void set_ideal_leaves(std::span<const BlockId> leaves);
-  /// Forgets all visibility (the next frame starts as the first).
+  /// Forgets all visibility (the next frame starts as the first). Queries
+  /// still in flight from earlier frames (ChcPlusPlus) are read and ignored
+  /// by the next frames.
   void reset();
+  /// ChcPlusPlus: reads every answer still in flight (waiting for them) and
+  /// gives their handles back to `device`; call before the device or the
+  /// traversal goes away, or between runs on one device. Render thread.
+  void release_render_thread(OcclusionDeviceRenderThread& device);
 
   [[nodiscard]] const ChcOptions& options() const { return options_; }
   [[nodiscard]] const HlodBlocks& blocks() const { return *blocks_; }
@@ -131,9 +162,31 @@ class ChcTraversal {
     BlockId block;
     QueryHandle query;
     bool drawn;  // drawn when queried (a previously visible leaf)
+    bool read = false;  // ChcPlusPlus's drain: its answer was read first (samples)
+    std::uint64_t samples = 0;
+  };
+
+  // A query of an earlier frame whose answer is taken when it is there.
+  struct Carried {
+    BlockId block;
+    QueryHandle query;
+    std::uint64_t frame;  // issued in (0: issued before a reset, ignored)
   };
 
   void push(BlockId b, const ViewSnapshot& view);
+  Entry pop_nearest();
+  // ChcPlusPlus (chc_plus_plus.cpp).
+  void traverse_chc_plus_plus(const ViewSnapshot& view, OcclusionDeviceRenderThread& device,
+                              ChcFrameStats& stats);
+  void visit_chc_plus_plus(const Entry& e, const ViewSnapshot& view,
+                           OcclusionDeviceRenderThread& device, ChcFrameStats& stats);
+  void take_carried_answers(OcclusionDeviceRenderThread& device, ChcFrameStats& stats);
+  void issue_invisible_batch(OcclusionDeviceRenderThread& device, ChcFrameStats& stats);
+  void read_needed_answers(const ViewSnapshot& view, OcclusionDeviceRenderThread& device,
+                           bool drain, ChcFrameStats& stats);
+  void apply_answer(const Pending& p, std::uint64_t samples, const ViewSnapshot& view,
+                    OcclusionDeviceRenderThread& device);
+  [[nodiscard]] bool assumed_visible(BlockId b) const;
   void traverse(BlockId b, const ViewSnapshot& view, OcclusionDeviceRenderThread& device);
   void read_answers(const ViewSnapshot& view, OcclusionDeviceRenderThread& device,
                     std::uint32_t interval, std::uint32_t& since_poll);
@@ -156,6 +209,10 @@ class ChcTraversal {
   std::size_t pending_head_ = 0;
   std::vector<BlockId> drawn_;
   std::vector<BlockId> classified_;  // leaves visited this frame
+  std::vector<BlockId> i_queue_;     // ChcPlusPlus: invisible nodes waiting for a batch
+  std::vector<BlockId> v_queue_;     // ChcPlusPlus: visible leaves to query at the frame's end
+  std::vector<Carried> carried_;     // ChcPlusPlus: queries of earlier frames (in issue order)
+  std::vector<std::uint8_t> in_flight_;  // ChcPlusPlus: per block, a carried query pending
   double wait_at_push_ = 0.0;        // the device's wait_ms when the last block was queued
   const OcclusionDeviceRenderThread* device_ = nullptr;  // during a frame
 };

@@ -29,7 +29,15 @@
 // The query queue is polled (result_available_render_thread) before every
 // block taken from the traversal queue; an answer is read before it is
 // available only when the traversal queue is empty (or in SwB, which waits
-// for every answer by definition). mu = the box's unoccluded pixels (the
+// for every answer by definition).
+// HlodOptions::carry_answers makes Bool, Simp(B) and Coh(B) tolerate a GPU's
+// latency (issue 28; gpu_latency.hpp): when the traversal queue runs dry,
+// the answers no decision of this frame needs (drawn blocks' and refined
+// blocks') and that are not there are carried to a later frame instead of
+// waited for: a drawn block counts as visible until its answer, which then
+// updates its visibility and bias (a RARN becomes a refinement one frame
+// later: late_refined). The answers this frame needs (Delay) are drained with
+// one wait, for the newest of them (a GPU answers in issue order). mu = the box's unoccluded pixels (the
 // device's box query) / the box's projected pixels (box_projected_pixels,
 // analytic); B and VMSSE from hoq.hpp. A block whose box the eye is in (or
 // nearer than ViewSnapshot::derived.near_radius) is visible with mu = 1, no query.
@@ -63,6 +71,8 @@ struct HlodOptions {
   float tau = 1.0f;  ///< pixels of error (the paper's tests: 1)
   float s = 0.5f;    ///< smoothness of the bias (hoq::sigmoid_bias)
   float t = 0.5f;    ///< turn-over of the bias
+  /// Latency-tolerant (see above); not SwB, which waits for every answer.
+  bool carry_answers = false;
 };
 
 /// The pixels the box proxy of `box` covers (the convex hull of its projected
@@ -96,6 +106,14 @@ struct HlodFrameStats {
   std::uint64_t frustum_culled = 0;  ///< blocks outside the frustum
   std::uint64_t queries = 0;
   std::uint64_t blocking_reads = 0;
+  /// carry_answers: answers of earlier frames read this frame, the drawn
+  /// blocks among them whose answer said refine (a RARN one frame late: the
+  /// block refines in this frame's traversal), queries carried past this
+  /// frame's end, and the waits (one read of the newest answer needed).
+  std::uint64_t carried_answers = 0;
+  std::uint64_t late_refined = 0;
+  std::uint64_t carried_pending = 0;
+  std::uint64_t drains = 0;
   double wait_ms = 0.0;   ///< CPU time blocked in query reads (the device's)
   double frame_ms = 0.0;  ///< wall time from begin to end of frame (GPU finished if asked)
 };
@@ -110,7 +128,11 @@ class HlodTraversal {
   HlodFrameStats frame_render_thread(OcclusionDeviceRenderThread& device, const ViewSnapshot& view,
                                      bool finish = true);
   /// Forgets every cached state (the next frame starts as the first).
+  /// Queries still in flight are read and ignored by the next frames.
   void reset();
+  /// Reads every answer still in flight (carry_answers), waiting for them,
+  /// and gives their handles back to `device`. Render thread.
+  void release_render_thread(OcclusionDeviceRenderThread& device);
 
   [[nodiscard]] const HlodOptions& options() const { return options_; }
   /// The blocks drawn in the last frame, in draw order.
@@ -142,6 +164,10 @@ class HlodTraversal {
     Kind kind;
     float sse;
     Why why;
+    double pixels;             // mu's denominator, for the camera it was issued with
+    std::uint64_t frame = 0;   // issued in (carried: 0 after a reset, ignored)
+    bool read = false;         // read ahead of the queue (the drain's newest)
+    std::uint64_t samples = 0;
   };
 
   void push(BlockId b);
@@ -149,6 +175,11 @@ class HlodTraversal {
   void draw(BlockId b);
   void pull_up(BlockId b);
   void answer(const Pending& p, std::uint64_t samples);
+  void take_bias(const Pending& p, std::uint64_t samples);
+  Entry pop_nearest();
+  void read_available(bool wait_for_each);
+  bool carry_or_drain();
+  void take_carried_answers();
   void visit(const Entry& e);
   void visit_coh_b(BlockId b, float block_sse, bool visited_last, bool was_visible,
                    bool was_stopped, bool was_outside);
@@ -171,6 +202,8 @@ class HlodTraversal {
   std::size_t pending_head_ = 0;
   std::vector<BlockId> drawn_;
   std::vector<hoq::ChildState> children_;
+  std::vector<Pending> carried_;              // carry_answers: earlier frames' queries
+  std::vector<std::uint64_t> answer_frame_;   // frame of the query of the last answer taken
   // During a frame.
   OcclusionDeviceRenderThread* device_ = nullptr;
   const ViewSnapshot* view_ = nullptr;

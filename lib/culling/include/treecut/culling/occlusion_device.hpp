@@ -16,7 +16,9 @@
 // it belongs to (between begin_frame_render_thread and
 // end_frame_render_thread), with that thread's GL context current for the
 // GL device. Handles are valid from their issue until their result is read
-// (result_render_thread frees them) or the frame ends.
+// (result_render_thread frees them), in a later frame too: a traversal may
+// carry a query whose answer it does not need now (CHC++'s visible leaves,
+// HLOD's drawn blocks under a GPU's latency) and read it frames later.
 #pragma once
 
 #include <cstdint>
