@@ -1,7 +1,7 @@
 // treecut bench occlusion, the HLOD table (Charalambos et al. 2007,
 // ../shared/papers/hoq-driven-hlod-refinement.txt, table 1): Bool, SW(B),
-// Simp(B), Coh(B) in-frame (strategies/hlod_traversal.hpp), Coh(B) with
-// its answers carried under a GPU's latency, and the `hoq`
+// Simp(B), Coh(B) in-frame (strategies/hlod_traversal.hpp), Coh(B) made
+// for a GPU's latency ("Coh(B) tolerant"), and the `hoq`
 // stage strategy through the frame layer (as `treecut render --sync`), on the
 // walkthrough's cameras; the luminance PSNR of Coh(B) and hoq against Bool;
 // per-frame CSV for tests/bench/occlusion_plot.py.

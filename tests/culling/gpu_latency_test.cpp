@@ -161,4 +161,35 @@ TEST_F(Latency, RandomizedAssumedVisibilitySpreadsTheQueriesOfVisibleLeaves) {
   every.release_render_thread(d);
 }
 
+TEST_F(Latency, ChcPlusPlusWithoutWaitingNeverBlocksAndDrawsDisocclusionsLate) {
+  for (const std::uint32_t frames : {1u, 2u}) {
+    FakeDevice inner(blocks_, 0);
+    LatentOcclusionDevice d(inner, GpuLatency{frames, 0.0});
+    ChcOptions o{OcclusionMode::ChcPlusPlus};
+    o.wait_for_invisible = false;
+    ChcTraversal t(blocks_, o);
+    std::uint64_t blocking = 0, delayed = 0, missed_frames = 0;
+    for (int f = 0; f < 32; ++f) {
+      const float y = f < 20 ? -1.5f + 0.15f * f : 1.5f;
+      inner.set_eye({-3, y, 0.2f});
+      const ChcFrameStats s = t.frame_render_thread(d, view_from({-3, y, 0.2f}));
+      blocking += s.blocking_reads;
+      delayed += s.delayed_blocks;
+      const auto seen = truth_of(inner);
+      const std::set<BlockId> drawn(t.drawn().begin(), t.drawn().end());
+      bool missed = false;
+      for (const BlockId b : seen) missed = missed || drawn.count(b) == 0;
+      missed_frames += missed ? 1 : 0;
+      // Standing still, it catches up: exact within a few frames.
+      if (f >= 24 + 2 * int(frames)) {
+        EXPECT_EQ(drawn, seen) << "latency " << frames << " frame " << f;
+      }
+    }
+    t.release_render_thread(d);
+    EXPECT_EQ(blocking, 0u) << frames;
+    EXPECT_GT(delayed, 0u) << "the walk disoccludes blocks, drawn late: " << frames;
+    EXPECT_GT(missed_frames, 0u) << "the price: frames missing a visible block: " << frames;
+  }
+}
+
 }  // namespace

@@ -437,4 +437,27 @@ TEST_F(HlodTraversalTest, CarriedCohBConvergesToStopAndWaitOnAStillViewUnderLate
   }
 }
 
+// "Coh(B) tolerant" (the bench's latency-tolerant row): a block new to the
+// traversal is drawn or refined by its SSE at once, not delayed for an
+// answer a GPU gives a frame late.
+TEST_F(HlodTraversalTest, AssumingNewBlocksVisibleDelaysNoneOfThem) {
+  for (const bool assume : {false, true}) {
+    ScriptedDevice d(blocks_, 0);
+    treecut::culling::LatentOcclusionDevice latent(d, {1, 0.0});
+    HlodOptions o = options(HlodMode::CohB);
+    o.carry_answers = true;
+    o.assume_new_visible = assume;
+    HlodTraversal t(*h_, blocks_, o);
+    const HlodFrameStats first = run_latent(t, d, latent, near_);
+    if (assume) {
+      EXPECT_EQ(first.delayed, 0u);
+      EXPECT_GT(first.drawn, 0u) << "the first frame draws the SSE cut";
+      EXPECT_EQ(first.blocking_reads, 0u) << "and waits for nothing";
+    } else {
+      EXPECT_GT(first.delayed, 0u) << "figure 3 delays every block of the first frame";
+    }
+    t.release_render_thread(latent);
+  }
+}
+
 }  // namespace

@@ -18,6 +18,10 @@
 //     it is there (carried). The answer only tells the next frames whether
 //     to keep drawing the leaf, so nothing waits for it. Until it arrives the
 //     leaf stays visible (drawn, no second query).
+//   - Optionally no wait at all (ChcOptions::wait_for_invisible false): the
+//     answers a frame would drain for are carried too, their nodes culled
+//     until an answer says visible (a delayed block: disoccluded geometry
+//     appears a frame or two late).
 //   - Randomized assumed visibility: a leaf found visible is not queried
 //     again for 1 to t_av frames, drawn per node and answer, so the queries
 //     of a region that became visible together spread over frames.
@@ -52,8 +56,20 @@ void ChcTraversal::take_carried_answers(OcclusionDeviceRenderThread& device,
     }
     const std::uint64_t samples = device.result_render_thread(c.query);
     if (c.frame == 0) continue;  // issued before a reset
-    in_flight_[c.block] = 0;
     ++stats.carried_answers;
+    if (c.hidden) {
+      // A previously invisible node culled while its answer was on its way:
+      // visible now, it is drawn (opened) from this frame on.
+      if (answer_visible(samples) && c.frame >= visible_query_[c.block]) {
+        visible_query_[c.block] = c.frame;
+        if (last_visited_[c.block] + 1 == frame_) {
+          pull_up(c.block);
+          ++stats.delayed_blocks;
+        }
+      }
+      continue;
+    }
+    in_flight_[c.block] = 0;
     if (answer_visible(samples)) {
       visible_query_[c.block] = std::max(visible_query_[c.block], c.frame);
     } else if (c.frame > visible_query_[c.block]) {
@@ -104,7 +120,20 @@ void ChcTraversal::visit_chc_plus_plus(const Entry& e, const ViewSnapshot& view,
   }
   const bool leaf = blocks_->is_leaf(b);
   if (leaf) classified_.push_back(b);
-  const bool was_visible = visible_[b] != 0 && last_visited_[b] + 1 == frame_;
+  // Not waiting, a node new to the traversal (no classification of the last
+  // few frames to go by) is taken as visible: culled until its answer, a
+  // subtree would open one level per round trip. One classified lately (not
+  // visited last frame because its parent was culled) keeps that class, or
+  // a parent found visible by its box would redraw its hidden children.
+  constexpr std::uint64_t kRecentFrames = 8;
+  const bool visited_last = last_visited_[b] != 0 && last_visited_[b] + 1 == frame_;
+  const bool recent = last_visited_[b] != 0 && frame_ - last_visited_[b] <= kRecentFrames;
+  bool was_visible = false;
+  if (visited_last) {
+    was_visible = visible_[b] != 0;
+  } else if (!options_.wait_for_invisible) {
+    was_visible = recent ? visible_[b] != 0 : true;
+  }
   visible_[b] = 0;
   last_visited_[b] = frame_;
   const bool near = e.distance <= view.derived.near_radius;
@@ -144,9 +173,15 @@ void ChcTraversal::traverse_chc_plus_plus(const ViewSnapshot& view,
     } else if (!i_queue_.empty()) {
       issue_invisible_batch(device, stats);
       since_poll = interval;
-    } else if (pending_head_ < pending_.size()) {
+    } else if (pending_head_ < pending_.size() && options_.wait_for_invisible) {
       read_needed_answers(view, device, true, stats);
       since_poll = interval;
+    } else if (pending_head_ < pending_.size()) {
+      // No wait: what is not there goes to a later frame, its node culled.
+      for (; pending_head_ < pending_.size(); ++pending_head_) {
+        const Pending& p = pending_[pending_head_];
+        carried_.push_back({p.block, p.query, frame_, true});
+      }
     } else {
       break;
     }

@@ -224,6 +224,17 @@ void HlodTraversal::answer(const Pending& p, std::uint64_t samples) {
 [[gnu::always_inline]] inline void HlodTraversal::visit_coh_b(BlockId b, float block_sse,
                                                               bool visited_last, bool was_visible,
                                                               bool was_stopped, bool was_outside) {
+  if (options_.assume_new_visible && (!visited_last || was_outside)) {
+    // New: no answer of last frame to go by; as if visible, with the bias
+    // of its last answer (1, unmodulated, if it never had one).
+    if (blocks_->is_leaf(b) || hoq::vmsse(bias_[b], block_sse) <= options_.tau) {
+      query(b, Kind::Drawn, block_sse);
+      draw(b);
+    } else {
+      push_children(b);
+    }
+    return;
+  }
   children_.clear();
   if (visited_last && !was_stopped && !blocks_->is_leaf(b)) {
     const BlockId first = blocks_->first_child(b);
@@ -255,7 +266,7 @@ void HlodTraversal::answer(const Pending& p, std::uint64_t samples) {
 void HlodTraversal::visit(const Entry& e) {
   const BlockId b = e.block;
   const std::uint64_t frame = frame_;
-  const bool visited_last = last_visited_[b] + 1 == frame;
+  const bool visited_last = last_visited_[b] != 0 && last_visited_[b] + 1 == frame;
   const bool was_visible = visited_last && visible_[b] != 0;
   const bool was_stopped = stop_[b] != 0;
   const bool was_outside = visited_last && outside_[b] != 0;

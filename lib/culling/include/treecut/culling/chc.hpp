@@ -89,6 +89,12 @@ struct ChcOptions {
   /// ChcPlusPlus: queries of previously invisible nodes are issued when this
   /// many are queued (or when the traversal queue runs dry): the i-queue.
   std::uint32_t batch_size = 32;
+  /// ChcPlusPlus: false: never wait. Answers of previously invisible nodes
+  /// that are not there when the frame has nothing else to do are carried
+  /// to a later frame, their nodes culled meanwhile; one that then says
+  /// visible is a delayed block (drawn from that frame on, a frame or more
+  /// late). True: the drain waits for them (the image is exact).
+  bool wait_for_invisible = true;
 };
 
 /// What one frame did.
@@ -113,6 +119,10 @@ struct ChcFrameStats {
   /// newest answer needed, after which the older ones are there).
   std::uint64_t drains = 0;
   std::uint64_t batches = 0;  ///< ChcPlusPlus: i-queue batches issued
+  /// ChcPlusPlus without waiting: carried answers of previously invisible
+  /// nodes read this frame that said visible (culled in the frame they were
+  /// asked in, although visible: drawn late).
+  std::uint64_t delayed_blocks = 0;
   double frame_ms = 0.0;  ///< wall time from begin to end of frame (GPU finished if asked)
 };
 
@@ -171,6 +181,7 @@ class ChcTraversal {
     BlockId block;
     QueryHandle query;
     std::uint64_t frame;  // issued in (0: issued before a reset, ignored)
+    bool hidden = false;  // a previously invisible node's (not waited for): culled meanwhile
   };
 
   void push(BlockId b, const ViewSnapshot& view);

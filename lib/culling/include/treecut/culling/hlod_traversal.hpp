@@ -73,6 +73,12 @@ struct HlodOptions {
   float t = 0.5f;    ///< turn-over of the bias
   /// Latency-tolerant (see above); not SwB, which waits for every answer.
   bool carry_answers = false;
+  /// Coh(B): a block new to the traversal (not visited last frame, or
+  /// outside its frustum) is predicted as visible with bias 1 (SSE alone:
+  /// Stop, drawn and queried, or Refine) instead of Delay, as the `hoq`
+  /// strategy's assume_visible: figure 3 delays it for an answer a GPU gives
+  /// a frame late, and a walk brings new blocks every frame.
+  bool assume_new_visible = false;
 };
 
 /// The pixels the box proxy of `box` covers (the convex hull of its projected
