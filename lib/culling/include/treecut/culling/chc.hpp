@@ -36,7 +36,10 @@
 //     end of the frame against the complete depth (the v-queue) with its
 //     answer taken in a later frame (carried: never waited for), t_av is
 //     randomized per node, and the answers the frame needs are drained with
-//     one wait for the newest (a GPU answers in order).
+//     one wait for the newest (a GPU answers in order). Without waiting
+//     (ChcOptions::wait_for_invisible false) those are carried too, their
+//     nodes culled until an answer says visible (delayed blocks).
+//     docs/gpu-latency.md.
 // Options (the paper's section 5): assume_visible_frames (t_av: a leaf found
 // visible by a query is assumed visible for the next t_av frames, no query)
 // and min_visible_samples (n_vp: an answer below n_vp samples counts as
