@@ -16,6 +16,7 @@
 #include "treecut/cache.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
+#include "treecut/las.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/ply.hpp"
 #include "treecut/scene.hpp"
@@ -63,6 +64,23 @@ void print_summary(const std::filesystem::path& model, const OpenedModel& m) {
   std::printf("nodes       %u\n", h.node_count());
   std::printf("depth       %d\n", h.level_count() - 1);
   std::printf("bounds      [%g %g %g] .. [%g %g %g]\n", lo.x, lo.y, lo.z, hi.x, hi.y, hi.z);
+  const glm::dvec3 o = h.origin();
+  if (o != glm::dvec3(0.0)) {
+    // Map coordinates: the nodes are relative to the origin (double), the
+    // file's coordinates are origin + bounds.
+    std::printf("origin      [%.3f %.3f %.3f] (file coordinates of the model's zero)\n", o.x, o.y,
+                o.z);
+    std::printf("file bounds [%.3f %.3f %.3f] .. [%.3f %.3f %.3f]\n", o.x + lo.x, o.y + lo.y,
+                o.z + lo.z, o.x + hi.x, o.y + hi.y, o.z + hi.z);
+  }
+  if (m.format == "LAS") {
+    const LasInfo& l = m.las.info;
+    std::printf("format      LAS %d.%d, point format %d (%u bytes a point)%s%s\n",
+                l.version_major, l.version_minor, l.point_format, l.record_length,
+                l.system_identifier.empty() ? "" : ", from ",
+                one_line(l.system_identifier).c_str());
+    std::printf("crs         %s\n", l.crs.empty() ? "none in the file" : one_line(l.crs).c_str());
+  }
   const UpAxis up = detect_up_axis(h);  // what `render` and `view` use with --up auto
   std::printf("up          %s (auto: %s)\n", up.name().c_str(), up.reason.c_str());
   std::printf("memory      %.1f MiB (%.1f bytes/point)\n",
@@ -319,6 +337,7 @@ struct GenArgs {
   std::size_t objects = 0;
   std::size_t points = 200000;
   std::uint64_t seed = 1;
+  std::vector<double> origin;  // --origin X Y Z: where the model sits in file coordinates
 };
 
 // gen KIND for a scene kind (city-block, hall): the scene file, its models
@@ -358,7 +377,19 @@ void generate_model_kind(const GenArgs& g) {
   std::vector<std::pair<std::filesystem::path, std::string>> inputs;
   for (const auto& s : g.source) inputs.emplace_back(s, "the source scan (--source)");
   check_distinct_files(outputs, inputs);
-  check_ply_output(out);
+  // The format by the name: .las writes LAS (double coordinates through its
+  // scale and offset), anything else PLY (floats).
+  const bool las = out.extension() == ".las" || out.extension() == ".LAS";
+  if (!g.origin.empty() && !las) {
+    throw InputError(quoted_name(out) +
+                     ": --origin needs a .las output (a PLY holds float coordinates, which "
+                     "lose the millimetres at map coordinates)");
+  }
+  if (las) {
+    check_replaceable_output(out, "LASF", "a model", "a LAS file");
+  } else {
+    check_ply_output(out);
+  }
   if (!g.walk.empty()) check_walk_output(g.walk);
   PointSet source;
   if (kind == tools::ModelKind::Field) {
@@ -374,7 +405,12 @@ void generate_model_kind(const GenArgs& g) {
   PointSet ps = kind == tools::ModelKind::Field
                     ? tools::generate_field(tools::prepare_field_source(source), g.points, g.seed)
                     : tools::generate_model(kind, g.points, g.seed);
-  save_ply(out, ps);
+  if (!g.origin.empty()) ps.origin = glm::dvec3(g.origin[0], g.origin[1], g.origin[2]);
+  if (las) {
+    save_las(out, ps);
+  } else {
+    save_ply(out, ps);
+  }
   std::printf("wrote %s (%zu points)\n", quoted_name(out).c_str(), ps.size());
   if (!g.walk.empty()) {
     const splat::CameraPath path = tools::walk_path(tools::scene_walkthrough(kind));
@@ -455,8 +491,14 @@ void add_gen_command(CLI::App& app) {
                   "Number of points (city-block, hall: of each generated model, default 20000)")
       ->check(whole_number(1, std::uint64_t{1} << 31));
   gen->add_option("-o,--output", gen_args->out,
-                  "Output PLY (default: assets/KIND.ply; a scene: assets/KIND.scene)")
+                  "Output PLY, or LAS when it ends in .las (default: assets/KIND.ply; a scene: "
+                  "assets/KIND.scene)")
       ->check(non_empty_path());
+  gen->add_option("--origin", gen_args->origin,
+                  "X Y Z: place the model there in file coordinates (map coordinates such as "
+                  "500000 5000000 0; LAS output only)")
+      ->expected(3)
+      ->check(CLI::Range(-1e9, 1e9));
   gen->add_option("--seed", gen_args->seed, "Random seed")
       ->check(whole_number(0, std::numeric_limits<std::uint64_t>::max()));
   gen->add_option("--source", gen_args->source,

@@ -45,6 +45,41 @@ TEST(Cli, GenBuildInfoRoundTrip) {
   EXPECT_NE(r.out.find("from cache"), std::string::npos) << r.out;
 }
 
+// A model at map coordinates, written as LAS by gen and read back: the
+// origin is kept (in the cache too) and shown with the file's bounds.
+TEST(Cli, GenLasAtMapCoordinatesAndInfo) {
+  using treecut::test::quote;
+  using treecut::test::run_treecut;
+  const fs::path dir = treecut::test::scratch_dir("cli_las");
+  treecut::test::CommandResult r =
+      run_treecut("gen sphere -n 5000 --origin 500000 5000000 100 -o " + quote(dir / "s.las"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  r = run_treecut("build " + quote(dir / "s.las") + " -o " + quote(dir / "s.tch"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("format      LAS 1.2, point format 2"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("not kept: intensity"), std::string::npos) << r.out;
+  for (const char* model : {"s.las", "s.tch"}) {
+    r = run_treecut("info " + quote(dir / model));
+    ASSERT_EQ(r.code, 0) << r.out;
+    EXPECT_NE(r.out.find("origin      [500000.000 5000000.000 100.000]"), std::string::npos)
+        << model << "\n" << r.out;
+    EXPECT_NE(r.out.find("file bounds [499999.0"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("bounds      [-1"), std::string::npos) << "relative to it: " << r.out;
+  }
+  // A PLY holds floats: --origin is refused for one, before anything is written.
+  r = run_treecut("gen sphere -n 100 --origin 500000 5000000 0 -o " + quote(dir / "s.ply"));
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_NE(r.out.find("--origin needs a .las output"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(dir / "s.ply"));
+  // gen replaces a LAS only: not a PLY (or anything else) under a .las name.
+  r = run_treecut("gen sphere -n 100 -o " + quote(dir / "p.ply"));
+  ASSERT_EQ(r.code, 0);
+  fs::copy_file(dir / "p.ply", dir / "p.las");
+  r = run_treecut("gen sphere -n 100 -o " + quote(dir / "p.las"));
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_NE(r.out.find("is not a LAS file"), std::string::npos) << r.out;
+}
+
 TEST(Cli, MalformedPlyExitsWithTwoAndWritesNothing) {
   const auto shared = treecut::test::shared_dir();
   if (!shared) GTEST_SKIP() << "../shared is absent";

@@ -209,7 +209,11 @@ TEST_F(Hostile, MessagesNameTheRealReason) {
   std::string las = "LASF" + std::string(4, '\0') + "\x01\x02\r\n" + std::string(300, '\0');
   write_text(dir / "survey.las", las);
   expect_failure(run_treecut("info " + quote(dir / "survey.las")), 2,
-                 "survey.las: not a PLY file: a LAS/LAZ point cloud");
+                 "survey.las: LAS version 0.0 is not read (1.0 to 1.4 are)");
+  // Neither PLY nor LAS: named, and what treecut reads said.
+  write_text(dir / "scan.e57", "ASTM-E57 and more\n");
+  expect_failure(run_treecut("info " + quote(dir / "scan.e57")), 2,
+                 "scan.e57: not a PLY file: an E57 point cloud; treecut reads PLY and LAS files");
   EXPECT_EQ(read_all(dir / "notes.tch"), "my notes about the cache\n");
 }
 

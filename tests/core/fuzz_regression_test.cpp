@@ -19,6 +19,7 @@
 #include "test_support.hpp"
 #include "treecut/cache.hpp"
 #include "treecut/error.hpp"
+#include "treecut/las.hpp"
 #include "treecut/ply.hpp"
 
 namespace {
@@ -29,8 +30,8 @@ using treecut::test::read_all;
 const fs::path kRegressions = fs::path(TREECUT_SOURCE_DIR) / "tests" / "fuzz" / "regressions";
 
 struct Regression {
-  std::string file;    // under regressions/: ply/NAME or cache/NAME
-  std::string expect;  // ply: ok | error; cache: rejected | ok (once resealed)
+  std::string file;    // under regressions/: ply/NAME, las/NAME or cache/NAME
+  std::string expect;  // ply, las: ok | error; cache: rejected | ok (once resealed)
   std::string detail;  // a warning (ply ok), the message (error), the reason (rejected), or -
   std::string what;
 };
@@ -83,6 +84,22 @@ void replay_ply(const Regression& r, const std::string& bytes) {
   EXPECT_EQ(treecut::fuzz::check_builds(std::move(points)), "");
 }
 
+void replay_las(const Regression& r, const std::string& bytes) {
+  treecut::LasLoadReport report;
+  treecut::PointSet points;
+  try {
+    points = treecut::load_las_from_memory(bytes, "regression.las", &report);
+  } catch (const treecut::InputError& e) {
+    ASSERT_EQ(r.expect, "error") << "rejected: " << e.what();
+    EXPECT_NE(std::string(e.what()).find(r.detail), std::string::npos) << e.what();
+    return;
+  }
+  ASSERT_EQ(r.expect, "ok") << "loaded " << points.size() << " points";
+  EXPECT_EQ(treecut::fuzz::check_point_set(points), "");
+  EXPECT_EQ(points.size(), report.info.point_count);
+  EXPECT_EQ(treecut::fuzz::check_builds(std::move(points)), "");
+}
+
 // As cache_fuzz does: the bytes as they are, then resealed with a valid
 // checksum. The expectation is about the resealed file, which reaches the
 // structural checks.
@@ -127,8 +144,10 @@ TEST_P(FuzzRegression, BehavesAsItsFixEstablished) {
   ASSERT_TRUE(fs::is_regular_file(path)) << path;
   if (r.file.rfind("ply/", 0) == 0) {
     replay_ply(r, read_all(path));
+  } else if (r.file.rfind("las/", 0) == 0) {
+    replay_las(r, read_all(path));
   } else {
-    ASSERT_EQ(r.file.rfind("cache/", 0), 0u) << "neither ply/ nor cache/";
+    ASSERT_EQ(r.file.rfind("cache/", 0), 0u) << "neither ply/, las/ nor cache/";
     replay_cache(r, read_all(path));
   }
 }
@@ -138,7 +157,7 @@ INSTANTIATE_TEST_SUITE_P(Manifest, FuzzRegression, testing::ValuesIn(read_manife
 TEST(FuzzRegressions, EveryFileIsInTheManifest) {
   const auto rows = read_manifest();
   ASSERT_FALSE(rows.empty());
-  for (const char* target : {"ply", "cache"}) {
+  for (const char* target : {"ply", "las", "cache"}) {
     for (const auto& e : fs::directory_iterator(kRegressions / target)) {
       const std::string file = std::string(target) + "/" + e.path().filename().string();
       EXPECT_TRUE(std::any_of(rows.begin(), rows.end(),

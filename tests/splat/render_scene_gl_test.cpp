@@ -23,6 +23,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "image_compare.hpp"
 #include "treecut/model.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/splat/context.hpp"
@@ -52,33 +53,6 @@ std::size_t differing_pixels(const Image& a, const Image& b) {
   std::size_t d = 0;
   for (std::size_t i = 0; i < a.rgba.size(); i += 4) {
     d += a.rgba[i] != b.rgba[i] || a.rgba[i + 1] != b.rgba[i + 1] || a.rgba[i + 2] != b.rgba[i + 2];
-  }
-  return d;
-}
-
-// Pixels of `a` whose colour (within `tolerance` per channel) is at no pixel
-// of `b` within one pixel of theirs: what differs beyond a splat edge moved by
-// a pixel or a blend weight rounded another way, which is all a driver's
-// float rounding may change (issue 28: NVIDIA and llvmpipe round positions
-// differently; an exact count was 1.3 % on llvmpipe, 3 % on an H200).
-std::size_t unmatched_pixels(const Image& a, const Image& b, int tolerance = 8) {
-  std::size_t d = 0;
-  for (int y = 0; y < a.height; ++y) {
-    for (int x = 0; x < a.width; ++x) {
-      const std::size_t i = (std::size_t(y) * a.width + x) * 4;
-      bool found = false;
-      for (int dy = -1; dy <= 1 && !found; ++dy) {
-        for (int dx = -1; dx <= 1 && !found; ++dx) {
-          const int u = x + dx, v = y + dy;
-          if (u < 0 || v < 0 || u >= b.width || v >= b.height) continue;
-          const std::size_t j = (std::size_t(v) * b.width + u) * 4;
-          found = std::abs(int(a.rgba[i]) - int(b.rgba[j])) <= tolerance &&
-                  std::abs(int(a.rgba[i + 1]) - int(b.rgba[j + 1])) <= tolerance &&
-                  std::abs(int(a.rgba[i + 2]) - int(b.rgba[j + 2])) <= tolerance;
-        }
-      }
-      d += found ? 0 : 1;
-    }
   }
   return d;
 }
@@ -176,8 +150,7 @@ TEST_P(RenderScene, AMovedObjectLooksLikeItsModelFromTheCameraMovedBack) {
   // in the reference (both ways), with a small tolerance.
   const std::size_t pixels = std::size_t{kWidth} * kHeight;
   const std::size_t differ = differing_pixels(drawn, reference);
-  const std::size_t unmatched =
-      std::max(unmatched_pixels(drawn, reference), unmatched_pixels(reference, drawn));
+  const std::size_t unmatched = test::unmatched_either_way(drawn, reference);
   std::printf("%s: %zu of %zu pixels differ, %zu not within a pixel\n",
               std::string(splat_mode_name(GetParam())).c_str(), differ, pixels, unmatched);
   EXPECT_LE(unmatched, pixels / 500);

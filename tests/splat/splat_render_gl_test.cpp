@@ -7,8 +7,10 @@
 #include <memory>
 #include <optional>
 
+#include "image_compare.hpp"
 #include "test_support.hpp"
 #include "treecut/error.hpp"
+#include "treecut/las.hpp"
 #include "treecut/model.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/splat/context.hpp"
@@ -202,6 +204,60 @@ TEST_F(SplatRender, QueryHookRunsOncePerFrameWithDepthWritesOff) {
   EXPECT_EQ(hook.calls, 3);
   EXPECT_EQ(hook.writes_on, 0);
   EXPECT_EQ(hook.last_size, glm::ivec2(kWidth, kHeight));
+}
+
+// Issue 29: a 2 m sphere over a 1 cm grid at x = 500 km, y = 5,000 km (UTM
+// metres), written as LAS and read back, renders within a pixel of the same
+// scene at the origin: the positions are floats relative to a double origin.
+// The same points as floats of their absolute coordinates (the old import)
+// do not: there a float's spacing is 0.5 m.
+TEST(SplatMapCoordinates, AModelAtUtmCoordinatesRendersAsAtTheOrigin) {
+  context();
+  PointSet scene = tools::generate_model(tools::ModelKind::Sphere, 20000, 3);
+  for (int i = 0; i < 80; ++i) {
+    for (int j = 0; j < 80; ++j) {
+      scene.positions.push_back({-0.4f + 0.01f * float(i), -0.4f + 0.01f * float(j), -1.05f});
+      scene.normals.push_back({0, 0, 1});
+      scene.colors.push_back({230, 230, 60, 255});
+    }
+  }
+  const auto dir = test::scratch_dir("map_coordinates");
+  PointSet utm = scene;
+  utm.origin = glm::dvec3(500000.0, 5000000.0, 0.0);
+  save_las(dir / "utm.las", utm);
+  save_las(dir / "zero.las", scene);
+  PointSet at_utm = load_las(dir / "utm.las");
+  PointSet at_zero = load_las(dir / "zero.las");
+  ASSERT_GT(at_utm.origin.x, 499000.0);
+  // The old way: the absolute coordinates as floats.
+  PointSet floats;
+  for (const glm::vec3& p : at_utm.positions) {
+    floats.positions.push_back(glm::vec3(at_utm.origin + glm::dvec3(p)));
+  }
+  const Hierarchy h_utm = build_from_points(std::move(at_utm));
+  const Hierarchy h_zero = build_from_points(std::move(at_zero));
+  const Hierarchy h_floats = build_from_points(std::move(floats));
+  EXPECT_EQ(h_utm.origin(), glm::dvec3(500000.0, 5000000.0, 0.0));
+  Camera cam = default_camera(h_zero.bounds_min(), h_zero.bounds_max(), float(kWidth) / kHeight);
+  auto draw = [&](const Hierarchy& h, const Camera& c) {
+    Renderer r(h, glm::ivec2(kWidth, kHeight));
+    CutBuffer cut;
+    cut.upload(h, TreeCut::leaf_cut(h).nodes());
+    r.draw(cut, c, RenderSettings{}, true);
+    return Image{kWidth, kHeight, r.read_pixels()};
+  };
+  const Image zero = draw(h_zero, cam);
+  const Image utm_image = draw(h_utm, cam);
+  const std::size_t pixels = std::size_t{kWidth} * kHeight;
+  EXPECT_LE(test::unmatched_either_way(utm_image, zero), pixels / 1000);
+  // The float way, seen by the same camera moved there.
+  Camera moved = cam;
+  moved.eye += glm::vec3(500000.0f, 5000000.0f, 0.0f);
+  moved.target += glm::vec3(500000.0f, 5000000.0f, 0.0f);
+  const std::size_t broken = test::unmatched_either_way(draw(h_floats, moved), zero);
+  std::printf("map coordinates: %zu of %zu pixels unmatched with a double origin, %zu as floats\n",
+              test::unmatched_either_way(utm_image, zero), pixels, broken);
+  EXPECT_GT(broken, pixels / 50) << "the check has teeth: floats of map coordinates are off";
 }
 
 TEST(SplatQuery, SamplesPassedIsPolledWithoutBlocking) {

@@ -1,4 +1,5 @@
-// From a model file to a ready Hierarchy: PLY import, attributes, build, and
+// From a model file to a ready Hierarchy: PLY or LAS import (chosen by the
+// file's first bytes, not its name), attributes, build, and
 // the on-disk cache in front of them. What `treecut build`, `treecut view` and
 // the benchmarks call.
 #pragma once
@@ -12,6 +13,7 @@
 #include "treecut/attributes.hpp"
 #include "treecut/cache.hpp"
 #include "treecut/hierarchy.hpp"
+#include "treecut/las.hpp"
 #include "treecut/ply.hpp"
 
 namespace treecut {
@@ -40,7 +42,9 @@ struct OpenedModel {
   bool from_cache = false;
   bool cache_written = false;    ///< a cache was written after the build
   std::string cache_note;        ///< why a cache was not used, if one existed
-  PlyLoadReport ply;             ///< when built
+  std::string format;            ///< "PLY" or "LAS" when built (empty from a cache)
+  PlyLoadReport ply;             ///< when built from a PLY
+  LasLoadReport las;             ///< when built from a LAS
   std::size_t input_points = 0;  ///< points after dropping non-finite ones
   double read_seconds = 0, attribute_seconds = 0, build_seconds = 0, cache_seconds = 0;
   double hash_seconds = 0;  ///< the model's content hash (the cache key)

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <glm/gtc/type_precision.hpp>
 #include <glm/vec3.hpp>
+#include <glm/ext/vector_double3.hpp>
 #include <glm/vec4.hpp>
 #include <vector>
 
@@ -18,7 +19,15 @@ namespace treecut {
 inline constexpr float kMaxCoordinate = 1e18f;
 
 struct PointSet {
-  std::vector<glm::vec3> positions;   ///< model units, always size()
+  /// Where positions are measured from, in the file's coordinates (double:
+  /// map coordinates of 1e7 m keep millimetres; a float there is 0.5-1 m):
+  /// a point's file coordinates are origin + positions[i]. 0 for files read
+  /// as floats (PLY); LAS sets it near the points.
+  glm::dvec3 origin{0.0};
+  /// The file format says +z is up (LAS: map coordinates, z the height);
+  /// false when it says nothing (PLY: detect_up_axis decides).
+  bool z_up = false;
+  std::vector<glm::vec3> positions;   ///< model units, relative to origin, always size()
   std::vector<glm::vec3> normals;     ///< unit length (zero when undefined) or empty
   std::vector<float> radii;           ///< splat radius, model units, > 0, or empty
   std::vector<glm::u8vec4> colors;    ///< sRGB + alpha 255, or empty (the hierarchy uses grey)

@@ -24,6 +24,8 @@
 //     1.5 times the next largest (a scanned object with holes underneath).
 //  5. Otherwise +z, the convention of scans and of the generated models (a
 //     sphere, a closed object with nothing to tell).
+// Before all of them, for a hierarchy: a file format that says which way is
+// up (LAS, whose z is the height: Hierarchy::z_up()) is believed.
 //
 // GL-free, deterministic, and cheap: at most about a million points are read.
 #pragma once

@@ -12,6 +12,7 @@
 #include <array>
 #include <bit>
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 #include <stdexcept>
 
@@ -29,7 +30,9 @@ constexpr char kMagic[8] = {'T', 'C', 'U', 'T', 'H', 'I', 'E', 'R'};
 // Bump whenever the layout or the meaning of any array changes.
 // 2: the header carries the source's content hash.
 // 3: and the source's identity (device, inode, ctime) and when it was taken.
-constexpr std::uint32_t kVersion = 3;
+// 4: and the positions' double-precision origin and the format's z-up (map
+//    coordinates, issue 29).
+constexpr std::uint32_t kVersion = 4;
 constexpr std::uint32_t kEndianTag = 0x01020304u;
 constexpr std::size_t kAlign = 64;
 constexpr int kArrays = 9;
@@ -50,6 +53,9 @@ struct Header {
   std::int64_t source_ctime_ns;
   std::int64_t identity_ns;  // CLOCK_REALTIME when the identity was taken
   float bounds[6];
+  double origin[3];                // Hierarchy::origin()
+  std::uint32_t flags;             // bit 0: Hierarchy::z_up()
+  std::uint32_t reserved;
   std::uint64_t level_table;       // offset of level_count + 1 NodeIds
   std::uint64_t offsets[kArrays];  // in HierarchyArrays member order
   std::uint64_t payload_end;       // checksum follows, file size = payload_end + 8
@@ -239,6 +245,10 @@ std::optional<Hierarchy> map_and_verify(const std::filesystem::path& path, Heade
   const std::uint64_t n = h.node_count;
   if (n == 0 || h.level_count == 0 || h.level_count > 256)
     return fail(why, "bad counts"), std::nullopt;
+  for (const double o : h.origin) {
+    if (!std::isfinite(o)) return fail(why, "the origin is not finite"), std::nullopt;
+  }
+  if ((h.flags & ~1u) != 0) return fail(why, "unknown flags"), std::nullopt;
   auto in_bounds = [&](std::uint64_t off, std::uint64_t bytes_needed) {
     return off % kAlign == 0 && off >= sizeof(Header) && off <= h.payload_end &&
            bytes_needed <= h.payload_end - off;
@@ -269,7 +279,8 @@ std::optional<Hierarchy> map_and_verify(const std::filesystem::path& path, Heade
   if (out_header) *out_header = h;
   return Hierarchy::from_arrays(std::move(map), a, std::move(levels),
                                 {h.bounds[0], h.bounds[1], h.bounds[2]},
-                                {h.bounds[3], h.bounds[4], h.bounds[5]});
+                                {h.bounds[3], h.bounds[4], h.bounds[5]},
+                                {h.origin[0], h.origin[1], h.origin[2]}, (h.flags & 1u) != 0);
 }
 
 // The header of CACHE as it is on disk, unverified (the checksum is checked
@@ -323,6 +334,9 @@ void save_cache(const Hierarchy& hier, const CacheKey& key, const std::filesyste
   const glm::vec3 lo = hier.bounds_min(), hi = hier.bounds_max();
   const float b[6] = {lo.x, lo.y, lo.z, hi.x, hi.y, hi.z};
   std::memcpy(h.bounds, b, sizeof b);
+  const glm::dvec3 origin = hier.origin();
+  h.origin[0] = origin.x, h.origin[1] = origin.y, h.origin[2] = origin.z;
+  h.flags = hier.z_up() ? 1u : 0u;
 
   const std::array<std::pair<const void*, std::size_t>, kArrays> arrays = {{
       {a.center_radius.data(), a.center_radius.size_bytes()},

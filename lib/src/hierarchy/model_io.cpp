@@ -132,6 +132,24 @@ CacheKey hash_model(const std::filesystem::path& model, std::uint32_t bits, Open
   return k;
 }
 
+// The points of a model file, by its first bytes: LAS ("LASF") or PLY. A
+// file that is neither gets the PLY reader's message (it names the format
+// it recognizes: E57, PCD, an image...) and what treecut reads.
+PointSet read_point_file(const std::filesystem::path& model, OpenedModel& out,
+                         const WarningSink& warn) {
+  if (file_starts_with(model, "LASF")) {
+    out.format = "LAS";
+    return load_las(model, &out.las, warn);
+  }
+  out.format = "PLY";
+  if (file_starts_with(model, "ply")) return load_ply(model, &out.ply, warn);
+  try {
+    return load_ply(model, &out.ply, warn);
+  } catch (const InputError& e) {
+    throw InputError(std::string(e.what()) + "; treecut reads PLY and LAS files");
+  }
+}
+
 // Read, attributes, hierarchy: the model built into `out`, each stage timed.
 void read_and_build(const std::filesystem::path& model, std::uint32_t bits, const CacheKey& key,
                     const OpenOptions& options, OpenedModel& out) {
@@ -148,7 +166,7 @@ void read_and_build(const std::filesystem::path& model, std::uint32_t bits, cons
   };
   PointSet points;
   try {
-    points = load_ply(model, &out.ply, options.warn);
+    points = read_point_file(model, out, options.warn);
   } catch (const InputError&) {
     if (changed()) throw changed_error();
     throw;

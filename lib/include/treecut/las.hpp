@@ -1,0 +1,83 @@
+// LAS import and export: the ASPRS LAS format, versions 1.0 to 1.4 (R15),
+// point data record formats 0 to 10, read by the project's own guarded
+// reader (Debian 12 packages no LAS library). LAZ (the compressed form) is
+// recognized and refused with the way out.
+//
+// What the reader keeps: positions (the integers times the scale plus the
+// offset, in double, stored relative to PointSet::origin so that floats keep
+// millimetres at map coordinates) and RGB (formats 2, 3, 5, 7, 8, 10). What
+// it reports (LasInfo): the header, the coordinate system (the WKT or the
+// GeoTIFF keys of the VLRs and EVLRs), the extra bytes' names, and the
+// per-point fields it does not keep yet (intensity, returns,
+// classification...), each named in one warning.
+//
+// Guarded as the PLY reader: every count and offset is checked against the
+// file size before anything is sized from it; a malformed file is one
+// InputError "NAME: problem"; the points are read in chunks, so the memory
+// is the PointSet's and a chunk's, never the file's.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "treecut/ply.hpp"  // WarningSink
+#include "treecut/point_set.hpp"
+
+namespace treecut {
+
+/// What a LAS file's header and records say.
+struct LasInfo {
+  int version_major = 1, version_minor = 2;
+  int point_format = 0;
+  std::uint32_t record_length = 0;  ///< bytes per point record (>= the format's)
+  std::uint64_t point_count = 0;    ///< the points declared (the extended count in 1.4)
+  double scale[3] = {0.01, 0.01, 0.01};
+  double offset[3] = {0, 0, 0};
+  double min[3] = {0, 0, 0};  ///< the header's bounds (file coordinates)
+  double max[3] = {0, 0, 0};
+  std::string system_identifier, generating_software;
+  /// The coordinate system: "WKT: ..." (OGC WKT record) or "GeoTIFF: EPSG
+  /// code N" / "GeoTIFF: N keys" (GeoKeyDirectory record); empty if none.
+  std::string crs;
+  std::vector<std::string> extra_bytes;  ///< names of the extra-bytes fields
+  bool waveform = false;                 ///< the format carries wave packets (not read)
+};
+
+struct LasLoadReport {
+  LasInfo info;
+  std::size_t dropped_nonfinite = 0;  ///< points beyond kMaxCoordinate, dropped
+};
+
+/// True when BYTES start as a LAS or LAZ file does ("LASF").
+[[nodiscard]] bool looks_like_las(std::string_view bytes);
+
+/// Loads a LAS file (see above). Throws InputError "NAME: problem" for a
+/// malformed file or a LAZ file, FileChangedError when it changes size while
+/// being read.
+PointSet load_las(const std::filesystem::path& path, LasLoadReport* report = nullptr,
+                  const WarningSink& warn = {});
+
+/// load_las() on bytes in memory; NAME stands for the path in messages. The
+/// fuzzing entry point: anything malformed is an InputError.
+PointSet load_las_from_memory(std::string_view bytes, const std::string& name,
+                              LasLoadReport* report = nullptr, const WarningSink& warn = {});
+
+struct LasWriteOptions {
+  /// The coordinates' resolution (file units per integer step): a round
+  /// trip is exact to it.
+  double scale = 0.001;
+};
+
+/// Writes LAS 1.2, point format 2 (RGB) when the points have colours, else
+/// 0: each position origin + positions[i] as integers of `scale` around an
+/// offset near the points. Through an AtomicFile like save_ply. Throws
+/// std::invalid_argument for a bad scale or sizes, or for coordinates the
+/// scale cannot hold in 32 bits; std::runtime_error "PATH: REASON" on I/O
+/// errors.
+void save_las(const std::filesystem::path& path, const PointSet& points,
+              const LasWriteOptions& options = {});
+
+}  // namespace treecut

@@ -1,0 +1,362 @@
+// LAS import and export (treecut/las.hpp) on files built here, byte by byte,
+// from the ASPRS LAS 1.4 R15 tables: every point format, the 1.4 counts, the
+// coordinate system records, 8- and 16-bit colours, map coordinates kept to
+// the millimetre, round trips exact to the scale, and the malformed files
+// (every truncation of the header, counts past the file, absurd scales and
+// offsets, a format and a record length that disagree, LAZ) refused with
+// one line.
+#include "treecut/las.hpp"
+
+#include <gtest/gtest.h>
+
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "test_support.hpp"
+#include "treecut/error.hpp"
+
+namespace {
+
+using treecut::InputError;
+using treecut::LasLoadReport;
+using treecut::load_las_from_memory;
+using treecut::PointSet;
+
+template <class T>
+void put(std::string& out, T v) {
+  static_assert(std::endian::native == std::endian::little);
+  out.append(reinterpret_cast<const char*>(&v), sizeof v);
+}
+template <class T>
+void poke(std::string& out, std::size_t at, T v) {
+  std::memcpy(out.data() + at, &v, sizeof v);
+}
+
+constexpr std::uint32_t kBase[11] = {20, 28, 26, 34, 57, 63, 30, 36, 38, 59, 67};
+constexpr std::uint32_t kRgb[11] = {0, 0, 20, 28, 0, 28, 0, 30, 30, 0, 30};
+
+struct Point {
+  std::int32_t x, y, z;
+  std::uint16_t r = 0, g = 0, b = 0;
+};
+
+struct Vlr {
+  std::string user;
+  std::uint16_t id;
+  std::string payload;
+};
+
+// A LAS file of version 1.MINOR, point format FORMAT with EXTRA bytes after
+// each record, the given scale and offset, VLRS and the points.
+std::string las_file(int minor, int format, const std::vector<Point>& points,
+                     double scale = 0.01, double offset = 0.0, std::uint32_t extra = 0,
+                     const std::vector<Vlr>& vlrs = {}) {
+  const std::size_t header = minor >= 4 ? 375 : minor == 3 ? 235 : 227;
+  std::string h;
+  h += "LASF";
+  put<std::uint16_t>(h, 0);
+  put<std::uint16_t>(h, 0);
+  h.append(16, '\0');
+  h.push_back(1);
+  h.push_back(static_cast<char>(minor));
+  std::string sys = "test system";
+  sys.resize(32, '\0');
+  h += sys;
+  h.append(32, '\0');
+  put<std::uint16_t>(h, 1);
+  put<std::uint16_t>(h, 2026);
+  put<std::uint16_t>(h, static_cast<std::uint16_t>(header));
+  std::size_t vlr_bytes = 0;
+  for (const Vlr& v : vlrs) vlr_bytes += 54 + v.payload.size();
+  put<std::uint32_t>(h, static_cast<std::uint32_t>(header + vlr_bytes));
+  put<std::uint32_t>(h, static_cast<std::uint32_t>(vlrs.size()));
+  h.push_back(static_cast<char>(format));
+  const std::uint32_t length = kBase[format] + extra;
+  put<std::uint16_t>(h, static_cast<std::uint16_t>(length));
+  put<std::uint32_t>(h, format >= 6 ? 0u : static_cast<std::uint32_t>(points.size()));
+  for (int i = 0; i < 5; ++i) put<std::uint32_t>(h, 0);
+  for (int a = 0; a < 3; ++a) put<double>(h, scale);
+  for (int a = 0; a < 3; ++a) put<double>(h, offset);
+  double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
+  for (const Point& p : points) {
+    const std::int32_t c[3] = {p.x, p.y, p.z};
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = std::min(lo[a], c[a] * scale + offset);
+      hi[a] = std::max(hi[a], c[a] * scale + offset);
+    }
+  }
+  for (int a = 0; a < 3; ++a) {
+    put<double>(h, points.empty() ? 0.0 : hi[a]);
+    put<double>(h, points.empty() ? 0.0 : lo[a]);
+  }
+  if (minor >= 3) put<std::uint64_t>(h, 0);  // waveform data start
+  if (minor >= 4) {
+    put<std::uint64_t>(h, 0);  // first EVLR
+    put<std::uint32_t>(h, 0);  // EVLRs
+    put<std::uint64_t>(h, points.size());
+    for (int i = 0; i < 15; ++i) put<std::uint64_t>(h, 0);
+  }
+  EXPECT_EQ(h.size(), header);
+  for (const Vlr& v : vlrs) {
+    put<std::uint16_t>(h, 0);
+    std::string user = v.user;
+    user.resize(16, '\0');
+    h += user;
+    put<std::uint16_t>(h, v.id);
+    put<std::uint16_t>(h, static_cast<std::uint16_t>(v.payload.size()));
+    h.append(32, '\0');
+    h += v.payload;
+  }
+  for (const Point& p : points) {
+    std::string r(length, '\0');
+    poke(r, 0, p.x), poke(r, 4, p.y), poke(r, 8, p.z);
+    if (kRgb[format] != 0) {
+      poke(r, kRgb[format], p.r), poke(r, kRgb[format] + 2, p.g), poke(r, kRgb[format] + 4, p.b);
+    }
+    h += r;
+  }
+  return h;
+}
+
+std::string error_of(const std::string& bytes) {
+  try {
+    (void)load_las_from_memory(bytes, "mem.las");
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "(loaded)";
+}
+
+const std::vector<Point> kThree = {
+    {100, 200, 300, 65535, 0, 0}, {-100, 0, 50, 0, 65535, 0}, {0, -200, 0, 0, 0, 65535}};
+
+glm::dvec3 file_position(const PointSet& p, std::size_t i) {
+  return p.origin + glm::dvec3(p.positions[i]);
+}
+
+TEST(LasLoad, EveryPointFormatGivesItsPointsAndColours) {
+  for (int format = 0; format <= 10; ++format) {
+    const int minor = format >= 6 ? 4 : format >= 4 ? 3 : 2;
+    std::vector<std::string> warnings;
+    LasLoadReport report;
+    const PointSet p = load_las_from_memory(las_file(minor, format, kThree, 0.01, 1000.0, 3),
+                                            "mem.las", &report,
+                                            [&](const std::string& w) { warnings.push_back(w); });
+    ASSERT_EQ(p.size(), 3u) << format;
+    EXPECT_EQ(report.info.point_format, format);
+    EXPECT_EQ(report.info.record_length, kBase[format] + 3);
+    for (std::size_t i = 0; i < 3; ++i) {
+      const glm::dvec3 q = file_position(p, i);
+      EXPECT_NEAR(q.x, kThree[i].x * 0.01 + 1000.0, 1e-4) << format;
+      EXPECT_NEAR(q.y, kThree[i].y * 0.01 + 1000.0, 1e-4) << format;
+      EXPECT_NEAR(q.z, kThree[i].z * 0.01 + 1000.0, 1e-4) << format;
+    }
+    if (kRgb[format] != 0) {
+      ASSERT_TRUE(p.has_colors()) << format;
+      EXPECT_EQ(p.colors[0], glm::u8vec4(255, 0, 0, 255));
+      EXPECT_EQ(p.colors[2], glm::u8vec4(0, 0, 255, 255));
+    } else {
+      EXPECT_FALSE(p.has_colors()) << format;
+    }
+    const bool waveform = format == 4 || format == 5 || format >= 9;
+    EXPECT_EQ(report.info.waveform, waveform);
+    bool said_waveform = false, said_kept = false;
+    for (const std::string& w : warnings) {
+      said_waveform = said_waveform || w.find("waveform") != std::string::npos;
+      said_kept = said_kept || w.find("not kept: intensity") != std::string::npos;
+      EXPECT_EQ(w.find('\n'), std::string::npos);
+    }
+    EXPECT_EQ(said_waveform, waveform) << format;
+    EXPECT_TRUE(said_kept) << "the fields not kept are named: " << format;
+  }
+}
+
+TEST(LasLoad, EightBitColoursAreTakenAsTheyAre) {
+  const std::vector<Point> p8 = {{0, 0, 0, 200, 100, 50}, {1, 1, 1, 255, 0, 7}};
+  const PointSet p = load_las_from_memory(las_file(2, 2, p8), "mem.las");
+  EXPECT_EQ(p.colors[0], glm::u8vec4(200, 100, 50, 255));
+  EXPECT_EQ(p.colors[1], glm::u8vec4(255, 0, 7, 255));
+}
+
+TEST(LasLoad, MapCoordinatesKeepTheirMillimetres) {
+  // A 1 cm grid at x = 500 km, y = 5,000 km (UTM-like metres): as floats of
+  // the absolute coordinates its points would fall on 0.5 m steps.
+  std::vector<Point> grid;
+  for (int i = 0; i < 50; ++i) grid.push_back({i * 10, i * 10, 0});
+  const PointSet p = load_las_from_memory(las_file(2, 0, grid, 0.001, 0.0, 0), "mem.las");
+  std::string bytes = las_file(2, 0, grid, 0.001, 0.0);
+  // The same grid at map coordinates: offset 500000 / 5000000.
+  for (int a = 0; a < 2; ++a) poke<double>(bytes, 155 + 8 * a, a == 0 ? 500000.0 : 5000000.0);
+  for (int a = 0; a < 2; ++a) {
+    const double o = a == 0 ? 500000.0 : 5000000.0;
+    poke<double>(bytes, 179 + 16 * a, o + 0.49);
+    poke<double>(bytes, 187 + 16 * a, o);
+  }
+  const PointSet m = load_las_from_memory(bytes, "mem.las");
+  ASSERT_EQ(m.size(), grid.size());
+  EXPECT_GT(m.origin.y, 4.9e6) << "the origin is near the points";
+  for (std::size_t i = 1; i < m.size(); ++i) {
+    const glm::dvec3 step = file_position(m, i) - file_position(m, i - 1);
+    EXPECT_NEAR(step.x, 0.01, 1e-5) << i;
+    EXPECT_NEAR(step.y, 0.01, 1e-5) << i;
+    // Relative to the origin the positions are those of the grid at 0.
+    EXPECT_NEAR(m.positions[i].x - m.positions[0].x, p.positions[i].x - p.positions[0].x, 1e-5);
+  }
+}
+
+TEST(LasLoad, Version14CountsTheExtendedWay) {
+  std::string bytes = las_file(4, 6, kThree);
+  EXPECT_EQ(load_las_from_memory(bytes, "mem.las").size(), 3u);
+  poke<std::uint32_t>(bytes, 107, 2);  // a legacy count that disagrees
+  EXPECT_EQ(error_of(bytes), "mem.las: the legacy point count 2 and the point count 3 disagree");
+  poke<std::uint32_t>(bytes, 107, 3);  // one that agrees
+  EXPECT_EQ(load_las_from_memory(bytes, "mem.las").size(), 3u);
+}
+
+TEST(LasLoad, CoordinateSystemRecordsAreRead) {
+  const std::string wkt = "PROJCS[\"WGS 84 / UTM zone 33N\"]";
+  LasLoadReport r;
+  (void)load_las_from_memory(
+      las_file(4, 6, kThree, 0.01, 0.0, 0, {{"LASF_Projection", 2112, wkt + std::string(1, '\0')}}),
+      "mem.las", &r);
+  EXPECT_EQ(r.info.crs, "WKT: " + wkt);
+  // GeoKeyDirectory: version 1.1.0, 1 key, ProjectedCSTypeGeoKey = 32633.
+  std::string keys;
+  for (const std::uint16_t v : {1, 1, 0, 1, 3072, 0, 1, 32633}) put<std::uint16_t>(keys, v);
+  (void)load_las_from_memory(las_file(2, 0, kThree, 0.01, 0.0, 0, {{"LASF_Projection", 34735, keys}}),
+                             "mem.las", &r);
+  EXPECT_EQ(r.info.crs, "GeoTIFF: EPSG code 32633");
+  // Extra bytes: two named fields.
+  std::string extra(384, '\0');
+  std::memcpy(extra.data() + 4, "reflectance", 11);
+  std::memcpy(extra.data() + 192 + 4, "deviation", 9);
+  std::vector<std::string> warnings;
+  (void)load_las_from_memory(las_file(4, 6, kThree, 0.01, 0.0, 4, {{"LASF_Spec", 4, extra}}),
+                             "mem.las", &r, [&](const std::string& w) { warnings.push_back(w); });
+  EXPECT_EQ(r.info.extra_bytes, (std::vector<std::string>{"reflectance", "deviation"}));
+  bool named = false;
+  for (const std::string& w : warnings) named = named || w.find("reflectance") != std::string::npos;
+  EXPECT_TRUE(named);
+}
+
+TEST(LasLoad, EveryTruncationOfTheHeaderIsOneLine) {
+  for (const int minor : {2, 3, 4}) {
+    const std::string full = las_file(minor, minor == 4 ? 7 : 3, kThree);
+    for (std::size_t cut = 0; cut < full.size(); ++cut) {
+      const std::string e = error_of(full.substr(0, cut));
+      EXPECT_EQ(e.rfind("mem.las: ", 0), 0u) << cut << ": " << e;
+      EXPECT_EQ(e.find('\n'), std::string::npos) << cut;
+    }
+  }
+  EXPECT_EQ(error_of("LASF"), "mem.las: the header is cut off: 4 bytes, a LAS header has at least 227");
+  EXPECT_EQ(error_of(las_file(2, 0, kThree).substr(0, 227 + 30)),
+            "mem.las: 3 points of 20 bytes declared from offset 227, the file holds 1");
+}
+
+TEST(LasLoad, AbsurdHeadersAreRefusedBeforeAnythingIsSized) {
+  const std::string ok = las_file(2, 2, kThree);
+  auto with = [&](std::size_t at, auto v) {
+    std::string b = ok;
+    poke(b, at, v);
+    return error_of(b);
+  };
+  EXPECT_EQ(with(131, 0.0), "mem.las: X scale factor 0 (it must be positive and finite)");
+  EXPECT_EQ(with(139, -0.01), "mem.las: Y scale factor -0.01 (it must be positive and finite)");
+  EXPECT_EQ(with(147, std::nan("")), "mem.las: Z scale factor nan (it must be positive and finite)");
+  EXPECT_EQ(with(155, std::numeric_limits<double>::infinity()), "mem.las: X offset inf is not finite");
+  EXPECT_EQ(with(131, 1e300),
+            "mem.las: X scale factor 1.0000000000000001e+300 and offset 0 reach coordinates beyond "
+            "1e18");
+  EXPECT_EQ(with(107, std::uint32_t{4000000000u}),
+            "mem.las: 4000000000 points of 26 bytes declared from offset 227, the file holds 3");
+  // A record length shorter than the format's.
+  EXPECT_EQ(with(105, std::uint16_t{20}),
+            "mem.las: point data format 2 has records of 26 bytes; the header says 20");
+  EXPECT_EQ(with(104, std::uint8_t{11}), "mem.las: point data format 11 is not defined (0 to 10 are)");
+  EXPECT_EQ(with(25, std::uint8_t{5}), "mem.las: LAS version 1.5 is not read (1.0 to 1.4 are)");
+  EXPECT_EQ(with(94, std::uint16_t{100}),
+            "mem.las: header size 100 is less than the 227 bytes of a LAS 1.2 header");
+  EXPECT_EQ(with(96, std::uint32_t{1u << 30}),
+            "mem.las: the point data offset 1073741824 is not between the header's end (227) and "
+            "the end of the file (305)");
+  EXPECT_EQ(with(100, std::uint32_t{1}),
+            "mem.las: variable length record 1 of 1 runs past the point data offset 227");
+  EXPECT_EQ(error_of("LASX" + ok.substr(4)), "mem.las: not a LAS file (no LASF signature)");
+}
+
+TEST(LasLoad, LazIsNamedWithTheWayOut) {
+  std::string laz = las_file(2, 2, kThree);
+  laz[104] = static_cast<char>(2 | 0x80);
+  const std::string e = error_of(laz);
+  EXPECT_NE(e.find("a LAZ (compressed LAS) file"), std::string::npos) << e;
+  EXPECT_NE(e.find("decompress it to LAS first"), std::string::npos) << e;
+}
+
+TEST(LasLoad, RandomCorruptionIsRefusedOrRead) {
+  const std::string ok = las_file(4, 8, kThree, 0.01, 0.0, 2,
+                                  {{"LASF_Projection", 2112, std::string("PROJCS[]", 9)}});
+  std::mt19937 rng(7);
+  for (int i = 0; i < 3000; ++i) {
+    std::string b = ok;
+    const int flips = 1 + static_cast<int>(rng() % 4);
+    for (int f = 0; f < flips; ++f) b[rng() % b.size()] = static_cast<char>(rng());
+    try {
+      const PointSet p = load_las_from_memory(b, "mem.las");
+      EXPECT_LE(p.size(), 3u);
+    } catch (const InputError& e) {
+      EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos);
+    }
+  }
+}
+
+TEST(LasSave, RoundTripsAreExactToTheScale) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(-500.0f, 500.0f);
+  PointSet p;
+  p.origin = glm::dvec3(500000.0, 5000000.0, 120.0);
+  for (int i = 0; i < 2000; ++i) {
+    p.positions.push_back({u(rng), u(rng), 0.1f * u(rng)});
+    p.colors.push_back({static_cast<std::uint8_t>(rng()), static_cast<std::uint8_t>(rng()),
+                        static_cast<std::uint8_t>(rng()), 255});
+  }
+  const auto dir = treecut::test::scratch_dir("las_save");
+  const auto a = dir / "a.las", b = dir / "b.las";
+  treecut::save_las(a, p);
+  LasLoadReport r;
+  const PointSet q = treecut::load_las(a, &r);
+  ASSERT_EQ(q.size(), p.size());
+  EXPECT_EQ(r.info.point_format, 2);
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    const glm::dvec3 d = file_position(q, i) - file_position(p, i);
+    // Within half a step of the scale (0.5 mm), plus the float positions'
+    // own rounding near 500 m from the origin (30 um).
+    EXPECT_LE(std::abs(d.x), 0.0005 + 3e-5) << i;
+    EXPECT_LE(std::abs(d.y), 0.0005 + 3e-5) << i;
+    EXPECT_EQ(q.colors[i], p.colors[i]) << i;
+  }
+  // Written again from what was read: the same integers, the same file.
+  treecut::save_las(b, q);
+  auto bytes = [](const std::filesystem::path& f) {
+    std::ifstream in(f, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  EXPECT_EQ(bytes(a), bytes(b));
+}
+
+TEST(LasSave, RefusesWhatLasCannotHold) {
+  PointSet p;
+  p.positions = {{0, 0, 0}, {1e9f, 0, 0}};
+  const auto dir = treecut::test::scratch_dir("las_refuse");
+  EXPECT_THROW(treecut::save_las(dir / "x.las", p), std::invalid_argument);
+  EXPECT_FALSE(std::filesystem::exists(dir / "x.las"));
+  treecut::LasWriteOptions o;
+  o.scale = 0.0;
+  EXPECT_THROW(treecut::save_las(dir / "y.las", PointSet{}, o), std::invalid_argument);
+}
+
+}  // namespace
