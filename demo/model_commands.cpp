@@ -64,7 +64,7 @@ void print_summary(const std::filesystem::path& model, const OpenedModel& m) {
   std::printf("nodes       %u\n", h.node_count());
   std::printf("depth       %d\n", h.level_count() - 1);
   std::printf("bounds      [%g %g %g] .. [%g %g %g]\n", lo.x, lo.y, lo.z, hi.x, hi.y, hi.z);
-  const glm::dvec3 o = h.origin();
+  const glm::dvec3 o = h.frame().origin;
   if (o != glm::dvec3(0.0)) {
     // Map coordinates: the nodes are relative to the origin (double), the
     // file's coordinates are origin + bounds.
@@ -79,7 +79,12 @@ void print_summary(const std::filesystem::path& model, const OpenedModel& m) {
                 l.version_major, l.version_minor, l.point_format, l.record_length,
                 l.system_identifier.empty() ? "" : ", from ",
                 one_line(l.system_identifier).c_str());
-    std::printf("crs         %s\n", l.crs.empty() ? "none in the file" : one_line(l.crs).c_str());
+  }
+  // The coordinate system, kept in the cache with the origin.
+  if (!h.frame().crs.empty()) {
+    std::printf("crs         %s\n", one_line(h.frame().crs).c_str());
+  } else if (m.format == "LAS") {
+    std::printf("crs         none in the file\n");
   }
   const UpAxis up = detect_up_axis(h);  // what `render` and `view` use with --up auto
   std::printf("up          %s (auto: %s)\n", up.name().c_str(), up.reason.c_str());
@@ -405,7 +410,7 @@ void generate_model_kind(const GenArgs& g) {
   PointSet ps = kind == tools::ModelKind::Field
                     ? tools::generate_field(tools::prepare_field_source(source), g.points, g.seed)
                     : tools::generate_model(kind, g.points, g.seed);
-  if (!g.origin.empty()) ps.origin = glm::dvec3(g.origin[0], g.origin[1], g.origin[2]);
+  if (!g.origin.empty()) ps.frame.origin = glm::dvec3(g.origin[0], g.origin[1], g.origin[2]);
   if (las) {
     save_las(out, ps);
   } else {

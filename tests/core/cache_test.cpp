@@ -104,6 +104,40 @@ TEST(Cache, RoundTripGivesTheSameArrays) {
     EXPECT_EQ(e.path().extension(), ".tch") << "temporary left behind: " << e.path();
 }
 
+// The model's CoordinateFrame (issue 29): a map origin, the format's z-up
+// and the coordinate system's text come back from the cache as they went in;
+// every truncation and flipped byte of such a cache is caught as before.
+TEST(Cache, TheCoordinateFrameRoundTrips) {
+  const fs::path dir = test::scratch_dir("cache_frame");
+  PointSet p = generate_model(ModelKind::Sphere, 3000, 2);
+  p.frame.origin = glm::dvec3(500000.25, 5000000.5, -12.0);
+  p.frame.z_up = true;
+  p.frame.crs = "WKT: PROJCS[\"WGS 84 / UTM zone 33N\"]";
+  const Hierarchy h = build_from_points(std::move(p));
+  EXPECT_EQ(h.frame().origin, glm::dvec3(500000.25, 5000000.5, -12.0));
+  save_cache(h, {1, 2, 3}, dir / "f.tch");
+  std::string why;
+  auto loaded = load_cache(dir / "f.tch", std::nullopt, &why);
+  ASSERT_TRUE(loaded) << why;
+  EXPECT_EQ(loaded->frame().origin, h.frame().origin);
+  EXPECT_TRUE(loaded->frame().z_up);
+  EXPECT_EQ(loaded->frame().crs, h.frame().crs);
+  const std::vector<char> raw = read_all(dir / "f.tch");
+  const std::string bytes(raw.begin(), raw.end());
+  for (std::size_t cut = 0; cut < bytes.size(); cut += 97) {
+    std::ofstream(dir / "t.tch", std::ios::binary | std::ios::trunc) << bytes.substr(0, cut);
+    EXPECT_FALSE(load_cache(dir / "t.tch", std::nullopt, &why)) << cut;
+  }
+  // The crs text is inside the checksum: a flipped byte there is caught.
+  const std::size_t at = bytes.find("UTM zone");
+  ASSERT_NE(at, std::string::npos);
+  std::string flipped = bytes;
+  flipped[at] ^= 0x20;
+  std::ofstream(dir / "t.tch", std::ios::binary | std::ios::trunc) << flipped;
+  EXPECT_FALSE(load_cache(dir / "t.tch", std::nullopt, &why));
+  EXPECT_NE(why.find("checksum"), std::string::npos) << why;
+}
+
 TEST(Cache, SameInputGivesAByteIdenticalFile) {
   const fs::path dir = test::scratch_dir("cache_deterministic");
   BuildOptions one, two;

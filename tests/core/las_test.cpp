@@ -136,7 +136,7 @@ const std::vector<Point> kThree = {
     {100, 200, 300, 65535, 0, 0}, {-100, 0, 50, 0, 65535, 0}, {0, -200, 0, 0, 0, 65535}};
 
 glm::dvec3 file_position(const PointSet& p, std::size_t i) {
-  return p.origin + glm::dvec3(p.positions[i]);
+  return p.frame.origin + glm::dvec3(p.positions[i]);
 }
 
 TEST(LasLoad, EveryPointFormatGivesItsPointsAndColours) {
@@ -199,7 +199,7 @@ TEST(LasLoad, MapCoordinatesKeepTheirMillimetres) {
   }
   const PointSet m = load_las_from_memory(bytes, "mem.las");
   ASSERT_EQ(m.size(), grid.size());
-  EXPECT_GT(m.origin.y, 4.9e6) << "the origin is near the points";
+  EXPECT_GT(m.frame.origin.y, 4.9e6) << "the origin is near the points";
   for (std::size_t i = 1; i < m.size(); ++i) {
     const glm::dvec3 step = file_position(m, i) - file_position(m, i - 1);
     EXPECT_NEAR(step.x, 0.01, 1e-5) << i;
@@ -225,6 +225,11 @@ TEST(LasLoad, CoordinateSystemRecordsAreRead) {
       las_file(4, 6, kThree, 0.01, 0.0, 0, {{"LASF_Projection", 2112, wkt + std::string(1, '\0')}}),
       "mem.las", &r);
   EXPECT_EQ(r.info.crs, "WKT: " + wkt);
+  const PointSet with_crs = load_las_from_memory(
+      las_file(4, 6, kThree, 0.01, 0.0, 0, {{"LASF_Projection", 2112, wkt + std::string(1, '\0')}}),
+      "mem.las");
+  EXPECT_EQ(with_crs.frame.crs, "WKT: " + wkt) << "the frame carries it to the hierarchy";
+  EXPECT_TRUE(with_crs.frame.z_up);
   // GeoKeyDirectory: version 1.1.0, 1 key, ProjectedCSTypeGeoKey = 32633.
   std::string keys;
   for (const std::uint16_t v : {1, 1, 0, 1, 3072, 0, 1, 32633}) put<std::uint16_t>(keys, v);
@@ -318,7 +323,7 @@ TEST(LasSave, RoundTripsAreExactToTheScale) {
   std::mt19937 rng(3);
   std::uniform_real_distribution<float> u(-500.0f, 500.0f);
   PointSet p;
-  p.origin = glm::dvec3(500000.0, 5000000.0, 120.0);
+  p.frame.origin = glm::dvec3(500000.0, 5000000.0, 120.0);
   for (int i = 0; i < 2000; ++i) {
     p.positions.push_back({u(rng), u(rng), 0.1f * u(rng)});
     p.colors.push_back({static_cast<std::uint8_t>(rng()), static_cast<std::uint8_t>(rng()),

@@ -23,7 +23,7 @@ int main(int argc, char** argv) {
       for (const bool map : {false, true}) {
         PointSet p = tools::generate_model(tools::ModelKind::Sphere, n, 3);
         if (!colours) p.colors.clear();
-        if (map) p.origin = glm::dvec3(500000.0, 5000000.0, 100.0);
+        if (map) p.frame.origin = glm::dvec3(500000.0, 5000000.0, 100.0);
         save_las(out / ("sphere-" + std::to_string(n) + (colours ? "-rgb" : "") +
                         (map ? "-utm" : "") + ".las"),
                  p);

@@ -223,21 +223,21 @@ TEST(SplatMapCoordinates, AModelAtUtmCoordinatesRendersAsAtTheOrigin) {
   }
   const auto dir = test::scratch_dir("map_coordinates");
   PointSet utm = scene;
-  utm.origin = glm::dvec3(500000.0, 5000000.0, 0.0);
+  utm.frame.origin = glm::dvec3(500000.0, 5000000.0, 0.0);
   save_las(dir / "utm.las", utm);
   save_las(dir / "zero.las", scene);
   PointSet at_utm = load_las(dir / "utm.las");
   PointSet at_zero = load_las(dir / "zero.las");
-  ASSERT_GT(at_utm.origin.x, 499000.0);
+  ASSERT_GT(at_utm.frame.origin.x, 499000.0);
   // The old way: the absolute coordinates as floats.
   PointSet floats;
   for (const glm::vec3& p : at_utm.positions) {
-    floats.positions.push_back(glm::vec3(at_utm.origin + glm::dvec3(p)));
+    floats.positions.push_back(glm::vec3(at_utm.frame.origin + glm::dvec3(p)));
   }
   const Hierarchy h_utm = build_from_points(std::move(at_utm));
   const Hierarchy h_zero = build_from_points(std::move(at_zero));
   const Hierarchy h_floats = build_from_points(std::move(floats));
-  EXPECT_EQ(h_utm.origin(), glm::dvec3(500000.0, 5000000.0, 0.0));
+  EXPECT_EQ(h_utm.frame().origin, glm::dvec3(500000.0, 5000000.0, 0.0));
   Camera cam = default_camera(h_zero.bounds_min(), h_zero.bounds_max(), float(kWidth) / kHeight);
   auto draw = [&](const Hierarchy& h, const Camera& c) {
     Renderer r(h, glm::ivec2(kWidth, kHeight));

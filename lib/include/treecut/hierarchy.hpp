@@ -66,12 +66,10 @@ class Hierarchy {
   }
   [[nodiscard]] glm::vec3 bounds_min() const { return bounds_min_; }
   [[nodiscard]] glm::vec3 bounds_max() const { return bounds_max_; }
-  /// Where the node positions are measured from, in the model file's
-  /// coordinates (PointSet::origin): a node at p lies at origin() + p there.
-  /// 0 for models read as floats; near the points for map coordinates (LAS).
-  [[nodiscard]] glm::dvec3 origin() const { return origin_; }
-  /// The model's file format says +z is up (PointSet::z_up: LAS).
-  [[nodiscard]] bool z_up() const { return z_up_; }
+  /// How the node positions relate to the model file's coordinates
+  /// (PointSet::frame): a node at p lies at frame().origin + p there; 0 for
+  /// models read as floats, near the points for map coordinates (LAS).
+  [[nodiscard]] const CoordinateFrame& frame() const { return frame_; }
   [[nodiscard]] const HierarchyArrays& arrays() const { return a_; }
   /// Bytes held by the node arrays (what a cache maps).
   [[nodiscard]] std::size_t memory_bytes() const;
@@ -97,8 +95,7 @@ class Hierarchy {
   /// Used by the builder and the cache loader; checks only the sizes.
   static Hierarchy from_arrays(std::shared_ptr<const void> storage, const HierarchyArrays& arrays,
                                std::vector<NodeId> level_begin, glm::vec3 bounds_min,
-                               glm::vec3 bounds_max, glm::dvec3 origin = glm::dvec3(0.0),
-                               bool z_up = false);
+                               glm::vec3 bounds_max, CoordinateFrame frame = {});
 
  private:
   std::shared_ptr<const void> storage_;
@@ -108,8 +105,7 @@ class Hierarchy {
   std::uint32_t leaf_count_ = 0;
   glm::vec3 bounds_min_{0.0f};
   glm::vec3 bounds_max_{0.0f};
-  glm::dvec3 origin_{0.0};
-  bool z_up_ = false;
+  CoordinateFrame frame_;
 };
 
 /// Packs a unit vector and a cone cosine into the snorm16 layout above.

@@ -25,7 +25,7 @@
 //  5. Otherwise +z, the convention of scans and of the generated models (a
 //     sphere, a closed object with nothing to tell).
 // Before all of them, for a hierarchy: a file format that says which way is
-// up (LAS, whose z is the height: Hierarchy::z_up()) is believed.
+// up (LAS, whose z is the height: Hierarchy::frame().z_up) is believed.
 //
 // GL-free, deterministic, and cheap: at most about a million points are read.
 #pragma once

@@ -30,12 +30,14 @@ constexpr char kMagic[8] = {'T', 'C', 'U', 'T', 'H', 'I', 'E', 'R'};
 // Bump whenever the layout or the meaning of any array changes.
 // 2: the header carries the source's content hash.
 // 3: and the source's identity (device, inode, ctime) and when it was taken.
-// 4: and the positions' double-precision origin and the format's z-up (map
+// 4: and the model's CoordinateFrame: the positions' double-precision
+//    origin, the format's z-up and the coordinate system's text (map
 //    coordinates, issue 29).
 constexpr std::uint32_t kVersion = 4;
 constexpr std::uint32_t kEndianTag = 0x01020304u;
 constexpr std::size_t kAlign = 64;
 constexpr int kArrays = 9;
+constexpr std::uint32_t kMaxCrsBytes = 4096;
 
 struct Header {
   char magic[8];
@@ -53,9 +55,10 @@ struct Header {
   std::int64_t source_ctime_ns;
   std::int64_t identity_ns;  // CLOCK_REALTIME when the identity was taken
   float bounds[6];
-  double origin[3];                // Hierarchy::origin()
-  std::uint32_t flags;             // bit 0: Hierarchy::z_up()
-  std::uint32_t reserved;
+  double origin[3];                // Hierarchy::frame(): origin,
+  std::uint32_t flags;             // bit 0: z_up,
+  std::uint32_t crs_size;          // and the crs text's bytes
+  std::uint64_t crs_offset;        // where they are (after the arrays)
   std::uint64_t level_table;       // offset of level_count + 1 NodeIds
   std::uint64_t offsets[kArrays];  // in HierarchyArrays member order
   std::uint64_t payload_end;       // checksum follows, file size = payload_end + 8
@@ -249,6 +252,18 @@ std::optional<Hierarchy> map_and_verify(const std::filesystem::path& path, Heade
     if (!std::isfinite(o)) return fail(why, "the origin is not finite"), std::nullopt;
   }
   if ((h.flags & ~1u) != 0) return fail(why, "unknown flags"), std::nullopt;
+  // The coordinate system's text: short (a WKT is cut to 400 bytes), inside.
+  if (h.crs_size > kMaxCrsBytes ||
+      (h.crs_size > 0 && (h.crs_offset < sizeof(Header) || h.crs_offset > h.payload_end ||
+                          h.crs_size > h.payload_end - h.crs_offset)))
+    return fail(why, "bad coordinate system record"), std::nullopt;
+  CoordinateFrame frame;
+  frame.origin = glm::dvec3(h.origin[0], h.origin[1], h.origin[2]);
+  frame.z_up = (h.flags & 1u) != 0;
+  frame.crs.resize(h.crs_size);
+  map->read_guarded([&] {
+    if (h.crs_size > 0) std::memcpy(frame.crs.data(), bytes + h.crs_offset, h.crs_size);
+  });
   auto in_bounds = [&](std::uint64_t off, std::uint64_t bytes_needed) {
     return off % kAlign == 0 && off >= sizeof(Header) && off <= h.payload_end &&
            bytes_needed <= h.payload_end - off;
@@ -280,7 +295,7 @@ std::optional<Hierarchy> map_and_verify(const std::filesystem::path& path, Heade
   return Hierarchy::from_arrays(std::move(map), a, std::move(levels),
                                 {h.bounds[0], h.bounds[1], h.bounds[2]},
                                 {h.bounds[3], h.bounds[4], h.bounds[5]},
-                                {h.origin[0], h.origin[1], h.origin[2]}, (h.flags & 1u) != 0);
+                                std::move(frame));
 }
 
 // The header of CACHE as it is on disk, unverified (the checksum is checked
@@ -334,9 +349,11 @@ void save_cache(const Hierarchy& hier, const CacheKey& key, const std::filesyste
   const glm::vec3 lo = hier.bounds_min(), hi = hier.bounds_max();
   const float b[6] = {lo.x, lo.y, lo.z, hi.x, hi.y, hi.z};
   std::memcpy(h.bounds, b, sizeof b);
-  const glm::dvec3 origin = hier.origin();
-  h.origin[0] = origin.x, h.origin[1] = origin.y, h.origin[2] = origin.z;
-  h.flags = hier.z_up() ? 1u : 0u;
+  const CoordinateFrame& frame = hier.frame();
+  h.origin[0] = frame.origin.x, h.origin[1] = frame.origin.y, h.origin[2] = frame.origin.z;
+  h.flags = frame.z_up ? 1u : 0u;
+  const std::string crs = frame.crs.substr(0, kMaxCrsBytes);
+  h.crs_size = static_cast<std::uint32_t>(crs.size());
 
   const std::array<std::pair<const void*, std::size_t>, kArrays> arrays = {{
       {a.center_radius.data(), a.center_radius.size_bytes()},
@@ -358,6 +375,8 @@ void save_cache(const Hierarchy& hier, const CacheKey& key, const std::filesyste
     h.offsets[i] = off;
     off = align_up(off + arrays[static_cast<std::size_t>(i)].second);
   }
+  h.crs_offset = crs.empty() ? 0 : off;
+  off = align_up(off + crs.size());
   h.payload_end = off;
 
   // Temporary + rename (AtomicFile): readers see the old file or the complete
@@ -388,6 +407,7 @@ void save_cache(const Hierarchy& hier, const CacheKey& key, const std::filesyste
   for (int i = 0; i < kArrays; ++i)
     put(arrays[static_cast<std::size_t>(i)].first, arrays[static_cast<std::size_t>(i)].second,
         h.offsets[i]);
+  if (!crs.empty()) put(crs.data(), crs.size(), h.crs_offset);
   put(nullptr, 0, h.payload_end);
   const std::uint64_t digest = sum.finish();
   out.write(&digest, sizeof digest);

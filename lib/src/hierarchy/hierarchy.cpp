@@ -449,13 +449,13 @@ void fill_interior(OwnedArrays& a, const std::vector<NodeId>& level_begin, std::
 // shrink_to_fit: the spare capacity of the topology arrays was never touched,
 // so it costs address space only, while shrinking would copy.
 Hierarchy assemble(OwnedArrays&& a, std::vector<NodeId>&& level_begin, const BuildOrder& order,
-                   glm::dvec3 origin, bool z_up) {
+                   CoordinateFrame frame) {
   auto owned = std::make_shared<OwnedArrays>(std::move(a));
   HierarchyArrays spans{owned->center_radius, owned->normal_cone, owned->color,
                         owned->priority,      owned->point_count, owned->parent,
                         owned->first_child,   owned->child_count, owned->depth};
   return Hierarchy::from_arrays(owned, spans, std::move(level_begin), order.bounds_min,
-                                order.bounds_max, origin, z_up);
+                                order.bounds_max, std::move(frame));
 }
 
 }  // namespace
@@ -479,7 +479,7 @@ std::size_t Hierarchy::memory_bytes() const {
 
 Hierarchy Hierarchy::from_arrays(std::shared_ptr<const void> storage, const HierarchyArrays& a,
                                  std::vector<NodeId> level_begin, glm::vec3 bounds_min,
-                                 glm::vec3 bounds_max, glm::dvec3 origin, bool z_up) {
+                                 glm::vec3 bounds_max, CoordinateFrame frame) {
   const std::size_t n = a.center_radius.size();
   if (a.normal_cone.size() != n || a.color.size() != n || a.priority.size() != n ||
       a.point_count.size() != n || a.parent.size() != n || a.first_child.size() != n ||
@@ -495,8 +495,7 @@ Hierarchy Hierarchy::from_arrays(std::shared_ptr<const void> storage, const Hier
   h.leaf_count_ = n ? a.point_count[0] : 0;
   h.bounds_min_ = bounds_min;
   h.bounds_max_ = bounds_max;
-  h.origin_ = origin;
-  h.z_up_ = z_up;
+  h.frame_ = std::move(frame);
   return h;
 }
 
@@ -511,15 +510,14 @@ Hierarchy build_hierarchy(PointSet&& points, const BuildOptions& options) {
   const auto N = static_cast<std::uint32_t>(n_points);
   BuildProgress progress(options, N);
 
-  const glm::dvec3 origin = points.origin;
-  const bool z_up = points.z_up;
+  CoordinateFrame frame = points.frame;
   BuildOrder order = order_points(points);
   OwnedArrays a;
   Topology topology = build_topology(order.items, a, threads, progress);
   fill_leaves(a, std::move(topology.ranges), std::move(order.items), points, threads);
   fill_interior(a, topology.level_begin, N, options.parent_at_real_point, threads, progress);
   progress.finish();
-  return assemble(std::move(a), std::move(topology.level_begin), order, origin, z_up);
+  return assemble(std::move(a), std::move(topology.level_begin), order, std::move(frame));
 }
 
 std::string check_invariants(const Hierarchy& h) {

@@ -362,7 +362,7 @@ std::string fields_not_kept(const LasInfo& info) {
 PointSet read_points(const Source& f, const Parsed& parsed, const WarningSink& warn) {
   const LasInfo& info = parsed.info;
   PointSet points;
-  points.z_up = true;  // the LAS convention: x, y on the map, z the height
+  points.frame.z_up = true;  // the LAS convention: x, y on the map, z the height
   const std::uint64_t n = info.point_count;
   points.positions.resize(static_cast<std::size_t>(n));
   const std::uint32_t rgb_at = kRgbAt[info.point_format];
@@ -386,7 +386,7 @@ PointSet read_points(const Source& f, const Parsed& parsed, const WarningSink& w
           offset;
       if (begin + i == 0) {
         origin = choose_origin(info, p);
-        points.origin = origin;
+        points.frame.origin = origin;
       }
       points.positions[static_cast<std::size_t>(begin) + i] = glm::vec3(p - origin);
       if (rgb_at != 0) {
@@ -421,6 +421,7 @@ PointSet load(const Source& f, const std::string& name, LasLoadReport* report,
       if (warn) warn(name + ": " + w);
     };
     PointSet points = read_points(f, parsed, warn ? named : WarningSink{});
+    points.frame.crs = parsed.info.crs;
     if (report) report->info = parsed.info;
     return points;
   } catch (const LasError& e) {

@@ -41,7 +41,7 @@ struct Grid {
 Grid grid_of(const PointSet& points, double scale) {
   glm::dvec3 lo(std::numeric_limits<double>::max()), hi(std::numeric_limits<double>::lowest());
   for (const glm::vec3& p : points.positions) {
-    const glm::dvec3 q = points.origin + glm::dvec3(p);
+    const glm::dvec3 q = points.frame.origin + glm::dvec3(p);
     lo = glm::min(lo, q), hi = glm::max(hi, q);
   }
   Grid g;
@@ -59,7 +59,7 @@ Grid grid_of(const PointSet& points, double scale) {
 
 std::array<std::int32_t, 3> integers(const PointSet& points, std::size_t i, const Grid& g,
                                      double scale) {
-  const glm::dvec3 q = points.origin + glm::dvec3(points.positions[i]);
+  const glm::dvec3 q = points.frame.origin + glm::dvec3(points.positions[i]);
   std::array<std::int32_t, 3> xyz{};
   for (int a = 0; a < 3; ++a) {
     xyz[static_cast<std::size_t>(a)] = static_cast<std::int32_t>(std::llround((q[a] - g.offset[a]) / scale));
