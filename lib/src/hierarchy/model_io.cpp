@@ -3,12 +3,14 @@
 #include <chrono>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
 #include <mutex>
 #include <optional>
 #include <stdexcept>
 
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
+#include "treecut/text_cloud.hpp"
 
 namespace treecut {
 
@@ -132,7 +134,17 @@ CacheKey hash_model(const std::filesystem::path& model, std::uint32_t bits, Open
   return k;
 }
 
-// The points of a model file, by its first bytes: LAS ("LASF") or PLY. A
+// The first `n` bytes of a file (fewer if it is shorter).
+std::string read_head(const std::filesystem::path& path, std::size_t n) {
+  std::ifstream in(path, std::ios::binary);
+  std::string head(n, '\0');
+  in.read(head.data(), static_cast<std::streamsize>(n));
+  head.resize(static_cast<std::size_t>(std::max<std::streamsize>(in.gcount(), 0)));
+  return head;
+}
+
+// The points of a model file, by its first bytes: LAS ("LASF"), PLY, or a
+// text cloud (text_cloud.hpp). A
 // file that is neither gets the PLY reader's message (it names the format
 // it recognizes: E57, PCD, an image...) and what treecut reads.
 PointSet read_point_file(const std::filesystem::path& model, OpenedModel& out,
@@ -143,10 +155,15 @@ PointSet read_point_file(const std::filesystem::path& model, OpenedModel& out,
   }
   out.format = "PLY";
   if (file_starts_with(model, "ply")) return load_ply(model, &out.ply, warn);
+  if (looks_like_text_cloud(read_head(model, 4096))) {
+    out.format = "text";
+    return load_text_cloud(model, warn);
+  }
   try {
     return load_ply(model, &out.ply, warn);
   } catch (const InputError& e) {
-    throw InputError(std::string(e.what()) + "; treecut reads PLY and LAS files");
+    throw InputError(std::string(e.what()) +
+                     "; treecut reads PLY, LAS and text (XYZ, PTS, CSV) point files");
   }
 }
 

@@ -1,4 +1,6 @@
-// LAS import and export (treecut/las.hpp) on files built here, byte by byte,
+// The point file readers besides PLY (ply_test.cpp): text clouds
+// (treecut/text_cloud.hpp: XYZ, PTS, CSV) and, above all, LAS import and
+// export (treecut/las.hpp) on files built here, byte by byte,
 // from the ASPRS LAS 1.4 R15 tables: every point format, the 1.4 counts, the
 // coordinate system records, 8- and 16-bit colours, map coordinates kept to
 // the millimetre, round trips exact to the scale, and the malformed files
@@ -6,6 +8,7 @@
 // offsets, a format and a record length that disagree, LAZ) refused with
 // one line.
 #include "treecut/las.hpp"
+#include "treecut/text_cloud.hpp"
 
 #include <gtest/gtest.h>
 
@@ -362,6 +365,82 @@ TEST(LasSave, RefusesWhatLasCannotHold) {
   treecut::LasWriteOptions o;
   o.scale = 0.0;
   EXPECT_THROW(treecut::save_las(dir / "y.las", PointSet{}, o), std::invalid_argument);
+}
+
+// ---- Text clouds ----------------------------------------------------------
+
+std::string text_error_of(const std::string& text) {
+  try {
+    (void)treecut::load_text_cloud_from_memory(text, "mem.xyz");
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "(loaded)";
+}
+
+TEST(TextCloud, XyzPtsAndCsvAreRecognizedAndRead) {
+  using treecut::looks_like_text_cloud;
+  EXPECT_TRUE(looks_like_text_cloud("1 2 3\n4 5 6\n"));
+  EXPECT_TRUE(looks_like_text_cloud("2\n1 2 3 0 10 20 30\n4 5 6 0 40 50 60\n"));
+  EXPECT_TRUE(looks_like_text_cloud("X,Y,Z,Intensity\n1,2,3,9\n"));
+  EXPECT_TRUE(looks_like_text_cloud("# exported\n1;2;3\n"));
+  EXPECT_FALSE(looks_like_text_cloud("ply\nformat ascii 1.0\n"));
+  EXPECT_FALSE(looks_like_text_cloud("hello world\n"));
+  EXPECT_FALSE(looks_like_text_cloud(std::string("LASF\0\0", 6)));
+  EXPECT_FALSE(looks_like_text_cloud("1 2\n"));
+
+  // XYZ RGB at map coordinates: millimetres kept.
+  const PointSet a = treecut::load_text_cloud_from_memory(
+      "500000.001 5000000.002 100.5 255 0 10\n500000.011 5000000.012 100.5 0 255 20\n", "a.xyz");
+  ASSERT_EQ(a.size(), 2u);
+  EXPECT_NEAR(file_position(a, 1).x - file_position(a, 0).x, 0.010, 1e-6);
+  EXPECT_NEAR(file_position(a, 1).y, 5000000.012, 1e-6);
+  EXPECT_EQ(a.colors[1], glm::u8vec4(0, 255, 20, 255));
+  // Six floats that are not colours are normals.
+  const PointSet n = treecut::load_text_cloud_from_memory("0 0 0 0 0 2\n1 0 0 0.5 0 0\n", "n.xyz");
+  ASSERT_TRUE(n.has_normals());
+  EXPECT_EQ(n.normals[0], glm::vec3(0, 0, 1));
+  // PTS: the count line, then x y z intensity r g b.
+  std::vector<std::string> warnings;
+  const PointSet p = treecut::load_text_cloud_from_memory(
+      "2\n1 2 3 -100 10 20 30\n4 5 6 -90 40 50 60\n", "p.pts",
+      [&](const std::string& w) { warnings.push_back(w); });
+  ASSERT_EQ(p.size(), 2u);
+  EXPECT_EQ(p.colors[0], glm::u8vec4(10, 20, 30, 255));
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_EQ(warnings[0], "p.pts: not kept: intensity");
+  // CSV with a header, columns in any order, unknown ones named.
+  warnings.clear();
+  const PointSet c = treecut::load_text_cloud_from_memory(
+      "\"Classification\",\"Z\",\"X\",\"Y\",\"Red\",\"Green\",\"Blue\"\r\n2,3,1,2,9,8,7\r\n", "c.csv",
+      [&](const std::string& w) { warnings.push_back(w); });
+  ASSERT_EQ(c.size(), 1u);
+  EXPECT_EQ(file_position(c, 0), glm::dvec3(1, 2, 3));
+  EXPECT_EQ(c.colors[0], glm::u8vec4(9, 8, 7, 255));
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_EQ(warnings[0], "c.csv: not kept: \"Classification\"");
+}
+
+TEST(TextCloud, MalformedLinesAreOneLineNamingTheLine) {
+  EXPECT_EQ(text_error_of("1 2 3\n4 5\n"),
+            "mem.xyz:2: 2 values, where the first line of points has 3");
+  EXPECT_EQ(text_error_of("1 2 3\n4 x 6\n"), "mem.xyz:2: 'x' is not a number");
+  EXPECT_EQ(text_error_of("1 2 3\n4 nan 6\n"), "mem.xyz:2: 'nan' is not a number");
+  EXPECT_EQ(text_error_of("x y z r g b\n1 2 3 1 2 3\n1 2 3 300 0 0\n"),
+            "mem.xyz:3: colour 300 is not a whole number from 0 to 255");
+  // Without a header, a 300 on the first lines makes the last three normals.
+  EXPECT_EQ(text_error_of("1 2 3 1 2 3\n1 2 3 300 0 0\n"), "(loaded)");
+  EXPECT_EQ(text_error_of("3\n1 2 3\n4 5 6\n"),
+            "mem.xyz:1: the PTS count line says 3 points, the file has 2");
+  EXPECT_EQ(text_error_of("name,other\n1,2\n"), "mem.xyz: the header names no x, y and z columns");
+  EXPECT_EQ(text_error_of("# nothing\n"), "mem.xyz: no points (an empty text cloud)");
+  EXPECT_EQ(text_error_of("1 2\n"), "mem.xyz: fewer than 3 numbers on a line (x y z)");
+  // Every truncation of a small file is loaded or refused with one line.
+  const std::string ok = "x,y,z,red,green,blue\n1.5,2,3,1,2,3\n4,5,6.25,4,5,6\n";
+  for (std::size_t cut = 0; cut < ok.size(); ++cut) {
+    const std::string e = text_error_of(ok.substr(0, cut));
+    EXPECT_EQ(e.find('\n'), std::string::npos) << cut;
+  }
 }
 
 }  // namespace

@@ -1,0 +1,42 @@
+// Text point clouds: what scanning software exports as XYZ, PTS or CSV.
+//
+// - XYZ: one point a line, numbers separated by spaces, tabs, commas or
+//   semicolons: x y z, then optionally r g b (0-255 integers) and the rest.
+// - PTS (Leica): a first line with the point count alone, then x y z
+//   intensity r g b lines.
+// - CSV with a header line naming the columns: x, y, z (also X, //X, east,
+//   north, height...), red, green, blue (or r, g, b), nx, ny, nz; the rest
+//   is named in a warning as not kept.
+// Without a header the columns say what they are: 3 (x y z), 4 (x y z and a
+// scalar), 6 (x y z r g b when the last three are whole numbers from 0 to
+// 255, else x y z nx ny nz), 7 (PTS's x y z intensity r g b).
+//
+// Positions are read in double and kept relative to an origin near the
+// first point, as LAS's (PointSet::frame). Guarded as the other readers: a
+// line that does not parse, a column count that changes, a PTS count that
+// disagrees with the lines, a colour out of 0-255 is one InputError
+// "NAME:LINE: problem" (exit 2); nothing is sized from a count before the
+// lines are there.
+#pragma once
+
+#include <filesystem>
+#include <string>
+#include <string_view>
+
+#include "treecut/ply.hpp"  // WarningSink
+#include "treecut/point_set.hpp"
+
+namespace treecut {
+
+/// Whether BYTES (a file's first bytes) look like a text cloud: a first line
+/// of numbers (or of column names followed by a line of numbers).
+[[nodiscard]] bool looks_like_text_cloud(std::string_view bytes);
+
+/// Loads a text cloud (see above). Throws InputError "NAME:LINE: problem".
+PointSet load_text_cloud(const std::filesystem::path& path, const WarningSink& warn = {});
+
+/// load_text_cloud() on bytes in memory; NAME stands for the path.
+PointSet load_text_cloud_from_memory(std::string_view bytes, const std::string& name,
+                                     const WarningSink& warn = {});
+
+}  // namespace treecut

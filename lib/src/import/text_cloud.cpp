@@ -1,0 +1,323 @@
+// Text point clouds (XYZ, PTS, CSV; treecut/text_cloud.hpp): every line
+// parsed and checked, positions in double relative to an origin near the
+// first point.
+#include "treecut/text_cloud.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <charconv>
+#include <cmath>
+#include <fstream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "treecut/error.hpp"
+#include "treecut/file_io.hpp"
+
+namespace treecut {
+
+namespace {
+
+class TextError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+constexpr std::string_view kSeparators = " \t,;";
+
+// The tokens of a line, split at runs of separators (a trailing CR goes).
+void split(std::string_view line, std::vector<std::string_view>& out) {
+  out.clear();
+  if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+  std::size_t at = 0;
+  while (at < line.size()) {
+    at = line.find_first_not_of(kSeparators, at);
+    if (at == std::string_view::npos) break;
+    const std::size_t end = std::min(line.find_first_of(kSeparators, at), line.size());
+    out.push_back(line.substr(at, end - at));
+    at = end;
+  }
+}
+
+bool parse_number(std::string_view t, double& v) {
+  if (!t.empty() && t.front() == '+') t.remove_prefix(1);
+  const auto [end, ec] = std::from_chars(t.data(), t.data() + t.size(), v);
+  return ec == std::errc() && end == t.data() + t.size() && std::isfinite(v);
+}
+
+bool all_numbers(const std::vector<std::string_view>& tokens) {
+  double v;
+  return !tokens.empty() &&
+         std::all_of(tokens.begin(), tokens.end(), [&](std::string_view t) { return parse_number(t, v); });
+}
+
+bool comment(std::string_view line) {
+  const std::size_t at = line.find_first_not_of(" \t");
+  return at == std::string_view::npos || line[at] == '#' ||
+         (line.substr(at, 2) == "//" && line.substr(at, 3) != "//x" && line.substr(at, 3) != "//X");
+}
+
+// What each column holds; -1: absent.
+struct Columns {
+  int count = 0;
+  int xyz[3] = {-1, -1, -1};
+  int rgb[3] = {-1, -1, -1};
+  int normal[3] = {-1, -1, -1};
+  std::vector<std::string> not_kept;
+};
+
+std::string lower(std::string_view t) {
+  std::string s;
+  for (const char c : t) {
+    if (c != '"' && c != '\'') s.push_back(static_cast<char>(std::tolower(static_cast<unsigned char>(c))));
+  }
+  if (s.rfind("//", 0) == 0) s.erase(0, 2);
+  return s;
+}
+
+Columns from_header(const std::vector<std::string_view>& names) {
+  Columns c;
+  c.count = static_cast<int>(names.size());
+  static const std::vector<std::vector<std::string_view>> kRoles = {
+      {"x", "east", "easting"},         {"y", "north", "northing"},
+      {"z", "height", "elevation", "alt", "altitude"},
+      {"r", "red"},                     {"g", "green"},
+      {"b", "blue"},                    {"nx", "normal_x", "normalx"},
+      {"ny", "normal_y", "normaly"},    {"nz", "normal_z", "normalz"}};
+  for (int i = 0; i < c.count; ++i) {
+    const std::string n = lower(names[static_cast<std::size_t>(i)]);
+    int role = -1;
+    for (std::size_t k = 0; k < kRoles.size() && role < 0; ++k) {
+      if (std::find(kRoles[k].begin(), kRoles[k].end(), n) != kRoles[k].end()) role = int(k);
+    }
+    int* slot = role < 0 ? nullptr : role < 3 ? &c.xyz[role] : role < 6 ? &c.rgb[role - 3] : &c.normal[role - 6];
+    if (slot != nullptr && *slot < 0) {
+      *slot = i;
+    } else {
+      c.not_kept.push_back(std::string(names[static_cast<std::size_t>(i)]));
+    }
+  }
+  if (c.xyz[0] < 0 || c.xyz[1] < 0 || c.xyz[2] < 0) {
+    throw TextError("the header names no x, y and z columns");
+  }
+  return c;
+}
+
+bool byte_colour(std::string_view t) {
+  double v;
+  return parse_number(t, v) && v == std::floor(v) && v >= 0 && v <= 255;
+}
+
+// Without a header: by the count (and, for 6, whether the last three are
+// colours on the first lines: `colours6`).
+Columns from_count(const std::vector<std::string_view>& first, bool pts, bool colours6) {
+  Columns c;
+  c.count = static_cast<int>(first.size());
+  if (c.count < 3) throw TextError("fewer than 3 numbers on a line (x y z)");
+  c.xyz[0] = 0, c.xyz[1] = 1, c.xyz[2] = 2;
+  if (c.count == 7 || (pts && c.count >= 7)) {
+    c.not_kept.push_back("intensity");
+    c.rgb[0] = 4, c.rgb[1] = 5, c.rgb[2] = 6;
+  } else if (c.count == 6 && colours6) {
+    c.rgb[0] = 3, c.rgb[1] = 4, c.rgb[2] = 5;
+  } else if (c.count == 6) {
+    c.normal[0] = 3, c.normal[1] = 4, c.normal[2] = 5;
+  }
+  int kept = 3 + (c.rgb[0] >= 0 ? 3 : 0) + (c.normal[0] >= 0 ? 3 : 0) + (c.count == 7 ? 1 : 0);
+  for (int i = kept; i < c.count; ++i) c.not_kept.push_back("column " + std::to_string(i + 1));
+  return c;
+}
+
+struct Reader {
+  std::string_view text;
+  std::size_t at = 0;
+  std::size_t line_number = 0;
+  bool next(std::string_view& line) {
+    while (at < text.size()) {
+      const std::size_t end = std::min(text.find('\n', at), text.size());
+      line = text.substr(at, end - at);
+      at = end + 1;
+      ++line_number;
+      if (!comment(line)) return true;
+    }
+    return false;
+  }
+};
+
+PointSet parse(std::string_view text, const WarningSink& warn) {
+  Reader r{text};
+  std::vector<std::string_view> tokens;
+  std::string_view line;
+  if (!r.next(line)) throw TextError("no points (an empty text cloud)");
+  split(line, tokens);
+  Columns columns;
+  std::size_t pts_count = 0;
+  bool pts = false;
+  std::string_view first_data;
+  std::size_t first_data_number = 0;
+  double whole = 0;
+  if (tokens.size() == 1 && parse_number(tokens[0], whole) && whole == std::floor(whole) &&
+      whole >= 0) {
+    pts = true;  // a PTS count line
+    pts_count = static_cast<std::size_t>(whole);
+    if (!r.next(line)) throw TextError("a PTS count line and no points");
+  } else if (!all_numbers(tokens)) {
+    columns = from_header(tokens);
+    if (!r.next(line)) throw TextError("a header and no points");
+  }
+  first_data = line;
+  first_data_number = r.line_number;
+  split(first_data, tokens);
+  if (columns.count == 0) {
+    // Six columns: colours when the last three are bytes on the first 256
+    // lines (x y z r g b), else normals (x y z nx ny nz).
+    bool colours6 = tokens.size() == 6;
+    Reader ahead = r;
+    std::vector<std::string_view> t = tokens;
+    std::string_view l;
+    for (int i = 0; colours6 && i < 256; ++i) {
+      colours6 = t.size() != 6 || (byte_colour(t[3]) && byte_colour(t[4]) && byte_colour(t[5]));
+      if (!ahead.next(l)) break;
+      split(l, t);
+    }
+    columns = from_count(tokens, pts, colours6);
+  }
+  if (warn && !columns.not_kept.empty()) {
+    std::string names;
+    for (const std::string& n : columns.not_kept) names += (names.empty() ? "" : ", ") + n;
+    warn("not kept: " + names);
+  }
+
+  PointSet points;
+  const bool rgb = columns.rgb[0] >= 0 && columns.rgb[1] >= 0 && columns.rgb[2] >= 0;
+  const bool normals = columns.normal[0] >= 0 && columns.normal[1] >= 0 && columns.normal[2] >= 0;
+  bool have_origin = false;
+  std::vector<double> values;
+  std::size_t dropped = 0;
+  auto line_error = [&](std::size_t number, const std::string& what) {
+    return TextError(std::to_string(number) + ": " + what);
+  };
+  std::size_t number = first_data_number;
+  for (bool more = true; more; more = r.next(line), number = r.line_number) {
+    split(line, tokens);
+    if (static_cast<int>(tokens.size()) != columns.count) {
+      throw line_error(number, std::to_string(tokens.size()) + " values, where the first line of "
+                                   "points has " + std::to_string(columns.count));
+    }
+    values.resize(tokens.size());
+    for (std::size_t i = 0; i < tokens.size(); ++i) {
+      if (!parse_number(tokens[i], values[i])) {
+        throw line_error(number, "'" + std::string(tokens[i].substr(0, 40)) + "' is not a number");
+      }
+    }
+    const glm::dvec3 p(values[static_cast<std::size_t>(columns.xyz[0])],
+                       values[static_cast<std::size_t>(columns.xyz[1])],
+                       values[static_cast<std::size_t>(columns.xyz[2])]);
+    if (!have_origin) {
+      points.frame.origin = glm::round(p);
+      have_origin = true;
+    }
+    const glm::dvec3 q = p - points.frame.origin;
+    if (!(std::fabs(q.x) <= kMaxCoordinate && std::fabs(q.y) <= kMaxCoordinate &&
+          std::fabs(q.z) <= kMaxCoordinate)) {
+      ++dropped;
+      continue;
+    }
+    points.positions.push_back(glm::vec3(q));
+    if (rgb) {
+      glm::u8vec4 c(0, 0, 0, 255);
+      for (int k = 0; k < 3; ++k) {
+        const double v = values[static_cast<std::size_t>(columns.rgb[k])];
+        if (!(v >= 0 && v <= 255 && v == std::floor(v))) {
+          throw line_error(number, "colour " +
+                                       std::string(tokens[static_cast<std::size_t>(columns.rgb[k])]
+                                                       .substr(0, 20)) +
+                                       " is not a whole number from 0 to 255");
+        }
+        c[k] = static_cast<std::uint8_t>(v);
+      }
+      points.colors.push_back(c);
+    }
+    if (normals) {
+      glm::vec3 n(float(values[static_cast<std::size_t>(columns.normal[0])]),
+                  float(values[static_cast<std::size_t>(columns.normal[1])]),
+                  float(values[static_cast<std::size_t>(columns.normal[2])]));
+      const float len = std::sqrt(n.x * n.x + n.y * n.y + n.z * n.z);
+      points.normals.push_back(len > 0 && std::isfinite(len) ? n / len : glm::vec3(0.0f));
+    }
+  }
+  if (pts && points.size() + dropped != pts_count) {
+    throw TextError("1: the PTS count line says " + std::to_string(pts_count) + " points, the file has " +
+                    std::to_string(points.size() + dropped));
+  }
+  if (dropped > 0 && warn) {
+    warn("dropped " + std::to_string(dropped) + " points beyond 1e18 of the first one");
+  }
+  if (points.size() == 0) throw TextError("no usable points");
+  return points;
+}
+
+}  // namespace
+
+bool looks_like_text_cloud(std::string_view bytes) {
+  const std::string_view head = bytes.substr(0, 4096);
+  for (const char c : head) {
+    const auto u = static_cast<unsigned char>(c);
+    if (u < 0x20 && c != '\n' && c != '\r' && c != '\t') return false;
+    if (u >= 0x7f) return false;
+  }
+  Reader r{head};
+  std::string_view line;
+  std::vector<std::string_view> tokens;
+  if (!r.next(line)) return false;
+  split(line, tokens);
+  if (all_numbers(tokens)) {
+    if (tokens.size() >= 3) return true;
+    if (tokens.size() != 1 || !r.next(line)) return false;  // a PTS count line?
+    split(line, tokens);
+    return tokens.size() >= 3 && all_numbers(tokens);
+  }
+  // A header naming x, y and z, then a line of numbers.
+  try {
+    (void)from_header(tokens);
+  } catch (const TextError&) {
+    return false;
+  }
+  if (!r.next(line)) return false;
+  split(line, tokens);
+  return all_numbers(tokens);
+}
+
+PointSet load_text_cloud_from_memory(std::string_view bytes, const std::string& name,
+                                     const WarningSink& warn) {
+  try {
+    const WarningSink named = [&](const std::string& w) {
+      if (warn) warn(name + ": " + w);
+    };
+    return parse(bytes, warn ? named : WarningSink{});
+  } catch (const TextError& e) {
+    const std::string what = e.what();
+    // Line numbers read "NAME:LINE: ...", the rest "NAME: ...".
+    const bool numbered = !what.empty() && std::isdigit(static_cast<unsigned char>(what[0]));
+    throw InputError(name + (numbered ? ":" : ": ") + what);
+  }
+}
+
+PointSet load_text_cloud(const std::filesystem::path& path, const WarningSink& warn) {
+  const std::string name = quoted_name(path);
+  std::error_code ec;
+  const std::uintmax_t size = std::filesystem::file_size(path, ec);
+  if (ec) throw InputError(name + ": " + ec.message());
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(name + ": cannot open for reading");
+  auto buffer = std::make_unique_for_overwrite<char[]>(static_cast<std::size_t>(size));
+  in.read(buffer.get(), static_cast<std::streamsize>(size));
+  if (static_cast<std::uintmax_t>(in.gcount()) != size) {
+    throw FileChangedError(name + ": changed while being read (its size moved)");
+  }
+  return load_text_cloud_from_memory(std::string_view(buffer.get(), static_cast<std::size_t>(size)),
+                                     name, warn);
+}
+
+}  // namespace treecut
