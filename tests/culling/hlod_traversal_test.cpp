@@ -192,6 +192,17 @@ class HlodTraversalTest : public ::testing::Test {
     d.traversal = &t;
     return t.frame_render_thread(d, v);
   }
+  // Answers of a scene occluded on one side: boxes there hidden, a band of
+  // them barely visible, the rest in full view.
+  std::function<double(BlockId)> occluded_side() const {
+    const glm::vec3 c = 0.5f * (h_->bounds_min() + h_->bounds_max());
+    return [this, c](BlockId b) {
+      const glm::vec3 m = 0.5f * (blocks_.box(b).lo + blocks_.box(b).hi);
+      if (m.x < c.x - 0.2f * (c.x - h_->bounds_min().x)) return 0.0;
+      if (m.y < c.y) return 0.1;
+      return 1.0;
+    };
+  }
   float block_sse(const HlodTraversal& t, BlockId b, const ViewSnapshot& v) const {
     return treecut::culling::hoq::block_sse(v, blocks_.box(b), t.error_radius(b));
   }
@@ -334,13 +345,7 @@ TEST_F(HlodTraversalTest, AStopWhoseAnswerSaysRefineIsARarn) {
 
 TEST_F(HlodTraversalTest, StopAndWaitWithVmsseDrawsNoMoreBlocksThanBool) {
   // Occlusion: boxes on one side of the scene hidden, a band barely visible.
-  const glm::vec3 c = 0.5f * (h_->bounds_min() + h_->bounds_max());
-  auto fraction = [this, c](BlockId b) {
-    const glm::vec3 m = 0.5f * (blocks_.box(b).lo + blocks_.box(b).hi);
-    if (m.x < c.x - 0.2f * (c.x - h_->bounds_min().x)) return 0.0;
-    if (m.y < c.y) return 0.1;
-    return 1.0;
-  };
+  const auto fraction = occluded_side();
   std::uint64_t dn[4] = {};
   const HlodMode modes[4] = {HlodMode::Bool, HlodMode::SwB, HlodMode::SimpB, HlodMode::CohB};
   for (int m = 0; m < 4; ++m) {
@@ -408,13 +413,7 @@ TEST_F(HlodTraversalTest, CarriedCohBBlocksOnlyInItsDrainsUnderLatency) {
 }
 
 TEST_F(HlodTraversalTest, CarriedCohBConvergesToStopAndWaitOnAStillViewUnderLatency) {
-  const glm::vec3 c = 0.5f * (h_->bounds_min() + h_->bounds_max());
-  auto fraction = [this, c](BlockId b) {
-    const glm::vec3 m = 0.5f * (blocks_.box(b).lo + blocks_.box(b).hi);
-    if (m.x < c.x - 0.2f * (c.x - h_->bounds_min().x)) return 0.0;
-    if (m.y < c.y) return 0.1;
-    return 1.0;
-  };
+  const auto fraction = occluded_side();
   ScriptedDevice ds(blocks_, 0);
   ds.fraction = fraction;
   HlodTraversal sw(*h_, blocks_, options(HlodMode::SwB));

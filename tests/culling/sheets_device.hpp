@@ -1,4 +1,4 @@
-// The CPU device of the CHC tests (chc_test.cpp, gpu_latency_test.cpp): a
+// The CPU device of the CHC tests (chc_test.cpp): a
 // perspective "GPU" looking down +x whose depth buffer is a grid of pixels
 // over the projected rectangles of block boxes (a drawn leaf block fills its
 // box's rectangle at the box's nearest depth; a box query counts the pixels

@@ -194,6 +194,29 @@ int open_for_reading(const std::filesystem::path& path, std::string* why) {
   }
 }
 
+// The model's CoordinateFrame (version 4): a finite origin, known flags, a
+// short coordinate-system text inside the payload.
+std::optional<CoordinateFrame> read_frame(const Header& h, const MappedFile& map,
+                                          std::string* why) {
+  for (const double o : h.origin) {
+    if (!std::isfinite(o)) return fail(why, "the origin is not finite"), std::nullopt;
+  }
+  if ((h.flags & ~1u) != 0) return fail(why, "unknown flags"), std::nullopt;
+  // The coordinate system's text: short (a WKT is cut to 400 bytes), inside.
+  if (h.crs_size > kMaxCrsBytes ||
+      (h.crs_size > 0 && (h.crs_offset < sizeof(Header) || h.crs_offset > h.payload_end ||
+                          h.crs_size > h.payload_end - h.crs_offset)))
+    return fail(why, "bad coordinate system record"), std::nullopt;
+  CoordinateFrame frame;
+  frame.origin = glm::dvec3(h.origin[0], h.origin[1], h.origin[2]);
+  frame.z_up = (h.flags & 1u) != 0;
+  frame.crs.resize(h.crs_size);
+  map.read_guarded([&] {
+    if (h.crs_size > 0) std::memcpy(frame.crs.data(), map.data() + h.crs_offset, h.crs_size);
+  });
+  return frame;
+}
+
 std::optional<Hierarchy> map_and_verify(const std::filesystem::path& path, Header* out_header,
                                         std::string* why) {
   const int fd = open_for_reading(path, why);
@@ -248,22 +271,8 @@ std::optional<Hierarchy> map_and_verify(const std::filesystem::path& path, Heade
   const std::uint64_t n = h.node_count;
   if (n == 0 || h.level_count == 0 || h.level_count > 256)
     return fail(why, "bad counts"), std::nullopt;
-  for (const double o : h.origin) {
-    if (!std::isfinite(o)) return fail(why, "the origin is not finite"), std::nullopt;
-  }
-  if ((h.flags & ~1u) != 0) return fail(why, "unknown flags"), std::nullopt;
-  // The coordinate system's text: short (a WKT is cut to 400 bytes), inside.
-  if (h.crs_size > kMaxCrsBytes ||
-      (h.crs_size > 0 && (h.crs_offset < sizeof(Header) || h.crs_offset > h.payload_end ||
-                          h.crs_size > h.payload_end - h.crs_offset)))
-    return fail(why, "bad coordinate system record"), std::nullopt;
-  CoordinateFrame frame;
-  frame.origin = glm::dvec3(h.origin[0], h.origin[1], h.origin[2]);
-  frame.z_up = (h.flags & 1u) != 0;
-  frame.crs.resize(h.crs_size);
-  map->read_guarded([&] {
-    if (h.crs_size > 0) std::memcpy(frame.crs.data(), bytes + h.crs_offset, h.crs_size);
-  });
+  std::optional<CoordinateFrame> frame = read_frame(h, *map, why);
+  if (!frame) return std::nullopt;
   auto in_bounds = [&](std::uint64_t off, std::uint64_t bytes_needed) {
     return off % kAlign == 0 && off >= sizeof(Header) && off <= h.payload_end &&
            bytes_needed <= h.payload_end - off;
@@ -295,7 +304,7 @@ std::optional<Hierarchy> map_and_verify(const std::filesystem::path& path, Heade
   return Hierarchy::from_arrays(std::move(map), a, std::move(levels),
                                 {h.bounds[0], h.bounds[1], h.bounds[2]},
                                 {h.bounds[3], h.bounds[4], h.bounds[5]},
-                                std::move(frame));
+                                std::move(*frame));
 }
 
 // The header of CACHE as it is on disk, unverified (the checksum is checked

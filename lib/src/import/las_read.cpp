@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "little_endian.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
 #include "treecut/las.hpp"
@@ -80,13 +81,7 @@ class FileSource final : public Source {
 
 template <class T>
 T get(const unsigned char* p) {
-  T v;
-  std::memcpy(&v, p, sizeof v);
-  if constexpr (std::endian::native == std::endian::big) {
-    auto* b = reinterpret_cast<unsigned char*>(&v);
-    std::reverse(b, b + sizeof v);
-  }
-  return v;
+  return detail::get_le<T>(p);
 }
 
 std::string text_field(const unsigned char* p, std::size_t n) {

@@ -10,6 +10,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "little_endian.hpp"
 #include "treecut/file_io.hpp"
 #include "treecut/las.hpp"
 
@@ -19,10 +20,7 @@ namespace {
 
 template <class T>
 void put(std::string& out, T value) {
-  char bytes[sizeof(T)];
-  std::memcpy(bytes, &value, sizeof(T));
-  if constexpr (std::endian::native == std::endian::big) std::reverse(bytes, bytes + sizeof(T));
-  out.append(bytes, sizeof(T));
+  detail::put_le(out, value);
 }
 
 void put_text(std::string& out, std::string_view text, std::size_t width) {

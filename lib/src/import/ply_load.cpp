@@ -10,11 +10,10 @@
 //
 // Which files go to OpenMesh as they are and which are transcoded first, and
 // why: ply_plan.cpp.
-#include <fstream>
-#include <memory>
 #include <string>
 
 #include "ply_load_parts.hpp"
+#include "whole_file.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
 #include "treecut/ply.hpp"
@@ -102,25 +101,8 @@ PointSet load_ply_from_memory(std::string_view bytes, const std::string& name,
 
 PointSet load_ply(const std::filesystem::path& path, PlyLoadReport* report,
                   const WarningSink& warn) {
-  const std::string name = quoted_name(path);
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) {
-    throw InputError(name + ": " + (ec ? ec.message() : "not a regular file"));
-  }
-  const std::uintmax_t size = std::filesystem::file_size(path, ec);
-  if (ec) throw InputError(name + ": " + ec.message());
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(name + ": cannot open for reading");
-  // Uninitialized: the buffer is overwritten by the read right away.
-  auto buffer = std::make_unique_for_overwrite<char[]>(static_cast<std::size_t>(size));
-  in.read(buffer.get(), static_cast<std::streamsize>(size));
-  if (static_cast<std::uintmax_t>(in.gcount()) != size) {
-    if (std::filesystem::file_size(path, ec) != size)
-      throw FileChangedError(name + ": changed while being read (its size moved)");
-    throw InputError(name + ": cannot read the whole file");
-  }
-  return load_ply_from_memory(std::string_view(buffer.get(), static_cast<std::size_t>(size)), name,
-                              report, warn);
+  const detail::WholeFile file = detail::read_whole_file(path);
+  return load_ply_from_memory(file.bytes(), quoted_name(path), report, warn);
 }
 
 }  // namespace treecut

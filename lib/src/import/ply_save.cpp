@@ -9,6 +9,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "little_endian.hpp"
 #include "treecut/file_io.hpp"
 #include "treecut/ply.hpp"
 
@@ -16,13 +17,7 @@ namespace treecut {
 
 namespace {
 
-template <class T>
-void put_le(std::string& out, T value) {
-  char bytes[sizeof(T)];
-  std::memcpy(bytes, &value, sizeof(T));
-  if constexpr (std::endian::native == std::endian::big) std::reverse(bytes, bytes + sizeof(T));
-  out.append(bytes, sizeof(T));
-}
+using detail::put_le;
 
 void check_sizes(const PointSet& points) {
   const std::size_t n = points.size();

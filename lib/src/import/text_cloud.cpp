@@ -7,13 +7,12 @@
 #include <cctype>
 #include <charconv>
 #include <cmath>
-#include <fstream>
-#include <memory>
 #include <string>
 #include <vector>
 
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
+#include "whole_file.hpp"
 
 namespace treecut {
 
@@ -145,31 +144,30 @@ struct Reader {
   }
 };
 
-PointSet parse(std::string_view text, const WarningSink& warn) {
-  Reader r{text};
-  std::vector<std::string_view> tokens;
-  std::string_view line;
+// The first lines: a PTS count line or a header (or neither), and what the
+// columns hold. Leaves `line` at the first line of points.
+struct Layout {
+  Columns columns;
+  bool pts = false;
+  std::size_t pts_count = 0;
+};
+
+Layout read_layout(Reader& r, std::string_view& line, std::vector<std::string_view>& tokens) {
+  Layout out;
   if (!r.next(line)) throw TextError("no points (an empty text cloud)");
   split(line, tokens);
-  Columns columns;
-  std::size_t pts_count = 0;
-  bool pts = false;
-  std::string_view first_data;
-  std::size_t first_data_number = 0;
   double whole = 0;
   if (tokens.size() == 1 && parse_number(tokens[0], whole) && whole == std::floor(whole) &&
       whole >= 0) {
-    pts = true;  // a PTS count line
-    pts_count = static_cast<std::size_t>(whole);
+    out.pts = true;  // a PTS count line
+    out.pts_count = static_cast<std::size_t>(whole);
     if (!r.next(line)) throw TextError("a PTS count line and no points");
   } else if (!all_numbers(tokens)) {
-    columns = from_header(tokens);
+    out.columns = from_header(tokens);
     if (!r.next(line)) throw TextError("a header and no points");
   }
-  first_data = line;
-  first_data_number = r.line_number;
-  split(first_data, tokens);
-  if (columns.count == 0) {
+  split(line, tokens);
+  if (out.columns.count == 0) {
     // Six columns: colours when the last three are bytes on the first 256
     // lines (x y z r g b), else normals (x y z nx ny nz).
     bool colours6 = tokens.size() == 6;
@@ -181,75 +179,83 @@ PointSet parse(std::string_view text, const WarningSink& warn) {
       if (!ahead.next(l)) break;
       split(l, t);
     }
-    columns = from_count(tokens, pts, colours6);
+    out.columns = from_count(tokens, out.pts, colours6);
   }
+  return out;
+}
+
+TextError line_error(std::size_t number, const std::string& what) {
+  return TextError(std::to_string(number) + ": " + what);
+}
+
+// One line of points into `points` (false: beyond the coordinate limit,
+// dropped). The first sets the origin.
+bool read_point(const Columns& columns, const std::vector<std::string_view>& tokens,
+                std::size_t number, std::vector<double>& values, PointSet& points) {
+  if (static_cast<int>(tokens.size()) != columns.count) {
+    throw line_error(number, std::to_string(tokens.size()) +
+                                 " values, where the first line of points has " +
+                                 std::to_string(columns.count));
+  }
+  values.resize(tokens.size());
+  for (std::size_t i = 0; i < tokens.size(); ++i) {
+    if (!parse_number(tokens[i], values[i])) {
+      throw line_error(number, "'" + std::string(tokens[i].substr(0, 40)) + "' is not a number");
+    }
+  }
+  auto value = [&](int column) { return values[static_cast<std::size_t>(column)]; };
+  const glm::dvec3 p(value(columns.xyz[0]), value(columns.xyz[1]), value(columns.xyz[2]));
+  if (points.positions.empty()) points.frame.origin = glm::round(p);
+  const glm::dvec3 q = p - points.frame.origin;
+  if (!(std::fabs(q.x) <= kMaxCoordinate && std::fabs(q.y) <= kMaxCoordinate &&
+        std::fabs(q.z) <= kMaxCoordinate)) {
+    return false;
+  }
+  points.positions.push_back(glm::vec3(q));
+  if (columns.rgb[0] >= 0) {
+    glm::u8vec4 c(0, 0, 0, 255);
+    for (int k = 0; k < 3; ++k) {
+      const double v = value(columns.rgb[k]);
+      if (!(v >= 0 && v <= 255 && v == std::floor(v))) {
+        throw line_error(number, "colour " +
+                                     std::string(tokens[static_cast<std::size_t>(columns.rgb[k])]
+                                                     .substr(0, 20)) +
+                                     " is not a whole number from 0 to 255");
+      }
+      c[k] = static_cast<std::uint8_t>(v);
+    }
+    points.colors.push_back(c);
+  }
+  if (columns.normal[0] >= 0) {
+    const glm::vec3 n(float(value(columns.normal[0])), float(value(columns.normal[1])),
+                      float(value(columns.normal[2])));
+    const float len = std::sqrt(n.x * n.x + n.y * n.y + n.z * n.z);
+    points.normals.push_back(len > 0 && std::isfinite(len) ? n / len : glm::vec3(0.0f));
+  }
+  return true;
+}
+
+PointSet parse(std::string_view text, const WarningSink& warn) {
+  Reader r{text};
+  std::vector<std::string_view> tokens;
+  std::string_view line;
+  const Layout layout = read_layout(r, line, tokens);
+  const Columns& columns = layout.columns;
   if (warn && !columns.not_kept.empty()) {
     std::string names;
     for (const std::string& n : columns.not_kept) names += (names.empty() ? "" : ", ") + n;
     warn("not kept: " + names);
   }
-
   PointSet points;
-  const bool rgb = columns.rgb[0] >= 0 && columns.rgb[1] >= 0 && columns.rgb[2] >= 0;
-  const bool normals = columns.normal[0] >= 0 && columns.normal[1] >= 0 && columns.normal[2] >= 0;
-  bool have_origin = false;
   std::vector<double> values;
   std::size_t dropped = 0;
-  auto line_error = [&](std::size_t number, const std::string& what) {
-    return TextError(std::to_string(number) + ": " + what);
-  };
-  std::size_t number = first_data_number;
-  for (bool more = true; more; more = r.next(line), number = r.line_number) {
+  do {
     split(line, tokens);
-    if (static_cast<int>(tokens.size()) != columns.count) {
-      throw line_error(number, std::to_string(tokens.size()) + " values, where the first line of "
-                                   "points has " + std::to_string(columns.count));
-    }
-    values.resize(tokens.size());
-    for (std::size_t i = 0; i < tokens.size(); ++i) {
-      if (!parse_number(tokens[i], values[i])) {
-        throw line_error(number, "'" + std::string(tokens[i].substr(0, 40)) + "' is not a number");
-      }
-    }
-    const glm::dvec3 p(values[static_cast<std::size_t>(columns.xyz[0])],
-                       values[static_cast<std::size_t>(columns.xyz[1])],
-                       values[static_cast<std::size_t>(columns.xyz[2])]);
-    if (!have_origin) {
-      points.frame.origin = glm::round(p);
-      have_origin = true;
-    }
-    const glm::dvec3 q = p - points.frame.origin;
-    if (!(std::fabs(q.x) <= kMaxCoordinate && std::fabs(q.y) <= kMaxCoordinate &&
-          std::fabs(q.z) <= kMaxCoordinate)) {
-      ++dropped;
-      continue;
-    }
-    points.positions.push_back(glm::vec3(q));
-    if (rgb) {
-      glm::u8vec4 c(0, 0, 0, 255);
-      for (int k = 0; k < 3; ++k) {
-        const double v = values[static_cast<std::size_t>(columns.rgb[k])];
-        if (!(v >= 0 && v <= 255 && v == std::floor(v))) {
-          throw line_error(number, "colour " +
-                                       std::string(tokens[static_cast<std::size_t>(columns.rgb[k])]
-                                                       .substr(0, 20)) +
-                                       " is not a whole number from 0 to 255");
-        }
-        c[k] = static_cast<std::uint8_t>(v);
-      }
-      points.colors.push_back(c);
-    }
-    if (normals) {
-      glm::vec3 n(float(values[static_cast<std::size_t>(columns.normal[0])]),
-                  float(values[static_cast<std::size_t>(columns.normal[1])]),
-                  float(values[static_cast<std::size_t>(columns.normal[2])]));
-      const float len = std::sqrt(n.x * n.x + n.y * n.y + n.z * n.z);
-      points.normals.push_back(len > 0 && std::isfinite(len) ? n / len : glm::vec3(0.0f));
-    }
-  }
-  if (pts && points.size() + dropped != pts_count) {
-    throw TextError("1: the PTS count line says " + std::to_string(pts_count) + " points, the file has " +
-                    std::to_string(points.size() + dropped));
+    if (!read_point(columns, tokens, r.line_number, values, points)) ++dropped;
+  } while (r.next(line));
+  if (layout.pts && points.size() + dropped != layout.pts_count) {
+    throw TextError("1: the PTS count line says " + std::to_string(layout.pts_count) +
+                    " points, the file has " + std::to_string(points.size() + dropped));
   }
   if (dropped > 0 && warn) {
     warn("dropped " + std::to_string(dropped) + " points beyond 1e18 of the first one");
@@ -305,19 +311,8 @@ PointSet load_text_cloud_from_memory(std::string_view bytes, const std::string& 
 }
 
 PointSet load_text_cloud(const std::filesystem::path& path, const WarningSink& warn) {
-  const std::string name = quoted_name(path);
-  std::error_code ec;
-  const std::uintmax_t size = std::filesystem::file_size(path, ec);
-  if (ec) throw InputError(name + ": " + ec.message());
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(name + ": cannot open for reading");
-  auto buffer = std::make_unique_for_overwrite<char[]>(static_cast<std::size_t>(size));
-  in.read(buffer.get(), static_cast<std::streamsize>(size));
-  if (static_cast<std::uintmax_t>(in.gcount()) != size) {
-    throw FileChangedError(name + ": changed while being read (its size moved)");
-  }
-  return load_text_cloud_from_memory(std::string_view(buffer.get(), static_cast<std::size_t>(size)),
-                                     name, warn);
+  const detail::WholeFile file = detail::read_whole_file(path);
+  return load_text_cloud_from_memory(file.bytes(), quoted_name(path), warn);
 }
 
 }  // namespace treecut
