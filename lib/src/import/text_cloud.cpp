@@ -100,6 +100,14 @@ Columns from_header(const std::vector<std::string_view>& names) {
   if (c.xyz[0] < 0 || c.xyz[1] < 0 || c.xyz[2] < 0) {
     throw TextError("the header names no x, y and z columns");
   }
+  // A colour or a normal is kept only whole: red without green is not kept.
+  for (int* triple : {c.rgb, c.normal}) {
+    if (triple[0] >= 0 && triple[1] >= 0 && triple[2] >= 0) continue;
+    for (int k = 0; k < 3; ++k) {
+      if (triple[k] >= 0) c.not_kept.push_back(std::string(names[static_cast<std::size_t>(triple[k])]));
+      triple[k] = -1;
+    }
+  }
   return c;
 }
 

@@ -1,0 +1,50 @@
+// libFuzzer target: the point file readers besides PLY, as open_model
+// chooses them by the first bytes: LAS (load_las_from_memory, the reader
+// load_las uses on a file) for "LASF", else the text cloud reader (XYZ, PTS,
+// CSV). Anything malformed must be an InputError; any other exception, a
+// sanitizer report or an accepted point set that breaks the PointSet
+// contract (a LAS with another count than its header declares) is a crash.
+// Small accepted inputs also go through attributes and the build. Run by
+// .ci/fuzz, seeded with the files points_seeds writes.
+#include <cstddef>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <string_view>
+
+#include "fuzz_checks.hpp"
+#include "treecut/error.hpp"
+#include "treecut/las.hpp"
+#include "treecut/text_cloud.hpp"
+
+namespace {
+
+constexpr std::size_t kMaxBuildPoints = 2000;
+
+[[noreturn]] void fail(const std::string& what) {
+  std::fprintf(stderr, "points_fuzz: %s\n", what.c_str());
+  std::abort();
+}
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  const std::string_view bytes(reinterpret_cast<const char*>(data), size);
+  treecut::LasLoadReport report;
+  treecut::PointSet points;
+  const bool las = treecut::looks_like_las(bytes);
+  try {
+    points = las ? treecut::load_las_from_memory(bytes, "fuzz.las", &report,
+                                                 [](const std::string&) {})
+                 : treecut::load_text_cloud_from_memory(bytes, "fuzz.xyz",
+                                                        [](const std::string&) {});
+  } catch (const treecut::InputError&) {
+    return 0;
+  }
+  if (std::string why = treecut::fuzz::check_point_set(points); !why.empty()) fail(why);
+  if (las && points.size() != report.info.point_count) fail("loaded another count than declared");
+  if (points.size() <= kMaxBuildPoints) {
+    if (std::string why = treecut::fuzz::check_builds(std::move(points)); !why.empty()) fail(why);
+  }
+  return 0;
+}
