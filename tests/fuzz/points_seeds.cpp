@@ -41,7 +41,13 @@ int main(int argc, char** argv) {
       {"table.csv", "X,Y,Z,Intensity,Red,Green,Blue\n1,2,3,9,1,2,3\n4,5,6,8,4,5,6\n7,8,9.5,7,7,8,9\n"},
   };
   for (const auto& [file, text] : texts) {
-    std::ofstream(out / file, std::ios::binary) << text;
+    std::ofstream seed(out / file, std::ios::binary);
+    seed << text;
+    seed.close();
+    if (!seed) {
+      std::fprintf(stderr, "points_seeds: %s: cannot write\n", (out / file).c_str());
+      return 1;
+    }
     ++written;
   }
   std::printf("points_seeds: %d files in %s\n", written, out.c_str());
