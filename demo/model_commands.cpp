@@ -56,6 +56,25 @@ OpenOptions open_options(const ModelArgs& args) {
   return o;
 }
 
+// Every attribute with its kind and range in the file's values: what
+// `--color NAME` and `--classes` can use.
+void print_attributes(const Hierarchy& h) {
+  if (h.attributes().empty()) {
+    std::printf("attributes  none beyond position, normal and colour\n");
+    return;
+  }
+  std::printf("attributes  %zu (colour by one with --color NAME)\n", h.attributes().size());
+  for (const NodeAttribute& a : h.attributes()) {
+    const bool category = a.kind == AttributeKind::category;
+    if (std::isnan(a.min)) {
+      std::printf("  %-22s %-8s no values\n", a.name.c_str(), category ? "category" : "measure");
+      continue;
+    }
+    std::printf("  %-22s %-8s %.10g .. %.10g\n", a.name.c_str(), category ? "category" : "measure",
+                a.offset + double(a.min), a.offset + double(a.max));
+  }
+}
+
 void print_summary(const std::filesystem::path& model, const OpenedModel& m) {
   const Hierarchy& h = m.hierarchy;
   const glm::vec3 lo = h.bounds_min(), hi = h.bounds_max();
@@ -75,8 +94,8 @@ void print_summary(const std::filesystem::path& model, const OpenedModel& m) {
   }
   if (m.format == "LAS") {
     const LasInfo& l = m.las.info;
-    std::printf("format      LAS %d.%d, point format %d (%u bytes a point)%s%s\n",
-                l.version_major, l.version_minor, l.point_format, l.record_length,
+    std::printf("format      LAS %d.%d, point format %d (%u bytes a point)%s%s\n", l.version_major,
+                l.version_minor, l.point_format, l.record_length,
                 l.system_identifier.empty() ? "" : ", from ",
                 one_line(l.system_identifier).c_str());
   }
@@ -88,6 +107,7 @@ void print_summary(const std::filesystem::path& model, const OpenedModel& m) {
   }
   const UpAxis up = detect_up_axis(h);  // what `render` and `view` use with --up auto
   std::printf("up          %s (auto: %s)\n", up.name().c_str(), up.reason.c_str());
+  print_attributes(h);
   std::printf("memory      %.1f MiB (%.1f bytes/point)\n",
               static_cast<double>(h.memory_bytes()) / (1024.0 * 1024.0),
               static_cast<double>(h.memory_bytes()) / std::max(1u, h.leaf_count()));
@@ -412,6 +432,7 @@ void generate_model_kind(const GenArgs& g) {
                     : tools::generate_model(kind, g.points, g.seed);
   if (!g.origin.empty()) ps.frame.origin = glm::dvec3(g.origin[0], g.origin[1], g.origin[2]);
   if (las) {
+    tools::add_survey_attributes(ps, kind);
     save_las(out, ps);
   } else {
     save_ply(out, ps);

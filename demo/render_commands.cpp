@@ -410,6 +410,7 @@ RunSummary run_strategy(const RenderRig& rig, const StrategyRegistry& registry,
 void run_render(const RenderArgs& a) {
   if (a.frames < 1) throw InputError("--frames must be at least 1");
   const splat::RenderSettings settings = render_settings(a.scene);  // validates --mode early
+  (void)color_by(a.scene);                                          // and the colour options
   const StrategyRegistry registry = make_registry(a.scene);
   check_render_inputs(a, registry);
   const float aspect = float(a.width) / float(a.height);
@@ -417,6 +418,7 @@ void run_render(const RenderArgs& a) {
   if (!a.path.empty()) path = splat::load_camera_path(a.path);
 
   const Scene scene = load_scene(a.scene);
+  check_coloring(scene, color_by(a.scene));  // exit 2 before any output
   // A scene file: its objects go through the stage (per object, or a
   // scene-level strategy) and are drawn by draw_scene in one call per pass.
   if (a.path.empty())
@@ -428,6 +430,10 @@ void run_render(const RenderArgs& a) {
   std::printf("renderer  %s, %dx%d, %s splats\n", renderer_line(*context).c_str(), a.width,
               a.height, std::string(splat::splat_mode_name(settings.mode)).c_str());
   splat::Renderer renderer(*scene.hierarchy, {a.width, a.height});
+  if (const splat::Legend legend = apply_coloring(scene, color_by(a.scene), renderer);
+      legend.title != "rgb") {
+    std::printf("colour    %s\n", legend_line(legend).c_str());
+  }
   splat::CutBuffer full;
   splat::SceneCutBuffer full_scene;
   upload_full_detail(a, scene, renderer, full, full_scene);

@@ -44,6 +44,8 @@ Viewer::Viewer(const ViewArgs& args)
   strategy_ = args.scene.strategies.empty() ? "optimization" : args.scene.strategies.front();
   check_params(registry_, {strategy_}, args.scene.params);
   renderer_ = std::make_unique<splat::Renderer>(*scene_.hierarchy, window_.framebuffer_size());
+  color_by_ = color_by(args.scene);
+  recolor(true);
   fit();
   auto strategy = make_strategy(registry_, strategy_, args.scene.params);
   read_params(*strategy);
@@ -262,6 +264,7 @@ void Viewer::adopt_scene() {
                                                      scene_.hierarchy->node_count());
   }
   status_ = "opened " + scene_.label;
+  recolor();
   // The frames the window drew meanwhile (the old model): a load never blocks it.
   std::printf("opened %s (%zu nodes) after %llu frames of the old model\n", scene_.label.c_str(),
               static_cast<std::size_t>(scene_.hierarchy->node_count()),
@@ -301,6 +304,7 @@ void Viewer::replace_stage(Scene loaded) {
   read_params(*make_strategy(registry_, strategy_, {}));
   glfwSetWindowTitle(window_.handle(), ("treecut - " + scene_.label).c_str());
   status_ = "opened " + scene_.label;
+  recolor();
   if (scene_.world) {
     std::printf("opened %s (%zu objects)\n", scene_.label.c_str(), scene_.world->objects.size());
   } else {
@@ -308,6 +312,19 @@ void Viewer::replace_stage(Scene loaded) {
                 static_cast<std::size_t>(scene_.hierarchy->node_count()));
   }
   script_opening_ = false;
+}
+
+void Viewer::recolor(bool strict) {
+  try {
+    legend_ = apply_coloring(scene_, color_by_, *renderer_);
+  } catch (const InputError& e) {
+    if (strict) throw;
+    status_ = std::string(e.what()) + "; colours: rgb";
+    color_by_.source = "rgb";
+    color_by_.show_classes.clear();
+    color_by_.hide_classes.clear();
+    legend_ = apply_coloring(scene_, color_by_, *renderer_);
+  }
 }
 
 int run_viewer(const ViewArgs& args) {

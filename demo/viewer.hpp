@@ -16,6 +16,7 @@
 #include "treecut/hierarchy.hpp"
 #include "treecut/registry.hpp"
 #include "treecut/splat/camera.hpp"
+#include "treecut/splat/coloring.hpp"
 #include "treecut/splat/renderer.hpp"
 #include "treecut/up_axis.hpp"
 
@@ -40,10 +41,14 @@ struct SceneArgs {
   float point_size = 2.0f;
   int k = 12;
   bool fixed_light = false;
-  std::string up = "auto";        ///< x | y | z | auto (from the data: treecut/up_axis.hpp)
-  bool validate = false;          ///< --validate: check every cut a strategy returns in full
-  int stage_wait_bound_ms = 100;  ///< raise a starved stage after this wait; 0 = never
-  unsigned blend_frames = 0;      ///< --blend N: exchanges fade over N frames (0 = swap)
+  std::string up = "auto";          ///< x | y | z | auto (from the data: treecut/up_axis.hpp)
+  bool validate = false;            ///< --validate: check every cut a strategy returns in full
+  int stage_wait_bound_ms = 100;    ///< raise a starved stage after this wait; 0 = never
+  unsigned blend_frames = 0;        ///< --blend N: exchanges fade over N frames (0 = swap)
+  std::string color = "rgb";        ///< --color rgb | elevation | ATTRIBUTE
+  std::string color_map = "auto";   ///< --color-map auto | viridis | grey | classes
+  std::vector<double> color_range;  ///< --color-range LOW HIGH (the file's values)
+  std::string classes;              ///< --classes 2,6 | -7,-18
 };
 
 void add_scene_options(CLI::App& cmd, SceneArgs& args);
@@ -91,6 +96,21 @@ void check_params(const StrategyRegistry& registry, const std::vector<std::strin
                   const std::vector<std::string>& params);
 
 splat::RenderSettings render_settings(const SceneArgs& args);
+
+/// --color, --color-map, --color-range and --classes as a ColorBy; throws
+/// InputError for a bad map, range or class list.
+splat::ColorBy color_by(const SceneArgs& args);
+/// Colours every model of SCENE by BY in RENDERER (Renderer::set_node_colors;
+/// the models' own colours for plain rgb without a class filter). Returns
+/// the first model's legend. Throws InputError for an attribute a model
+/// lacks.
+splat::Legend apply_coloring(const Scene& scene, const splat::ColorBy& by,
+                             splat::Renderer& renderer);
+/// Throws the InputError apply_coloring would, before anything is drawn.
+void check_coloring(const Scene& scene, const splat::ColorBy& by);
+/// One line for a report: "intensity: viridis from 12 to 480" or
+/// "classification: 2 ground 61 %, 6 building 20 %, ...".
+std::string legend_line(const splat::Legend& legend);
 
 /// The stage options `render` and `view` share: --validate, and a bounded exit
 /// when a strategy ignores cancellation at shutdown (one error line, exit 1).

@@ -107,6 +107,11 @@ class Viewer {
   void hud(const splat::FrameStats& stats);
   void rendering_panel();
   void models_panel();
+  void color_panel();
+  /// Applies color_by_ to the scene's models (after an open, the up axis
+  /// or the HUD changed it). A source the model lacks falls back to rgb,
+  /// named in the status line, unless STRICT (the command line: exit 2).
+  void recolor(bool strict = false);
 
   const ViewArgs& args_;
   StrategyRegistry registry_;
@@ -120,6 +125,8 @@ class Viewer {
   double target_fps_ = 0.0;
   double chosen_fps_ = 30.0;
   std::unique_ptr<splat::Renderer> renderer_;
+  splat::ColorBy color_by_;  // --color, --classes and the HUD's colour panel
+  splat::Legend legend_;     // what the colours mean now
   std::unique_ptr<Controller> controller_;
   std::unique_ptr<splat::QueryExecutor> queries_;
   std::unique_ptr<splat::RenderThreadFrame> frame_loop_;  // after what it refers to

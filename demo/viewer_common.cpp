@@ -66,6 +66,22 @@ void add_scene_options(CLI::App& cmd, SceneArgs& args) {
                  "out (screen-door dither; 0 = swap at once; docs/rendering.md, \"Fades\")")
       ->check(whole_number(0, 64))
       ->capture_default_str();
+  cmd.add_option("--color", args.color,
+                 "Colour by: rgb (the file's colours), elevation, or an attribute of the model "
+                 "(intensity, classification, ...; `treecut info` lists them)")
+      ->capture_default_str();
+  cmd.add_option("--color-map", args.color_map,
+                 "Colour map: auto (classes for categories, viridis for the rest) | viridis | "
+                 "grey | classes (the ASPRS palette for classification)")
+      ->check(CLI::IsMember({"auto", "viridis", "grey", "gray", "classes"}))
+      ->capture_default_str();
+  cmd.add_option("--color-range", args.color_range,
+                 "The values at the ends of the map, LOW HIGH (default: the 2nd and 98th "
+                 "percentiles of the points)")
+      ->expected(2);
+  cmd.add_option("--classes", args.classes,
+                 "Show only these classes (2,6: ground and buildings) or hide some (-7,-18: "
+                 "noise) of the classification attribute");
   cmd.add_option("--stage-wait-bound", args.stage_wait_bound_ms,
                  "Milliseconds an update may wait for the low-priority Feedback Stage before it "
                  "runs at normal priority until done (0 = never; docs/threading.md)")
@@ -179,6 +195,76 @@ Scene load_scene(const SceneArgs& args, const LoadProgressFn& progress) {
   s.center = 0.5f * (h.bounds_min() + h.bounds_max());
   s.radius = std::max(0.5f * glm::length(h.bounds_max() - h.bounds_min()), 1e-6f);
   return s;
+}
+
+splat::ColorBy color_by(const SceneArgs& args) {
+  splat::ColorBy by;
+  by.source = args.color;
+  by.map = splat::parse_color_map(args.color_map);
+  if (!args.color_range.empty()) {
+    if (args.color_range.size() != 2 || !std::isfinite(args.color_range[0]) ||
+        !std::isfinite(args.color_range[1]) || !(args.color_range[0] < args.color_range[1])) {
+      throw InputError("--color-range: expected two finite numbers LOW HIGH with LOW < HIGH");
+    }
+    by.low = args.color_range[0];
+    by.high = args.color_range[1];
+  }
+  if (!args.classes.empty()) splat::parse_class_filter(args.classes, by);
+  return by;
+}
+
+namespace {
+
+std::vector<const Hierarchy*> scene_models(const Scene& scene) {
+  std::vector<const Hierarchy*> models;
+  if (scene.world) {
+    for (const auto& m : scene.world->models) models.push_back(m.get());
+  } else {
+    models.push_back(scene.hierarchy.get());
+  }
+  return models;
+}
+
+}  // namespace
+
+void check_coloring(const Scene& scene, const splat::ColorBy& by) {
+  for (const Hierarchy* h : scene_models(scene)) splat::check_color_by(*h, by);
+}
+
+splat::Legend apply_coloring(const Scene& scene, const splat::ColorBy& by,
+                             splat::Renderer& renderer) {
+  const std::vector<const Hierarchy*> models = scene_models(scene);
+  const bool own = by.source == "rgb" && by.show_classes.empty() && by.hide_classes.empty();
+  splat::Legend first;
+  for (std::size_t i = 0; i < models.size(); ++i) {
+    if (own) {
+      renderer.set_node_colors(*models[i], {});
+      continue;
+    }
+    splat::Coloring c = splat::color_nodes(*models[i], by, scene.up);
+    if (i == 0) first = std::move(c.legend);
+    renderer.set_node_colors(*models[i], std::move(c.colors));
+  }
+  if (own) first.title = "rgb";
+  return first;
+}
+
+std::string legend_line(const splat::Legend& legend) {
+  char text[160];
+  if (legend.title == "rgb") return "rgb (the file's colours)";
+  if (legend.continuous) {
+    std::snprintf(text, sizeof text, "%s: %s from %.6g to %.6g", legend.title.c_str(),
+                  std::string(splat::color_map_name(legend.map)).c_str(), legend.low, legend.high);
+    return text;
+  }
+  std::string line = legend.title + ":";
+  for (const splat::Legend::Entry& e : legend.entries) {
+    std::snprintf(text, sizeof text, " %s %.1f %%%s,", e.label.c_str(), 100.0 * e.share,
+                  e.hidden ? " (hidden)" : "");
+    line += text;
+  }
+  if (line.back() == ',') line.pop_back();
+  return line;
 }
 
 StrategyRegistry make_registry(const SceneArgs& args) {

@@ -138,7 +138,73 @@ void Viewer::models_panel() {
   }
 }
 
+// Colour by RGB, elevation or an attribute, with its legend: a gradient
+// with its end values, or the categories with their share of the points
+// (classification's with a box each to hide the class).
+void Viewer::color_panel() {
+  if (!ImGui::CollapsingHeader("colour")) return;
+  std::vector<std::string> sources = {"rgb", "elevation"};
+  if (scene_.hierarchy) {
+    for (const NodeAttribute& a : scene_.hierarchy->attributes()) sources.push_back(a.name);
+  }
+  if (ImGui::BeginCombo("colour by", color_by_.source.c_str())) {
+    for (const std::string& s : sources) {
+      if (ImGui::Selectable(s.c_str(), s == color_by_.source) && s != color_by_.source) {
+        color_by_.source = s;
+        color_by_.low.reset();
+        color_by_.high.reset();
+        recolor();
+      }
+    }
+    ImGui::EndCombo();
+  }
+  if (legend_.title == "rgb") return;
+  ImDrawList* draw = ImGui::GetWindowDrawList();
+  if (legend_.continuous) {
+    const ImVec2 at = ImGui::GetCursorScreenPos();
+    constexpr int kSteps = 32;
+    constexpr float kWidth = 240.0f, kHeight = 14.0f;
+    for (int i = 0; i < kSteps; ++i) {
+      const glm::u8vec4 c = splat::map_color(legend_.map, (float(i) + 0.5f) / kSteps);
+      draw->AddRectFilled(ImVec2(at.x + kWidth * float(i) / kSteps, at.y),
+                          ImVec2(at.x + kWidth * float(i + 1) / kSteps, at.y + kHeight),
+                          IM_COL32(c.x, c.y, c.z, 255));
+    }
+    ImGui::Dummy(ImVec2(kWidth, kHeight));
+    ImGui::Text("%-12.6g %28.6g", legend_.low, legend_.high);
+    return;
+  }
+  const bool classes = legend_.title == "classification";
+  for (const splat::Legend::Entry& e : legend_.entries) {
+    const ImVec2 at = ImGui::GetCursorScreenPos();
+    draw->AddRectFilled(at, ImVec2(at.x + 12, at.y + 12),
+                        IM_COL32(e.color.x, e.color.y, e.color.z, 255));
+    ImGui::Dummy(ImVec2(14, 12));
+    ImGui::SameLine();
+    if (classes && !std::isnan(e.value)) {
+      bool shown = !e.hidden;
+      const std::string label =
+          e.label + "  " + std::to_string(int(std::lround(100 * e.share))) + " %";
+      if (ImGui::Checkbox(label.c_str(), &shown)) {
+        // The HUD speaks in classes to hide.
+        std::vector<int> hidden;
+        for (const splat::Legend::Entry& o : legend_.entries) {
+          const bool hide = &o == &e ? !shown : o.hidden;
+          if (hide && !std::isnan(o.value)) hidden.push_back(static_cast<int>(o.value));
+        }
+        color_by_.show_classes.clear();
+        color_by_.hide_classes = hidden;
+        recolor();
+        return;  // the legend was replaced
+      }
+    } else {
+      ImGui::Text("%s  %.0f %%", e.label.c_str(), 100.0 * e.share);
+    }
+  }
+}
+
 void Viewer::rendering_panel() {
+  color_panel();
   if (!ImGui::CollapsingHeader("rendering")) {
     if (!status_.empty()) ImGui::TextUnformatted(status_.c_str());
     return;

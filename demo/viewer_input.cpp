@@ -101,6 +101,7 @@ void Viewer::handle_input(double dt) {
     // When --up auto guessed wrong: the next axis, and the view fitted to it.
     scene_.up_axis = next_up_axis(scene_.up_axis);
     scene_.up = scene_.up_axis.vector();
+    if (color_by_.source == "elevation") recolor();
     fit();
   }
   if (pressed_once(GLFW_KEY_L)) settings_.light.follow_camera = !settings_.light.follow_camera;

@@ -57,14 +57,21 @@ TEST(Cli, GenLasAtMapCoordinatesAndInfo) {
   r = run_treecut("build " + quote(dir / "s.las") + " -o " + quote(dir / "s.tch"));
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("format      LAS 1.2, point format 2"), std::string::npos) << r.out;
-  EXPECT_NE(r.out.find("not kept: intensity"), std::string::npos) << r.out;
+  // What gen writes beyond the intensity is the same at every point: named.
+  EXPECT_NE(r.out.find("the same at every point, not kept: return_number 1"), std::string::npos)
+      << r.out;
   for (const char* model : {"s.las", "s.tch"}) {
     r = run_treecut("info " + quote(dir / model));
     ASSERT_EQ(r.code, 0) << r.out;
     EXPECT_NE(r.out.find("origin      [500000.000 5000000.000 100.000]"), std::string::npos)
-        << model << "\n" << r.out;
+        << model << "\n"
+        << r.out;
     EXPECT_NE(r.out.find("file bounds [499999.0"), std::string::npos) << r.out;
     EXPECT_NE(r.out.find("bounds      [-1"), std::string::npos) << "relative to it: " << r.out;
+    EXPECT_NE(r.out.find("attributes  1 (colour by one with --color NAME)\n  intensity"),
+              std::string::npos)
+        << model << "\n"
+        << r.out;
   }
   // A PLY holds floats: --origin is refused for one, before anything is written.
   r = run_treecut("gen sphere -n 100 --origin 500000 5000000 0 -o " + quote(dir / "s.ply"));
@@ -78,6 +85,36 @@ TEST(Cli, GenLasAtMapCoordinatesAndInfo) {
   r = run_treecut("gen sphere -n 100 -o " + quote(dir / "p.las"));
   EXPECT_EQ(r.code, 2) << r.out;
   EXPECT_NE(r.out.find("is not a LAS file"), std::string::npos) << r.out;
+}
+
+// Issue 29, item 3: a classified survey coloured by its attributes; a
+// colour the model cannot give is one line and exit 2 before any output.
+TEST(Cli, RenderColoursByAnAttributeAndHidesClasses) {
+  using treecut::test::quote;
+  using treecut::test::run_treecut;
+  const fs::path dir = treecut::test::scratch_dir("cli_color");
+  treecut::test::CommandResult r = run_treecut("gen city -n 20000 -o " + quote(dir / "c.las"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  r = run_treecut("info " + quote(dir / "c.las"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("  classification         category 2 .. 6"), std::string::npos) << r.out;
+  const std::string common = " --frames 1 --width 96 --height 64 --gl osmesa --no-png -o ";
+  r = run_treecut("render " + quote(dir / "c.las") + " --color classification --classes 2" +
+                  common + quote(dir / "out"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("colour    classification: 2 ground"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("6 building"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("% (hidden)"), std::string::npos) << r.out;
+  r = run_treecut("render " + quote(dir / "c.las") + " --color intensity --color-map grey" +
+                  common + quote(dir / "out2"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("colour    intensity: grey from "), std::string::npos) << r.out;
+  for (const std::string bad :
+       {"--color height", "--classes 2,-7", "--color-range 5 1", "--color-map jet"}) {
+    r = run_treecut("render " + quote(dir / "c.las") + " " + bad + common + quote(dir / "bad"));
+    EXPECT_EQ(r.code, 2) << bad << "\n" << r.out;
+    EXPECT_FALSE(fs::exists(dir / "bad")) << bad;
+  }
 }
 
 TEST(Cli, MalformedPlyExitsWithTwoAndWritesNothing) {

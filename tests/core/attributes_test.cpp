@@ -22,6 +22,29 @@ TEST(Attributes, PcaNormalsOfASphereMatchTheTrueNormals) {
   EXPECT_GT(good, truth.size() * 99 / 100);
 }
 
+// A survey's ground (a LAS: the format says z is up) faces up even where a
+// building above it lifts the centroid, which would turn it down.
+TEST(Attributes, SurveyNormalsFaceUpOnTheGround) {
+  PointSet ps;
+  for (int i = 0; i < 60; ++i) {
+    for (int j = 0; j < 60; ++j) ps.positions.push_back({0.1f * float(i), 0.1f * float(j), 0.0f});
+  }
+  for (int i = 0; i < 20; ++i) {  // a roof well above the ground
+    for (int j = 0; j < 20; ++j) {
+      ps.positions.push_back({2.0f + 0.1f * float(i), 2.0f + 0.1f * float(j), 30.0f});
+    }
+  }
+  auto ground_facing_up = [](PointSet p) {
+    complete_attributes(p);
+    std::size_t up = 0;
+    for (std::size_t i = 0; i < 3600; ++i) up += p.normals[i].z > 0.9f;
+    return up;
+  };
+  EXPECT_LT(ground_facing_up(ps), 3600u / 2) << "outward from the centroid: down";
+  ps.frame.z_up = true;
+  EXPECT_EQ(ground_facing_up(ps), 3600u);
+}
+
 TEST(Attributes, CurvatureIsHighAtACreaseAndZeroOnFlatParts) {
   // Two perpendicular grid planes meeting along the x axis (z = 0, y >= 0 and
   // y = 0, z >= 0): surface variation peaks at the crease, vanishes away from it.

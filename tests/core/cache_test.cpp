@@ -138,6 +138,42 @@ TEST(Cache, TheCoordinateFrameRoundTrips) {
   EXPECT_NE(why.find("checksum"), std::string::npos) << why;
 }
 
+// The file's attributes per node (issue 29): names, kinds, offsets, ranges
+// and every value come back as they went in; a flipped value is caught.
+TEST(Cache, TheAttributesRoundTrip) {
+  const fs::path dir = test::scratch_dir("cache_attributes");
+  PointSet p = generate_model(ModelKind::Sphere, 3000, 2);
+  PointAttribute time{"gps_time", AttributeKind::measure, 3.0e8, {}};
+  PointAttribute cls{"classification", AttributeKind::category, 0.0, {}};
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    time.values.push_back(0.01f * float(i));
+    cls.values.push_back(p.positions[i].z > 0 ? 6.0f : 2.0f);
+  }
+  p.attributes = {time, cls};
+  const Hierarchy h = build_from_points(std::move(p));
+  ASSERT_EQ(h.attributes().size(), 2u);
+  save_cache(h, {1, 2, 3}, dir / "a.tch");
+  std::string why;
+  auto loaded = load_cache(dir / "a.tch", std::nullopt, &why);
+  ASSERT_TRUE(loaded) << why;
+  ASSERT_EQ(loaded->attributes().size(), 2u);
+  for (std::size_t k = 0; k < 2; ++k) {
+    const NodeAttribute &a = h.attributes()[k], &b = loaded->attributes()[k];
+    EXPECT_EQ(b.name, a.name);
+    EXPECT_EQ(b.kind, a.kind);
+    EXPECT_EQ(b.offset, a.offset);
+    EXPECT_EQ(b.min, a.min);
+    EXPECT_EQ(b.max, a.max);
+    ASSERT_EQ(b.values.size(), a.values.size());
+    EXPECT_TRUE(std::equal(a.values.begin(), a.values.end(), b.values.begin()));
+  }
+  EXPECT_EQ(loaded->memory_bytes(), h.memory_bytes());
+  auto bytes = read_all(dir / "a.tch");
+  bytes[bytes.size() - 8 - 4] ^= 0x10;  // the last attribute value
+  write_all(dir / "b.tch", bytes, bytes.size());
+  EXPECT_FALSE(load_cache(dir / "b.tch", std::nullopt, &why));
+}
+
 TEST(Cache, SameInputGivesAByteIdenticalFile) {
   const fs::path dir = test::scratch_dir("cache_deterministic");
   BuildOptions one, two;

@@ -5,6 +5,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <map>
+#include <tuple>
 
 #include "test_support.hpp"
 #include "treecut/attributes.hpp"
@@ -87,6 +89,61 @@ TEST(Hierarchy, LeavesAreExactlyTheInputPoints) {
   };
   std::sort(inputs.begin(), inputs.end(), less);
   EXPECT_EQ(sorted_leaf_centers(h), inputs);
+}
+
+// Issue 29: each attribute over the nodes. A leaf holds its point's value;
+// a measure's node the point-weighted mean of its children, a category's
+// node the children's value with the most points; NaN counts for nothing.
+TEST(Hierarchy, AttributesAreSummarizedPerNode) {
+  PointSet ps = generate_model(ModelKind::Terrain, 4000, 5);
+  PointAttribute intensity{"intensity", AttributeKind::measure, 0.0, {}};
+  PointAttribute cls{"classification", AttributeKind::category, 0.0, {}};
+  for (std::size_t i = 0; i < ps.size(); ++i) {
+    const glm::vec3 p = ps.positions[i];
+    intensity.values.push_back(i % 17 == 0 ? NAN : 100.0f + 50.0f * p.x);
+    cls.values.push_back(p.x > 0.2f ? 6.0f : p.y > 0.0f ? 3.0f : 2.0f);
+  }
+  std::map<std::tuple<float, float, float>, std::pair<float, float>> by_position;
+  for (std::size_t i = 0; i < ps.size(); ++i) {
+    const glm::vec3 p = ps.positions[i];
+    by_position[{p.x, p.y, p.z}] = {intensity.values[i], cls.values[i]};
+  }
+  ps.attributes = {intensity, cls};
+  const Hierarchy h = build(std::move(ps));
+  ASSERT_EQ(h.attributes().size(), 2u);
+  const NodeAttribute& mean = h.attributes()[0];
+  const NodeAttribute& mode = h.attributes()[1];
+  EXPECT_EQ(mean.name, "intensity");
+  EXPECT_EQ(h.find_attribute("classification"), &mode);
+  EXPECT_EQ(h.find_attribute("nothing"), nullptr);
+  EXPECT_FLOAT_EQ(mean.min, 100.0f + 50.0f * h.bounds_min().x);
+  std::size_t interior = 0;
+  for (NodeId n = 0; n < h.node_count(); ++n) {
+    if (h.is_leaf(n)) {
+      const glm::vec3 c = h.center(n);
+      const auto [v, k] = by_position.at({c.x, c.y, c.z});
+      EXPECT_TRUE(v == mean.values[n] || (std::isnan(v) && std::isnan(mean.values[n]))) << n;
+      EXPECT_EQ(mode.values[n], k) << n;
+      continue;
+    }
+    ++interior;
+    double sum = 0, weight = 0;
+    std::map<float, std::uint64_t> votes;
+    for (NodeId c = h.first_child(n); c < h.first_child(n) + h.child_count(n); ++c) {
+      const double w = h.arrays().point_count[c];
+      if (!std::isnan(mean.values[c])) sum += w * mean.values[c], weight += w;
+      votes[mode.values[c]] += h.arrays().point_count[c];
+    }
+    if (weight > 0) {
+      EXPECT_NEAR(mean.values[n], sum / weight, 1e-3) << n;
+    } else {
+      EXPECT_TRUE(std::isnan(mean.values[n])) << n;
+    }
+    std::uint64_t best = 0;
+    for (const auto& [value, count] : votes) best = std::max(best, count);
+    EXPECT_EQ(votes.at(mode.values[n]), best) << n;
+  }
+  EXPECT_GT(interior, 1000u);
 }
 
 TEST(Hierarchy, SamePointsGiveByteIdenticalArraysForAnyThreadCount) {

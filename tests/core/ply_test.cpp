@@ -228,6 +228,45 @@ TEST(PlyLoad, ReadsTheRadiusPropertyInAsciiAndBinary) {
   EXPECT_EQ(b.positions[1], glm::vec3(1.0f));
 }
 
+// Issue 29: every other scalar vertex property is kept, by name, in ascii
+// (transcoded for OpenMesh) and binary (read in place) alike; a constant one
+// is named instead; a point dropped for its position takes its values along.
+TEST(PlyLoad, OtherScalarPropertiesAreKeptAsAttributes) {
+  const std::string ascii =
+      "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+      "property float z\nproperty float intensity\nproperty uchar label\nproperty uchar alpha\n"
+      "property uchar scanner\nend_header\n0 0 0 0.5 1 255 3\n1 0 0 nan 2 255 3\n"
+      "nan 0 0 9 9 255 3\n0 1 0 1.5 1 255 3\n";
+  std::vector<std::string> warnings;
+  const PointSet a = load_ply_from_memory(ascii, "a.ply", nullptr,
+                                          [&](const std::string& w) { warnings.push_back(w); });
+  ASSERT_EQ(a.size(), 3u);
+  ASSERT_EQ(a.attributes.size(), 2u) << "alpha is colour's, scanner is constant";
+  EXPECT_EQ(a.attributes[0].name, "intensity");
+  EXPECT_EQ(a.attributes[0].kind, treecut::AttributeKind::measure);
+  EXPECT_EQ(a.attributes[0].values[0], 0.5f);
+  EXPECT_TRUE(std::isnan(a.attributes[0].values[1])) << "NaN is no value";
+  EXPECT_EQ(a.attributes[0].values[2], 1.5f) << "the dropped point's 9 went with it";
+  EXPECT_EQ(a.attributes[1].name, "label");
+  EXPECT_EQ(a.attributes[1].kind, treecut::AttributeKind::category);
+  EXPECT_EQ(a.attributes[1].values, (std::vector<float>{1, 2, 1}));
+  bool named = false;
+  for (const std::string& w : warnings) {
+    named = named || w == "a.ply: the same at every vertex, not kept: scanner 3";
+  }
+  EXPECT_TRUE(named);
+
+  Body body;
+  for (int i = 0; i < 3; ++i) body.put(float(i)).put(0.0f).put(0.0f).put(std::uint16_t(100 * i));
+  const std::string binary =
+      "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\n"
+      "property float y\nproperty float z\nproperty ushort intensity\nend_header\n" +
+      body.bytes;
+  const PointSet b = load(binary);
+  ASSERT_EQ(b.attributes.size(), 1u);
+  EXPECT_EQ(b.attributes[0].values, (std::vector<float>{0, 100, 200}));
+}
+
 TEST(PlyLoad, NonPositiveRadiiAreIgnoredWithAWarning) {
   const std::string ascii =
       "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"

@@ -7,9 +7,6 @@
 // (every truncation of the header, counts past the file, absurd scales and
 // offsets, a format and a record length that disagree, LAZ) refused with
 // one line.
-#include "treecut/las.hpp"
-#include "treecut/text_cloud.hpp"
-
 #include <gtest/gtest.h>
 
 #include <bit>
@@ -22,6 +19,8 @@
 
 #include "test_support.hpp"
 #include "treecut/error.hpp"
+#include "treecut/las.hpp"
+#include "treecut/text_cloud.hpp"
 
 namespace {
 
@@ -56,8 +55,8 @@ struct Vlr {
 
 // A LAS file of version 1.MINOR, point format FORMAT with EXTRA bytes after
 // each record, the given scale and offset, VLRS and the points.
-std::string las_file(int minor, int format, const std::vector<Point>& points,
-                     double scale = 0.01, double offset = 0.0, std::uint32_t extra = 0,
+std::string las_file(int minor, int format, const std::vector<Point>& points, double scale = 0.01,
+                     double offset = 0.0, std::uint32_t extra = 0,
                      const std::vector<Vlr>& vlrs = {}) {
   const std::size_t header = minor >= 4 ? 375 : minor == 3 ? 235 : 227;
   std::string h;
@@ -147,9 +146,9 @@ TEST(LasLoad, EveryPointFormatGivesItsPointsAndColours) {
     const int minor = format >= 6 ? 4 : format >= 4 ? 3 : 2;
     std::vector<std::string> warnings;
     LasLoadReport report;
-    const PointSet p = load_las_from_memory(las_file(minor, format, kThree, 0.01, 1000.0, 3),
-                                            "mem.las", &report,
-                                            [&](const std::string& w) { warnings.push_back(w); });
+    const PointSet p =
+        load_las_from_memory(las_file(minor, format, kThree, 0.01, 1000.0, 3), "mem.las", &report,
+                             [&](const std::string& w) { warnings.push_back(w); });
     ASSERT_EQ(p.size(), 3u) << format;
     EXPECT_EQ(report.info.point_format, format);
     EXPECT_EQ(report.info.record_length, kBase[format] + 3);
@@ -236,8 +235,8 @@ TEST(LasLoad, CoordinateSystemRecordsAreRead) {
   // GeoKeyDirectory: version 1.1.0, 1 key, ProjectedCSTypeGeoKey = 32633.
   std::string keys;
   for (const std::uint16_t v : {1, 1, 0, 1, 3072, 0, 1, 32633}) put<std::uint16_t>(keys, v);
-  (void)load_las_from_memory(las_file(2, 0, kThree, 0.01, 0.0, 0, {{"LASF_Projection", 34735, keys}}),
-                             "mem.las", &r);
+  (void)load_las_from_memory(
+      las_file(2, 0, kThree, 0.01, 0.0, 0, {{"LASF_Projection", 34735, keys}}), "mem.las", &r);
   EXPECT_EQ(r.info.crs, "GeoTIFF: EPSG code 32633");
   // Extra bytes: two named fields.
   std::string extra(384, '\0');
@@ -246,7 +245,9 @@ TEST(LasLoad, CoordinateSystemRecordsAreRead) {
   std::vector<std::string> warnings;
   (void)load_las_from_memory(las_file(4, 6, kThree, 0.01, 0.0, 4, {{"LASF_Spec", 4, extra}}),
                              "mem.las", &r, [&](const std::string& w) { warnings.push_back(w); });
-  EXPECT_EQ(r.info.extra_bytes, (std::vector<std::string>{"reflectance", "deviation"}));
+  ASSERT_EQ(r.info.extra_bytes.size(), 2u);
+  EXPECT_EQ(r.info.extra_bytes[0].name, "reflectance");
+  EXPECT_EQ(r.info.extra_bytes[1].name, "deviation");
   bool named = false;
   for (const std::string& w : warnings) named = named || w.find("reflectance") != std::string::npos;
   EXPECT_TRUE(named);
@@ -261,7 +262,8 @@ TEST(LasLoad, EveryTruncationOfTheHeaderIsOneLine) {
       EXPECT_EQ(e.find('\n'), std::string::npos) << cut;
     }
   }
-  EXPECT_EQ(error_of("LASF"), "mem.las: the header is cut off: 4 bytes, a LAS header has at least 227");
+  EXPECT_EQ(error_of("LASF"),
+            "mem.las: the header is cut off: 4 bytes, a LAS header has at least 227");
   EXPECT_EQ(error_of(las_file(2, 0, kThree).substr(0, 227 + 30)),
             "mem.las: 3 points of 20 bytes declared from offset 227, the file holds 1");
 }
@@ -275,8 +277,10 @@ TEST(LasLoad, AbsurdHeadersAreRefusedBeforeAnythingIsSized) {
   };
   EXPECT_EQ(with(131, 0.0), "mem.las: X scale factor 0 (it must be positive and finite)");
   EXPECT_EQ(with(139, -0.01), "mem.las: Y scale factor -0.01 (it must be positive and finite)");
-  EXPECT_EQ(with(147, std::nan("")), "mem.las: Z scale factor nan (it must be positive and finite)");
-  EXPECT_EQ(with(155, std::numeric_limits<double>::infinity()), "mem.las: X offset inf is not finite");
+  EXPECT_EQ(with(147, std::nan("")),
+            "mem.las: Z scale factor nan (it must be positive and finite)");
+  EXPECT_EQ(with(155, std::numeric_limits<double>::infinity()),
+            "mem.las: X offset inf is not finite");
   EXPECT_EQ(with(131, 1e300),
             "mem.las: X scale factor 1.0000000000000001e+300 and offset 0 reach coordinates beyond "
             "1e18");
@@ -285,7 +289,8 @@ TEST(LasLoad, AbsurdHeadersAreRefusedBeforeAnythingIsSized) {
   // A record length shorter than the format's.
   EXPECT_EQ(with(105, std::uint16_t{20}),
             "mem.las: point data format 2 has records of 26 bytes; the header says 20");
-  EXPECT_EQ(with(104, std::uint8_t{11}), "mem.las: point data format 11 is not defined (0 to 10 are)");
+  EXPECT_EQ(with(104, std::uint8_t{11}),
+            "mem.las: point data format 11 is not defined (0 to 10 are)");
   EXPECT_EQ(with(25, std::uint8_t{5}), "mem.las: LAS version 1.5 is not read (1.0 to 1.4 are)");
   EXPECT_EQ(with(94, std::uint16_t{100}),
             "mem.las: header size 100 is less than the 227 bytes of a LAS 1.2 header");
@@ -306,8 +311,8 @@ TEST(LasLoad, LazIsNamedWithTheWayOut) {
 }
 
 TEST(LasLoad, RandomCorruptionIsRefusedOrRead) {
-  const std::string ok = las_file(4, 8, kThree, 0.01, 0.0, 2,
-                                  {{"LASF_Projection", 2112, std::string("PROJCS[]", 9)}});
+  const std::string ok =
+      las_file(4, 8, kThree, 0.01, 0.0, 2, {{"LASF_Projection", 2112, std::string("PROJCS[]", 9)}});
   std::mt19937 rng(7);
   for (int i = 0; i < 3000; ++i) {
     std::string b = ok;
@@ -356,6 +361,122 @@ TEST(LasSave, RoundTripsAreExactToTheScale) {
   EXPECT_EQ(bytes(a), bytes(b));
 }
 
+// A record's fields at their offsets (LAS 1.4 R15, tables 7 and 12).
+TEST(LasLoad, EveryFieldIsKeptAsANamedAttribute) {
+  std::vector<std::string> warnings;
+  auto warn = [&](const std::string& w) { warnings.push_back(w); };
+  auto values = [](const PointSet& p, const std::string& name) {
+    for (const treecut::PointAttribute& a : p.attributes) {
+      if (a.name == name) {
+        std::vector<double> v;
+        for (const float x : a.values) v.push_back(a.offset + double(x));
+        return v;
+      }
+    }
+    return std::vector<double>{};
+  };
+  // Legacy format 1: intensity, returns and flags in bytes, GPS time.
+  std::string legacy = las_file(2, 1, kThree);
+  const std::size_t at = legacy.size() - 3 * 28;
+  for (std::size_t i = 0; i < 3; ++i) {
+    const std::size_t r = at + i * 28;
+    poke<std::uint16_t>(legacy, r + 12, static_cast<std::uint16_t>(100 * (i + 1)));
+    legacy[r + 14] = static_cast<char>((i + 1) | (3 << 3));                      // return i+1 of 3
+    legacy[r + 15] = static_cast<char>((i == 1 ? 6 : 2) | (i == 2 ? 0x80 : 0));  // withheld
+    legacy[r + 16] = static_cast<char>(-10 + 10 * static_cast<int>(i));
+    poke<std::uint16_t>(legacy, r + 18, 7);  // point source id: the same everywhere
+    poke<double>(legacy, r + 20, 3.0e8 + 0.25 * double(i));
+  }
+  const PointSet a = load_las_from_memory(legacy, "legacy.las", nullptr, warn);
+  EXPECT_EQ(values(a, "intensity"), (std::vector<double>{100, 200, 300}));
+  EXPECT_EQ(values(a, "return_number"), (std::vector<double>{1, 2, 3}));
+  EXPECT_EQ(values(a, "classification"), (std::vector<double>{2, 6, 2}));
+  EXPECT_EQ(values(a, "classification_flags"), (std::vector<double>{0, 0, 4}));
+  EXPECT_EQ(values(a, "scan_angle"), (std::vector<double>{-10, 0, 10}));
+  // A GPS time of 3e8 s keeps its quarter seconds (float relative to an offset).
+  EXPECT_EQ(values(a, "gps_time"), (std::vector<double>{3.0e8, 3.0e8 + 0.25, 3.0e8 + 0.5}));
+  EXPECT_TRUE(values(a, "number_of_returns").empty()) << "3 everywhere: not kept";
+  EXPECT_TRUE(values(a, "point_source_id").empty());
+  bool constant_named = false;
+  for (const std::string& w : warnings) {
+    constant_named = constant_named || (w.find("not kept: ") != std::string::npos &&
+                                        w.find("number_of_returns 3") != std::string::npos &&
+                                        w.find("point_source_id 7") != std::string::npos);
+  }
+  EXPECT_TRUE(constant_named);
+  for (const treecut::PointAttribute& x : a.attributes) {
+    EXPECT_EQ(x.kind, x.name == "intensity" || x.name == "scan_angle" || x.name == "gps_time"
+                          ? treecut::AttributeKind::measure
+                          : treecut::AttributeKind::category)
+        << x.name;
+  }
+
+  // Format 8 (1.4): the class in its own byte, scan angle in 0.006 degree
+  // steps, NIR; an extra-bytes float with a scale and a no-data value.
+  std::string extra(192, '\0');
+  extra[2] = 4;      // short
+  extra[3] = 1 | 8;  // no_data, scale
+  std::memcpy(extra.data() + 4, "height_above_ground", 19);
+  poke<std::int64_t>(extra, 40, -1);  // no_data
+  poke<double>(extra, 112, 0.01);     // scale
+  std::string ext = las_file(4, 8, kThree, 0.01, 0.0, 2, {{"LASF_Spec", 4, extra}});
+  const std::size_t at8 = ext.size() - 3 * 40;
+  for (std::size_t i = 0; i < 3; ++i) {
+    const std::size_t r = at8 + i * 40;
+    ext[r + 16] = static_cast<char>(i == 0 ? 9 : 17);  // water, bridge deck
+    poke<std::int16_t>(ext, r + 18, static_cast<std::int16_t>(1000 * static_cast<int>(i)));
+    poke<std::uint16_t>(ext, r + 36, static_cast<std::uint16_t>(50 + i));  // NIR
+    poke<std::int16_t>(ext, r + 38, static_cast<std::int16_t>(i == 2 ? -1 : 150 * (i + 1)));
+  }
+  warnings.clear();
+  const PointSet b = load_las_from_memory(ext, "ext.las", nullptr, warn);
+  EXPECT_EQ(values(b, "classification"), (std::vector<double>{9, 17, 17}));
+  const std::vector<double> angle = values(b, "scan_angle");
+  ASSERT_EQ(angle.size(), 3u);
+  EXPECT_NEAR(angle[2], 12.0, 1e-4);
+  EXPECT_EQ(values(b, "nir"), (std::vector<double>{50, 51, 52}));
+  const std::vector<double> hag = values(b, "height_above_ground");
+  ASSERT_EQ(hag.size(), 3u);
+  EXPECT_NEAR(hag[0], 1.5, 1e-6);
+  EXPECT_NEAR(hag[1], 3.0, 1e-6);
+  EXPECT_TRUE(std::isnan(hag[2])) << "the no-data value is no value";
+}
+
+TEST(LasSave, AttributesRoundTrip) {
+  PointSet p;
+  p.frame.origin = glm::dvec3(600000.0, 4000000.0, 50.0);
+  treecut::PointAttribute intensity{"intensity", treecut::AttributeKind::measure, 0.0, {}};
+  treecut::PointAttribute cls{"classification", treecut::AttributeKind::category, 0.0, {}};
+  treecut::PointAttribute time{"gps_time", treecut::AttributeKind::measure, 2.0e8, {}};
+  treecut::PointAttribute reflectance{"reflectance", treecut::AttributeKind::measure, 0.0, {}};
+  for (int i = 0; i < 500; ++i) {
+    p.positions.push_back({0.1f * float(i), 0.2f * float(i % 7), 0.0f});
+    intensity.values.push_back(float(i * 13 % 4000));
+    cls.values.push_back(float(i % 3 == 0 ? 2 : 6));
+    time.values.push_back(0.001f * float(i));
+    reflectance.values.push_back(-0.5f + 0.003f * float(i));
+  }
+  p.attributes = {intensity, cls, time, reflectance};
+  const auto dir = treecut::test::scratch_dir("las_attributes");
+  treecut::save_las(dir / "a.las", p);
+  LasLoadReport r;
+  const PointSet q = treecut::load_las(dir / "a.las", &r);
+  EXPECT_EQ(r.info.point_format, 1) << "gps_time asks for format 1";
+  auto find = [&](const std::string& name) -> const treecut::PointAttribute* {
+    for (const treecut::PointAttribute& a : q.attributes) {
+      if (a.name == name) return &a;
+    }
+    return nullptr;
+  };
+  for (const treecut::PointAttribute& a : p.attributes) {
+    const treecut::PointAttribute* b = find(a.name);
+    ASSERT_NE(b, nullptr) << a.name;
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      EXPECT_NEAR(b->offset + double(b->values[i]), a.offset + double(a.values[i]), 1e-6) << a.name;
+    }
+  }
+}
+
 TEST(LasSave, RefusesWhatLasCannotHold) {
   PointSet p;
   p.positions = {{0, 0, 0}, {1e9f, 0, 0}};
@@ -402,23 +523,36 @@ TEST(TextCloud, XyzPtsAndCsvAreRecognizedAndRead) {
   EXPECT_EQ(n.normals[0], glm::vec3(0, 0, 1));
   // PTS: the count line, then x y z intensity r g b.
   std::vector<std::string> warnings;
-  const PointSet p = treecut::load_text_cloud_from_memory(
-      "2\n1 2 3 -100 10 20 30\n4 5 6 -90 40 50 60\n", "p.pts",
-      [&](const std::string& w) { warnings.push_back(w); });
+  const PointSet p =
+      treecut::load_text_cloud_from_memory("2\n1 2 3 -100 10 20 30\n4 5 6 -90 40 50 60\n", "p.pts",
+                                           [&](const std::string& w) { warnings.push_back(w); });
   ASSERT_EQ(p.size(), 2u);
   EXPECT_EQ(p.colors[0], glm::u8vec4(10, 20, 30, 255));
-  ASSERT_EQ(warnings.size(), 1u);
-  EXPECT_EQ(warnings[0], "p.pts: not kept: intensity");
+  EXPECT_TRUE(warnings.empty());
+  ASSERT_EQ(p.attributes.size(), 1u);
+  EXPECT_EQ(p.attributes[0].name, "intensity");
+  EXPECT_EQ(p.attributes[0].values, (std::vector<float>{-100.0f, -90.0f}));
   // CSV with a header, columns in any order, unknown ones named.
   warnings.clear();
   const PointSet c = treecut::load_text_cloud_from_memory(
-      "\"Classification\",\"Z\",\"X\",\"Y\",\"Red\",\"Green\",\"Blue\"\r\n2,3,1,2,9,8,7\r\n", "c.csv",
-      [&](const std::string& w) { warnings.push_back(w); });
+      "\"Classification\",\"Z\",\"X\",\"Y\",\"Red\",\"Green\",\"Blue\"\r\n2,3,1,2,9,8,7\r\n",
+      "c.csv", [&](const std::string& w) { warnings.push_back(w); });
   ASSERT_EQ(c.size(), 1u);
   EXPECT_EQ(file_position(c, 0), glm::dvec3(1, 2, 3));
   EXPECT_EQ(c.colors[0], glm::u8vec4(9, 8, 7, 255));
   ASSERT_EQ(warnings.size(), 1u);
-  EXPECT_EQ(warnings[0], "c.csv: not kept: \"Classification\"");
+  // A column with one value colours nothing: named, not kept.
+  EXPECT_EQ(warnings[0], "c.csv: the same at every point, not kept: classification 2");
+  EXPECT_TRUE(c.attributes.empty());
+  // A header's other columns are attributes, by name and kind.
+  const PointSet k = treecut::load_text_cloud_from_memory(
+      "x y z intensity class\n0 0 0 10 2\n1 0 0 30 6\n0 1 0 20 2\n", "k.txt");
+  ASSERT_EQ(k.attributes.size(), 2u);
+  EXPECT_EQ(k.attributes[0].name, "intensity");
+  EXPECT_EQ(k.attributes[0].kind, treecut::AttributeKind::measure);
+  EXPECT_EQ(k.attributes[1].name, "class");
+  EXPECT_EQ(k.attributes[1].kind, treecut::AttributeKind::category);
+  EXPECT_EQ(k.attributes[1].values, (std::vector<float>{2, 6, 2}));
 }
 
 TEST(TextCloud, MalformedLinesAreOneLineNamingTheLine) {

@@ -34,8 +34,10 @@ int main(int argc, char** argv) {
         Generated{ModelKind::Sphere, 7, "sphere-7"}, Generated{ModelKind::Sphere, 40, "sphere-40"},
         Generated{ModelKind::Terrain, 64, "terrain-64"},
         Generated{ModelKind::City, 120, "city-120"}}) {
-    save_cache(build_from_points(generate_model(g.kind, g.points, 3)), key,
-               out / (std::string(g.name) + ".tch"));
+    PointSet points = generate_model(g.kind, g.points, 3);
+    // The city's cache carries attributes (intensity, classes): the table too is fuzzed.
+    if (g.kind == ModelKind::City) treecut::tools::add_survey_attributes(points, g.kind);
+    save_cache(build_from_points(std::move(points)), key, out / (std::string(g.name) + ".tch"));
     ++written;
   }
   for (int i = 2; i < argc; ++i) {

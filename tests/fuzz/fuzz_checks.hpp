@@ -41,6 +41,23 @@ inline std::string check_point_set(const PointSet& p) {
     if (c.w != 255) return "a colour is not opaque";
   for (const glm::uvec3& t : p.triangles)
     if (t.x >= n || t.y >= n || t.z >= n) return "a triangle index is out of range";
+  // Attributes (issue 29): one value a point, finite or NaN, at most
+  // kMaxAttributes of short names, none constant, offsets finite.
+  if (p.attributes.size() > kMaxAttributes) return "more attributes than kMaxAttributes";
+  for (const PointAttribute& a : p.attributes) {
+    if (a.values.size() != n) return "attribute " + a.name + " is not of the point count";
+    if (a.name.size() > kMaxAttributeName) return "an attribute name is too long";
+    if (!std::isfinite(a.offset)) return "attribute " + a.name + " has a non-finite offset";
+    float first = NAN;
+    bool varies = false;
+    for (const float v : a.values) {
+      if (std::isinf(v)) return "attribute " + a.name + " holds an infinity";
+      if (std::isnan(v)) continue;
+      if (std::isnan(first)) first = v;
+      varies = varies || v != first;
+    }
+    if (!varies) return "attribute " + a.name + " is constant and was kept";
+  }
   return {};
 }
 
@@ -54,6 +71,11 @@ inline std::string check_loaded_hierarchy(const Hierarchy& h) {
   const std::uint32_t n = h.node_count();
   if (n == 0 || h.level_count() < 1) return "loaded empty";
   if (h.parent(h.root()) != kNoNode) return "the root has a parent";
+  for (const NodeAttribute& a : h.attributes()) {
+    if (a.values.size() != n) return "attribute " + a.name + " is not of the node count";
+    // Any float is a value the colouring takes (NaN: none; infinities clamp).
+    if (a.name.size() > kMaxAttributeName) return "an attribute name is too long";
+  }
   std::vector<bool> seen(n, false);
   std::vector<NodeId> order{h.root()};  // breadth first
   seen[h.root()] = true;

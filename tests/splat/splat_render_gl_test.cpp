@@ -13,6 +13,7 @@
 #include "treecut/las.hpp"
 #include "treecut/model.hpp"
 #include "treecut/model_io.hpp"
+#include "treecut/splat/coloring.hpp"
 #include "treecut/splat/context.hpp"
 #include "treecut/splat/gl_objects.hpp"
 #include "treecut/splat/image.hpp"
@@ -258,6 +259,125 @@ TEST(SplatMapCoordinates, AModelAtUtmCoordinatesRendersAsAtTheOrigin) {
   std::printf("map coordinates: %zu of %zu pixels unmatched with a double origin, %zu as floats\n",
               test::unmatched_either_way(utm_image, zero), pixels, broken);
   EXPECT_GT(broken, pixels / 50) << "the check has teeth: floats of map coordinates are off";
+}
+
+// Issue 29, item 3: colouring by an attribute and hiding classes.
+// A plane of two halves: ground (class 2) on the left, buildings (6) on the
+// right, with an intensity rising from left to right.
+Hierarchy classified_plane() {
+  PointSet p;
+  PointAttribute intensity{"intensity", AttributeKind::measure, 0.0, {}};
+  PointAttribute cls{"classification", AttributeKind::category, 0.0, {}};
+  for (int i = 0; i < 120; ++i) {
+    for (int j = 0; j < 90; ++j) {
+      const float x = -0.6f + 0.01f * float(i);
+      p.positions.push_back({x, -0.45f + 0.01f * float(j), 0.0f});
+      p.normals.push_back({0, 0, 1});
+      intensity.values.push_back(float(i));
+      cls.values.push_back(x < 0.0f ? 2.0f : 6.0f);
+    }
+  }
+  p.attributes = {intensity, cls};
+  return build_from_points(std::move(p));
+}
+
+TEST(Coloring, AttributesMapByKindAndClassesHide) {
+  const Hierarchy h = classified_plane();
+  const glm::vec3 up(0, 0, 1);
+  ColorBy by;
+  by.source = "intensity";
+  const Coloring c = color_nodes(h, by, up);
+  EXPECT_TRUE(c.legend.continuous);
+  EXPECT_EQ(c.legend.map, ColorMap::viridis);
+  // The 2nd and 98th percentiles of 0..119 (sampled).
+  EXPECT_NEAR(c.legend.low, 2.4, 1.5);
+  EXPECT_NEAR(c.legend.high, 116.6, 1.5);
+  NodeId left = 0, right = 0;
+  for (NodeId n = 0; n < h.node_count(); ++n) {
+    if (!h.is_leaf(n)) continue;
+    if (h.center(n).x < -0.595f) left = n;
+    if (h.center(n).x > 0.585f) right = n;
+  }
+  EXPECT_EQ(c.colors[left], map_color(ColorMap::viridis, 0.0f));
+  EXPECT_EQ(c.colors[right], map_color(ColorMap::viridis, 1.0f));
+  EXPECT_EQ(map_color(ColorMap::viridis, 0.0f), glm::u8vec4(68, 1, 84, 255));
+  EXPECT_EQ(map_color(ColorMap::grey, 1.0f), glm::u8vec4(255, 255, 255, 255));
+
+  by.source = "classification";
+  const Coloring k = color_nodes(h, by, up);
+  EXPECT_FALSE(k.legend.continuous);
+  ASSERT_EQ(k.legend.entries.size(), 2u);
+  EXPECT_EQ(k.legend.entries[0].label, "2 ground");
+  EXPECT_EQ(k.legend.entries[1].label, "6 building");
+  EXPECT_NEAR(k.legend.entries[0].share, 0.5, 0.05);
+  EXPECT_EQ(k.colors[left], category_color(2, true));
+  EXPECT_EQ(k.colors[right], category_color(6, true));
+  EXPECT_EQ(k.hidden_nodes, 0u);
+
+  parse_class_filter("2", by);
+  const Coloring shown = color_nodes(h, by, up);
+  EXPECT_EQ(shown.colors[left].w, 255);
+  EXPECT_EQ(shown.colors[right].w, 0) << "a building leaf is hidden";
+  EXPECT_TRUE(shown.legend.entries[1].hidden);
+  parse_class_filter("-2", by);
+  EXPECT_EQ(color_nodes(h, by, up).colors[left].w, 0);
+
+  by.source = "elevation";
+  by.show_classes.clear(), by.hide_classes.clear();
+  EXPECT_TRUE(color_nodes(h, by, up).legend.continuous);
+  by.source = "reflectance";
+  try {
+    (void)color_nodes(h, by, up);
+    ADD_FAILURE() << "an unknown attribute";
+  } catch (const InputError& e) {
+    EXPECT_STREQ(e.what(),
+                 "--color 'reflectance': the model has no such attribute (it has rgb, elevation, "
+                 "intensity, classification)");
+  }
+  EXPECT_THROW(parse_class_filter("2,-7", by), InputError);
+  EXPECT_THROW(parse_class_filter("2,x", by), InputError);
+  EXPECT_THROW(parse_class_filter("256", by), InputError);
+  EXPECT_THROW(parse_color_map("jet"), InputError);
+}
+
+// Hidden classes are not drawn in any mode: the right half of the plane
+// disappears, the left half stays as it was.
+TEST(Coloring, HiddenClassesAreNotDrawn) {
+  context();
+  const Hierarchy h = classified_plane();
+  Renderer r(h, glm::ivec2(kWidth, kHeight));
+  CutBuffer cut;
+  cut.upload(h, TreeCut::leaf_cut(h).nodes());
+  const Camera cam = default_camera(h.bounds_min(), h.bounds_max(), float(kWidth) / kHeight);
+  for (const SplatMode mode : {SplatMode::Fast, SplatMode::HighQuality, SplatMode::FixedSize}) {
+    RenderSettings s;
+    s.mode = mode;
+    const auto bg = background_bytes(s);
+    auto covered = [&](bool left_half) {
+      r.draw(cut, cam, s, true);
+      const Image img{kWidth, kHeight, r.read_pixels()};
+      std::size_t n = 0;
+      for (int y = 0; y < kHeight; ++y) {
+        for (int x = left_half ? 0 : kWidth / 2 + 4; x < (left_half ? kWidth / 2 - 4 : kWidth);
+             ++x) {
+          const std::uint8_t* p = &img.rgba[(std::size_t(y) * kWidth + std::size_t(x)) * 4];
+          n += std::abs(p[0] - bg[0]) + std::abs(p[1] - bg[1]) + std::abs(p[2] - bg[2]) > 10;
+        }
+      }
+      return n;
+    };
+    r.set_node_colors(h, {});
+    const std::size_t left_all = covered(true), right_all = covered(false);
+    EXPECT_GT(right_all, std::size_t{kWidth * kHeight / 8}) << splat_mode_name(mode);
+    ColorBy by;
+    by.source = "classification";
+    parse_class_filter("2", by);
+    r.set_node_colors(h, color_nodes(h, by, {0, 0, 1}).colors);
+    EXPECT_EQ(covered(false), 0u) << splat_mode_name(mode);
+    EXPECT_NEAR(double(covered(true)), double(left_all), 0.02 * double(left_all))
+        << splat_mode_name(mode);
+  }
+  EXPECT_THROW(r.set_node_colors(h, std::vector<glm::u8vec4>(3)), std::invalid_argument);
 }
 
 TEST(SplatQuery, SamplesPassedIsPolledWithoutBlocking) {

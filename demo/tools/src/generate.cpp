@@ -139,4 +139,25 @@ PointSet generate_model(ModelKind kind, std::size_t points, std::uint64_t seed) 
   throw InputError("generate_model: unknown kind");
 }
 
+void add_survey_attributes(PointSet& points, ModelKind kind) {
+  PointAttribute intensity{"intensity", AttributeKind::measure, 0.0, {}};
+  intensity.values.resize(points.size(), 32768.0f);
+  if (points.has_colors()) {
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      const glm::vec3 c = glm::vec3(points.colors[i]) / 255.0f;
+      intensity.values[i] = std::round(65535.0f * (0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z));
+    }
+  }
+  points.attributes.push_back(std::move(intensity));
+  if (kind == ModelKind::City) {
+    // The city's ground is the plane z = 0; roofs and walls rise from it.
+    PointAttribute cls{"classification", AttributeKind::category, 0.0, {}};
+    cls.values.resize(points.size());
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      cls.values[i] = points.positions[i].z > 1e-5f ? 6.0f : 2.0f;
+    }
+    points.attributes.push_back(std::move(cls));
+  }
+}
+
 }  // namespace treecut::tools

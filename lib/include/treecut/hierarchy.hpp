@@ -14,14 +14,15 @@
 
 #include <cstdint>
 #include <functional>
+#include <glm/ext/vector_double3.hpp>
 #include <glm/gtc/type_precision.hpp>
 #include <glm/vec3.hpp>
-#include <glm/ext/vector_double3.hpp>
 #include <glm/vec4.hpp>
 #include <limits>
 #include <memory>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "treecut/point_set.hpp"
@@ -50,6 +51,18 @@ struct HierarchyArrays {
   std::span<const std::uint8_t> depth;         ///< root 0
 };
 
+/// One of the file's per-point scalars over the nodes (PointSet::attributes):
+/// a leaf holds its point's value, an interior node its subtree's summary
+/// (a measure's point-weighted mean, a category's most frequent value).
+struct NodeAttribute {
+  std::string name;
+  AttributeKind kind = AttributeKind::measure;
+  double offset = 0.0;  ///< the file's value is offset + values[n]
+  /// Of the points' finite values (relative, as `values`); NaN when none.
+  float min = 0.0f, max = 0.0f;
+  std::span<const float> values;  ///< node_count() values, NaN: no value
+};
+
 class Hierarchy {
  public:
   Hierarchy() = default;
@@ -71,6 +84,10 @@ class Hierarchy {
   /// models read as floats, near the points for map coordinates (LAS).
   [[nodiscard]] const CoordinateFrame& frame() const { return frame_; }
   [[nodiscard]] const HierarchyArrays& arrays() const { return a_; }
+  /// The file's other per-point scalars, in file order (may be none).
+  [[nodiscard]] const std::vector<NodeAttribute>& attributes() const { return attributes_; }
+  /// The attribute called NAME, or null.
+  [[nodiscard]] const NodeAttribute* find_attribute(std::string_view name) const;
   /// Bytes held by the node arrays (what a cache maps).
   [[nodiscard]] std::size_t memory_bytes() const;
 
@@ -91,11 +108,13 @@ class Hierarchy {
     return n != 0 && a_.parent[n - 1] != a_.parent[n];
   }
 
-  /// Assembles a hierarchy from arrays whose lifetime `storage` guarantees.
-  /// Used by the builder and the cache loader; checks only the sizes.
+  /// Assembles a hierarchy from arrays (and attribute values) whose
+  /// lifetime `storage` guarantees. Used by the builder and the cache
+  /// loader; checks only the sizes.
   static Hierarchy from_arrays(std::shared_ptr<const void> storage, const HierarchyArrays& arrays,
                                std::vector<NodeId> level_begin, glm::vec3 bounds_min,
-                               glm::vec3 bounds_max, CoordinateFrame frame = {});
+                               glm::vec3 bounds_max, CoordinateFrame frame = {},
+                               std::vector<NodeAttribute> attributes = {});
 
  private:
   std::shared_ptr<const void> storage_;
@@ -106,6 +125,7 @@ class Hierarchy {
   glm::vec3 bounds_min_{0.0f};
   glm::vec3 bounds_max_{0.0f};
   CoordinateFrame frame_;
+  std::vector<NodeAttribute> attributes_;
 };
 
 /// Packs a unit vector and a cone cosine into the snorm16 layout above.

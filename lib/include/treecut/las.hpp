@@ -5,11 +5,15 @@
 //
 // What the reader keeps: positions (the integers times the scale plus the
 // offset, in double, stored relative to PointSet::origin so that floats keep
-// millimetres at map coordinates) and RGB (formats 2, 3, 5, 7, 8, 10). What
-// it reports (LasInfo): the header, the coordinate system (the WKT or the
-// GeoTIFF keys of the VLRs and EVLRs), the extra bytes' names, and the
-// per-point fields it does not keep yet (intensity, returns,
-// classification...), each named in one warning.
+// millimetres at map coordinates), RGB (formats 2, 3, 5, 7, 8, 10) and every
+// other per-point field as a named attribute (PointSet::attributes):
+// intensity, return_number, number_of_returns, classification,
+// classification_flags (synthetic 1, key-point 2, withheld 4, overlap 8),
+// scanner_channel, scan_angle (degrees), user_data, point_source_id,
+// gps_time, nir and the extra bytes by their names. An attribute with one
+// value for every point is named in a warning instead of kept. What it
+// reports (LasInfo): the header, the coordinate system (the WKT or the
+// GeoTIFF keys of the VLRs and EVLRs) and the extra bytes' descriptors.
 //
 // Guarded as the PLY reader: every count and offset is checked against the
 // file size before anything is sized from it; a malformed file is one
@@ -28,6 +32,15 @@
 
 namespace treecut {
 
+/// One field of the extra bytes after the standard point record, as its
+/// descriptor (LAS 1.4 R15, section 2.5.13) says.
+struct LasExtraBytes {
+  std::string name;
+  std::uint8_t data_type = 0;  ///< 1-10: uchar .. double; 0: `options` undocumented bytes
+  std::uint8_t options = 0;    ///< bit 0 no_data, 3 scale, 4 offset are used
+  double no_data = 0.0, scale = 1.0, offset = 0.0;  ///< of the first element
+};
+
 /// What a LAS file's header and records say.
 struct LasInfo {
   int version_major = 1, version_minor = 2;
@@ -42,8 +55,8 @@ struct LasInfo {
   /// The coordinate system: "WKT: ..." (OGC WKT record) or "GeoTIFF: EPSG
   /// code N" / "GeoTIFF: N keys" (GeoKeyDirectory record); empty if none.
   std::string crs;
-  std::vector<std::string> extra_bytes;  ///< names of the extra-bytes fields
-  bool waveform = false;                 ///< the format carries wave packets (not read)
+  std::vector<LasExtraBytes> extra_bytes;  ///< the extra-bytes fields, in record order
+  bool waveform = false;                   ///< the format carries wave packets (not read)
 };
 
 struct LasLoadReport {
@@ -71,9 +84,11 @@ struct LasWriteOptions {
   double scale = 0.001;
 };
 
-/// Writes LAS 1.2, point format 2 (RGB) when the points have colours, else
-/// 0: each position origin + positions[i] as integers of `scale` around an
-/// offset near the points. Through an AtomicFile like save_ply. Throws
+/// Writes LAS 1.2, point format 0 to 3 (3 with RGB and a gps_time
+/// attribute): the standard fields from the attributes of those names
+/// (return 1 of 1 and class 1 without them), every other attribute as a
+/// float in the extra bytes (the VLR names it); each position origin + positions[i] as integers of
+/// `scale` around an offset near the points. Through an AtomicFile like save_ply. Throws
 /// std::invalid_argument for a bad scale or sizes, or for coordinates the
 /// scale cannot hold in 32 bits; std::runtime_error "PATH: REASON" on I/O
 /// errors.

@@ -3,7 +3,8 @@
 // With faces (a mesh): area-weighted face normals, a splat radius that covers
 // every incident triangle, and curvature from the covariance of the 1-ring.
 // Without faces (a point cloud): PCA over the k nearest neighbours (Hoppe et
-// al. 1992) oriented away from the centroid, a radius from the local density
+// al. 1992) oriented away from the centroid (a survey, whose format says z is
+// up, facing up where it is not a wall), a radius from the local density
 // and the surface variation of Pauly et al. 2002.
 #include "treecut/attributes.hpp"
 
@@ -149,6 +150,7 @@ void from_neighbours(PointSet& ps, int k, bool want_normals, bool want_radii, bo
   glm::dvec3 centroid(0.0);
   for (const auto& p : ps.positions) centroid += glm::dvec3(p);
   const glm::vec3 c = glm::vec3(centroid / static_cast<double>(std::max<std::size_t>(n, 1)));
+  const bool z_up = ps.frame.z_up;
   grid.for_each_knn(k, [&](std::uint32_t i, int found, const std::uint32_t* idx, const float* d2) {
     const glm::vec3 p = ps.positions[i];
     if (want_radii && found > 0) {
@@ -168,7 +170,14 @@ void from_neighbours(PointSet& ps, int k, bool want_normals, bool want_radii, bo
     if (want_curvature) ps.curvature[i] = detail::surface_variation(eig);
     {
       glm::vec3 nrm = eig.smallest;
-      if (glm::dot(nrm, p - c) < 0.0f) nrm = -nrm;  // outward from the centroid
+      if (z_up && std::fabs(nrm.z) >= 0.2f) {
+        // A survey (the format says z is up: LAS) was scanned from above or
+        // beside: ground and roofs face up. Outward from the centroid would
+        // turn a city's ground down, as the buildings lift the centroid.
+        if (nrm.z < 0.0f) nrm = -nrm;
+      } else if (glm::dot(nrm, p - c) < 0.0f) {
+        nrm = -nrm;  // outward from the centroid
+      }
       ps.normals[i] = nrm;
     }
   });

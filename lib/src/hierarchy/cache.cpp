@@ -33,7 +33,9 @@ constexpr char kMagic[8] = {'T', 'C', 'U', 'T', 'H', 'I', 'E', 'R'};
 // 4: and the model's CoordinateFrame: the positions' double-precision
 //    origin, the format's z-up and the coordinate system's text (map
 //    coordinates, issue 29).
-constexpr std::uint32_t kVersion = 4;
+// 5: and the file's per-point attributes per node: a table of records
+//    (name, kind, offset, range, where the values are) after the crs text.
+constexpr std::uint32_t kVersion = 5;
 constexpr std::uint32_t kEndianTag = 0x01020304u;
 constexpr std::size_t kAlign = 64;
 constexpr int kArrays = 9;
@@ -62,8 +64,21 @@ struct Header {
   std::uint64_t level_table;       // offset of level_count + 1 NodeIds
   std::uint64_t offsets[kArrays];  // in HierarchyArrays member order
   std::uint64_t payload_end;       // checksum follows, file size = payload_end + 8
+  std::uint32_t attribute_count;   // Hierarchy::attributes(), at most kMaxAttributes,
+  std::uint32_t reserved;
+  std::uint64_t attribute_table;  // where their AttributeRecords are
 };
 static_assert(std::is_trivially_copyable_v<Header>);
+
+// One attribute: its name (NUL-padded), kind, offset, range and values.
+struct AttributeRecord {
+  char name[kMaxAttributeName + 1];
+  std::uint32_t kind;
+  float min, max;
+  double offset;
+  std::uint64_t values;  // offset of node_count floats
+};
+static_assert(std::is_trivially_copyable_v<AttributeRecord> && sizeof(AttributeRecord) == 80);
 
 CacheKey key_of(const Header& h) {
   return {h.source_size,   h.source_mtime_ns, h.options_bits,    h.source_hash,
@@ -217,6 +232,39 @@ std::optional<CoordinateFrame> read_frame(const Header& h, const MappedFile& map
   return frame;
 }
 
+// The attribute table (version 5): known kinds, NUL-terminated names, a
+// range that is ordered or NaN, values inside the payload.
+template <class InBounds>
+std::optional<std::vector<NodeAttribute>> read_attributes(const Header& h, const MappedFile& map,
+                                                          InBounds in_bounds, std::string* why) {
+  std::vector<NodeAttribute> out;
+  if (h.attribute_count == 0) return out;
+  if (h.attribute_count > kMaxAttributes ||
+      !in_bounds(h.attribute_table, std::uint64_t{h.attribute_count} * sizeof(AttributeRecord)))
+    return fail(why, "attribute table out of bounds"), std::nullopt;
+  std::vector<AttributeRecord> records(h.attribute_count);
+  map.read_guarded([&] {
+    std::memcpy(records.data(), map.data() + h.attribute_table,
+                records.size() * sizeof(AttributeRecord));
+  });
+  const std::size_t n = h.node_count;
+  for (const AttributeRecord& r : records) {
+    const bool range_ok = (std::isnan(r.min) && std::isnan(r.max)) ||
+                          (std::isfinite(r.min) && std::isfinite(r.max) && r.min <= r.max);
+    if (r.name[kMaxAttributeName] != '\0' || r.kind > 1 || !range_ok || !std::isfinite(r.offset))
+      return fail(why, "bad attribute record"), std::nullopt;
+    if (!in_bounds(r.values, n * sizeof(float)))
+      return fail(why, "attribute values out of bounds"), std::nullopt;
+    out.push_back({std::string(r.name),
+                   static_cast<AttributeKind>(r.kind),
+                   r.offset,
+                   r.min,
+                   r.max,
+                   {reinterpret_cast<const float*>(map.data() + r.values), n}});
+  }
+  return out;
+}
+
 std::optional<Hierarchy> map_and_verify(const std::filesystem::path& path, Header* out_header,
                                         std::string* why) {
   const int fd = open_for_reading(path, why);
@@ -293,6 +341,11 @@ std::optional<Hierarchy> map_and_verify(const std::filesystem::path& path, Heade
                     {reinterpret_cast<const NodeId*>(at(6)), nn},
                     {reinterpret_cast<const std::uint8_t*>(at(7)), nn},
                     {reinterpret_cast<const std::uint8_t*>(at(8)), nn}};
+  std::optional<std::vector<NodeAttribute>> attributes = read_attributes(
+      h, *map,
+      [&](std::uint64_t off, std::uint64_t bytes_needed) { return in_bounds(off, bytes_needed); },
+      why);
+  if (!attributes) return std::nullopt;
   std::vector<NodeId> levels(h.level_count + 1);
   const char* problem = nullptr;
   map->read_guarded([&] {
@@ -301,10 +354,9 @@ std::optional<Hierarchy> map_and_verify(const std::filesystem::path& path, Heade
   });
   if (problem != nullptr) return fail(why, problem), std::nullopt;
   if (out_header) *out_header = h;
-  return Hierarchy::from_arrays(std::move(map), a, std::move(levels),
-                                {h.bounds[0], h.bounds[1], h.bounds[2]},
-                                {h.bounds[3], h.bounds[4], h.bounds[5]},
-                                std::move(*frame));
+  return Hierarchy::from_arrays(
+      std::move(map), a, std::move(levels), {h.bounds[0], h.bounds[1], h.bounds[2]},
+      {h.bounds[3], h.bounds[4], h.bounds[5]}, std::move(*frame), std::move(*attributes));
 }
 
 // The header of CACHE as it is on disk, unverified (the checksum is checked
@@ -386,6 +438,24 @@ void save_cache(const Hierarchy& hier, const CacheKey& key, const std::filesyste
   }
   h.crs_offset = crs.empty() ? 0 : off;
   off = align_up(off + crs.size());
+  const std::vector<NodeAttribute>& attributes = hier.attributes();
+  if (attributes.size() > kMaxAttributes)
+    throw std::invalid_argument("save_cache: more than " + std::to_string(kMaxAttributes) +
+                                " attributes");
+  std::vector<AttributeRecord> records(attributes.size());
+  h.attribute_count = static_cast<std::uint32_t>(attributes.size());
+  h.attribute_table = attributes.empty() ? 0 : off;
+  off = align_up(off + records.size() * sizeof(AttributeRecord));
+  for (std::size_t k = 0; k < attributes.size(); ++k) {
+    const NodeAttribute& attribute = attributes[k];
+    AttributeRecord& r = records[k];
+    std::memset(&r, 0, sizeof r);
+    std::memcpy(r.name, attribute.name.data(), std::min(attribute.name.size(), kMaxAttributeName));
+    r.kind = static_cast<std::uint32_t>(attribute.kind);
+    r.min = attribute.min, r.max = attribute.max, r.offset = attribute.offset;
+    r.values = off;
+    off = align_up(off + attribute.values.size_bytes());
+  }
   h.payload_end = off;
 
   // Temporary + rename (AtomicFile): readers see the old file or the complete
@@ -417,6 +487,10 @@ void save_cache(const Hierarchy& hier, const CacheKey& key, const std::filesyste
     put(arrays[static_cast<std::size_t>(i)].first, arrays[static_cast<std::size_t>(i)].second,
         h.offsets[i]);
   if (!crs.empty()) put(crs.data(), crs.size(), h.crs_offset);
+  if (!records.empty())
+    put(records.data(), records.size() * sizeof(AttributeRecord), h.attribute_table);
+  for (std::size_t k = 0; k < records.size(); ++k)
+    put(attributes[k].values.data(), attributes[k].values.size_bytes(), records[k].values);
   put(nullptr, 0, h.payload_end);
   const std::uint64_t digest = sum.finish();
   out.write(&digest, sizeof digest);

@@ -27,6 +27,7 @@
 #include <thread>
 #include <vector>
 
+#include "node_attributes.hpp"
 #include "treecut/parallel.hpp"
 
 namespace treecut {
@@ -43,6 +44,7 @@ struct OwnedArrays {
   std::vector<NodeId> first_child;
   std::vector<std::uint8_t> child_count;
   std::vector<std::uint8_t> depth;
+  std::vector<detail::OwnedAttribute> attributes;  // the file's scalars per node
 };
 
 struct Item {  // a point in build order: its position and its index in the PointSet
@@ -309,6 +311,8 @@ void fill_leaves(OwnedArrays& a, std::vector<Range>&& ranges, std::vector<Item>&
       threads);
   release(points.colors);
 
+  a.attributes = detail::fill_leaf_values(points.attributes, leaf_point, a.child_count, threads);
+
   a.priority.resize(M);
   a.point_count.resize(M);
   parallel_for(
@@ -454,8 +458,9 @@ Hierarchy assemble(OwnedArrays&& a, std::vector<NodeId>&& level_begin, const Bui
   HierarchyArrays spans{owned->center_radius, owned->normal_cone, owned->color,
                         owned->priority,      owned->point_count, owned->parent,
                         owned->first_child,   owned->child_count, owned->depth};
+  std::vector<NodeAttribute> attributes = detail::node_attribute_views(owned->attributes);
   return Hierarchy::from_arrays(owned, spans, std::move(level_begin), order.bounds_min,
-                                order.bounds_max, std::move(frame));
+                                order.bounds_max, std::move(frame), std::move(attributes));
 }
 
 }  // namespace
@@ -474,13 +479,26 @@ glm::i16vec4 pack_normal_cone(glm::vec3 normal, float cone_cos) {
 std::size_t Hierarchy::memory_bytes() const {
   const std::size_t n = node_count_;
   return n * (sizeof(glm::vec4) + sizeof(glm::i16vec4) + sizeof(glm::u8vec4) + sizeof(float) +
-              sizeof(std::uint32_t) + 2 * sizeof(NodeId) + 2 * sizeof(std::uint8_t));
+              sizeof(std::uint32_t) + 2 * sizeof(NodeId) + 2 * sizeof(std::uint8_t) +
+              attributes_.size() * sizeof(float));
+}
+
+const NodeAttribute* Hierarchy::find_attribute(std::string_view name) const {
+  for (const NodeAttribute& a : attributes_) {
+    if (a.name == name) return &a;
+  }
+  return nullptr;
 }
 
 Hierarchy Hierarchy::from_arrays(std::shared_ptr<const void> storage, const HierarchyArrays& a,
                                  std::vector<NodeId> level_begin, glm::vec3 bounds_min,
-                                 glm::vec3 bounds_max, CoordinateFrame frame) {
+                                 glm::vec3 bounds_max, CoordinateFrame frame,
+                                 std::vector<NodeAttribute> attributes) {
   const std::size_t n = a.center_radius.size();
+  for (const NodeAttribute& attribute : attributes) {
+    if (attribute.values.size() != n)
+      throw std::invalid_argument("attribute values differ in size");
+  }
   if (a.normal_cone.size() != n || a.color.size() != n || a.priority.size() != n ||
       a.point_count.size() != n || a.parent.size() != n || a.first_child.size() != n ||
       a.child_count.size() != n || a.depth.size() != n)
@@ -496,6 +514,7 @@ Hierarchy Hierarchy::from_arrays(std::shared_ptr<const void> storage, const Hier
   h.bounds_min_ = bounds_min;
   h.bounds_max_ = bounds_max;
   h.frame_ = std::move(frame);
+  h.attributes_ = std::move(attributes);
   return h;
 }
 
@@ -516,6 +535,8 @@ Hierarchy build_hierarchy(PointSet&& points, const BuildOptions& options) {
   Topology topology = build_topology(order.items, a, threads, progress);
   fill_leaves(a, std::move(topology.ranges), std::move(order.items), points, threads);
   fill_interior(a, topology.level_begin, N, options.parent_at_real_point, threads, progress);
+  detail::fill_interior_values(a.attributes, a.child_count, a.first_child, a.point_count,
+                               topology.level_begin, threads);
   progress.finish();
   return assemble(std::move(a), std::move(topology.level_begin), order, std::move(frame));
 }

@@ -1,6 +1,6 @@
 // LAS import: ASPRS "LAS Specification 1.4 - R15" (2019) and its 1.0-1.3
 // predecessors, read as untrusted bytes: the public header block, the VLRs and
-// EVLRs (for the coordinate system and the extra bytes' names) and the point
+// EVLRs (for the coordinate system and the extra bytes' descriptors) and the point
 // records of formats 0 to 10, in chunks. See treecut/las.hpp.
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "las_fields.hpp"
 #include "little_endian.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
@@ -154,13 +155,27 @@ void read_record(const Source& f, const std::string& user, std::uint16_t id, std
     return;
   }
   for (std::size_t d = 0; d + 192 <= payload.size(); d += 192) {
-    info.extra_bytes.push_back(
-        text_field(reinterpret_cast<const unsigned char*>(payload.data()) + d + 4, 32));
+    const auto* e = reinterpret_cast<const unsigned char*>(payload.data()) + d;
+    LasExtraBytes field;
+    field.data_type = e[2];
+    field.options = e[3];
+    field.name = text_field(e + 4, 32);
+    // no_data, min, max, scale and offset are three 8-byte slots each; a
+    // scalar uses the first (a double, or an integer for integer types).
+    const int t = field.data_type;
+    const bool integral = t >= 1 && t <= 8;
+    field.no_data = !integral      ? get<double>(e + 40)
+                    : (t % 2 == 0) ? static_cast<double>(get<std::int64_t>(e + 40))
+                                   : static_cast<double>(get<std::uint64_t>(e + 40));
+    field.scale = get<double>(e + 112);
+    field.offset = get<double>(e + 136);
+    if (!(std::isfinite(field.scale) && std::isfinite(field.offset))) field.options &= ~24u;
+    info.extra_bytes.push_back(std::move(field));
   }
 }
 
-void read_vlrs(const Source& f, std::uint64_t header_size, std::uint32_t count,
-               std::uint64_t end, LasInfo& info) {
+void read_vlrs(const Source& f, std::uint64_t header_size, std::uint32_t count, std::uint64_t end,
+               LasInfo& info) {
   std::uint64_t at = header_size;
   for (std::uint32_t i = 0; i < count; ++i) {
     if (at + kVlrHeader > end) {
@@ -182,8 +197,8 @@ void read_vlrs(const Source& f, std::uint64_t header_size, std::uint32_t count,
   }
 }
 
-void read_evlrs(const Source& f, std::uint64_t start, std::uint32_t count,
-                std::uint64_t points_end, LasInfo& info) {
+void read_evlrs(const Source& f, std::uint64_t start, std::uint32_t count, std::uint64_t points_end,
+                LasInfo& info) {
   if (count == 0) return;
   if (start < points_end || start > f.size()) {
     throw LasError("the extended variable length records start at " + std::to_string(start) +
@@ -300,8 +315,8 @@ Parsed parse_header(const Source& f) {
     const std::uint64_t extended = get<std::uint64_t>(h + 247);
     if (extended != 0) info.point_count = extended;
     if (extended != 0 && legacy != 0 && legacy != extended) {
-      throw LasError("the legacy point count " + std::to_string(legacy) +
-                     " and the point count " + std::to_string(extended) + " disagree");
+      throw LasError("the legacy point count " + std::to_string(legacy) + " and the point count " +
+                     std::to_string(extended) + " disagree");
     }
   }
   if (out.point_offset < header_size || out.point_offset > size) {
@@ -342,18 +357,6 @@ glm::dvec3 choose_origin(const LasInfo& info, glm::dvec3 first) {
   return glm::round(inside ? centre : first);
 }
 
-// The per-point fields of the format that the PointSet does not keep (issue
-// 29's attributes will), named once.
-std::string fields_not_kept(const LasInfo& info) {
-  std::string s = "intensity, return number, number of returns, classification, scan angle, "
-                  "user data, point source id";
-  const int f = info.point_format;
-  if (f == 1 || f >= 3) s += ", GPS time";
-  if (f == 8 || f == 10) s += ", near infrared";
-  for (const std::string& e : info.extra_bytes) s += ", " + (e.empty() ? "(unnamed)" : e);
-  return s;
-}
-
 PointSet read_points(const Source& f, const Parsed& parsed, const WarningSink& warn) {
   const LasInfo& info = parsed.info;
   PointSet points;
@@ -370,8 +373,11 @@ PointSet read_points(const Source& f, const Parsed& parsed, const WarningSink& w
   const glm::dvec3 offset(info.offset[0], info.offset[1], info.offset[2]);
   glm::dvec3 origin(0.0);
   std::uint16_t max_channel = 0;
+  std::vector<std::string> not_kept;
+  detail::LasFields fields(info, static_cast<std::size_t>(n), not_kept);
   for (std::uint64_t begin = 0; begin < n; begin += chunk_points) {
-    const std::size_t count = static_cast<std::size_t>(std::min<std::uint64_t>(chunk_points, n - begin));
+    const std::size_t count =
+        static_cast<std::size_t>(std::min<std::uint64_t>(chunk_points, n - begin));
     f.read(parsed.point_offset + begin * length, chunk.data(), count * length);
     for (std::size_t i = 0; i < count; ++i) {
       const unsigned char* r = chunk.data() + i * length;
@@ -384,6 +390,7 @@ PointSet read_points(const Source& f, const Parsed& parsed, const WarningSink& w
         points.frame.origin = origin;
       }
       points.positions[static_cast<std::size_t>(begin) + i] = glm::vec3(p - origin);
+      fields.read(static_cast<std::size_t>(begin) + i, r);
       if (rgb_at != 0) {
         const glm::u16vec3 c(get<std::uint16_t>(r + rgb_at), get<std::uint16_t>(r + rgb_at + 2),
                              get<std::uint16_t>(r + rgb_at + 4));
@@ -400,10 +407,14 @@ PointSet read_points(const Source& f, const Parsed& parsed, const WarningSink& w
       points.colors[i] = glm::u8vec4(glm::u16vec3(rgb16[i] >> std::uint16_t(shift)), 255);
     }
   }
+  points.attributes = fields.take();
+  const std::vector<std::string> constant = detail::drop_constant_attributes(points.attributes);
   if (warn) {
-    if (info.waveform) warn("the waveform packets of point format " +
-                            std::to_string(info.point_format) + " are not read");
-    warn("not kept: " + fields_not_kept(info));
+    if (info.waveform)
+      warn("the waveform packets of point format " + std::to_string(info.point_format) +
+           " are not read");
+    if (!constant.empty()) warn("the same at every point, not kept: " + detail::join(constant));
+    if (!not_kept.empty()) warn("not kept: " + detail::join(not_kept));
   }
   return points;
 }
@@ -444,7 +455,7 @@ PointSet load_las(const std::filesystem::path& path, LasLoadReport* report,
     int fd;
     ~Close() { ::close(fd); }
   } closer{fd};
-  struct stat st{};
+  struct stat st {};
   if (::fstat(fd, &st) != 0) throw InputError(system_error_text(path, errno));
   if (!S_ISREG(st.st_mode)) throw InputError(name + ": not a regular file");
   const FileSource source(fd, static_cast<std::uint64_t>(st.st_size), path);

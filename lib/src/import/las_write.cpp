@@ -1,6 +1,9 @@
-// LAS export (ASPRS LAS 1.2, point data record formats 0 and 2): what `gen`
-// and the tests write to make LAS files, and what `treecut export` would
-// write. Through an AtomicFile, as save_ply.
+// LAS export (ASPRS LAS 1.2, point data record formats 0 to 3): what `gen`
+// and the tests write to make LAS files, and what `treecut export` writes.
+// The standard fields come from the attributes of those names (as the reader
+// names them); every other attribute goes into the extra bytes, as a float
+// with its offset in the descriptor, so a round trip keeps it exactly.
+// Through an AtomicFile, as save_ply.
 #include <algorithm>
 #include <array>
 #include <bit>
@@ -9,6 +12,8 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "little_endian.hpp"
 #include "treecut/file_io.hpp"
@@ -60,12 +65,98 @@ std::array<std::int32_t, 3> integers(const PointSet& points, std::size_t i, cons
   const glm::dvec3 q = points.frame.origin + glm::dvec3(points.positions[i]);
   std::array<std::int32_t, 3> xyz{};
   for (int a = 0; a < 3; ++a) {
-    xyz[static_cast<std::size_t>(a)] = static_cast<std::int32_t>(std::llround((q[a] - g.offset[a]) / scale));
+    xyz[static_cast<std::size_t>(a)] =
+        static_cast<std::int32_t>(std::llround((q[a] - g.offset[a]) / scale));
   }
   return xyz;
 }
 
-std::string header(const PointSet& points, const Grid& g, double scale, bool rgb) {
+// The attributes a record holds: the standard fields by name, the rest as
+// extra bytes.
+struct Layout {
+  const PointAttribute* intensity = nullptr;
+  const PointAttribute* return_number = nullptr;
+  const PointAttribute* number_of_returns = nullptr;
+  const PointAttribute* classification = nullptr;
+  const PointAttribute* flags = nullptr;
+  const PointAttribute* scan_angle = nullptr;
+  const PointAttribute* user_data = nullptr;
+  const PointAttribute* point_source_id = nullptr;
+  const PointAttribute* gps_time = nullptr;
+  std::vector<const PointAttribute*> extra;
+  bool rgb = false;
+
+  [[nodiscard]] int format() const { return (gps_time ? 1 : 0) + (rgb ? 2 : 0); }
+  [[nodiscard]] std::uint16_t record_length() const {
+    constexpr std::uint16_t kBase[4] = {20, 28, 26, 34};
+    return static_cast<std::uint16_t>(kBase[format()] + 4 * extra.size());
+  }
+};
+
+Layout layout_of(const PointSet& points) {
+  Layout l;
+  l.rgb = points.has_colors();
+  const std::pair<const char*, const PointAttribute**> standard[] = {
+      {"intensity", &l.intensity},
+      {"return_number", &l.return_number},
+      {"number_of_returns", &l.number_of_returns},
+      {"classification", &l.classification},
+      {"classification_flags", &l.flags},
+      {"scan_angle", &l.scan_angle},
+      {"user_data", &l.user_data},
+      {"point_source_id", &l.point_source_id},
+      {"gps_time", &l.gps_time}};
+  for (const PointAttribute& a : points.attributes) {
+    if (a.values.size() != points.size()) {
+      throw std::invalid_argument("save_las: attribute " + a.name + " has " +
+                                  std::to_string(a.values.size()) + " values for " +
+                                  std::to_string(points.size()) + " points");
+    }
+    bool placed = false;
+    for (const auto& [name, slot] : standard) {
+      if (a.name == name && *slot == nullptr) *slot = &a, placed = true;
+    }
+    if (!placed) l.extra.push_back(&a);
+  }
+  if (l.extra.size() > 1000) throw std::invalid_argument("save_las: more than 1000 attributes");
+  return l;
+}
+
+// The file's value of attribute A at point I as an integer in [lo, hi]
+// (NaN, no value: 0).
+std::int64_t integer_value(const PointAttribute* a, std::size_t i, std::int64_t lo, std::int64_t hi,
+                           double unit = 1.0) {
+  if (a == nullptr || std::isnan(a->values[i])) return 0;
+  const double v = std::round((a->offset + double(a->values[i])) / unit);
+  return static_cast<std::int64_t>(std::clamp(v, double(lo), double(hi)));
+}
+
+// The extra-bytes VLR (LAS 1.4 R15, 2.5.13; readers of 1.2 files accept it):
+// one 192-byte descriptor per extra attribute, a float with its offset.
+std::string extra_bytes_vlr(const Layout& l) {
+  std::string v;
+  if (l.extra.empty()) return v;
+  put<std::uint16_t>(v, 0);  // reserved
+  put_text(v, "LASF_Spec", 16);
+  put<std::uint16_t>(v, 4);  // record id: extra bytes
+  put<std::uint16_t>(v, static_cast<std::uint16_t>(192 * l.extra.size()));
+  put_text(v, "extra bytes", 32);
+  for (const PointAttribute* a : l.extra) {
+    std::string d;
+    put<std::uint16_t>(d, 0);
+    d.push_back(9);   // float
+    d.push_back(16);  // options: the offset applies
+    put_text(d, a->name, 32);
+    d.append(4 + 24 * 4, '\0');  // unused, no_data, min, max, scale
+    put<double>(d, a->offset);
+    d.append(16, '\0');
+    put_text(d, a->name, 32);  // description
+    v += d;
+  }
+  return v;
+}
+
+std::string header(const PointSet& points, const Grid& g, double scale, const Layout& l) {
   std::string h;
   h += "LASF";
   put<std::uint16_t>(h, 0);  // file source id
@@ -77,21 +168,27 @@ std::string header(const PointSet& points, const Grid& g, double scale, bool rgb
   put_text(h, "treecut save_las", 32);
   put<std::uint16_t>(h, 1);     // creation day of year
   put<std::uint16_t>(h, 2026);  // creation year
-  put<std::uint16_t>(h, 227);   // header size
-  put<std::uint32_t>(h, 227);   // offset to point data: no VLRs
-  put<std::uint32_t>(h, 0);     // VLRs
-  h.push_back(static_cast<char>(rgb ? 2 : 0));
-  put<std::uint16_t>(h, rgb ? 26 : 20);
+  const std::string vlr = extra_bytes_vlr(l);
+  put<std::uint16_t>(h, 227);                                           // header size
+  put<std::uint32_t>(h, static_cast<std::uint32_t>(227 + vlr.size()));  // offset to point data
+  put<std::uint32_t>(h, vlr.empty() ? 0 : 1);                           // VLRs
+  h.push_back(static_cast<char>(l.format()));
+  put<std::uint16_t>(h, l.record_length());
   put<std::uint32_t>(h, static_cast<std::uint32_t>(points.size()));
-  put<std::uint32_t>(h, static_cast<std::uint32_t>(points.size()));  // all first returns
-  for (int r = 1; r < 5; ++r) put<std::uint32_t>(h, 0);
+  // Points by return: counted when the attribute is there, else all first.
+  std::array<std::uint32_t, 5> by_return{};
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const std::int64_t r = l.return_number ? integer_value(l.return_number, i, 0, 7) : 1;
+    if (r >= 1 && r <= 5) ++by_return[static_cast<std::size_t>(r - 1)];
+  }
+  for (const std::uint32_t count : by_return) put<std::uint32_t>(h, count);
   for (int a = 0; a < 3; ++a) put<double>(h, scale);
   for (int a = 0; a < 3; ++a) put<double>(h, g.offset[a]);
   for (int a = 0; a < 3; ++a) {
     put<double>(h, g.max[a]);
     put<double>(h, g.min[a]);
   }
-  return h;
+  return h + vlr;
 }
 
 }  // namespace
@@ -120,26 +217,36 @@ void save_las(const std::filesystem::path& path, const PointSet& points,
     }
   }
   if (points.size() > 0) g.min = lo, g.max = hi;
-  const bool rgb = points.has_colors();
+  const Layout l = layout_of(points);
 
   AtomicFile file(path);  // throws "PATH: REASON"
   constexpr std::size_t kChunk = std::size_t{1} << 20;
-  std::string chunk = header(points, g, scale, rgb);
+  std::string chunk = header(points, g, scale, l);
   for (std::size_t i = 0; i < points.size(); ++i) {
     for (const std::int32_t v : integers(points, i, g, scale)) put<std::int32_t>(chunk, v);
-    put<std::uint16_t>(chunk, 0);  // intensity
-    chunk.push_back(0x09);         // return 1 of 1
-    chunk.push_back(1);            // classification: unclassified
-    chunk.push_back(0);            // scan angle rank
-    chunk.push_back(0);            // user data
-    put<std::uint16_t>(chunk, 0);  // point source id
-    if (rgb) {
+    put<std::uint16_t>(chunk, static_cast<std::uint16_t>(integer_value(l.intensity, i, 0, 65535)));
+    // Without the attributes: return 1 of 1, unclassified (1).
+    const auto ret = l.return_number ? integer_value(l.return_number, i, 0, 7) : 1;
+    const auto of = l.number_of_returns ? integer_value(l.number_of_returns, i, 0, 7) : 1;
+    chunk.push_back(static_cast<char>(ret | (of << 3)));
+    const auto cls = l.classification ? integer_value(l.classification, i, 0, 31) : 1;
+    chunk.push_back(static_cast<char>(cls | (integer_value(l.flags, i, 0, 7) << 5)));
+    chunk.push_back(static_cast<char>(integer_value(l.scan_angle, i, -90, 90)));
+    chunk.push_back(static_cast<char>(integer_value(l.user_data, i, 0, 255)));
+    put<std::uint16_t>(chunk,
+                       static_cast<std::uint16_t>(integer_value(l.point_source_id, i, 0, 65535)));
+    if (l.gps_time) {
+      const PointAttribute& t = *l.gps_time;
+      put<double>(chunk, std::isnan(t.values[i]) ? 0.0 : t.offset + double(t.values[i]));
+    }
+    if (l.rgb) {
       const glm::u8vec4 c = points.colors[i];
       // 8 to 16 bits: 255 becomes 65535.
       put<std::uint16_t>(chunk, static_cast<std::uint16_t>(c.x * 257));
       put<std::uint16_t>(chunk, static_cast<std::uint16_t>(c.y * 257));
       put<std::uint16_t>(chunk, static_cast<std::uint16_t>(c.z * 257));
     }
+    for (const PointAttribute* a : l.extra) put<float>(chunk, a->values[i]);
     if (chunk.size() >= kChunk) {
       file.write(chunk);
       chunk.clear();

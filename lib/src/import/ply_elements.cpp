@@ -53,6 +53,21 @@ VertexRoles find_roles(const Element& vertex, const Warnings& warn) {
 
   roles.radius = scalar_property(vertex, "radius");
   if (roles.radius < 0 && vertex.find("radius") >= 0) warn("ignoring radius: it is a list");
+
+  std::vector<std::string> not_kept;
+  for (int p = 0; p < static_cast<int>(vertex.properties.size()); ++p) {
+    const Property& prop = property(vertex, p);
+    const bool used = p == roles.x || p == roles.y || p == roles.z || p == roles.nx ||
+                      p == roles.ny || p == roles.nz || p == roles.red || p == roles.green ||
+                      p == roles.blue || p == roles.radius;
+    if (used || prop.name == "alpha" || prop.name == "diffuse_alpha") continue;
+    if (prop.is_list || roles.attributes.size() >= kMaxAttributes) {
+      not_kept.push_back("'" + ply::printable(prop.name) + "'" + (prop.is_list ? " (a list)" : ""));
+    } else {
+      roles.attributes.push_back(p);
+    }
+  }
+  if (!not_kept.empty()) warn("vertex properties not kept: " + detail::join(not_kept));
   return roles;
 }
 

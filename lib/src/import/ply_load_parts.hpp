@@ -19,6 +19,7 @@
 #include <utility>
 #include <vector>
 
+#include "attribute_column.hpp"
 #include "ply_format.hpp"
 #include "ply_openmesh.hpp"
 #include "treecut/ply.hpp"
@@ -40,6 +41,9 @@ struct VertexRoles {
   int nx = -1, ny = -1, nz = -1;
   int red = -1, green = -1, blue = -1;
   int radius = -1;
+  /// Every other scalar property (not alpha): kept as PointSet::attributes,
+  /// at most kMaxAttributes.
+  std::vector<int> attributes;
 
   [[nodiscard]] bool normals() const { return nx >= 0; }
   [[nodiscard]] bool colors() const { return red >= 0; }
@@ -138,7 +142,8 @@ struct Plan {
   std::string vertex_bytes;  ///< transcoded vertex rows (unused when direct)
   std::string face_bytes;    ///< transcoded face rows (unused when direct)
   std::vector<float> radii;
-  std::vector<glm::u8vec4> colors;  ///< colours OpenMesh does not read, or empty
+  std::vector<glm::u8vec4> colors;                  ///< colours OpenMesh does not read, or empty
+  std::vector<detail::AttributeColumn> attributes;  ///< VertexRoles::attributes, in order
   StripSink strips;
   std::vector<BrokenElement> broken;  ///< ascii elements whose rows do not match
   bool faces_lost = false;            ///< a face element is among them

@@ -171,6 +171,9 @@ struct Transcoder {
       }
     }
     if (roles.radius >= 0) plan.radii.push_back(ply::to_float(row.scalar(roles.radius)));
+    for (std::size_t k = 0; k < roles.attributes.size(); ++k) {
+      plan.attributes[k].push_back(row.scalar(roles.attributes[k]));
+    }
     ++vertex_rows;
   }
 
@@ -269,6 +272,12 @@ void plan_direct(const Header& header, const ply::BinaryLayout& layout, std::str
     for_each_fixed(vertex_bytes, vertex, roles.radius, big_endian,
                    [&](std::size_t i, double r) { plan.radii[i] = ply::to_float(r); });
   }
+  for (const int p : roles.attributes) {
+    detail::AttributeColumn& column =
+        plan.attributes.emplace_back(property(vertex, p).name, vertex_count);
+    for_each_fixed(vertex_bytes, vertex, p, big_endian,
+                   [&](std::size_t i, double v) { column.set(i, v); });
+  }
   if (roles.colors() && !u8_colors) {
     plan.colors.assign(vertex_count, glm::u8vec4(0, 0, 0, 255));
     const std::array<int, 3> channels{roles.red, roles.green, roles.blue};
@@ -309,6 +318,8 @@ void plan_transcoded(const Header& header, const ply::BinaryLayout& layout, std:
   const auto vertex_count = static_cast<std::size_t>(vertex.count);
   plan.vertex_bytes.reserve(vertex_count * kCanonicalVertexBytes);
   if (elements.roles.radius >= 0) plan.radii.reserve(vertex_count);
+  for (const int p : elements.roles.attributes)
+    plan.attributes.emplace_back(property(vertex, p).name, 0);
 
   ply::AsciiRows ascii(file, header);
   Row row;
@@ -394,6 +405,10 @@ PointSet read_plan(Plan& plan, const Warnings& warn, PlyLoadReport& report) {
   }
   if (!plan.colors.empty()) points.colors = std::move(plan.colors);
   if (!plan.radii.empty()) points.radii = std::move(plan.radii);
+  for (detail::AttributeColumn& column : plan.attributes)
+    points.attributes.push_back(column.take());
+  const std::vector<std::string> constant = detail::drop_constant_attributes(points.attributes);
+  if (!constant.empty()) warn("the same at every vertex, not kept: " + detail::join(constant));
 
   const StripSink& strips = plan.strips;
   points.triangles.insert(points.triangles.end(), strips.triangles.begin(), strips.triangles.end());

@@ -42,12 +42,14 @@ std::pair<std::size_t, std::size_t> drop_nonfinite(PointSet& points) {
     if (points.has_normals()) points.normals[kept] = points.normals[i];
     if (points.has_colors()) points.colors[kept] = points.colors[i];
     if (points.has_radii()) points.radii[kept] = points.radii[i];
+    for (PointAttribute& a : points.attributes) a.values[kept] = a.values[i];
     ++kept;
   }
   points.positions.resize(kept);
   if (points.has_normals()) points.normals.resize(kept);
   if (points.has_colors()) points.colors.resize(kept);
   if (points.has_radii()) points.radii.resize(kept);
+  for (PointAttribute& a : points.attributes) a.values.resize(kept);
 
   std::size_t faces_kept = 0;
   const std::size_t faces = points.triangles.size();

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "attribute_column.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
 #include "whole_file.hpp"
@@ -47,8 +48,8 @@ bool parse_number(std::string_view t, double& v) {
 
 bool all_numbers(const std::vector<std::string_view>& tokens) {
   double v;
-  return !tokens.empty() &&
-         std::all_of(tokens.begin(), tokens.end(), [&](std::string_view t) { return parse_number(t, v); });
+  return !tokens.empty() && std::all_of(tokens.begin(), tokens.end(),
+                                        [&](std::string_view t) { return parse_number(t, v); });
 }
 
 bool comment(std::string_view line) {
@@ -63,13 +64,23 @@ struct Columns {
   int xyz[3] = {-1, -1, -1};
   int rgb[3] = {-1, -1, -1};
   int normal[3] = {-1, -1, -1};
+  std::vector<std::pair<int, std::string>> attributes;  // column, name
   std::vector<std::string> not_kept;
+
+  void keep(int column, std::string name) {
+    if (attributes.size() < kMaxAttributes) {
+      attributes.emplace_back(column, std::move(name));
+    } else {
+      not_kept.push_back(std::move(name));
+    }
+  }
 };
 
 std::string lower(std::string_view t) {
   std::string s;
   for (const char c : t) {
-    if (c != '"' && c != '\'') s.push_back(static_cast<char>(std::tolower(static_cast<unsigned char>(c))));
+    if (c != '"' && c != '\'')
+      s.push_back(static_cast<char>(std::tolower(static_cast<unsigned char>(c))));
   }
   if (s.rfind("//", 0) == 0) s.erase(0, 2);
   return s;
@@ -79,22 +90,29 @@ Columns from_header(const std::vector<std::string_view>& names) {
   Columns c;
   c.count = static_cast<int>(names.size());
   static const std::vector<std::vector<std::string_view>> kRoles = {
-      {"x", "east", "easting"},         {"y", "north", "northing"},
+      {"x", "east", "easting"},
+      {"y", "north", "northing"},
       {"z", "height", "elevation", "alt", "altitude"},
-      {"r", "red"},                     {"g", "green"},
-      {"b", "blue"},                    {"nx", "normal_x", "normalx"},
-      {"ny", "normal_y", "normaly"},    {"nz", "normal_z", "normalz"}};
+      {"r", "red"},
+      {"g", "green"},
+      {"b", "blue"},
+      {"nx", "normal_x", "normalx"},
+      {"ny", "normal_y", "normaly"},
+      {"nz", "normal_z", "normalz"}};
   for (int i = 0; i < c.count; ++i) {
     const std::string n = lower(names[static_cast<std::size_t>(i)]);
     int role = -1;
     for (std::size_t k = 0; k < kRoles.size() && role < 0; ++k) {
       if (std::find(kRoles[k].begin(), kRoles[k].end(), n) != kRoles[k].end()) role = int(k);
     }
-    int* slot = role < 0 ? nullptr : role < 3 ? &c.xyz[role] : role < 6 ? &c.rgb[role - 3] : &c.normal[role - 6];
+    int* slot = role < 0   ? nullptr
+                : role < 3 ? &c.xyz[role]
+                : role < 6 ? &c.rgb[role - 3]
+                           : &c.normal[role - 6];
     if (slot != nullptr && *slot < 0) {
       *slot = i;
     } else {
-      c.not_kept.push_back(std::string(names[static_cast<std::size_t>(i)]));
+      c.keep(i, n.empty() ? "column_" + std::to_string(i + 1) : n);
     }
   }
   if (c.xyz[0] < 0 || c.xyz[1] < 0 || c.xyz[2] < 0) {
@@ -104,7 +122,8 @@ Columns from_header(const std::vector<std::string_view>& names) {
   for (int* triple : {c.rgb, c.normal}) {
     if (triple[0] >= 0 && triple[1] >= 0 && triple[2] >= 0) continue;
     for (int k = 0; k < 3; ++k) {
-      if (triple[k] >= 0) c.not_kept.push_back(std::string(names[static_cast<std::size_t>(triple[k])]));
+      if (triple[k] >= 0)
+        c.not_kept.push_back(std::string(names[static_cast<std::size_t>(triple[k])]));
       triple[k] = -1;
     }
   }
@@ -124,15 +143,15 @@ Columns from_count(const std::vector<std::string_view>& first, bool pts, bool co
   if (c.count < 3) throw TextError("fewer than 3 numbers on a line (x y z)");
   c.xyz[0] = 0, c.xyz[1] = 1, c.xyz[2] = 2;
   if (c.count == 7 || (pts && c.count >= 7)) {
-    c.not_kept.push_back("intensity");
+    c.keep(3, "intensity");
     c.rgb[0] = 4, c.rgb[1] = 5, c.rgb[2] = 6;
   } else if (c.count == 6 && colours6) {
     c.rgb[0] = 3, c.rgb[1] = 4, c.rgb[2] = 5;
   } else if (c.count == 6) {
     c.normal[0] = 3, c.normal[1] = 4, c.normal[2] = 5;
   }
-  int kept = 3 + (c.rgb[0] >= 0 ? 3 : 0) + (c.normal[0] >= 0 ? 3 : 0) + (c.count == 7 ? 1 : 0);
-  for (int i = kept; i < c.count; ++i) c.not_kept.push_back("column " + std::to_string(i + 1));
+  const int kept = c.rgb[0] >= 0 ? c.rgb[2] + 1 : c.normal[0] >= 0 ? 6 : 3;
+  for (int i = kept; i < c.count; ++i) c.keep(i, "column_" + std::to_string(i + 1));
   return c;
 }
 
@@ -199,7 +218,8 @@ TextError line_error(std::size_t number, const std::string& what) {
 // One line of points into `points` (false: beyond the coordinate limit,
 // dropped). The first sets the origin.
 bool read_point(const Columns& columns, const std::vector<std::string_view>& tokens,
-                std::size_t number, std::vector<double>& values, PointSet& points) {
+                std::size_t number, std::vector<double>& values, PointSet& points,
+                std::vector<detail::AttributeColumn>& attributes) {
   if (static_cast<int>(tokens.size()) != columns.count) {
     throw line_error(number, std::to_string(tokens.size()) +
                                  " values, where the first line of points has " +
@@ -220,15 +240,19 @@ bool read_point(const Columns& columns, const std::vector<std::string_view>& tok
     return false;
   }
   points.positions.push_back(glm::vec3(q));
+  for (std::size_t k = 0; k < attributes.size(); ++k) {
+    attributes[k].push_back(value(columns.attributes[k].first));
+  }
   if (columns.rgb[0] >= 0) {
     glm::u8vec4 c(0, 0, 0, 255);
     for (int k = 0; k < 3; ++k) {
       const double v = value(columns.rgb[k]);
       if (!(v >= 0 && v <= 255 && v == std::floor(v))) {
-        throw line_error(number, "colour " +
-                                     std::string(tokens[static_cast<std::size_t>(columns.rgb[k])]
-                                                     .substr(0, 20)) +
-                                     " is not a whole number from 0 to 255");
+        throw line_error(
+            number,
+            "colour " +
+                std::string(tokens[static_cast<std::size_t>(columns.rgb[k])].substr(0, 20)) +
+                " is not a whole number from 0 to 255");
       }
       c[k] = static_cast<std::uint8_t>(v);
     }
@@ -255,12 +279,18 @@ PointSet parse(std::string_view text, const WarningSink& warn) {
     warn("not kept: " + names);
   }
   PointSet points;
+  std::vector<detail::AttributeColumn> attributes;
+  for (const auto& [column, name] : columns.attributes) attributes.emplace_back(name, 0);
   std::vector<double> values;
   std::size_t dropped = 0;
   do {
     split(line, tokens);
-    if (!read_point(columns, tokens, r.line_number, values, points)) ++dropped;
+    if (!read_point(columns, tokens, r.line_number, values, points, attributes)) ++dropped;
   } while (r.next(line));
+  for (detail::AttributeColumn& a : attributes) points.attributes.push_back(a.take());
+  const std::vector<std::string> constant = detail::drop_constant_attributes(points.attributes);
+  if (warn && !constant.empty())
+    warn("the same at every point, not kept: " + detail::join(constant));
   if (layout.pts && points.size() + dropped != layout.pts_count) {
     throw TextError("1: the PTS count line says " + std::to_string(layout.pts_count) +
                     " points, the file has " + std::to_string(points.size() + dropped));

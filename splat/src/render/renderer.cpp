@@ -192,7 +192,7 @@ void Renderer::set_models(std::span<const Hierarchy* const> models) {
     const HierarchyArrays& a = h->arrays();
     nodes_.sub_data(base * sizeof(glm::vec4), std::as_bytes(a.center_radius));
     nodes_.sub_data(cr_bytes + base * sizeof(glm::i16vec4), std::as_bytes(a.normal_cone));
-    nodes_.sub_data(cr_bytes + nc_bytes + base * sizeof(glm::u8vec4), std::as_bytes(a.color));
+    nodes_.sub_data(cr_bytes + nc_bytes + base * sizeof(glm::u8vec4), std::as_bytes(colors_of(*h)));
     model_base_.push_back(static_cast<std::uint32_t>(base));
     model_nodes_.push_back(static_cast<std::uint32_t>(h->node_count()));
     model_ids_.push_back(h);
@@ -216,6 +216,30 @@ void Renderer::set_models(std::span<const Hierarchy* const> models) {
   hierarchy_ = models.front();
   ++hierarchy_uploads_;
   gl::check("Renderer vertex buffer");
+}
+
+std::span<const glm::u8vec4> Renderer::colors_of(const Hierarchy& h) const {
+  for (const NodeColors& c : node_colors_) {
+    if (c.model == &h && c.nodes == h.node_count()) return c.colors;
+  }
+  return h.arrays().color;
+}
+
+void Renderer::set_node_colors(const Hierarchy& h, std::vector<glm::u8vec4> colors) {
+  if (!colors.empty() && colors.size() != h.node_count()) {
+    throw std::invalid_argument("Renderer::set_node_colors: " + std::to_string(colors.size()) +
+                                " colours for " + std::to_string(h.node_count()) + " nodes");
+  }
+  std::erase_if(node_colors_, [&](const NodeColors& c) { return c.model == &h; });
+  if (!colors.empty()) node_colors_.push_back({&h, h.node_count(), std::move(colors)});
+  // The model held now: its colour array in place (the others on upload).
+  const std::size_t n = model_base_.empty() ? 0 : model_base_.back() + model_nodes_.back();
+  const std::size_t colors_at = n * (sizeof(glm::vec4) + sizeof(glm::i16vec4));
+  for (std::size_t m = 0; m < model_ids_.size(); ++m) {
+    if (model_ids_[m] != &h) continue;
+    nodes_.sub_data(colors_at + model_base_[m] * sizeof(glm::u8vec4), std::as_bytes(colors_of(h)));
+  }
+  gl::check("Renderer node colours");
 }
 
 Renderer::~Renderer() = default;

@@ -114,7 +114,8 @@ out Node {
 } v_node;
 void main() {
   v_node.center = object_point(a_center_radius.xyz);
-  v_node.radius = a_center_radius.w * a_object.x * u_radius_scale;
+  // Alpha 0: a hidden node (a class filtered out, coloring.hpp), no splat.
+  v_node.radius = a_color.a < 0.5 ? 0.0 : a_center_radius.w * a_object.x * u_radius_scale;
   v_node.normal = object_normal(a_normal_cone.xyz);
   v_node.cone_cos = object_cone(a_normal_cone.w);
   v_node.color = srgb_to_linear(a_color.rgb);
@@ -164,7 +165,7 @@ void main() {
   float nl = length(g_node[0].normal);
   vec3 n = nl > 1e-4 ? g_node[0].normal / nl : e;
   float cc = g_node[0].cone_cos;
-  if (cone_faces_away(n, cc, e)) return;
+  if (r <= 0.0 || cone_faces_away(n, cc, e)) return;
 
   // Grow splats that would cover less than u_min_radius_px (they could fall
   // between pixel centres and leave holes in a far-away surface).
@@ -318,7 +319,8 @@ void main() {
   f_color = srgb_to_linear(a_color.rgb);
   gl_PointSize = u_point_size;
   // Outside the clip volume = not drawn.
-  gl_Position = cone_faces_away(n, object_cone(a_normal_cone.w), e) ? vec4(2.0, 2.0, 2.0, 1.0)
+  gl_Position = a_color.a < 0.5 || cone_faces_away(n, object_cone(a_normal_cone.w), e)
+                    ? vec4(2.0, 2.0, 2.0, 1.0)
                                                         : u_proj * u_view * vec4(c, 1.0);
 }
 )";

@@ -220,6 +220,12 @@ class Renderer {
   [[nodiscard]] std::size_t model_count() const { return model_base_.size(); }
   [[nodiscard]] std::uint32_t model_base(std::size_t model) const { return model_base_[model]; }
   [[nodiscard]] std::uint32_t model_nodes(std::size_t model) const { return model_nodes_[model]; }
+  /// Colours to draw H's nodes with instead of its own (arrays().color), one
+  /// per node, alpha 0 to hide a node (coloring.hpp makes them). Kept for H
+  /// (by identity and node count) until replaced: whenever set_models
+  /// uploads H it uses them, and H held now is updated at once. Empty
+  /// COLORS: H's own again. Throws std::invalid_argument for a wrong count.
+  void set_node_colors(const Hierarchy& h, std::vector<glm::u8vec4> colors);
   /// The hierarchy set_models() was given at `model` (identity only).
   [[nodiscard]] const Hierarchy* model_identity(std::size_t model) const {
     return model_ids_[model];
@@ -343,6 +349,13 @@ class Renderer {
   std::uint32_t node_count_ = 0;
   const Hierarchy* hierarchy_ = nullptr;  // identity only (see hierarchy())
   std::uint64_t hierarchy_uploads_ = 0;
+  struct NodeColors {
+    const Hierarchy* model;
+    std::uint32_t nodes;
+    std::vector<glm::u8vec4> colors;
+  };
+  std::vector<NodeColors> node_colors_;  // set_node_colors
+  [[nodiscard]] std::span<const glm::u8vec4> colors_of(const Hierarchy& h) const;
   NodeId last_max_id_ = 0;
   gl::Buffer nodes_;  // center_radius | normal_cone | color, one region each, models in order
   std::vector<std::uint32_t> model_base_;    // first vertex of each model

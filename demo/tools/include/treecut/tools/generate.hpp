@@ -32,6 +32,12 @@ std::vector<std::string> model_kind_names();
 /// Field needs a source model: InputError here (use generate_field).
 PointSet generate_model(ModelKind kind, std::size_t points, std::uint64_t seed = 1);
 
+/// What a survey file of the generated model carries (`gen -o X.las`): an
+/// intensity from each point's brightness (0-65535, as a scanner's return
+/// strength reads) and, for the city, the ASPRS classification of its
+/// surfaces (2 ground, 6 building). Deterministic.
+void add_survey_attributes(PointSet& points, ModelKind kind);
+
 // ---------------------------------------------------------------------------
 // Scenes with depth complexity (lib/src/import/generate_{city,plant,field}.cpp; docs/scenes.md).
 // All three stand on the ground square [-1, 1]^2 at z = 0, z up; think of one

@@ -1,0 +1,117 @@
+// Attribute summaries per hierarchy node (node_attributes.hpp).
+#include "node_attributes.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "treecut/parallel.hpp"
+
+namespace treecut::detail {
+
+namespace {
+
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+
+// The point-weighted mean of the children's finite values.
+float mean_of_children(const std::vector<float>& v, std::size_t c0, unsigned cc,
+                       std::span<const std::uint32_t> point_count) {
+  double sum = 0.0, weight = 0.0;
+  for (std::size_t c = c0; c < c0 + cc; ++c) {
+    if (std::isnan(v[c])) continue;
+    sum += double(point_count[c]) * double(v[c]);
+    weight += double(point_count[c]);
+  }
+  return weight > 0.0 ? static_cast<float>(sum / weight) : kNaN;
+}
+
+// The children's value with the most points behind it (ties: the smaller
+// value, so the result does not depend on the children's order).
+float mode_of_children(const std::vector<float>& v, std::size_t c0, unsigned cc,
+                       std::span<const std::uint32_t> point_count) {
+  float best = kNaN;
+  std::uint64_t best_weight = 0;
+  for (std::size_t c = c0; c < c0 + cc; ++c) {
+    if (std::isnan(v[c])) continue;
+    std::uint64_t weight = 0;
+    for (std::size_t k = c0; k < c0 + cc; ++k) {
+      if (v[k] == v[c]) weight += point_count[k];
+    }
+    if (weight > best_weight || (weight == best_weight && v[c] < best)) {
+      best = v[c];
+      best_weight = weight;
+    }
+  }
+  return best;
+}
+
+}  // namespace
+
+std::vector<OwnedAttribute> fill_leaf_values(std::vector<PointAttribute>& points,
+                                             std::span<const NodeId> leaf_point,
+                                             std::span<const std::uint8_t> child_count,
+                                             unsigned threads) {
+  std::vector<OwnedAttribute> out;
+  out.reserve(points.size());
+  const std::size_t M = child_count.size();
+  for (PointAttribute& p : points) {
+    OwnedAttribute& a = out.emplace_back();
+    a.name = p.name;
+    a.kind = p.kind;
+    a.offset = p.offset;
+    a.values.resize(M);
+    parallel_for(
+        M,
+        [&](std::size_t b, std::size_t e) {
+          for (std::size_t i = b; i < e; ++i) {
+            if (child_count[i] == 0) a.values[i] = p.values[leaf_point[i]];
+          }
+        },
+        threads);
+    float lo = std::numeric_limits<float>::infinity(), hi = -lo;
+    for (const float v : p.values) {
+      if (!std::isnan(v)) lo = std::min(lo, v), hi = std::max(hi, v);
+    }
+    a.min = lo <= hi ? lo : kNaN;
+    a.max = lo <= hi ? hi : kNaN;
+    std::vector<float>().swap(p.values);  // released: the peak stays one copy
+  }
+  points.clear();
+  return out;
+}
+
+void fill_interior_values(std::vector<OwnedAttribute>& attributes,
+                          std::span<const std::uint8_t> child_count,
+                          std::span<const NodeId> first_child,
+                          std::span<const std::uint32_t> point_count,
+                          std::span<const NodeId> level_begin, unsigned threads) {
+  const int levels = static_cast<int>(level_begin.size()) - 1;
+  for (OwnedAttribute& a : attributes) {
+    const bool mode = a.kind == AttributeKind::category;
+    for (int d = levels - 1; d >= 0; --d) {
+      const std::size_t lb = level_begin[static_cast<std::size_t>(d)];
+      const std::size_t le = level_begin[static_cast<std::size_t>(d) + 1];
+      parallel_for(
+          le - lb,
+          [&](std::size_t b, std::size_t e) {
+            for (std::size_t i = lb + b; i < lb + e; ++i) {
+              const unsigned cc = child_count[i];
+              if (cc == 0) continue;
+              a.values[i] = mode ? mode_of_children(a.values, first_child[i], cc, point_count)
+                                 : mean_of_children(a.values, first_child[i], cc, point_count);
+            }
+          },
+          threads, 256);
+    }
+  }
+}
+
+std::vector<NodeAttribute> node_attribute_views(const std::vector<OwnedAttribute>& attributes) {
+  std::vector<NodeAttribute> out;
+  for (const OwnedAttribute& a : attributes) {
+    out.push_back({a.name, a.kind, a.offset, a.min, a.max, a.values});
+  }
+  return out;
+}
+
+}  // namespace treecut::detail

@@ -1,0 +1,92 @@
+// Colouring a model by what its points carry (issue 29, item 3): the file's
+// RGB, the elevation, or any attribute (Hierarchy::attributes) through a
+// colour map; and hiding classes. Computes one colour per node on the CPU,
+// which Renderer::set_node_colors puts in place of the model's own; no GL
+// here, so any thread may call it.
+//
+// Maps: viridis (perceptually uniform, readable in grey and by the
+// colour-blind; van der Walt and Smith, matplotlib 2015), grey, and for
+// categories the ASPRS classification palette (LAS 1.4 R15, table 17's
+// classes 0-18, coloured as LiDAR viewers do: ground brown, vegetation
+// greens, buildings red, water blue) or ten distinct colours for other
+// categories.
+#pragma once
+
+#include <cstdint>
+#include <glm/gtc/type_precision.hpp>
+#include <glm/vec3.hpp>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "treecut/hierarchy.hpp"
+
+namespace treecut::splat {
+
+enum class ColorMap : std::uint8_t { automatic, viridis, grey, classes };
+
+/// "auto", "viridis", "grey", "classes".
+std::string_view color_map_name(ColorMap map);
+/// Inverse of color_map_name (also "gray"); throws InputError.
+ColorMap parse_color_map(std::string_view name);
+
+struct ColorBy {
+  /// "rgb" (the file's colours, grey without), "elevation" (along `up`), or
+  /// the name of an attribute.
+  std::string source = "rgb";
+  /// automatic: classes for a category, viridis for the rest.
+  ColorMap map = ColorMap::automatic;
+  /// The file's values at the ends of a continuous map; default: the 2nd
+  /// and 98th percentiles of the points (outliers do not wash it out).
+  std::optional<double> low, high;
+  /// Classes (of the "classification" attribute) to show, or with a leading
+  /// '-' to hide: "2,6" shows ground and buildings only, "-7,-18" hides
+  /// noise. Empty: all. Parsed by parse_class_filter.
+  std::vector<int> show_classes, hide_classes;
+};
+
+/// "2,6" -> show {2, 6}; "-7,-18" -> hide {7, 18}; a mix is an InputError,
+/// as is anything but whole numbers 0-255.
+void parse_class_filter(std::string_view text, ColorBy& by);
+
+/// What the colours mean, for a HUD or a report.
+struct Legend {
+  std::string title;  ///< "intensity", "elevation (m)", "classification"
+  ColorMap map = ColorMap::viridis;
+  bool continuous = true;
+  double low = 0.0, high = 0.0;  ///< continuous: the file's values at the ends
+  struct Entry {
+    double value = 0.0;
+    std::string label;  ///< "2 ground" or "3"
+    glm::u8vec4 color{0};
+    double share = 0.0;  ///< of the points (sampled), 0..1
+    bool hidden = false;
+  };
+  std::vector<Entry> entries;  ///< categories, by value (at most 32)
+};
+
+struct Coloring {
+  std::vector<glm::u8vec4> colors;  ///< one per node; alpha 0: hidden
+  Legend legend;
+  std::size_t hidden_nodes = 0;
+};
+
+/// Throws what color_nodes would for H and BY (an attribute H lacks, a
+/// class filter without classification), before any work.
+void check_color_by(const Hierarchy& h, const ColorBy& by);
+
+/// Colours every node of H by BY (UP: the elevation's direction, unit).
+/// Throws InputError naming what the model has for an unknown attribute or
+/// for a class filter without a "classification" attribute.
+Coloring color_nodes(const Hierarchy& h, const ColorBy& by, glm::vec3 up);
+
+/// The map at T in [0, 1] (continuous maps).
+glm::u8vec4 map_color(ColorMap map, float t);
+/// The colour of category VALUE: ASPRS colours when ASPRS, else ten
+/// distinct colours in turn.
+glm::u8vec4 category_color(int value, bool asprs);
+/// ASPRS class names ("ground", "high vegetation"); empty past 18.
+std::string_view asprs_class_name(int value);
+
+}  // namespace treecut::splat
