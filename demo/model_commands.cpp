@@ -18,6 +18,7 @@
 #include "treecut/file_io.hpp"
 #include "treecut/las.hpp"
 #include "treecut/model_io.hpp"
+#include "treecut/pcd.hpp"
 #include "treecut/ply.hpp"
 #include "treecut/scene.hpp"
 #include "treecut/splat/camera_path.hpp"
@@ -98,6 +99,8 @@ void print_summary(const std::filesystem::path& model, const OpenedModel& m) {
                 l.version_minor, l.point_format, l.record_length,
                 l.system_identifier.empty() ? "" : ", from ",
                 one_line(l.system_identifier).c_str());
+  } else if (!m.format.empty()) {
+    std::printf("format      %s\n", m.format.c_str());  // built now: PLY, PCD or text
   }
   // The coordinate system, kept in the cache with the origin.
   if (!h.frame().crs.empty()) {
@@ -405,6 +408,7 @@ void generate_model_kind(const GenArgs& g) {
   // The format by the name: .las writes LAS (double coordinates through its
   // scale and offset), anything else PLY (floats).
   const bool las = out.extension() == ".las" || out.extension() == ".LAS";
+  const bool pcd = out.extension() == ".pcd" || out.extension() == ".PCD";
   if (!g.origin.empty() && !las) {
     throw InputError(quoted_name(out) +
                      ": --origin needs a .las output (a PLY holds float coordinates, which "
@@ -412,6 +416,8 @@ void generate_model_kind(const GenArgs& g) {
   }
   if (las) {
     check_replaceable_output(out, "LASF", "a model", "a LAS file");
+  } else if (pcd) {
+    check_replaceable_output(out, "# .PCD", "a model", "a PCD file");
   } else {
     check_ply_output(out);
   }
@@ -431,9 +437,11 @@ void generate_model_kind(const GenArgs& g) {
                     ? tools::generate_field(tools::prepare_field_source(source), g.points, g.seed)
                     : tools::generate_model(kind, g.points, g.seed);
   if (!g.origin.empty()) ps.frame.origin = glm::dvec3(g.origin[0], g.origin[1], g.origin[2]);
+  if (las || pcd) tools::add_survey_attributes(ps, kind);
   if (las) {
-    tools::add_survey_attributes(ps, kind);
     save_las(out, ps);
+  } else if (pcd) {
+    save_pcd(out, ps);
   } else {
     save_ply(out, ps);
   }
@@ -517,7 +525,8 @@ void add_gen_command(CLI::App& app) {
                   "Number of points (city-block, hall: of each generated model, default 20000)")
       ->check(whole_number(1, std::uint64_t{1} << 31));
   gen->add_option("-o,--output", gen_args->out,
-                  "Output PLY, or LAS when it ends in .las (default: assets/KIND.ply; a scene: "
+                  "Output PLY, LAS when it ends in .las, PCD (binary_compressed) in .pcd (default: "
+                  "assets/KIND.ply; a scene: "
                   "assets/KIND.scene)")
       ->check(non_empty_path());
   gen->add_option("--origin", gen_args->origin,

@@ -212,9 +212,10 @@ TEST_F(Hostile, MessagesNameTheRealReason) {
                  "survey.las: LAS version 0.0 is not read (1.0 to 1.4 are)");
   // Neither PLY nor LAS: named, and what treecut reads said.
   write_text(dir / "scan.e57", "ASTM-E57 and more\n");
-  expect_failure(run_treecut("info " + quote(dir / "scan.e57")), 2,
-                 "scan.e57: not a PLY file: an E57 point cloud; treecut reads PLY, LAS and text (XYZ, "
-                 "PTS, CSV) point files");
+  expect_failure(
+      run_treecut("info " + quote(dir / "scan.e57")), 2,
+      "scan.e57: not a PLY file: an E57 point cloud; treecut reads PLY, LAS, PCD and text (XYZ, "
+      "PTS, CSV) point files");
   EXPECT_EQ(read_all(dir / "notes.tch"), "my notes about the cache\n");
 }
 

@@ -20,6 +20,7 @@
 #include "test_support.hpp"
 #include "treecut/error.hpp"
 #include "treecut/las.hpp"
+#include "treecut/pcd.hpp"
 #include "treecut/text_cloud.hpp"
 
 namespace {
@@ -578,3 +579,113 @@ TEST(TextCloud, MalformedLinesAreOneLineNamingTheLine) {
 }
 
 }  // namespace
+
+// ---- PCD ------------------------------------------------------------------
+
+namespace pcd_test {
+
+using treecut::load_pcd_from_memory;
+
+std::string pcd_error_of(const std::string& bytes) {
+  try {
+    (void)load_pcd_from_memory(bytes, "mem.pcd");
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "(loaded)";
+}
+
+const char* kAsciiPcd =
+    "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\n"
+    "FIELDS x y z rgb intensity label\nSIZE 4 4 4 4 4 4\nTYPE F F F F F U\nCOUNT 1 1 1 1 1 1\n"
+    "WIDTH 4\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 4\nDATA ascii\n"
+    "1 2 3 4.2108e+06 0.5 7\nnan nan nan 0 0 0\n500000.25 2 3 4.2108e+06 1.5 9\n"
+    "4 5 6 4.2108e+06 2.5 7\n";
+
+TEST(PcdLoad, AsciiBinaryAndCompressedAgree) {
+  using treecut::looks_like_pcd;
+  EXPECT_TRUE(looks_like_pcd(kAsciiPcd));
+  EXPECT_TRUE(looks_like_pcd("FIELDS x y z\n"));
+  EXPECT_FALSE(looks_like_pcd("1 2 3\n"));
+  EXPECT_FALSE(looks_like_pcd("ply\n"));
+  std::vector<std::string> warnings;
+  const PointSet a = load_pcd_from_memory(kAsciiPcd, "a.pcd",
+                                          [&](const std::string& w) { warnings.push_back(w); });
+  ASSERT_EQ(a.size(), 3u) << "the NaN point (an organized cloud's hole) is dropped";
+  EXPECT_NEAR(file_position(a, 1).x, 500000.25, 1e-6) << "positions in double";
+  // 4.2108e+06 as a float's bits is 0x4A8080E0: r 0x80, g 0x80, b 0xE0.
+  EXPECT_EQ(a.colors[0], glm::u8vec4(0x80, 0x80, 0xE0, 255));
+  ASSERT_EQ(a.attributes.size(), 2u);
+  EXPECT_EQ(a.attributes[0].name, "intensity");
+  EXPECT_EQ(a.attributes[0].values, (std::vector<float>{0.5f, 1.5f, 2.5f}));
+  EXPECT_EQ(a.attributes[1].kind, treecut::AttributeKind::category);
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_EQ(warnings[0], "a.pcd: dropped 1 points without a finite position");
+
+  // The same points written in the three encodings read back alike.
+  PointSet p = a;
+  p.normals = {{0, 0, 1}, {0, 1, 0}, {1, 0, 0}};
+  const auto dir = treecut::test::scratch_dir("pcd");
+  for (const treecut::PcdData data :
+       {treecut::PcdData::ascii, treecut::PcdData::binary, treecut::PcdData::binary_compressed}) {
+    treecut::save_pcd(dir / "p.pcd", p, data);
+    const PointSet q = treecut::load_pcd(dir / "p.pcd");
+    ASSERT_EQ(q.size(), p.size());
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      EXPECT_NEAR(glm::distance(file_position(q, i), glm::dvec3(p.positions[i])), 0.0, 1e-6);
+      EXPECT_EQ(q.normals[i], p.normals[i]);
+      EXPECT_EQ(q.colors[i], p.colors[i]);
+    }
+    ASSERT_EQ(q.attributes.size(), 2u);
+    EXPECT_EQ(q.attributes[1].values, (std::vector<float>{7, 9, 7}));
+  }
+}
+
+TEST(PcdLoad, MalformedFilesAreOneLine) {
+  const std::string head =
+      "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\nHEIGHT 1\n"
+      "POINTS 2\nDATA ";
+  EXPECT_EQ(pcd_error_of(head + "binary\n" + std::string(23, '\0')),
+            "mem.pcd: 2 points of 12 bytes declared, the data holds 1");
+  EXPECT_EQ(pcd_error_of(head + "ascii\n1 2 3\n"), "mem.pcd: 2 points declared, the file has 1");
+  EXPECT_EQ(pcd_error_of(head + "ascii\n1 2 3\n4 5\n"), "mem.pcd: 11: 2 values, the fields have 3");
+  EXPECT_EQ(pcd_error_of(head + "zip\n"),
+            "mem.pcd: DATA 'zip' (ascii, binary or binary_compressed)");
+  EXPECT_EQ(pcd_error_of("FIELDS x y z\nSIZE 4 4 4\nTYPE F F Q\nDATA ascii\n"),
+            "mem.pcd: TYPE 'Q' of field z (I, U or F)");
+  EXPECT_EQ(pcd_error_of("FIELDS x y z\nSIZE 4 4 3\nTYPE F F F\nWIDTH 1\nDATA ascii\n1 2 3\n"),
+            "mem.pcd: field z: TYPE F of SIZE 3 (I and U: 1, 2, 4, 8; F: 4, 8)");
+  EXPECT_EQ(pcd_error_of("FIELDS x y\nSIZE 4 4\nTYPE F F\nWIDTH 1\nDATA ascii\n1 2\n"),
+            "mem.pcd: no x, y and z fields");
+  EXPECT_EQ(pcd_error_of("FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 3\nHEIGHT 2\nPOINTS 5\n"
+                         "DATA ascii\n"),
+            "mem.pcd: WIDTH 3 x HEIGHT 2 is not POINTS 5");
+  EXPECT_EQ(pcd_error_of("FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 400000000\nDATA binary\n"),
+            "mem.pcd: 400000000 points of 12 bytes declared, the data holds 0");
+  EXPECT_EQ(pcd_error_of("FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 4000000000\nDATA binary\n"),
+            "mem.pcd: more than 2^31 points");
+  // Compressed: sizes that cannot be, and damaged LZF.
+  std::string sizes;
+  put<std::uint32_t>(sizes, 1), put<std::uint32_t>(sizes, 24);
+  EXPECT_EQ(pcd_error_of(head + "binary_compressed\n" + sizes + "x"),
+            "mem.pcd: the compressed data is damaged (LZF)");
+  std::string huge;
+  put<std::uint32_t>(huge, 1), put<std::uint32_t>(huge, 24);
+  EXPECT_EQ(pcd_error_of(head + "binary_compressed\n" + huge),
+            "mem.pcd: the compressed data (1 bytes) runs past the end of the file");
+  // Every truncation of a compressed file is refused with one line.
+  PointSet p;
+  for (int i = 0; i < 50; ++i) p.positions.push_back({float(i), float(i % 7), 0.5f * float(i)});
+  const auto dir = treecut::test::scratch_dir("pcd_bad");
+  treecut::save_pcd(dir / "c.pcd", p);
+  std::ifstream in(dir / "c.pcd", std::ios::binary);
+  const std::string full((std::istreambuf_iterator<char>(in)), {});
+  ASSERT_EQ(pcd_error_of(full), "(loaded)");
+  for (std::size_t cut = 0; cut < full.size(); ++cut) {
+    const std::string e = pcd_error_of(full.substr(0, cut));
+    EXPECT_EQ(e.rfind("mem.pcd: ", 0), 0u) << cut << ": " << e;
+    EXPECT_EQ(e.find('\n'), std::string::npos) << cut;
+  }
+}
+
+}  // namespace pcd_test

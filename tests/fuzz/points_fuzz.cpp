@@ -1,11 +1,10 @@
 // libFuzzer target: the point file readers besides PLY, as open_model
 // chooses them by the first bytes: LAS (load_las_from_memory, the reader
-// load_las uses on a file) for "LASF", else the text cloud reader (XYZ, PTS,
-// CSV). Anything malformed must be an InputError; any other exception, a
-// sanitizer report or an accepted point set that breaks the PointSet
-// contract (a LAS with another count than its header declares) is a crash.
-// Small accepted inputs also go through attributes and the build. Run by
-// .ci/fuzz, seeded with the files points_seeds writes.
+// load_las uses on a file) for "LASF", PCD when it looks like one, else the
+// text cloud reader (XYZ, PTS, CSV). Anything malformed must be an InputError; any other exception,
+// a sanitizer report or an accepted point set that breaks the PointSet contract (a LAS with another
+// count than its header declares) is a crash. Small accepted inputs also go through attributes and
+// the build. Run by .ci/fuzz, seeded with the files points_seeds writes.
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
@@ -15,6 +14,7 @@
 #include "fuzz_checks.hpp"
 #include "treecut/error.hpp"
 #include "treecut/las.hpp"
+#include "treecut/pcd.hpp"
 #include "treecut/text_cloud.hpp"
 
 namespace {
@@ -34,10 +34,11 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   treecut::PointSet points;
   const bool las = treecut::looks_like_las(bytes);
   try {
-    points = las ? treecut::load_las_from_memory(bytes, "fuzz.las", &report,
-                                                 [](const std::string&) {})
-                 : treecut::load_text_cloud_from_memory(bytes, "fuzz.xyz",
-                                                        [](const std::string&) {});
+    const auto quiet = [](const std::string&) {};
+    points = las ? treecut::load_las_from_memory(bytes, "fuzz.las", &report, quiet)
+             : treecut::looks_like_pcd(bytes)
+                 ? treecut::load_pcd_from_memory(bytes, "fuzz.pcd", quiet)
+                 : treecut::load_text_cloud_from_memory(bytes, "fuzz.xyz", quiet);
   } catch (const treecut::InputError&) {
     return 0;
   }

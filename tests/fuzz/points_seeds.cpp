@@ -8,6 +8,7 @@
 #include <string>
 
 #include "treecut/las.hpp"
+#include "treecut/pcd.hpp"
 #include "treecut/tools/generate.hpp"
 
 int main(int argc, char** argv) {
@@ -33,12 +34,23 @@ int main(int argc, char** argv) {
       }
     }
   }
+  // PCD in its three encodings, with normals, colours and attributes.
+  for (const auto& [data, name] :
+       {std::pair{PcdData::ascii, "ascii"}, std::pair{PcdData::binary, "binary"},
+        std::pair{PcdData::binary_compressed, "compressed"}}) {
+    PointSet p = tools::generate_model(tools::ModelKind::City, 30, 3);
+    tools::add_survey_attributes(p, tools::ModelKind::City);
+    save_pcd(out / ("city-" + std::string(name) + ".pcd"), p, data);
+    ++written;
+  }
   const char* texts[][2] = {
       {"grid.xyz", "0 0 0\n0.01 0 0\n0 0.01 0\n0.01 0.01 0.002\n"},
-      {"colours.xyz", "500000.001 5000000.002 100.5 255 0 10\n500000.011 5000000.012 100.5 0 255 20\n"},
+      {"colours.xyz",
+       "500000.001 5000000.002 100.5 255 0 10\n500000.011 5000000.012 100.5 0 255 20\n"},
       {"normals.xyz", "0 0 0 0 0 1\n1 0 0 0.5 0 0.5\n0 1 0 0 1 0\n"},
       {"scan.pts", "3\n1 2 3 -100 10 20 30\n4 5 6 -90 40 50 60\n7 8 9 -80 70 80 90\n"},
-      {"table.csv", "X,Y,Z,Intensity,Red,Green,Blue\n1,2,3,9,1,2,3\n4,5,6,8,4,5,6\n7,8,9.5,7,7,8,9\n"},
+      {"table.csv",
+       "X,Y,Z,Intensity,Red,Green,Blue\n1,2,3,9,1,2,3\n4,5,6,8,4,5,6\n7,8,9.5,7,7,8,9\n"},
   };
   for (const auto& [file, text] : texts) {
     std::ofstream seed(out / file, std::ios::binary);

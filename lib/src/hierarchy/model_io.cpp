@@ -10,6 +10,7 @@
 
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
+#include "treecut/pcd.hpp"
 #include "treecut/text_cloud.hpp"
 
 namespace treecut {
@@ -143,8 +144,8 @@ std::string read_head(const std::filesystem::path& path, std::size_t n) {
   return head;
 }
 
-// The points of a model file, by its first bytes: LAS ("LASF"), PLY, or a
-// text cloud (text_cloud.hpp). A
+// The points of a model file, by its first bytes: LAS ("LASF"), PLY, PCD
+// (pcd.hpp) or a text cloud (text_cloud.hpp). A
 // file that is neither gets the PLY reader's message (it names the format
 // it recognizes: E57, PCD, an image...) and what treecut reads.
 PointSet read_point_file(const std::filesystem::path& model, OpenedModel& out,
@@ -155,7 +156,12 @@ PointSet read_point_file(const std::filesystem::path& model, OpenedModel& out,
   }
   out.format = "PLY";
   if (file_starts_with(model, "ply")) return load_ply(model, &out.ply, warn);
-  if (looks_like_text_cloud(read_head(model, 4096))) {
+  const std::string head = read_head(model, 4096);
+  if (looks_like_pcd(head)) {
+    out.format = "PCD";
+    return load_pcd(model, warn);
+  }
+  if (looks_like_text_cloud(head)) {
     out.format = "text";
     return load_text_cloud(model, warn);
   }
@@ -163,7 +169,7 @@ PointSet read_point_file(const std::filesystem::path& model, OpenedModel& out,
     return load_ply(model, &out.ply, warn);
   } catch (const InputError& e) {
     throw InputError(std::string(e.what()) +
-                     "; treecut reads PLY, LAS and text (XYZ, PTS, CSV) point files");
+                     "; treecut reads PLY, LAS, PCD and text (XYZ, PTS, CSV) point files");
   }
 }
 

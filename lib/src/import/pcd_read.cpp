@@ -1,0 +1,479 @@
+// PCD import (treecut/pcd.hpp): the header checked line by line, then the
+// points of an ascii, binary or binary_compressed body.
+#include <lzf.h>
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "attribute_column.hpp"
+#include "little_endian.hpp"
+#include "treecut/error.hpp"
+#include "treecut/file_io.hpp"
+#include "treecut/pcd.hpp"
+#include "whole_file.hpp"
+
+namespace treecut {
+
+namespace {
+
+class PcdError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct Field {
+  std::string name;
+  std::uint32_t size = 4;  // bytes of one element
+  char type = 'F';         // I signed, U unsigned, F float
+  std::uint32_t count = 1;
+  std::uint32_t offset = 0;  // in a binary record
+};
+
+enum class Data { ascii, binary, compressed };
+
+struct Header {
+  std::vector<Field> fields;
+  std::uint64_t width = 0, height = 1, points = 0;
+  bool have_points = false;
+  Data data = Data::ascii;
+  std::size_t body = 0;       // first byte after the DATA line
+  std::size_t body_line = 0;  // its line number (ascii messages)
+  std::uint32_t record = 0;   // bytes of one packed point
+};
+
+std::string_view trim(std::string_view s) {
+  while (!s.empty() && (s.back() == '\r' || s.back() == ' ' || s.back() == '\t'))
+    s.remove_suffix(1);
+  while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
+  return s;
+}
+
+std::vector<std::string_view> tokens_of(std::string_view line) {
+  std::vector<std::string_view> out;
+  std::size_t at = 0;
+  while (at < line.size()) {
+    at = line.find_first_not_of(" \t", at);
+    if (at == std::string_view::npos) break;
+    const std::size_t end = std::min(line.find_first_of(" \t", at), line.size());
+    out.push_back(line.substr(at, end - at));
+    at = end;
+  }
+  return out;
+}
+
+std::string shown(std::string_view t) {
+  std::string s(t.substr(0, 40));
+  for (char& c : s) {
+    if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) >= 0x7f) c = '?';
+  }
+  return s;
+}
+
+std::uint64_t whole(std::string_view keyword, std::string_view t) {
+  std::uint64_t v = 0;
+  const auto [end, ec] = std::from_chars(t.data(), t.data() + t.size(), v);
+  if (ec != std::errc() || end != t.data() + t.size()) {
+    throw PcdError(std::string(keyword) + ": '" + shown(t) + "' is not a whole number");
+  }
+  return v;
+}
+
+// The per-field lines (SIZE, TYPE, COUNT) after FIELDS: one value a field.
+void per_field(std::string_view keyword, const std::vector<std::string_view>& t, Header& h) {
+  if (h.fields.empty()) throw PcdError(std::string(keyword) + " before FIELDS");
+  if (t.size() - 1 != h.fields.size()) {
+    throw PcdError(std::string(keyword) + " has " + std::to_string(t.size() - 1) + " values for " +
+                   std::to_string(h.fields.size()) + " fields");
+  }
+  for (std::size_t i = 0; i < h.fields.size(); ++i) {
+    Field& f = h.fields[i];
+    const std::string_view v = t[i + 1];
+    if (keyword == "TYPE") {
+      if (v != "I" && v != "U" && v != "F") {
+        throw PcdError("TYPE '" + shown(v) + "' of field " + f.name + " (I, U or F)");
+      }
+      f.type = v[0];
+    } else if (keyword == "SIZE") {
+      f.size = static_cast<std::uint32_t>(std::min<std::uint64_t>(whole(keyword, v), 1u << 20));
+    } else {
+      const std::uint64_t c = whole(keyword, v);
+      if (c == 0 || c > 100000)
+        throw PcdError("COUNT " + std::to_string(c) + " of field " + f.name);
+      f.count = static_cast<std::uint32_t>(c);
+    }
+  }
+}
+
+Header parse_header(std::string_view file) {
+  Header h;
+  std::size_t at = 0, line_number = 0;
+  bool have_size = false, have_type = false;
+  while (at < file.size()) {
+    const std::size_t end = std::min(file.find('\n', at), file.size());
+    const std::string_view line = trim(file.substr(at, end - at));
+    at = end + 1;
+    ++line_number;
+    if (line.empty() || line.front() == '#') continue;
+    const std::vector<std::string_view> t = tokens_of(line);
+    const std::string_view k = t.front();
+    if (k == "VERSION") continue;
+    if (k == "FIELDS" || k == "COLUMNS") {
+      if (t.size() < 2) throw PcdError("FIELDS names no field");
+      if (t.size() > 1025) throw PcdError("FIELDS names more than 1024 fields");
+      h.fields.clear();
+      for (std::size_t i = 1; i < t.size(); ++i) h.fields.push_back({std::string(t[i])});
+    } else if (k == "SIZE" || k == "TYPE" || k == "COUNT") {
+      per_field(k, t, h);
+      have_size |= k == "SIZE";
+      have_type |= k == "TYPE";
+    } else if (k == "WIDTH" || k == "HEIGHT" || k == "POINTS") {
+      if (t.size() != 2) throw PcdError(std::string(k) + " needs one number");
+      const std::uint64_t v = whole(k, t[1]);
+      (k == "WIDTH" ? h.width : k == "HEIGHT" ? h.height : h.points) = v;
+      if (k == "POINTS") h.have_points = true;
+    } else if (k == "VIEWPOINT") {
+      continue;
+    } else if (k == "DATA") {
+      if (t.size() != 2 || (t[1] != "ascii" && t[1] != "binary" && t[1] != "binary_compressed")) {
+        throw PcdError("DATA '" + shown(t.size() > 1 ? t[1] : "") +
+                       "' (ascii, binary or binary_compressed)");
+      }
+      h.data = t[1] == "ascii" ? Data::ascii : t[1] == "binary" ? Data::binary : Data::compressed;
+      h.body = std::min(at, file.size());
+      h.body_line = line_number + 1;
+      break;
+    } else {
+      throw PcdError(std::to_string(line_number) + ": unknown header line '" + shown(line) + "'");
+    }
+  }
+  if (h.body == 0) throw PcdError("no DATA line (the header never ends)");
+  if (h.fields.empty()) throw PcdError("no FIELDS line");
+  if (!have_size || !have_type) throw PcdError("the header needs SIZE and TYPE lines");
+  if (!h.have_points) h.points = h.width * h.height;
+  if (h.width == 0 || h.height == 0 || h.points == 0)
+    throw PcdError("no points (WIDTH, HEIGHT or POINTS is 0)");
+  if (h.width > (std::uint64_t{1} << 32) || h.height > (std::uint64_t{1} << 32) ||
+      h.width * h.height != h.points) {
+    throw PcdError("WIDTH " + std::to_string(h.width) + " x HEIGHT " + std::to_string(h.height) +
+                   " is not POINTS " + std::to_string(h.points));
+  }
+  if (h.points >= (std::uint64_t{1} << 31)) throw PcdError("more than 2^31 points");
+  std::uint64_t record = 0;
+  for (Field& f : h.fields) {
+    const bool ok = f.type == 'F' ? (f.size == 4 || f.size == 8)
+                                  : (f.size == 1 || f.size == 2 || f.size == 4 || f.size == 8);
+    if (!ok) {
+      throw PcdError("field " + shown(f.name) + ": TYPE " + std::string(1, f.type) + " of SIZE " +
+                     std::to_string(f.size) + " (I and U: 1, 2, 4, 8; F: 4, 8)");
+    }
+    f.offset = static_cast<std::uint32_t>(record);
+    record += std::uint64_t{f.size} * f.count;
+    if (record > (1u << 24)) throw PcdError("a point record of more than 16 MiB");
+  }
+  h.record = static_cast<std::uint32_t>(record);
+  return h;
+}
+
+double element(const unsigned char* p, const Field& f) {
+  switch (f.type) {
+    case 'F':
+      return f.size == 4 ? double(detail::get_le<float>(p)) : detail::get_le<double>(p);
+    case 'I':
+      switch (f.size) {
+        case 1:
+          return static_cast<std::int8_t>(*p);
+        case 2:
+          return detail::get_le<std::int16_t>(p);
+        case 4:
+          return detail::get_le<std::int32_t>(p);
+        default:
+          return static_cast<double>(detail::get_le<std::int64_t>(p));
+      }
+    default:
+      switch (f.size) {
+        case 1:
+          return *p;
+        case 2:
+          return detail::get_le<std::uint16_t>(p);
+        case 4:
+          return detail::get_le<std::uint32_t>(p);
+        default:
+          return static_cast<double>(detail::get_le<std::uint64_t>(p));
+      }
+  }
+}
+
+// Where each meaning is: field indices, -1 when absent.
+struct Roles {
+  int xyz[3] = {-1, -1, -1};
+  int normal[3] = {-1, -1, -1};
+  int rgb = -1;
+  std::vector<int> attributes;
+  std::vector<std::string> not_kept;
+};
+
+Roles roles_of(const Header& h) {
+  Roles r;
+  static constexpr const char* kXyz[3] = {"x", "y", "z"};
+  static constexpr const char* kNormal[3] = {"normal_x", "normal_y", "normal_z"};
+  for (int i = 0; i < static_cast<int>(h.fields.size()); ++i) {
+    const Field& f = h.fields[static_cast<std::size_t>(i)];
+    bool placed = false;
+    for (int a = 0; a < 3 && f.count == 1; ++a) {
+      if (f.name == kXyz[a] && r.xyz[a] < 0) r.xyz[a] = i, placed = true;
+      if (f.name == kNormal[a] && r.normal[a] < 0) r.normal[a] = i, placed = true;
+    }
+    if ((f.name == "rgb" || f.name == "rgba") && f.count == 1 && f.size == 4 && r.rgb < 0) {
+      r.rgb = i, placed = true;
+    }
+    if (placed || f.name == "_") continue;
+    if (f.count == 1 && r.attributes.size() < kMaxAttributes) {
+      r.attributes.push_back(i);
+    } else {
+      r.not_kept.push_back(shown(f.name) +
+                           (f.count > 1 ? " (" + std::to_string(f.count) + " values)" : ""));
+    }
+  }
+  if (r.xyz[0] < 0 || r.xyz[1] < 0 || r.xyz[2] < 0) throw PcdError("no x, y and z fields");
+  if (r.normal[0] < 0 || r.normal[1] < 0 || r.normal[2] < 0) {
+    for (int& n : r.normal) {
+      if (n >= 0) r.not_kept.push_back(h.fields[static_cast<std::size_t>(n)].name);
+      n = -1;
+    }
+  }
+  return r;
+}
+
+// The points, from values the body gives as value(point, field, element 0).
+struct Builder {
+  const Header& h;
+  const Roles& r;
+  PointSet points;
+  std::vector<detail::AttributeColumn> attributes;
+  std::size_t dropped = 0;
+
+  Builder(const Header& header, const Roles& roles) : h(header), r(roles) {
+    const auto n = static_cast<std::size_t>(h.points);
+    points.positions.reserve(n);
+    if (r.normal[0] >= 0) points.normals.reserve(n);
+    if (r.rgb >= 0) points.colors.reserve(n);
+    for (const int a : r.attributes)
+      attributes.emplace_back(h.fields[static_cast<std::size_t>(a)].name, 0);
+  }
+
+  // VALUE(field) gives the field's first element as a double; RAW(field)
+  // its 4 bytes (the packed colour).
+  template <class Value, class Raw>
+  void add(Value&& value, Raw&& raw) {
+    const glm::dvec3 p(value(r.xyz[0]), value(r.xyz[1]), value(r.xyz[2]));
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) {
+      ++dropped;  // an organized cloud's hole
+      return;
+    }
+    if (points.positions.empty()) points.frame.origin = glm::round(p);
+    const glm::dvec3 q = p - points.frame.origin;
+    if (!(std::fabs(q.x) <= kMaxCoordinate && std::fabs(q.y) <= kMaxCoordinate &&
+          std::fabs(q.z) <= kMaxCoordinate)) {
+      ++dropped;
+      return;
+    }
+    points.positions.push_back(glm::vec3(q));
+    if (r.normal[0] >= 0) {
+      const glm::vec3 n(float(value(r.normal[0])), float(value(r.normal[1])),
+                        float(value(r.normal[2])));
+      const float len = std::sqrt(n.x * n.x + n.y * n.y + n.z * n.z);
+      points.normals.push_back(len > 0.0f && std::isfinite(len) ? n / len : glm::vec3(0.0f));
+    }
+    if (r.rgb >= 0) {
+      const std::uint32_t c = raw(r.rgb);  // 0xAARRGGBB, as PCL packs it
+      points.colors.emplace_back((c >> 16) & 255u, (c >> 8) & 255u, c & 255u, 255);
+    }
+    for (std::size_t k = 0; k < attributes.size(); ++k)
+      attributes[k].push_back(value(r.attributes[k]));
+  }
+};
+
+void read_packed(const unsigned char* body, const Header& h, Builder& b) {
+  for (std::uint64_t i = 0; i < h.points; ++i) {
+    const unsigned char* rec = body + i * h.record;
+    b.add(
+        [&](int f) {
+          const Field& x = h.fields[static_cast<std::size_t>(f)];
+          return element(rec + x.offset, x);
+        },
+        [&](int f) {
+          return detail::get_le<std::uint32_t>(rec + h.fields[static_cast<std::size_t>(f)].offset);
+        });
+  }
+}
+
+// binary_compressed: the fields one after the other, each for every point.
+void read_columns(const unsigned char* body, const Header& h, Builder& b) {
+  std::vector<std::uint64_t> start(h.fields.size());
+  std::uint64_t at = 0;
+  for (std::size_t f = 0; f < h.fields.size(); ++f) {
+    start[f] = at;
+    at += std::uint64_t{h.fields[f].size} * h.fields[f].count * h.points;
+  }
+  for (std::uint64_t i = 0; i < h.points; ++i) {
+    auto where = [&](int f) {
+      const Field& x = h.fields[static_cast<std::size_t>(f)];
+      return body + start[static_cast<std::size_t>(f)] + i * x.size * x.count;
+    };
+    b.add([&](int f) { return element(where(f), h.fields[static_cast<std::size_t>(f)]); },
+          [&](int f) { return detail::get_le<std::uint32_t>(where(f)); });
+  }
+}
+
+void read_ascii(std::string_view file, const Header& h, Builder& b) {
+  std::size_t at = h.body, line = h.body_line - 1;
+  std::uint64_t per_line = 0;
+  for (const Field& f : h.fields) per_line += f.count;
+  std::vector<std::size_t> first(h.fields.size());  // token of each field
+  std::size_t k = 0;
+  for (std::size_t f = 0; f < h.fields.size(); ++f) first[f] = k, k += h.fields[f].count;
+  std::vector<double> values;
+  std::uint64_t read = 0;
+  while (read < h.points) {
+    if (at >= file.size()) {
+      throw PcdError(std::to_string(h.points) + " points declared, the file has " +
+                     std::to_string(read));
+    }
+    const std::size_t end = std::min(file.find('\n', at), file.size());
+    const std::string_view text = trim(file.substr(at, end - at));
+    at = end + 1;
+    ++line;
+    if (text.empty()) continue;
+    const std::vector<std::string_view> t = tokens_of(text);
+    if (t.size() != per_line) {
+      throw PcdError(std::to_string(line) + ": " + std::to_string(t.size()) +
+                     " values, the fields have " + std::to_string(per_line));
+    }
+    values.resize(t.size());
+    for (std::size_t i = 0; i < t.size(); ++i) {
+      std::string_view s = t[i];
+      if (s == "nan" || s == "NaN" || s == "-nan") {
+        values[i] = std::numeric_limits<double>::quiet_NaN();
+        continue;
+      }
+      if (!s.empty() && s.front() == '+') s.remove_prefix(1);
+      const auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), values[i]);
+      if (ec != std::errc() || p != s.data() + s.size()) {
+        throw PcdError(std::to_string(line) + ": '" + shown(t[i]) + "' is not a number");
+      }
+    }
+    b.add([&](int f) { return values[first[static_cast<std::size_t>(f)]]; },
+          [&](int f) {
+            // A packed colour is written as the float with its bits (or an integer).
+            const Field& x = h.fields[static_cast<std::size_t>(f)];
+            const double v = values[first[static_cast<std::size_t>(f)]];
+            if (x.type == 'F') {
+              const float fv = static_cast<float>(v);
+              std::uint32_t bits;
+              std::memcpy(&bits, &fv, 4);
+              return bits;
+            }
+            return static_cast<std::uint32_t>(std::clamp(v, 0.0, 4294967295.0));
+          });
+    ++read;
+  }
+}
+
+PointSet parse(std::string_view file, const WarningSink& warn) {
+  const Header h = parse_header(file);
+  const Roles r = roles_of(h);
+  const std::uint64_t left = file.size() - h.body;
+  const std::uint64_t need = h.points * h.record;
+  Builder b(h, r);
+  const auto* body = reinterpret_cast<const unsigned char*>(file.data()) + h.body;
+  if (h.data == Data::ascii) {
+    // Each value needs a character and a separator.
+    std::uint64_t per_line = 0;
+    for (const Field& f : h.fields) per_line += f.count;
+    if (h.points * per_line > left) {
+      throw PcdError(std::to_string(h.points) + " points of " + std::to_string(per_line) +
+                     " values cannot fit in the " + std::to_string(left) +
+                     " bytes after the header");
+    }
+    read_ascii(file, h, b);
+  } else if (h.data == Data::binary) {
+    if (need > left) {
+      throw PcdError(std::to_string(h.points) + " points of " + std::to_string(h.record) +
+                     " bytes declared, the data holds " + std::to_string(left / h.record));
+    }
+    read_packed(body, h, b);
+  } else {
+    if (left < 8) throw PcdError("the compressed data's sizes are cut off");
+    const std::uint32_t packed = detail::get_le<std::uint32_t>(body);
+    const std::uint32_t unpacked = detail::get_le<std::uint32_t>(body + 4);
+    if (packed > left - 8) {
+      throw PcdError("the compressed data (" + std::to_string(packed) +
+                     " bytes) runs past the end of the file");
+    }
+    if (unpacked != need) {
+      throw PcdError("the compressed data unpacks to " + std::to_string(unpacked) + " bytes, " +
+                     std::to_string(h.points) + " points of " + std::to_string(h.record) +
+                     " bytes need " + std::to_string(need));
+    }
+    // LZF turns 3 bytes into at most 264: a larger claim is not LZF.
+    if (need > std::uint64_t{packed} * 88 + 1024) {
+      throw PcdError("the compressed data's " + std::to_string(packed) +
+                     " bytes cannot unpack to " + std::to_string(need));
+    }
+    std::vector<unsigned char> columns(static_cast<std::size_t>(need));
+    const unsigned got = need == 0 ? 0 : lzf_decompress(body + 8, packed, columns.data(), unpacked);
+    if (got != unpacked) throw PcdError("the compressed data is damaged (LZF)");
+    read_columns(columns.data(), h, b);
+  }
+  if (b.points.positions.empty()) throw PcdError("no points with a finite position");
+  PointSet points = std::move(b.points);
+  for (detail::AttributeColumn& a : b.attributes) points.attributes.push_back(a.take());
+  const std::vector<std::string> constant = detail::drop_constant_attributes(points.attributes);
+  if (warn) {
+    if (b.dropped > 0) {
+      warn("dropped " + std::to_string(b.dropped) + " points without a finite position");
+    }
+    if (!r.not_kept.empty()) warn("fields not kept: " + detail::join(r.not_kept));
+    if (!constant.empty()) warn("the same at every point, not kept: " + detail::join(constant));
+  }
+  return points;
+}
+
+}  // namespace
+
+bool looks_like_pcd(std::string_view bytes) {
+  std::size_t at = 0;
+  while (at < bytes.size()) {
+    const std::size_t end = std::min(bytes.find('\n', at), bytes.size());
+    const std::string_view line = trim(bytes.substr(at, end - at));
+    at = end + 1;
+    if (line.empty() || line.front() == '#') continue;
+    return line.rfind("VERSION", 0) == 0 || line.rfind("FIELDS", 0) == 0;
+  }
+  return false;
+}
+
+PointSet load_pcd_from_memory(std::string_view bytes, const std::string& name,
+                              const WarningSink& warn) {
+  try {
+    const WarningSink named = [&](const std::string& w) {
+      if (warn) warn(name + ": " + w);
+    };
+    return parse(bytes, warn ? named : WarningSink{});
+  } catch (const PcdError& e) {
+    throw InputError(name + ": " + e.what());
+  }
+}
+
+PointSet load_pcd(const std::filesystem::path& path, const WarningSink& warn) {
+  const detail::WholeFile file = detail::read_whole_file(path);
+  return load_pcd_from_memory(file.bytes(), quoted_name(path), warn);
+}
+
+}  // namespace treecut
