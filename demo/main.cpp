@@ -78,6 +78,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   app.set_help_all_flag("--help-all", "Show help for every sub-command");
   treecut::cli::add_model_commands(app);
+  treecut::cli::add_export_command(app);
   treecut::cli::add_strategy_commands(app);
   treecut::cli::add_render_commands(app);
   treecut::cli::add_bench_commands(app);

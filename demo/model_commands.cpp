@@ -11,6 +11,7 @@
 #include "commands.hpp"
 #include "messages.hpp"
 #include "option_checks.hpp"
+#include "output_checks.hpp"
 #include "progress.hpp"
 #include "treecut/attributes.hpp"
 #include "treecut/cache.hpp"
@@ -159,22 +160,6 @@ void check_cache_output(const std::filesystem::path& out, const std::filesystem:
                      ": exists and is not a treecut cache; refusing to overwrite it");
 }
 
-// `gen` replaces an output only when it is a file of the kind it writes
-// (regenerating is what gen is for): one that starts with `magic`. A
-// directory, a FIFO or any other file is refused, naming `written` (what
-// would go there) or `kind` (what the file is not).
-void check_replaceable_output(const std::filesystem::path& out, std::string_view magic,
-                              std::string_view written, std::string_view kind) {
-  const FileKind file = file_kind(out);
-  if (file == FileKind::Missing) return;
-  if (file != FileKind::Regular)
-    throw InputError(quoted_name(out) + ": is " + std::string(describe(file)) +
-                     "; refusing to write " + std::string(written) + " there");
-  if (!file_starts_with(out, magic))
-    throw InputError(quoted_name(out) + ": exists and is not " + std::string(kind) +
-                     "; refusing to overwrite it");
-}
-
 // `gen -o PATH` (a model), `gen --walk PATH`, `gen city-block | hall -o PATH`.
 void check_ply_output(const std::filesystem::path& out) {
   check_replaceable_output(out, "ply\n", "a model", "a PLY file");
@@ -204,6 +189,11 @@ void print_scene_summary(const std::filesystem::path& file, const Scene& scene) 
               static_cast<unsigned long long>(scene.distinct_points()));
   const glm::vec3 lo = scene.bounds_min, hi = scene.bounds_max;
   std::printf("bounds      [%g %g %g] .. [%g %g %g]\n", lo.x, lo.y, lo.z, hi.x, hi.y, hi.z);
+  if (const glm::dvec3 o = scene.origin; o != glm::dvec3(0.0)) {
+    // Georeferenced models stand relative to the first one's origin.
+    std::printf("origin      [%.3f %.3f %.3f] (file coordinates of the world's zero)\n", o.x, o.y,
+                o.z);
+  }
   std::printf("memory      %.1f MiB: hierarchies %.1f MiB, object records %.2f MiB\n",
               mib(mem.hierarchy_bytes + mem.object_bytes), mib(mem.hierarchy_bytes),
               mib(mem.object_bytes));
@@ -281,25 +271,6 @@ void check_scene_loads(const SceneGenArgs& a, const std::string& text,
   } catch (const InputError& e) {
     throw InputError("gen " + a.kind + ": the scene made for " + quoted_name(a.out) +
                      " would not load (" + e.what() + "); nothing written");
-  }
-}
-
-// One command never writes one file twice, nor over a file it reads:
-// checked before any work, on the paths as they resolve (`n.ply` and
-// `./d/../n.ply`, links included), whether or not they exist yet.
-void check_distinct_files(
-    const std::vector<std::pair<std::filesystem::path, std::string>>& outputs,
-    const std::vector<std::pair<std::filesystem::path, std::string>>& inputs) {
-  for (std::size_t i = 0; i < outputs.size(); ++i) {
-    for (std::size_t j = 0; j < i; ++j)
-      if (same_destination(outputs[i].first, outputs[j].first))
-        throw InputError(quoted_name(outputs[i].first) + ": named as both " + outputs[j].second +
-                         " and " + outputs[i].second + "; one file cannot hold both");
-    for (const auto& [input, role] : inputs)
-      if (same_destination(outputs[i].first, input))
-        throw InputError(quoted_name(outputs[i].first) + ": is " + role +
-                         ", which this command reads; refusing to write " + outputs[i].second +
-                         " over it");
   }
 }
 

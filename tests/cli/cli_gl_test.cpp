@@ -117,6 +117,58 @@ TEST(Cli, RenderColoursByAnAttributeAndHidesClasses) {
   }
 }
 
+// `export`: LAS to PLY (relative, by request), to PCD and back to LAS with
+// the attributes, a class filter, and every refusal before anything is
+// written.
+TEST(Cli, ExportConvertsBetweenFormatsKeepingTheAttributes) {
+  using treecut::test::quote;
+  using treecut::test::run_treecut;
+  const fs::path dir = treecut::test::scratch_dir("cli_export");
+  treecut::test::CommandResult r =
+      run_treecut("gen city -n 5000 --origin 500000 5000000 10 -o " + quote(dir / "c.las"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  r = run_treecut("export " + quote(dir / "c.las") + " -o " + quote(dir / "c.ply"));
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_NE(r.out.find("the points are at map coordinates (origin [500000.000"), std::string::npos)
+      << r.out;
+  EXPECT_FALSE(fs::exists(dir / "c.ply"));
+  r = run_treecut("export " + quote(dir / "c.las") + " --relative -o " + quote(dir / "c.ply"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("(5000 of 5000 points, 2 attributes, from LAS)"), std::string::npos)
+      << r.out;
+  r = run_treecut("export " + quote(dir / "c.ply") + " -o " + quote(dir / "c.pcd"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  r = run_treecut("export " + quote(dir / "c.pcd") + " --classes 6 -o " + quote(dir / "b.las"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("from PCD"), std::string::npos) << r.out;
+  r = run_treecut("info " + quote(dir / "b.las"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("  intensity"), std::string::npos) << r.out;
+  // Only buildings: one class, which a reader names and does not keep.
+  EXPECT_EQ(r.out.find("  classification"), std::string::npos) << r.out;
+  r = run_treecut("export " + quote(dir / "b.las") + " -o " + quote(dir / "b.pcd"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("the same at every point, not kept: "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("classification 6"), std::string::npos) << r.out;
+  // Refused, nothing written: the input itself, another kind of file, a
+  // format it does not write, a filter that keeps nothing.
+  std::ofstream(dir / "notes.las") << "my notes\n";
+  for (const auto& [args, error] : std::vector<std::pair<std::string, std::string>>{
+           {quote(dir / "c.las") + " -o " + quote(dir / "c.las"), "which this command reads"},
+           {quote(dir / "c.las") + " -o " + quote(dir / "notes.las"), "is not a LAS file"},
+           {quote(dir / "c.las") + " -o " + quote(dir / "c.txt"),
+            "export writes .las, .ply or .pcd"},
+           {quote(dir / "c.las") + " --classes 9 -o " + quote(dir / "w.las"), "keeps no point"}}) {
+    r = run_treecut("export " + args);
+    EXPECT_EQ(r.code, 2) << args << "\n" << r.out;
+    EXPECT_NE(r.out.find(error), std::string::npos) << r.out;
+  }
+  EXPECT_FALSE(fs::exists(dir / "w.las"));
+  EXPECT_FALSE(fs::exists(dir / "c.txt"));
+  std::ifstream notes(dir / "notes.las");
+  EXPECT_EQ(std::string((std::istreambuf_iterator<char>(notes)), {}), "my notes\n");
+}
+
 TEST(Cli, MalformedPlyExitsWithTwoAndWritesNothing) {
   const auto shared = treecut::test::shared_dir();
   if (!shared) GTEST_SKIP() << "../shared is absent";

@@ -14,8 +14,8 @@
 #include <string>
 #include <vector>
 
-#include "hierarchy/cache_checksum.hpp"
 #include "../fuzz/fuzz_checks.hpp"
+#include "hierarchy/cache_checksum.hpp"
 #include "test_support.hpp"
 #include "treecut/cache.hpp"
 #include "treecut/error.hpp"
@@ -85,14 +85,13 @@ void replay_ply(const Regression& r, const std::string& bytes) {
   EXPECT_EQ(treecut::fuzz::check_builds(std::move(points)), "");
 }
 
-// As points_fuzz: LAS by its signature, else the text cloud reader.
+// As points_fuzz: the reader open_model would choose.
 void replay_points(const Regression& r, const std::string& bytes) {
   treecut::LasLoadReport report;
   treecut::PointSet points;
-  const bool las = treecut::looks_like_las(bytes);
+  bool las = false;
   try {
-    points = las ? treecut::load_las_from_memory(bytes, "regression.las", &report)
-                 : treecut::load_text_cloud_from_memory(bytes, "regression.xyz");
+    points = treecut::fuzz::load_point_bytes(bytes, report, las);
   } catch (const treecut::InputError& e) {
     ASSERT_EQ(r.expect, "error") << "rejected: " << e.what();
     EXPECT_NE(std::string(e.what()).find(r.detail), std::string::npos) << e.what();

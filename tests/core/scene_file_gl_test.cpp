@@ -17,6 +17,7 @@
 #include "test_support.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
+#include "treecut/las.hpp"
 #include "treecut/ply.hpp"
 #include "treecut/scene.hpp"
 #include "treecut/splat/camera_path.hpp"
@@ -256,6 +257,37 @@ TEST(SceneFile, IncludeCyclesAndErrorsInIncludedFiles) {
   write(dir / "uses.scene", "treecut-scene 1\ninclude models_only.scene\nobject g\n");
   EXPECT_NE(parse_error(dir / "uses.scene").find(":3: object: unknown model 'g'"),
             std::string::npos);
+}
+
+// Issue 29: georeferenced models (LAS tiles at map coordinates) stand where
+// their files put them relative to each other; a model without an origin
+// stays where the scene file puts it.
+TEST(SceneFile, GeoreferencedModelsShareTheWorldsCoordinates) {
+  const fs::path dir = treecut::test::scratch_dir("scene_geo");
+  treecut::PointSet tile =
+      treecut::tools::generate_model(treecut::tools::ModelKind::Terrain, 2000, 3);
+  tile.frame.origin = glm::dvec3(500000.0, 5000000.0, 100.0);
+  treecut::save_las(dir / "a.las", tile);
+  tile.frame.origin += glm::dvec3(250.0, -40.0, 2.0);
+  treecut::save_las(dir / "b.las", tile);
+  small_ply(dir, "statue.ply");
+  std::ofstream(dir / "geo.scene") << "treecut-scene 1\nmodel a a.las\nmodel b b.las\n"
+                                      "model s statue.ply\nobject a\nobject b\n"
+                                      "object s translate 10 0 0\n";
+  const treecut::Scene scene = treecut::load_scene(dir / "geo.scene", no_cache());
+  ASSERT_EQ(scene.objects.size(), 3u);
+  const glm::dvec3 origin_a = scene.models[0].hierarchy->frame().origin;
+  EXPECT_EQ(scene.origin, origin_a);
+  const auto centre = [](const treecut::SceneObject& o) {
+    return 0.5f * (o.aabb_min + o.aabb_max);
+  };
+  EXPECT_NE(scene.models[1].hierarchy->frame().origin, origin_a);
+  // Tile b is tile a moved by (250, -40, 2) in the files.
+  const glm::vec3 seen = centre(scene.objects[1]) - centre(scene.objects[0]);
+  EXPECT_NEAR(seen.x, 250.0f, 0.01f);
+  EXPECT_NEAR(seen.y, -40.0f, 0.01f);
+  EXPECT_NEAR(seen.z, 2.0f, 0.01f);
+  EXPECT_NEAR(centre(scene.objects[2]).x, 10.0f, 0.1f) << "a PLY stays where the scene says";
 }
 
 TEST(SceneFile, TransformsComposeInTheOrderWritten) {

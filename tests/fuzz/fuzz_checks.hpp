@@ -12,10 +12,24 @@
 
 #include "treecut/attributes.hpp"
 #include "treecut/hierarchy.hpp"
+#include "treecut/las.hpp"
+#include "treecut/pcd.hpp"
 #include "treecut/point_set.hpp"
+#include "treecut/text_cloud.hpp"
 #include "treecut/tree_cut.hpp"
 
 namespace treecut::fuzz {
+
+/// The bytes of a point file other than PLY through the reader open_model
+/// would choose by its first bytes: LAS ("LASF"), PCD (its header), else a
+/// text cloud. Throws InputError as the readers do; LAS says whether it was LAS.
+inline PointSet load_point_bytes(std::string_view bytes, LasLoadReport& report, bool& las) {
+  const auto quiet = [](const std::string&) {};
+  las = looks_like_las(bytes);
+  if (las) return load_las_from_memory(bytes, "fuzz.las", &report, quiet);
+  if (looks_like_pcd(bytes)) return load_pcd_from_memory(bytes, "fuzz.pcd", quiet);
+  return load_text_cloud_from_memory(bytes, "fuzz.xyz", quiet);
+}
 
 /// The contract of load_ply (ply.hpp, point_set.hpp): every array empty or of
 /// size(), positions finite, normals unit or zero, radii finite and > 0,

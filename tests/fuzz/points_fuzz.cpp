@@ -13,9 +13,6 @@
 
 #include "fuzz_checks.hpp"
 #include "treecut/error.hpp"
-#include "treecut/las.hpp"
-#include "treecut/pcd.hpp"
-#include "treecut/text_cloud.hpp"
 
 namespace {
 
@@ -32,13 +29,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const std::string_view bytes(reinterpret_cast<const char*>(data), size);
   treecut::LasLoadReport report;
   treecut::PointSet points;
-  const bool las = treecut::looks_like_las(bytes);
+  bool las = false;
   try {
-    const auto quiet = [](const std::string&) {};
-    points = las ? treecut::load_las_from_memory(bytes, "fuzz.las", &report, quiet)
-             : treecut::looks_like_pcd(bytes)
-                 ? treecut::load_pcd_from_memory(bytes, "fuzz.pcd", quiet)
-                 : treecut::load_text_cloud_from_memory(bytes, "fuzz.xyz", quiet);
+    points = treecut::fuzz::load_point_bytes(bytes, report, las);
   } catch (const treecut::InputError&) {
     return 0;
   }

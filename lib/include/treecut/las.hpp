@@ -9,7 +9,8 @@
 // other per-point field as a named attribute (PointSet::attributes):
 // intensity, return_number, number_of_returns, classification,
 // classification_flags (synthetic 1, key-point 2, withheld 4, overlap 8),
-// scanner_channel, scan_angle (degrees), user_data, point_source_id,
+// scanner_channel, scan_direction, edge_of_flight_line, scan_angle
+// (degrees), user_data, point_source_id,
 // gps_time, nir and the extra bytes by their names. An attribute with one
 // value for every point is named in a warning instead of kept. What it
 // reports (LasInfo): the header, the coordinate system (the WKT or the

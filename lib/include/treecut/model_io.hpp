@@ -78,6 +78,13 @@ std::uint32_t options_bits(const AttributeOptions& attributes, const BuildOption
 /// that names the model itself.
 OpenedModel open_model(const std::filesystem::path& model, const OpenOptions& options = {});
 
+/// The points of a model file as open_model reads them, chosen by its first
+/// bytes (PLY, LAS, PCD or a text cloud), before attributes and build:
+/// what `treecut export` converts. *FORMAT (if given) gets "PLY", "LAS",
+/// "PCD" or "text". Throws InputError for a malformed file.
+PointSet load_point_file(const std::filesystem::path& model, const WarningSink& warn = {},
+                         std::string* format = nullptr);
+
 /// Builds from points already in memory (generated models, benchmarks).
 Hierarchy build_from_points(PointSet points, const AttributeOptions& attributes = {},
                             const BuildOptions& build = {});

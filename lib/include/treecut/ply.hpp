@@ -55,8 +55,11 @@ PointSet load_ply_from_memory(std::string_view bytes, const std::string& name,
                               PlyLoadReport* report = nullptr, const WarningSink& warn = {});
 
 /// Writes binary little-endian PLY: x y z float, then nx ny nz float, red green
-/// blue uchar and radius float when present (curvature is not written), and a
-/// face element (list uchar int) when triangles are present. Writes through an
+/// blue uchar and radius float when present (curvature is not written), every
+/// attribute as a float property of its name (a double with its offset added
+/// when it has one), and a face element (list uchar int) when triangles are
+/// present. Positions are written as they are, relative to points.frame's
+/// origin (a PLY has none). Writes through an
 /// AtomicFile (a temporary beside PATH, renamed over it when complete), so
 /// readers never see a partial file and a failed write (full disk) leaves
 /// PATH as it was and no temporary. Throws std::invalid_argument if an

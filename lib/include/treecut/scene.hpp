@@ -18,6 +18,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <glm/ext/vector_double3.hpp>
 #include <glm/mat4x4.hpp>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
@@ -75,6 +76,13 @@ struct Scene {
   std::vector<SceneObject> objects;              ///< in file order (includes where they stand)
   glm::vec3 bounds_min{0.0f}, bounds_max{0.0f};  ///< union of the objects' AABBs
   double load_seconds = 0.0;                     ///< wall time of load_scene's model loads
+  /// The file coordinates of the world's zero (map coordinates): the origin
+  /// of the first model that has one (Hierarchy::frame(), e.g. a LAS), else
+  /// 0. A model with an origin O is placed at O - origin after its object's
+  /// transform, so georeferenced models (LAS tiles) stand where their files
+  /// put them relative to each other; models without one (PLY, generated)
+  /// stay where the scene file puts them.
+  glm::dvec3 origin{0.0};
 
   /// Points drawn at full detail: the sum over objects of their model's points.
   [[nodiscard]] std::uint64_t instanced_points() const;

@@ -240,6 +240,15 @@ void write_model_cache(const CacheKey& key, const OpenOptions& options, OpenedMo
 
 }  // namespace
 
+PointSet load_point_file(const std::filesystem::path& model, const WarningSink& warn,
+                         std::string* format) {
+  require_regular_file(model);
+  OpenedModel opened;
+  PointSet points = read_point_file(model, opened, warn);
+  if (format) *format = opened.format;
+  return points;
+}
+
 OpenedModel open_model(const std::filesystem::path& model, const OpenOptions& options) {
   // Checked without opening: a FIFO would block, a directory is "no such file" to ifstream.
   require_regular_file(model);

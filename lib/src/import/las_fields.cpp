@@ -30,27 +30,27 @@ LasFields::LasFields(const LasInfo& info, std::size_t points, std::vector<std::s
     // Legacy records: returns in one byte, flags above a 5-bit class.
     add("return_number", 14, Raw::u8, 0, 3);
     add("number_of_returns", 14, Raw::u8, 3, 3);
+    add("scan_direction", 14, Raw::u8, 6, 1);
+    add("edge_of_flight_line", 14, Raw::u8, 7, 1);
     add("classification", 15, Raw::u8, 0, 5);
     add("classification_flags", 15, Raw::u8, 5, 3);
     add("scan_angle", 16, Raw::i8);  // whole degrees
     add("user_data", 17, Raw::u8);
     add("point_source_id", 18, Raw::u16);
     if (format == 1 || format >= 3) add("gps_time", 20, Raw::f64);
-    not_kept.emplace_back("scan direction");
-    not_kept.emplace_back("edge of flight line");
   } else {
     add("return_number", 14, Raw::u8, 0, 4);
     add("number_of_returns", 14, Raw::u8, 4, 4);
     add("classification_flags", 15, Raw::u8, 0, 4);
     add("scanner_channel", 15, Raw::u8, 4, 2);
+    add("scan_direction", 15, Raw::u8, 6, 1);
+    add("edge_of_flight_line", 15, Raw::u8, 7, 1);
     add("classification", 16, Raw::u8);
     add("user_data", 17, Raw::u8);
     add("scan_angle", 18, Raw::i16, 0, 0, 0.006);  // steps of 0.006 degrees
     add("point_source_id", 20, Raw::u16);
     add("gps_time", 22, Raw::f64);
     if (format == 8 || format == 10) add("nir", 36, Raw::u16);
-    not_kept.emplace_back("scan direction");
-    not_kept.emplace_back("edge of flight line");
   }
 
   std::uint32_t at = kBaseLength[format];

@@ -77,6 +77,8 @@ struct Layout {
   const PointAttribute* intensity = nullptr;
   const PointAttribute* return_number = nullptr;
   const PointAttribute* number_of_returns = nullptr;
+  const PointAttribute* scan_direction = nullptr;
+  const PointAttribute* edge = nullptr;
   const PointAttribute* classification = nullptr;
   const PointAttribute* flags = nullptr;
   const PointAttribute* scan_angle = nullptr;
@@ -100,6 +102,8 @@ Layout layout_of(const PointSet& points) {
       {"intensity", &l.intensity},
       {"return_number", &l.return_number},
       {"number_of_returns", &l.number_of_returns},
+      {"scan_direction", &l.scan_direction},
+      {"edge_of_flight_line", &l.edge},
       {"classification", &l.classification},
       {"classification_flags", &l.flags},
       {"scan_angle", &l.scan_angle},
@@ -228,7 +232,9 @@ void save_las(const std::filesystem::path& path, const PointSet& points,
     // Without the attributes: return 1 of 1, unclassified (1).
     const auto ret = l.return_number ? integer_value(l.return_number, i, 0, 7) : 1;
     const auto of = l.number_of_returns ? integer_value(l.number_of_returns, i, 0, 7) : 1;
-    chunk.push_back(static_cast<char>(ret | (of << 3)));
+    chunk.push_back(static_cast<char>(ret | (of << 3) |
+                                      (integer_value(l.scan_direction, i, 0, 1) << 6) |
+                                      (integer_value(l.edge, i, 0, 1) << 7)));
     const auto cls = l.classification ? integer_value(l.classification, i, 0, 31) : 1;
     chunk.push_back(static_cast<char>(cls | (integer_value(l.flags, i, 0, 7) << 5)));
     chunk.push_back(static_cast<char>(integer_value(l.scan_angle, i, -90, 90)));

@@ -16,6 +16,7 @@
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
 #include "treecut/pcd.hpp"
+#include "unit_normal.hpp"
 #include "whole_file.hpp"
 
 namespace treecut {
@@ -285,10 +286,8 @@ struct Builder {
     }
     points.positions.push_back(glm::vec3(q));
     if (r.normal[0] >= 0) {
-      const glm::vec3 n(float(value(r.normal[0])), float(value(r.normal[1])),
-                        float(value(r.normal[2])));
-      const float len = std::sqrt(n.x * n.x + n.y * n.y + n.z * n.z);
-      points.normals.push_back(len > 0.0f && std::isfinite(len) ? n / len : glm::vec3(0.0f));
+      points.normals.push_back(
+          detail::unit_or_zero(value(r.normal[0]), value(r.normal[1]), value(r.normal[2])));
     }
     if (r.rgb >= 0) {
       const std::uint32_t c = raw(r.rgb);  // 0xAARRGGBB, as PCL packs it

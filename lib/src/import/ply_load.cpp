@@ -13,10 +13,10 @@
 #include <string>
 
 #include "ply_load_parts.hpp"
-#include "whole_file.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
 #include "treecut/ply.hpp"
+#include "whole_file.hpp"
 
 namespace treecut {
 

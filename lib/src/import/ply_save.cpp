@@ -31,6 +31,9 @@ void check_sizes(const PointSet& points) {
   check(points.normals.size(), "normals");
   check(points.colors.size(), "colors");
   check(points.radii.size(), "radii");
+  for (const PointAttribute& a : points.attributes) {
+    if (a.values.size() != n) check(a.values.size(), "an attribute");
+  }
   if (n > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max())) {
     throw std::invalid_argument("save_ply: too many points for 32-bit face indices");
   }
@@ -41,6 +44,25 @@ void check_sizes(const PointSet& points) {
   }
 }
 
+// The attributes' property names: one token, unique beside the roles
+// ("height above ground" -> height_above_ground; a LAS extra-bytes field
+// called red beside the colour's red -> red_attribute).
+std::vector<std::string> attribute_names(const PointSet& points) {
+  std::vector<std::string> used = {"x",   "y",     "z",    "nx",     "ny",   "nz",
+                                   "red", "green", "blue", "radius", "alpha"};
+  std::vector<std::string> names;
+  for (const PointAttribute& a : points.attributes) {
+    std::string name = a.name.empty() ? "attribute" : a.name;
+    for (char& c : name) {
+      if (c == ' ' || c == '\t' || static_cast<unsigned char>(c) < 0x20) c = '_';
+    }
+    while (std::find(used.begin(), used.end(), name) != used.end()) name += "_attribute";
+    used.push_back(name);
+    names.push_back(name);
+  }
+  return names;
+}
+
 std::string header(const PointSet& points) {
   std::string out = "ply\nformat binary_little_endian 1.0\ncomment written by treecut\n";
   out += "element vertex " + std::to_string(points.size()) + "\n";
@@ -48,6 +70,13 @@ std::string header(const PointSet& points) {
   if (points.has_normals()) out += "property float nx\nproperty float ny\nproperty float nz\n";
   if (points.has_colors()) out += "property uchar red\nproperty uchar green\nproperty uchar blue\n";
   if (points.has_radii()) out += "property float radius\n";
+  // An attribute with an offset (a GPS time of 3e8 s) as a double: a float
+  // of the file's value would lose what the offset keeps.
+  const std::vector<std::string> names = attribute_names(points);
+  for (std::size_t k = 0; k < names.size(); ++k) {
+    out += std::string("property ") + (points.attributes[k].offset != 0.0 ? "double " : "float ") +
+           names[k] + "\n";
+  }
   if (!points.triangles.empty()) {
     out += "element face " + std::to_string(points.triangles.size()) + "\n";
     out += "property list uchar int vertex_indices\n";
@@ -88,6 +117,13 @@ void save_ply(const std::filesystem::path& path, const PointSet& points) {
       chunk.push_back(static_cast<char>(c.z));
     }
     if (points.has_radii()) put_le(chunk, points.radii[i]);
+    for (const PointAttribute& a : points.attributes) {
+      if (a.offset != 0.0) {
+        put_le(chunk, a.offset + double(a.values[i]));
+      } else {
+        put_le(chunk, a.values[i]);
+      }
+    }
     flush(false);
   }
   for (const glm::uvec3& t : points.triangles) {

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "ply_load_parts.hpp"
+#include "unit_normal.hpp"
 
 namespace treecut::ply_load {
 
@@ -104,18 +105,8 @@ void tidy(PointSet& points, const Warnings& warn, PlyLoadReport& report,
   if (points.has_normals()) {
     std::size_t undefined = 0;
     for (glm::vec3& n : points.normals) {
-      // In double: squaring a large finite float component must not overflow.
-      const double x = n.x;
-      const double y = n.y;
-      const double z = n.z;
-      const double length = std::sqrt(x * x + y * y + z * z);
-      if (std::isfinite(length) && length > 0.0) {
-        n = glm::vec3(static_cast<float>(x / length), static_cast<float>(y / length),
-                      static_cast<float>(z / length));
-      } else {
-        if (!std::isfinite(length)) ++undefined;
-        n = glm::vec3(0.0f);
-      }
+      if (!(std::isfinite(n.x) && std::isfinite(n.y) && std::isfinite(n.z))) ++undefined;
+      n = detail::unit_or_zero(n.x, n.y, n.z);
     }
     if (undefined > 0) warn(plural(undefined, "normal") + " not finite, set to zero");
   }

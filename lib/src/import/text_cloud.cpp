@@ -13,6 +13,7 @@
 #include "attribute_column.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
+#include "unit_normal.hpp"
 #include "whole_file.hpp"
 
 namespace treecut {
@@ -259,10 +260,8 @@ bool read_point(const Columns& columns, const std::vector<std::string_view>& tok
     points.colors.push_back(c);
   }
   if (columns.normal[0] >= 0) {
-    const glm::vec3 n(float(value(columns.normal[0])), float(value(columns.normal[1])),
-                      float(value(columns.normal[2])));
-    const float len = std::sqrt(n.x * n.x + n.y * n.y + n.z * n.z);
-    points.normals.push_back(len > 0 && std::isfinite(len) ? n / len : glm::vec3(0.0f));
+    points.normals.push_back(detail::unit_or_zero(
+        value(columns.normal[0]), value(columns.normal[1]), value(columns.normal[2])));
   }
   return true;
 }

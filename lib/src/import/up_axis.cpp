@@ -209,7 +209,8 @@ UpAxis detect_up_axis(std::span<const glm::vec3> positions, std::span<const glm:
 
 UpAxis detect_up_axis(const Hierarchy& hierarchy) {
   if (hierarchy.empty()) return make(2, false, "no points; default z");
-  if (hierarchy.frame().z_up) return make(2, false, "the file format says so (LAS: z is the height)");
+  if (hierarchy.frame().z_up)
+    return make(2, false, "the file format says so (LAS: z is the height)");
   const std::uint32_t nodes = hierarchy.node_count();
   // Leaves make up most nodes, so a stride over node ids samples them evenly
   // (ids are breadth-first; the leaves of a level are spatially ordered).

@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 #include <exception>
+#include <glm/gtc/matrix_transform.hpp>
 #include <glm/mat3x3.hpp>
 #include <limits>
 #include <map>
@@ -232,6 +233,19 @@ bool place_object(const SceneModel& m, SceneObject& o) {
 //    scene's bounds.
 void place_objects(const SceneDescription& d, const std::vector<std::uint32_t>& model_of_decl,
                    Scene& scene) {
+  // Map coordinates: every georeferenced model relative to the first one's
+  // origin, the difference taken in double (metres apart, not 5e6 m).
+  for (const SceneModel& m : scene.models) {
+    if (m.hierarchy->frame().origin != glm::dvec3(0.0)) {
+      scene.origin = m.hierarchy->frame().origin;
+      break;
+    }
+  }
+  std::vector<glm::vec3> shift(scene.models.size(), glm::vec3(0.0f));
+  for (std::size_t i = 0; i < scene.models.size(); ++i) {
+    const glm::dvec3 o = scene.models[i].hierarchy->frame().origin;
+    if (o != glm::dvec3(0.0)) shift[i] = glm::vec3(o - scene.origin);
+  }
   scene.objects.resize(d.objects.size());
   std::atomic<bool> failed{false};
   std::atomic<std::size_t> first_bad{SIZE_MAX};
@@ -242,6 +256,12 @@ void place_objects(const SceneDescription& d, const std::vector<std::uint32_t>& 
       o.model = model_of_decl[od.model];
       o.world = od.world;
       o.world_inverse = od.world_inverse;
+      if (const glm::vec3 t = shift[o.model]; t != glm::vec3(0.0f)) {
+        // After the object's transform: it turns and scales the model about
+        // the model's own origin, then the model moves to its map position.
+        o.world = glm::translate(glm::mat4(1.0f), t) * o.world;
+        o.world_inverse = o.world_inverse * glm::translate(glm::mat4(1.0f), -t);
+      }
       o.file = od.file;
       o.line = od.line;
       if (!place_object(scene.models[o.model], o)) {
