@@ -28,6 +28,7 @@ namespace {
 
 struct ExportArgs {
   std::string model, out, classes;
+  std::vector<std::string> columns;
   bool relative = false;
 };
 
@@ -89,7 +90,7 @@ void run_export(const ExportArgs& a) {
   if (!a.classes.empty()) splat::parse_class_filter(a.classes, filter);
   std::string read_as;
   PointSet points = load_point_file(
-      model, [](const std::string& w) { print_warning(w); }, &read_as);
+      model, [](const std::string& w) { print_warning(w); }, &read_as, a.columns);
   const glm::dvec3 o = points.frame.origin;
   if (format != Format::las && o != glm::dvec3(0.0) && !a.relative) {
     char where[96];
@@ -136,6 +137,7 @@ void add_export_command(CLI::App& app) {
       ->required();
   cmd->add_option("--classes", args->classes,
                   "Only these classes (2,6) or all but these (-7,-18) of the classification");
+  add_columns_option(*cmd, args->columns);
   cmd->add_flag("--relative", args->relative,
                 "PLY and PCD of map coordinates: write the positions relative to the model's "
                 "origin (printed)");

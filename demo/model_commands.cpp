@@ -38,9 +38,11 @@ struct ModelArgs {
   bool force = false;
   bool real_points = false;
   int k = 12;
+  std::vector<std::string> columns;
 };
 
 void add_build_options(CLI::App& cmd, ModelArgs& args) {
+  add_columns_option(cmd, args.columns);
   cmd.add_option("-k,--neighbours", args.k,
                  "Neighbours for normals, radii and curvature of point clouds")
       ->check(whole_number(3, 64));
@@ -53,6 +55,7 @@ OpenOptions open_options(const ModelArgs& args) {
   OpenOptions o;
   o.attributes.k = args.k;
   o.build.parent_at_real_point = args.real_points;
+  o.columns = args.columns;
   o.warn = print_warning;
   if (!args.out.empty()) o.cache_path = args.out;
   return o;

@@ -73,4 +73,16 @@ CLI::Validator non_empty_path() {
       "PATH", "PATH");
 }
 
+void add_columns_option(CLI::App& cmd, std::vector<std::string>& names) {
+  cmd.add_option("--columns", names,
+                 "A text cloud's columns in order, e.g. x,y,z,intensity,_,r,g,b (x y z, r g b, "
+                 "nx ny nz, any other name an attribute, _ skipped); replaces its header")
+      ->delimiter(',')
+      ->check(CLI::Validator(
+          [](std::string& name) -> std::string {
+            return name.empty() ? std::string("an empty column name") : std::string();
+          },
+          "NAME", "COLUMN"));
+}
+
 }  // namespace treecut::cli

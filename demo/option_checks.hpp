@@ -7,6 +7,8 @@
 
 #include <CLI/CLI.hpp>
 #include <cstdint>
+#include <string>
+#include <vector>
 
 namespace treecut::cli {
 
@@ -19,5 +21,10 @@ CLI::Validator finite_number(double lo, double hi);
 /// A path that is not the empty string: '' is a mistake (an unset shell
 /// variable), never "the default".
 CLI::Validator non_empty_path();
+
+/// `--columns x,y,z,intensity,_`: a text cloud's columns, in order (any
+/// model command that opens a file). Into NAMES, split at the commas; an
+/// empty name is refused.
+void add_columns_option(CLI::App& cmd, std::vector<std::string>& names);
 
 }  // namespace treecut::cli

@@ -41,14 +41,15 @@ struct SceneArgs {
   float point_size = 2.0f;
   int k = 12;
   bool fixed_light = false;
-  std::string up = "auto";          ///< x | y | z | auto (from the data: treecut/up_axis.hpp)
-  bool validate = false;            ///< --validate: check every cut a strategy returns in full
-  int stage_wait_bound_ms = 100;    ///< raise a starved stage after this wait; 0 = never
-  unsigned blend_frames = 0;        ///< --blend N: exchanges fade over N frames (0 = swap)
-  std::string color = "rgb";        ///< --color rgb | elevation | ATTRIBUTE
-  std::string color_map = "auto";   ///< --color-map auto | viridis | grey | classes
-  std::vector<double> color_range;  ///< --color-range LOW HIGH (the file's values)
-  std::string classes;              ///< --classes 2,6 | -7,-18
+  std::string up = "auto";           ///< x | y | z | auto (from the data: treecut/up_axis.hpp)
+  bool validate = false;             ///< --validate: check every cut a strategy returns in full
+  int stage_wait_bound_ms = 100;     ///< raise a starved stage after this wait; 0 = never
+  unsigned blend_frames = 0;         ///< --blend N: exchanges fade over N frames (0 = swap)
+  std::string color = "rgb";         ///< --color rgb | elevation | ATTRIBUTE
+  std::string color_map = "auto";    ///< --color-map auto | viridis | grey | classes
+  std::vector<double> color_range;   ///< --color-range LOW HIGH (the file's values)
+  std::string classes;               ///< --classes 2,6 | -7,-18
+  std::vector<std::string> columns;  ///< --columns: a text cloud's columns
 };
 
 void add_scene_options(CLI::App& cmd, SceneArgs& args);

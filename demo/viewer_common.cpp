@@ -82,6 +82,7 @@ void add_scene_options(CLI::App& cmd, SceneArgs& args) {
   cmd.add_option("--classes", args.classes,
                  "Show only these classes (2,6: ground and buildings) or hide some (-7,-18: "
                  "noise) of the classification attribute");
+  add_columns_option(cmd, args.columns);
   cmd.add_option("--stage-wait-bound", args.stage_wait_bound_ms,
                  "Milliseconds an update may wait for the low-priority Feedback Stage before it "
                  "runs at normal priority until done (0 = never; docs/threading.md)")
@@ -180,6 +181,7 @@ Scene load_scene(const SceneArgs& args, const LoadProgressFn& progress) {
   } else {
     OpenOptions o;
     o.attributes.k = args.k;
+    o.columns = args.columns;
     o.warn = [](const std::string& w) { print_warning(w); };
     o.progress = progress;
     s.hierarchy = std::make_shared<const Hierarchy>(open_model(args.model, o).hierarchy);

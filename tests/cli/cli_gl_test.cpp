@@ -169,6 +169,38 @@ TEST(Cli, ExportConvertsBetweenFormatsKeepingTheAttributes) {
   EXPECT_EQ(std::string((std::istreambuf_iterator<char>(notes)), {}), "my notes\n");
 }
 
+// `--columns` reaches the reader from build, info and export, and is part of
+// the cache key: another mapping of the same file is another hierarchy.
+TEST(Cli, ColumnsNameATextCloudsColumnsAndKeyTheCache) {
+  using treecut::test::quote;
+  using treecut::test::run_treecut;
+  const fs::path dir = treecut::test::scratch_dir("cli_columns");
+  {
+    std::ofstream xyz(dir / "s.txt");
+    for (int i = 0; i < 400; ++i) {
+      xyz << i % 20 << " " << i / 20 << " " << (i * 7) % 5 << " " << i % 3 << " " << 100 + i
+          << "\n";
+    }
+  }
+  treecut::test::CommandResult r =
+      run_treecut("info " + quote(dir / "s.txt") + " --columns x,y,z,label,intensity");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("  label                  category 0 .. 2"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("  intensity              measure  100 .. 499"), std::string::npos) << r.out;
+  r = run_treecut("info " + quote(dir / "s.txt") + " --columns x,y,z,_,intensity");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_EQ(r.out.find("  label"), std::string::npos) << "a cached hierarchy of another mapping\n"
+                                                      << r.out;
+  EXPECT_NE(r.out.find("attributes  1 "), std::string::npos) << r.out;
+  r = run_treecut("export " + quote(dir / "s.txt") + " --columns x,y,z,label,_ -o " +
+                  quote(dir / "s.las"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("1 attributes, from text"), std::string::npos) << r.out;
+  r = run_treecut("info " + quote(dir / "s.las") + " --columns x,y,z");
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_NE(r.out.find("--columns names the columns of a text cloud"), std::string::npos) << r.out;
+}
+
 TEST(Cli, MalformedPlyExitsWithTwoAndWritesNothing) {
   const auto shared = treecut::test::shared_dir();
   if (!shared) GTEST_SKIP() << "../shared is absent";

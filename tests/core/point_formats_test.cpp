@@ -556,6 +556,35 @@ TEST(TextCloud, XyzPtsAndCsvAreRecognizedAndRead) {
   EXPECT_EQ(k.attributes[1].values, (std::vector<float>{2, 6, 2}));
 }
 
+// `--columns`: a mapping names the columns of a file without a header, or
+// instead of its header; `_` skips one.
+TEST(TextCloud, AColumnMappingNamesTheColumns) {
+  const std::vector<std::string> mapping = {"intensity", "_", "x", "y", "z", "r", "g", "b"};
+  const PointSet a = treecut::load_text_cloud_from_memory(
+      "7 99 1 2 3 10 20 30\n9 99 4 5 6 40 50 60\n", "a.txt", {}, mapping);
+  ASSERT_EQ(a.size(), 2u);
+  EXPECT_EQ(file_position(a, 1), glm::dvec3(4, 5, 6));
+  EXPECT_EQ(a.colors[1], glm::u8vec4(40, 50, 60, 255));
+  ASSERT_EQ(a.attributes.size(), 1u) << "the skipped column is no attribute";
+  EXPECT_EQ(a.attributes[0].name, "intensity");
+  // A header is replaced by the mapping.
+  const PointSet b = treecut::load_text_cloud_from_memory(
+      "A,B,C,D\n1,2,3,0.5\n4,5,6,0.7\n", "b.csv", {}, {"x", "y", "z", "reflectance"});
+  ASSERT_EQ(b.attributes.size(), 1u);
+  EXPECT_EQ(b.attributes[0].name, "reflectance");
+  auto error = [](const std::string& text, const std::vector<std::string>& m) {
+    try {
+      (void)treecut::load_text_cloud_from_memory(text, "m.txt", {}, m);
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("(loaded)");
+  };
+  EXPECT_EQ(error("1 2 3 4\n", {"x", "y", "z"}), "m.txt:1: 4 values, where --columns names 3");
+  EXPECT_EQ(error("1 2 3\n", {"x", "y", "_"}),
+            "m.txt: --columns: the header names no x, y and z columns");
+}
+
 TEST(TextCloud, MalformedLinesAreOneLineNamingTheLine) {
   EXPECT_EQ(text_error_of("1 2 3\n4 5\n"),
             "mem.xyz:2: 2 values, where the first line of points has 3");

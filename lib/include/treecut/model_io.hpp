@@ -9,6 +9,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "treecut/attributes.hpp"
 #include "treecut/cache.hpp"
@@ -30,7 +31,11 @@ struct OpenOptions {
   /// be. Otherwise the model opens without it, with one warning.
   bool require_cache = false;
   std::optional<std::filesystem::path> cache_path;  ///< default: default_cache_path(model)
-  WarningSink warn;                                 ///< PLY warnings and cache notes (may be empty)
+  /// A text cloud's columns, in order (load_text_cloud; `--columns`):
+  /// empty for the file's own header or count rule. Part of the cache key;
+  /// given for another format, an InputError.
+  std::vector<std::string> columns;
+  WarningSink warn;  ///< PLY warnings and cache notes (may be empty)
   /// Called on the calling thread with the stage ("read", "attributes",
   /// "hierarchy", "cache") and (done, total) work units within it; may be empty.
   std::function<void(std::string_view stage, std::size_t done, std::size_t total)> progress;
@@ -66,8 +71,10 @@ struct OpenedModel {
 /// bytes (the hash keeps caches apart).
 std::filesystem::path default_cache_path(const std::filesystem::path& model);
 
-/// The bits of the options that change a built hierarchy (part of the cache key).
-std::uint32_t options_bits(const AttributeOptions& attributes, const BuildOptions& build);
+/// The bits of the options that change a built hierarchy (part of the cache
+/// key); a column mapping as a 17-bit hash of its names (bits 3-7, 20-31).
+std::uint32_t options_bits(const AttributeOptions& attributes, const BuildOptions& build,
+                           const std::vector<std::string>& columns = {});
 
 /// Opens a model: a cache file (.tch) directly, or a PLY through its cache,
 /// rebuilding (and rewriting the cache) when it is missing, stale or corrupt.
@@ -83,7 +90,8 @@ OpenedModel open_model(const std::filesystem::path& model, const OpenOptions& op
 /// what `treecut export` converts. *FORMAT (if given) gets "PLY", "LAS",
 /// "PCD" or "text". Throws InputError for a malformed file.
 PointSet load_point_file(const std::filesystem::path& model, const WarningSink& warn = {},
-                         std::string* format = nullptr);
+                         std::string* format = nullptr,
+                         const std::vector<std::string>& columns = {});
 
 /// Builds from points already in memory (generated models, benchmarks).
 Hierarchy build_from_points(PointSet points, const AttributeOptions& attributes = {},

@@ -5,8 +5,10 @@
 // - PTS (Leica): a first line with the point count alone, then x y z
 //   intensity r g b lines.
 // - CSV with a header line naming the columns: x, y, z (also X, //X, east,
-//   north, height...), red, green, blue (or r, g, b), nx, ny, nz; the rest
-//   is named in a warning as not kept.
+//   north, height...), red, green, blue (or r, g, b), nx, ny, nz; every
+//   other column is an attribute of its name, `_` a column skipped. A
+//   mapping given by the caller (`--columns x,y,z,intensity,_`) names the
+//   columns of a file without a header, or instead of its header.
 // Without a header the columns say what they are: 3 (x y z), 4 (x y z and a
 // scalar), 6 (x y z r g b when the last three are whole numbers from 0 to
 // 255, else x y z nx ny nz), 7 (PTS's x y z intensity r g b).
@@ -22,6 +24,7 @@
 #include <filesystem>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "treecut/ply.hpp"  // WarningSink
 #include "treecut/point_set.hpp"
@@ -32,11 +35,16 @@ namespace treecut {
 /// of numbers (or of column names followed by a line of numbers).
 [[nodiscard]] bool looks_like_text_cloud(std::string_view bytes);
 
-/// Loads a text cloud (see above). Throws InputError "NAME:LINE: problem".
-PointSet load_text_cloud(const std::filesystem::path& path, const WarningSink& warn = {});
+/// Loads a text cloud (see above). COLUMNS, when given, names every column
+/// in order as a header would (x, y, z, r/red, g, b, nx, ny, nz, any other
+/// name an attribute, `_` a column skipped) and replaces the file's header
+/// line if it has one (`--columns`). Throws InputError "NAME:LINE: problem".
+PointSet load_text_cloud(const std::filesystem::path& path, const WarningSink& warn = {},
+                         const std::vector<std::string>& columns = {});
 
 /// load_text_cloud() on bytes in memory; NAME stands for the path.
 PointSet load_text_cloud_from_memory(std::string_view bytes, const std::string& name,
-                                     const WarningSink& warn = {});
+                                     const WarningSink& warn = {},
+                                     const std::vector<std::string>& columns = {});
 
 }  // namespace treecut

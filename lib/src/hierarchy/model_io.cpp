@@ -1,6 +1,9 @@
 #include "treecut/model_io.hpp"
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
@@ -59,11 +62,21 @@ std::filesystem::path default_cache_path(const std::filesystem::path& model) {
 // 3: caches are keyed on the model's content hash.
 constexpr std::uint32_t kPipelineRevision = 3;
 
-std::uint32_t options_bits(const AttributeOptions& attributes, const BuildOptions& build) {
+std::uint32_t options_bits(const AttributeOptions& attributes, const BuildOptions& build,
+                           const std::vector<std::string>& columns) {
+  std::uint32_t mapping = 0;
+  if (!columns.empty()) {
+    std::uint64_t h = 0x9e3779b97f4a7c15ull;  // FNV-style over the names and separators
+    for (const std::string& c : columns) {
+      for (const char ch : c + '\0') h = (h ^ static_cast<unsigned char>(ch)) * 0x100000001b3ull;
+    }
+    h ^= h >> 29;
+    mapping = static_cast<std::uint32_t>(h % 131071u) + 1u;  // never 0: "no mapping"
+  }
   return (build.parent_at_real_point ? 1u : 0u) | (attributes.recompute_normals ? 2u : 0u) |
-         (attributes.recompute_radii ? 4u : 0u) |
+         (attributes.recompute_radii ? 4u : 0u) | ((mapping & 31u) << 3) |
          (static_cast<std::uint32_t>(std::clamp(attributes.k, 0, 255)) << 8) |
-         (kPipelineRevision << 16);
+         (kPipelineRevision << 16) | ((mapping >> 5) << 20);
 }
 
 Hierarchy build_from_points(PointSet points, const AttributeOptions& attributes,
@@ -149,21 +162,28 @@ std::string read_head(const std::filesystem::path& path, std::size_t n) {
 // file that is neither gets the PLY reader's message (it names the format
 // it recognizes: E57, PCD, an image...) and what treecut reads.
 PointSet read_point_file(const std::filesystem::path& model, OpenedModel& out,
-                         const WarningSink& warn) {
+                         const WarningSink& warn, const std::vector<std::string>& columns) {
+  const std::string head = read_head(model, 4096);
+  const bool text = !file_starts_with(model, "LASF") && !file_starts_with(model, "ply") &&
+                    !looks_like_pcd(head) && looks_like_text_cloud(head);
+  if (!columns.empty() && !text) {
+    throw InputError(quoted_name(model) +
+                     ": --columns names the columns of a text cloud (XYZ, PTS, CSV); this file "
+                     "names its own fields");
+  }
   if (file_starts_with(model, "LASF")) {
     out.format = "LAS";
     return load_las(model, &out.las, warn);
   }
   out.format = "PLY";
   if (file_starts_with(model, "ply")) return load_ply(model, &out.ply, warn);
-  const std::string head = read_head(model, 4096);
   if (looks_like_pcd(head)) {
     out.format = "PCD";
     return load_pcd(model, warn);
   }
-  if (looks_like_text_cloud(head)) {
+  if (text) {
     out.format = "text";
-    return load_text_cloud(model, warn);
+    return load_text_cloud(model, warn, columns);
   }
   try {
     return load_ply(model, &out.ply, warn);
@@ -171,6 +191,25 @@ PointSet read_point_file(const std::filesystem::path& model, OpenedModel& out,
     throw InputError(std::string(e.what()) +
                      "; treecut reads PLY, LAS, PCD and text (XYZ, PTS, CSV) point files");
   }
+}
+
+// Positions are floats relative to the model's origin (point_set.hpp): 1 mm
+// or better within 16,384 units of it (a float's spacing there is 2^-9), so
+// a model up to about 33 km across keeps millimetres at any map coordinate.
+// Past that the spacing grows (4 mm at 50 km); said once, with the figure.
+std::string float_precision_warning(const PointSet& points) {
+  float reach = 0.0f;
+  for (const glm::vec3& p : points.positions) {
+    reach = std::max({reach, std::fabs(p.x), std::fabs(p.y), std::fabs(p.z)});
+  }
+  if (!(reach > 16384.0f)) return {};
+  const float spacing = std::nextafter(reach, INFINITY) - reach;
+  char line[200];
+  std::snprintf(line, sizeof line,
+                "points lie up to %.0f units from the model's origin: as floats their spacing "
+                "there is %.3g units (1/1000 or finer within 16384 units)",
+                double(reach), double(spacing));
+  return line;
 }
 
 // Read, attributes, hierarchy: the model built into `out`, each stage timed.
@@ -189,7 +228,7 @@ void read_and_build(const std::filesystem::path& model, std::uint32_t bits, cons
   };
   PointSet points;
   try {
-    points = read_point_file(model, out, options.warn);
+    points = read_point_file(model, out, options.warn, options.columns);
   } catch (const InputError&) {
     if (changed()) throw changed_error();
     throw;
@@ -197,6 +236,9 @@ void read_and_build(const std::filesystem::path& model, std::uint32_t bits, cons
   out.read_seconds = seconds_since(t0);
   if (changed()) throw changed_error();
   out.input_points = points.size();
+  if (options.warn) {
+    if (const std::string w = float_precision_warning(points); !w.empty()) options.warn(w);
+  }
   report_stage(options, "attributes");
   t0 = std::chrono::steady_clock::now();
   complete_attributes(points, options.attributes);
@@ -241,10 +283,10 @@ void write_model_cache(const CacheKey& key, const OpenOptions& options, OpenedMo
 }  // namespace
 
 PointSet load_point_file(const std::filesystem::path& model, const WarningSink& warn,
-                         std::string* format) {
+                         std::string* format, const std::vector<std::string>& columns) {
   require_regular_file(model);
   OpenedModel opened;
-  PointSet points = read_point_file(model, opened, warn);
+  PointSet points = read_point_file(model, opened, warn, columns);
   if (format) *format = opened.format;
   return points;
 }
@@ -259,7 +301,7 @@ OpenedModel open_model(const std::filesystem::path& model, const OpenOptions& op
     throw InputError(quoted_name(model) +
                      ": not a treecut cache (it does not start with a cache's signature)");
   OpenedModel out;
-  const std::uint32_t bits = options_bits(options.attributes, options.build);
+  const std::uint32_t bits = options_bits(options.attributes, options.build, options.columns);
   out.cache = options.cache_path ? *options.cache_path : default_cache_path(model);
   // A cache that cannot be: named by the caller, an error; the default one,
   // a warning, and the model opens without it.

@@ -67,6 +67,8 @@ struct Columns {
   int normal[3] = {-1, -1, -1};
   std::vector<std::pair<int, std::string>> attributes;  // column, name
   std::vector<std::string> not_kept;
+  /// What sets the count, for a line that has another.
+  std::string count_from = "the first line of points has";
 
   void keep(int column, std::string name) {
     if (attributes.size() < kMaxAttributes) {
@@ -102,6 +104,7 @@ Columns from_header(const std::vector<std::string_view>& names) {
       {"nz", "normal_z", "normalz"}};
   for (int i = 0; i < c.count; ++i) {
     const std::string n = lower(names[static_cast<std::size_t>(i)]);
+    if (n == "_" || n == "skip") continue;  // a column nobody wants
     int role = -1;
     for (std::size_t k = 0; k < kRoles.size() && role < 0; ++k) {
       if (std::find(kRoles[k].begin(), kRoles[k].end(), n) != kRoles[k].end()) role = int(k);
@@ -180,7 +183,8 @@ struct Layout {
   std::size_t pts_count = 0;
 };
 
-Layout read_layout(Reader& r, std::string_view& line, std::vector<std::string_view>& tokens) {
+Layout read_layout(Reader& r, std::string_view& line, std::vector<std::string_view>& tokens,
+                   const std::vector<std::string>& mapping) {
   Layout out;
   if (!r.next(line)) throw TextError("no points (an empty text cloud)");
   split(line, tokens);
@@ -191,8 +195,18 @@ Layout read_layout(Reader& r, std::string_view& line, std::vector<std::string_vi
     out.pts_count = static_cast<std::size_t>(whole);
     if (!r.next(line)) throw TextError("a PTS count line and no points");
   } else if (!all_numbers(tokens)) {
-    out.columns = from_header(tokens);
+    // A header: the columns' names, unless --columns names them instead.
+    if (mapping.empty()) out.columns = from_header(tokens);
     if (!r.next(line)) throw TextError("a header and no points");
+  }
+  if (!mapping.empty()) {
+    const std::vector<std::string_view> names(mapping.begin(), mapping.end());
+    try {
+      out.columns = from_header(names);
+    } catch (const TextError& e) {
+      throw TextError(std::string("--columns: ") + e.what());
+    }
+    out.columns.count_from = "--columns names";
   }
   split(line, tokens);
   if (out.columns.count == 0) {
@@ -222,9 +236,8 @@ bool read_point(const Columns& columns, const std::vector<std::string_view>& tok
                 std::size_t number, std::vector<double>& values, PointSet& points,
                 std::vector<detail::AttributeColumn>& attributes) {
   if (static_cast<int>(tokens.size()) != columns.count) {
-    throw line_error(number, std::to_string(tokens.size()) +
-                                 " values, where the first line of points has " +
-                                 std::to_string(columns.count));
+    throw line_error(number, std::to_string(tokens.size()) + " values, where " +
+                                 columns.count_from + " " + std::to_string(columns.count));
   }
   values.resize(tokens.size());
   for (std::size_t i = 0; i < tokens.size(); ++i) {
@@ -266,11 +279,12 @@ bool read_point(const Columns& columns, const std::vector<std::string_view>& tok
   return true;
 }
 
-PointSet parse(std::string_view text, const WarningSink& warn) {
+PointSet parse(std::string_view text, const WarningSink& warn,
+               const std::vector<std::string>& mapping) {
   Reader r{text};
   std::vector<std::string_view> tokens;
   std::string_view line;
-  const Layout layout = read_layout(r, line, tokens);
+  const Layout layout = read_layout(r, line, tokens, mapping);
   const Columns& columns = layout.columns;
   if (warn && !columns.not_kept.empty()) {
     std::string names;
@@ -333,12 +347,13 @@ bool looks_like_text_cloud(std::string_view bytes) {
 }
 
 PointSet load_text_cloud_from_memory(std::string_view bytes, const std::string& name,
-                                     const WarningSink& warn) {
+                                     const WarningSink& warn,
+                                     const std::vector<std::string>& columns) {
   try {
     const WarningSink named = [&](const std::string& w) {
       if (warn) warn(name + ": " + w);
     };
-    return parse(bytes, warn ? named : WarningSink{});
+    return parse(bytes, warn ? named : WarningSink{}, columns);
   } catch (const TextError& e) {
     const std::string what = e.what();
     // Line numbers read "NAME:LINE: ...", the rest "NAME: ...".
@@ -347,9 +362,10 @@ PointSet load_text_cloud_from_memory(std::string_view bytes, const std::string& 
   }
 }
 
-PointSet load_text_cloud(const std::filesystem::path& path, const WarningSink& warn) {
+PointSet load_text_cloud(const std::filesystem::path& path, const WarningSink& warn,
+                         const std::vector<std::string>& columns) {
   const detail::WholeFile file = detail::read_whole_file(path);
-  return load_text_cloud_from_memory(file.bytes(), quoted_name(path), warn);
+  return load_text_cloud_from_memory(file.bytes(), quoted_name(path), warn, columns);
 }
 
 }  // namespace treecut
