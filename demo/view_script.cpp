@@ -9,6 +9,7 @@
 #include "treecut/feedback_stage.hpp"
 #include "treecut/file_io.hpp"
 #include "treecut/splat/camera_path.hpp"
+#include "treecut/splat/coloring.hpp"
 #include "treecut/splat/renderer.hpp"
 #include "treecut/strategy.hpp"
 
@@ -68,7 +69,8 @@ void require_arguments(const std::vector<std::string_view>& words, std::size_t a
     throw InputError(where + verb + " takes " + what + ", not " + shown(words[args + 1]));
 }
 
-// play, screenshot, strategy, mode: one argument, checked now so that a bad
+// play, screenshot, strategy, mode, color, classes: one argument, checked
+// now (color's source against the model when it opens) so that a bad
 // one fails before the window opens. A `strategy` line changes `strategy`,
 // the one later `param` lines are checked against.
 void check_named_argument(ScriptCommand& c, const std::vector<std::string_view>& words,
@@ -87,6 +89,9 @@ void check_named_argument(ScriptCommand& c, const std::vector<std::string_view>&
       (void)splat::load_camera_path(c.arg);  // fail before the window opens
     } else if (c.verb == "mode") {
       (void)splat::parse_splat_mode(c.arg);
+    } else if (c.verb == "classes") {
+      splat::ColorBy by;
+      if (c.arg != "all") splat::parse_class_filter(c.arg, by);
     } else if (c.verb == "strategy" && checks.registry != nullptr) {
       const std::unique_ptr<Strategy> s = checks.registry->create(c.arg);
       if (const std::string why = scene_strategy_problem(*s); !checks.scene.empty() && !why.empty())
@@ -131,7 +136,7 @@ ScriptCommand parse_command(const std::vector<std::string_view>& words, int line
     require_arguments(words, 1, "a count", where, c.verb);
     c.number = parse_count(words[1], at);
   } else if (c.verb == "play" || c.verb == "screenshot" || c.verb == "strategy" ||
-             c.verb == "mode") {
+             c.verb == "mode" || c.verb == "color" || c.verb == "classes") {
     check_named_argument(c, words, where, file, checks, strategy);
   } else if (c.verb == "open") {
     // Another model, resolved like `play`; it must be a regular file now (a

@@ -98,6 +98,17 @@ void Viewer::step_script() {
       set_param_value(c.arg, c.number);
     } else if (c.verb == "mode") {
       settings_.mode = splat::parse_splat_mode(c.arg);
+    } else if (c.verb == "color") {
+      color_by_.source = c.arg;
+      color_by_.low.reset(), color_by_.high.reset();
+      recolor(true);  // a source the model lacks ends the script: exit 2
+    } else if (c.verb == "classes") {
+      if (c.arg == "all") {
+        color_by_.show_classes.clear(), color_by_.hide_classes.clear();
+      } else {
+        splat::parse_class_filter(c.arg, color_by_);
+      }
+      recolor(true);
     } else if (c.verb == "fit") {
       fit();
     } else if (c.verb == "orbit") {

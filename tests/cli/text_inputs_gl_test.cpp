@@ -276,6 +276,8 @@ TEST(ViewScript, CountsAndNumbersThatDoNotFitAreErrorsNamingFileLine) {
       {"jump 3", "unknown command 'jump'"},
       {"\x7f\x45LF\x01", "unknown command '?ELF?'"},
       {"mode sparkly", "mode: unknown splat mode 'sparkly'"},
+      {"classes 2,x", "classes: --classes '2,x': expected class numbers 0-255"},
+      {"color", "color needs an argument"},
   };
   for (const Case& c : cases) {
     const std::string text = kScript + "frames 2  # fine\n" + c.line + "\n";
@@ -407,7 +409,9 @@ TEST(ViewScript, TheWindowTestsScriptParses) {
   const fs::path script = fs::path(TREECUT_SOURCE_DIR) / "tests/viewer_window_test/run.script";
   const StrategyRegistry registry = strategies::builtin_registry();
   const auto commands = cli::load_view_script(script, {&registry, "optimization", {}});
-  ASSERT_EQ(commands.size(), 9u);
+  ASSERT_EQ(commands.size(), 10u);
+  EXPECT_EQ(commands[6].verb, "color");
+  EXPECT_EQ(commands[6].arg, "elevation");
   EXPECT_EQ(commands[3].verb, "play");
   EXPECT_EQ(fs::path(commands[3].arg).filename(), "orbit.campath");
   EXPECT_TRUE(fs::exists(commands[3].arg)) << "resolved against the script's folder";

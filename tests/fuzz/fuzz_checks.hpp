@@ -56,21 +56,15 @@ inline std::string check_point_set(const PointSet& p) {
   for (const glm::uvec3& t : p.triangles)
     if (t.x >= n || t.y >= n || t.z >= n) return "a triangle index is out of range";
   // Attributes (issue 29): one value a point, finite or NaN, at most
-  // kMaxAttributes of short names, none constant, offsets finite.
+  // kMaxAttributes of short names, offsets finite.
   if (p.attributes.size() > kMaxAttributes) return "more attributes than kMaxAttributes";
   for (const PointAttribute& a : p.attributes) {
     if (a.values.size() != n) return "attribute " + a.name + " is not of the point count";
     if (a.name.size() > kMaxAttributeName) return "an attribute name is too long";
     if (!std::isfinite(a.offset)) return "attribute " + a.name + " has a non-finite offset";
-    float first = NAN;
-    bool varies = false;
     for (const float v : a.values) {
       if (std::isinf(v)) return "attribute " + a.name + " holds an infinity";
-      if (std::isnan(v)) continue;
-      if (std::isnan(first)) first = v;
-      varies = varies || v != first;
     }
-    if (!varies) return "attribute " + a.name + " is constant and was kept";
   }
   return {};
 }

@@ -3,6 +3,7 @@
 
 #include <cstring>
 #include <limits>
+#include <type_traits>
 
 #include "little_endian.hpp"
 
@@ -84,58 +85,67 @@ LasFields::LasFields(const LasInfo& info, std::size_t points, std::vector<std::s
   }
 }
 
-double LasFields::decode(const Field& f, const unsigned char* r) {
-  const unsigned char* p = r + f.at;
-  double raw = 0.0;
-  switch (f.raw) {
-    case Raw::u8: {
-      unsigned v = *p;
-      if (f.bits != 0) v = (v >> f.shift) & ((1u << f.bits) - 1u);
-      raw = v;
-      break;
+// One field of every record: the raw value (a bit field of it), times the
+// scale plus the offset, or no value where it equals the no-data value.
+template <class T>
+void LasFields::decode_all(Field& f, const unsigned char* records, std::size_t count,
+                           std::uint32_t length) {
+  const unsigned char* p = records + f.at;
+  const unsigned mask = f.bits == 0 ? ~0u : (1u << f.bits) - 1u;
+  for (std::size_t i = 0; i < count; ++i, p += length) {
+    double raw;
+    if constexpr (std::is_same_v<T, std::uint8_t>) {
+      raw = double((unsigned{*p} >> f.shift) & mask);
+    } else {
+      raw = static_cast<double>(get_le<T>(p));
     }
-    case Raw::i8:
-      raw = static_cast<std::int8_t>(*p);
-      break;
-    case Raw::u16:
-      raw = get_le<std::uint16_t>(p);
-      break;
-    case Raw::i16:
-      raw = get_le<std::int16_t>(p);
-      break;
-    case Raw::u32:
-      raw = get_le<std::uint32_t>(p);
-      break;
-    case Raw::i32:
-      raw = get_le<std::int32_t>(p);
-      break;
-    case Raw::u64:
-      raw = static_cast<double>(get_le<std::uint64_t>(p));
-      break;
-    case Raw::i64:
-      raw = static_cast<double>(get_le<std::int64_t>(p));
-      break;
-    case Raw::f32:
-      raw = get_le<float>(p);
-      break;
-    case Raw::f64:
-      raw = get_le<double>(p);
-      break;
+    f.column.push_back(f.has_no_data && raw == f.no_data ? std::numeric_limits<double>::quiet_NaN()
+                                                         : raw * f.scale + f.offset);
   }
-  if (f.has_no_data && raw == f.no_data) return std::numeric_limits<double>::quiet_NaN();
-  return raw * f.scale + f.offset;
 }
 
-void LasFields::read(std::size_t point, const unsigned char* record) {
-  for (Field& f : fields_) f.column.set(point, decode(f, record));
+void LasFields::read(const unsigned char* records, std::size_t count, std::uint32_t length) {
+  for (Field& f : fields_) {
+    switch (f.raw) {
+      case Raw::u8:
+        decode_all<std::uint8_t>(f, records, count, length);
+        break;
+      case Raw::i8:
+        decode_all<std::int8_t>(f, records, count, length);
+        break;
+      case Raw::u16:
+        decode_all<std::uint16_t>(f, records, count, length);
+        break;
+      case Raw::i16:
+        decode_all<std::int16_t>(f, records, count, length);
+        break;
+      case Raw::u32:
+        decode_all<std::uint32_t>(f, records, count, length);
+        break;
+      case Raw::i32:
+        decode_all<std::int32_t>(f, records, count, length);
+        break;
+      case Raw::u64:
+        decode_all<std::uint64_t>(f, records, count, length);
+        break;
+      case Raw::i64:
+        decode_all<std::int64_t>(f, records, count, length);
+        break;
+      case Raw::f32:
+        decode_all<float>(f, records, count, length);
+        break;
+      case Raw::f64:
+        decode_all<double>(f, records, count, length);
+        break;
+    }
+  }
 }
 
-std::vector<PointAttribute> LasFields::take() {
-  std::vector<PointAttribute> out;
-  out.reserve(fields_.size());
-  for (Field& f : fields_) out.push_back(f.column.take());
+std::vector<std::string> LasFields::take(std::vector<PointAttribute>& out) {
+  std::vector<AttributeColumn> columns;
+  for (Field& f : fields_) columns.push_back(std::move(f.column));
   fields_.clear();
-  return out;
+  return keep_varying(columns, out);
 }
 
 }  // namespace treecut::detail

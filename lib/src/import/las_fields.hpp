@@ -22,11 +22,13 @@ class LasFields {
   /// undocumented or array type) is named in *not_kept.
   LasFields(const LasInfo& info, std::size_t points, std::vector<std::string>& not_kept);
 
-  /// Decodes every field of the record of point POINT.
-  void read(std::size_t point, const unsigned char* record);
+  /// Decodes every field of the next COUNT records, of LENGTH bytes at
+  /// RECORDS: field by field, so each loop has one type.
+  void read(const unsigned char* records, std::size_t count, std::uint32_t length);
 
-  /// The attributes, in record order.
-  [[nodiscard]] std::vector<PointAttribute> take();
+  /// The attributes whose values differ into OUT, in record order; returns
+  /// "name value" of each constant one (keep_varying).
+  std::vector<std::string> take(std::vector<PointAttribute>& out);
 
  private:
   enum class Raw : std::uint8_t { u8, i8, u16, i16, u32, i32, u64, i64, f32, f64 };
@@ -41,7 +43,9 @@ class LasFields {
   };
   void add(std::string name, std::uint32_t at, Raw raw, std::uint8_t shift = 0,
            std::uint8_t bits = 0, double scale = 1.0);
-  static double decode(const Field& f, const unsigned char* record);
+  template <class T>
+  static void decode_all(Field& f, const unsigned char* records, std::size_t count,
+                         std::uint32_t length);
 
   std::size_t points_;
   std::vector<Field> fields_;

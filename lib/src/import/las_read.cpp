@@ -379,6 +379,7 @@ PointSet read_points(const Source& f, const Parsed& parsed, const WarningSink& w
     const std::size_t count =
         static_cast<std::size_t>(std::min<std::uint64_t>(chunk_points, n - begin));
     f.read(parsed.point_offset + begin * length, chunk.data(), count * length);
+    fields.read(chunk.data(), count, length);
     for (std::size_t i = 0; i < count; ++i) {
       const unsigned char* r = chunk.data() + i * length;
       const glm::dvec3 p =
@@ -390,7 +391,6 @@ PointSet read_points(const Source& f, const Parsed& parsed, const WarningSink& w
         points.frame.origin = origin;
       }
       points.positions[static_cast<std::size_t>(begin) + i] = glm::vec3(p - origin);
-      fields.read(static_cast<std::size_t>(begin) + i, r);
       if (rgb_at != 0) {
         const glm::u16vec3 c(get<std::uint16_t>(r + rgb_at), get<std::uint16_t>(r + rgb_at + 2),
                              get<std::uint16_t>(r + rgb_at + 4));
@@ -407,8 +407,7 @@ PointSet read_points(const Source& f, const Parsed& parsed, const WarningSink& w
       points.colors[i] = glm::u8vec4(glm::u16vec3(rgb16[i] >> std::uint16_t(shift)), 255);
     }
   }
-  points.attributes = fields.take();
-  const std::vector<std::string> constant = detail::drop_constant_attributes(points.attributes);
+  const std::vector<std::string> constant = fields.take(points.attributes);
   if (warn) {
     if (info.waveform)
       warn("the waveform packets of point format " + std::to_string(info.point_format) +

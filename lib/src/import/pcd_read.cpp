@@ -265,7 +265,7 @@ struct Builder {
     if (r.normal[0] >= 0) points.normals.reserve(n);
     if (r.rgb >= 0) points.colors.reserve(n);
     for (const int a : r.attributes)
-      attributes.emplace_back(h.fields[static_cast<std::size_t>(a)].name, 0);
+      attributes.emplace_back(h.fields[static_cast<std::size_t>(a)].name, n);
   }
 
   // VALUE(field) gives the field's first element as a double; RAW(field)
@@ -432,8 +432,7 @@ PointSet parse(std::string_view file, const WarningSink& warn) {
   }
   if (b.points.positions.empty()) throw PcdError("no points with a finite position");
   PointSet points = std::move(b.points);
-  for (detail::AttributeColumn& a : b.attributes) points.attributes.push_back(a.take());
-  const std::vector<std::string> constant = detail::drop_constant_attributes(points.attributes);
+  const std::vector<std::string> constant = detail::keep_varying(b.attributes, points.attributes);
   if (warn) {
     if (b.dropped > 0) {
       warn("dropped " + std::to_string(b.dropped) + " points without a finite position");

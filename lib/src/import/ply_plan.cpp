@@ -276,7 +276,7 @@ void plan_direct(const Header& header, const ply::BinaryLayout& layout, std::str
     detail::AttributeColumn& column =
         plan.attributes.emplace_back(property(vertex, p).name, vertex_count);
     for_each_fixed(vertex_bytes, vertex, p, big_endian,
-                   [&](std::size_t i, double v) { column.set(i, v); });
+                   [&](std::size_t, double v) { column.push_back(v); });
   }
   if (roles.colors() && !u8_colors) {
     plan.colors.assign(vertex_count, glm::u8vec4(0, 0, 0, 255));
@@ -319,7 +319,7 @@ void plan_transcoded(const Header& header, const ply::BinaryLayout& layout, std:
   plan.vertex_bytes.reserve(vertex_count * kCanonicalVertexBytes);
   if (elements.roles.radius >= 0) plan.radii.reserve(vertex_count);
   for (const int p : elements.roles.attributes)
-    plan.attributes.emplace_back(property(vertex, p).name, 0);
+    plan.attributes.emplace_back(property(vertex, p).name, vertex_count);
 
   ply::AsciiRows ascii(file, header);
   Row row;
@@ -405,9 +405,8 @@ PointSet read_plan(Plan& plan, const Warnings& warn, PlyLoadReport& report) {
   }
   if (!plan.colors.empty()) points.colors = std::move(plan.colors);
   if (!plan.radii.empty()) points.radii = std::move(plan.radii);
-  for (detail::AttributeColumn& column : plan.attributes)
-    points.attributes.push_back(column.take());
-  const std::vector<std::string> constant = detail::drop_constant_attributes(points.attributes);
+  const std::vector<std::string> constant =
+      detail::keep_varying(plan.attributes, points.attributes);
   if (!constant.empty()) warn("the same at every vertex, not kept: " + detail::join(constant));
 
   const StripSink& strips = plan.strips;

@@ -44,29 +44,29 @@ AttributeKind attribute_kind_for(std::string_view name) {
 
 namespace detail {
 
-std::vector<std::string> drop_constant_attributes(std::vector<PointAttribute>& attributes) {
-  std::vector<std::string> dropped;
-  std::erase_if(attributes, [&](const PointAttribute& a) {
-    const float* first = nullptr;
-    for (const float& v : a.values) {
-      if (std::isnan(v)) continue;
-      if (first == nullptr) {
-        first = &v;
-      } else if (v != *first) {
-        return false;
-      }
-    }
-    std::ostringstream text;
-    text << a.name << " ";
-    if (first == nullptr) {
-      text << "(none)";
+std::string AttributeColumn::constant_text() const {
+  std::ostringstream text;
+  text << attribute_.name << " ";
+  if (count_ == 0 || std::isnan(first_)) {
+    text << "(none)";
+  } else {
+    text << std::setprecision(15) << attribute_.offset + double(first_);
+  }
+  return text.str();
+}
+
+std::vector<std::string> keep_varying(std::vector<AttributeColumn>& columns,
+                                      std::vector<PointAttribute>& out) {
+  std::vector<std::string> constant;
+  for (AttributeColumn& c : columns) {
+    if (c.constant()) {
+      constant.push_back(c.constant_text());
     } else {
-      text << std::setprecision(15) << a.offset + double(*first);
+      out.push_back(c.take());
     }
-    dropped.push_back(text.str());
-    return true;
-  });
-  return dropped;
+  }
+  columns.clear();
+  return constant;
 }
 
 std::string join(const std::vector<std::string>& items) {

@@ -300,8 +300,7 @@ PointSet parse(std::string_view text, const WarningSink& warn,
     split(line, tokens);
     if (!read_point(columns, tokens, r.line_number, values, points, attributes)) ++dropped;
   } while (r.next(line));
-  for (detail::AttributeColumn& a : attributes) points.attributes.push_back(a.take());
-  const std::vector<std::string> constant = detail::drop_constant_attributes(points.attributes);
+  const std::vector<std::string> constant = detail::keep_varying(attributes, points.attributes);
   if (warn && !constant.empty())
     warn("the same at every point, not kept: " + detail::join(constant));
   if (layout.pts && points.size() + dropped != layout.pts_count) {
