@@ -27,6 +27,7 @@
 #include <thread>
 #include <vector>
 
+#include "bottom_up.hpp"
 #include "node_attributes.hpp"
 #include "treecut/parallel.hpp"
 
@@ -432,19 +433,11 @@ void fill_interior_node(OwnedArrays& a, std::size_t i, bool at_real_point) {
 // level from the deepest, so a node's children are final when it is filled.
 void fill_interior(OwnedArrays& a, const std::vector<NodeId>& level_begin, std::uint32_t points,
                    bool at_real_point, unsigned threads, BuildProgress& progress) {
-  const int levels = static_cast<int>(level_begin.size()) - 1;
-  for (int d = levels - 1; d >= 0; --d) {
-    const std::size_t lb = level_begin[static_cast<std::size_t>(d)];
-    const std::size_t le = level_begin[static_cast<std::size_t>(d) + 1];
-    parallel_for(
-        le - lb,
-        [&](std::size_t b, std::size_t e) {
-          for (std::size_t i = lb + b; i < lb + e; ++i)
-            if (a.child_count[i] != 0) fill_interior_node(a, i, at_real_point);
-        },
-        threads, 256);
-    progress.interior_level(points / static_cast<std::size_t>(std::max(levels, 1)));
-  }
+  const auto levels = static_cast<std::size_t>(std::max<int>(int(level_begin.size()) - 1, 1));
+  detail::for_each_interior_bottom_up(
+      level_begin, a.child_count, threads,
+      [&](std::size_t i) { fill_interior_node(a, i, at_real_point); },
+      [&] { progress.interior_level(points / levels); });
 }
 
 // ---- Stage 5: assemble -----------------------------------------------------

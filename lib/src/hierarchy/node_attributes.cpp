@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 
+#include "bottom_up.hpp"
 #include "treecut/parallel.hpp"
 
 namespace treecut::detail {
@@ -85,24 +86,16 @@ void fill_interior_values(std::vector<OwnedAttribute>& attributes,
                           std::span<const NodeId> first_child,
                           std::span<const std::uint32_t> point_count,
                           std::span<const NodeId> level_begin, unsigned threads) {
-  const int levels = static_cast<int>(level_begin.size()) - 1;
   for (OwnedAttribute& a : attributes) {
     const bool mode = a.kind == AttributeKind::category;
-    for (int d = levels - 1; d >= 0; --d) {
-      const std::size_t lb = level_begin[static_cast<std::size_t>(d)];
-      const std::size_t le = level_begin[static_cast<std::size_t>(d) + 1];
-      parallel_for(
-          le - lb,
-          [&](std::size_t b, std::size_t e) {
-            for (std::size_t i = lb + b; i < lb + e; ++i) {
-              const unsigned cc = child_count[i];
-              if (cc == 0) continue;
-              a.values[i] = mode ? mode_of_children(a.values, first_child[i], cc, point_count)
-                                 : mean_of_children(a.values, first_child[i], cc, point_count);
-            }
-          },
-          threads, 256);
-    }
+    for_each_interior_bottom_up(
+        level_begin, child_count, threads,
+        [&](std::size_t i) {
+          a.values[i] =
+              mode ? mode_of_children(a.values, first_child[i], child_count[i], point_count)
+                   : mean_of_children(a.values, first_child[i], child_count[i], point_count);
+        },
+        [] {});
   }
 }
 
