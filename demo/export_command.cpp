@@ -7,7 +7,9 @@
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <stdexcept>
 #include <string>
+#include <system_error>
 #include <vector>
 
 #include "commands.hpp"
@@ -104,7 +106,11 @@ void run_export(const ExportArgs& a) {
   if (!a.classes.empty() && keep_classes(points, filter, a.model) == 0) {
     throw InputError(quoted_name(model) + ": --classes " + a.classes + " keeps no point");
   }
-  if (out.has_parent_path()) std::filesystem::create_directories(out.parent_path());
+  if (out.has_parent_path()) {
+    std::error_code ec;
+    std::filesystem::create_directories(out.parent_path(), ec);
+    if (ec) throw std::runtime_error(system_error_text(out.parent_path(), ec.value()));
+  }
   switch (format) {
     case Format::las:
       save_las(out, points);
