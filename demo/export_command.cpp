@@ -58,11 +58,7 @@ std::size_t keep_classes(PointSet& p, const splat::ColorBy& filter, const std::s
   for (std::size_t i = 0; i < p.size(); ++i) {
     const float v = cls->values[i];
     const int c = std::isnan(v) ? -1 : static_cast<int>(std::lround(cls->offset + double(v)));
-    const auto listed = [c](const std::vector<int>& l) {
-      return std::find(l.begin(), l.end(), c) != l.end();
-    };
-    keep[i] =
-        filter.show_classes.empty() ? !listed(filter.hide_classes) : listed(filter.show_classes);
+    keep[i] = !splat::class_hidden(filter, c);
   }
   auto compact = [&](auto& array) {
     if (array.empty()) return;

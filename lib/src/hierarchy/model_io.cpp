@@ -163,21 +163,22 @@ std::string read_head(const std::filesystem::path& path, std::size_t n) {
 // it recognizes: E57, PCD, an image...) and what treecut reads.
 PointSet read_point_file(const std::filesystem::path& model, OpenedModel& out,
                          const WarningSink& warn, const std::vector<std::string>& columns) {
+  // The format from the first bytes, read once.
   const std::string head = read_head(model, 4096);
-  const bool text = !file_starts_with(model, "LASF") && !file_starts_with(model, "ply") &&
-                    !looks_like_pcd(head) && looks_like_text_cloud(head);
+  const bool las = head.starts_with("LASF");
+  const bool ply = !las && head.starts_with("ply");
+  const bool pcd = !las && !ply && looks_like_pcd(head);
+  const bool text = !las && !ply && !pcd && looks_like_text_cloud(head);
   if (!columns.empty() && !text) {
     throw InputError(quoted_name(model) +
                      ": --columns names the columns of a text cloud (XYZ, PTS, CSV); this file "
                      "names its own fields");
   }
-  if (file_starts_with(model, "LASF")) {
+  if (las) {
     out.format = "LAS";
     return load_las(model, &out.las, warn);
   }
-  out.format = "PLY";
-  if (file_starts_with(model, "ply")) return load_ply(model, &out.ply, warn);
-  if (looks_like_pcd(head)) {
+  if (pcd) {
     out.format = "PCD";
     return load_pcd(model, warn);
   }
@@ -185,6 +186,8 @@ PointSet read_point_file(const std::filesystem::path& model, OpenedModel& out,
     out.format = "text";
     return load_text_cloud(model, warn, columns);
   }
+  out.format = "PLY";
+  if (ply) return load_ply(model, &out.ply, warn);
   try {
     return load_ply(model, &out.ply, warn);
   } catch (const InputError& e) {

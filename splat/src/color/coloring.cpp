@@ -177,20 +177,24 @@ void hide_classes(const Hierarchy& h, const ColorBy& by, Coloring& out) {
   const NodeAttribute* cls = h.find_attribute("classification");
   for (std::size_t n = 0; n < h.node_count(); ++n) {
     const int c = class_of(cls->values[n]);
-    const bool hidden =
-        by.show_classes.empty() ? contains(by.hide_classes, c) : !contains(by.show_classes, c);
-    if (hidden) out.colors[n].w = 0, ++out.hidden_nodes;
+    if (class_hidden(by, c)) {
+      out.colors[n].w = 0, ++out.hidden_nodes;
+    }
   }
   if (out.legend.title == "classification") {
     for (Legend::Entry& e : out.legend.entries) {
       const int c = std::isnan(e.value) ? -1 : static_cast<int>(e.value);
-      e.hidden =
-          by.show_classes.empty() ? contains(by.hide_classes, c) : !contains(by.show_classes, c);
+      e.hidden = class_hidden(by, c);
     }
   }
 }
 
 }  // namespace
+
+bool class_hidden(const ColorBy& by, int value) {
+  return by.show_classes.empty() ? contains(by.hide_classes, value)
+                                 : !contains(by.show_classes, value);
+}
 
 std::string_view color_map_name(ColorMap map) {
   switch (map) {

@@ -50,6 +50,10 @@ struct ColorBy {
 /// as is anything but whole numbers 0-255.
 void parse_class_filter(std::string_view text, ColorBy& by);
 
+/// Whether BY's class filter hides class VALUE (-1: no value; hidden only
+/// when BY lists classes to show).
+[[nodiscard]] bool class_hidden(const ColorBy& by, int value);
+
 /// What the colours mean, for a HUD or a report.
 struct Legend {
   std::string title;  ///< "intensity", "elevation (m)", "classification"
