@@ -415,6 +415,31 @@ TEST(Cache, ContentHashIsOfTheBytes) {
   EXPECT_THROW(content_hash_of(dir), InputError) << "a directory";
 }
 
+// Issue 29: rounding stays under 1 mm within 32,768 units of the model's
+// origin (a float's spacing there is 2^-9); a model reaching further is
+// read with one warning naming the spacing, one within it with none.
+TEST(Cache, PointsPastTheFloatBoundAreNamedInAWarning) {
+  const fs::path dir = test::scratch_dir("cache_float_bound");
+  for (const double far : {32000.0, 40000.0}) {
+    std::ofstream text(dir / "cloud.xyz");
+    text.precision(10);
+    for (int i = 0; i < 64; ++i) text << 500000.0 + 0.1 * (i % 8) << " 0 " << 0.1 * (i / 8) << "\n";
+    text << 500000.0 + far << " 0 0\n";
+    text.close();
+    OpenOptions o;
+    o.use_cache = false;
+    std::vector<std::string> warnings;
+    o.warn = [&](const std::string& w) { warnings.push_back(w); };
+    const OpenedModel m = open_model(dir / "cloud.xyz", o);
+    EXPECT_EQ(m.hierarchy.frame().origin.x, 500000.0);
+    const auto named = std::count_if(warnings.begin(), warnings.end(), [](const std::string& w) {
+      return w.find("from the model's origin: as floats their spacing there is 0.00391") !=
+             std::string::npos;
+    });
+    EXPECT_EQ(named, far > 32768.0 ? 1 : 0) << far;
+  }
+}
+
 TEST(Cache, OpenModelUsesTheCacheAndRebuildsACorruptOne) {
   const fs::path dir = test::scratch_dir("cache_open");
   OpenOptions o = model_in(dir, ModelKind::City, 3000, 1);

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <glm/gtc/matrix_transform.hpp>
 #include <memory>
 #include <optional>
 
@@ -18,6 +19,7 @@
 #include "treecut/splat/gl_objects.hpp"
 #include "treecut/splat/image.hpp"
 #include "treecut/splat/renderer.hpp"
+#include "treecut/splat/scene_draw.hpp"
 #include "treecut/tools/generate.hpp"
 #include "treecut/tree_cut.hpp"
 
@@ -259,6 +261,79 @@ TEST(SplatMapCoordinates, AModelAtUtmCoordinatesRendersAsAtTheOrigin) {
   std::printf("map coordinates: %zu of %zu pixels unmatched with a double origin, %zu as floats\n",
               test::unmatched_either_way(utm_image, zero), pixels, broken);
   EXPECT_GT(broken, pixels / 50) << "the check has teeth: floats of map coordinates are off";
+}
+
+// Issue 29, item 2: drawn relative to the eye. A patch of points 24.6 km from
+// its model's origin on x and y (a model 50 km across keeps it there) and the
+// same patch at the origin, both seen from 25 cm by a camera moved with it
+// (every coordinate exact in float at both places), give the same image from
+// each of three eyes 2 mm apart, the float spacing there. Drawn as
+// `view * p` in float, the view's translation and p cancel to
+// millimetres of error, pixels at 25 cm, that change as the camera moves.
+TEST(SplatMapCoordinates, APatchFarFromTheOriginIsDrawnRelativeToTheEye) {
+  context();
+  constexpr float kFar = 24576.0f;  // 3 * 2^13: a float's spacing there is 2^-9
+  auto patch = [](glm::vec3 at) {
+    PointSet p;
+    constexpr std::array<glm::u8vec4, 4> kColors{
+        {{230, 40, 40, 255}, {40, 200, 60, 255}, {50, 80, 230, 255}, {240, 230, 50, 255}}};
+    for (int i = 0; i < 96; ++i) {
+      for (int j = 0; j < 96; ++j) {
+        // 1/128 apart with heights in 1/512: exact in float at kFar.
+        const float z = float((i * 7 + j * 3) % 5) / 512.0f;
+        p.positions.push_back(at + glm::vec3(float(i - 48) / 128.0f, float(j - 48) / 128.0f, z));
+        p.normals.push_back({0, 0, 1});
+        p.colors.push_back(kColors[std::size_t((i * 31 + j * 17) % 4)]);
+      }
+    }
+    return build_from_points(std::move(p));
+  };
+  const glm::vec3 far(kFar, kFar, 0.0f);
+  const Hierarchy h_zero = patch(glm::vec3(0.0f));
+  const Hierarchy h_far = patch(far);
+  auto draw = [&](const Hierarchy& h, const Camera& c) {
+    Renderer r(h, glm::ivec2(kWidth, kHeight));
+    CutBuffer cut;
+    cut.upload(h, TreeCut::leaf_cut(h).nodes());
+    r.draw(cut, c, RenderSettings{}, true);
+    return Image{kWidth, kHeight, r.read_pixels()};
+  };
+  // The patch of the origin as a scene's object that a translation puts there.
+  auto draw_placed = [&](const Camera& c) {
+    Renderer r(h_zero, glm::ivec2(kWidth, kHeight));
+    const Hierarchy* models[] = {&h_zero};
+    r.set_models(models);
+    const SceneObject objects[] = {place_object(0, glm::translate(glm::mat4(1.0f), far))};
+    const TreeCut leaves = TreeCut::leaf_cut(h_zero);
+    const std::span<const NodeId> cuts[] = {leaves.nodes()};
+    SceneCutBuffer buffer;
+    buffer.set_objects(r, objects);
+    buffer.upload(models, cuts);
+    r.draw_scene(buffer, c, RenderSettings{}, true);
+    return Image{kWidth, kHeight, r.read_pixels()};
+  };
+  const std::size_t pixels = std::size_t{kWidth} * kHeight;
+  for (int step = 0; step < 3; ++step) {
+    Camera c;
+    c.eye = glm::vec3(0.0625f + float(step) / 512.0f, -0.1875f, 0.1875f);
+    c.target = glm::vec3(0.0625f, 0.0f, 0.0f);
+    c.up = {0, 0, 1};
+    c.near_plane = 0.01f;
+    c.far_plane = 10.0f;
+    const Image zero = draw(h_zero, c);
+    Camera moved = c;
+    moved.eye += far;
+    moved.target += far;
+    ASSERT_EQ(moved.eye - far, c.eye) << "the eye is exact in float at both places";
+    const Image at_far = draw(h_far, moved);
+    EXPECT_GT(coverage(zero, background_bytes(RenderSettings{}).data(), 2).pixels, pixels / 2);
+    const std::size_t unmatched = test::unmatched_either_way(at_far, zero);
+    std::printf("eye step %d: %zu of %zu pixels unmatched 34.8 km from the origin\n", step,
+                unmatched, pixels);
+    EXPECT_LE(unmatched, pixels / 1000) << "step " << step;
+    EXPECT_LE(test::unmatched_either_way(draw_placed(moved), zero), pixels / 1000)
+        << "a scene object placed there, step " << step;
+  }
 }
 
 // Issue 29, item 3: colouring by an attribute and hiding classes.

@@ -17,6 +17,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <glm/mat3x3.hpp>
 #include <glm/mat4x4.hpp>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
@@ -88,12 +89,29 @@ struct ViewSnapshot {
   /// Query results gathered since the previous snapshot, in issue order.
   std::vector<VisibilityResult> visibility;
 
+  /// Where the camera that made `view` stands, exactly, and the `view` it
+  /// stood for (place_eye() sets both). The eye finalize() derives from the
+  /// matrix alone is off by the float rounding of |eye| (millimetres 30 km
+  /// from the origin), and the renderer draws relative to the eye
+  /// (shaders.hpp), so a camera gives its own. Kept only while `view` is
+  /// still that matrix: a view changed since (a model matrix folded in)
+  /// derives its eye again.
+  glm::vec3 placed_eye{0.0f};
+  glm::mat4 placed_view{0.0f};
+  /// Records `eye` as the exact eye of the current `view`; finalize() after.
+  void place_eye(glm::vec3 eye) {
+    placed_eye = eye;
+    placed_view = view;
+  }
+
   /// Derived from the fields above by finalize(), once per view; read-only
   /// for everyone who is handed the view (strategies, the culling
   /// traversals, the renderer's query hooks).
   struct Derived {
-    glm::mat4 view_projection{1.0f};        ///< clip = view_projection * model (OpenGL, z in [-1, 1])
-    glm::vec3 eye{0.0f};                    ///< camera position in model space
+    glm::mat4 view_projection{1.0f};  ///< clip = view_projection * model (OpenGL, z in [-1, 1])
+    /// Camera position in model space: placed_eye while `view` is
+    /// placed_view, else from the inverse of `view` (in double).
+    glm::vec3 eye{0.0f};
     glm::vec3 forward{0.0f, 0.0f, -1.0f};  ///< unit viewing direction in model space
     /// Eye depths of the near and far planes, model units.
     float near_plane = 0.0f;
@@ -120,6 +138,12 @@ struct ViewSnapshot {
 
   /// Recomputes `derived`; call after changing view, projection or viewport.
   void finalize();
+
+  /// `view` without its translation: model axes with the eye at zero to eye
+  /// space, for positions taken relative to derived.eye (what the renderer
+  /// and its query proxies draw with: no float cancellation of two large
+  /// coordinates near the eye).
+  [[nodiscard]] glm::mat4 eye_relative_view() const { return glm::mat4(glm::mat3(view)); }
 
   /// The projection has the perspective frustum form (is_perspective_frustum
   /// of treecut/query_proxy.hpp: glm::perspective, glm::frustum) and the

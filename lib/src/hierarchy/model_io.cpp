@@ -196,21 +196,24 @@ PointSet read_point_file(const std::filesystem::path& model, OpenedModel& out,
   }
 }
 
-// Positions are floats relative to the model's origin (point_set.hpp): 1 mm
-// or better within 16,384 units of it (a float's spacing there is 2^-9), so
-// a model up to about 33 km across keeps millimetres at any map coordinate.
-// Past that the spacing grows (4 mm at 50 km); said once, with the figure.
+// Positions are floats relative to the model's origin (point_set.hpp): a
+// float's spacing is at most 2^-9 within 32,768 units, so rounding stays
+// under 1 mm there (half the spacing) and a model up to 65 km across (LAS:
+// the origin at its bounds' centre) keeps millimetres at any map
+// coordinate; the renderer draws relative to the eye (shaders.hpp), so that
+// is what the screen shows. Past that the spacing grows (7.8 mm at 100 km):
+// said once, with the figure.
 std::string float_precision_warning(const PointSet& points) {
   float reach = 0.0f;
   for (const glm::vec3& p : points.positions) {
     reach = std::max({reach, std::fabs(p.x), std::fabs(p.y), std::fabs(p.z)});
   }
-  if (!(reach > 16384.0f)) return {};
+  if (!(reach >= 32768.0f)) return {};
   const float spacing = std::nextafter(reach, INFINITY) - reach;
   char line[200];
   std::snprintf(line, sizeof line,
                 "points lie up to %.0f units from the model's origin: as floats their spacing "
-                "there is %.3g units (1/1000 or finer within 16384 units)",
+                "there is %.3g units (rounding under 1/1000 within 32768 units)",
                 double(reach), double(spacing));
   return line;
 }

@@ -44,7 +44,9 @@ void ViewSnapshot::finalize() {
   const glm::mat4 inverse_view = glm::inverse(view);
   const glm::mat3 to_model = glm::mat3(inverse_view);
   derived.view_projection = projection * view;
-  derived.eye = glm::vec3(inverse_view[3]);
+  // In double: the float inverse of a view 30 km from the origin puts the
+  // eye centimetres off, and everything drawn relative to it would move.
+  derived.eye = view == placed_view ? placed_eye : glm::vec3(glm::inverse(glm::dmat4(view))[3]);
   derived.forward = glm::normalize(to_model * glm::vec3(0.0f, 0.0f, -1.0f));
   derived.frustum = frustum_planes(derived.view_projection);
   for (std::size_t i = 0; i < 8; ++i) {
@@ -86,6 +88,7 @@ ViewSnapshot ViewSnapshot::look_at(glm::vec3 eye, glm::vec3 target, glm::ivec2 v
   const glm::vec3 forward = glm::normalize(target - eye);
   const glm::vec3 up = std::abs(forward.y) > 0.99f ? glm::vec3(0, 0, 1) : glm::vec3(0, 1, 0);
   s.view = glm::lookAt(eye, target, up);
+  s.place_eye(eye);
   const float aspect = static_cast<float>(viewport.x) / static_cast<float>(viewport.y);
   s.projection = glm::perspective(fov_y, aspect, near_plane, far_plane);
   s.viewport = viewport;

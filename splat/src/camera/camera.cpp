@@ -9,7 +9,9 @@
 namespace treecut::splat {
 
 glm::mat4 Camera::view_matrix() const {
-  return glm::lookAt(eye, target, up);
+  // In double, rounded once: its translation is the eye's distance from the
+  // origin, kilometres for map coordinates.
+  return glm::mat4(glm::lookAt(glm::dvec3(eye), glm::dvec3(target), glm::dvec3(up)));
 }
 
 glm::mat4 Camera::projection_matrix(float aspect) const {
@@ -19,6 +21,7 @@ glm::mat4 Camera::projection_matrix(float aspect) const {
 ViewSnapshot Camera::view(glm::ivec2 size) const {
   ViewSnapshot v;
   v.view = view_matrix();
+  v.place_eye(eye);
   v.projection = projection_matrix(static_cast<float>(size.x) / static_cast<float>(size.y));
   v.viewport = size;
   v.finalize();

@@ -130,8 +130,11 @@ void GlOcclusionDevice::begin_frame_render_thread() {
   stats_ = {};
   renderer_->begin_frame_ranges(elements_, max_id_, camera_, settings_);
   const ViewSnapshot& f = renderer_->frame_view();
-  const glm::mat4& view_proj = f.derived.view_projection;
+  // Relative to the eye, as the splats are drawn (shaders.hpp): the boxes'
+  // corners less the eye, then the rotation and the projection.
+  const glm::mat4 view_proj = f.projection * f.eye_relative_view();
   gl::ProgramUniformMatrix4fv(proxy_.id(), u_view_proj_, 1, GL_FALSE, glm::value_ptr(view_proj));
+  eye_ = f.derived.eye;
   proxy_state_ = false;
   in_frame_ = true;
 }
@@ -139,8 +142,9 @@ void GlOcclusionDevice::begin_frame_render_thread() {
 culling::QueryHandle GlOcclusionDevice::query_box_render_thread(culling::BlockId b) {
   const culling::Box& box = blocks_->box(b);
   enter_proxy_state();
-  gl::ProgramUniform3f(proxy_.id(), u_lo_, box.lo.x, box.lo.y, box.lo.z);
-  gl::ProgramUniform3f(proxy_.id(), u_hi_, box.hi.x, box.hi.y, box.hi.z);
+  const glm::vec3 lo = box.lo - eye_, hi = box.hi - eye_;
+  gl::ProgramUniform3f(proxy_.id(), u_lo_, lo.x, lo.y, lo.z);
+  gl::ProgramUniform3f(proxy_.id(), u_hi_, hi.x, hi.y, hi.z);
   const culling::QueryHandle q = acquire();
   pool_[q].begin();
   gl::DrawArrays(GL_TRIANGLES, 0, 36);

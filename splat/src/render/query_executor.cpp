@@ -22,12 +22,15 @@ namespace {
 // instance: what GL_SAMPLES_PASSED counts on a single-sampled target.
 constexpr const char* kBatchVertex = R"(#version 450 core
 layout(location = 0) in vec4 a_sphere;
-uniform mat4 u_view;
+uniform mat4 u_view;  // rotation only: the sphere is taken relative to the eye first
+uniform vec3 u_eye;
 uniform mat4 u_proj;
 uniform int u_base;
 flat out uint v_slot;
 void main() {
-  vec3 c = (u_view * vec4(a_sphere.xyz, 1.0)).xyz;
+  // Relative to the eye, as the splats are drawn (shaders.hpp).
+  precise vec3 rel = a_sphere.xyz - u_eye;
+  vec3 c = mat3(u_view) * rel;
   float r = a_sphere.w;
   float d = length(c);
   // The host answers an eye inside the sphere; guard the square root anyway.
@@ -111,6 +114,7 @@ QueryExecutor::QueryExecutor(QueryExecutorOptions options) : options_(options) {
   proxy_ = link_program(kBatchVertex, kBatchFragment, "query proxy");
   // Looked up once: run() sets them every frame that issues.
   u_view_ = gl::GetUniformLocation(proxy_.id(), "u_view");
+  u_eye_ = gl::GetUniformLocation(proxy_.id(), "u_eye");
   u_proj_ = gl::GetUniformLocation(proxy_.id(), "u_proj");
   u_base_ = gl::GetUniformLocation(proxy_.id(), "u_base");
   u_count_ = gl::GetUniformLocation(proxy_.id(), "u_count");
@@ -372,7 +376,10 @@ void QueryExecutor::draw_batch_render_thread(const Batch& b, const ViewSnapshot&
   }
   if (n_quads > 0) {
     gl::UseProgram(proxy_.id());
-    gl::ProgramUniformMatrix4fv(proxy_.id(), u_view_, 1, GL_FALSE, glm::value_ptr(view.view));
+    const glm::mat4 rotation = view.eye_relative_view();
+    gl::ProgramUniformMatrix4fv(proxy_.id(), u_view_, 1, GL_FALSE, glm::value_ptr(rotation));
+    gl::ProgramUniform3f(proxy_.id(), u_eye_, view.derived.eye.x, view.derived.eye.y,
+                         view.derived.eye.z);
     gl::ProgramUniformMatrix4fv(proxy_.id(), u_proj_, 1, GL_FALSE, glm::value_ptr(view.projection));
     gl::ProgramUniform1i(proxy_.id(), u_base_, static_cast<GLint>(n_points));
     gl::VertexArrayVertexBuffer(vao_.id(), 0, b.buffer.id(),

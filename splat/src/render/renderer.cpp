@@ -99,7 +99,10 @@ void Renderer::set_common_uniforms(const gl::Program& program, const Uniforms& u
   const glm::vec3 light_dir = world_light_dir(light, frame.view);
   // Locations were looked up at link time (lookup_uniforms).
   const GLuint p = program.id();
-  gl::ProgramUniformMatrix4fv(p, u.view, 1, GL_FALSE, glm::value_ptr(frame.view));
+  // Relative to the eye (shaders.hpp): the view's rotation; the eye is
+  // subtracted from each point in the vertex stage.
+  const glm::mat4 rotation = frame.eye_relative_view();
+  gl::ProgramUniformMatrix4fv(p, u.view, 1, GL_FALSE, glm::value_ptr(rotation));
   gl::ProgramUniformMatrix4fv(p, u.proj, 1, GL_FALSE, glm::value_ptr(frame.projection));
   gl::ProgramUniform3f(p, u.eye, frame.derived.eye.x, frame.derived.eye.y, frame.derived.eye.z);
   gl::ProgramUniform1f(p, u.radius_scale, settings.radius_scale);

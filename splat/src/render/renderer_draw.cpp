@@ -87,7 +87,8 @@ void Renderer::plan_runs(const CutBuffer& cut, std::span<const CutRange> ranges,
 }
 
 void Renderer::draw_runs(GLuint elements, const gl::Program& program, const Uniforms& u,
-                         RangeHook* hook, const ViewSnapshot& frame, GLuint fbo, bool depth_writes) {
+                         RangeHook* hook, const ViewSnapshot& frame, GLuint fbo,
+                         bool depth_writes) {
   // The exchange point: the cut is just the element buffer of the node VAO.
   gl::VertexArrayElementBuffer(vao_.id(), elements);
   gl::BindVertexArray(vao_.id());
@@ -213,9 +214,9 @@ void Renderer::run_query_hook(GLuint fbo, const ViewSnapshot& frame) {
 }
 
 // The passes of settings.mode over the planned runs of `elements`.
-void Renderer::draw_passes(GLuint elements, const ViewSnapshot& frame, const RenderSettings& settings,
-                           float fade_weight, RangeHook* hook, const CutBuffer* cut,
-                           std::span<const CutRange> ranges, bool whole) {
+void Renderer::draw_passes(GLuint elements, const ViewSnapshot& frame,
+                           const RenderSettings& settings, float fade_weight, RangeHook* hook,
+                           const CutBuffer* cut, std::span<const CutRange> ranges, bool whole) {
   const glm::vec4 background(settings.background, 1.0f);
   switch (settings.mode) {
     case SplatMode::Fast: {
@@ -300,7 +301,8 @@ void Renderer::draw_high_quality(GLuint elements, const ViewSnapshot& frame,
   gl::BindFramebuffer(GL_FRAMEBUFFER, scene_fbo_.id());
   gl::Disable(GL_DEPTH_TEST);
   set_common_uniforms(hq_normalize_, hq_normalize_u_, frame, settings, fade_weight);
-  const glm::mat4 inv_view_proj = glm::inverse(frame.derived.view_projection);
+  // Positions relative to the eye, as the passes before drew them.
+  const glm::mat4 inv_view_proj = glm::inverse(frame.projection * frame.eye_relative_view());
   gl::ProgramUniformMatrix4fv(hq_normalize_.id(), hq_normalize_u_.inv_view_proj, 1, GL_FALSE,
                               glm::value_ptr(inv_view_proj));
   gl::UseProgram(hq_normalize_.id());

@@ -6,10 +6,18 @@ namespace treecut::splat::shaders {
 
 // Uniforms and functions every stage may use. Colors are sRGB in the node
 // arrays and the output; lighting happens in linear space.
+//
+// Relative to the eye (issue 29): every position past the vertex stage is in
+// the world's axes with the eye at zero, and u_view is the view's rotation
+// only (Renderer::set_common_uniforms). A model at map coordinates has
+// positions of kilometres from its origin; `view * p` in float would cancel
+// two such numbers and leave millimetres of error that change as the camera
+// moves (points near the eye jitter). p - eye of two nearby floats is exact
+// (Sterbenz), so what is near the eye is drawn exactly (object_point).
 inline constexpr const char* kCommon = R"(#version 450 core
-uniform mat4 u_view;
+uniform mat4 u_view;             // rotation only: eye-relative world -> eye space
 uniform mat4 u_proj;
-uniform vec3 u_eye;              // world space
+uniform vec3 u_eye;              // world space; positions here are relative to it
 uniform float u_radius_scale;
 uniform int u_cull;              // 1: drop nodes whose normal cone faces away
 uniform float u_min_radius_px;   // quads smaller than this grow to it (no sub-pixel dropouts)
@@ -26,7 +34,7 @@ vec3 linear_to_srgb(vec3 c) {
 }
 // Blinn-Phong, two-sided: a normal facing away from the eye is flipped.
 vec3 shade(vec3 albedo, vec3 n, vec3 pos) {
-  vec3 v = normalize(u_eye - pos);
+  vec3 v = normalize(-pos);
   if (dot(n, v) < 0.0) n = -n;
   float diffuse = max(dot(n, u_light_dir), 0.0);
   vec3 h = normalize(u_light_dir + v);
@@ -78,9 +86,13 @@ layout(location = 3) in vec4 a_world_row0;
 layout(location = 4) in vec4 a_world_row1;
 layout(location = 5) in vec4 a_world_row2;
 layout(location = 6) in vec4 a_object;  // sigma_max, cone widening, det sign, object index
+// A model point relative to the eye: the linear part, then the translation
+// less the eye (for a single model, exactly p - eye).
 vec3 object_point(vec3 p) {
-  vec4 q = vec4(p, 1.0);
-  return vec3(dot(a_world_row0, q), dot(a_world_row1, q), dot(a_world_row2, q));
+  precise vec3 t = vec3(a_world_row0.w, a_world_row1.w, a_world_row2.w) - u_eye;
+  precise vec3 q = vec3(dot(a_world_row0.xyz, p), dot(a_world_row1.xyz, p),
+                        dot(a_world_row2.xyz, p)) + t;
+  return q;
 }
 // Normals transform with the cofactor matrix (det * inverse transpose): the
 // cross products of the linear part's columns, times the determinant's sign.
@@ -99,7 +111,7 @@ float object_cone(float cc) {
 }
 )";
 
-// Vertex stage of the disc modes: passes the node through (in world space).
+// Vertex stage of the disc modes: passes the node through (relative to the eye).
 inline constexpr const char* kSplatVertex = R"(
 layout(location = 0) in vec4 a_center_radius;
 layout(location = 1) in vec4 a_normal_cone;  // snorm16, normalized by the VAO
@@ -159,7 +171,7 @@ flat out float f_object;
 void main() {
   vec3 c = g_node[0].center;
   float r = g_node[0].radius;
-  vec3 to_eye = u_eye - c;
+  vec3 to_eye = -c;
   float dist = length(to_eye);
   vec3 e = dist > 0.0 ? to_eye / dist : vec3(0.0, 0.0, 1.0);
   float nl = length(g_node[0].normal);
@@ -260,7 +272,7 @@ void main() {
   float q = dot(f_uv, f_uv);
   if (q > 1.0 || faded_out()) discard;
   float w = exp(-3.0 * q);
-  vec3 n = dot(f_normal, u_eye - f_pos) < 0.0 ? -f_normal : f_normal;
+  vec3 n = dot(f_normal, f_pos) > 0.0 ? -f_normal : f_normal;
   o_color = vec4(f_color * w, w);
   o_normal = vec4(n * w, 0.0);
 }
@@ -291,11 +303,12 @@ void main() {
   if (acc.a <= 1e-6) discard;  // no splat here: the cleared background stays
   vec3 albedo = acc.rgb / acc.a;
   vec3 n = texelFetch(u_accum_normal, px, 0).xyz;
-  float nl = length(n);
-  n = nl > 1e-6 ? n / nl : normalize(u_eye);
   float z = texelFetch(u_depth, px, 0).r;
   vec4 p = u_inv_view_proj * vec4(f_ndc, z * 2.0 - 1.0, 1.0);
-  o_color = vec4(linear_to_srgb(shade(albedo, n, p.xyz / p.w)), 1.0);
+  vec3 pos = p.xyz / p.w;  // relative to the eye
+  float nl = length(n);
+  n = nl > 1e-6 ? n / nl : normalize(-pos);
+  o_color = vec4(linear_to_srgb(shade(albedo, n, pos)), 1.0);
 }
 )";
 
@@ -310,7 +323,7 @@ flat out vec3 f_normal;
 flat out vec3 f_color;
 void main() {
   vec3 c = object_point(a_center_radius.xyz);
-  vec3 e = normalize(u_eye - c);
+  vec3 e = normalize(-c);
   vec3 normal = object_normal(a_normal_cone.xyz);
   float nl = length(normal);
   vec3 n = nl > 1e-4 ? normal / nl : e;

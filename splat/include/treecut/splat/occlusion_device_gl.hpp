@@ -95,6 +95,7 @@ class GlOcclusionDevice final : public culling::OcclusionDeviceRenderThread {
   NodeId max_id_ = 0;
   gl::Program proxy_;
   GLint u_view_proj_ = -1, u_lo_ = -1, u_hi_ = -1;
+  glm::vec3 eye_{0.0f};  ///< the frame's eye: proxies are drawn relative to it
   gl::VertexArray proxy_vao_;
   std::vector<gl::Query> pool_;
   std::vector<culling::QueryHandle> free_;

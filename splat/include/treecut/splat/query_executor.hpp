@@ -229,7 +229,7 @@ class QueryExecutor final : public QueryHook {
   gl::VertexArray point_vao_;   // points: per-vertex
   gl::Program proxy_;           // quads
   gl::Program point_proxy_;
-  GLint u_view_ = -1, u_proj_ = -1, u_base_ = -1, u_count_ = -1, u_point_count_ = -1;
+  GLint u_view_ = -1, u_eye_ = -1, u_proj_ = -1, u_base_ = -1, u_count_ = -1, u_point_count_ = -1;
   GLint depth_func_ = GL_LESS;
   GLint program_point_size_ = 0;
   float max_point_size_ = 1.0f;  // GL_POINT_SIZE_RANGE's max
