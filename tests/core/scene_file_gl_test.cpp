@@ -288,6 +288,26 @@ TEST(SceneFile, GeoreferencedModelsShareTheWorldsCoordinates) {
   EXPECT_NEAR(seen.y, -40.0f, 0.01f);
   EXPECT_NEAR(seen.z, 2.0f, 0.01f);
   EXPECT_NEAR(centre(scene.objects[2]).x, 10.0f, 0.1f) << "a PLY stays where the scene says";
+
+  // A tile 40 km from the first one is past the float bound: one warning
+  // naming its line and the spacing there; the tiles 250 m apart got none.
+  tile.frame.origin = glm::dvec3(540000.0, 5000000.0, 100.0);
+  treecut::save_las(dir / "far.las", tile);
+  std::ofstream(dir / "far.scene") << "treecut-scene 1\nmodel a a.las\nmodel f far.las\n"
+                                      "object a\nobject f\nobject f translate 0 5 0\n";
+  std::vector<std::string> warnings;
+  treecut::SceneLoadOptions o = no_cache();
+  o.open.warn = [&](const std::string& w) {
+    if (w.find("from the scene's origin") != std::string::npos) warnings.push_back(w);
+  };
+  (void)treecut::load_scene(dir / "geo.scene", o);
+  EXPECT_TRUE(warnings.empty()) << warnings.front();
+  (void)treecut::load_scene(dir / "far.scene", o);
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_EQ(warnings[0].rfind((dir / "far.scene").string() + ":3: model f reaches 4", 0), 0u)
+      << warnings[0];
+  EXPECT_NE(warnings[0].find("the spacing there is 0.00391 units"), std::string::npos)
+      << warnings[0];
 }
 
 TEST(SceneFile, TransformsComposeInTheOrderWritten) {

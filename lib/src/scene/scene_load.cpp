@@ -8,6 +8,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <exception>
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/mat3x3.hpp>
@@ -285,6 +286,30 @@ void place_objects(const SceneDescription& d, const std::vector<std::uint32_t>& 
   }
 }
 
+// 4. Map coordinates: the world is floats from its zero, so a georeferenced
+//    model reaching 32,768 units from it or more is rounded by a millimetre
+//    or more there (docs/files.md, map coordinates). Said once per model.
+void warn_far_models(const Scene& scene, const WarningSink& warn) {
+  if (!warn) return;
+  std::vector<float> reach(scene.models.size(), 0.0f);
+  for (const SceneObject& o : scene.objects) {
+    if (scene.models[o.model].hierarchy->frame().origin == glm::dvec3(0.0)) continue;
+    const glm::vec3 far = glm::max(glm::abs(o.aabb_min), glm::abs(o.aabb_max));
+    reach[o.model] = std::max({reach[o.model], far.x, far.y, far.z});
+  }
+  for (std::size_t m = 0; m < scene.models.size(); ++m) {
+    if (reach[m] < 32768.0f) continue;
+    const float spacing = std::nextafter(reach[m], INFINITY) - reach[m];
+    char line[240];
+    std::snprintf(line, sizeof line,
+                  ": model %s reaches %.0f units from the scene's origin (its first "
+                  "georeferenced model's): as floats the spacing there is %.3g units (rounding "
+                  "under 1/1000 within 32768 units)",
+                  scene.models[m].name.c_str(), double(reach[m]), double(spacing));
+    warn(scene.models[m].declared_at + line);
+  }
+}
+
 }  // namespace
 
 std::uint64_t Scene::instanced_points() const {
@@ -326,6 +351,7 @@ Scene load_scene(const std::filesystem::path& file, const SceneLoadOptions& opti
   const std::vector<std::uint32_t> decl_of_model = distinct_models(d, scene, model_of_decl);
   load_models(d, decl_of_model, options, scene);
   place_objects(d, model_of_decl, scene);
+  warn_far_models(scene, options.open.warn);
   return scene;
 }
 
