@@ -69,15 +69,21 @@ void require_arguments(const std::vector<std::string_view>& words, std::size_t a
     throw InputError(where + verb + " takes " + what + ", not " + shown(words[args + 1]));
 }
 
-// play, screenshot, strategy, mode, color, classes: one argument, checked
+// play, screenshot, strategy, mode, color, classes, hud: one argument, checked
 // now (color's source against the model when it opens) so that a bad
 // one fails before the window opens. A `strategy` line changes `strategy`,
 // the one later `param` lines are checked against.
 void check_named_argument(ScriptCommand& c, const std::vector<std::string_view>& words,
                           const std::string& where, const std::filesystem::path& file,
                           const ScriptChecks& checks, std::string& strategy) {
-  require_arguments(words, 1, c.verb == "play" ? "a camera path" : "an argument", where, c.verb);
+  // `screenshot NAME hud`: the window with the HUD (number 1).
+  const bool with_hud = c.verb == "screenshot" && words.size() == 3 && words[2] == "hud";
+  const std::vector<std::string_view> named(words.begin(), words.end() - (with_hud ? 1 : 0));
+  require_arguments(named, 1, c.verb == "play" ? "a camera path" : "an argument", where, c.verb);
+  c.number = with_hud ? 1.0 : 0.0;
   c.arg = std::string(words[1]);
+  if (c.verb == "hud" && c.arg != "on" && c.arg != "off")
+    throw InputError(where + "hud: " + shown(words[1]) + " is not on or off");
   // A screenshot is a PNG name in --screenshot-dir, never a path out of it.
   if (c.verb == "screenshot" &&
       (c.arg.find('/') != std::string::npos || c.arg == "." || c.arg == ".."))
@@ -136,7 +142,7 @@ ScriptCommand parse_command(const std::vector<std::string_view>& words, int line
     require_arguments(words, 1, "a count", where, c.verb);
     c.number = parse_count(words[1], at);
   } else if (c.verb == "play" || c.verb == "screenshot" || c.verb == "strategy" ||
-             c.verb == "mode" || c.verb == "color" || c.verb == "classes") {
+             c.verb == "mode" || c.verb == "color" || c.verb == "classes" || c.verb == "hud") {
     check_named_argument(c, words, where, file, checks, strategy);
   } else if (c.verb == "open") {
     // Another model, resolved like `play`; it must be a regular file now (a

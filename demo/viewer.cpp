@@ -137,6 +137,11 @@ int Viewer::run() {
     treecut::gl::BindFramebuffer(GL_FRAMEBUFFER, 0);
     treecut::gl::Viewport(0, 0, size.x, size.y);
     renderer_->present(size);
+    // The scene alone: read before the HUD is drawn over it.
+    if (!pending_screenshot_.empty() && !screenshot_hud_) {
+      save_screenshot(pending_screenshot_, size);
+      pending_screenshot_.clear();
+    }
     ImGui_ImplOpenGL3_NewFrame();
     ImGui_ImplGlfw_NewFrame();
     ImGui::NewFrame();
@@ -147,6 +152,7 @@ int Viewer::run() {
       save_screenshot(pending_screenshot_, size);
       pending_screenshot_.clear();
     }
+    screenshot_hud_ = false;
     window_.swap_buffers();
     ++frame_;
   }

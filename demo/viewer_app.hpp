@@ -155,6 +155,9 @@ class Viewer {
   double draw_ms_ = 0.0;
   std::uint64_t frame_ = 0;
   std::string pending_screenshot_;
+  /// The pending screenshot is the window with the HUD (Shift+F12, a
+  /// script's `screenshot NAME hud`), not the scene alone (F12, P).
+  bool screenshot_hud_ = false;
   std::string status_;
   bool recording_ = false;
   splat::CameraPath recorded_;

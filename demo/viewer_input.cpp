@@ -106,8 +106,12 @@ void Viewer::handle_input(double dt) {
   }
   if (pressed_once(GLFW_KEY_L)) settings_.light.follow_camera = !settings_.light.follow_camera;
   if (pressed_once(GLFW_KEY_H)) show_hud_ = !show_hud_;
-  if (pressed_once(GLFW_KEY_F12) || pressed_once(GLFW_KEY_P))
+  if (pressed_once(GLFW_KEY_F12) || pressed_once(GLFW_KEY_P)) {
+    // The scene alone; with Shift, the window as shown (HUD included).
     pending_screenshot_ = next_name("png");
+    screenshot_hud_ = glfwGetKey(w, GLFW_KEY_LEFT_SHIFT) == GLFW_PRESS ||
+                      glfwGetKey(w, GLFW_KEY_RIGHT_SHIFT) == GLFW_PRESS;
+  }
   if (pressed_once(GLFW_KEY_R)) toggle_recording();
   if (pressed_once(GLFW_KEY_SPACE)) start_playback();
   if (pressed_once(GLFW_KEY_O)) {

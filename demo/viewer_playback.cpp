@@ -91,6 +91,9 @@ void Viewer::step_script() {
       if (script_opening_) return;
     } else if (c.verb == "screenshot") {
       pending_screenshot_ = (std::filesystem::path(args_.screenshot_dir) / c.arg).string();
+      screenshot_hud_ = c.number != 0.0;
+    } else if (c.verb == "hud") {
+      show_hud_ = c.arg == "on";
     } else if (c.verb == "strategy") {
       switch_strategy(c.arg);
     } else if (c.verb == "param") {

@@ -354,6 +354,30 @@ TEST(ViewScript, ScreenshotsStayInTheScreenshotFolder) {
   EXPECT_EQ(cli::parse_view_script("treecut-view-script 1\nscreenshot a.png\n", "ok").size(), 1u);
 }
 
+// Issue 30: `screenshot NAME hud` takes the window with its HUD, a plain one
+// the scene alone; `hud on|off` shows or hides it. Anything else is an
+// error naming the line.
+TEST(ViewScript, HudCommandsAndScreenshotsWithTheHud) {
+  const auto commands = cli::parse_view_script(
+      "treecut-view-script 1\nscreenshot a.png\nscreenshot b.png hud\nhud off\nhud on\n", "ok");
+  ASSERT_EQ(commands.size(), 4u);
+  EXPECT_EQ(commands[0].number, 0.0);
+  EXPECT_EQ(commands[1].arg, "b.png");
+  EXPECT_EQ(commands[1].number, 1.0);
+  EXPECT_EQ(commands[2].verb, "hud");
+  EXPECT_EQ(commands[2].arg, "off");
+  const auto error = [](const std::string& body) {
+    return input_error_of(
+        [&] { (void)cli::parse_view_script("treecut-view-script 1\n" + body, "h.script"); });
+  };
+  EXPECT_EQ(error("hud maybe\n"), "h.script:2: hud: 'maybe' is not on or off");
+  EXPECT_EQ(error("hud\n"), "h.script:2: hud needs an argument");
+  EXPECT_EQ(error("screenshot a.png window\n"),
+            "h.script:2: screenshot takes an argument, not 'window'");
+  EXPECT_EQ(error("screenshot a.png hud hud\n"),
+            "h.script:2: screenshot takes an argument, not 'hud'");
+}
+
 TEST(ViewScript, HeaderIsRequired) {
   EXPECT_NE(input_error_of([] { (void)cli::parse_view_script("", "e"); }).find("e: empty script"),
             std::string::npos);
@@ -409,12 +433,14 @@ TEST(ViewScript, TheWindowTestsScriptParses) {
   const fs::path script = fs::path(TREECUT_SOURCE_DIR) / "tests/viewer_window_test/run.script";
   const StrategyRegistry registry = strategies::builtin_registry();
   const auto commands = cli::load_view_script(script, {&registry, "optimization", {}});
-  ASSERT_EQ(commands.size(), 10u);
-  EXPECT_EQ(commands[6].verb, "color");
-  EXPECT_EQ(commands[6].arg, "elevation");
-  EXPECT_EQ(commands[3].verb, "play");
-  EXPECT_EQ(fs::path(commands[3].arg).filename(), "orbit.campath");
-  EXPECT_TRUE(fs::exists(commands[3].arg)) << "resolved against the script's folder";
+  ASSERT_EQ(commands.size(), 16u);
+  EXPECT_EQ(commands[4].number, 1.0) << "screenshot start-hud.png hud";
+  EXPECT_EQ(commands[5].verb, "hud");
+  EXPECT_EQ(commands[12].verb, "color");
+  EXPECT_EQ(commands[12].arg, "elevation");
+  EXPECT_EQ(commands[9].verb, "play");
+  EXPECT_EQ(fs::path(commands[9].arg).filename(), "orbit.campath");
+  EXPECT_TRUE(fs::exists(commands[9].arg)) << "resolved against the script's folder";
 }
 
 // -- plugins -------------------------------------------------------------------

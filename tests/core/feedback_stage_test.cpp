@@ -242,6 +242,37 @@ TEST(FeedbackStage, RaisingMaxNodesUnderAStaticViewRefinesAgain) {
   EXPECT_EQ(stage.counters().last.refined + stage.counters().last.coarsened, 0u);
 }
 
+// Issue 30: `param max_nodes N` then `converge` in a viewer script returned
+// at once with "converged" at the old budget. Converged is for the inputs
+// the stage has now: not at once after a new parameter, and not from the
+// iteration that ran while it came.
+TEST(FeedbackStage, AParameterSetDuringAnIterationIsNotConvergedByIt) {
+  Model m = sphere_model();
+  const auto h = m.hierarchy;
+  FeedbackStage stage(std::move(m), std::make_unique<strategies::OptimizationStrategy>(), manual());
+  ViewSnapshot v = orbit_view(*h, 0.5f);
+  v.version = 1;
+  stage.set_view(v);
+  stage.set_param("max_nodes", 300);
+  for (int i = 0; i < 400 && stage.poll().requested; ++i) stage.step();
+  ASSERT_TRUE(stage.counters().converged);
+  ASSERT_LE(stage.front().nodes.size(), 300u);
+  v.version = 2;  // the same view again: an iteration is requested
+  stage.set_view(v);
+  ASSERT_TRUE(stage.poll().requested);
+  stage.set_param("max_nodes", 2000);
+  EXPECT_FALSE(stage.counters().converged) << "at once";
+  ASSERT_TRUE(stage.step());  // the iteration requested before, at 300
+  stage.poll();
+  EXPECT_FALSE(stage.counters().converged) << "its answer is for the old budget";
+  for (int i = 0; i < 400 && !stage.counters().converged; ++i) {
+    stage.poll();
+    stage.step();
+  }
+  EXPECT_TRUE(stage.counters().converged);
+  EXPECT_GT(stage.front().nodes.size(), 1500u);
+}
+
 TEST(Strategy, ParamsVersionCountsValueChangesOnly) {
   strategies::OptimizationStrategy s;
   const std::uint64_t v0 = s.params_version();

@@ -150,7 +150,11 @@ FrameLists FeedbackStage::Impl::poll() {
       counters_.publish_ns_last = outbox_.publish_ns;
       counters_.objects_last = outbox_.objects;
       counters_.last = outbox_.result;
-      converged_ = outbox_.result.converged && !outbox_.result.cancelled;
+      // Converged for the inputs it ran on: a parameter, strategy or model
+      // handed over while it ran is not in its answer (issue 30: a script's
+      // `param max_nodes` then `converge` returned at once, on the old budget).
+      converged_ = outbox_.result.converged && !outbox_.result.cancelled &&
+                   pending_.params.empty() && !pending_.strategy && !pending_.model;
       counters_.converged = converged_;
       if (outbox_.ready) {
         outbox_.ready = false;

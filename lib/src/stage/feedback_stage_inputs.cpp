@@ -48,7 +48,7 @@ void FeedbackStage::Impl::set_strategy(std::unique_ptr<Strategy> strategy) {
   pending_.specs = strategy->param_specs();
   pending_.strategy = std::move(strategy);
   pending_.params.clear();  // they were meant for the strategy being replaced
-  converged_ = false;
+  converged_ = counters_.converged = false;
   if (state_.load(std::memory_order_relaxed) == State::Process) {
     cancel_.store(true, std::memory_order_relaxed);
   }
@@ -68,7 +68,7 @@ void FeedbackStage::Impl::set_strategy(StrategyFactory factory) {
   pending_.strategy = std::move(first);
   pending_.factory = std::move(factory);
   pending_.params.clear();
-  converged_ = false;
+  converged_ = counters_.converged = false;
   if (state_.load(std::memory_order_relaxed) == State::Process) {
     cancel_.store(true, std::memory_order_relaxed);
   }
@@ -81,7 +81,7 @@ void FeedbackStage::Impl::set_param(std::string_view name, double value) {
       throw InputError(strategy_name_ + ": " + why);
     }
     pending_.params.emplace_back(std::string(name), value);
-    converged_ = false;
+    converged_ = counters_.converged = false;
     return;
   }
   throw InputError(strategy_name_ + ": unknown parameter '" + std::string(name) + "'");
@@ -99,7 +99,7 @@ void FeedbackStage::Impl::set_model(Model model) {
   pending_.view.visibility.clear();
   switching_to_ = model.hierarchy.get();
   pending_.model = std::move(model);
-  converged_ = false;
+  converged_ = counters_.converged = false;
   if (state_.load(std::memory_order_relaxed) == State::Process) {
     cancel_.store(true, std::memory_order_relaxed);
   }
