@@ -105,6 +105,9 @@ class Viewer {
 
   // viewer_hud.cpp.
   void hud(const splat::FrameStats& stats);
+  void details_panel(const splat::FrameStats& stats);
+  void strategy_panel();
+  void load_progress();
   void rendering_panel();
   void models_panel();
   void color_panel();
@@ -148,6 +151,8 @@ class Viewer {
   bool keys_down_[GLFW_KEY_LAST + 1] = {};
   bool fly_ = false;
   bool show_hud_ = true;
+  glm::ivec2 hud_size_{0};  ///< the HUD window's size in the last frame it showed
+  bool hud_open_ = false;   ///< its sections' header is open (it may widen)
   bool quit_ = false;
   std::deque<float> frame_times_;
   double frame_ms_ = 0.0;

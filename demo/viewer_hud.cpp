@@ -3,42 +3,137 @@
 #include <imgui.h>
 
 #include <algorithm>
+#include <cfloat>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
+#include <string>
 #include <vector>
 
+#include "ticks.hpp"
 #include "viewer_app.hpp"
 
 namespace treecut::cli {
 
+namespace {
+
+// The HUD's width in pixels: the summary's lines fit.
+constexpr float kHudWidth = 300.0f;
+
+// 1234 -> "1234", 56789 -> "56.8 k", 1.5e6 -> "1.50 M": the HUD's point counts.
+std::string compact(double v) {
+  char text[32];
+  if (v >= 1e9) {
+    std::snprintf(text, sizeof text, "%.2f G", v * 1e-9);
+  } else if (v >= 1e6) {
+    std::snprintf(text, sizeof text, "%.2f M", v * 1e-6);
+  } else if (v >= 1e4) {
+    std::snprintf(text, sizeof text, "%.1f k", v * 1e-3);
+  } else {
+    std::snprintf(text, sizeof text, "%.0f", v);
+  }
+  return text;
+}
+
+}  // namespace
+
+// Out of the way (issue 30): the top-left corner, a summary of a few lines,
+// and every section closed until opened; H (or a script's `hud off`) hides
+// it, and screenshots leave it out unless asked (Shift+F12).
 void Viewer::hud(const splat::FrameStats& stats) {
-  ImGui::SetNextWindowPos(ImVec2(10, 10), ImGuiCond_FirstUseEver);
-  ImGui::SetNextWindowBgAlpha(0.8f);
+  ImGui::SetNextWindowPos(ImVec2(8, 8), ImGuiCond_FirstUseEver);
+  ImGui::SetNextWindowBgAlpha(0.6f);
+  // As narrow as the summary while the sections are closed (long lines wrap
+  // or clip rather than widen it); as wide as they need once opened.
+  ImGui::SetNextWindowSizeConstraints(ImVec2(kHudWidth, 0.0f),
+                                      ImVec2(hud_open_ ? FLT_MAX : kHudWidth, FLT_MAX));
   ImGui::Begin("treecut", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
   const StageCounters& c = controller_->stage().counters();
-  ImGui::Text("%s", scene_.label.c_str());
+  ImGui::TextUnformatted(scene_.label.c_str());
+  ImGui::Text("%.1f fps  %.1f ms", frame_ms_ > 0 ? 1000.0 / frame_ms_ : 0.0, frame_ms_);
+  ImGui::SameLine();
+  ImGui::TextDisabled("(H hides this)");
+  const double total = scene_.world       ? double(scene_.instanced_points)
+                       : scene_.hierarchy ? double(scene_.hierarchy->leaf_count())
+                                          : 0.0;
+  ImGui::Text("%s splats for %s of %s points", compact(double(stats.splats)).c_str(),
+              compact(double(stats.points)).c_str(), compact(total).c_str());
+  if (c.converged) {
+    ImGui::TextUnformatted("converged");
+  } else {
+    ImGui::Text("refining (iteration %.1f ms)", c.iteration_ns_last * 1e-6);
+  }
+  load_progress();
+  if (!status_.empty()) ImGui::TextWrapped("%s", status_.c_str());
+  // One closed header over the sections, each closed too.
+  hud_open_ = ImGui::CollapsingHeader("more");
+  if (hud_open_) {
+    if (ImGui::TreeNode("details")) {
+      details_panel(stats);
+      ImGui::TreePop();
+    }
+    if (ImGui::TreeNode("model")) {
+      models_panel();
+      ImGui::TreePop();
+    }
+    if (ImGui::TreeNode("strategy")) {
+      strategy_panel();
+      ImGui::TreePop();
+    }
+    if (ImGui::TreeNode("colour")) {
+      color_panel();
+      ImGui::TreePop();
+    }
+    if (ImGui::TreeNode("rendering")) {
+      rendering_panel();
+      ImGui::TreePop();
+    }
+  }
+  const ImVec2 size = ImGui::GetWindowSize();
+  hud_size_ = glm::ivec2(static_cast<int>(size.x), static_cast<int>(size.y));
+  ImGui::End();
+}
+
+// Frame times with their scale, the stage's and the strategy's counters.
+void Viewer::details_panel(const splat::FrameStats& stats) {
+  const StageCounters& c = controller_->stage().counters();
   if (scene_.world) {
     ImGui::Text("scene: %zu objects of %zu models, %zu draw calls", scene_.world->objects.size(),
                 scene_.world->models.size(), stats.draw_calls);
   }
-  models_panel();
   if (scene_.up_axis.reason.empty()) {
     ImGui::Text("up %s  (U: next axis)", scene_.up_axis.name().c_str());
   } else {
     ImGui::Text("up %s (auto: %s)  (U: next axis)", scene_.up_axis.name().c_str(),
                 scene_.up_axis.reason.c_str());
   }
-  ImGui::Text("%.1f fps  %.2f ms/frame  (draw %.2f ms)", frame_ms_ > 0 ? 1000.0 / frame_ms_ : 0.0,
-              frame_ms_, draw_ms_);
+  // The graph's top is the 1-2-5 step above the slowest frame shown, named
+  // beside it, with the 60 and 30 fps lines where they fall inside.
   std::vector<float> times(frame_times_.begin(), frame_times_.end());
-  ImGui::PlotLines("##frametimes", times.data(), static_cast<int>(times.size()), 0,
-                   "frame time (ms)", 0.0f, 100.0f, ImVec2(300, 60));
-  ImGui::Text("%zu splats drawn, %llu points represented", stats.splats,
-              static_cast<unsigned long long>(stats.points));
+  const float slowest = times.empty() ? 1.0f : *std::max_element(times.begin(), times.end());
+  const auto top = static_cast<float>(nice_ceiling(slowest));
+  const ImVec2 at = ImGui::GetCursorScreenPos();
+  constexpr float kGraphW = 200.0f, kGraphH = 48.0f;
+  ImGui::PlotLines("##frametimes", times.data(), static_cast<int>(times.size()), 0, nullptr, 0.0f,
+                   top, ImVec2(kGraphW, kGraphH));
+  ImDrawList* draw = ImGui::GetWindowDrawList();
+  for (const float fps_line : {60.0f, 30.0f}) {
+    const float ms = 1000.0f / fps_line;
+    if (ms >= top) continue;
+    const float y = at.y + kGraphH * (1.0f - ms / top);
+    draw->AddLine(ImVec2(at.x, y), ImVec2(at.x + kGraphW, y), IM_COL32(255, 255, 255, 60));
+  }
+  ImGui::SameLine();
+  ImGui::BeginGroup();
+  ImGui::Text("%g ms", double(top));
+  ImGui::Dummy(ImVec2(1.0f, kGraphH - 2.0f * ImGui::GetTextLineHeightWithSpacing()));
+  ImGui::TextUnformatted("0");
+  ImGui::EndGroup();
+  ImGui::TextDisabled("frame time, last %zu frames (lines: 60, 30 fps)", times.size());
+  ImGui::Text("draw %.2f ms", draw_ms_);
   ImGui::Text("iteration %.2f ms, %llu iterations, %llu exchanges", c.iteration_ns_last * 1e-6,
               static_cast<unsigned long long>(c.iterations),
               static_cast<unsigned long long>(c.exchanges));
-  ImGui::Text("converged: %s", c.converged ? "yes" : "no");
   // Whatever else the strategy measured in its last iteration, by name
   // (treecut/counters.hpp): the HUD needs to know no strategy.
   for (const Counter& counter : c.last.counters.items()) {
@@ -54,11 +149,10 @@ void Viewer::hud(const splat::FrameStats& stats) {
     ImGui::Text("query latency %.1f frames (max %llu), %.3f ms/frame", q.latency_frames_mean(),
                 static_cast<unsigned long long>(q.latency_frames_max), q.cpu_ns_last * 1e-6);
   }
-  if (!ImGui::CollapsingHeader("strategy", ImGuiTreeNodeFlags_DefaultOpen)) {
-    rendering_panel();
-    ImGui::End();
-    return;
-  }
+}
+
+// The strategy, its parameters and the frame-rate control.
+void Viewer::strategy_panel() {
   if (ImGui::BeginCombo("##strategy", strategy_.c_str())) {
     for (const std::string& n : strategy_names_) {
       if (ImGui::Selectable(n.c_str(), n == strategy_) && n != strategy_) switch_strategy(n);
@@ -68,6 +162,7 @@ void Viewer::hud(const splat::FrameStats& stats) {
   for (auto& p : params_) {
     double v = p.value;
     bool changed = false;
+    ImGui::SetNextItemWidth(140.0f);
     if (p.spec.integer) {
       int iv = static_cast<int>(std::clamp(v, -2e9, 2e9));
       changed = ImGui::DragInt(p.spec.name.c_str(), &iv, std::max(1.0f, float(std::abs(v)) * 0.01f),
@@ -92,6 +187,7 @@ void Viewer::hud(const splat::FrameStats& stats) {
     if (ImGui::Checkbox("hold frame rate", &target)) target_fps_ = target ? chosen_fps_ : 0.0;
     if (target) {
       float f = static_cast<float>(chosen_fps_);
+      ImGui::SetNextItemWidth(140.0f);
       if (ImGui::SliderFloat("target fps", &f, 1.0f, 120.0f)) target_fps_ = chosen_fps_ = f;
       ImGui::Text("adapting %s = %.4g (smoothed %.1f ms)", governor_->param().c_str(),
                   governor_->value(), governor_->smoothed_ms());
@@ -101,12 +197,11 @@ void Viewer::hud(const splat::FrameStats& stats) {
   } else {
     ImGui::TextDisabled("hold frame rate: strategy has no budget/threshold");
   }
-  rendering_panel();
-  ImGui::End();
 }
 
-// Another model: a load in progress, the last failure, the "open" field.
-void Viewer::models_panel() {
+// A load in progress or the last failure: shown with the summary, not in a
+// section, so it is seen while a model builds.
+void Viewer::load_progress() {
   if (const std::optional<LoadProgress> p = loader_.progress()) {
     const std::string name =
         p->file.empty() ? "generated model" : std::filesystem::path(p->file).filename().string();
@@ -121,7 +216,11 @@ void Viewer::models_panel() {
   }
   if (!load_error_.empty())
     ImGui::TextColored(ImVec4(1.0f, 0.45f, 0.4f, 1.0f), "%s", load_error_.c_str());
-  ImGui::SetNextItemWidth(260.0f);
+}
+
+// Another model: the "open" field, and the next one named on the command line.
+void Viewer::models_panel() {
+  ImGui::SetNextItemWidth(200.0f);
   if (ImGui::InputTextWithHint("##open", "PLY or .tch (or drop one on the window)", open_field_,
                                sizeof open_field_, ImGuiInputTextFlags_EnterReturnsTrue) &&
       open_field_[0] != '\0') {
@@ -142,7 +241,6 @@ void Viewer::models_panel() {
 // with its end values, or the categories with their share of the points
 // (classification's with a box each to hide the class).
 void Viewer::color_panel() {
-  if (!ImGui::CollapsingHeader("colour")) return;
   std::vector<std::string> sources = {"rgb", "elevation"};
   if (scene_.hierarchy) {
     for (const NodeAttribute& a : scene_.hierarchy->attributes()) sources.push_back(a.name);
@@ -163,7 +261,7 @@ void Viewer::color_panel() {
   if (legend_.continuous) {
     const ImVec2 at = ImGui::GetCursorScreenPos();
     constexpr int kSteps = 32;
-    constexpr float kWidth = 240.0f, kHeight = 14.0f;
+    constexpr float kWidth = 200.0f, kHeight = 14.0f;
     for (int i = 0; i < kSteps; ++i) {
       const glm::u8vec4 c = splat::map_color(legend_.map, (float(i) + 0.5f) / kSteps);
       draw->AddRectFilled(ImVec2(at.x + kWidth * float(i) / kSteps, at.y),
@@ -204,11 +302,6 @@ void Viewer::color_panel() {
 }
 
 void Viewer::rendering_panel() {
-  color_panel();
-  if (!ImGui::CollapsingHeader("rendering")) {
-    if (!status_.empty()) ImGui::TextUnformatted(status_.c_str());
-    return;
-  }
   int mode = static_cast<int>(settings_.mode);
   ImGui::RadioButton("fast", &mode, 0);
   ImGui::SameLine();
@@ -238,7 +331,6 @@ void Viewer::rendering_panel() {
   if (ImGui::Button(recording_ ? "stop recording (R)" : "record path (R)")) toggle_recording();
   ImGui::SameLine();
   if (!path_.empty() && ImGui::Button("play (Space)")) start_playback();
-  if (!status_.empty()) ImGui::TextUnformatted(status_.c_str());
 }
 
 }  // namespace treecut::cli

@@ -41,8 +41,14 @@ void Viewer::save_screenshot(const std::string& file, glm::ivec2 size) {
     print_error(std::string("screenshot ") + e.what());
     return;
   }
-  status_ = "saved " + p.string();
-  std::printf("screenshot %s\n", quoted_name(p).c_str());
+  status_ = "saved " + p.filename().string();
+  if (screenshot_hud_ && show_hud_) {
+    // What the HUD covers, for whoever checks it stays out of the way.
+    std::printf("screenshot %s (HUD %dx%d of %dx%d)\n", quoted_name(p).c_str(), hud_size_.x,
+                hud_size_.y, size.x, size.y);
+  } else {
+    std::printf("screenshot %s\n", quoted_name(p).c_str());
+  }
 }
 
 }  // namespace treecut::cli

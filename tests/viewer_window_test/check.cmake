@@ -62,3 +62,13 @@ endif()
 if(NOT a STREQUAL hidden)
   message(FATAL_ERROR "hiding the HUD changed the scene's pixels (start.png, start-nohud.png)")
 endif()
+# It stays out of the way: at most a fifth of the window as it opens.
+if(NOT out MATCHES "start-hud.png \\(HUD ([0-9]+)x([0-9]+) of ([0-9]+)x([0-9]+)\\)")
+  message(FATAL_ERROR "no HUD size printed with start-hud.png")
+endif()
+math(EXPR hud_area "${CMAKE_MATCH_1} * ${CMAKE_MATCH_2} * 5")
+math(EXPR window_area "${CMAKE_MATCH_3} * ${CMAKE_MATCH_4}")
+if(hud_area GREATER window_area)
+  message(FATAL_ERROR "the HUD covers more than a fifth of the window: "
+                      "${CMAKE_MATCH_1}x${CMAKE_MATCH_2} of ${CMAKE_MATCH_3}x${CMAKE_MATCH_4}")
+endif()
