@@ -17,6 +17,7 @@
 #include "headless_gl.hpp"
 #include "messages.hpp"
 #include "option_checks.hpp"
+#include "progress.hpp"
 #include "render_reports.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
@@ -388,8 +389,12 @@ RunSummary run_strategy(const RenderRig& rig, const StrategyRegistry& registry,
   RunSummary run;
   run.strategy = name;
   run.renderer = rig.renderer_name;
+  // On a terminal, once the run has taken a second: the frame it is at.
+  const std::string label = "render " + name;
+  ProgressBar bar(label);
   for (int i = 0; i < a.warmup; ++i) frame(cam);
   for (int f = 0; f < a.frames; ++f) {
+    bar.update(label, static_cast<std::size_t>(f), static_cast<std::size_t>(a.frames));
     const double t = a.frames > 1 ? rig.path.duration() * f / (a.frames - 1) : 0.0;
     cam = rig.camera_at(t);
     const double ms = frame(cam);
@@ -399,6 +404,7 @@ RunSummary run_strategy(const RenderRig& rig, const StrategyRegistry& registry,
     run.rows.push_back(row);
   }
   if (a.stability > 0) measure_stability(rig, frame, controller, frame_loop, cam, run);
+  bar.finish();
 
   add_run_totals(run, queries.stats(), controller.frame(), world.get());
   write_stats_csv(dir / "stats.csv", run.rows);
@@ -417,7 +423,9 @@ void run_render(const RenderArgs& a) {
   splat::CameraPath path;
   if (!a.path.empty()) path = splat::load_camera_path(a.path);
 
-  const Scene scene = load_scene(a.scene);
+  ProgressBar opening("open");
+  const Scene scene = load_scene(a.scene, opening.callback());
+  opening.finish();
   check_coloring(scene, color_by(a.scene));  // exit 2 before any output
   // A scene file: its objects go through the stage (per object, or a
   // scene-level strategy) and are drawn by draw_scene in one call per pass.
@@ -456,7 +464,7 @@ void run_render(const RenderArgs& a) {
     make_output_folder(dir);
     runs.push_back(run_strategy(rig, registry, name, dir));
   }
-  write_plot_svg(out / "plot.svg", runs, scene.label + ": frame time and cut size per strategy");
+  write_plot_svg(out / "plot.svg", runs, scene.label + ": per frame, per strategy");
   std::printf("wrote     %s (stats.csv, summary.json, plot.svg%s)\n", quoted_name(out).c_str(),
               a.no_png ? "" : ", frame_*.png");
 }

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <set>
@@ -13,6 +14,7 @@
 #include <string_view>
 #include <system_error>
 
+#include "ticks.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
 
@@ -391,61 +393,150 @@ std::string xml_text(std::string_view text) {
   return out;
 }
 
-// Two stacked charts (frame time, cut size) over the frame index, one line per
-// strategy: the plot of the README's benchmark section.
-void write_plot_svg(const std::filesystem::path& file, const std::vector<RunSummary>& runs,
-                    const std::string& title) {
-  constexpr double kW = 900, kH = 260, kLeft = 70, kRight = 20, kTop = 40, kGap = 50;
+namespace {
+
+// A tick's label: as many decimals as the step needs, thousands and millions
+// as k and M once the axis reaches 10,000 (2.5, 200 k, 1.5 M).
+std::string tick_label(double v, double step, double top) {
+  double scale = 1.0;
+  const char* unit = "";
+  if (std::abs(top) >= 1e6) {
+    scale = 1e6, unit = " M";
+  } else if (std::abs(top) >= 1e4) {
+    scale = 1e3, unit = " k";
+  }
+  const int decimals = std::max(0, -static_cast<int>(std::floor(std::log10(step / scale) + 1e-9)));
+  if (v == 0.0) return "0";
+  char text[48];
+  std::snprintf(text, sizeof text, "%.*f%s", decimals, v / scale, unit);
+  return text;
+}
+
+struct PlotPanel {
+  const char* name;   // the panel's id in the SVG
+  const char* label;  // its title
+  std::function<double(const FrameRow&)> value;
+  bool from_zero;  // the y axis starts at 0 (times, counts), else at the data
+};
+
+}  // namespace
+
+// plot.svg (issue 30): stacked panels over the frame index, one line per
+// strategy: frame time, splats drawn, and PSNR against full detail when
+// --psnr measured it. Each panel has 1-2-5 ticks on both axes (ticks.hpp),
+// its own legend above it, and its data inset from the frame, so no line
+// lies on it. Hand-written SVG: PLplot (libplplot-dev) would bring a
+// library and its fonts for three line charts, and its SVG driver's layout
+// is harder to hold to these rules than this function is.
+std::string plot_svg(const std::vector<RunSummary>& runs, const std::string& title) {
+  constexpr double kW = 900, kH = 220, kLeft = 80, kRight = 20, kTop = 44, kGap = 76;
+  constexpr double kInset = 8;  // data to frame, pixels
   const char* colors[] = {"#d62728", "#1f77b4", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b"};
+  std::vector<PlotPanel> panels = {
+      {"frame_time", "frame time [ms]", [](const FrameRow& r) { return r.frame_ms; }, true},
+      {"splats", "splats drawn", [](const FrameRow& r) { return double(r.cut_size); }, true}};
+  bool psnr = false;
+  for (const RunSummary& r : runs) {
+    for (const FrameRow& row : r.rows) psnr = psnr || std::isfinite(row.psnr_db);
+  }
+  if (psnr) {
+    panels.push_back({"psnr", "PSNR against full detail [dB] (identical frames, inf, not drawn)",
+                      [](const FrameRow& r) { return r.psnr_db; }, false});
+  }
+  std::size_t frames = 1;
+  for (const RunSummary& r : runs) frames = std::max(frames, r.rows.size());
+  const double pw = kW - kLeft - kRight;
+  const double last_frame = std::max<double>(1.0, double(frames) - 1.0);
+  const std::vector<double> xt =
+      nice_ticks(0.0, last_frame, static_cast<int>(std::min<double>(10.0, last_frame)));
+  const double x_hi = xt.back();
+  const auto x_of = [&](double frame) { return kLeft + kInset + (pw - 2 * kInset) * frame / x_hi; };
+
   std::ostringstream o;
-  o << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << kW << "\" height=\""
-    << kTop + 2 * kH + kGap + 40 << "\" font-family=\"sans-serif\" font-size=\"12\">\n";
+  const double height = kTop + double(panels.size()) * (kH + kGap);
+  o << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << kW << "\" height=\"" << height
+    << "\" font-family=\"sans-serif\" font-size=\"12\">\n";
   o << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
   o << "<text x=\"" << kLeft << "\" y=\"20\" font-size=\"14\">" << xml_text(title) << "</text>\n";
-  auto chart = [&](int index, const char* label, auto value) {
-    const double y0 = kTop + index * (kH + kGap);
-    double vmax = 0.0;
-    std::size_t frames = 1;
+  for (std::size_t pi = 0; pi < panels.size(); ++pi) {
+    const PlotPanel& panel = panels[pi];
+    const double y0 = kTop + double(pi) * (kH + kGap);
+    double lo = INFINITY, hi = -INFINITY;
     for (const RunSummary& r : runs) {
-      frames = std::max(frames, r.rows.size());
-      for (const FrameRow& row : r.rows) vmax = std::max(vmax, double(value(row)));
-    }
-    if (vmax <= 0.0) vmax = 1.0;
-    const double pw = kW - kLeft - kRight;
-    o << "<rect x=\"" << kLeft << "\" y=\"" << y0 << "\" width=\"" << pw << "\" height=\"" << kH
-      << "\" fill=\"none\" stroke=\"#888\"/>\n";
-    o << "<text x=\"" << kLeft << "\" y=\"" << y0 - 6 << "\">" << label << " (max "
-      << json_number(vmax) << ")</text>\n";
-    for (int t = 0; t <= 4; ++t) {
-      const double y = y0 + kH - kH * t / 4.0;
-      o << "<text x=\"" << kLeft - 6 << "\" y=\"" << y + 4 << "\" text-anchor=\"end\">"
-        << json_number(vmax * t / 4.0) << "</text>\n";
-    }
-    o << "<text x=\"" << kLeft + pw / 2 << "\" y=\"" << y0 + kH + 16
-      << "\" text-anchor=\"middle\">frame</text>\n";
-    for (std::size_t ri = 0; ri < runs.size(); ++ri) {
-      o << "<polyline fill=\"none\" stroke=\"" << colors[ri % 6]
-        << "\" stroke-width=\"1.5\" points=\"";
-      const auto& rows = runs[ri].rows;
-      for (std::size_t i = 0; i < rows.size(); ++i) {
-        const double x = kLeft + pw * double(i) / double(std::max<std::size_t>(frames - 1, 1));
-        const double y = y0 + kH - kH * double(value(rows[i])) / vmax;
-        o << x << ',' << y << ' ';
+      for (const FrameRow& row : r.rows) {
+        const double v = panel.value(row);
+        if (!std::isfinite(v)) continue;
+        lo = std::min(lo, v), hi = std::max(hi, v);
       }
-      o << "\"/>\n";
     }
-  };
-  chart(0, "frame time [ms]", [](const FrameRow& r) { return r.frame_ms; });
-  chart(1, "cut size [nodes]", [](const FrameRow& r) { return double(r.cut_size); });
-  for (std::size_t ri = 0; ri < runs.size(); ++ri) {
-    const double x = kLeft + 150.0 * double(ri);
-    const double y = kTop + 2 * kH + kGap + 30;
-    o << "<rect x=\"" << x << "\" y=\"" << y - 10 << "\" width=\"14\" height=\"4\" fill=\""
-      << colors[ri % 6] << "\"/><text x=\"" << x + 20 << "\" y=\"" << y - 5 << "\">"
-      << xml_text(runs[ri].strategy) << "</text>\n";
+    if (!(lo <= hi)) lo = 0.0, hi = 1.0;
+    if (panel.from_zero) lo = 0.0;
+    const std::vector<double> yt = nice_ticks(lo, hi, 5);
+    const double y_lo = yt.front(), y_hi = yt.back(), step = yt[1] - yt[0];
+    const auto y_of = [&](double v) {
+      return y0 + kH - kInset - (kH - 2 * kInset) * (v - y_lo) / (y_hi - y_lo);
+    };
+    o << "<g class=\"panel\" id=\"" << panel.name << "\">\n";
+    o << "<text x=\"" << kLeft << "\" y=\"" << y0 - 8 << "\" font-weight=\"bold\">" << panel.label
+      << "</text>\n";
+    // Grid and ticks first, the frame over them, the lines over both.
+    for (const double t : yt) {
+      const double y = y_of(t);
+      o << "<line x1=\"" << kLeft << "\" x2=\"" << kLeft + pw << "\" y1=\"" << y << "\" y2=\"" << y
+        << "\" stroke=\"#eee\"/><text class=\"ytick\" x=\"" << kLeft - 6 << "\" y=\"" << y + 4
+        << "\" text-anchor=\"end\">" << tick_label(t, step, y_hi) << "</text>\n";
+    }
+    for (const double t : xt) {
+      const double x = x_of(t);
+      o << "<line x1=\"" << x << "\" x2=\"" << x << "\" y1=\"" << y0 + kH << "\" y2=\""
+        << y0 + kH + 4 << "\" stroke=\"#888\"/><text class=\"xtick\" x=\"" << x << "\" y=\""
+        << y0 + kH + 17 << "\" text-anchor=\"middle\">" << tick_label(t, xt[1] - xt[0], x_hi)
+        << "</text>\n";
+    }
+    o << "<text x=\"" << kLeft + pw / 2 << "\" y=\"" << y0 + kH + 34
+      << "\" text-anchor=\"middle\">frame</text>\n";
+    o << "<rect class=\"frame\" x=\"" << kLeft << "\" y=\"" << y0 << "\" width=\"" << pw
+      << "\" height=\"" << kH << "\" fill=\"none\" stroke=\"#888\"/>\n";
+    for (std::size_t ri = 0; ri < runs.size(); ++ri) {
+      // One polyline per run of finite values (an identical frame's inf
+      // PSNR breaks it).
+      const auto& rows = runs[ri].rows;
+      bool open = false;
+      for (std::size_t i = 0; i < rows.size(); ++i) {
+        const double v = panel.value(rows[i]);
+        if (!std::isfinite(v)) {
+          if (open) o << "\"/>\n";
+          open = false;
+          continue;
+        }
+        if (!open) {
+          o << "<polyline class=\"line\" fill=\"none\" stroke=\"" << colors[ri % 6]
+            << "\" stroke-width=\"1.5\" points=\"";
+          open = true;
+        }
+        o << x_of(double(i)) << ',' << y_of(v) << ' ';
+      }
+      if (open) o << "\"/>\n";
+    }
+    // The legend, right-aligned above the frame: it covers no data.
+    o << "<g class=\"legend\">";
+    double x = kLeft + pw;
+    for (std::size_t ri = runs.size(); ri-- > 0;) {
+      const std::string name = xml_text(runs[ri].strategy);
+      x -= 30.0 + 7.0 * double(runs[ri].strategy.size());
+      o << "<rect x=\"" << x << "\" y=\"" << y0 - 14 << "\" width=\"14\" height=\"4\" fill=\""
+        << colors[ri % 6] << "\"/><text class=\"legend-entry\" x=\"" << x + 18 << "\" y=\""
+        << y0 - 8 << "\">" << name << "</text>";
+    }
+    o << "</g>\n</g>\n";
   }
   o << "</svg>\n";
-  write_file_atomically(file, o.str());
+  return o.str();
+}
+
+void write_plot_svg(const std::filesystem::path& file, const std::vector<RunSummary>& runs,
+                    const std::string& title) {
+  write_file_atomically(file, plot_svg(runs, title));
 }
 
 }  // namespace treecut::cli

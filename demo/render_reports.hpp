@@ -100,8 +100,10 @@ std::vector<CounterSeries> counter_series(const std::vector<FrameRow>& rows);
 std::string counters_line(const std::vector<FrameRow>& rows);
 /// The text of summary.json.
 std::string summary_json(const RunSummary& s);
-/// Two stacked charts (frame time, cut size) over the frame index, one line
-/// per strategy.
+/// Stacked panels over the frame index, one line per strategy: frame time,
+/// splats drawn, and PSNR when measured; 1-2-5 ticks, a legend per panel.
+std::string plot_svg(const std::vector<RunSummary>& runs, const std::string& title);
+/// plot_svg written atomically.
 void write_plot_svg(const std::filesystem::path& file, const std::vector<RunSummary>& runs,
                     const std::string& title);
 

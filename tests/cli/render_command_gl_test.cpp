@@ -12,6 +12,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <regex>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -81,6 +82,78 @@ const std::string kSmallRun =
     "render --default-kind sphere --default-points 6000 --width 160 --height 96 --warmup 3 "
     "--sync -p max_nodes=600 ";
 
+// A tick label as a number ("2.5", "200 k", "1.5 M").
+double tick_value(const std::string& label) {
+  const double scale = label.ends_with(" M") ? 1e6 : label.ends_with(" k") ? 1e3 : 1.0;
+  return number(scale == 1.0 ? label : label.substr(0, label.size() - 2)) * scale;
+}
+
+// The ticks of one axis step by 1, 2 or 5 times a power of ten.
+void expect_one_two_five(const std::vector<double>& ticks, const std::string& what) {
+  ASSERT_GE(ticks.size(), 2u) << what;
+  const double step = ticks[1] - ticks[0];
+  const double mantissa = step / std::pow(10.0, std::floor(std::log10(step) + 1e-9));
+  EXPECT_TRUE(std::abs(mantissa - 1) < 1e-6 || std::abs(mantissa - 2) < 1e-6 ||
+              std::abs(mantissa - 5) < 1e-6)
+      << what << ": step " << step;
+  for (std::size_t i = 1; i < ticks.size(); ++i) {
+    EXPECT_NEAR(ticks[i] - ticks[i - 1], step, step * 1e-6) << what;
+  }
+}
+
+// Issue 30: plot.svg has the panels named, 1-2-5 ticks on both axes, a
+// legend per panel naming every strategy, and no line on a panel's frame.
+void check_plot(const std::string& svg, const std::vector<std::string>& panels,
+                std::size_t strategies) {
+  const std::regex panel_start("<g class=\"panel\" id=\"([a-z_]+)\">");
+  std::vector<std::string> ids;
+  std::vector<std::size_t> at;
+  for (auto it = std::sregex_iterator(svg.begin(), svg.end(), panel_start);
+       it != std::sregex_iterator(); ++it) {
+    ids.push_back((*it)[1]);
+    at.push_back(static_cast<std::size_t>(it->position()));
+  }
+  EXPECT_EQ(ids, panels);
+  at.push_back(svg.size());
+  const std::regex frame(
+      "<rect class=\"frame\" x=\"([0-9.]+)\" y=\"([0-9.]+)\" width=\"([0-9.]+)\" "
+      "height=\"([0-9.]+)\"");
+  const std::regex ytick("class=\"ytick\"[^>]*>([^<]+)<");
+  const std::regex xtick("class=\"xtick\"[^>]*>([^<]+)<");
+  const std::regex points("points=\"([^\"]*)\"");
+  const std::regex legend("class=\"legend-entry\"");
+  for (std::size_t p = 0; p + 1 < at.size(); ++p) {
+    const std::string part = svg.substr(at[p], at[p + 1] - at[p]);
+    std::smatch m;
+    ASSERT_TRUE(std::regex_search(part, m, frame)) << ids[p];
+    const double x0 = number(m[1]), y0 = number(m[2]), w = number(m[3]), h = number(m[4]);
+    for (const auto* re : {&ytick, &xtick}) {
+      std::vector<double> ticks;
+      for (auto it = std::sregex_iterator(part.begin(), part.end(), *re);
+           it != std::sregex_iterator(); ++it) {
+        ticks.push_back(tick_value((*it)[1]));
+      }
+      expect_one_two_five(ticks, ids[p] + (re == &ytick ? " y" : " x"));
+    }
+    std::size_t lines = 0;
+    for (auto it = std::sregex_iterator(part.begin(), part.end(), points);
+         it != std::sregex_iterator(); ++it, ++lines) {
+      std::istringstream pts((*it)[1].str());
+      double x = 0, y = 0;
+      char comma = 0;
+      while (pts >> x >> comma >> y) {
+        EXPECT_TRUE(x > x0 + 1 && x < x0 + w - 1 && y > y0 + 1 && y < y0 + h - 1)
+            << ids[p] << ": (" << x << ", " << y << ") on or past the frame";
+      }
+    }
+    EXPECT_GE(lines, strategies) << ids[p];
+    EXPECT_EQ(std::size_t(std::distance(std::sregex_iterator(part.begin(), part.end(), legend),
+                                        std::sregex_iterator())),
+              strategies)
+        << ids[p];
+  }
+}
+
 }  // namespace
 
 TEST(RenderCommand, WritesFramesStatsSummaryAndAFinitePsnr) {
@@ -142,7 +215,17 @@ TEST(RenderCommand, WritesFramesStatsSummaryAndAFinitePsnr) {
   EXPECT_EQ(summary.find("\"mean_psnr_db\": null"), std::string::npos) << summary;
   EXPECT_NE(summary.find("\"mean_psnr_db\": "), std::string::npos) << summary;
   EXPECT_NE(r.out.find(" dB"), std::string::npos) << r.out;
-  EXPECT_TRUE(fs::is_regular_file(dir / "plot.svg"));
+  check_plot(read_text(dir / "plot.svg"), {"frame_time", "splats", "psnr"}, 1);
+
+  // Two strategies without --psnr: two panels, each with a legend of both.
+  const fs::path two = dir.parent_path() / "two";
+  ASSERT_EQ(treecut::test::run_treecut(kSmallRun +
+                                       "--frames 3 --no-png -s optimization -s "
+                                       "recursive -o " +
+                                       treecut::test::quote(two))
+                .code,
+            0);
+  check_plot(read_text(two / "plot.svg"), {"frame_time", "splats"}, 2);
 }
 
 // Both headless back ends (--gl): an EGL device (here Mesa's software one)
