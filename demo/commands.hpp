@@ -11,6 +11,7 @@ namespace treecut::cli {
 
 void add_model_commands(CLI::App& app);     // build, info, gen (model_commands.cpp)
 void add_export_command(CLI::App& app);     // export (export_command.cpp)
+void add_cache_command(CLI::App& app);      // cache (cache_command.cpp)
 void add_strategy_commands(CLI::App& app);  // strategies (strategy_commands.cpp)
 void add_render_commands(CLI::App& app);    // render, view (render_commands.cpp)
 void add_bench_commands(CLI::App& app);     // bench (bench_commands.cpp)

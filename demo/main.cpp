@@ -79,6 +79,7 @@ int main(int argc, char** argv) {
   app.set_help_all_flag("--help-all", "Show help for every sub-command");
   treecut::cli::add_model_commands(app);
   treecut::cli::add_export_command(app);
+  treecut::cli::add_cache_command(app);
   treecut::cli::add_strategy_commands(app);
   treecut::cli::add_render_commands(app);
   treecut::cli::add_bench_commands(app);

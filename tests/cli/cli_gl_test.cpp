@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <array>
+#include <chrono>
 #include <cstdio>
 #include <fstream>
 
@@ -14,7 +15,7 @@
 namespace fs = std::filesystem;
 
 TEST(Cli, HelpWorksForEveryCommand) {
-  for (const char* c : {"", "build", "info", "gen", "bench build"}) {
+  for (const char* c : {"", "build", "info", "gen", "cache", "bench build"}) {
     const treecut::test::CommandResult r = treecut::test::run_treecut(std::string(c) + " --help");
     EXPECT_EQ(r.code, 0) << c << "\n" << r.out;
     EXPECT_NE(r.out.find("Usage"), std::string::npos) << c;
@@ -43,6 +44,43 @@ TEST(Cli, GenBuildInfoRoundTrip) {
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("points      20000"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("from cache"), std::string::npos) << r.out;
+}
+
+// Issue 30: `treecut cache` lists the caches of a folder with size, last use
+// and model, and removes them (--older-than, --max-size, --clear), nothing
+// but caches; a bad size is one line and exit 2.
+TEST(Cli, CacheListsAndRemovesOnlyCaches) {
+  const fs::path dir = treecut::test::scratch_dir("cli_cache");
+  const fs::path folder = dir / "caches";
+  using treecut::test::quote;
+  using treecut::test::run_treecut;
+  for (const char* name : {"one", "two"}) {
+    ASSERT_EQ(
+        run_treecut("gen sphere -n 3000 -o " + quote(dir / (std::string(name) + ".ply"))).code, 0);
+    ASSERT_EQ(run_treecut("build " + quote(dir / (std::string(name) + ".ply")) + " -o " +
+                          quote(folder / (std::string(name) + ".tch")))
+                  .code,
+              0);
+  }
+  std::ofstream(folder / "mine.tch") << "not a cache\n";
+  fs::last_write_time(folder / "one.tch",
+                      fs::file_time_type::clock::now() - std::chrono::hours(24 * 10));
+  treecut::test::CommandResult r = run_treecut("cache --folder " + quote(folder));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("2 cache(s)"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("  one  (one.tch)"), std::string::npos) << r.out;
+  r = run_treecut("cache --folder " + quote(folder) + " --older-than 7");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("removed   " + (folder / "one.tch").string()), std::string::npos) << r.out;
+  EXPECT_TRUE(fs::exists(folder / "two.tch"));
+  EXPECT_EQ(run_treecut("cache --folder " + quote(folder) + " --max-size lots").code, 2);
+  r = run_treecut("cache --folder " + quote(folder) + " --max-size 1K");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_FALSE(fs::exists(folder / "two.tch"));
+  EXPECT_NE(r.out.find("0 cache(s)"), std::string::npos) << r.out;
+  EXPECT_TRUE(fs::exists(folder / "mine.tch")) << "not a cache: never removed";
+  ASSERT_EQ(run_treecut("cache --folder " + quote(folder) + " --clear").code, 0);
+  EXPECT_TRUE(fs::exists(folder / "mine.tch"));
 }
 
 // A model at map coordinates, written as LAS by gen and read back: the

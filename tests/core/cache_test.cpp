@@ -11,8 +11,10 @@
 #include <cstdlib>
 #include <fstream>
 #include <iterator>
+#include <optional>
 
 #include "test_support.hpp"
+#include "treecut/cache_folder.hpp"
 #include "treecut/error.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/ply.hpp"
@@ -438,6 +440,61 @@ TEST(Cache, PointsPastTheFloatBoundAreNamedInAWarning) {
     });
     EXPECT_EQ(named, far > 32768.0 ? 1 : 0) << far;
   }
+}
+
+// Issue 30: the default cache folder stays under TREECUT_CACHE_LIMIT by
+// removing the least recently used caches, never the one just written;
+// opening a cache marks it used; nothing but a cache is listed or removed.
+TEST(CacheFolder, TheLeastRecentlyUsedCachesGoPastTheLimit) {
+  const fs::path dir = test::scratch_dir("cache_folder_lru");
+  const fs::path folder = dir / "xdg" / "treecut";
+  const char* xdg_before = std::getenv("XDG_CACHE_HOME");
+  const std::optional<std::string> restore =
+      xdg_before ? std::optional<std::string>(xdg_before) : std::nullopt;
+  ASSERT_EQ(setenv("XDG_CACHE_HOME", (dir / "xdg").c_str(), 1), 0);
+  EXPECT_EQ(default_cache_folder(), folder);
+  for (const char* name : {"a", "b", "c"}) {
+    save_ply(dir / (std::string(name) + ".ply"), generate_model(ModelKind::Sphere, 3000, 1));
+  }
+  OpenOptions o;
+  std::vector<std::string> warnings;
+  o.warn = [&](const std::string& w) { warnings.push_back(w); };
+  const fs::path a = open_model(dir / "a.ply", o).cache, b = open_model(dir / "b.ply", o).cache;
+  const auto now = fs::file_time_type::clock::now();
+  fs::last_write_time(a, now - std::chrono::hours(2));
+  fs::last_write_time(b, now - std::chrono::hours(1));
+  ASSERT_TRUE(open_model(dir / "a.ply", o).from_cache);  // a is now the most recent
+  std::ofstream(folder / "notes.tch") << "the user's own file\n";
+  const std::uint64_t one = fs::file_size(a);
+  ASSERT_EQ(setenv("TREECUT_CACHE_LIMIT", std::to_string(2 * one + one / 2).c_str(), 1), 0);
+  warnings.clear();
+  const fs::path c = open_model(dir / "c.ply", o).cache;
+  std::vector<fs::path> left;
+  for (const CacheFileInfo& info : list_caches(folder)) left.push_back(info.file);
+  EXPECT_EQ(left, (std::vector<fs::path>{c, a})) << "b was the least recently used";
+  EXPECT_TRUE(fs::exists(folder / "notes.tch"));
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("removed 1 least recently used cache(s)"), std::string::npos)
+      << warnings[0];
+  // Removing every cache leaves the user's file.
+  EXPECT_TRUE(remove_caches(list_caches(folder)).empty());
+  EXPECT_TRUE(list_caches(folder).empty());
+  EXPECT_TRUE(fs::exists(folder / "notes.tch"));
+  ASSERT_EQ(setenv("TREECUT_CACHE_LIMIT", "lots", 1), 0);
+  EXPECT_THROW((void)cache_size_limit(), InputError);
+  unsetenv("TREECUT_CACHE_LIMIT");
+  if (restore) {
+    setenv("XDG_CACHE_HOME", restore->c_str(), 1);
+  } else {
+    unsetenv("XDG_CACHE_HOME");
+  }
+  EXPECT_EQ(parse_byte_size("1.5G"), std::uint64_t{3} << 29);
+  EXPECT_EQ(parse_byte_size("200M"), std::uint64_t{200} << 20);
+  EXPECT_EQ(parse_byte_size("4096"), 4096u);
+  EXPECT_EQ(parse_byte_size("2GiB"), std::uint64_t{2} << 30);
+  EXPECT_FALSE(parse_byte_size("-1"));
+  EXPECT_FALSE(parse_byte_size("5X"));
+  EXPECT_FALSE(parse_byte_size(""));
 }
 
 TEST(Cache, OpenModelUsesTheCacheAndRebuildsACorruptOne) {

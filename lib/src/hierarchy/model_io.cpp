@@ -11,6 +11,7 @@
 #include <optional>
 #include <stdexcept>
 
+#include "treecut/cache_folder.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
 #include "treecut/pcd.hpp"
@@ -33,20 +34,8 @@ std::uint64_t fnv1a(const std::string& s) {
 }  // namespace
 
 std::filesystem::path default_cache_path(const std::filesystem::path& model) {
-  std::filesystem::path dir;
-  // The XDG base-directory rules: a relative path in XDG_CACHE_HOME is invalid
-  // and is ignored (it would put caches wherever the program was started).
-  if (const char* xdg = std::getenv("XDG_CACHE_HOME");
-      xdg && *xdg && std::filesystem::path(xdg).is_absolute())
-    dir = xdg;
-  else if (const char* home = std::getenv("HOME"); home && *home)
-    dir = std::filesystem::path(home) / ".cache";
-  else {
-    // No home at all: the temporary folder, if there is a usable one.
-    std::error_code tmp;
-    dir = std::filesystem::temp_directory_path(tmp);
-    if (tmp || !dir.is_absolute()) return {};
-  }
+  const std::filesystem::path dir = default_cache_folder();
+  if (dir.empty()) return {};
   std::error_code ec;
   const auto abs = std::filesystem::weakly_canonical(model, ec);
   char hex[17];
@@ -54,7 +43,7 @@ std::filesystem::path default_cache_path(const std::filesystem::path& model) {
                 static_cast<unsigned long long>(fnv1a((ec ? model : abs).string())));
   // The hash names the model; its file name is for people, cut so that the
   // cache's name (and its temporary's) stays within NAME_MAX.
-  return dir / "treecut" / (model.filename().string().substr(0, 180) + "-" + hex + ".tch");
+  return dir / (model.filename().string().substr(0, 180) + "-" + hex + ".tch");
 }
 
 // Revision of what the pipeline computes (attributes and build). Bump it when
@@ -263,6 +252,33 @@ void read_and_build(const std::filesystem::path& model, std::uint32_t bits, cons
 
 // The built hierarchy saved as the model's cache; failing to is an error
 // only when the cache is required, else a note and a warning.
+// The default folder stays under its limit (cache_size_limit): after a
+// write, the least recently used caches go, never the one just written.
+// Said in one warning; a failure to list or remove is one too, never an
+// error (the model is open).
+void hold_cache_limit(const std::filesystem::path& written, const WarningSink& warn) {
+  try {
+    const std::uint64_t limit = cache_size_limit();
+    const std::vector<CacheFileInfo> all = list_caches(written.parent_path());
+    const std::vector<CacheFileInfo> old = caches_over_limit(all, limit, written);
+    if (old.empty()) return;
+    const std::vector<std::string> failed = remove_caches(old);
+    std::uint64_t bytes = 0;
+    for (const CacheFileInfo& c : old) bytes += c.bytes;
+    if (warn) {
+      char line[160];
+      std::snprintf(line, sizeof line,
+                    ": removed %zu least recently used cache(s), %.1f MB, to stay under %.1f MB "
+                    "(TREECUT_CACHE_LIMIT)",
+                    old.size() - failed.size(), double(bytes) / 1e6, double(limit) / 1e6);
+      warn(quoted_name(written.parent_path()) + line);
+      for (const std::string& f : failed) warn(f);
+    }
+  } catch (const std::exception& e) {
+    if (warn) warn(e.what());
+  }
+}
+
 void write_model_cache(const CacheKey& key, const OpenOptions& options, OpenedModel& out) {
   report_stage(options, "cache");
   const auto t0 = std::chrono::steady_clock::now();
@@ -283,6 +299,7 @@ void write_model_cache(const CacheKey& key, const OpenOptions& options, OpenedMo
     out.cache_note = e.what();
     if (options.warn) options.warn(std::string(e.what()) + " (continuing without a cache)");
   }
+  if (out.cache_written && !options.cache_path) hold_cache_limit(out.cache, options.warn);
   out.cache_seconds += seconds_since(t0);
 }
 
@@ -340,6 +357,8 @@ OpenedModel open_model(const std::filesystem::path& model, const OpenOptions& op
     if (found.hierarchy) {
       out.hierarchy = std::move(*found.hierarchy);
       out.from_cache = true;
+      // Used now: the default folder's eviction goes by it.
+      if (!options.cache_path) mark_cache_used(out.cache);
       return out;
     }
     out.cache_note = found.why;
