@@ -621,7 +621,7 @@ void add_bench_occlusion_command(CLI::App& bench) {
 }  // namespace
 
 void add_bench_commands(CLI::App& app) {
-  auto* bench = app.add_subcommand("bench", "Benchmarks that print tables for the README");
+  auto* bench = app.add_subcommand("bench", "Benchmarks that print the tables of docs/benchmarks.md");
   bench->require_subcommand(1);
   add_bench_build_command(*bench);
   add_bench_occlusion_command(*bench);

@@ -6,7 +6,7 @@
 
 Writes OUT/selection_<path>.svg (one per camera path: a panel per model with
 the selection time per frame of both strategies and the cut size, from the
-first DIR) and prints the README's Markdown table: medians over the frames
+first DIR) and prints docs/benchmarks.md's Markdown table: medians over the frames
 after the first (which builds the first cut from the root for both), and for
 the abrupt path the medians of its segments (fast turn, teleport frames,
 frames after a teleport). With several DIRs (repeated runs) every cell is
