@@ -333,9 +333,12 @@ OcclusionWalk check_occlusion_args(const OcclusionArgs& a) {
 std::vector<ChcRun> chc_runs(const OcclusionArgs& a, bool compare) {
   using culling::OcclusionMode;
   std::vector<ChcRun> runs = {
-      {"VFC", {OcclusionMode::Vfc, 0, 0}, {}}, {"S&W", {OcclusionMode::StopAndWait, 0, 0}, {}},
-      {"CHC", {OcclusionMode::Chc, 0, 0}, {}}, {"Ideal", {OcclusionMode::Ideal, 0, 0}, {}},
-      {"CHC", {OcclusionMode::Chc, 2, 0}, {}}, {"CHC", {OcclusionMode::Chc, 0, 25}, {}},
+      {"VFC", {OcclusionMode::Vfc, 0, 0}, {}},
+      {"S&W", {OcclusionMode::StopAndWait, 0, 0}, {}},
+      {"CHC", {OcclusionMode::Chc, 0, 0}, {}},
+      {"Ideal", {OcclusionMode::Ideal, 0, 0}, {}},
+      {"CHC", {OcclusionMode::Chc, 2, 0}, {}},
+      {"CHC", {OcclusionMode::Chc, 0, 25}, {}},
       // CHC++ (chc_plus_plus.cpp): exact, then with randomized t_av.
       {"CHC++", {OcclusionMode::ChcPlusPlus, 0, 0}, {}},
       {"CHC++", {OcclusionMode::ChcPlusPlus, 4, 0}, {}},
@@ -621,7 +624,8 @@ void add_bench_occlusion_command(CLI::App& bench) {
 }  // namespace
 
 void add_bench_commands(CLI::App& app) {
-  auto* bench = app.add_subcommand("bench", "Benchmarks that print the tables of docs/benchmarks.md");
+  auto* bench =
+      app.add_subcommand("bench", "Benchmarks that print the tables of docs/benchmarks.md");
   bench->require_subcommand(1);
   add_bench_build_command(*bench);
   add_bench_occlusion_command(*bench);

@@ -4,10 +4,10 @@
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <system_error>
-#include <limits>
 
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"

@@ -281,7 +281,8 @@ void run_hlod_table(const HlodBenchInput& in) {
     }
   }
 
-  for (std::size_t m = 0; m < traversals.size(); ++m) traversals[m].release_render_thread(latent[m]);
+  for (std::size_t m = 0; m < traversals.size(); ++m)
+    traversals[m].release_render_thread(latent[m]);
   print_table(methods, in.tau);
   print_psnr(methods);
   std::fflush(stdout);

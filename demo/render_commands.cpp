@@ -415,8 +415,8 @@ RunSummary run_strategy(const RenderRig& rig, const StrategyRegistry& registry,
 
 void run_render(const RenderArgs& a) {
   if (a.frames < 1) throw InputError("--frames must be at least 1");
-  const splat::RenderSettings settings = render_settings(a.scene);  // validates --mode early
-  (void)color_by(a.scene);                                          // and the colour options
+  splat::RenderSettings settings = render_settings(a.scene);  // validates --mode early
+  (void)color_by(a.scene);                                    // and the colour options
   const StrategyRegistry registry = make_registry(a.scene);
   check_render_inputs(a, registry);
   const float aspect = float(a.width) / float(a.height);
@@ -426,6 +426,7 @@ void run_render(const RenderArgs& a) {
   ProgressBar opening("open");
   const Scene scene = load_scene(a.scene, opening.callback());
   opening.finish();
+  settings.eye_dome = eye_dome_for(a.scene, scene);
   check_coloring(scene, color_by(a.scene));  // exit 2 before any output
   // A scene file: its objects go through the stage (per object, or a
   // scene-level strategy) and are drawn by draw_scene in one call per pass.
@@ -435,8 +436,9 @@ void run_render(const RenderArgs& a) {
   describe_scene(a, registry, scene);
 
   const std::unique_ptr<splat::GlContext> context = open_headless(a.gl, a.width, a.height);
-  std::printf("renderer  %s, %dx%d, %s splats\n", renderer_line(*context).c_str(), a.width,
-              a.height, std::string(splat::splat_mode_name(settings.mode)).c_str());
+  std::printf("renderer  %s, %dx%d, %s splats%s\n", renderer_line(*context).c_str(), a.width,
+              a.height, std::string(splat::splat_mode_name(settings.mode)).c_str(),
+              settings.eye_dome > 0.0f ? ", eye-dome lighting" : "");
   splat::Renderer renderer(*scene.hierarchy, {a.width, a.height});
   if (const splat::Legend legend = apply_coloring(scene, color_by(a.scene), renderer);
       legend.title != "rgb") {

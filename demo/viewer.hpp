@@ -50,6 +50,8 @@ struct SceneArgs {
   std::vector<double> color_range;   ///< --color-range LOW HIGH (the file's values)
   std::string classes;               ///< --classes 2,6 | -7,-18
   std::vector<std::string> columns;  ///< --columns: a text cloud's columns
+  std::string edl = "auto";          ///< --edl auto | on | off: eye-dome lighting
+  float edl_strength = 0.25f;        ///< --edl-strength
 };
 
 void add_scene_options(CLI::App& cmd, SceneArgs& args);
@@ -97,6 +99,11 @@ void check_params(const StrategyRegistry& registry, const std::vector<std::strin
                   const std::vector<std::string>& params);
 
 splat::RenderSettings render_settings(const SceneArgs& args);
+
+/// Eye-dome lighting for `scene` (RenderSettings::eye_dome): --edl on, or
+/// auto and a model whose normals were estimated (no normals in the file:
+/// a LAS, most text and PCD clouds), shading by them being a guess.
+float eye_dome_for(const SceneArgs& args, const Scene& scene);
 
 /// --color, --color-map, --color-range and --classes as a ColorBy; throws
 /// InputError for a bad map, range or class list.

@@ -56,6 +56,15 @@ void add_scene_options(CLI::App& cmd, SceneArgs& args) {
                  "way the normals face, a flat extent; see docs/rendering.md)")
       ->check(CLI::IsMember({"auto", "x", "y", "z"}))
       ->capture_default_str();
+  cmd.add_option("--edl", args.edl,
+                 "Eye-dome lighting (depth edges darkened, as in Potree): auto turns it on for "
+                 "models without normals of their own")
+      ->check(CLI::IsMember({"auto", "on", "off"}))
+      ->capture_default_str();
+  cmd.add_option("--edl-strength", args.edl_strength,
+                 "Eye-dome lighting's strength (1: Potree's factor, too strong for discs)")
+      ->check(finite_number(0.01, 100.0))
+      ->capture_default_str();
   cmd.add_flag("--fixed-light", args.fixed_light,
                "Keep the light fixed in the world instead of following the camera");
   cmd.add_flag("--validate", args.validate,
@@ -337,7 +346,17 @@ splat::RenderSettings render_settings(const SceneArgs& args) {
     r.light.follow_camera = false;
     r.light.direction = {-0.4f, 0.8f, 0.45f};
   }
+  r.eye_dome = args.edl == "on" ? args.edl_strength : 0.0f;
   return r;
+}
+
+float eye_dome_for(const SceneArgs& args, const Scene& scene) {
+  if (args.edl != "auto") return args.edl == "on" ? args.edl_strength : 0.0f;
+  bool estimated = scene.hierarchy && scene.hierarchy->frame().normals_estimated;
+  if (scene.world) {
+    for (const auto& m : scene.world->models) estimated = estimated || m->frame().normals_estimated;
+  }
+  return estimated ? args.edl_strength : 0.0f;
 }
 
 }  // namespace treecut::cli

@@ -314,6 +314,16 @@ void Viewer::rendering_panel() {
     ImGui::SliderFloat("point size", &settings_.point_size_px, 1.0f, 16.0f);
   }
   ImGui::Checkbox("light follows camera", &settings_.light.follow_camera);
+  // Eye-dome lighting: on by default for models without normals of their own.
+  bool edl = settings_.eye_dome > 0.0f;
+  if (ImGui::Checkbox("eye-dome lighting", &edl)) {
+    settings_.eye_dome = edl ? std::max(args_.scene.edl_strength, 0.01f) : 0.0f;
+  }
+  if (edl) {
+    ImGui::SetNextItemWidth(140.0f);
+    ImGui::SliderFloat("strength", &settings_.eye_dome, 0.05f, 5.0f, "%.2f",
+                       ImGuiSliderFlags_Logarithmic);
+  }
   // Fades of an exchange (--blend N): the stage holds the next list until one ends.
   int blend = static_cast<int>(controller_->stage().blend_frames());
   bool fades = blend > 0;

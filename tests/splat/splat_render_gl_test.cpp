@@ -336,6 +336,66 @@ TEST(SplatMapCoordinates, APatchFarFromTheOriginIsDrawnRelativeToTheEye) {
   }
 }
 
+// Issue 30: eye-dome lighting darkens depth edges and leaves flat surfaces
+// as they were. A square 0.5 in front of a larger one, seen face on: with
+// EDL the back square's pixels along the front one's edge and the
+// background along the outline go dark; the middle of each square keeps
+// its colour. The same in hq and fixed mode.
+TEST(SplatEyeDome, DarkensSilhouettesAndLeavesFlatSurfaces) {
+  context();
+  PointSet p;
+  auto square = [&](float half, float z) {
+    for (float x = -half; x <= half; x += 0.01f) {
+      for (float y = -half; y <= half; y += 0.01f) {
+        p.positions.push_back({x, y, z});
+        p.normals.push_back({0, 0, 1});
+        p.colors.push_back({220, 220, 220, 255});
+      }
+    }
+  };
+  square(0.8f, -0.5f);
+  square(0.25f, 0.0f);
+  const Hierarchy h = build_from_points(std::move(p));
+  Camera c;
+  c.eye = {0.0f, 0.0f, 2.5f};
+  c.target = {0.0f, 0.0f, 0.0f};
+  c.near_plane = 0.1f;
+  c.far_plane = 10.0f;
+  Renderer r(h, glm::ivec2(kWidth, kHeight));
+  CutBuffer cut;
+  cut.upload(h, TreeCut::leaf_cut(h).nodes());
+  for (const SplatMode mode : {SplatMode::Fast, SplatMode::HighQuality, SplatMode::FixedSize}) {
+    RenderSettings s;
+    s.mode = mode;
+    s.point_size_px = 4.0f;
+    r.draw(cut, c, s, true);
+    const std::vector<std::uint8_t> plain = r.read_pixels();
+    s.eye_dome = 1.0f;
+    r.draw(cut, c, s, true);
+    const std::vector<std::uint8_t> edl = r.read_pixels();
+    const auto at = [&](const std::vector<std::uint8_t>& img, int x, int y) {
+      return int(img[(std::size_t(y) * kWidth + std::size_t(x)) * 4]);
+    };
+    // The middle of the front square, and of the back square's band.
+    const int cx = kWidth / 2, cy = kHeight / 2;
+    EXPECT_NEAR(at(edl, cx, cy), at(plain, cx, cy), 2) << int(mode);
+    // Along the row through the middle: the front square's edge lies near
+    // x = cx +- 0.25 / (2.5 tan(22.5 deg)) * kHeight / 2.
+    const int edge = int(std::lround(0.25 / (2.5 * std::tan(0.3927)) * kHeight / 2.0));
+    int darkened = 0;
+    for (int x = cx + edge - 3; x <= cx + edge + 3; ++x) {
+      darkened += at(edl, x, cy) + 40 < at(plain, x, cy) ? 1 : 0;
+    }
+    EXPECT_GE(darkened, 1) << "the back square beside the front one's edge, mode " << int(mode);
+    const int band = (edge + int(std::lround(0.8 / (3.0 * std::tan(0.3927)) * kHeight / 2.0))) / 2;
+    EXPECT_NEAR(at(edl, cx + band, cy), at(plain, cx + band, cy), 2) << int(mode);
+    std::size_t dark = 0;
+    for (std::size_t i = 0; i < edl.size(); i += 4) dark += edl[i] + 40 < plain[i] ? 1 : 0;
+    EXPECT_GT(dark, 200u) << "the edges and the outline, mode " << int(mode);
+    EXPECT_LT(dark, std::size_t{kWidth} * kHeight / 10) << "only edges, mode " << int(mode);
+  }
+}
+
 // Issue 29, item 3: colouring by an attribute and hiding classes.
 // A plane of two halves: ground (class 2) on the left, buildings (6) on the
 // right, with an intensity rising from left to right.

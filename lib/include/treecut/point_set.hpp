@@ -30,6 +30,10 @@ struct CoordinateFrame {
   /// The file format says +z is up (LAS: map coordinates, z the height);
   /// false when it says nothing (PLY: detect_up_axis decides).
   bool z_up = false;
+  /// The file held no normals: they were estimated from the neighbours
+  /// (complete_attributes), so shading by them is a guess; viewers turn
+  /// eye-dome lighting on for such models (issue 30).
+  bool normals_estimated = false;
   /// The file's coordinate system, as LasInfo::crs words it ("WKT: ...",
   /// "GeoTIFF: EPSG code N"); empty when the file names none.
   std::string crs;

@@ -197,6 +197,7 @@ void complete_attributes(PointSet& ps, const AttributeOptions& options) {
   if (ps.has_radii()) fill_missing_radii(ps.radii);
   const bool want_normals = !ps.has_normals(), want_radii = !ps.has_radii(),
              want_curvature = !ps.has_curvature();
+  if (want_normals) ps.frame.normals_estimated = true;
   if (!want_normals && !want_radii && !want_curvature) return;
   if (!ps.triangles.empty())
     from_faces(ps, want_normals, want_radii, want_curvature);

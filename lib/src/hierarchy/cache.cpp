@@ -58,7 +58,7 @@ struct Header {
   std::int64_t identity_ns;  // CLOCK_REALTIME when the identity was taken
   float bounds[6];
   double origin[3];                // Hierarchy::frame(): origin,
-  std::uint32_t flags;             // bit 0: z_up,
+  std::uint32_t flags;             // bit 0: z_up, bit 1: normals_estimated,
   std::uint32_t crs_size;          // and the crs text's bytes
   std::uint64_t crs_offset;        // where they are (after the arrays)
   std::uint64_t level_table;       // offset of level_count + 1 NodeIds
@@ -216,7 +216,7 @@ std::optional<CoordinateFrame> read_frame(const Header& h, const MappedFile& map
   for (const double o : h.origin) {
     if (!std::isfinite(o)) return fail(why, "the origin is not finite"), std::nullopt;
   }
-  if ((h.flags & ~1u) != 0) return fail(why, "unknown flags"), std::nullopt;
+  if ((h.flags & ~3u) != 0) return fail(why, "unknown flags"), std::nullopt;
   // The coordinate system's text: short (a WKT is cut to 400 bytes), inside.
   if (h.crs_size > kMaxCrsBytes ||
       (h.crs_size > 0 && (h.crs_offset < sizeof(Header) || h.crs_offset > h.payload_end ||
@@ -225,6 +225,9 @@ std::optional<CoordinateFrame> read_frame(const Header& h, const MappedFile& map
   CoordinateFrame frame;
   frame.origin = glm::dvec3(h.origin[0], h.origin[1], h.origin[2]);
   frame.z_up = (h.flags & 1u) != 0;
+  // Bit 1 came with issue 30 in the same version: a cache written before
+  // says 0 (a LAS, z-up, has no normals of its own either way).
+  frame.normals_estimated = (h.flags & 2u) != 0;
   frame.crs.resize(h.crs_size);
   map.read_guarded([&] {
     if (h.crs_size > 0) std::memcpy(frame.crs.data(), map.data() + h.crs_offset, h.crs_size);
@@ -412,7 +415,7 @@ void save_cache(const Hierarchy& hier, const CacheKey& key, const std::filesyste
   std::memcpy(h.bounds, b, sizeof b);
   const CoordinateFrame& frame = hier.frame();
   h.origin[0] = frame.origin.x, h.origin[1] = frame.origin.y, h.origin[2] = frame.origin.z;
-  h.flags = frame.z_up ? 1u : 0u;
+  h.flags = (frame.z_up ? 1u : 0u) | (frame.normals_estimated ? 2u : 0u);
   const std::string crs = frame.crs.substr(0, kMaxCrsBytes);
   h.crs_size = static_cast<std::uint32_t>(crs.size());
 

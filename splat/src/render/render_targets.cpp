@@ -34,6 +34,10 @@ void Renderer::create_targets() {
   visibility_fbo_.attach(GL_DEPTH_ATTACHMENT, depth_);
   visibility_fbo_.set_draw_buffers({}, "visibility framebuffer");
 
+  color_fbo_ = gl::Framebuffer::create();
+  color_fbo_.attach(GL_COLOR_ATTACHMENT0, color_);
+  color_fbo_.set_draw_buffers(one, "colour framebuffer");
+
   accum_fbo_ = gl::Framebuffer::create();
   accum_fbo_.attach(GL_COLOR_ATTACHMENT0, accum_color_);
   accum_fbo_.attach(GL_COLOR_ATTACHMENT1, accum_normal_);

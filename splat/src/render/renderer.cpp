@@ -154,6 +154,14 @@ Renderer::Renderer(const Hierarchy& h, glm::ivec2 size) {
                              {GL_GEOMETRY_SHADER, shaders::kSplatGeometry},
                              {GL_FRAGMENT_SHADER, shaders::kObjectIdFragment}},
                             "splat object id", "#define SPLAT_LIT 1\n#define SPLAT_ID 1\n");
+  eye_dome_ = make_program({{GL_VERTEX_SHADER, shaders::kFullscreenVertex},
+                            {GL_FRAGMENT_SHADER, shaders::kEyeDomeFragment}},
+                           "eye-dome lighting");
+  eye_dome_near_ = gl::GetUniformLocation(eye_dome_.id(), "u_near");
+  eye_dome_far_ = gl::GetUniformLocation(eye_dome_.id(), "u_far");
+  eye_dome_perspective_ = gl::GetUniformLocation(eye_dome_.id(), "u_perspective");
+  eye_dome_strength_ = gl::GetUniformLocation(eye_dome_.id(), "u_strength");
+  eye_dome_radius_ = gl::GetUniformLocation(eye_dome_.id(), "u_radius");
   fast_u_ = lookup_uniforms(fast_);
   object_id_u_ = lookup_uniforms(object_id_);
   hq_visibility_u_ = lookup_uniforms(hq_visibility_);

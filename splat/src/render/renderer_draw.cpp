@@ -184,6 +184,9 @@ FrameStats Renderer::render(const CutBuffer* cut, const SceneCutBuffer* scene,
   gl::DepthMask(GL_TRUE);
   gl::ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
   draw_passes(elements, frame, settings, fade_weight, hook, cut, ranges, whole);
+  if (settings.eye_dome > 0.0f && settings.mode != SplatMode::ObjectId) {
+    draw_eye_dome(frame, settings);
+  }
   gl::BindVertexArray(0);
   gl::UseProgram(0);
   gl::BindFramebuffer(GL_FRAMEBUFFER, 0);
@@ -260,6 +263,29 @@ void Renderer::draw_passes(GLuint elements, const ViewSnapshot& frame,
       break;
     }
   }
+}
+
+// Eye-dome lighting (shaders.hpp): the frame's colour times a shade from
+// its depth, one full-screen triangle.
+void Renderer::draw_eye_dome(const ViewSnapshot& frame, const RenderSettings& settings) {
+  gl::BindFramebuffer(GL_FRAMEBUFFER, color_fbo_.id());
+  gl::Disable(GL_DEPTH_TEST);
+  gl::Enable(GL_BLEND);
+  gl::BlendEquation(GL_FUNC_ADD);
+  gl::BlendFunc(GL_ZERO, GL_SRC_COLOR);
+  const GLuint p = eye_dome_.id();
+  gl::ProgramUniform1f(p, eye_dome_near_, frame.derived.near_plane);
+  gl::ProgramUniform1f(p, eye_dome_far_, frame.derived.far_plane);
+  gl::ProgramUniform1i(p, eye_dome_perspective_, frame.derived.perspective ? 1 : 0);
+  gl::ProgramUniform1f(p, eye_dome_strength_, settings.eye_dome);
+  gl::ProgramUniform1f(p, eye_dome_radius_, std::max(settings.eye_dome_radius, 1.0f));
+  gl::UseProgram(p);
+  gl::BindTextureUnit(0, depth_.id());
+  gl::BindVertexArray(empty_vao_.id());
+  gl::DrawArrays(GL_TRIANGLES, 0, 3);
+  gl::BindTextureUnit(0, 0);
+  gl::Disable(GL_BLEND);
+  gl::Enable(GL_DEPTH_TEST);
 }
 
 // High quality (Botsch et al.): visibility, attributes, normalization.

@@ -65,8 +65,7 @@ ObjectRecord object_record(const glm::mat4& world) {
   return rec;
 }
 
-void SceneCutBuffer::set_objects(const Renderer& renderer,
-                                 std::span<const SceneObject> objects) {
+void SceneCutBuffer::set_objects(const Renderer& renderer, std::span<const SceneObject> objects) {
   if (objects.size() >= kMaxSceneDrawObjects) {
     throw std::invalid_argument("SceneCutBuffer: " + std::to_string(objects.size()) +
                                 " objects, at most " + std::to_string(kMaxSceneDrawObjects - 1));

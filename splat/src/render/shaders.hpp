@@ -312,6 +312,49 @@ void main() {
 }
 )";
 
+// Eye-dome lighting (Boucheny, "Interactive Scientific Visualization of
+// Large Datasets", 2009; the look of Potree and CloudCompare): a pixel
+// behind its neighbours is darkened by how far behind, in log depth, so
+// depth edges and silhouettes read without normals. Drawn over the frame
+// with a multiplying blend (dst * shade); reads the depth only. A
+// background pixel next to a point takes the largest response, a dark
+// outline around the cloud.
+inline constexpr const char* kEyeDomeFragment = R"(
+layout(binding = 0) uniform sampler2D u_depth;
+uniform float u_near;       // eye depths of the clip planes
+uniform float u_far;
+uniform int u_perspective;
+uniform float u_strength;   // 1: Potree's default
+uniform float u_radius;     // pixels to the neighbours
+layout(location = 0) out vec4 o_color;
+// log2 of the eye depth at pixel px; 0 for the background.
+float log_depth(ivec2 px) {
+  px = clamp(px, ivec2(0), textureSize(u_depth, 0) - 1);
+  float d = texelFetch(u_depth, px, 0).r;
+  if (d >= 1.0) return 0.0;
+  float z = u_perspective == 1
+                ? 2.0 * u_near * u_far / (u_far + u_near - (2.0 * d - 1.0) * (u_far - u_near))
+                : u_near + d * (u_far - u_near);
+  return log2(max(z, 1e-30)) + 64.0;  // > 0 for every depth a float holds
+}
+void main() {
+  ivec2 px = ivec2(gl_FragCoord.xy);
+  float here = log_depth(px);
+  const vec2 kNeighbours[8] = vec2[8](vec2(1, 0), vec2(0.7071, 0.7071), vec2(0, 1),
+                                      vec2(-0.7071, 0.7071), vec2(-1, 0), vec2(-0.7071, -0.7071),
+                                      vec2(0, -1), vec2(0.7071, -0.7071));
+  float sum = 0.0;
+  for (int i = 0; i < 8; ++i) {
+    float there = log_depth(px + ivec2(round(kNeighbours[i] * u_radius)));
+    if (there == 0.0) continue;  // the background darkens nothing
+    sum += here == 0.0 ? 100.0 : max(0.0, here - there);
+  }
+  if (sum == 0.0) discard;
+  float shade = exp(-sum / 8.0 * 300.0 * u_strength);
+  o_color = vec4(shade, shade, shade, 1.0);
+}
+)";
+
 // Fixed-size mode: square (or, from 3 px, round) screen-space points.
 inline constexpr const char* kFixedVertex = R"(
 layout(location = 0) in vec4 a_center_radius;
