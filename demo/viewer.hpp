@@ -41,6 +41,7 @@ struct SceneArgs {
   float point_size = 2.0f;
   int k = 12;
   bool fixed_light = false;
+  bool unlit = false;                ///< --unlit: the file's colours, unshaded
   std::string up = "auto";           ///< x | y | z | auto (from the data: treecut/up_axis.hpp)
   bool validate = false;             ///< --validate: check every cut a strategy returns in full
   int stage_wait_bound_ms = 100;     ///< raise a starved stage after this wait; 0 = never

@@ -65,6 +65,8 @@ void add_scene_options(CLI::App& cmd, SceneArgs& args) {
                  "Eye-dome lighting's strength (1: Potree's factor, too strong for discs)")
       ->check(finite_number(0.01, 100.0))
       ->capture_default_str();
+  cmd.add_flag("--unlit", args.unlit,
+               "The colours as the file has them, unshaded (coloured scans carry their own light)");
   cmd.add_flag("--fixed-light", args.fixed_light,
                "Keep the light fixed in the world instead of following the camera");
   cmd.add_flag("--validate", args.validate,
@@ -342,6 +344,7 @@ splat::RenderSettings render_settings(const SceneArgs& args) {
   r.mode = splat::parse_splat_mode(args.mode);
   r.radius_scale = args.radius_scale;
   r.point_size_px = args.point_size;
+  r.light.unlit = args.unlit;
   if (args.fixed_light) {
     r.light.follow_camera = false;
     r.light.direction = {-0.4f, 0.8f, 0.45f};

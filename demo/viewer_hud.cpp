@@ -313,7 +313,9 @@ void Viewer::rendering_panel() {
   if (settings_.mode == splat::SplatMode::FixedSize) {
     ImGui::SliderFloat("point size", &settings_.point_size_px, 1.0f, 16.0f);
   }
-  ImGui::Checkbox("light follows camera", &settings_.light.follow_camera);
+  ImGui::Checkbox("unlit: the scan's colours (L)", &settings_.light.unlit);
+  if (!settings_.light.unlit)
+    ImGui::Checkbox("light follows camera", &settings_.light.follow_camera);
   // Eye-dome lighting: on by default for models without normals of their own.
   bool edl = settings_.eye_dome > 0.0f;
   if (ImGui::Checkbox("eye-dome lighting", &edl)) {

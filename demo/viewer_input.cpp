@@ -104,7 +104,18 @@ void Viewer::handle_input(double dt) {
     if (color_by_.source == "elevation") recolor();
     fit();
   }
-  if (pressed_once(GLFW_KEY_L)) settings_.light.follow_camera = !settings_.light.follow_camera;
+  if (pressed_once(GLFW_KEY_L)) {
+    // Headlight -> fixed in the world -> unlit (the scan's own colours) -> headlight.
+    splat::Light& l = settings_.light;
+    if (l.unlit) {
+      l.unlit = false;
+      l.follow_camera = true;
+    } else if (l.follow_camera) {
+      l.follow_camera = false;
+    } else {
+      l.unlit = true;
+    }
+  }
   if (pressed_once(GLFW_KEY_H)) show_hud_ = !show_hud_;
   if (pressed_once(GLFW_KEY_F12) || pressed_once(GLFW_KEY_P)) {
     // The scene alone; with Shift, the window as shown (HUD included).

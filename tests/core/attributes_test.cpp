@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <glm/geometric.hpp>
 
 #include "treecut/tools/generate.hpp"
@@ -84,6 +85,31 @@ TEST(Attributes, SplatRadiiFromNeighboursCloseThePlane) {
     ASSERT_NEAR(ps.curvature[i], 0.0f, 1e-4f);
     ASSERT_NEAR(std::abs(ps.normals[i].z), 1.0f, 1e-4f);
   }
+}
+
+// Issue 30: an isolated point (a leaf of sparse vegetation) gets a disc of at
+// most 4 times the model's median radius, not one that reaches its far
+// neighbours; the dense part keeps its own. Estimated normals are marked.
+TEST(Attributes, RadiiOfIsolatedPointsAreCapped) {
+  PointSet ps;
+  const float h = 0.01f;
+  for (int y = 0; y < 60; ++y)
+    for (int x = 0; x < 60; ++x)
+      ps.positions.emplace_back(h * static_cast<float>(x), h * static_cast<float>(y), 0.0f);
+  // A sparse patch beside it, 8 times the spacing (a shrub's leaves).
+  for (int y = 0; y < 6; ++y)
+    for (int x = 0; x < 6; ++x)
+      ps.positions.emplace_back(0.7f + 8 * h * float(x), 8 * h * float(y), 0.0f);
+  complete_attributes(ps);
+  EXPECT_TRUE(ps.frame.normals_estimated);
+  std::vector<float> dense(ps.radii.begin(), ps.radii.begin() + 3600);
+  std::nth_element(dense.begin(), dense.begin() + 1800, dense.end());
+  const float median = dense[1800];
+  for (std::size_t i = 3600; i < ps.size(); ++i) {
+    EXPECT_LE(ps.radii[i], 4.0f * median * 1.0001f) << i;
+    EXPECT_GT(ps.radii[i], 3.0f * median) << i << ": capped, not shrunk to the median";
+  }
+  EXPECT_LE(ps.radii[0], 3.0f * h);
 }
 
 TEST(Attributes, MeshNormalsAreAreaWeightedAndRadiiCoverTriangles) {

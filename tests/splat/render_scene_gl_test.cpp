@@ -244,7 +244,10 @@ TEST_P(RenderScene, AStretchedObjectCoversWhatItsStretchedPointsDo) {
   std::printf("%s: stretched object %.0f pixels, stretched points %.0f\n",
               std::string(splat_mode_name(GetParam())).c_str(), got, want);
   EXPECT_GE(got, 0.97 * want);
-  EXPECT_LE(got, 1.15 * want);
+  // Fixed points grow to their splat's footprint (issue 30), a circle of
+  // sigma_max r around the ellipse a stretched splat is: the rim spreads
+  // a little further than the discs do.
+  EXPECT_LE(got, (GetParam() == SplatMode::FixedSize ? 1.2 : 1.15) * want);
 }
 
 INSTANTIATE_TEST_SUITE_P(Modes, RenderScene,

@@ -396,6 +396,54 @@ TEST(SplatEyeDome, DarkensSilhouettesAndLeavesFlatSurfaces) {
   }
 }
 
+// Issue 30: unlit draws the file's colours as they are; fixed-size points
+// grow to their splat's footprint, so a red square in front of a blue one
+// hides it (1-pixel points 5 pixels apart let the blue through).
+TEST(SplatLooks, UnlitKeepsTheColoursAndFixedPointsOcclude) {
+  context();
+  PointSet p;
+  auto square = [&](float half, float z, glm::u8vec4 color) {
+    for (float x = -half; x <= half; x += 0.02f) {
+      for (float y = -half; y <= half; y += 0.02f) {
+        p.positions.push_back({x, y, z});
+        p.normals.push_back({0.6f, 0.0f, 0.8f});  // lit, it would not be the colour
+        p.colors.push_back(color);
+      }
+    }
+  };
+  square(0.8f, -0.5f, {40, 60, 230, 255});
+  square(0.3f, 0.0f, {230, 50, 40, 255});
+  const Hierarchy h = build_from_points(std::move(p));
+  Camera c;
+  c.eye = {0.0f, 0.0f, 2.5f};
+  c.target = {0.0f, 0.0f, 0.0f};
+  Renderer r(h, glm::ivec2(kWidth, kHeight));
+  CutBuffer cut;
+  cut.upload(h, TreeCut::leaf_cut(h).nodes());
+  RenderSettings s;
+  s.light.unlit = true;
+  for (const SplatMode mode : {SplatMode::Fast, SplatMode::HighQuality, SplatMode::FixedSize}) {
+    s.mode = mode;
+    s.point_size_px = 1.0f;
+    r.draw(cut, c, s, true);
+    const std::vector<std::uint8_t> img = r.read_pixels();
+    // The front square covers the middle 0.3 / (2.5 tan 22.5 deg) of the
+    // half height: every pixel there is its red, unshaded, none blue.
+    const int half = int(0.3 / (2.5 * std::tan(0.3927)) * kHeight / 2.0) - 3;
+    std::size_t red = 0, other = 0;
+    for (int y = kHeight / 2 - half; y <= kHeight / 2 + half; ++y) {
+      for (int x = kWidth / 2 - half; x <= kWidth / 2 + half; ++x) {
+        const std::size_t i = (std::size_t(y) * kWidth + std::size_t(x)) * 4;
+        const bool is_red = std::abs(int(img[i]) - 230) <= 2 &&
+                            std::abs(int(img[i + 1]) - 50) <= 2 &&
+                            std::abs(int(img[i + 2]) - 40) <= 2;
+        (is_red ? red : other) += 1;
+      }
+    }
+    EXPECT_EQ(other, 0u) << "mode " << int(mode) << ": " << red << " red";
+  }
+}
+
 // Issue 29, item 3: colouring by an attribute and hiding classes.
 // A plane of two halves: ground (class 2) on the left, buildings (6) on the
 // right, with an intensity rising from left to right.

@@ -84,6 +84,19 @@ void fill_missing_radii(std::vector<float>& radii) {
     if (!(r > 0.0f) || !std::isfinite(r)) r = fallback > 0.0f ? fallback : 1.0f;
 }
 
+// Isolated points (sparse vegetation, stray returns) have far neighbours, so
+// the density rule gives them discs many times the model's typical size:
+// 40-pixel blobs where the scan has a leaf (issue 30). A radius from the
+// neighbours is held to kSparseRadiusCap times the model's median; the
+// scan stays as sparse as it is there, drawn as points, not blobs.
+constexpr float kSparseRadiusCap = 4.0f;
+
+void cap_sparse_radii(std::vector<float>& radii) {
+  const float cap = kSparseRadiusCap * median_positive(radii);
+  if (!(cap > 0.0f)) return;
+  for (float& r : radii) r = std::min(r, cap);
+}
+
 // Every thread owns a contiguous range of vertices and scans all faces,
 // accumulating only into its own vertices: no write conflicts, no incidence
 // table, and each vertex sums its faces in ascending order whatever the
@@ -181,7 +194,10 @@ void from_neighbours(PointSet& ps, int k, bool want_normals, bool want_radii, bo
       ps.normals[i] = nrm;
     }
   });
-  if (want_radii) fill_missing_radii(ps.radii);
+  if (want_radii) {
+    fill_missing_radii(ps.radii);
+    cap_sparse_radii(ps.radii);
+  }
 }
 
 }  // namespace

@@ -49,7 +49,8 @@ std::filesystem::path default_cache_path(const std::filesystem::path& model) {
 // Revision of what the pipeline computes (attributes and build). Bump it when
 // their output changes, so that caches written by an older build are stale.
 // 3: caches are keyed on the model's content hash.
-constexpr std::uint32_t kPipelineRevision = 3;
+// 4: radii from the neighbours are capped at 4 times the median (issue 30).
+constexpr std::uint32_t kPipelineRevision = 4;
 
 std::uint32_t options_bits(const AttributeOptions& attributes, const BuildOptions& build,
                            const std::vector<std::string>& columns) {

@@ -110,7 +110,11 @@ void Renderer::set_common_uniforms(const gl::Program& program, const Uniforms& u
   gl::ProgramUniform1f(p, u.min_radius_px, 0.75f);
   gl::ProgramUniform1f(p, u.viewport_h, static_cast<float>(size_.y));
   gl::ProgramUniform3f(p, u.light_dir, light_dir.x, light_dir.y, light_dir.z);
-  gl::ProgramUniform4f(p, u.light, light.ambient, light.diffuse, light.specular, light.shininess);
+  if (light.unlit) {
+    gl::ProgramUniform4f(p, u.light, 1.0f, 0.0f, 0.0f, light.shininess);
+  } else {
+    gl::ProgramUniform4f(p, u.light, light.ambient, light.diffuse, light.specular, light.shininess);
+  }
   gl::ProgramUniform1f(p, u.fade, fade);
 }
 

@@ -364,6 +364,7 @@ uniform float u_point_size;
 out vec3 f_pos;
 flat out vec3 f_normal;
 flat out vec3 f_color;
+flat out float f_size;  // the point's diameter in pixels
 void main() {
   vec3 c = object_point(a_center_radius.xyz);
   vec3 e = normalize(-c);
@@ -373,7 +374,13 @@ void main() {
   f_pos = c;
   f_normal = n;
   f_color = srgb_to_linear(a_color.rgb);
-  gl_PointSize = u_point_size;
+  // At least the splat's footprint: points that leave gaps at this distance
+  // would let what lies behind show through (issue 30).
+  float r = a_center_radius.w * a_object.x * u_radius_scale;
+  float view_depth = max(-(u_view * vec4(c, 1.0)).z, 1e-6);
+  float footprint = 2.0 * r * u_proj[1][1] * 0.5 * u_viewport_h / view_depth;
+  gl_PointSize = clamp(max(u_point_size, footprint), 1.0, 64.0);
+  f_size = gl_PointSize;
   // Outside the clip volume = not drawn.
   gl_Position = a_color.a < 0.5 || cone_faces_away(n, object_cone(a_normal_cone.w), e)
                     ? vec4(2.0, 2.0, 2.0, 1.0)
@@ -386,9 +393,10 @@ uniform float u_point_size;
 in vec3 f_pos;
 flat in vec3 f_normal;
 flat in vec3 f_color;
+flat in float f_size;
 layout(location = 0) out vec4 o_color;
 void main() {
-  if (u_point_size >= 3.0 && length(gl_PointCoord - vec2(0.5)) > 0.5) discard;
+  if (f_size >= 3.0 && length(gl_PointCoord - vec2(0.5)) > 0.5) discard;
   if (faded_out()) discard;
   o_color = vec4(linear_to_srgb(shade(f_color, f_normal, f_pos)), 1.0);
 }

@@ -55,13 +55,18 @@ struct Light {
   float diffuse = 0.85f;
   float specular = 0.25f;
   float shininess = 32.0f;
+  /// The colours as the file has them, no shading (a coloured scan's own
+  /// light is in its colours; a headlight darkens what faces away).
+  bool unlit = false;
 };
 
 struct RenderSettings {
   SplatMode mode = SplatMode::Fast;
   /// Multiplies every node's radius (model units) before drawing; > 1 closes gaps.
   float radius_scale = 1.0f;
-  /// FixedSize mode: point diameter in pixels.
+  /// FixedSize mode: the smallest point diameter in pixels; a point is drawn
+  /// at least as large as its splat's footprint, so surfaces stay closed and
+  /// hide what lies behind them (at most 64 pixels).
   float point_size_px = 2.0f;
   /// HighQuality mode: how far the visibility pass is pushed back, in units of
   /// each splat's radius (Botsch et al.'s epsilon, made scale-free).
