@@ -535,8 +535,10 @@ void add_render_commands(CLI::App& app) {
       ->check(non_empty_path())
       ->capture_default_str();
   view->add_option("--target-fps", va->target_fps,
-                   "Adapt the strategy's budget to hold this frame rate (0 = off)")
-      ->check(finite_number(0.0, 1000.0));
+                   "Adapt the strategy's budget to hold this frame rate (0 = off): full detail "
+                   "where the machine draws it that fast")
+      ->check(finite_number(0.0, 1000.0))
+      ->capture_default_str();
   view->callback([va] {
     // The inputs are checked before a window opens (and where there is no
     // display), as render checks them: a bad path or script is exit 2 with

@@ -137,7 +137,10 @@ struct ViewArgs {
   std::string path;    ///< replay this camera path, then keep running (or exit with script)
   std::string script;  ///< scripted run: see docs/camera-paths.md
   std::string screenshot_dir = ".";
-  double target_fps = 0.0;  ///< > 0: adapt the strategy's budget to hold this rate
+  /// > 0: adapt the strategy's budget to hold this rate. 30 by default
+  /// (issue 30): the budget grows to full detail where the machine draws it
+  /// at that rate, and shrinks where it cannot.
+  double target_fps = 30.0;
   /// Further models (`treecut view A B C`): the O key cycles through all of them.
   std::vector<std::string> more_models;
 };

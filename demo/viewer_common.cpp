@@ -56,6 +56,11 @@ void add_scene_options(CLI::App& cmd, SceneArgs& args) {
                  "way the normals face, a flat extent; see docs/rendering.md)")
       ->check(CLI::IsMember({"auto", "x", "y", "z"}))
       ->capture_default_str();
+  cmd.add_option("--points",
+                 "The budget in points (splats drawn at most): the strategy's "
+                 "max_nodes, or a scene budget's points")
+      ->check(finite_number(1.0, 4e9))
+      ->each([&args](const std::string& v) { args.params.push_back("budget=" + v); });
   cmd.add_option("--edl", args.edl,
                  "Eye-dome lighting (depth edges darkened, as in Potree): auto turns it on for "
                  "models without normals of their own")
@@ -301,6 +306,17 @@ std::pair<std::string, double> parse_param(const std::string& text) {
   return {text.substr(0, eq), v};
 }
 
+// `--points N` is the parameter "budget": a strategy's budget in points,
+// whatever it calls it (optimization's max_nodes, the scene budget's points).
+std::string resolve_param(const std::string& key, const std::vector<ParamSpec>& specs) {
+  if (key != "budget") return key;
+  for (const char* name : {"max_nodes", "points"}) {
+    if (std::any_of(specs.begin(), specs.end(), [&](const ParamSpec& s) { return s.name == name; }))
+      return name;
+  }
+  return key;
+}
+
 std::unique_ptr<Strategy> make_strategy(const StrategyRegistry& registry, const std::string& name,
                                         const std::vector<std::string>& params) {
   std::unique_ptr<Strategy> s = registry.create(name);
@@ -312,8 +328,8 @@ void apply_params(Strategy& strategy, const std::vector<std::string>& params) {
   for (const std::string& p : params) {
     // Named, not a structured binding: clang 14 cannot capture one in a lambda.
     const auto param = parse_param(p);
-    const auto& key = param.first;
     const auto& specs = strategy.param_specs();
+    const std::string key = resolve_param(param.first, specs);
     // With several strategies (render -s a -s b) a parameter applies to those that have it.
     if (std::none_of(specs.begin(), specs.end(),
                      [&](const ParamSpec& ps) { return ps.name == key; })) {
@@ -330,9 +346,12 @@ void check_params(const StrategyRegistry& registry, const std::vector<std::strin
     bool known = false;
     for (const std::string& name : strategies) {
       const auto specs = registry.create(name)->param_specs();
+      const std::string resolved = resolve_param(key, specs);
       known |= std::any_of(specs.begin(), specs.end(),
-                           [&](const ParamSpec& ps) { return ps.name == key; });
+                           [&](const ParamSpec& ps) { return ps.name == resolved; });
     }
+    if (!known && key == "budget")
+      throw InputError("--points: no selected strategy has a budget in points (max_nodes, points)");
     if (!known)
       throw InputError("--param " + p + ": no selected strategy has a parameter '" + key + "'");
   }

@@ -63,6 +63,12 @@ void Viewer::hud(const splat::FrameStats& stats) {
   } else {
     ImGui::Text("refining (iteration %.1f ms)", c.iteration_ns_last * 1e-6);
   }
+  if (governor_ && target_fps_ > 0.0) {
+    // The frame-rate control: what budget holds the rate on this machine.
+    ImGui::SameLine();
+    ImGui::TextDisabled("holding %.0f fps: %s %s", target_fps_, compact(governor_->value()).c_str(),
+                        governor_->param().c_str());
+  }
   load_progress();
   if (!status_.empty()) ImGui::TextWrapped("%s", status_.c_str());
   // One closed header over the sections, each closed too.

@@ -46,6 +46,29 @@ TEST(Cli, GenBuildInfoRoundTrip) {
   EXPECT_NE(r.out.find("from cache"), std::string::npos) << r.out;
 }
 
+// Issue 30: the command line speaks in points: `--points N` is the budget of
+// whichever strategy has one (optimization's max_nodes); one without is
+// told so (exit 2).
+TEST(Cli, PointsIsTheStrategysBudget) {
+  const fs::path dir = treecut::test::scratch_dir("cli_points");
+  using treecut::test::quote;
+  using treecut::test::run_treecut;
+  treecut::test::CommandResult r = run_treecut(
+      "render --default-points 30000 --frames 3 --warmup 5 --sync --no-png --points 5000 -o " +
+      quote(dir / "a"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  const auto at = r.out.find("cut ");
+  ASSERT_NE(at, std::string::npos) << r.out;
+  const long cut = std::strtol(r.out.c_str() + at + 4, nullptr, 10);
+  EXPECT_GT(cut, 1000);
+  EXPECT_LE(cut, 5000) << r.out;
+  r = run_treecut("render --default-points 3000 --frames 1 -s bucket --points 5000 -o " +
+                  quote(dir / "b"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.out.find("--points: no selected strategy has a budget in points"), std::string::npos)
+      << r.out;
+}
+
 // Issue 30: `treecut cache` lists the caches of a folder with size, last use
 // and model, and removes them (--older-than, --max-size, --clear), nothing
 // but caches; a bad size is one line and exit 2.
