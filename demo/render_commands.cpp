@@ -426,7 +426,7 @@ void run_render(const RenderArgs& a) {
   ProgressBar opening("open");
   const Scene scene = load_scene(a.scene, opening.callback());
   opening.finish();
-  settings.eye_dome = eye_dome_for(a.scene, scene);
+  apply_model_settings(settings, a.scene, scene);
   check_coloring(scene, color_by(a.scene));  // exit 2 before any output
   // A scene file: its objects go through the stage (per object, or a
   // scene-level strategy) and are drawn by draw_scene in one call per pass.

@@ -45,7 +45,7 @@ Viewer::Viewer(const ViewArgs& args)
   if (!args.script.empty()) script_ = load_view_script(args.script);
   if (!args.path.empty()) path_ = splat::load_camera_path(args.path);
   scene_ = load_scene(args.scene);
-  settings_.eye_dome = eye_dome_for(args.scene, scene_);
+  apply_model_settings(settings_, args.scene, scene_);
   models_.push_back(args.scene.model);
   models_.insert(models_.end(), args.more_models.begin(), args.more_models.end());
   glfwSetWindowTitle(window_.handle(), ("treecut - " + scene_.label).c_str());
@@ -279,7 +279,7 @@ void Viewer::adopt_scene() {
                                                      scene_.hierarchy->node_count());
   }
   status_ = "opened " + scene_.label;
-  settings_.eye_dome = eye_dome_for(args_.scene, scene_);
+  apply_model_settings(settings_, args_.scene, scene_);
   recolor();
   // The frames the window drew meanwhile (the old model): a load never blocks it.
   std::printf("opened %s (%zu nodes) after %llu frames of the old model\n", scene_.label.c_str(),
@@ -320,7 +320,7 @@ void Viewer::replace_stage(Scene loaded) {
   read_params(*make_strategy(registry_, strategy_, {}));
   glfwSetWindowTitle(window_.handle(), ("treecut - " + scene_.label).c_str());
   status_ = "opened " + scene_.label;
-  settings_.eye_dome = eye_dome_for(args_.scene, scene_);
+  apply_model_settings(settings_, args_.scene, scene_);
   recolor();
   if (scene_.world) {
     std::printf("opened %s (%zu objects)\n", scene_.label.c_str(), scene_.world->objects.size());

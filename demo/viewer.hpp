@@ -53,6 +53,7 @@ struct SceneArgs {
   std::vector<std::string> columns;  ///< --columns: a text cloud's columns
   std::string edl = "auto";          ///< --edl auto | on | off: eye-dome lighting
   float edl_strength = 0.25f;        ///< --edl-strength
+  std::vector<double> clip;          ///< --clip X0 Y0 Z0 X1 Y1 Z1 (file coordinates)
 };
 
 void add_scene_options(CLI::App& cmd, SceneArgs& args);
@@ -101,10 +102,13 @@ void check_params(const StrategyRegistry& registry, const std::vector<std::strin
 
 splat::RenderSettings render_settings(const SceneArgs& args);
 
-/// Eye-dome lighting for `scene` (RenderSettings::eye_dome): --edl on, or
-/// auto and a model whose normals were estimated (no normals in the file:
-/// a LAS, most text and PCD clouds), shading by them being a guess.
-float eye_dome_for(const SceneArgs& args, const Scene& scene);
+/// What of the render settings depends on the model: eye-dome lighting
+/// (--edl on, or auto and a model whose normals were estimated: no normals
+/// in the file, a LAS, most text and PCD clouds, shading by them being a
+/// guess) and the --clip box (file coordinates, the model's origin taken
+/// off in double; a scene's world coordinates).
+void apply_model_settings(splat::RenderSettings& settings, const SceneArgs& args,
+                          const Scene& scene);
 
 /// --color, --color-map, --color-range and --classes as a ColorBy; throws
 /// InputError for a bad map, range or class list.

@@ -109,6 +109,7 @@ class Viewer {
   void strategy_panel();
   void load_progress();
   void rendering_panel();
+  void clip_panel();
   void models_panel();
   void color_panel();
   /// Applies color_by_ to the scene's models (after an open, the up axis

@@ -61,6 +61,10 @@ void add_scene_options(CLI::App& cmd, SceneArgs& args) {
                  "max_nodes, or a scene budget's points")
       ->check(finite_number(1.0, 4e9))
       ->each([&args](const std::string& v) { args.params.push_back("budget=" + v); });
+  cmd.add_option("--clip", args.clip,
+                 "Draw only what lies in the box X0 Y0 Z0 X1 Y1 Z1 (the file's coordinates)")
+      ->expected(6)
+      ->check(finite_number(-1e18, 1e18));
   cmd.add_option("--edl", args.edl,
                  "Eye-dome lighting (depth edges darkened, as in Potree): auto turns it on for "
                  "models without normals of their own")
@@ -372,13 +376,23 @@ splat::RenderSettings render_settings(const SceneArgs& args) {
   return r;
 }
 
-float eye_dome_for(const SceneArgs& args, const Scene& scene) {
-  if (args.edl != "auto") return args.edl == "on" ? args.edl_strength : 0.0f;
+void apply_model_settings(splat::RenderSettings& settings, const SceneArgs& args,
+                          const Scene& scene) {
   bool estimated = scene.hierarchy && scene.hierarchy->frame().normals_estimated;
   if (scene.world) {
     for (const auto& m : scene.world->models) estimated = estimated || m->frame().normals_estimated;
   }
-  return estimated ? args.edl_strength : 0.0f;
+  settings.eye_dome =
+      args.edl == "on" || (args.edl == "auto" && estimated) ? args.edl_strength : 0.0f;
+  settings.clip = args.clip.size() == 6;
+  if (settings.clip) {
+    const glm::dvec3 o =
+        scene.world || !scene.hierarchy ? glm::dvec3(0.0) : scene.hierarchy->frame().origin;
+    const glm::dvec3 a(args.clip[0], args.clip[1], args.clip[2]);
+    const glm::dvec3 b(args.clip[3], args.clip[4], args.clip[5]);
+    settings.clip_min = glm::vec3(glm::min(a, b) - o);
+    settings.clip_max = glm::vec3(glm::max(a, b) - o);
+  }
 }
 
 }  // namespace treecut::cli

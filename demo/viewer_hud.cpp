@@ -94,6 +94,10 @@ void Viewer::hud(const splat::FrameStats& stats) {
       rendering_panel();
       ImGui::TreePop();
     }
+    if (ImGui::TreeNode("clip box")) {
+      clip_panel();
+      ImGui::TreePop();
+    }
   }
   const ImVec2 size = ImGui::GetWindowSize();
   hud_size_ = glm::ivec2(static_cast<int>(size.x), static_cast<int>(size.y));
@@ -304,6 +308,25 @@ void Viewer::color_panel() {
     } else {
       ImGui::Text("%s  %.0f %%", e.label.c_str(), 100.0 * e.share);
     }
+  }
+}
+
+// The clip box: what lies outside is not drawn (RenderSettings::clip), in
+// the model's coordinates, each axis a range within its bounds.
+void Viewer::clip_panel() {
+  if (ImGui::Checkbox("draw only inside", &settings_.clip) && settings_.clip &&
+      settings_.clip_min == settings_.clip_max) {
+    settings_.clip_min = scene_.bounds_min;
+    settings_.clip_max = scene_.bounds_max;
+  }
+  if (!settings_.clip) return;
+  const char* axes[3] = {"x", "y", "z"};
+  for (int a = 0; a < 3; ++a) {
+    const float lo = scene_.bounds_min[a], hi = scene_.bounds_max[a];
+    ImGui::SetNextItemWidth(200.0f);
+    ImGui::DragFloatRange2(axes[a], &settings_.clip_min[a], &settings_.clip_max[a],
+                           std::max(hi - lo, 1e-6f) / 200.0f, lo, hi, "%.3f", "%.3f",
+                           ImGuiSliderFlags_AlwaysClamp);
   }
 }
 

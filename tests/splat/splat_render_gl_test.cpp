@@ -444,6 +444,46 @@ TEST(SplatLooks, UnlitKeepsTheColoursAndFixedPointsOcclude) {
   }
 }
 
+// Issue 30: a clip box draws only the splats whose centre is inside: the
+// sphere cut at x = 0 keeps its right half's pixels and loses the left's,
+// in every mode.
+TEST_F(SplatRender, AClipBoxRemovesThePixelsOfWhatItClips) {
+  // Face on from +z: +x is to the right.
+  camera_ = fit_camera(sphere().bounds_min(), sphere().bounds_max(), float(kWidth) / kHeight,
+                       {0.0f, 0.0f, 1.0f});
+  for (const SplatMode mode : {SplatMode::Fast, SplatMode::HighQuality, SplatMode::FixedSize}) {
+    RenderSettings s;
+    s.mode = mode;
+    const Image full = render(full_, s);
+    s.clip = true;
+    const glm::vec3 mid = 0.5f * (sphere().bounds_min() + sphere().bounds_max());
+    s.clip_min = {mid.x, -10.0f, -10.0f};
+    s.clip_max = {10.0f, 10.0f, 10.0f};
+    const Image clipped = render(full_, s);
+    const auto bg = background_bytes(s);
+    // The sphere's centre projects to the middle column; x > 0 is right.
+    std::size_t left = 0, right_full = 0, right_clipped = 0;
+    for (int y = 0; y < kHeight; ++y) {
+      for (int x = 0; x < kWidth; ++x) {
+        const std::size_t i = (std::size_t(y) * kWidth + std::size_t(x)) * 4;
+        auto drawn = [&](const Image& img) {
+          return std::abs(int(img.rgba[i]) - bg[0]) > 2 ||
+                 std::abs(int(img.rgba[i + 1]) - bg[1]) > 2 ||
+                 std::abs(int(img.rgba[i + 2]) - bg[2]) > 2;
+        };
+        if (x < kWidth / 2 - 8 && drawn(clipped)) ++left;
+        if (x > kWidth / 2 + 8) {
+          right_full += drawn(full) ? 1 : 0;
+          right_clipped += drawn(clipped) ? 1 : 0;
+        }
+      }
+    }
+    EXPECT_EQ(left, 0u) << "mode " << int(mode);
+    EXPECT_GT(right_full, 1000u);
+    EXPECT_GT(right_clipped, right_full * 9 / 10) << "mode " << int(mode);
+  }
+}
+
 // Issue 29, item 3: colouring by an attribute and hiding classes.
 // A plane of two halves: ground (class 2) on the left, buildings (6) on the
 // right, with an intensity rising from left to right.

@@ -88,6 +88,9 @@ Renderer::Uniforms Renderer::lookup_uniforms(const gl::Program& p) {
   u.inv_view_proj = at("u_inv_view_proj");
   u.fade_mode = at("u_fade_mode");
   u.fade = at("u_fade");
+  u.clip = at("u_clip");
+  u.clip_min = at("u_clip_min");
+  u.clip_max = at("u_clip_max");
   return u;
 }
 
@@ -116,6 +119,12 @@ void Renderer::set_common_uniforms(const gl::Program& program, const Uniforms& u
     gl::ProgramUniform4f(p, u.light, light.ambient, light.diffuse, light.specular, light.shininess);
   }
   gl::ProgramUniform1f(p, u.fade, fade);
+  // The clip box relative to the eye, as the positions are (shaders.hpp).
+  gl::ProgramUniform1i(p, u.clip, settings.clip ? 1 : 0);
+  const glm::vec3 lo = settings.clip_min - frame.derived.eye;
+  const glm::vec3 hi = settings.clip_max - frame.derived.eye;
+  gl::ProgramUniform3f(p, u.clip_min, lo.x, lo.y, lo.z);
+  gl::ProgramUniform3f(p, u.clip_max, hi.x, hi.y, hi.z);
 }
 
 Renderer::Renderer(const Hierarchy& h, glm::ivec2 size) {

@@ -24,6 +24,12 @@ uniform float u_min_radius_px;   // quads smaller than this grow to it (no sub-p
 uniform float u_viewport_h;      // pixels
 uniform vec3 u_light_dir;        // world space, unit, towards the light
 uniform vec4 u_light;            // ambient, diffuse, specular, shininess
+uniform int u_clip;              // 1: only splats whose centre is in the clip box
+uniform vec3 u_clip_min;         // the box, relative to the eye
+uniform vec3 u_clip_max;
+bool clipped(vec3 c) {
+  return u_clip == 1 && (any(lessThan(c, u_clip_min)) || any(greaterThan(c, u_clip_max)));
+}
 
 vec3 srgb_to_linear(vec3 c) {
   return mix(c / 12.92, pow((c + 0.055) / 1.055, vec3(2.4)), step(0.04045, c));
@@ -127,7 +133,9 @@ out Node {
 void main() {
   v_node.center = object_point(a_center_radius.xyz);
   // Alpha 0: a hidden node (a class filtered out, coloring.hpp), no splat.
-  v_node.radius = a_color.a < 0.5 ? 0.0 : a_center_radius.w * a_object.x * u_radius_scale;
+  v_node.radius = a_color.a < 0.5 || clipped(v_node.center)
+                      ? 0.0
+                      : a_center_radius.w * a_object.x * u_radius_scale;
   v_node.normal = object_normal(a_normal_cone.xyz);
   v_node.cone_cos = object_cone(a_normal_cone.w);
   v_node.color = srgb_to_linear(a_color.rgb);
@@ -382,7 +390,7 @@ void main() {
   gl_PointSize = clamp(max(u_point_size, footprint), 1.0, 64.0);
   f_size = gl_PointSize;
   // Outside the clip volume = not drawn.
-  gl_Position = a_color.a < 0.5 || cone_faces_away(n, object_cone(a_normal_cone.w), e)
+  gl_Position = a_color.a < 0.5 || clipped(c) || cone_faces_away(n, object_cone(a_normal_cone.w), e)
                     ? vec4(2.0, 2.0, 2.0, 1.0)
                                                         : u_proj * u_view * vec4(c, 1.0);
 }

@@ -82,6 +82,10 @@ struct RenderSettings {
   float eye_dome = 0.0f;
   /// Pixels from a pixel to the neighbours it is compared with.
   float eye_dome_radius = 1.4f;
+  /// A clip box (issue 30): splats whose centre lies outside [clip_min,
+  /// clip_max] (world coordinates: a single model's own) are not drawn.
+  bool clip = false;
+  glm::vec3 clip_min{0.0f}, clip_max{0.0f};
 };
 
 /// What one draw() did (feeds the HUD, the CSV of `treecut render` and tests).
@@ -327,7 +331,7 @@ class Renderer {
   struct Uniforms {
     GLint view = -1, proj = -1, eye = -1, radius_scale = -1, cull = -1, min_radius_px = -1,
           viewport_h = -1, light_dir = -1, light = -1, depth_offset = -1, point_size = -1,
-          inv_view_proj = -1, fade_mode = -1, fade = -1;
+          inv_view_proj = -1, fade_mode = -1, fade = -1, clip = -1, clip_min = -1, clip_max = -1;
   };
   static Uniforms lookup_uniforms(const gl::Program& p);
   // The per-frame uniforms every splat program reads.
