@@ -67,6 +67,11 @@ TEST(Cli, PointsIsTheStrategysBudget) {
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.out.find("--points: no selected strategy has a budget in points"), std::string::npos)
       << r.out;
+  // A clip box takes six numbers: five are a usage error (exit 2).
+  EXPECT_EQ(
+      run_treecut("render --default-points 3000 --frames 1 --clip 0 0 0 1 1 -o " + quote(dir / "c"))
+          .code,
+      2);
 }
 
 // Issue 30: `treecut cache` lists the caches of a folder with size, last use
