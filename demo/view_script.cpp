@@ -157,6 +157,11 @@ ScriptCommand parse_command(const std::vector<std::string_view>& words, int line
     }
   } else if (c.verb == "param") {
     check_param_command(c, words, where, at, checks, strategy);
+  } else if (c.verb == "pick") {
+    // pick X Y: a framebuffer pixel, x right and y down from the top left.
+    require_arguments(words, 2, "a pixel x y", where, c.verb);
+    c.number = parse_count(words[1], at);
+    c.second = parse_count(words[2], at);
   } else if (c.verb == "orbit") {
     require_arguments(words, 1, "degrees", where, c.verb);
     c.number = parse_real(words[1], at);

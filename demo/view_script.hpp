@@ -21,6 +21,7 @@ struct ScriptCommand {
   std::string verb;
   std::string arg;
   double number = 0.0;
+  double second = 0.0;  ///< pick's y
   int line = 0;
 };
 

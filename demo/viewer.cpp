@@ -127,6 +127,10 @@ int Viewer::run() {
 
     const splat::FrameResult result = frame_loop_->run_render_thread(camera_, settings_);
     const splat::FrameStats& stats = result.stats;
+    if (pending_pick_) {
+      pick_at(*pending_pick_);  // what this frame drew, with its camera
+      pending_pick_.reset();
+    }
     // The first frame of a loaded model: from now on the camera and HUD are its.
     if (result.model_switched && incoming_ &&
         renderer_->hierarchy() == incoming_->hierarchy.get()) {

@@ -100,6 +100,10 @@ class Viewer {
   void advance_playback(double dt);
   void step_script();
 
+  // viewer_measure.cpp: picking and measuring.
+  void pick_at(glm::ivec2 pixel);
+  void measure_panel();
+
   // viewer_output.cpp: screenshots.
   void save_screenshot(const std::string& file, glm::ivec2 size);
 
@@ -154,6 +158,16 @@ class Viewer {
   bool show_hud_ = true;
   glm::ivec2 hud_size_{0};  ///< the HUD window's size in the last frame it showed
   bool hud_open_ = false;   ///< its sections' header is open (it may widen)
+  /// A pick: where (the world's and the file's coordinates) and, for a
+  /// single model, the nearest point with its attributes.
+  struct Pick {
+    glm::vec3 world{0.0f};
+    glm::dvec3 file{0.0};
+    std::string text;
+  };
+  std::vector<Pick> picks_;                 ///< the last two
+  std::optional<glm::ivec2> pending_pick_;  ///< a pixel to pick after the frame
+  bool left_down_ = false;                  ///< the left button, last frame
   bool quit_ = false;
   std::deque<float> frame_times_;
   double frame_ms_ = 0.0;

@@ -94,6 +94,10 @@ void Viewer::hud(const splat::FrameStats& stats) {
       rendering_panel();
       ImGui::TreePop();
     }
+    if (ImGui::TreeNode("measure")) {
+      measure_panel();
+      ImGui::TreePop();
+    }
     if (ImGui::TreeNode("clip box")) {
       clip_panel();
       ImGui::TreePop();

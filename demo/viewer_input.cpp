@@ -58,8 +58,22 @@ void Viewer::handle_input(double dt) {
   const ImGuiIO& io = ImGui::GetIO();
   if (playing_ || !script_.empty()) return;  // the path or the script owns the camera
   const float scale = scene_.radius;
-  if (!io.WantCaptureMouse) {
-    if (glfwGetMouseButton(w, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS) {
+  const bool left = glfwGetMouseButton(w, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS;
+  const bool ctrl = glfwGetKey(w, GLFW_KEY_LEFT_CONTROL) == GLFW_PRESS ||
+                    glfwGetKey(w, GLFW_KEY_RIGHT_CONTROL) == GLFW_PRESS;
+  const bool clicked = left && !left_down_;
+  left_down_ = left;
+  if (!io.WantCaptureMouse && ctrl) {
+    // Ctrl+click picks (after this frame is drawn), in framebuffer pixels.
+    if (clicked) {
+      int ww = 1, wh = 1;
+      glfwGetWindowSize(w, &ww, &wh);
+      const glm::ivec2 fb = window_.framebuffer_size();
+      pending_pick_ = glm::ivec2(static_cast<int>(x * fb.x / std::max(ww, 1)),
+                                 static_cast<int>(y * fb.y / std::max(wh, 1)));
+    }
+  } else if (!io.WantCaptureMouse) {
+    if (left) {
       if (fly_) {
         const glm::vec3 f = camera_.forward();
         glm::mat4 rot = glm::rotate(glm::mat4(1.0f), -delta.x * 0.005f, scene_.up);

@@ -92,6 +92,8 @@ void Viewer::step_script() {
     } else if (c.verb == "screenshot") {
       pending_screenshot_ = (std::filesystem::path(args_.screenshot_dir) / c.arg).string();
       screenshot_hud_ = c.number != 0.0;
+    } else if (c.verb == "pick") {
+      pending_pick_ = glm::ivec2(static_cast<int>(c.number), static_cast<int>(c.second));
     } else if (c.verb == "hud") {
       show_hud_ = c.arg == "on";
     } else if (c.verb == "strategy") {
@@ -121,7 +123,7 @@ void Viewer::step_script() {
     }
     script_counter_ = -1;
     ++script_pos_;
-    if (quit_ || !pending_screenshot_.empty()) return;
+    if (quit_ || !pending_screenshot_.empty() || pending_pick_) return;  // one a frame
   }
 }
 

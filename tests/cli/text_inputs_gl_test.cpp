@@ -374,6 +374,8 @@ TEST(ViewScript, HudCommandsAndScreenshotsWithTheHud) {
   EXPECT_EQ(error("hud\n"), "h.script:2: hud needs an argument");
   EXPECT_EQ(error("screenshot a.png window\n"),
             "h.script:2: screenshot takes an argument, not 'window'");
+  EXPECT_EQ(error("pick 10\n"), "h.script:2: pick needs a pixel x y");
+  EXPECT_EQ(error("pick 10 -3\n").rfind("h.script:2: pick: '-3'", 0), 0u);
   EXPECT_EQ(error("screenshot a.png hud hud\n"),
             "h.script:2: screenshot takes an argument, not 'hud'");
 }
@@ -433,14 +435,17 @@ TEST(ViewScript, TheWindowTestsScriptParses) {
   const fs::path script = fs::path(TREECUT_SOURCE_DIR) / "tests/viewer_window_test/run.script";
   const StrategyRegistry registry = strategies::builtin_registry();
   const auto commands = cli::load_view_script(script, {&registry, "optimization", {}});
-  ASSERT_EQ(commands.size(), 16u);
+  ASSERT_EQ(commands.size(), 18u);
   EXPECT_EQ(commands[4].number, 1.0) << "screenshot start-hud.png hud";
   EXPECT_EQ(commands[5].verb, "hud");
-  EXPECT_EQ(commands[12].verb, "color");
-  EXPECT_EQ(commands[12].arg, "elevation");
-  EXPECT_EQ(commands[9].verb, "play");
-  EXPECT_EQ(fs::path(commands[9].arg).filename(), "orbit.campath");
-  EXPECT_TRUE(fs::exists(commands[9].arg)) << "resolved against the script's folder";
+  EXPECT_EQ(commands[9].verb, "pick");
+  EXPECT_EQ(commands[9].number, 320.0);
+  EXPECT_EQ(commands[9].second, 200.0);
+  EXPECT_EQ(commands[14].verb, "color");
+  EXPECT_EQ(commands[14].arg, "elevation");
+  EXPECT_EQ(commands[11].verb, "play");
+  EXPECT_EQ(fs::path(commands[11].arg).filename(), "orbit.campath");
+  EXPECT_TRUE(fs::exists(commands[11].arg)) << "resolved against the script's folder";
 }
 
 // -- plugins -------------------------------------------------------------------

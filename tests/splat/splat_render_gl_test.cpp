@@ -7,6 +7,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 #include <memory>
 #include <optional>
+#include <utility>
 
 #include "image_compare.hpp"
 #include "test_support.hpp"
@@ -481,6 +482,55 @@ TEST_F(SplatRender, AClipBoxRemovesThePixelsOfWhatItClips) {
     EXPECT_EQ(left, 0u) << "mode " << int(mode);
     EXPECT_GT(right_full, 1000u);
     EXPECT_GT(right_clipped, right_full * 9 / 10) << "mode " << int(mode);
+  }
+}
+
+// Issue 30: picking and measuring. A square at z = 0 before one at z = -0.5,
+// face on from z = 2.5: the middle pixel picks (0, 0, 0), a pixel beside the
+// front square the back one, and two picks on the front square 60 pixels
+// apart are as far apart as 60 pixels are at that depth, in every
+// mode (hq's depth is the visibility pass's, pushed back: within its offset).
+TEST(SplatPick, PicksWhatThePixelShowsAndMeasuresDistances) {
+  context();
+  PointSet p;
+  for (const auto& [half, z] : {std::pair{0.8f, -0.5f}, std::pair{0.3f, 0.0f}}) {
+    for (float x = -half; x <= half + 1e-4f; x += 0.01f) {
+      for (float y = -half; y <= half + 1e-4f; y += 0.01f) {
+        p.positions.push_back({x, y, z});
+        p.normals.push_back({0, 0, 1});
+      }
+    }
+  }
+  const Hierarchy h = build_from_points(std::move(p));
+  Camera c;
+  c.eye = {0.0f, 0.0f, 2.5f};
+  c.target = {0.0f, 0.0f, 0.0f};
+  c.near_plane = 0.1f;
+  c.far_plane = 10.0f;
+  Renderer r(h, glm::ivec2(kWidth, kHeight));
+  CutBuffer cut;
+  cut.upload(h, TreeCut::leaf_cut(h).nodes());
+  // World units per pixel at the front square's depth.
+  const float unit = 2.0f * 2.5f * std::tan(glm::radians(c.fov_y_deg) / 2.0f) / kHeight;
+  for (const SplatMode mode : {SplatMode::Fast, SplatMode::HighQuality, SplatMode::FixedSize}) {
+    RenderSettings s;
+    s.mode = mode;
+    r.draw(cut, c, s, true);
+    const float depth_slack = mode == SplatMode::HighQuality ? 0.02f : 0.005f;
+    const std::optional<glm::vec3> mid = r.pick({kWidth / 2, kHeight / 2}, c);
+    ASSERT_TRUE(mid) << int(mode);
+    EXPECT_NEAR(mid->x, 0.0f, 2 * unit);
+    EXPECT_NEAR(mid->z, 0.0f, depth_slack) << int(mode);
+    const std::optional<glm::vec3> back =
+        r.pick({kWidth / 2 + int(0.45f / (3.0f * unit / 2.5f)), kHeight / 2}, c);
+    ASSERT_TRUE(back) << int(mode);
+    EXPECT_NEAR(back->z, -0.5f, depth_slack) << int(mode);
+    EXPECT_FALSE(r.pick({2, 2}, c)) << "the background";
+    EXPECT_FALSE(r.pick({kWidth, 0}, c)) << "outside";
+    const std::optional<glm::vec3> a = r.pick({kWidth / 2 - 30, kHeight / 2 + 10}, c);
+    const std::optional<glm::vec3> b = r.pick({kWidth / 2 + 30, kHeight / 2 + 10}, c);
+    ASSERT_TRUE(a && b);
+    EXPECT_NEAR(glm::distance(*a, *b), 60.0f * unit, 0.02f * 60.0f * unit) << int(mode);
   }
 }
 

@@ -62,6 +62,13 @@ endif()
 if(NOT a STREQUAL hidden)
   message(FATAL_ERROR "hiding the HUD changed the scene's pixels (start.png, start-nohud.png)")
 endif()
+# Picking: two pixels of the terrain give two points and their distance.
+if(NOT out MATCHES "pick 320 200: [-0-9.]+ [-0-9.]+ [-0-9.]+, nearest point")
+  message(FATAL_ERROR "pick 320 200 printed no point")
+endif()
+if(NOT out MATCHES "measure   distance [0-9]+\\.[0-9]+, height [-+][0-9.]+, horizontal")
+  message(FATAL_ERROR "two picks printed no distance")
+endif()
 # (--target-fps 0: the default frame-rate control would change the cut
 # between the screenshots.) It stays out of the way: at most a fifth of the window as it opens.
 if(NOT out MATCHES "start-hud.png \\(HUD ([0-9]+)x([0-9]+) of ([0-9]+)x([0-9]+)\\)")

@@ -1,8 +1,12 @@
 // The renderer's render targets (the frame's color and depth, hq's
 // accumulation buffers and the three framebuffers over them) and what reads
-// the frame back: present() to a window, read_pixels() to memory.
+// the frame back: present() to a window, read_pixels() to memory, pick()
+// one pixel's position.
 #include <array>
 #include <cstdint>
+#include <glm/ext/matrix_double4x4.hpp>
+#include <glm/matrix.hpp>
+#include <optional>
 #include <stdexcept>
 #include <vector>
 
@@ -53,6 +57,25 @@ void Renderer::present(glm::ivec2 window_size) const {
 
 std::vector<std::uint8_t> Renderer::read_pixels() const {
   return read_back_rgba(scene_fbo_.id(), GL_COLOR_ATTACHMENT0, size_);
+}
+
+std::optional<glm::vec3> Renderer::pick(glm::ivec2 pixel, const Camera& camera) const {
+  if (pixel.x < 0 || pixel.y < 0 || pixel.x >= size_.x || pixel.y >= size_.y) return std::nullopt;
+  const int row = size_.y - 1 - pixel.y;  // GL's rows run bottom-up
+  float depth = 1.0f;
+  gl::BindFramebuffer(GL_READ_FRAMEBUFFER, scene_fbo_.id());
+  gl::PixelStorei(GL_PACK_ALIGNMENT, 1);
+  gl::ReadPixels(pixel.x, row, 1, 1, GL_DEPTH_COMPONENT, GL_FLOAT, &depth);
+  gl::BindFramebuffer(GL_READ_FRAMEBUFFER, 0);
+  gl::check("pick");
+  if (!(depth < 1.0f)) return std::nullopt;
+  // The frame was drawn relative to the eye (shaders.hpp): unproject there.
+  const ViewSnapshot v = camera.view(size_);
+  const glm::dvec4 ndc(2.0 * (pixel.x + 0.5) / size_.x - 1.0, 2.0 * (row + 0.5) / size_.y - 1.0,
+                       2.0 * depth - 1.0, 1.0);
+  const glm::dvec4 p =
+      glm::inverse(glm::dmat4(v.projection) * glm::dmat4(v.eye_relative_view())) * ndc;
+  return v.derived.eye + glm::vec3(glm::dvec3(p) / p.w);
 }
 
 }  // namespace treecut::splat

@@ -28,6 +28,7 @@
 #include <glm/mat4x4.hpp>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
+#include <optional>
 #include <span>
 #include <string_view>
 #include <vector>
@@ -313,6 +314,14 @@ class Renderer {
 
   /// The last frame as tightly packed RGBA8, top row first (image order).
   [[nodiscard]] std::vector<std::uint8_t> read_pixels() const;
+
+  /// The world position of what the last frame drew at `pixel` (image
+  /// order: x right, y down from the top row), seen by `camera` (the frame's
+  /// camera): its depth unprojected in double relative to the eye; nullopt
+  /// for the background or a pixel outside. In hq mode the depth is the
+  /// visibility pass's, up to depth_offset radii behind the surface. Reads
+  /// one pixel back: it waits for the frame (issue 30: picking, measuring).
+  [[nodiscard]] std::optional<glm::vec3> pick(glm::ivec2 pixel, const Camera& camera) const;
 
   /// The hook runs inside every draw() until reset to null. Not owned.
   void set_query_hook(QueryHook* hook) { query_hook_ = hook; }
