@@ -73,12 +73,27 @@ void require_arguments(const std::vector<std::string_view>& words, std::size_t a
 // now (color's source against the model when it opens) so that a bad
 // one fails before the window opens. A `strategy` line changes `strategy`,
 // the one later `param` lines are checked against.
+// WxH of a screenshot: whole numbers from 16 to 16384 each.
+void parse_size(std::string_view text, const std::string& at, int& width, int& height) {
+  const auto x = text.find('x');
+  const auto whole = [&](std::string_view s, int& out) {
+    const auto r = std::from_chars(s.data(), s.data() + s.size(), out);
+    return r.ec == std::errc() && r.ptr == s.data() + s.size() && out >= 16 && out <= 16384;
+  };
+  if (x == std::string_view::npos || !whole(text.substr(0, x), width) ||
+      !whole(text.substr(x + 1), height))
+    throw InputError(at + shown(text) + " is neither hud nor a size WxH (16 to 16384 each)");
+}
+
 void check_named_argument(ScriptCommand& c, const std::vector<std::string_view>& words,
                           const std::string& where, const std::filesystem::path& file,
                           const ScriptChecks& checks, std::string& strategy) {
-  // `screenshot NAME hud`: the window with the HUD (number 1).
-  const bool with_hud = c.verb == "screenshot" && words.size() == 3 && words[2] == "hud";
-  const std::vector<std::string_view> named(words.begin(), words.end() - (with_hud ? 1 : 0));
+  // `screenshot NAME hud`: the window with the HUD (number 1);
+  // `screenshot NAME WxH`: the scene drawn at that size.
+  const bool third = c.verb == "screenshot" && words.size() == 3;
+  const bool with_hud = third && words[2] == "hud";
+  if (third && !with_hud) parse_size(words[2], where + c.verb + ": ", c.width, c.height);
+  const std::vector<std::string_view> named(words.begin(), words.end() - (third ? 1 : 0));
   require_arguments(named, 1, c.verb == "play" ? "a camera path" : "an argument", where, c.verb);
   c.number = with_hud ? 1.0 : 0.0;
   c.arg = std::string(words[1]);

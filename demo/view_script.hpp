@@ -22,6 +22,8 @@ struct ScriptCommand {
   std::string arg;
   double number = 0.0;
   double second = 0.0;  ///< pick's y
+  /// screenshot NAME WxH: drawn at that size, not the window's (0: the window).
+  int width = 0, height = 0;
   int line = 0;
 };
 

@@ -166,6 +166,7 @@ int Viewer::run() {
       pending_screenshot_.clear();
     }
     screenshot_hud_ = false;
+    screenshot_size_ = glm::ivec2(0);
     window_.swap_buffers();
     ++frame_;
   }

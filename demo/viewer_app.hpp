@@ -35,6 +35,7 @@
 #include "treecut/splat/context.hpp"
 #include "treecut/splat/frame.hpp"
 #include "treecut/splat/frame_rate.hpp"
+#include "treecut/splat/image.hpp"
 #include "treecut/splat/query_executor.hpp"
 #include "treecut/splat/renderer.hpp"
 #include "view_script.hpp"
@@ -106,6 +107,8 @@ class Viewer {
 
   // viewer_output.cpp: screenshots.
   void save_screenshot(const std::string& file, glm::ivec2 size);
+  /// The scene of the current lists drawn at `size` off the window, read back.
+  splat::Image draw_at(glm::ivec2 size);
 
   // viewer_hud.cpp.
   void hud(const splat::FrameStats& stats);
@@ -178,6 +181,12 @@ class Viewer {
   /// The pending screenshot is the window with the HUD (Shift+F12, a
   /// script's `screenshot NAME hud`), not the scene alone (F12, P).
   bool screenshot_hud_ = false;
+  /// The scene alone drawn at this size (a script's `screenshot NAME WxH`);
+  /// 0: the window's.
+  glm::ivec2 screenshot_size_{0};
+  /// F12's size as a multiple of the window (the HUD's rendering section).
+  int screenshot_scale_ = 1;
+  int screenshot_scale_index_ = 0;  ///< the HUD's selector: 1x, 2x, 4x
   std::string status_;
   bool recording_ = false;
   splat::CameraPath recorded_;

@@ -373,6 +373,13 @@ void Viewer::rendering_panel() {
   ImGui::SameLine();
   if (ImGui::Button("screenshot (F12)")) pending_screenshot_ = next_name("png");
   ImGui::SameLine();
+  ImGui::SetNextItemWidth(60.0f);
+  ImGui::Combo("size", &screenshot_scale_index_,
+               "1x\0"
+               "2x\0"
+               "4x\0");
+  screenshot_scale_ = 1 << screenshot_scale_index_;
+  ImGui::SameLine();
   if (ImGui::Button(recording_ ? "stop recording (R)" : "record path (R)")) toggle_recording();
   ImGui::SameLine();
   if (!path_.empty() && ImGui::Button("play (Space)")) start_playback();

@@ -13,7 +13,13 @@ namespace treecut::cli {
 // What the window shows (scene and HUD), read from the back buffer after the
 // HUD is drawn and before the swap.
 void Viewer::save_screenshot(const std::string& file, glm::ivec2 size) {
-  splat::Image img{size.x, size.y, splat::read_back_rgba(0, GL_BACK, size)};
+  // At another size than the window: the scene alone, drawn again there.
+  const glm::ivec2 wanted_size =
+      screenshot_size_.x > 0 ? screenshot_size_ : size * std::max(screenshot_scale_, 1);
+  splat::Image img = !screenshot_hud_ && wanted_size != size
+                         ? draw_at(wanted_size)
+                         : splat::Image{size.x, size.y, splat::read_back_rgba(0, GL_BACK, size)};
+  size = glm::ivec2(img.width, img.height);
   for (std::size_t i = 3; i < img.rgba.size(); i += 4) img.rgba[i] = 255;
   std::filesystem::path p;
   try {
@@ -49,6 +55,21 @@ void Viewer::save_screenshot(const std::string& file, glm::ivec2 size) {
   } else {
     std::printf("screenshot %s\n", quoted_name(p).c_str());
   }
+}
+
+splat::Image Viewer::draw_at(glm::ivec2 size) {
+  const glm::ivec2 window = renderer_->size();
+  renderer_->resize(size);
+  // No queries in this extra draw: the frame loop sets its hook again.
+  renderer_->set_query_hook(nullptr);
+  if (frame_loop_->drawing_scene()) {
+    renderer_->draw_scene(frame_loop_->scene_cut(), camera_, settings_, true);
+  } else {
+    renderer_->draw(frame_loop_->cut(), camera_, settings_, true);
+  }
+  splat::Image img{size.x, size.y, renderer_->read_pixels()};
+  renderer_->resize(window);
+  return img;
 }
 
 }  // namespace treecut::cli

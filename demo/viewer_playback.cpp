@@ -92,6 +92,7 @@ void Viewer::step_script() {
     } else if (c.verb == "screenshot") {
       pending_screenshot_ = (std::filesystem::path(args_.screenshot_dir) / c.arg).string();
       screenshot_hud_ = c.number != 0.0;
+      screenshot_size_ = glm::ivec2(c.width, c.height);
     } else if (c.verb == "pick") {
       pending_pick_ = glm::ivec2(static_cast<int>(c.number), static_cast<int>(c.second));
     } else if (c.verb == "hud") {

@@ -373,7 +373,9 @@ TEST(ViewScript, HudCommandsAndScreenshotsWithTheHud) {
   EXPECT_EQ(error("hud maybe\n"), "h.script:2: hud: 'maybe' is not on or off");
   EXPECT_EQ(error("hud\n"), "h.script:2: hud needs an argument");
   EXPECT_EQ(error("screenshot a.png window\n"),
-            "h.script:2: screenshot takes an argument, not 'window'");
+            "h.script:2: screenshot: 'window' is neither hud nor a size WxH (16 to 16384 each)");
+  EXPECT_EQ(error("screenshot a.png 10x10\n"),
+            "h.script:2: screenshot: '10x10' is neither hud nor a size WxH (16 to 16384 each)");
   EXPECT_EQ(error("pick 10\n"), "h.script:2: pick needs a pixel x y");
   EXPECT_EQ(error("pick 10 -3\n").rfind("h.script:2: pick: '-3'", 0), 0u);
   EXPECT_EQ(error("screenshot a.png hud hud\n"),
@@ -435,17 +437,19 @@ TEST(ViewScript, TheWindowTestsScriptParses) {
   const fs::path script = fs::path(TREECUT_SOURCE_DIR) / "tests/viewer_window_test/run.script";
   const StrategyRegistry registry = strategies::builtin_registry();
   const auto commands = cli::load_view_script(script, {&registry, "optimization", {}});
-  ASSERT_EQ(commands.size(), 18u);
+  ASSERT_EQ(commands.size(), 19u);
   EXPECT_EQ(commands[4].number, 1.0) << "screenshot start-hud.png hud";
   EXPECT_EQ(commands[5].verb, "hud");
-  EXPECT_EQ(commands[9].verb, "pick");
-  EXPECT_EQ(commands[9].number, 320.0);
-  EXPECT_EQ(commands[9].second, 200.0);
-  EXPECT_EQ(commands[14].verb, "color");
-  EXPECT_EQ(commands[14].arg, "elevation");
-  EXPECT_EQ(commands[11].verb, "play");
-  EXPECT_EQ(fs::path(commands[11].arg).filename(), "orbit.campath");
-  EXPECT_TRUE(fs::exists(commands[11].arg)) << "resolved against the script's folder";
+  EXPECT_EQ(commands[8].width, 1280);
+  EXPECT_EQ(commands[8].height, 800);
+  EXPECT_EQ(commands[10].verb, "pick");
+  EXPECT_EQ(commands[10].number, 320.0);
+  EXPECT_EQ(commands[10].second, 200.0);
+  EXPECT_EQ(commands[15].verb, "color");
+  EXPECT_EQ(commands[15].arg, "elevation");
+  EXPECT_EQ(commands[12].verb, "play");
+  EXPECT_EQ(fs::path(commands[12].arg).filename(), "orbit.campath");
+  EXPECT_TRUE(fs::exists(commands[12].arg)) << "resolved against the script's folder";
 }
 
 // -- plugins -------------------------------------------------------------------
