@@ -172,6 +172,15 @@ ScriptCommand parse_command(const std::vector<std::string_view>& words, int line
     }
   } else if (c.verb == "param") {
     check_param_command(c, words, where, at, checks, strategy);
+  } else if (c.verb == "bookmark") {
+    // bookmark N (go back to view N) | bookmark save N (keep the view as N)
+    const bool save = words.size() == 3 && words[1] == "save";
+    const std::vector<std::string_view> slot(words.begin() + (save ? 1 : 0), words.end());
+    require_arguments(slot, 1, "a slot 1 to 9 (or save and a slot)", where, c.verb);
+    c.arg = save ? "save" : "";
+    c.number = parse_count(slot[1], at);
+    if (c.number < 1 || c.number > 9)
+      throw InputError(at + shown(slot[1]) + " is not a slot from 1 to 9");
   } else if (c.verb == "pick") {
     // pick X Y: a framebuffer pixel, x right and y down from the top left.
     require_arguments(words, 2, "a pixel x y", where, c.verb);

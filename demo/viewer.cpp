@@ -46,6 +46,8 @@ Viewer::Viewer(const ViewArgs& args)
   if (!args.path.empty()) path_ = splat::load_camera_path(args.path);
   scene_ = load_scene(args.scene);
   apply_model_settings(settings_, args.scene, scene_);
+  current_file_ = args.scene.model;
+  load_bookmarks();
   models_.push_back(args.scene.model);
   models_.insert(models_.end(), args.more_models.begin(), args.more_models.end());
   glfwSetWindowTitle(window_.handle(), ("treecut - " + scene_.label).c_str());
@@ -211,6 +213,7 @@ void Viewer::switch_strategy(const std::string& name) {
 }
 
 void Viewer::open_model(const std::string& file) {
+  opening_file_ = file;
   SceneArgs args = args_.scene;
   args.model = file;
   // A newer request replaces a load still running (it is asked to stop) and
@@ -273,6 +276,9 @@ void Viewer::poll_loader() {
 void Viewer::adopt_scene() {
   scene_ = std::move(*incoming_);
   incoming_.reset();
+  current_file_ = opening_file_;
+  load_bookmarks();
+  picks_.clear();
   glfwSetWindowTitle(window_.handle(), ("treecut - " + scene_.label).c_str());
   fit();
   // The governor caps a budget at the hierarchy's node count and its cost

@@ -16,6 +16,7 @@
 // the window opens it, Esc quits.
 #pragma once
 
+#include <array>
 #include <chrono>
 #include <cstdint>
 #include <deque>
@@ -101,6 +102,13 @@ class Viewer {
   void advance_playback(double dt);
   void step_script();
 
+  // viewer_bookmarks.cpp: camera bookmarks, kept beside the model.
+  [[nodiscard]] std::filesystem::path bookmarks_file() const;
+  void load_bookmarks();
+  void save_bookmark(int slot);
+  void go_to_bookmark(int slot);
+  void bookmarks_panel();
+
   // viewer_measure.cpp: picking and measuring.
   void pick_at(glm::ivec2 pixel);
   void measure_panel();
@@ -168,7 +176,10 @@ class Viewer {
     glm::dvec3 file{0.0};
     std::string text;
   };
-  std::vector<Pick> picks_;                 ///< the last two
+  std::vector<Pick> picks_;                                ///< the last two
+  std::array<std::optional<splat::Camera>, 9> bookmarks_;  ///< slots 1..9
+  std::string current_file_;                ///< the file of the model shown ("" = generated)
+  std::string opening_file_;                ///< the file of the load in progress
   std::optional<glm::ivec2> pending_pick_;  ///< a pixel to pick after the frame
   bool left_down_ = false;                  ///< the left button, last frame
   bool quit_ = false;

@@ -94,6 +94,10 @@ void Viewer::hud(const splat::FrameStats& stats) {
       rendering_panel();
       ImGui::TreePop();
     }
+    if (ImGui::TreeNode("bookmarks")) {
+      bookmarks_panel();
+      ImGui::TreePop();
+    }
     if (ImGui::TreeNode("measure")) {
       measure_panel();
       ImGui::TreePop();

@@ -109,6 +109,16 @@ void Viewer::handle_input(double dt) {
     return down && !was;
   };
   if (pressed_once(GLFW_KEY_ESCAPE)) quit_ = true;
+  const bool shift = glfwGetKey(w, GLFW_KEY_LEFT_SHIFT) == GLFW_PRESS ||
+                     glfwGetKey(w, GLFW_KEY_RIGHT_SHIFT) == GLFW_PRESS;
+  for (int slot = 1; slot <= 9; ++slot) {
+    if (!pressed_once(GLFW_KEY_0 + slot)) continue;
+    if (shift) {
+      save_bookmark(slot);
+    } else {
+      go_to_bookmark(slot);
+    }
+  }
   if (pressed_once(GLFW_KEY_TAB)) fly_ = !fly_;
   if (pressed_once(GLFW_KEY_F)) fit();
   if (pressed_once(GLFW_KEY_U)) {

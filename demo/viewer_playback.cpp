@@ -93,6 +93,13 @@ void Viewer::step_script() {
       pending_screenshot_ = (std::filesystem::path(args_.screenshot_dir) / c.arg).string();
       screenshot_hud_ = c.number != 0.0;
       screenshot_size_ = glm::ivec2(c.width, c.height);
+    } else if (c.verb == "bookmark") {
+      // bookmark save N | bookmark N
+      if (c.arg == "save") {
+        save_bookmark(static_cast<int>(c.number));
+      } else {
+        go_to_bookmark(static_cast<int>(c.number));
+      }
     } else if (c.verb == "pick") {
       pending_pick_ = glm::ivec2(static_cast<int>(c.number), static_cast<int>(c.second));
     } else if (c.verb == "hud") {

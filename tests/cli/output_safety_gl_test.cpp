@@ -21,6 +21,7 @@
 
 #include "test_support.hpp"
 #include "treecut/ply.hpp"
+#include "treecut/splat/camera_path.hpp"
 #include "treecut/tools/generate.hpp"
 
 namespace fs = std::filesystem;
@@ -506,6 +507,43 @@ TEST(OutputSafety, ViewerScreenshotsNeverReplaceAnyFile) {
         << r->out;
   }
   EXPECT_EQ(files_under(dir / "shots").size(), 8u);
+}
+
+// Issue 30: camera bookmarks are kept beside the model in MODEL.views (a
+// camera path, the slots its key times); a MODEL.views of the user's is
+// never replaced (the script's run ends, exit 1, naming it).
+TEST(OutputSafety, ViewerBookmarksLiveBesideTheModelAndReplaceNoUserFile) {
+  const fs::path dir = scratch_dir("safety_bookmarks");
+  ASSERT_EQ(treecut::test::run_treecut("gen sphere -n 2000 -o " + quote(dir / "m.ply")).code, 0);
+  write_text(dir / "run.script",
+             "treecut-view-script 1\nframes 2\nbookmark save 2\norbit 90\nbookmark save 5\n"
+             "bookmark 2\nframes 1\nexit\n");
+  const auto view = [&] {
+    return treecut::test::run_treecut_in_xvfb("view m.ply --width 160 --height 120 --script " +
+                                                  quote(dir / "run.script") + " --screenshot-dir " +
+                                                  quote(dir),
+                                              dir, "640x480x24");
+  };
+  auto r = view();
+  if (!r) GTEST_SKIP() << "xvfb-run is not installed";
+  ASSERT_EQ(r->code, 0) << r->out;
+  const std::string views = read_all(dir / "m.ply.views");
+  EXPECT_EQ(views.rfind("treecut-camera-path 1", 0), 0u) << views;
+  const treecut::splat::CameraPath path = treecut::splat::load_camera_path(dir / "m.ply.views");
+  ASSERT_EQ(path.keys.size(), 2u);
+  EXPECT_EQ(path.keys[0].time, 2.0);
+  EXPECT_EQ(path.keys[1].time, 5.0);
+  EXPECT_GT(glm::distance(path.keys[0].camera.eye, path.keys[1].camera.eye), 0.01f)
+      << "the orbit moved the camera between the two";
+  // The user's own m.ply.views stays.
+  write_text(dir / "m.ply.views", "my notes about m.ply\n");
+  r = view();
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->code, 1) << r->out;
+  EXPECT_NE(r->out.find("m.ply.views: exists and is not treecut's list of views; not replaced"),
+            std::string::npos)
+      << r->out;
+  EXPECT_EQ(read_all(dir / "m.ply.views"), "my notes about m.ply\n");
 }
 
 TEST(OutputSafety, AViewerScreenshotOnAFullDiskEndsTheScriptNamingTheFile) {

@@ -377,6 +377,15 @@ TEST(ViewScript, HudCommandsAndScreenshotsWithTheHud) {
   EXPECT_EQ(error("screenshot a.png 10x10\n"),
             "h.script:2: screenshot: '10x10' is neither hud nor a size WxH (16 to 16384 each)");
   EXPECT_EQ(error("pick 10\n"), "h.script:2: pick needs a pixel x y");
+  EXPECT_EQ(error("bookmark 0\n"), "h.script:2: bookmark: '0' is not a slot from 1 to 9");
+  EXPECT_EQ(error("bookmark keep 3\n"),
+            "h.script:2: bookmark takes a slot 1 to 9 (or save and a slot), not '3'");
+  const auto marks =
+      cli::parse_view_script("treecut-view-script 1\nbookmark save 3\nbookmark 3\n", "ok");
+  ASSERT_EQ(marks.size(), 2u);
+  EXPECT_EQ(marks[0].arg, "save");
+  EXPECT_EQ(marks[0].number, 3.0);
+  EXPECT_EQ(marks[1].arg, "");
   EXPECT_EQ(error("pick 10 -3\n").rfind("h.script:2: pick: '-3'", 0), 0u);
   EXPECT_EQ(error("screenshot a.png hud hud\n"),
             "h.script:2: screenshot takes an argument, not 'hud'");

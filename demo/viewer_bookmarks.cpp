@@ -1,0 +1,95 @@
+// treecut view: camera bookmarks (issue 30). Shift+1..9 keeps the view in a
+// slot, 1..9 goes back to it; a model read from a file keeps its slots
+// beside it, in `MODEL.views` (a camera path whose key times are the slot
+// numbers, docs/camera-paths.md), read when the model opens. That file is
+// written only when it is missing or already one of treecut's camera paths:
+// never over a file of the user's.
+#include <imgui.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <string>
+
+#include "messages.hpp"
+#include "treecut/error.hpp"
+#include "treecut/file_io.hpp"
+#include "viewer_app.hpp"
+
+namespace treecut::cli {
+
+std::filesystem::path Viewer::bookmarks_file() const {
+  if (current_file_.empty()) return {};  // a generated model: slots for this session only
+  return std::filesystem::path(current_file_ + ".views");
+}
+
+void Viewer::load_bookmarks() {
+  bookmarks_.fill(std::nullopt);
+  const std::filesystem::path file = bookmarks_file();
+  std::error_code ec;
+  if (file.empty() || !std::filesystem::is_regular_file(file, ec)) return;
+  try {
+    for (const splat::CameraKey& k : splat::load_camera_path(file).keys) {
+      const auto slot = static_cast<int>(k.time);
+      if (slot >= 1 && slot <= 9 && double(slot) == k.time) bookmarks_[slot - 1] = k.camera;
+    }
+  } catch (const std::exception& e) {
+    // Not a list of views: named, and the viewer goes on without them.
+    print_error(std::string(e.what()) + " (bookmarks not read)", true);
+  }
+}
+
+void Viewer::save_bookmark(int slot) {
+  bookmarks_[static_cast<std::size_t>(slot - 1)] = camera_;
+  const std::filesystem::path file = bookmarks_file();
+  if (file.empty()) {
+    status_ = "view " + std::to_string(slot) + " kept (a generated model: not saved)";
+    return;
+  }
+  try {
+    std::error_code ec;
+    if (std::filesystem::exists(file, ec) && !file_starts_with(file, "treecut-camera-path")) {
+      throw std::runtime_error(quoted_name(file) +
+                               ": exists and is not treecut's list of views; not replaced");
+    }
+    splat::CameraPath path;
+    for (int s = 1; s <= 9; ++s) {
+      if (const auto& c = bookmarks_[static_cast<std::size_t>(s - 1)]) {
+        path.keys.push_back({double(s), *c});
+      }
+    }
+    splat::save_camera_path(file, path);
+    status_ = "view " + std::to_string(slot) + " saved in " + file.filename().string();
+    std::printf("bookmark  %d saved in %s\n", slot, quoted_name(file).c_str());
+  } catch (const std::exception& e) {
+    status_ = std::string("bookmark not saved: ") + e.what();
+    if (!script_.empty()) throw;
+    print_error(e.what());
+  }
+}
+
+void Viewer::go_to_bookmark(int slot) {
+  const auto& c = bookmarks_[static_cast<std::size_t>(slot - 1)];
+  if (!c) {
+    status_ = "no view " + std::to_string(slot) + " (Shift+" + std::to_string(slot) + " keeps one)";
+    return;
+  }
+  const float near_plane = camera_.near_plane, far_plane = camera_.far_plane;
+  camera_ = *c;
+  camera_.near_plane = near_plane, camera_.far_plane = far_plane;  // fitted each frame
+  status_ = "view " + std::to_string(slot);
+}
+
+// The HUD's bookmarks: a button per slot kept, to go back there.
+void Viewer::bookmarks_panel() {
+  ImGui::TextDisabled("Shift+1..9 keeps the view, 1..9 goes back");
+  bool any = false;
+  for (int s = 1; s <= 9; ++s) {
+    if (!bookmarks_[static_cast<std::size_t>(s - 1)]) continue;
+    if (any) ImGui::SameLine();
+    any = true;
+    if (ImGui::Button(std::to_string(s).c_str())) go_to_bookmark(s);
+  }
+  if (!any) ImGui::TextUnformatted("none yet");
+}
+
+}  // namespace treecut::cli
