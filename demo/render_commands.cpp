@@ -518,6 +518,9 @@ void add_render_commands(CLI::App& app) {
 
   auto va = std::make_shared<ViewArgs>();
   auto* view = app.add_subcommand("view", "Open a window on a model (GLFW, OpenGL 4.5 core)");
+  // The window's default look is hq (issue 30: fast mode's discs, lit once
+  // each, look scaly up close); render keeps fast, what its tables measure.
+  va->scene.mode = "hq";
   add_scene_options(*view, va->scene);
   view->add_option("MORE", va->more_models, "Further models; O in the window opens the next")
       ->check(non_empty_path());
