@@ -172,6 +172,16 @@ ScriptCommand parse_command(const std::vector<std::string_view>& words, int line
     }
   } else if (c.verb == "param") {
     check_param_command(c, words, where, at, checks, strategy);
+  } else if (c.verb == "edl") {
+    require_arguments(words, 1, "on or off", where, c.verb);
+    c.arg = std::string(words[1]);
+    if (c.arg != "on" && c.arg != "off")
+      throw InputError(at + shown(words[1]) + " is not on or off");
+  } else if (c.verb == "clip") {
+    // clip X0 Y0 Z0 X1 Y1 Z1 (the file's coordinates) | clip off
+    if (words.size() == 2 && words[1] == "off") return c;
+    require_arguments(words, 6, "six numbers X0 Y0 Z0 X1 Y1 Z1 (or off)", where, c.verb);
+    for (std::size_t i = 1; i <= 6; ++i) c.box.push_back(parse_real(words[i], at));
   } else if (c.verb == "bookmark") {
     // bookmark N (go back to view N) | bookmark save N (keep the view as N)
     const bool save = words.size() == 3 && words[1] == "save";

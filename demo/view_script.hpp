@@ -24,6 +24,8 @@ struct ScriptCommand {
   double second = 0.0;  ///< pick's y
   /// screenshot NAME WxH: drawn at that size, not the window's (0: the window).
   int width = 0, height = 0;
+  /// clip X0 Y0 Z0 X1 Y1 Z1: the box (file coordinates); empty for `clip off`.
+  std::vector<double> box;
   int line = 0;
 };
 

@@ -1,5 +1,6 @@
 // treecut view: view scripts (--script, docs/camera-paths.md), camera path
 // recording (R) and replay (Space, --path).
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 
@@ -93,6 +94,14 @@ void Viewer::step_script() {
       pending_screenshot_ = (std::filesystem::path(args_.screenshot_dir) / c.arg).string();
       screenshot_hud_ = c.number != 0.0;
       screenshot_size_ = glm::ivec2(c.width, c.height);
+    } else if (c.verb == "edl") {
+      settings_.eye_dome = c.arg == "on" ? std::max(args_.scene.edl_strength, 0.01f) : 0.0f;
+    } else if (c.verb == "clip") {
+      SceneArgs box = args_.scene;
+      box.clip = c.box;
+      const float eye_dome = settings_.eye_dome;
+      apply_model_settings(settings_, box, scene_);  // the file's coordinates, as --clip
+      settings_.eye_dome = eye_dome;
     } else if (c.verb == "bookmark") {
       // bookmark save N | bookmark N
       if (c.arg == "save") {

@@ -7,11 +7,13 @@
 #include <gtest/gtest.h>
 #include <stb/stb_image.h>
 
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "test_support.hpp"
@@ -155,6 +157,74 @@ TEST_F(ViewerOpen, AMalformedModelFailsTheScriptWhenItLoadsWithOneLine) {
   EXPECT_EQ(lines_of(r.out, "treecut:"), 1u) << r.out;
   EXPECT_EQ(lines_of(r.out, (dir_ / "bad.ply").string()), 1u) << r.out;
   EXPECT_FALSE(fs::exists(dir_ / "never.png")) << "the script went on after the failed open";
+}
+
+// Issue 30, tested as a person would: a square 0.5 in front of a larger one,
+// face on in the window. Eye-dome lighting darkens the back square along the
+// front one's edge and leaves the middle; a clip box at x = 0 removes the
+// left half's pixels; two picks 80 pixels apart on the front square measure
+// the 80 pixels' worth of distance (0.345 units at its depth).
+TEST_F(ViewerOpen, EyeDomeClipAndMeasureInTheWindow) {
+  std::string ply;
+  std::size_t n = 0;
+  std::string body;
+  for (const auto& [half, z] : {std::pair{0.8, -0.5}, std::pair{0.3, 0.0}}) {
+    const int steps = int(std::lround(2 * half / 0.01));
+    for (int i = 0; i <= steps; ++i) {
+      for (int j = 0; j <= steps; ++j) {
+        body += std::to_string(-half + 0.01 * i) + " " + std::to_string(-half + 0.01 * j) + " " +
+                std::to_string(z) + " 0 0 1 200 200 200\n";
+        ++n;
+      }
+    }
+  }
+  write_file(dir_ / "squares.ply",
+             "ply\nformat ascii 1.0\nelement vertex " + std::to_string(n) +
+                 "\nproperty float x\nproperty float y\nproperty float z\nproperty float nx\n"
+                 "property float ny\nproperty float nz\nproperty uchar red\nproperty uchar "
+                 "green\nproperty uchar blue\nend_header\n" +
+                 body);
+  write_file(dir_ / "face.campath",
+             "treecut-camera-path 1\n0 0 0 2.5 0 0 0 0 1 0 45\n1 0 0 2.5 0 0 0 0 1 0 45\n");
+  write_file(dir_ / "tools.script",
+             "treecut-view-script 1\nplay face.campath\nconverge 300\nframes 3\n"
+             "screenshot plain.png\nedl on\nframes 2\nscreenshot edl.png\nedl off\n"
+             "clip 0 -1 -1 1 1 1\nframes 2\nscreenshot clip.png\nclip off\n"
+             "pick 440 240\npick 520 240\nexit\n");
+  const auto r = view(dir_, quote(dir_ / "squares.ply") +
+                                " --mode fast --target-fps 0 --edl off --points 100000 --script " +
+                                quote(dir_ / "tools.script"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  const Rgb plain = load(dir_ / "plain.png"), edl = load(dir_ / "edl.png"),
+            clip = load(dir_ / "clip.png");
+  ASSERT_EQ(plain.w, kWidth);
+  const auto red = [](const Rgb& im, int x, int y) {
+    return int(im.px[(std::size_t(y) * std::size_t(im.w) + std::size_t(x)) * 3]);
+  };
+  const int cx = kWidth / 2, cy = kHeight / 2;
+  // The front square's edge: 0.3 / (2.5 tan 22.5 deg) of the half height.
+  const int edge = int(0.3 / (2.5 * std::tan(0.3927)) * kHeight / 2.0);
+  EXPECT_NEAR(red(edl, cx, cy), red(plain, cx, cy), 3) << "the middle keeps its colour";
+  int darker = 0;
+  for (int x = cx + edge - 4; x <= cx + edge + 4; ++x) {
+    darker += red(edl, x, cy) + 40 < red(plain, x, cy) ? 1 : 0;
+  }
+  EXPECT_GE(darker, 1) << "EDL darkens the back square along the front one's edge";
+  // Clipped to x >= 0: nothing left of the middle but the background.
+  const int background = red(plain, 4, 4);
+  int drawn_left = 0, drawn_right = 0;
+  for (int y = 0; y < kHeight; ++y) {
+    for (int x = 0; x < cx - 8; ++x) drawn_left += std::abs(red(clip, x, y) - background) > 3;
+    for (int x = cx + 8; x < kWidth; ++x) drawn_right += std::abs(red(clip, x, y) - background) > 3;
+  }
+  EXPECT_EQ(drawn_left, 0);
+  EXPECT_GT(drawn_right, 10000);
+  // The measure line: 80 pixels at depth 2.5 (2 * 2.5 * tan(22.5 deg) / 480 a pixel).
+  const auto at = r.out.find("measure   distance ");
+  ASSERT_NE(at, std::string::npos) << r.out;
+  const double distance = std::strtod(r.out.c_str() + at + 19, nullptr);
+  const double want = 80.0 * 2.0 * 2.5 * std::tan(0.3927) / kHeight;
+  EXPECT_NEAR(distance, want, 0.03 * want) << r.out;
 }
 
 }  // namespace
