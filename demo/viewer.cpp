@@ -27,14 +27,6 @@ void on_drop(GLFWwindow* w, int count, const char** paths) {
   for (int i = 0; i < count; ++i) input->dropped.emplace_back(paths[i]);
 }
 
-// The cut a model opens with (issue 30): a breadth-first cut of up to
-// 20,000 nodes, uniform and at once, instead of the root's handful of
-// discs the size of the model that the first frames showed until the
-// strategy refined them.
-TreeCut first_cut(const Hierarchy& h) {
-  return breadth_first_cut(h, 20000);
-}
-
 }  // namespace
 
 Viewer::Viewer(const ViewArgs& args)
@@ -80,7 +72,7 @@ Viewer::Viewer(const ViewArgs& args)
                                                initial, stage_options);
   } else {
     controller_ =
-        std::make_unique<Controller>(Model{scene_.hierarchy, first_cut(*scene_.hierarchy)},
+        std::make_unique<Controller>(Model{scene_.hierarchy, opening_cut(*scene_.hierarchy)},
                                      std::move(strategy), initial, stage_options);
   }
   queries_ = std::make_unique<splat::QueryExecutor>();
@@ -269,7 +261,7 @@ void Viewer::poll_loader() {
   const std::shared_ptr<const Hierarchy> h = done->scene->hierarchy;
   // The stage switches at its next request; the window draws the old model
   // until the exchange (RenderThreadFrame uploads the new vertices then).
-  controller_->stage().set_model(Model{h, first_cut(*h)});
+  controller_->stage().set_model(Model{h, opening_cut(*h)});
   incoming_ = std::move(done->scene);
 }
 
@@ -321,7 +313,7 @@ void Viewer::replace_stage(Scene loaded) {
                                                initial, stage_options);
   } else {
     controller_ = std::make_unique<Controller>(
-        Model{scene_.hierarchy, first_cut(*scene_.hierarchy)},
+        Model{scene_.hierarchy, opening_cut(*scene_.hierarchy)},
         make_strategy(registry_, strategy_, {}), initial, stage_options);
   }
   controller_->stage().set_blend_frames(blend);

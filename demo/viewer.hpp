@@ -18,6 +18,7 @@
 #include "treecut/splat/camera.hpp"
 #include "treecut/splat/coloring.hpp"
 #include "treecut/splat/renderer.hpp"
+#include "treecut/tree_cut.hpp"
 #include "treecut/up_axis.hpp"
 
 // CLI11 is declared, not included: it costs every viewer file about 6 s of
@@ -81,6 +82,13 @@ Scene load_scene(const SceneArgs& args);
 /// "read", "attributes", "hierarchy", "cache"; on the calling thread).
 using LoadProgressFn = std::function<void(std::string_view stage, std::size_t, std::size_t)>;
 Scene load_scene(const SceneArgs& args, const LoadProgressFn& progress);
+
+/// The cut a model opens with in `view` (issue 30; `render` starts at the
+/// root, as its tables and a scene's objects do): a
+/// breadth-first cut of 20,000 nodes (or all leaves), uniform and at once,
+/// not the root's handful of discs the size of the model that the first
+/// frames showed until the strategy had refined them.
+TreeCut opening_cut(const Hierarchy& h);
 
 /// The built-in strategies plus the plugins named in `args`.
 StrategyRegistry make_registry(const SceneArgs& args);

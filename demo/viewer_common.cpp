@@ -14,6 +14,7 @@
 #include "messages.hpp"
 #include "option_checks.hpp"
 #include "treecut/error.hpp"
+#include "treecut/model.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/scene.hpp"
 #include "treecut/strategies/builtin.hpp"
@@ -360,6 +361,10 @@ void check_params(const StrategyRegistry& registry, const std::vector<std::strin
       throw InputError("--param " + p + ": no selected strategy has a parameter '" + key + "'");
   }
   for (const std::string& name : strategies) (void)make_strategy(registry, name, params);
+}
+
+TreeCut opening_cut(const Hierarchy& h) {
+  return breadth_first_cut(h, 20000);
 }
 
 splat::RenderSettings render_settings(const SceneArgs& args) {

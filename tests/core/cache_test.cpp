@@ -463,7 +463,9 @@ TEST(CacheFolder, TheLeastRecentlyUsedCachesGoPastTheLimit) {
   const auto now = fs::file_time_type::clock::now();
   fs::last_write_time(a, now - std::chrono::hours(2));
   fs::last_write_time(b, now - std::chrono::hours(1));
-  ASSERT_TRUE(open_model(dir / "a.ply", o).from_cache);  // a is now the most recent
+  ASSERT_TRUE(open_model(dir / "a.ply", o).from_cache);
+  EXPECT_GT(fs::last_write_time(a), now - std::chrono::minutes(1)) << "opening marked it used";
+  fs::last_write_time(a, now - std::chrono::minutes(10));  // after b, before c
   std::ofstream(folder / "notes.tch") << "the user's own file\n";
   const std::uint64_t one = fs::file_size(a);
   ASSERT_EQ(setenv("TREECUT_CACHE_LIMIT", std::to_string(2 * one + one / 2).c_str(), 1), 0);

@@ -1,6 +1,9 @@
 // The cache folder as a user sees it (cache_folder.hpp).
 #include "treecut/cache_folder.hpp"
 
+#include <fcntl.h>
+#include <sys/stat.h>
+
 #include <algorithm>
 #include <cctype>
 #include <cmath>
@@ -56,8 +59,11 @@ std::vector<CacheFileInfo> list_caches(const std::filesystem::path& folder) {
 }
 
 void mark_cache_used(const std::filesystem::path& cache) noexcept {
-  std::error_code ec;
-  std::filesystem::last_write_time(cache, std::filesystem::file_time_type::clock::now(), ec);
+  // The kernel's clock, as a write's: a cache written after this one is
+  // never older than it (the library clock runs ahead of the file system's
+  // coarse one).
+  const timespec times[2] = {{0, UTIME_OMIT}, {0, UTIME_NOW}};
+  (void)::utimensat(AT_FDCWD, cache.c_str(), times, 0);
 }
 
 std::vector<CacheFileInfo> caches_over_limit(std::span<const CacheFileInfo> caches,
