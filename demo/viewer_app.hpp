@@ -120,7 +120,7 @@ class Viewer {
 
   // viewer_hud.cpp.
   void hud(const splat::FrameStats& stats);
-  void details_panel(const splat::FrameStats& stats);
+  void details_panel();  ///< reads last_stats_
   void strategy_panel();
   void load_progress();
   void rendering_panel();
@@ -167,8 +167,9 @@ class Viewer {
   bool keys_down_[GLFW_KEY_LAST + 1] = {};
   bool fly_ = false;
   bool show_hud_ = true;
-  glm::ivec2 hud_size_{0};  ///< the HUD window's size in the last frame it showed
-  bool hud_open_ = false;   ///< its sections' header is open (it may widen)
+  glm::ivec2 hud_size_{0};        ///< the HUD window's size in the last frame it showed
+  bool hud_open_ = false;         ///< its sections' header is open (it may widen)
+  splat::FrameStats last_stats_;  ///< the frame the HUD shows (details_panel)
   /// A pick: where (the world's and the file's coordinates) and, for a
   /// single model, the nearest point with its attributes.
   struct Pick {

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "ticks.hpp"
@@ -74,36 +75,17 @@ void Viewer::hud(const splat::FrameStats& stats) {
   // One closed header over the sections, each closed too.
   hud_open_ = ImGui::CollapsingHeader("more");
   if (hud_open_) {
-    if (ImGui::TreeNode("details")) {
-      details_panel(stats);
-      ImGui::TreePop();
-    }
-    if (ImGui::TreeNode("model")) {
-      models_panel();
-      ImGui::TreePop();
-    }
-    if (ImGui::TreeNode("strategy")) {
-      strategy_panel();
-      ImGui::TreePop();
-    }
-    if (ImGui::TreeNode("colour")) {
-      color_panel();
-      ImGui::TreePop();
-    }
-    if (ImGui::TreeNode("rendering")) {
-      rendering_panel();
-      ImGui::TreePop();
-    }
-    if (ImGui::TreeNode("bookmarks")) {
-      bookmarks_panel();
-      ImGui::TreePop();
-    }
-    if (ImGui::TreeNode("measure")) {
-      measure_panel();
-      ImGui::TreePop();
-    }
-    if (ImGui::TreeNode("clip box")) {
-      clip_panel();
+    // Each section a closed tree node; details_panel also takes the frame's stats.
+    last_stats_ = stats;
+    using Panel = void (Viewer::*)();
+    static constexpr std::pair<const char*, Panel> kSections[] = {
+        {"details", &Viewer::details_panel},     {"model", &Viewer::models_panel},
+        {"strategy", &Viewer::strategy_panel},   {"colour", &Viewer::color_panel},
+        {"rendering", &Viewer::rendering_panel}, {"bookmarks", &Viewer::bookmarks_panel},
+        {"measure", &Viewer::measure_panel},     {"clip box", &Viewer::clip_panel}};
+    for (const auto& [name, panel] : kSections) {
+      if (!ImGui::TreeNode(name)) continue;
+      (this->*panel)();
       ImGui::TreePop();
     }
   }
@@ -113,7 +95,8 @@ void Viewer::hud(const splat::FrameStats& stats) {
 }
 
 // Frame times with their scale, the stage's and the strategy's counters.
-void Viewer::details_panel(const splat::FrameStats& stats) {
+void Viewer::details_panel() {
+  const splat::FrameStats& stats = last_stats_;
   const StageCounters& c = controller_->stage().counters();
   if (scene_.world) {
     ImGui::Text("scene: %zu objects of %zu models, %zu draw calls", scene_.world->objects.size(),

@@ -36,11 +36,12 @@ void write_file(const fs::path& p, const std::string& text) {
   ASSERT_TRUE(out.good()) << p;
 }
 
-// `treecut view ARGS` in a window under Xvfb, caches in `dir`.
+// `treecut view ARGS` in a window under Xvfb, caches in `dir`; no frame-rate
+// control (the default 30 fps would size the cuts by this machine's load).
 treecut::test::CommandResult view(const fs::path& dir, const std::string& args) {
   auto r = treecut::test::run_treecut_in_xvfb(
       "view --width " + std::to_string(kWidth) + " --height " + std::to_string(kHeight) +
-          " --screenshot-dir " + quote(dir) + " " + args,
+          " --target-fps 0 --screenshot-dir " + quote(dir) + " " + args,
       dir, "1280x800x24", "XDG_CACHE_HOME=" + quote(dir / "cache"));
   return r ? *r : treecut::test::CommandResult{-1, "xvfb-run is not installed"};
 }
@@ -191,9 +192,9 @@ TEST_F(ViewerOpen, EyeDomeClipAndMeasureInTheWindow) {
              "screenshot plain.png\nedl on\nframes 2\nscreenshot edl.png\nedl off\n"
              "clip 0 -1 -1 1 1 1\nframes 2\nscreenshot clip.png\nclip off\n"
              "pick 440 240\npick 520 240\nexit\n");
-  const auto r = view(dir_, quote(dir_ / "squares.ply") +
-                                " --mode fast --target-fps 0 --edl off --points 100000 --script " +
-                                quote(dir_ / "tools.script"));
+  const auto r =
+      view(dir_, quote(dir_ / "squares.ply") + " --mode fast --edl off --points 100000 --script " +
+                     quote(dir_ / "tools.script"));
   ASSERT_EQ(r.code, 0) << r.out;
   const Rgb plain = load(dir_ / "plain.png"), edl = load(dir_ / "edl.png"),
             clip = load(dir_ / "clip.png");

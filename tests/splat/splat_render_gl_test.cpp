@@ -210,6 +210,15 @@ TEST_F(SplatRender, QueryHookRunsOncePerFrameWithDepthWritesOff) {
   EXPECT_EQ(hook.last_size, glm::ivec2(kWidth, kHeight));
 }
 
+// Every leaf of `h` seen by `c` in a renderer of its own, default settings.
+Image draw_leaves(const Hierarchy& h, const Camera& c) {
+  Renderer r(h, glm::ivec2(kWidth, kHeight));
+  CutBuffer cut;
+  cut.upload(h, TreeCut::leaf_cut(h).nodes());
+  r.draw(cut, c, RenderSettings{}, true);
+  return Image{kWidth, kHeight, r.read_pixels()};
+}
+
 // Issue 29: a 2 m sphere over a 1 cm grid at x = 500 km, y = 5,000 km (UTM
 // metres), written as LAS and read back, renders within a pixel of the same
 // scene at the origin: the positions are floats relative to a double origin.
@@ -243,22 +252,15 @@ TEST(SplatMapCoordinates, AModelAtUtmCoordinatesRendersAsAtTheOrigin) {
   const Hierarchy h_floats = build_from_points(std::move(floats));
   EXPECT_EQ(h_utm.frame().origin, glm::dvec3(500000.0, 5000000.0, 0.0));
   Camera cam = default_camera(h_zero.bounds_min(), h_zero.bounds_max(), float(kWidth) / kHeight);
-  auto draw = [&](const Hierarchy& h, const Camera& c) {
-    Renderer r(h, glm::ivec2(kWidth, kHeight));
-    CutBuffer cut;
-    cut.upload(h, TreeCut::leaf_cut(h).nodes());
-    r.draw(cut, c, RenderSettings{}, true);
-    return Image{kWidth, kHeight, r.read_pixels()};
-  };
-  const Image zero = draw(h_zero, cam);
-  const Image utm_image = draw(h_utm, cam);
+  const Image zero = draw_leaves(h_zero, cam);
+  const Image utm_image = draw_leaves(h_utm, cam);
   const std::size_t pixels = std::size_t{kWidth} * kHeight;
   EXPECT_LE(test::unmatched_either_way(utm_image, zero), pixels / 1000);
   // The float way, seen by the same camera moved there.
   Camera moved = cam;
   moved.eye += glm::vec3(500000.0f, 5000000.0f, 0.0f);
   moved.target += glm::vec3(500000.0f, 5000000.0f, 0.0f);
-  const std::size_t broken = test::unmatched_either_way(draw(h_floats, moved), zero);
+  const std::size_t broken = test::unmatched_either_way(draw_leaves(h_floats, moved), zero);
   std::printf("map coordinates: %zu of %zu pixels unmatched with a double origin, %zu as floats\n",
               test::unmatched_either_way(utm_image, zero), pixels, broken);
   EXPECT_GT(broken, pixels / 50) << "the check has teeth: floats of map coordinates are off";
@@ -292,13 +294,6 @@ TEST(SplatMapCoordinates, APatchFarFromTheOriginIsDrawnRelativeToTheEye) {
   const glm::vec3 far(kFar, kFar, 0.0f);
   const Hierarchy h_zero = patch(glm::vec3(0.0f));
   const Hierarchy h_far = patch(far);
-  auto draw = [&](const Hierarchy& h, const Camera& c) {
-    Renderer r(h, glm::ivec2(kWidth, kHeight));
-    CutBuffer cut;
-    cut.upload(h, TreeCut::leaf_cut(h).nodes());
-    r.draw(cut, c, RenderSettings{}, true);
-    return Image{kWidth, kHeight, r.read_pixels()};
-  };
   // The patch of the origin as a scene's object that a translation puts there.
   auto draw_placed = [&](const Camera& c) {
     Renderer r(h_zero, glm::ivec2(kWidth, kHeight));
@@ -321,12 +316,12 @@ TEST(SplatMapCoordinates, APatchFarFromTheOriginIsDrawnRelativeToTheEye) {
     c.up = {0, 0, 1};
     c.near_plane = 0.01f;
     c.far_plane = 10.0f;
-    const Image zero = draw(h_zero, c);
+    const Image zero = draw_leaves(h_zero, c);
     Camera moved = c;
     moved.eye += far;
     moved.target += far;
     ASSERT_EQ(moved.eye - far, c.eye) << "the eye is exact in float at both places";
-    const Image at_far = draw(h_far, moved);
+    const Image at_far = draw_leaves(h_far, moved);
     EXPECT_GT(coverage(zero, background_bytes(RenderSettings{}).data(), 2).pixels, pixels / 2);
     const std::size_t unmatched = test::unmatched_either_way(at_far, zero);
     std::printf("eye step %d: %zu of %zu pixels unmatched 34.8 km from the origin\n", step,
@@ -342,29 +337,47 @@ TEST(SplatMapCoordinates, APatchFarFromTheOriginIsDrawnRelativeToTheEye) {
 // EDL the back square's pixels along the front one's edge and the
 // background along the outline go dark; the middle of each square keeps
 // its colour. The same in hq and fixed mode.
-TEST(SplatEyeDome, DarkensSilhouettesAndLeavesFlatSurfaces) {
+// Issue 30's test scene: a square of half size 0.3 at z = 0 before one of
+// 0.8 at z = -0.5, points `step` apart, face on from z = 2.5, and a renderer
+// with every leaf uploaded. The front square's edge lies 0.3 / (2.5 tan 22.5
+// deg) of the half height from the middle.
+struct TwoSquares {
+  Hierarchy h;
+  Camera camera;
+  std::unique_ptr<Renderer> renderer;
+  CutBuffer cut;
+};
+std::unique_ptr<TwoSquares> two_squares(float step, glm::vec3 normal, glm::u8vec4 back,
+                                        glm::u8vec4 front) {
   context();
   PointSet p;
-  auto square = [&](float half, float z) {
-    for (float x = -half; x <= half; x += 0.01f) {
-      for (float y = -half; y <= half; y += 0.01f) {
+  auto square = [&](float half, float z, glm::u8vec4 color) {
+    for (float x = -half; x <= half + 1e-4f; x += step) {
+      for (float y = -half; y <= half + 1e-4f; y += step) {
         p.positions.push_back({x, y, z});
-        p.normals.push_back({0, 0, 1});
-        p.colors.push_back({220, 220, 220, 255});
+        p.normals.push_back(normal);
+        p.colors.push_back(color);
       }
     }
   };
-  square(0.8f, -0.5f);
-  square(0.25f, 0.0f);
-  const Hierarchy h = build_from_points(std::move(p));
-  Camera c;
-  c.eye = {0.0f, 0.0f, 2.5f};
-  c.target = {0.0f, 0.0f, 0.0f};
-  c.near_plane = 0.1f;
-  c.far_plane = 10.0f;
-  Renderer r(h, glm::ivec2(kWidth, kHeight));
-  CutBuffer cut;
-  cut.upload(h, TreeCut::leaf_cut(h).nodes());
+  square(0.8f, -0.5f, back);
+  square(0.3f, 0.0f, front);
+  auto t = std::make_unique<TwoSquares>();
+  t->h = build_from_points(std::move(p));
+  t->camera.eye = {0.0f, 0.0f, 2.5f};
+  t->camera.target = {0.0f, 0.0f, 0.0f};
+  t->camera.near_plane = 0.1f;
+  t->camera.far_plane = 10.0f;
+  t->renderer = std::make_unique<Renderer>(t->h, glm::ivec2(kWidth, kHeight));
+  t->cut.upload(t->h, TreeCut::leaf_cut(t->h).nodes());
+  return t;
+}
+
+TEST(SplatEyeDome, DarkensSilhouettesAndLeavesFlatSurfaces) {
+  const auto t = two_squares(0.01f, {0, 0, 1}, {220, 220, 220, 255}, {220, 220, 220, 255});
+  Renderer& r = *t->renderer;
+  const Camera& c = t->camera;
+  const CutBuffer& cut = t->cut;
   for (const SplatMode mode : {SplatMode::Fast, SplatMode::HighQuality, SplatMode::FixedSize}) {
     RenderSettings s;
     s.mode = mode;
@@ -382,7 +395,7 @@ TEST(SplatEyeDome, DarkensSilhouettesAndLeavesFlatSurfaces) {
     EXPECT_NEAR(at(edl, cx, cy), at(plain, cx, cy), 2) << int(mode);
     // Along the row through the middle: the front square's edge lies near
     // x = cx +- 0.25 / (2.5 tan(22.5 deg)) * kHeight / 2.
-    const int edge = int(std::lround(0.25 / (2.5 * std::tan(0.3927)) * kHeight / 2.0));
+    const int edge = int(std::lround(0.3 / (2.5 * std::tan(0.3927)) * kHeight / 2.0));
     int darkened = 0;
     for (int x = cx + edge - 3; x <= cx + edge + 3; ++x) {
       darkened += at(edl, x, cy) + 40 < at(plain, x, cy) ? 1 : 0;
@@ -401,26 +414,11 @@ TEST(SplatEyeDome, DarkensSilhouettesAndLeavesFlatSurfaces) {
 // grow to their splat's footprint, so a red square in front of a blue one
 // hides it (1-pixel points 5 pixels apart let the blue through).
 TEST(SplatLooks, UnlitKeepsTheColoursAndFixedPointsOcclude) {
-  context();
-  PointSet p;
-  auto square = [&](float half, float z, glm::u8vec4 color) {
-    for (float x = -half; x <= half; x += 0.02f) {
-      for (float y = -half; y <= half; y += 0.02f) {
-        p.positions.push_back({x, y, z});
-        p.normals.push_back({0.6f, 0.0f, 0.8f});  // lit, it would not be the colour
-        p.colors.push_back(color);
-      }
-    }
-  };
-  square(0.8f, -0.5f, {40, 60, 230, 255});
-  square(0.3f, 0.0f, {230, 50, 40, 255});
-  const Hierarchy h = build_from_points(std::move(p));
-  Camera c;
-  c.eye = {0.0f, 0.0f, 2.5f};
-  c.target = {0.0f, 0.0f, 0.0f};
-  Renderer r(h, glm::ivec2(kWidth, kHeight));
-  CutBuffer cut;
-  cut.upload(h, TreeCut::leaf_cut(h).nodes());
+  // Tilted normals: lit, the squares would not be their colours.
+  const auto t = two_squares(0.02f, {0.6f, 0.0f, 0.8f}, {40, 60, 230, 255}, {230, 50, 40, 255});
+  Renderer& r = *t->renderer;
+  const Camera& c = t->camera;
+  const CutBuffer& cut = t->cut;
   RenderSettings s;
   s.light.unlit = true;
   for (const SplatMode mode : {SplatMode::Fast, SplatMode::HighQuality, SplatMode::FixedSize}) {
@@ -491,25 +489,10 @@ TEST_F(SplatRender, AClipBoxRemovesThePixelsOfWhatItClips) {
 // apart are as far apart as 60 pixels are at that depth, in every
 // mode (hq's depth is the visibility pass's, pushed back: within its offset).
 TEST(SplatPick, PicksWhatThePixelShowsAndMeasuresDistances) {
-  context();
-  PointSet p;
-  for (const auto& [half, z] : {std::pair{0.8f, -0.5f}, std::pair{0.3f, 0.0f}}) {
-    for (float x = -half; x <= half + 1e-4f; x += 0.01f) {
-      for (float y = -half; y <= half + 1e-4f; y += 0.01f) {
-        p.positions.push_back({x, y, z});
-        p.normals.push_back({0, 0, 1});
-      }
-    }
-  }
-  const Hierarchy h = build_from_points(std::move(p));
-  Camera c;
-  c.eye = {0.0f, 0.0f, 2.5f};
-  c.target = {0.0f, 0.0f, 0.0f};
-  c.near_plane = 0.1f;
-  c.far_plane = 10.0f;
-  Renderer r(h, glm::ivec2(kWidth, kHeight));
-  CutBuffer cut;
-  cut.upload(h, TreeCut::leaf_cut(h).nodes());
+  const auto t = two_squares(0.01f, {0, 0, 1}, {200, 200, 200, 255}, {200, 200, 200, 255});
+  Renderer& r = *t->renderer;
+  const Camera& c = t->camera;
+  const CutBuffer& cut = t->cut;
   // World units per pixel at the front square's depth.
   const float unit = 2.0f * 2.5f * std::tan(glm::radians(c.fov_y_deg) / 2.0f) / kHeight;
   for (const SplatMode mode : {SplatMode::Fast, SplatMode::HighQuality, SplatMode::FixedSize}) {

@@ -26,7 +26,14 @@ endif()
 if(NOT CMAKE_MATCH_1 EQUAL 0)
   message(FATAL_ERROR "treecut view exited with ${CMAKE_MATCH_1}")
 endif()
-foreach(shot start.png start-hud.png start-nohud.png end.png)
+# Each shot and its IHDR width and height: the window's framebuffer (640 x
+# 400, 0x280 x 0x190), and big.png drawn at a size of its own (1280 x 800).
+foreach(shot_size start.png:0000028000000190 start-hud.png:0000028000000190
+                  start-nohud.png:0000028000000190 end.png:0000028000000190
+                  big.png:0000050000000320)
+  string(REPLACE ":" ";" pair "${shot_size}")
+  list(GET pair 0 shot)
+  list(GET pair 1 expected)
   set(png "${OUT}/${shot}")
   if(NOT EXISTS "${png}")
     message(FATAL_ERROR "${shot} was not written")
@@ -37,22 +44,15 @@ foreach(shot start.png start-hud.png start-nohud.png end.png)
   if(NOT magic STREQUAL "89504e470d0a1a0a")
     message(FATAL_ERROR "${shot} is not a PNG (${magic})")
   endif()
-  # IHDR width 640 (0x280), height 400 (0x190): the window's framebuffer.
-  if(NOT size STREQUAL "0000028000000190")
-    message(FATAL_ERROR "${shot} has size ${size}, expected 640x400")
+  if(NOT size STREQUAL expected)
+    message(FATAL_ERROR "${shot} has size ${size}, expected ${expected} (IHDR width, height)")
   endif()
   file(SIZE "${png}" bytes)
-  # A flat frame compresses to a few KiB; a rendered model and HUD do not.
+  # A flat frame compresses to a few KiB; a rendered model does not.
   if(bytes LESS 20000)
     message(FATAL_ERROR "${shot} is only ${bytes} bytes: nothing rendered?")
   endif()
 endforeach()
-# A screenshot at a size of its own: the scene drawn there.
-file(READ "${OUT}/big.png" head LIMIT 24 HEX)
-string(SUBSTRING "${head}" 32 16 size)
-if(NOT size STREQUAL "0000050000000320")
-  message(FATAL_ERROR "big.png has size ${size}, expected 1280x800")
-endif()
 file(SHA256 "${OUT}/start.png" a)
 file(SHA256 "${OUT}/end.png" b)
 if(a STREQUAL b)
