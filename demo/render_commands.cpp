@@ -361,8 +361,8 @@ RunSummary run_strategy(const RenderRig& rig, const StrategyRegistry& registry,
   if (world) {
     controller_storage.emplace(world, factory, first_view, stage_options);
   } else {
-    controller_storage.emplace(Model{rig.scene.hierarchy, TreeCut::root_cut(h)}, std::move(strategy),
-                               first_view, stage_options);
+    controller_storage.emplace(Model{rig.scene.hierarchy, TreeCut::root_cut(h)},
+                               std::move(strategy), first_view, stage_options);
   }
   Controller& controller = *controller_storage;
   splat::QueryExecutor queries;

@@ -118,6 +118,11 @@ splat::RenderSettings render_settings(const SceneArgs& args);
 void apply_model_settings(splat::RenderSettings& settings, const SceneArgs& args,
                           const Scene& scene);
 
+/// The clip box X0 Y0 Z0 X1 Y1 Z1 (file coordinates; none when `box` is
+/// empty) into `settings` for `scene` (--clip, a script's `clip`).
+void apply_clip(splat::RenderSettings& settings, const std::vector<double>& box,
+                const Scene& scene);
+
 /// --color, --color-map, --color-range and --classes as a ColorBy; throws
 /// InputError for a bad map, range or class list.
 splat::ColorBy color_by(const SceneArgs& args);

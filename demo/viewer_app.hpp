@@ -173,7 +173,6 @@ class Viewer {
   /// A pick: where (the world's and the file's coordinates) and, for a
   /// single model, the nearest point with its attributes.
   struct Pick {
-    glm::vec3 world{0.0f};
     glm::dvec3 file{0.0};
     std::string text;
   };
@@ -196,9 +195,7 @@ class Viewer {
   /// The scene alone drawn at this size (a script's `screenshot NAME WxH`);
   /// 0: the window's.
   glm::ivec2 screenshot_size_{0};
-  /// F12's size as a multiple of the window (the HUD's rendering section).
-  int screenshot_scale_ = 1;
-  int screenshot_scale_index_ = 0;  ///< the HUD's selector: 1x, 2x, 4x
+  int screenshot_scale_index_ = 0;  ///< the HUD's selector: 1x, 2x, 4x (1 << index)
   std::string status_;
   bool recording_ = false;
   splat::CameraPath recorded_;

@@ -389,15 +389,20 @@ void apply_model_settings(splat::RenderSettings& settings, const SceneArgs& args
   }
   settings.eye_dome =
       args.edl == "on" || (args.edl == "auto" && estimated) ? args.edl_strength : 0.0f;
-  settings.clip = args.clip.size() == 6;
-  if (settings.clip) {
-    const glm::dvec3 o =
-        scene.world || !scene.hierarchy ? glm::dvec3(0.0) : scene.hierarchy->frame().origin;
-    const glm::dvec3 a(args.clip[0], args.clip[1], args.clip[2]);
-    const glm::dvec3 b(args.clip[3], args.clip[4], args.clip[5]);
-    settings.clip_min = glm::vec3(glm::min(a, b) - o);
-    settings.clip_max = glm::vec3(glm::max(a, b) - o);
-  }
+  apply_clip(settings, args.clip, scene);
+}
+
+void apply_clip(splat::RenderSettings& settings, const std::vector<double>& box,
+                const Scene& scene) {
+  settings.clip = box.size() == 6;
+  if (!settings.clip) return;
+  // A map model's origin taken off in double; a scene's world as it is.
+  const glm::dvec3 o =
+      scene.world || !scene.hierarchy ? glm::dvec3(0.0) : scene.hierarchy->frame().origin;
+  const glm::dvec3 a(box[0], box[1], box[2]);
+  const glm::dvec3 b(box[3], box[4], box[5]);
+  settings.clip_min = glm::vec3(glm::min(a, b) - o);
+  settings.clip_max = glm::vec3(glm::max(a, b) - o);
 }
 
 }  // namespace treecut::cli

@@ -365,7 +365,6 @@ void Viewer::rendering_panel() {
                "1x\0"
                "2x\0"
                "4x\0");
-  screenshot_scale_ = 1 << screenshot_scale_index_;
   ImGui::SameLine();
   if (ImGui::Button(recording_ ? "stop recording (R)" : "record path (R)")) toggle_recording();
   ImGui::SameLine();

@@ -6,6 +6,7 @@
 // the horizontal rest.
 #include <imgui.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -30,6 +31,18 @@ NodeId nearest_leaf(const Hierarchy& h, glm::vec3 p) {
   return best;
 }
 
+// From the first pick to the second: the distance, its part along the
+// model's up axis and the horizontal rest.
+struct Measure {
+  double distance, height, horizontal;
+};
+Measure measure(glm::dvec3 a, glm::dvec3 b, glm::vec3 up) {
+  const glm::dvec3 d = b - a;
+  const double height = glm::dot(d, glm::dvec3(up));
+  const double distance = glm::length(d);
+  return {distance, height, std::sqrt(std::max(0.0, distance * distance - height * height))};
+}
+
 }  // namespace
 
 void Viewer::pick_at(glm::ivec2 pixel) {
@@ -40,15 +53,14 @@ void Viewer::pick_at(glm::ivec2 pixel) {
     return;
   }
   Pick p;
-  p.world = *at;
   // A single model: the nearest point, in the file's coordinates (double:
   // map coordinates), with its attributes.
   std::string what;
   if (!scene_.world && scene_.hierarchy) {
     const Hierarchy& h = *scene_.hierarchy;
     const glm::dvec3 o = h.frame().origin;
-    p.file = o + glm::dvec3(p.world);
-    if (const NodeId leaf = nearest_leaf(h, p.world); leaf != kNoNode) {
+    p.file = o + glm::dvec3(*at);
+    if (const NodeId leaf = nearest_leaf(h, *at); leaf != kNoNode) {
       const glm::dvec3 q = o + glm::dvec3(h.center(leaf));
       char line[160];
       std::snprintf(line, sizeof line, "point %.3f %.3f %.3f", q.x, q.y, q.z);
@@ -64,7 +76,7 @@ void Viewer::pick_at(glm::ivec2 pixel) {
       }
     }
   } else {
-    p.file = glm::dvec3(p.world);
+    p.file = glm::dvec3(*at);
   }
   p.text = what;
   picks_.push_back(p);
@@ -72,15 +84,12 @@ void Viewer::pick_at(glm::ivec2 pixel) {
   std::printf("pick %d %d: %.3f %.3f %.3f%s%s\n", pixel.x, pixel.y, p.file.x, p.file.y, p.file.z,
               what.empty() ? "" : ", nearest ", what.c_str());
   if (picks_.size() == 2) {
-    const glm::dvec3 d = picks_[1].file - picks_[0].file;
-    const double height = glm::dot(d, glm::dvec3(scene_.up));
-    const double distance = glm::length(d);
-    const double across = std::sqrt(std::max(0.0, distance * distance - height * height));
-    std::printf("measure   distance %.4f, height %+.4f, horizontal %.4f\n", distance, height,
-                across);
+    const Measure m = measure(picks_[0].file, picks_[1].file, scene_.up);
+    std::printf("measure   distance %.4f, height %+.4f, horizontal %.4f\n", m.distance, m.height,
+                m.horizontal);
     char line[120];
-    std::snprintf(line, sizeof line, "distance %.4f (height %+.4f, horizontal %.4f)", distance,
-                  height, across);
+    std::snprintf(line, sizeof line, "distance %.4f (height %+.4f, horizontal %.4f)", m.distance,
+                  m.height, m.horizontal);
     status_ = line;
   } else {
     status_ = "picked; Ctrl+click another point to measure";
@@ -96,9 +105,8 @@ void Viewer::measure_panel() {
     if (!p.text.empty()) ImGui::TextWrapped("   %s", p.text.c_str());
   }
   if (picks_.size() == 2) {
-    const glm::dvec3 d = picks_[1].file - picks_[0].file;
-    const double height = glm::dot(d, glm::dvec3(scene_.up));
-    ImGui::Text("distance %.4f, height %+.4f", glm::length(d), height);
+    const Measure m = measure(picks_[0].file, picks_[1].file, scene_.up);
+    ImGui::Text("distance %.4f, height %+.4f", m.distance, m.height);
   }
   if (!picks_.empty() && ImGui::Button("clear")) picks_.clear();
 }

@@ -10,12 +10,13 @@
 
 namespace treecut::cli {
 
-// What the window shows (scene and HUD), read from the back buffer after the
-// HUD is drawn and before the swap.
+// The scene alone (read from the back buffer before the HUD is drawn, or
+// drawn again at another size) or the window with its HUD (read after it),
+// before the swap.
 void Viewer::save_screenshot(const std::string& file, glm::ivec2 size) {
   // At another size than the window: the scene alone, drawn again there.
   const glm::ivec2 wanted_size =
-      screenshot_size_.x > 0 ? screenshot_size_ : size * std::max(screenshot_scale_, 1);
+      screenshot_size_.x > 0 ? screenshot_size_ : size * (1 << screenshot_scale_index_);
   splat::Image img = !screenshot_hud_ && wanted_size != size
                          ? draw_at(wanted_size)
                          : splat::Image{size.x, size.y, splat::read_back_rgba(0, GL_BACK, size)};

@@ -97,11 +97,7 @@ void Viewer::step_script() {
     } else if (c.verb == "edl") {
       settings_.eye_dome = c.arg == "on" ? std::max(args_.scene.edl_strength, 0.01f) : 0.0f;
     } else if (c.verb == "clip") {
-      SceneArgs box = args_.scene;
-      box.clip = c.box;
-      const float eye_dome = settings_.eye_dome;
-      apply_model_settings(settings_, box, scene_);  // the file's coordinates, as --clip
-      settings_.eye_dome = eye_dome;
+      apply_clip(settings_, c.box, scene_);  // the file's coordinates, as --clip
     } else if (c.verb == "bookmark") {
       // bookmark save N | bookmark N
       if (c.arg == "save") {

@@ -110,7 +110,7 @@ struct ViewSnapshot {
   struct Derived {
     glm::mat4 view_projection{1.0f};  ///< clip = view_projection * model (OpenGL, z in [-1, 1])
     /// Camera position in model space: placed_eye while `view` is
-    /// placed_view, else from the inverse of `view` (in double).
+    /// placed_view, else from the inverse of `view`.
     glm::vec3 eye{0.0f};
     glm::vec3 forward{0.0f, 0.0f, -1.0f};  ///< unit viewing direction in model space
     /// Eye depths of the near and far planes, model units.

@@ -44,9 +44,12 @@ void ViewSnapshot::finalize() {
   const glm::mat4 inverse_view = glm::inverse(view);
   const glm::mat3 to_model = glm::mat3(inverse_view);
   derived.view_projection = projection * view;
-  // In double: the float inverse of a view 30 km from the origin puts the
-  // eye centimetres off, and everything drawn relative to it would move.
-  derived.eye = view == placed_view ? placed_eye : glm::vec3(glm::inverse(glm::dmat4(view))[3]);
+  // The camera's own eye when it placed this view (what the renderer draws
+  // relative to: the float inverse of a view 30 km out is millimetres off);
+  // else the inverse's, which serves the strategies' distances (a scene's
+  // per-object views, folded and finalized every iteration: no double
+  // inverse on that path).
+  derived.eye = view == placed_view ? placed_eye : glm::vec3(inverse_view[3]);
   derived.forward = glm::normalize(to_model * glm::vec3(0.0f, 0.0f, -1.0f));
   derived.frustum = frustum_planes(derived.view_projection);
   for (std::size_t i = 0; i < 8; ++i) {
