@@ -100,6 +100,7 @@ TEST(Cache, RoundTripGivesTheSameArrays) {
   EXPECT_EQ(check_invariants(*loaded), "");
   for (NodeId n = 0; n < h.node_count(); ++n) {
     ASSERT_EQ(loaded->arrays().center_radius[n], h.arrays().center_radius[n]);
+    ASSERT_EQ(loaded->arrays().splat_radius[n], h.arrays().splat_radius[n]);
     ASSERT_EQ(loaded->arrays().first_child[n], h.arrays().first_child[n]);
   }
   for (const auto& e : fs::directory_iterator(dir))

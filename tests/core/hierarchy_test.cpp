@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <map>
 #include <tuple>
 
@@ -42,10 +43,11 @@ bool same_bytes(const Hierarchy& a, const Hierarchy& b) {
                                               reinterpret_cast<const char*>(y.data()));
   };
   const auto &x = a.arrays(), &y = b.arrays();
-  return eq(x.center_radius, y.center_radius) && eq(x.normal_cone, y.normal_cone) &&
-         eq(x.color, y.color) && eq(x.priority, y.priority) && eq(x.point_count, y.point_count) &&
-         eq(x.parent, y.parent) && eq(x.first_child, y.first_child) &&
-         eq(x.child_count, y.child_count) && eq(x.depth, y.depth);
+  return eq(x.center_radius, y.center_radius) && eq(x.splat_radius, y.splat_radius) &&
+         eq(x.normal_cone, y.normal_cone) && eq(x.color, y.color) && eq(x.priority, y.priority) &&
+         eq(x.point_count, y.point_count) && eq(x.parent, y.parent) &&
+         eq(x.first_child, y.first_child) && eq(x.child_count, y.child_count) &&
+         eq(x.depth, y.depth);
 }
 
 }  // namespace
@@ -179,6 +181,56 @@ TEST(Hierarchy, SinglePointIsOneNode) {
   EXPECT_EQ(h.node_count(), 1u);
   EXPECT_TRUE(h.is_leaf(0));
   EXPECT_EQ(check_invariants(h), "");
+}
+
+// A square patch of SIDE x SIDE grid points, SPACING apart, at CORNER.
+void add_patch(PointSet& ps, glm::vec3 corner, int side, float spacing) {
+  for (int i = 0; i < side; ++i)
+    for (int j = 0; j < side; ++j)
+      ps.positions.push_back(corner + spacing * glm::vec3(float(i), float(j), 0.0f));
+}
+
+// sqrt of the sum of the squared splat radii of the leaves under each node.
+std::vector<double> leaf_cover(const Hierarchy& h) {
+  std::vector<double> sum(h.node_count(), 0.0);
+  for (NodeId n = h.node_count(); n-- > 0;) {
+    if (h.is_leaf(n)) sum[n] = double(h.radius(n)) * h.radius(n);
+    if (n != h.root()) sum[h.parent(n)] += sum[n];
+  }
+  for (double& v : sum) v = std::sqrt(v);
+  return sum;
+}
+
+// Issue 30: on a dense surface an interior node is drawn at its bounding
+// sphere, as in QSplat; over scattered clusters (vegetation) at most twice
+// the radius of its leaves' discs together, not a disc across the gaps.
+TEST(Hierarchy, InteriorSplatsKeepTheirLeavesCoverageWhereTheSubtreeIsSparse) {
+  PointSet dense;
+  add_patch(dense, glm::vec3(0.0f), 64, 0.01f);
+  const Hierarchy surface = build(std::move(dense));
+  ASSERT_EQ(check_invariants(surface), "");
+  for (NodeId n = 0; n < surface.node_count(); ++n)
+    ASSERT_EQ(surface.splat_radius(n), surface.radius(n)) << "node " << n;
+
+  PointSet clusters;
+  std::uint64_t state = 7;
+  auto next = [&] {  // in [0, 1)
+    state = state * 6364136223846793005ull + 1442695040888963407ull;
+    return float(state >> 40) / float(1u << 24);
+  };
+  for (int c = 0; c < 16; ++c)
+    add_patch(clusters, 10.0f * glm::vec3(next(), next(), next()), 10, 0.01f);
+  const Hierarchy h = build(std::move(clusters));
+  ASSERT_EQ(check_invariants(h), "");
+  const std::vector<double> cover = leaf_cover(h);
+  int smaller = 0;
+  for (NodeId n = 0; n < h.node_count(); ++n) {
+    const double expected = std::min(double(h.radius(n)), 2.0 * cover[n]);
+    ASSERT_NEAR(h.splat_radius(n), expected, 1e-4 * expected) << "node " << n;
+    smaller += h.splat_radius(n) < h.radius(n);
+  }
+  EXPECT_LT(h.splat_radius(h.root()), 0.25f * h.radius(h.root()));
+  EXPECT_GE(smaller, 5);  // the root and its children, each over four clusters
 }
 
 TEST(Hierarchy, CheckInvariantsDetectsABrokenSphere) {

@@ -443,6 +443,41 @@ TEST(SplatLooks, UnlitKeepsTheColoursAndFixedPointsOcclude) {
   }
 }
 
+// Issue 30: a coarse node over scattered clusters is drawn at its own splat
+// radius (its leaves' coverage), not at the sphere that bounds the gap
+// between them. Two patches 3 apart, the root alone, face on: the pixels
+// drawn are the disc of splat_radius(root), under half the bound's disc.
+TEST(SplatLooks, ACoarseNodeOverScatteredClustersIsDrawnAtItsSplatRadius) {
+  context();
+  PointSet p;
+  for (const float cx : {-1.5f, 1.5f})
+    for (int i = 0; i < 10; ++i)
+      for (int j = 0; j < 10; ++j) {
+        p.positions.push_back({cx + 0.01f * float(i), 0.01f * float(j), 0.0f});
+        p.normals.push_back({0.0f, 0.0f, 1.0f});
+      }
+  const Hierarchy h = build_from_points(std::move(p));
+  const glm::vec3 root = h.center(h.root());
+  Camera c;
+  c.eye = root + glm::vec3(0.0f, 0.0f, 5.0f);
+  c.target = root;
+  c.near_plane = 0.1f;
+  c.far_plane = 10.0f;
+  Renderer r(h, glm::ivec2(kWidth, kHeight));
+  CutBuffer cut;
+  cut.upload(h, std::vector<NodeId>{h.root()});
+  RenderSettings s;
+  s.mode = SplatMode::HighQuality;
+  r.draw(cut, c, s, true);
+  const Image img{kWidth, kHeight, r.read_pixels()};
+  const std::size_t drawn = coverage(img, background_bytes(s).data(), 2).pixels;
+  const double px_per_unit = kHeight / 2.0 / (5.0 * std::tan(glm::radians(c.fov_y_deg / 2.0)));
+  auto disc = [&](float radius) { return 3.14159 * std::pow(radius * px_per_unit, 2.0); };
+  ASSERT_LT(h.splat_radius(h.root()), 0.5f * h.radius(h.root()));
+  EXPECT_NEAR(double(drawn), disc(h.splat_radius(h.root())), 0.2 * disc(h.splat_radius(h.root())));
+  EXPECT_LT(double(drawn), 0.5 * disc(h.radius(h.root())));
+}
+
 // Issue 30: a clip box draws only the splats whose centre is inside: the
 // sphere cut at x = 0 keeps its right half's pixels and loses the left's,
 // in every mode.

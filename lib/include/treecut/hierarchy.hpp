@@ -37,6 +37,14 @@ struct HierarchyArrays {
   /// xyz: splat/sphere center, w: radius of the sphere bounding the node's whole
   /// subtree (for a leaf: its splat radius). Model units.
   std::span<const glm::vec4> center_radius;
+  /// The radius of the disc drawn for the node: a leaf's splat radius; for an
+  /// interior node the bounding radius, or less where its subtree is sparse
+  /// (at most the radius of a disc as large as its leaves' discs together,
+  /// with headroom), so a coarse cut over scattered points is not drawn as
+  /// discs spanning the gaps between them. Model units; never above
+  /// center_radius.w. Only drawing uses it: culling and refinement use the
+  /// bound.
+  std::span<const float> splat_radius;
   /// xyz: unit normal, w: cosine of the half-angle of the cone that contains the
   /// normals of the whole subtree (1 for a leaf), all snorm16 (divide by 32767).
   std::span<const glm::i16vec4> normal_cone;
@@ -94,6 +102,7 @@ class Hierarchy {
   [[nodiscard]] bool is_leaf(NodeId n) const { return a_.child_count[n] == 0; }
   [[nodiscard]] glm::vec3 center(NodeId n) const { return glm::vec3(a_.center_radius[n]); }
   [[nodiscard]] float radius(NodeId n) const { return a_.center_radius[n].w; }
+  [[nodiscard]] float splat_radius(NodeId n) const { return a_.splat_radius[n]; }
   [[nodiscard]] glm::vec3 normal(NodeId n) const {
     return glm::vec3(a_.normal_cone[n]) * (1.0f / 32767.0f);
   }

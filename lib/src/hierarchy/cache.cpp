@@ -35,10 +35,11 @@ constexpr char kMagic[8] = {'T', 'C', 'U', 'T', 'H', 'I', 'E', 'R'};
 //    coordinates, issue 29).
 // 5: and the file's per-point attributes per node: a table of records
 //    (name, kind, offset, range, where the values are) after the crs text.
-constexpr std::uint32_t kVersion = 5;
+// 6: and HierarchyArrays::splat_radius, after center_radius (issue 30).
+constexpr std::uint32_t kVersion = 6;
 constexpr std::uint32_t kEndianTag = 0x01020304u;
 constexpr std::size_t kAlign = 64;
-constexpr int kArrays = 9;
+constexpr int kArrays = 10;
 constexpr std::uint32_t kMaxCrsBytes = 4096;
 
 struct Header {
@@ -86,9 +87,9 @@ CacheKey key_of(const Header& h) {
 }
 
 constexpr std::array<std::size_t, kArrays> kElementSize = {
-    sizeof(glm::vec4), sizeof(glm::i16vec4),  sizeof(glm::u8vec4),
-    sizeof(float),     sizeof(std::uint32_t), sizeof(NodeId),
-    sizeof(NodeId),    sizeof(std::uint8_t),  sizeof(std::uint8_t)};
+    sizeof(glm::vec4),    sizeof(float),         sizeof(glm::i16vec4), sizeof(glm::u8vec4),
+    sizeof(float),        sizeof(std::uint32_t), sizeof(NodeId),       sizeof(NodeId),
+    sizeof(std::uint8_t), sizeof(std::uint8_t)};
 
 std::uint64_t align_up(std::uint64_t x) {
   return (x + kAlign - 1) / kAlign * kAlign;
@@ -336,14 +337,15 @@ std::optional<Hierarchy> map_and_verify(const std::filesystem::path& path, Heade
   auto at = [&](int i) { return bytes + h.offsets[i]; };
   const std::size_t nn = static_cast<std::size_t>(n);
   HierarchyArrays a{{reinterpret_cast<const glm::vec4*>(at(0)), nn},
-                    {reinterpret_cast<const glm::i16vec4*>(at(1)), nn},
-                    {reinterpret_cast<const glm::u8vec4*>(at(2)), nn},
-                    {reinterpret_cast<const float*>(at(3)), nn},
-                    {reinterpret_cast<const std::uint32_t*>(at(4)), nn},
-                    {reinterpret_cast<const NodeId*>(at(5)), nn},
+                    {reinterpret_cast<const float*>(at(1)), nn},
+                    {reinterpret_cast<const glm::i16vec4*>(at(2)), nn},
+                    {reinterpret_cast<const glm::u8vec4*>(at(3)), nn},
+                    {reinterpret_cast<const float*>(at(4)), nn},
+                    {reinterpret_cast<const std::uint32_t*>(at(5)), nn},
                     {reinterpret_cast<const NodeId*>(at(6)), nn},
-                    {reinterpret_cast<const std::uint8_t*>(at(7)), nn},
-                    {reinterpret_cast<const std::uint8_t*>(at(8)), nn}};
+                    {reinterpret_cast<const NodeId*>(at(7)), nn},
+                    {reinterpret_cast<const std::uint8_t*>(at(8)), nn},
+                    {reinterpret_cast<const std::uint8_t*>(at(9)), nn}};
   std::optional<std::vector<NodeAttribute>> attributes = read_attributes(
       h, *map,
       [&](std::uint64_t off, std::uint64_t bytes_needed) { return in_bounds(off, bytes_needed); },
@@ -421,6 +423,7 @@ void save_cache(const Hierarchy& hier, const CacheKey& key, const std::filesyste
 
   const std::array<std::pair<const void*, std::size_t>, kArrays> arrays = {{
       {a.center_radius.data(), a.center_radius.size_bytes()},
+      {a.splat_radius.data(), a.splat_radius.size_bytes()},
       {a.normal_cone.data(), a.normal_cone.size_bytes()},
       {a.color.data(), a.color.size_bytes()},
       {a.priority.data(), a.priority.size_bytes()},

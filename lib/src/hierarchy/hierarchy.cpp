@@ -11,7 +11,8 @@
 //                      split (median of the longest axis, twice: four children);
 //   3. fill_leaves:    PointSet attributes -> the leaves' node arrays;
 //   4. fill_interior:  children -> parents, deepest level first (QSplat's
-//                      bottom-up pass: bounding sphere, normal cone, color);
+//                      bottom-up pass: bounding sphere, normal cone, color,
+//                      and the splat drawn for the node);
 //   5. assemble:       node arrays -> an immutable Hierarchy.
 // Stages 2-4 are data-parallel over the nodes of one level. Nothing depends on
 // the thread count, so the output is byte-identical for any number of workers.
@@ -37,6 +38,7 @@ namespace {
 
 struct OwnedArrays {
   std::vector<glm::vec4> center_radius;
+  std::vector<float> splat_radius;
   std::vector<glm::i16vec4> normal_cone;
   std::vector<glm::u8vec4> color;
   std::vector<float> priority;
@@ -267,13 +269,16 @@ void fill_leaves(OwnedArrays& a, std::vector<Range>&& ranges, std::vector<Item>&
   release(ranges);
 
   a.center_radius.resize(M);
+  a.splat_radius.resize(M);
   parallel_for(
       M,
       [&](std::size_t b, std::size_t e) {
         for (std::size_t i = b; i < e; ++i)
           if (a.child_count[i] == 0) {
             const Item& it = items[leaf_point[i]];
-            a.center_radius[i] = glm::vec4(it.p, points.radii[it.index]);
+            const float r = points.radii[it.index];
+            a.center_radius[i] = glm::vec4(it.p, r);
+            a.splat_radius[i] = r;
           }
       },
       threads);
@@ -407,9 +412,10 @@ void fill_interior_node(OwnedArrays& a, std::size_t i, bool at_real_point) {
   glm::vec3 lo(INFINITY), hi(-INFINITY), nsum(0.0f);
   glm::vec4 csum(0.0f);
   std::uint32_t count = 0;
-  float prio = 0.0f;
+  float prio = 0.0f, cover2 = 0.0f;
   for (std::size_t c = c0; c < c0 + cc; ++c) {
     const glm::vec4 s = a.center_radius[c];
+    cover2 += a.splat_radius[c] * a.splat_radius[c];
     lo = glm::min(lo, glm::vec3(s) - s.w);
     hi = glm::max(hi, glm::vec3(s) + s.w);
     const float w = static_cast<float>(a.point_count[c]);
@@ -426,11 +432,34 @@ void fill_interior_node(OwnedArrays& a, std::size_t i, bool at_real_point) {
   a.color[i] = glm::u8vec4(glm::round(glm::clamp(avg, 0.0f, 255.0f)));
   a.priority[i] = std::max(prio, cone_priority(cone_cos));
   a.point_count[i] = count;
+  a.splat_radius[i] = std::sqrt(cover2);  // the cover; finish_splat_radii bounds it
+}
+
+// How much larger than its leaves' discs together (in radius) an interior
+// splat may be. On a dense surface the leaves' discs overlap, so their areas
+// add up to more than the surface's, and the bounding sphere (QSplat's splat)
+// is the smaller of the two: nothing changes there. Where points are
+// scattered (vegetation, stray returns) the sum is far below the sphere's
+// disc, and the splat keeps the leaves' coverage instead of filling the gaps.
+constexpr float kCoverHeadroom = 2.0f;
+
+// Turns every interior node's cover (sqrt of the sum of its leaves' squared
+// splat radii, left by fill_interior_node) into the radius drawn.
+void finish_splat_radii(OwnedArrays& a, unsigned threads) {
+  parallel_for(
+      a.splat_radius.size(),
+      [&](std::size_t b, std::size_t e) {
+        for (std::size_t i = b; i < e; ++i)
+          if (a.child_count[i] != 0)
+            a.splat_radius[i] = std::min(a.center_radius[i].w, kCoverHeadroom * a.splat_radius[i]);
+      },
+      threads);
 }
 
 // Consumes the leaves' arrays and the topology; produces every interior
-// node's center_radius, normal_cone, color, priority and point_count, level by
-// level from the deepest, so a node's children are final when it is filled.
+// node's center_radius, splat_radius, normal_cone, color, priority and
+// point_count, level by level from the deepest, so a node's children are
+// final when it is filled.
 void fill_interior(OwnedArrays& a, const std::vector<NodeId>& level_begin, std::uint32_t points,
                    bool at_real_point, unsigned threads, BuildProgress& progress) {
   const auto levels = static_cast<std::size_t>(std::max<int>(int(level_begin.size()) - 1, 1));
@@ -438,6 +467,7 @@ void fill_interior(OwnedArrays& a, const std::vector<NodeId>& level_begin, std::
       level_begin, a.child_count, threads,
       [&](std::size_t i) { fill_interior_node(a, i, at_real_point); },
       [&] { progress.interior_level(points / levels); });
+  finish_splat_radii(a, threads);
 }
 
 // ---- Stage 5: assemble -----------------------------------------------------
@@ -448,9 +478,10 @@ void fill_interior(OwnedArrays& a, const std::vector<NodeId>& level_begin, std::
 Hierarchy assemble(OwnedArrays&& a, std::vector<NodeId>&& level_begin, const BuildOrder& order,
                    CoordinateFrame frame) {
   auto owned = std::make_shared<OwnedArrays>(std::move(a));
-  HierarchyArrays spans{owned->center_radius, owned->normal_cone, owned->color,
-                        owned->priority,      owned->point_count, owned->parent,
-                        owned->first_child,   owned->child_count, owned->depth};
+  HierarchyArrays spans{owned->center_radius, owned->splat_radius, owned->normal_cone,
+                        owned->color,         owned->priority,     owned->point_count,
+                        owned->parent,        owned->first_child,  owned->child_count,
+                        owned->depth};
   std::vector<NodeAttribute> attributes = detail::node_attribute_views(owned->attributes);
   return Hierarchy::from_arrays(owned, spans, std::move(level_begin), order.bounds_min,
                                 order.bounds_max, std::move(frame), std::move(attributes));
@@ -471,9 +502,9 @@ glm::i16vec4 pack_normal_cone(glm::vec3 normal, float cone_cos) {
 
 std::size_t Hierarchy::memory_bytes() const {
   const std::size_t n = node_count_;
-  return n * (sizeof(glm::vec4) + sizeof(glm::i16vec4) + sizeof(glm::u8vec4) + sizeof(float) +
-              sizeof(std::uint32_t) + 2 * sizeof(NodeId) + 2 * sizeof(std::uint8_t) +
-              attributes_.size() * sizeof(float));
+  return n * (sizeof(glm::vec4) + sizeof(float) + sizeof(glm::i16vec4) + sizeof(glm::u8vec4) +
+              sizeof(float) + sizeof(std::uint32_t) + 2 * sizeof(NodeId) +
+              2 * sizeof(std::uint8_t) + attributes_.size() * sizeof(float));
 }
 
 const NodeAttribute* Hierarchy::find_attribute(std::string_view name) const {
@@ -492,9 +523,9 @@ Hierarchy Hierarchy::from_arrays(std::shared_ptr<const void> storage, const Hier
     if (attribute.values.size() != n)
       throw std::invalid_argument("attribute values differ in size");
   }
-  if (a.normal_cone.size() != n || a.color.size() != n || a.priority.size() != n ||
-      a.point_count.size() != n || a.parent.size() != n || a.first_child.size() != n ||
-      a.child_count.size() != n || a.depth.size() != n)
+  if (a.splat_radius.size() != n || a.normal_cone.size() != n || a.color.size() != n ||
+      a.priority.size() != n || a.point_count.size() != n || a.parent.size() != n ||
+      a.first_child.size() != n || a.child_count.size() != n || a.depth.size() != n)
     throw std::invalid_argument("hierarchy arrays differ in size");
   if (level_begin.empty() || level_begin.front() != 0 || level_begin.back() != n)
     throw std::invalid_argument("hierarchy level table does not span the nodes");
@@ -555,6 +586,7 @@ std::string check_invariants(const Hierarchy& h) {
     if (cc == 0) {
       ++leaves;
       if (a.point_count[n] != 1) return fail(n, "leaf does not hold exactly one point");
+      if (a.splat_radius[n] != s.w) return fail(n, "leaf splat radius is not its radius");
       continue;
     }
     if (cc < 2 || cc > 4) return fail(n, "child count outside 2..4");
@@ -582,6 +614,8 @@ std::string check_invariants(const Hierarchy& h) {
       }
     }
     if (count != a.point_count[n]) return fail(n, "point count is not the children's sum");
+    if (!(a.splat_radius[n] > 0.0f) || !(a.splat_radius[n] <= s.w))
+      return fail(n, "splat radius not in (0, bounding radius]");
   }
   if (leaves != h.leaf_count()) return "leaf count differs from the root's point count";
   // Median splits halve the points at every binary level: depth <= ceil(log4 n) + 1.

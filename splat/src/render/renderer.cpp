@@ -205,9 +205,11 @@ void Renderer::set_models(std::span<const Hierarchy* const> models) {
   const std::size_t cr_bytes = n * sizeof(glm::vec4);
   const std::size_t nc_bytes = n * sizeof(glm::i16vec4);
   const std::size_t co_bytes = n * sizeof(glm::u8vec4);
-  // One static buffer holding the three node arrays back to back, each the
+  const std::size_t sr_bytes = n * sizeof(float);
+  // One static buffer holding the four node arrays back to back, each the
   // models' arrays one after the other (a model's nodes start at its base).
-  nodes_ = gl::Buffer::create(cr_bytes + nc_bytes + co_bytes, nullptr, GL_DYNAMIC_STORAGE_BIT);
+  nodes_ = gl::Buffer::create(cr_bytes + nc_bytes + co_bytes + sr_bytes, nullptr,
+                              GL_DYNAMIC_STORAGE_BIT);
   model_base_.clear();
   model_nodes_.clear();
   model_ids_.clear();
@@ -217,6 +219,8 @@ void Renderer::set_models(std::span<const Hierarchy* const> models) {
     nodes_.sub_data(base * sizeof(glm::vec4), std::as_bytes(a.center_radius));
     nodes_.sub_data(cr_bytes + base * sizeof(glm::i16vec4), std::as_bytes(a.normal_cone));
     nodes_.sub_data(cr_bytes + nc_bytes + base * sizeof(glm::u8vec4), std::as_bytes(colors_of(*h)));
+    nodes_.sub_data(cr_bytes + nc_bytes + co_bytes + base * sizeof(float),
+                    std::as_bytes(a.splat_radius));
     model_base_.push_back(static_cast<std::uint32_t>(base));
     model_nodes_.push_back(static_cast<std::uint32_t>(h->node_count()));
     model_ids_.push_back(h);
@@ -229,13 +233,18 @@ void Renderer::set_models(std::span<const Hierarchy* const> models) {
                               sizeof(glm::i16vec4));
   gl::VertexArrayVertexBuffer(vao, 2, nodes_.id(), static_cast<GLintptr>(cr_bytes + nc_bytes),
                               sizeof(glm::u8vec4));
-  gl::VertexArrayAttribFormat(vao, 0, 4, GL_FLOAT, GL_FALSE, 0);
+  gl::VertexArrayVertexBuffer(vao, kSplatRadiusBinding, nodes_.id(),
+                              static_cast<GLintptr>(cr_bytes + nc_bytes + co_bytes), sizeof(float));
+  gl::VertexArrayAttribFormat(vao, 0, 3, GL_FLOAT, GL_FALSE, 0);  // the center; .w is the bound
   gl::VertexArrayAttribFormat(vao, 1, 4, GL_SHORT, GL_TRUE, 0);
   gl::VertexArrayAttribFormat(vao, 2, 4, GL_UNSIGNED_BYTE, GL_TRUE, 0);
+  gl::VertexArrayAttribFormat(vao, kSplatRadiusLocation, 1, GL_FLOAT, GL_FALSE, 0);
   for (GLuint i = 0; i < 3; ++i) {
     gl::VertexArrayAttribBinding(vao, i, i);
     gl::EnableVertexArrayAttrib(vao, i);
   }
+  gl::VertexArrayAttribBinding(vao, kSplatRadiusLocation, kSplatRadiusBinding);
+  gl::EnableVertexArrayAttrib(vao, kSplatRadiusLocation);
   node_count_ = model_nodes_.front();
   hierarchy_ = models.front();
   ++hierarchy_uploads_;

@@ -119,9 +119,10 @@ float object_cone(float cc) {
 
 // Vertex stage of the disc modes: passes the node through (relative to the eye).
 inline constexpr const char* kSplatVertex = R"(
-layout(location = 0) in vec4 a_center_radius;
+layout(location = 0) in vec3 a_center;        // the node's center (its sphere's)
 layout(location = 1) in vec4 a_normal_cone;  // snorm16, normalized by the VAO
 layout(location = 2) in vec4 a_color;        // unorm8 sRGB
+layout(location = 7) in float a_splat_radius;  // the disc drawn, not the bound
 out Node {
   vec3 center;
   float radius;
@@ -131,11 +132,11 @@ out Node {
   float object;
 } v_node;
 void main() {
-  v_node.center = object_point(a_center_radius.xyz);
+  v_node.center = object_point(a_center);
   // Alpha 0: a hidden node (a class filtered out, coloring.hpp), no splat.
   v_node.radius = a_color.a < 0.5 || clipped(v_node.center)
                       ? 0.0
-                      : a_center_radius.w * a_object.x * u_radius_scale;
+                      : a_splat_radius * a_object.x * u_radius_scale;
   v_node.normal = object_normal(a_normal_cone.xyz);
   v_node.cone_cos = object_cone(a_normal_cone.w);
   v_node.color = srgb_to_linear(a_color.rgb);
@@ -365,16 +366,17 @@ void main() {
 
 // Fixed-size mode: square (or, from 3 px, round) screen-space points.
 inline constexpr const char* kFixedVertex = R"(
-layout(location = 0) in vec4 a_center_radius;
+layout(location = 0) in vec3 a_center;
 layout(location = 1) in vec4 a_normal_cone;
 layout(location = 2) in vec4 a_color;
+layout(location = 7) in float a_splat_radius;
 uniform float u_point_size;
 out vec3 f_pos;
 flat out vec3 f_normal;
 flat out vec3 f_color;
 flat out float f_size;  // the point's diameter in pixels
 void main() {
-  vec3 c = object_point(a_center_radius.xyz);
+  vec3 c = object_point(a_center);
   vec3 e = normalize(-c);
   vec3 normal = object_normal(a_normal_cone.xyz);
   float nl = length(normal);
@@ -384,7 +386,7 @@ void main() {
   f_color = srgb_to_linear(a_color.rgb);
   // At least the splat's footprint: points that leave gaps at this distance
   // would let what lies behind show through (issue 30).
-  float r = a_center_radius.w * a_object.x * u_radius_scale;
+  float r = a_splat_radius * a_object.x * u_radius_scale;
   float view_depth = max(-(u_view * vec4(c, 1.0)).z, 1e-6);
   float footprint = 2.0 * r * u_proj[1][1] * 0.5 * u_viewport_h / view_depth;
   gl_PointSize = clamp(max(u_point_size, footprint), 1.0, 64.0);

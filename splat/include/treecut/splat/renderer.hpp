@@ -334,7 +334,9 @@ class Renderer {
     int fade = 0;
     bool indirect = false;  // a scene's commands (indirect_)
   };
-  static constexpr GLuint kObjectBinding = 3;  // the per-object records (divisor 1)
+  static constexpr GLuint kObjectBinding = 3;        // the per-object records (divisor 1)
+  static constexpr GLuint kSplatRadiusBinding = 4;   // HierarchyArrays::splat_radius
+  static constexpr GLuint kSplatRadiusLocation = 7;  // after the object rows' 3..6
   // Uniform locations of one program, looked up once after linking (-1: the
   // linker dropped it; glProgramUniform ignores -1).
   struct Uniforms {
@@ -383,7 +385,8 @@ class Renderer {
   std::vector<NodeColors> node_colors_;  // set_node_colors
   [[nodiscard]] std::span<const glm::u8vec4> colors_of(const Hierarchy& h) const;
   NodeId last_max_id_ = 0;
-  gl::Buffer nodes_;  // center_radius | normal_cone | color, one region each, models in order
+  gl::Buffer nodes_;  // center_radius | normal_cone | color | splat_radius, one region each, models
+                      // in order
   std::vector<std::uint32_t> model_base_;    // first vertex of each model
   std::vector<std::uint32_t> model_nodes_;   // its node count
   std::vector<const Hierarchy*> model_ids_;  // identity only
