@@ -17,6 +17,7 @@
 #include "treecut/model.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/scene.hpp"
+#include "treecut/splat/frame_rate.hpp"
 #include "treecut/strategies/builtin.hpp"
 #include "treecut/tools/generate.hpp"
 #include "treecut/tools/scene_generate.hpp"
@@ -364,7 +365,7 @@ void check_params(const StrategyRegistry& registry, const std::vector<std::strin
 }
 
 TreeCut opening_cut(const Hierarchy& h) {
-  return breadth_first_cut(h, 20000);
+  return breadth_first_cut(h, static_cast<std::size_t>(splat::FrameRateGovernor::kFloorSplats));
 }
 
 splat::RenderSettings render_settings(const SceneArgs& args) {

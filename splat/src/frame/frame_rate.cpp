@@ -48,12 +48,14 @@ constexpr double kMinThreshold = 1e-3;
 
 std::optional<FrameRateGovernor> FrameRateGovernor::for_params(std::span<const ParamSpec> specs,
                                                                double current_value,
-                                                               std::size_t node_count) {
+                                                               std::size_t node_count,
+                                                               double floor_splats) {
   for (const auto& [name, knob] :
        {std::pair{"max_nodes", Knob::Budget}, std::pair{"min_size", Knob::Threshold}}) {
     for (const ParamSpec& s : specs) {
       if (s.name == name) {
-        return FrameRateGovernor(s.name, knob, current_value, s.min_value, s.max_value, node_count);
+        return FrameRateGovernor(s.name, knob, current_value, s.min_value, s.max_value, node_count,
+                                 floor_splats);
       }
     }
   }
@@ -61,20 +63,22 @@ std::optional<FrameRateGovernor> FrameRateGovernor::for_params(std::span<const P
 }
 
 std::optional<FrameRateGovernor> FrameRateGovernor::for_strategy(const Strategy& strategy,
-                                                                 std::size_t node_count) {
-  auto g = for_params(strategy.param_specs(), 0.0, node_count);
+                                                                 std::size_t node_count,
+                                                                 double floor_splats) {
+  auto g = for_params(strategy.param_specs(), 0.0, node_count, floor_splats);
   if (g) g->value_ = g->sent_ = g->anchor_ = strategy.param(g->param_);
   return g;
 }
 
 FrameRateGovernor::FrameRateGovernor(std::string param, Knob knob, double value, double min_value,
-                                     double max_value, std::size_t node_count)
+                                     double max_value, std::size_t node_count, double floor_splats)
     : param_(std::move(param)),
       knob_(knob),
       value_(value),
       min_value_(min_value),
       max_value_(max_value),
       node_count_(std::max<double>(1.0, static_cast<double>(node_count))),
+      floor_(std::clamp(floor_splats, 1.0, node_count_)),
       sent_(value),
       anchor_(value) {}
 
@@ -155,15 +159,15 @@ std::optional<double> FrameRateGovernor::update(double frame_ms, std::size_t spl
     v = std::min(v, cap);
   } else {
     // The model's answer; a fixed cost alone above the target asks for the
-    // coarsest cut.
+    // floor.
     wanted_ = target_ms > fixed_ms_ ? (target_ms - fixed_ms_) / per_splat_ms_ : 1.0;
     const bool fast = wanted_ > x;  // before the clamp: at full detail fast frames stay fast
-    wanted_ = std::clamp(wanted_, 1.0, node_count_);
+    wanted_ = std::clamp(wanted_, floor_, node_count_);
     // Detail is taken away once a slope was fitted, or by the ratio rule from
     // a cut of a sixteenth of the hierarchy up. A slow frame of a smaller cut
     // says nothing about the cost of a splat: the viewer's first frames draw
     // 16 splats in 30 ms, and the ratio rule set the budget to 1.
-    const bool may_coarsen = slope_fitted_ || x >= kGrowthNodes * node_count_;
+    const bool may_coarsen = (slope_fitted_ || x >= kGrowthNodes * node_count_) && x > floor_;
     if (knob_ == Knob::Budget) {
       // Fast frames never lower the budget and slow ones never raise it (a
       // budget the cut has not reached yet is not taken away while frames are
@@ -177,7 +181,7 @@ std::optional<double> FrameRateGovernor::update(double frame_ms, std::size_t spl
     }
   }
   if (knob_ == Knob::Budget) {
-    v = std::round(std::clamp(v, std::max(min_value_, 1.0), max_value_));
+    v = std::round(std::clamp(std::max(v, floor_), std::max(min_value_, 1.0), max_value_));
   }
   if (std::abs(v - sent_) <= kDeadband * std::max(std::abs(sent_), 1e-9)) return std::nullopt;
   if (knob_ == Knob::Threshold) {

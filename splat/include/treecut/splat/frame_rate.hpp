@@ -38,19 +38,29 @@ class FrameRateGovernor {
  public:
   enum class Knob { Budget, Threshold };
 
+  /// By default detail is never taken below this many splats (or the
+  /// hierarchy's node count, if fewer): a cut that small is already a rough
+  /// picture, and what still makes the frame slow is not the splats but the
+  /// fixed cost (the passes, eye-dome lighting; llvmpipe at 1280x720: 37 ms
+  /// for 100 splats). Without it a target out of reach ran the cut down to
+  /// the root. The viewer opens at a cut of this size too.
+  static constexpr double kFloorSplats = 20000.0;
+
   /// Picks the strategy's knob from its parameters: "max_nodes" (budget) or
   /// "min_size" (threshold). nullopt when the strategy has neither.
   /// `node_count` is the hierarchy's: no budget is ever set above it.
   static std::optional<FrameRateGovernor> for_params(std::span<const ParamSpec> specs,
-                                                     double current_value, std::size_t node_count);
+                                                     double current_value, std::size_t node_count,
+                                                     double floor_splats = kFloorSplats);
 
   /// The same for a strategy, from its current knob value (call it before the
   /// strategy is handed to a stage). The viewer and `treecut render` use this.
   static std::optional<FrameRateGovernor> for_strategy(const Strategy& strategy,
-                                                       std::size_t node_count);
+                                                       std::size_t node_count,
+                                                       double floor_splats = kFloorSplats);
 
   FrameRateGovernor(std::string param, Knob knob, double value, double min_value, double max_value,
-                    std::size_t node_count);
+                    std::size_t node_count, double floor_splats = kFloorSplats);
 
   /// Feeds one frame: its time (ms) and the splats it drew (the cut size).
   /// Returns the new knob value when it changed by more than 3 % (the caller
@@ -80,6 +90,7 @@ class FrameRateGovernor {
   double min_value_;
   double max_value_;
   double node_count_;
+  double floor_;  // min(floor_splats, node count): no coarser than this
   double sent_;
   double anchor_;
   double smoothed_ms_ = 0.0;
