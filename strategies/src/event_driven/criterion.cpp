@@ -91,13 +91,23 @@ bool unfold_test(const CriterionConstants& cam, const ViewSnapshot& view, const 
 // clamped to [b / 7, 7 b]), which makes both come after about the same time
 // for a camera that keeps its pace; with both clocks in step (k = omega) M
 // is the single-clock t_r = G / (omega + b).
+// The lens (issue 31): a zoom by e^z scales the threshold distance R = r S /
+// theta by e^z, and a new aspect or field of view moves the cone's half-angle
+// beta. The event queue charges |d beta| to the rotation clock (in each bound
+// below beta enters exactly as a turn of the view direction would) and a zoom
+// by e^z, z = |ln(S' / S)|, to the translation clock as a translation of
+// z D (D = rates.reach, the model's diameter). The threshold then needs
+// d - s <= R e^z with s + z D < m rho. d - s - R e^z is concave in (s, z), so
+// its minimum over that triangle is at a corner: the threshold cannot pass
+// before min(d - R, D ln(d / R)) / rho >= t_m min(1, D / d) (ln x >= 1 - 1/x).
+// Inside and visibility are unchanged (s still <= m rho).
 // Unfold needs inside, or visible and the threshold: m >= min(t_i, max(t_r, t_m)).
 // When M <= t_m the threshold alone keeps the node folded until t_m and
 // rotation cannot change that (w = infinity); else the node waits for
 // min(t_i, M) on the translation clock or W on the rotation clock.
 
 EventRates::EventRates(const CriterionConstants& cam, double rho_, double omega_, double cap_,
-                       double cap_w_, double turn_per_move)
+                       double cap_w_, double turn_per_move, double reach_)
     : rho(rho_ * kVelocityMargin),
       inv_rho(1.0 / (rho_ * kVelocityMargin)),
       omega(omega_ * kVelocityMargin),
@@ -105,7 +115,8 @@ EventRates::EventRates(const CriterionConstants& cam, double rho_, double omega_
       size_scale(cam.pixel_scale / cam.theta),
       cap(cap_),
       cap_w(cap_w_),
-      split(omega_ * turn_per_move) {}
+      split(omega_ * turn_per_move),
+      reach(reach_) {}
 
 EventTime potential_unfold_event(const CriterionConstants& cam, const glm::vec4& cr,
                                  const EventRates& q) {
@@ -121,6 +132,8 @@ Decision decide(const CriterionConstants& cam, const glm::vec4& cr, const EventR
 //   rotation plays no part (w = infinity).
 // - Outside (visible and above the threshold), the dual of the above:
 //   t_m: the threshold fails only when |c - e_k| > R, m > (R - d) / rho;
+//   with the lens charged as above it needs d + s > R e^-z >= R (1 - z),
+//   linear in (s, z): t_m min(1, D / R) at the corners;
 //   t_r: from e_k the direction to c is within asin(s / d) of D (s < d) and
 //   the sphere's angular radius is at least asin(r / (d + s)), so it can leave
 //   the view only if alpha + w omega + asin(s / d) > beta + asin(r / (d + s)).

@@ -34,6 +34,11 @@ constexpr double kWPerUnit = EventQueueStrategy::kRotationSlotsPerUnit;
 // not yet processed in a multi-slot advance would be reused (see advance()).
 constexpr double kMCap = double(kMSlots / 2 - 1) / kMPerUnit;
 constexpr double kWCap = double(kWSlots / 2 - 1) / kWPerUnit;
+// What a rotation event costs against a translation event: run_rotation()
+// handles its entries one by one, run() in batches whose tests overlap
+// (measured on selection_bench's turn and sweep paths over the dragon: 47-54
+// and 32-39 ns an event).
+constexpr double kRotationWeight = 1.5;
 // Entries handled between two looks at the cancellation flag.
 constexpr std::uint64_t kCancelEvery = 4096;
 
@@ -77,6 +82,12 @@ EventQueueStrategy::EventQueueStrategy()
            false},
           {"omega", "maximal rotation of the view direction per frame, radians", 0.02, 1e-6, 3.1416,
            false},
+          {"adaptive",
+           "1: each iteration takes the cheaper of the due events and a top-down pass; 0: the "
+           "events always",
+           1.0, 0.0, 1.0, true},
+          {"event_cost", "an event's cost in top-down tests, for that choice", 3.5, 0.5, 100.0,
+           false},
       }) {}
 
 void EventQueueStrategy::reset(const Hierarchy& hierarchy) {
@@ -89,6 +100,12 @@ void EventQueueStrategy::reset(const Hierarchy& hierarchy) {
     st.first_child = st.child_count != 0 ? a.first_child[n] : 0;
   }
   spheres_ = a.center_radius.data();
+  // A pass's frontier, at most a level of the tree: its memory touched now,
+  // not page by page in the first pass after a jump.
+  level_.assign(hierarchy.node_count() / 2 + 1, 0);
+  next_level_.assign(hierarchy.node_count() / 2 + 1, 0);
+  level_.clear();
+  next_level_.clear();
   slots_.assign(kMSlots, {});
   wslots_.assign(kWSlots, {});
   work_.clear();
@@ -171,22 +188,17 @@ void EventQueueStrategy::drop_rotation(NodeId n) {
   --wlive_;
 }
 
+// The lists only: the records of the nodes they held keep their old slots
+// and indices. Every node is queued again through rebuild() or as a child of
+// an unfold, and both reset its record first; no other code reads the
+// record of a node that is not queued (a fold erases only queued nodes and
+// leaves, which are never queued). So a rebuild costs no random access per
+// old event.
 void EventQueueStrategy::clear_queue() {
-  // Through the lists rather than the node array: O(events), not O(nodes).
-  // The work lists too: a cancelled iteration leaves the rest of one there.
-  auto clear = [&](std::vector<NodeId>& list) {
-    for (const NodeId e : list) {
-      if (e == kErased) continue;
-      NodeState& st = state_[e & ~kBoundary];
-      st.slot = kNone;
-      st.wslot = kNoneW;
-    }
-    list.clear();
-  };
-  for (std::vector<NodeId>& list : slots_) clear(list);
-  for (std::vector<NodeId>& list : wslots_) clear(list);
-  clear(work_);
-  clear(wwork_);
+  for (std::vector<NodeId>& list : slots_) list.clear();
+  for (std::vector<NodeId>& list : wslots_) list.clear();
+  work_.clear();
+  wwork_.clear();
   processing_ = kNone;
   queued_ = wlive_ = wentries_ = 0;
 }
@@ -210,28 +222,65 @@ void EventQueueStrategy::compact_rotation_lists() {
   wentries_ = kept;
 }
 
+struct EventQueueStrategy::Records {
+  const NodeState* s;
+  [[nodiscard]] bool leaf(NodeId n) const { return s[n].child_count == 0; }
+  [[nodiscard]] NodeId first(NodeId n) const { return s[n].first_child; }
+  [[nodiscard]] unsigned count(NodeId n) const { return s[n].child_count; }
+  void prefetch(NodeId n) const { __builtin_prefetch(s + n); }
+};
+
+// topdown's pass (the same test on the same floats, the same edits), level
+// by level with the nodes ahead prefetched (detail::level_pass): after event
+// iterations the hierarchy's arrays are cold, and the recursion of figure 3
+// waited for memory at every node (a pass at a teleport took 1.3-1.4 times
+// topdown's; level by level 1.0, docs/event-driven.md). On the hierarchy's
+// arrays rather than the records: half the bytes a node.
+bool EventQueueStrategy::pass(const IterationInput& input, TreeCut& cut, IterationResult& r) {
+  const detail::HierarchyNodes tree{input.hierarchy};
+  const auto& cr = input.hierarchy.arrays().center_radius;
+  // Every kSampleEvery-th test is decide(): the same test, and the event
+  // time a rebuild would give the node, for predicting what the events
+  // would cost (choose()); 1/128 of the tests at about three times the cost.
+  samples_.clear();
+  std::uint32_t k = 0;
+  auto test = [&](NodeId n) {
+    if (++k % kSampleEvery != 0) return unfold_test(camera_, cr[n]);
+    const Decision d = event_time::decide(camera_, cr[n], rates_);
+    samples_.push_back(d.t);
+    return d.pass;
+  };
+  auto decided = [](NodeId, bool) {};
+  auto drop = [](NodeId) {};
+  return detail::level_pass(tree, cut, r, input, test, decided, drop, input.hierarchy.root(),
+                            level_, next_level_);
+}
+
 // A jump: one top-down pass (figure 3, the code `topdown` runs) decides every
 // active and boundary node under the current camera and schedules its next
 // event. Each was just tested, so no event is due before the next slot.
 void EventQueueStrategy::rebuild(const IterationInput& input, TreeCut& cut, IterationResult& r) {
-  const Hierarchy& h = input.hierarchy;
   clear_queue();
-  // The spheres from the node records (the same floats): schedule() writes
-  // those records anyway.
-  auto test = [&](NodeId n) { return unfold_test(camera_, state_[n].sphere); };
+  // The pass tells decided(n) right after test(n), with no other test
+  // between, so the test's decision (the test and the event of its result,
+  // one look() at the node instead of two) is kept for it: the node is
+  // active exactly when its test passed. Its record may hold an old queue
+  // position (clear_queue()): reset before it is queued.
+  Decision last{};
+  auto test = [&](NodeId n) {
+    last = event_time::decide(camera_, state_[n].sphere, rates_);
+    return last.pass;
+  };
   auto decided = [&](NodeId n, bool active) {
-    const glm::vec4 c = state_[n].sphere;
-    schedule(n,
-             active ? potential_fold_event(camera_, c, rates_)
-                    : potential_unfold_event(camera_, c, rates_),
-             !active);
+    state_[n].slot = kNone;
+    state_[n].wslot = kNoneW;
+    schedule(n, last.t, !active);
   };
-  auto drop = [&](NodeId n) {
-    erase(n);
-    drop_rotation(n);
-  };
-  detail::TopDown pass(h, cut, r, input, test, decided, drop);
-  valid_ = pass.run(h.root());
+  // A folded subtree is below the nodes this pass has queued: nothing to erase.
+  auto drop = [](NodeId) {};
+  const Records tree{&state_[0]};
+  valid_ = detail::level_pass(tree, cut, r, input, test, decided, drop, input.hierarchy.root(),
+                              level_, next_level_);
   stats_.rebuilt = true;
 }
 
@@ -293,6 +342,9 @@ void EventQueueStrategy::handle(NodeId n, bool boundary, const Decision& dec,
     const NodeId end = first + state_[n].child_count;
     for (NodeId ch = first; ch < end; ++ch) {
       if (state_[ch].child_count == 0) continue;
+      // Not queued until now; its record may hold an old position (clear_queue()).
+      state_[ch].slot = kNone;
+      state_[ch].wslot = kNoneW;
       ++r.visited;
       ++stats_.descended;
       handle(ch, true, decide(camera_, state_[ch].sphere, rates_), input, cut, r);
@@ -308,19 +360,14 @@ void EventQueueStrategy::handle(NodeId n, bool boundary, const Decision& dec,
   }
 }
 
-// detail::fold_subtree (the same edits in the same order) on the node
-// records instead of the hierarchy's arrays, which the records copy: the
-// children's records are in cache already (run() prefetched them).
+// detail::fold_subtree on the node records: the children's records are in
+// cache already (run() prefetched them).
 void EventQueueStrategy::fold(NodeId n, TreeCut& cut, IterationResult& r) {
-  const NodeId first = state_[n].first_child;
-  const unsigned count = state_[n].child_count;
-  for (NodeId c = first; c < first + count; ++c) {
-    if (state_[c].child_count != 0 && !cut.contains(c)) fold(c, cut, r);
+  auto drop = [&](NodeId c) {
     erase(c);
     drop_rotation(c);
-  }
-  cut.coarsen_known(n, first, count);
-  ++r.coarsened;
+  };
+  detail::fold_subtree(Records{&state_[0]}, cut, n, r, drop);
 }
 
 void EventQueueStrategy::take(std::uint32_t slot) {
@@ -438,6 +485,98 @@ bool EventQueueStrategy::run_rotation(std::uint32_t slot, const IterationInput& 
   return true;
 }
 
+// The events an advance by (dm, dw) would handle: the sizes of the lists it
+// would take (advance() takes the current slot's and every one the clock
+// passes), the rotation lists' counted at the share of their entries that
+// are live. Reads only the lists' sizes: at most 2,049 and 4,097.
+double EventQueueStrategy::due_events(double dm, double dw) const {
+  double due = 0.0;
+  if (dm > 0.0) {
+    const std::uint64_t last = mbase_ + static_cast<std::uint64_t>(mfrac_ + dm * kMPerUnit);
+    std::size_t n = 0;
+    for (std::uint64_t s = mbase_; s <= last; ++s) n += slots_[s & kMMask].size();
+    due += double(n);
+  }
+  if (dw > 0.0 && wentries_ > 0) {
+    const std::uint64_t last = wbase_ + static_cast<std::uint64_t>(wfrac_ + dw * kWPerUnit);
+    std::size_t n = 0;
+    for (std::uint64_t s = wbase_; s <= last; ++s) n += wslots_[s & kWMask].size();
+    due += kRotationWeight * double(n) * double(wlive_) / double(wentries_);
+  }
+  return due;
+}
+
+// While the events run, a node with the time t on a clock that advances x
+// an iteration is due about every t / x iterations (its next time is about
+// as far as this one, the node being about as far from its change): the
+// events an iteration is the sum of x / t over the nodes (at most 1 each; a
+// slot's list is handled whenever the clock moves within the slot, so x is
+// the motion plus a slot), estimated from the sampled times. (The share of
+// times below x alone, the events of the first iteration after a rebuild,
+// was a quarter of what the following iterations then handled on the fast
+// test paths, and the strategy came back to the events too early.)
+double EventQueueStrategy::predicted_from_samples(double dm, double dw) const {
+  if (samples_.empty()) return 0.0;
+  const double m = dm > 0.0 ? dm + 1.0 / kMPerUnit : 0.0;
+  const double w = dw > 0.0 ? dw + 1.0 / kWPerUnit : 0.0;
+  double due = 0.0;
+  for (const EventTime& t : samples_) {
+    const double rm = t.m > m ? m / t.m : 1.0;
+    const double rw = t.w > w ? w / t.w : 1.0;  // 0 for t.w infinite
+    due += std::min(kRotationWeight, rm + kRotationWeight * rw);
+  }
+  return due * pass_tests_ / double(samples_.size());
+}
+
+// The cheaper method for this iteration (docs/event-driven.md, "The cheaper
+// method each iteration"). An event costs kappa top-down tests (kEventCost:
+// it reads its node's record in random order, computes the next event time
+// and edits the lists; a test of the pass reads in order) and brings
+// tests_per_event_ tests (itself and the children of unfolds); a pass
+// costs the tests of the queue's nodes (queued_: the active and boundary
+// ones, what the pass visits), or of the last pass. Both are counts, so the
+// choice is the same on every machine and in every test run. While the
+// queue is valid the due events are counted exactly (due_events()): the
+// events, unless they are predicted dearer than a pass twice in a row, or
+// twice as dear once. A pass leaves the queue out of date and going back
+// costs a rebuild (about four passes, docs/benchmarks.md): so while passes
+// run, the rebuild comes after three moving iterations in a row whose events,
+// predicted from the event times sampled in the last pass, cost half a pass
+// or less (more after a return that did not last: calm_needed_).
+EventQueueStrategy::Method EventQueueStrategy::choose(double dm, double dw) {
+  const double kappa = param_at(kEventCost);
+  if (valid_) {
+    const double due = due_events(dm, dw);
+    stats_.predicted = static_cast<std::size_t>(due);
+    const double events = kappa * tests_per_event_ * due;
+    const double pass = double(queued_);
+    over_ = events > pass ? over_ + 1 : 0;
+    if (events > 2.0 * pass || over_ >= 2) {
+      // A sudden jump in the cost (a jump of the camera) says nothing of the
+      // last return; a cost that crept over a pass soon after it, that it
+      // came too early.
+      const bool crept = events <= 2.0 * pass;
+      calm_needed_ = !crept                    ? calm_needed_
+                     : events_run_ < kShortRun ? std::min(64, 2 * calm_needed_)
+                                               : 3;
+      over_ = 0;
+      calm_ = 0;
+      return Method::kTopDown;
+    }
+    ++events_run_;
+    return Method::kEvents;
+  }
+  const double due = predicted_from_samples(dm, dw);
+  stats_.predicted = static_cast<std::size_t>(due);
+  calm_ = kappa * tests_per_event_ * due <= 0.5 * pass_tests_ ? calm_ + 1 : 0;
+  if (calm_ >= calm_needed_) {
+    calm_ = 0;
+    events_run_ = 0;
+    return Method::kRebuild;
+  }
+  return Method::kTopDown;
+}
+
 void EventQueueStrategy::iterate(const IterationInput& input, IterationOutput& output) {
   const Hierarchy& h = input.hierarchy;
   TreeCut& cut = *output.cut;
@@ -445,34 +584,28 @@ void EventQueueStrategy::iterate(const IterationInput& input, IterationOutput& o
   if (state_.size() != h.node_count() || spheres_ != h.arrays().center_radius.data()) reset(h);
   stats_ = {};
   camera_ = CriterionConstants::from_view(input.view, param_at(kTheta));
-  rho_ = param_at(kRho) * 2.0 * double(h.radius(h.root()));
+  const double diameter = 2.0 * double(h.radius(h.root()));
+  rho_ = param_at(kRho) * diameter;
   omega_ = param_at(kOmega);
+  const bool adaptive = param_at(kAdaptive) != 0.0;
 
-  if (!camera_.perspective) {
-    // No distance, no event times: the plain top-down pass.
-    const auto& cr = h.arrays().center_radius;
-    auto test = [&](NodeId n) { return unfold_test(camera_, input.view, cr[n]); };
-    auto decided = [](NodeId, bool) {};
-    auto drop = [](NodeId) {};
-    detail::TopDown pass(h, cut, r, input, test, decided, drop);
-    pass.run(h.root());
-    valid_ = false;
-    r.converged = !r.cancelled;
-    return;
-  }
-
-  bool jump = !valid_ || input.params_version != last_params_ || !camera_.same_lens(last_camera_) ||
-              cut.size() != last_cut_size_;
-  if (!jump && input.view.version == last_version_) {
+  // The cut is topdown's for the last camera, under the same parameters and
+  // projection kind: what the camera did since decides what is needed.
+  const bool known = current_ && input.params_version == last_params_ &&
+                     cut.size() == last_cut_size_ && camera_.perspective &&
+                     last_camera_.perspective && camera_.theta == last_camera_.theta;
+  if (known && input.view.version == last_version_) {
     r.converged = true;  // nothing due: O(1)
     stats_.queued = queued_;
     stats_.rotation_queued = wlive_;
     return;
   }
   double dm = 0.0, dw = 0.0;
-  if (!jump) {
+  if (known) {
     // How far the camera moved and turned since the last iteration, in units
-    // of rho and omega; the angle between unit vectors from their chord.
+    // of rho and omega; the angle between unit vectors from their chord. A
+    // new lens counts as motion (criterion.cpp): its cone's half-angle as a
+    // turn, its zoom by e^z as a translation of z diameters.
     const double mx = camera_.ex - last_camera_.ex;
     const double my = camera_.ey - last_camera_.ey;
     const double mz = camera_.ez - last_camera_.ez;
@@ -481,29 +614,68 @@ void EventQueueStrategy::iterate(const IterationInput& input, IterationOutput& o
     const double wz = camera_.uz - last_camera_.uz;
     dm = std::sqrt(mx * mx + my * my + mz * mz) / rho_;
     dw = 2.0 * std::asin(std::min(1.0, 0.5 * std::sqrt(wx * wx + wy * wy + wz * wz))) / omega_;
-    // Far jumps (and NaN) rebuild: the events would all be due anyway.
-    if (!(dm < kMCap && dw < kWCap)) jump = true;
+    if (camera_.pixel_scale != last_camera_.pixel_scale) {
+      dm += std::abs(std::log(camera_.pixel_scale / last_camera_.pixel_scale)) * diameter / rho_;
+    }
+    if (camera_.beta != last_camera_.beta)
+      dw += std::abs(camera_.beta - last_camera_.beta) / omega_;
   }
-  if (!jump && (dm > 0.0 || dw > 0.0)) {
+  // A far jump (or NaN): the events would all be due.
+  const bool far = !(dm < kMCap && dw < kWCap);
+  Method method = Method::kRebuild;
+  if (!camera_.perspective) {
+    method = Method::kTopDown;  // no distance, no event times
+  } else if (!known) {
+    method = Method::kRebuild;  // the first iteration, new parameters, a cut changed, a cancel
+  } else if (far) {
+    method = adaptive ? Method::kTopDown : Method::kRebuild;
+  } else if (dm == 0.0 && dw == 0.0) {
+    method = Method::kNone;  // the same camera: the same cut
+  } else if (adaptive) {
+    method = choose(dm, dw);
+  } else {
+    method = Method::kEvents;
+  }
+  if (method == Method::kEvents && (dm > 0.0 || dw > 0.0)) {
     pace_m_ += (dm - pace_m_) * 0.125;
     pace_w_ += (dw - pace_w_) * 0.125;
   }
-  rates_ = EventRates(camera_, rho_, omega_, kMCap, kWCap, pace_w_ / std::max(pace_m_, 1e-9));
-  if (jump) {
-    rebuild(input, cut, r);
-    stats_.frames_advanced = 1;
-  } else if (dm > 0.0 || dw > 0.0) {
-    if (!advance(input, cut, r, dm, dw)) {
-      // The cut is valid (every change was one refine or coarsen); the
-      // events are not complete any more: the next iteration rebuilds.
-      r.cancelled = true;
+  rates_ =
+      EventRates(camera_, rho_, omega_, kMCap, kWCap, pace_w_ / std::max(pace_m_, 1e-9), diameter);
+  stats_.method = method;
+  bool done = true;
+  switch (method) {
+    case Method::kNone:
+      break;
+    case Method::kRebuild:
+      rebuild(input, cut, r);
+      done = valid_;
+      stats_.frames_advanced = 1;
+      break;
+    case Method::kTopDown:
+      done = camera_.perspective ? pass(input, cut, r)
+                                 : detail::topdown_pass(h, cut, r, input, camera_);
       valid_ = false;
+      pass_tests_ = double(r.visited);
+      break;
+    case Method::kEvents: {
+      done = advance(input, cut, r, dm, dw);
+      // The cancelled cut is valid (every change was one refine or coarsen);
+      // the events are not complete any more: the next iteration rebuilds.
+      valid_ = done;
+      const double due = double(stats_.predicted);
+      if (done && due > 0.0) {
+        tests_per_event_ += (std::max(1.0, double(r.visited) / due) - tests_per_event_) * 0.25;
+      }
+      stats_.frames_advanced = static_cast<std::uint64_t>(std::ceil(std::max(dm, dw)));
+      stats_.moved = dm;
+      stats_.turned = dw;
+      break;
     }
-    stats_.frames_advanced = static_cast<std::uint64_t>(std::ceil(std::max(dm, dw)));
-    stats_.moved = dm;
-    stats_.turned = dw;
   }
-  if (wentries_ > 3 * wlive_ + 65536) compact_rotation_lists();
+  current_ = done && camera_.perspective;
+  r.cancelled = !done;
+  if (valid_ && wentries_ > 3 * wlive_ + 65536) compact_rotation_lists();
   last_camera_ = camera_;
   last_version_ = input.view.version;
   last_params_ = input.params_version;

@@ -69,7 +69,11 @@ inline EventTime unfold_event(const CriterionConstants& cam, const Sight& g, con
   if (g.d2 < g.r * g.r || !cam.perspective) return {0.0, 0.0};
   const double d = g.d;  // computed by look() (outside)
   const double t_i = (d - g.r) * q.inv_rho;
-  const double t_m = (d - g.r * q.size_scale) * q.inv_rho;
+  double t_m = (d - g.r * q.size_scale) * q.inv_rho;
+  // A zoom counts as a translation of q.reach per factor e (criterion.cpp):
+  // the bound is scaled for nodes farther than that; none nearer, none at
+  // all when the lens is fixed (reach infinite).
+  if (d > q.reach) t_m *= q.reach / d;
   if (t_m >= t_i) return {clock_bound(t_i, q.cap), kNever};  // max(t_r, t_m) >= t_i already
   // Visible now (the test's own inequality, no trigonometry): t_r = 0. When
   // look() got past the threshold the test failed on visibility: not visible.
@@ -99,7 +103,9 @@ inline EventTime fold_event(const CriterionConstants& cam, const Sight& g, const
   if (g.d2 < g.r * g.r) return {clock_bound((g.r - std::sqrt(g.d2)) * q.inv_rho, q.cap), kNever};
   // look() passed the threshold: d and the tangent are computed.
   const double d = g.d, tangent = g.tangent;
-  const double t_m = (g.r * q.size_scale - d) * q.inv_rho;
+  const double threshold = g.r * q.size_scale;
+  double t_m = (threshold - d) * q.inv_rho;
+  if (threshold > q.reach) t_m *= q.reach / threshold;  // the zoom (criterion.cpp)
   const double k_max = std::min(q.cap, 0.5 * d * q.inv_rho);
   if (!(tangent > 0.0)) return {0.0, 0.0};
   // (pi/3) rho / d + rho r / (d tangent) with one division.

@@ -8,71 +8,88 @@
 
 #include <atomic>
 #include <cstdint>
+#include <vector>
 
 #include "treecut/hierarchy.hpp"
+#include "treecut/strategies/refinement_criterion.hpp"
 #include "treecut/strategy.hpp"
 #include "treecut/tree_cut.hpp"
 
 namespace treecut::strategies::detail {
 
-/// Folds the active node `n`: its subtree collapses into n (bottom up, each
+/// The tree a pass walks: the hierarchy's arrays (topdown), or event_queue's
+/// node records, which copy them into one cache line per two nodes. Both give
+/// the same children, so the same pass makes the same edits.
+struct HierarchyNodes {
+  const Hierarchy& h;
+  [[nodiscard]] bool leaf(NodeId n) const { return h.is_leaf(n); }
+  [[nodiscard]] NodeId first(NodeId n) const { return h.first_child(n); }
+  [[nodiscard]] unsigned count(NodeId n) const { return h.child_count(n); }
+  void prefetch(NodeId n) const {
+    __builtin_prefetch(h.arrays().center_radius.data() + n);
+    __builtin_prefetch(h.arrays().first_child.data() + n);
+    __builtin_prefetch(h.arrays().child_count.data() + n);
+  }
+};
+
+/// Folds the active node `n`: its subtree collapses into it (bottom up, each
 /// coarsen a valid cut). `drop(m)` is told every node below n that was active
 /// or a cut node (the event queue erases their events).
-template <class Drop>
-void fold_subtree(const Hierarchy& h, TreeCut& cut, NodeId n, IterationResult& r, Drop&& drop) {
-  const NodeId first = h.first_child(n);
-  const NodeId end = first + h.child_count(n);
-  for (NodeId c = first; c < end; ++c) {
-    if (!cut.contains(c)) fold_subtree(h, cut, c, r, drop);
+template <class Tree, class Drop>
+void fold_subtree(const Tree& tree, TreeCut& cut, NodeId n, IterationResult& r, Drop&& drop) {
+  const NodeId first = tree.first(n);
+  const unsigned count = tree.count(n);
+  for (NodeId c = first; c < first + count; ++c) {
+    if (!cut.contains(c)) fold_subtree(tree, cut, c, r, drop);
     drop(c);
   }
-  cut.coarsen(h, n);
+  cut.coarsen_known(n, first, count);
   ++r.coarsened;
 }
 
 /// Figure 3 from `n` down. `test(n)` is the unfold test; `decided(n, active)`
-/// is told each non-leaf node's state once it is final (the event queue
-/// schedules its next event). Returns false when cancelled (the cut is valid:
-/// every step is one refine or coarsen).
-template <class Test, class Decided, class Drop>
+/// is told each non-leaf node's state once it is final, right after its test
+/// (the event queue schedules its next event). Returns false when cancelled
+/// (the cut is valid: every step is one refine or coarsen).
+template <class Tree, class Test, class Decided, class Drop>
 class TopDown {
  public:
-  TopDown(const Hierarchy& h, TreeCut& cut, IterationResult& r, const IterationInput& input,
+  TopDown(const Tree& tree, TreeCut& cut, IterationResult& r, const IterationInput& input,
           Test& test, Decided& decided, Drop& drop)
-      : h_(h), cut_(cut), r_(r), input_(input), test_(test), decided_(decided), drop_(drop) {}
+      : tree_(tree), cut_(cut), r_(r), input_(input), test_(test), decided_(decided), drop_(drop) {}
 
   bool run(NodeId n) {
-    if (h_.is_leaf(n)) return true;
+    if (tree_.leaf(n)) return true;
     if ((++r_.visited & 4095) == 0 && input_.cancelled()) {
       r_.cancelled = true;
       return false;
     }
     const bool pass = test_(n);
+    const NodeId first = tree_.first(n);
+    const unsigned count = tree_.count(n);
     if (cut_.contains(n)) {
       // Inactive: unfold when the test passes, else the subtree stays folded.
       if (!pass) {
         decided_(n, false);
         return true;
       }
-      cut_.refine(h_, n);
+      cut_.refine_known(n, first, count);
       ++r_.refined;
     } else if (!pass) {
       // Active, and no longer meets the criterion: fold it and its subtree.
-      fold_subtree(h_, cut_, n, r_, drop_);
+      fold_subtree(tree_, cut_, n, r_, drop_);
       decided_(n, false);
       return true;
     }
     decided_(n, true);
-    const NodeId first = h_.first_child(n);
-    const NodeId end = first + h_.child_count(n);
-    for (NodeId c = first; c < end; ++c) {
+    for (NodeId c = first; c < first + count; ++c) {
       if (!run(c)) return false;
     }
     return true;
   }
 
  private:
-  const Hierarchy& h_;
+  const Tree& tree_;
   TreeCut& cut_;
   IterationResult& r_;
   const IterationInput& input_;
@@ -80,5 +97,71 @@ class TopDown {
   Decided& decided_;
   Drop& drop_;
 };
+
+/// Figure 3 level by level: the same tests, edits and decided() calls as
+/// TopDown, in breadth-first order. Node ids are breadth-first, so each
+/// level's nodes are read in ascending order and the ones ahead are known:
+/// they are prefetched, and a pass over cold memory (after event iterations)
+/// waits for it far less. `a` and `b` are scratch.
+template <class Tree, class Test, class Decided, class Drop>
+bool level_pass(const Tree& tree, TreeCut& cut, IterationResult& r, const IterationInput& input,
+                Test& test, Decided& decided, Drop& drop, NodeId root, std::vector<NodeId>& a,
+                std::vector<NodeId>& b) {
+  constexpr std::size_t kAhead = 16;
+  a.clear();
+  if (!tree.leaf(root)) a.push_back(root);
+  while (!a.empty()) {
+    b.clear();
+    const std::size_t count = a.size();
+    for (std::size_t i = 0; i < count; ++i) {
+      if (i + kAhead < count) {
+        tree.prefetch(a[i + kAhead]);
+        cut.prefetch(a[i + kAhead]);
+      }
+      const NodeId n = a[i];
+      if ((++r.visited & 4095) == 0 && input.cancelled()) {
+        r.cancelled = true;
+        return false;
+      }
+      const bool pass = test(n);
+      const NodeId first = tree.first(n);
+      const unsigned children = tree.count(n);
+      if (cut.contains(n)) {
+        if (!pass) {
+          decided(n, false);
+          continue;
+        }
+        cut.refine_known(n, first, children);
+        ++r.refined;
+      } else if (!pass) {
+        fold_subtree(tree, cut, n, r, drop);
+        decided(n, false);
+        continue;
+      }
+      decided(n, true);
+      for (NodeId c = first; c < first + children; ++c) {
+        if (!tree.leaf(c)) b.push_back(c);
+      }
+    }
+    a.swap(b);
+  }
+  return true;
+}
+
+/// The `topdown` strategy's pass: figure 3 from the root under `cam`.
+/// Returns false when cancelled.
+inline bool topdown_pass(const Hierarchy& h, TreeCut& cut, IterationResult& r,
+                         const IterationInput& input, const CriterionConstants& cam) {
+  const auto& cr = h.arrays().center_radius;
+  const HierarchyNodes tree{h};
+  auto decided = [](NodeId, bool) {};
+  auto drop = [](NodeId) {};
+  if (cam.perspective) {
+    auto test = [&](NodeId n) { return unfold_test(cam, cr[n]); };
+    return TopDown(tree, cut, r, input, test, decided, drop).run(h.root());
+  }
+  auto test = [&](NodeId n) { return unfold_test(cam, input.view, cr[n]); };
+  return TopDown(tree, cut, r, input, test, decided, drop).run(h.root());
+}
 
 }  // namespace treecut::strategies::detail

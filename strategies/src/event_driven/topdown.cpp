@@ -15,23 +15,10 @@ TopDownStrategy::TopDownStrategy()
 void TopDownStrategy::reset(const Hierarchy& /*hierarchy*/) {}
 
 void TopDownStrategy::iterate(const IterationInput& input, IterationOutput& output) {
-  const Hierarchy& h = input.hierarchy;
-  IterationResult& r = output.result;
   const CriterionConstants cam = CriterionConstants::from_view(input.view, param_at(kTheta));
-  const auto& cr = h.arrays().center_radius;
-  auto decided = [](NodeId, bool) {};
-  auto drop = [](NodeId) {};
-  if (cam.perspective) {
-    auto test = [&](NodeId n) { return unfold_test(cam, cr[n]); };
-    detail::TopDown pass(h, *output.cut, r, input, test, decided, drop);
-    pass.run(h.root());
-  } else {
-    auto test = [&](NodeId n) { return unfold_test(cam, input.view, cr[n]); };
-    detail::TopDown pass(h, *output.cut, r, input, test, decided, drop);
-    pass.run(h.root());
-  }
+  detail::topdown_pass(input.hierarchy, *output.cut, output.result, input, cam);
   // The cut is a function of the view alone: a second pass would change nothing.
-  r.converged = !r.cancelled;
+  output.result.converged = !output.result.cancelled;
 }
 
 }  // namespace treecut::strategies

@@ -36,13 +36,27 @@
 // only where visibility is what keeps the node's change late), so a camera
 // that only flies never makes a rotation event due and one that only turns
 // never a translation event; a camera faster than rho and omega only makes
-// more events due, never a wrong cut. The same view version costs O(1). A
-// jump rebuilds the queue with one top-down pass: the first iteration, a
-// camera that moved or turned kSlots / 2 units or more, a new projection or
-// viewport, a parameter change, reset(), a cut that is not the one the
-// strategy left, an iteration cancelled before (the cut then stays valid,
-// the events are redone). Orthographic views: a top-down pass every
-// iteration.
+// more events due, never a wrong cut. A new lens is motion too (issue 31): a
+// zoom by e^z advances the translation clock as a translation of z model
+// diameters would, a new half-angle of the cone around the frustum (field
+// of view, aspect) the rotation clock by that angle; the threshold times are
+// scaled so that this stays a lower bound (criterion.cpp). The same view
+// version, or the same camera, costs O(1). A rebuild (one top-down pass that
+// schedules every node): the first iteration, a parameter change, reset(), a
+// new projection kind, a cut that is not the one the strategy left, an
+// iteration cancelled before (the cut then stays valid, the events are
+// redone).
+//
+// The cheaper method each iteration (parameter `adaptive`, on by default):
+// before handling the due events the strategy counts them (the sizes of the
+// lists the clocks will pass) and compares their cost, kappa tests each
+// (`event_cost`), with a plain top-down pass over the queue's nodes; a
+// camera fast enough that a pass is cheaper gets the pass (the queue waits,
+// out of date), and a jump of the camera (kSlots / 2 units or more) too.
+// While passes run, every 128th test also computes its event time, and the
+// events' cost for the current motion is predicted from those samples; once
+// it is half a pass or less three iterations in a row, a rebuild returns to
+// the events. Orthographic views: a top-down pass every iteration.
 //
 // The rotation lists are lazy: a node's rotation entry is only moved when
 // its new time is earlier than the one it has (an early test is always
@@ -100,9 +114,18 @@ class HugeArray {
 class EventQueueStrategy final : public Strategy {
  public:
   enum Param : std::size_t {
-    kTheta,  ///< pixels: a node unfolds when its projected radius reaches theta
-    kRho,    ///< maximal eye translation per frame, in model diameters (root sphere)
-    kOmega,  ///< maximal rotation of the view direction per frame, radians
+    kTheta,      ///< pixels: a node unfolds when its projected radius reaches theta
+    kRho,        ///< maximal eye translation per frame, in model diameters (root sphere)
+    kOmega,      ///< maximal rotation of the view direction per frame, radians
+    kAdaptive,   ///< 1: each iteration takes the cheaper of the events and a top-down pass
+    kEventCost,  ///< an event's cost in top-down tests, for that choice
+  };
+  /// How the last iteration got its cut.
+  enum class Method : std::uint8_t {
+    kNone,     ///< nothing to do (same view, or the same camera)
+    kEvents,   ///< the due events (figure 7)
+    kRebuild,  ///< a top-down pass that also scheduled every node's event
+    kTopDown,  ///< a plain top-down pass; the queue waits, out of date
   };
   /// Lists in the circular buffer of each clock, and lists per unit (rho,
   /// omega); events farther than half a buffer are tested then (and
@@ -124,7 +147,9 @@ class EventQueueStrategy final : public Strategy {
     std::uint64_t frames_advanced = 0;  ///< ceil(max(moved / rho, turned / omega)); 0: nothing due
     double moved = 0.0;                 ///< translation clock advance, units of rho
     double turned = 0.0;                ///< rotation clock advance, units of omega
-    bool rebuilt = false;               ///< the queue was rebuilt (a jump)
+    Method method = Method::kNone;      ///< how the cut was made
+    bool rebuilt = false;               ///< the queue was rebuilt (method kRebuild)
+    std::size_t predicted = 0;          ///< events predicted due (method kEvents or kTopDown)
     std::size_t queued = 0;             ///< events in the translation lists afterwards
     std::size_t rotation_queued = 0;    ///< nodes with a live rotation entry afterwards
     std::uint64_t rotation_events = 0;  ///< events handled from the rotation lists
@@ -179,6 +204,19 @@ class EventQueueStrategy final : public Strategy {
   void clear_queue();
   void compact_rotation_lists();
   void rebuild(const IterationInput& input, TreeCut& cut, IterationResult& r);
+  // The node records as the tree a top-down pass walks (top_down.hpp).
+  struct Records;
+  // A plain top-down pass over the records; the queue is left as it is.
+  bool pass(const IterationInput& input, TreeCut& cut, IterationResult& r);
+  // The events in the lists an advance by (dm, dw) would handle (rotation
+  // entries counted as live in the proportion the lists hold).
+  [[nodiscard]] double due_events(double dm, double dw) const;
+  // Which method this iteration takes, from the motion (units of the clocks).
+  [[nodiscard]] Method choose(double dm, double dw);
+  // While passes run: the events a valid queue would have made due for a
+  // motion (dm, dw), from the event times sampled in the last pass, scaled
+  // to its tests.
+  [[nodiscard]] double predicted_from_samples(double dm, double dw) const;
   bool advance(const IterationInput& input, TreeCut& cut, IterationResult& r, double dm, double dw);
   // Acts on a due node's decision (its test and next event time; its entries
   // already taken).
@@ -211,9 +249,28 @@ class EventQueueStrategy final : public Strategy {
   // The camera's recent pace (moving average per iteration) in either unit:
   // their ratio sets how a visibility gap is split between the clocks.
   double pace_m_ = 1.0, pace_w_ = 1.0;
-  bool valid_ = false;           // the queue describes the cut and last_camera_
-  CriterionConstants camera_;       // the camera of this iteration
-  CriterionConstants last_camera_;  // the camera the queue's events are relative to
+  bool valid_ = false;    // the queue describes the cut and last_camera_
+  bool current_ = false;  // the cut is topdown's for last_camera_
+  // The choice of method (choose()): iterations in a row in which the
+  // events were predicted dearer than a pass (over_), or, while passes run,
+  // much cheaper (calm_); the tests an event brings (itself and the
+  // children of unfolds), measured on event iterations; the tests of the
+  // last pass, and the event times of every kSampleEvery-th node it tested
+  // (the time decide() gives, as a rebuild would schedule it).
+  int over_ = 0, calm_ = 0;
+  // Calm iterations needed before a rebuild: doubled (up to 64) when the
+  // events after the last one lasted under kShortRun iterations, so a
+  // camera at the crossing of the costs does not rebuild again and again.
+  int calm_needed_ = 3;
+  int events_run_ = 0;  // event iterations since the last rebuild
+  static constexpr int kShortRun = 8;
+  double tests_per_event_ = 1.0;
+  double pass_tests_ = 0.0;
+  static constexpr std::uint32_t kSampleEvery = 128;
+  std::vector<EventTime> samples_;
+  std::vector<NodeId> level_, next_level_;  // a pass's frontier
+  CriterionConstants camera_;               // the camera of this iteration
+  CriterionConstants last_camera_;          // the camera the queue's events are relative to
   EventRates rates_{CriterionConstants{}, 1.0, 1.0, 1.0, 1.0};
   std::uint64_t last_version_ = 0;
   std::uint64_t last_params_ = 0;

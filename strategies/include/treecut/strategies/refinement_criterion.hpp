@@ -51,12 +51,6 @@ struct CriterionConstants {
   /// (the criterion then has no distance: visibility is the frustum test and
   /// the threshold compares r * pixel_scale with theta).
   static CriterionConstants from_view(const ViewSnapshot& view, double theta);
-  /// Same projection and threshold: only the eye and the direction differ, so
-  /// the event times computed under one remain valid under the other.
-  [[nodiscard]] bool same_lens(const CriterionConstants& o) const {
-    return beta == o.beta && pixel_scale == o.pixel_scale && theta == o.theta &&
-           perspective == o.perspective;
-  }
 };
 
 /// The unfold test of figure 4 (perspective camera) with what it computed on
@@ -123,13 +117,20 @@ struct EventRates {
   /// of translation (in rho units), which sets the split; any split gives a
   /// correct bound, this one the latest events for a camera that keeps its
   /// pace. `cap`, `cap_w`: the farthest times returned on each clock.
+  /// `reach`: what a change of the lens by a factor e (pixel_scale, the
+  /// field of view or the viewport) counts as on the translation clock, in
+  /// model units; infinity (the default) when the lens is fixed. A zoom by
+  /// e^z is charged as a translation of z * reach (a change of the cone's
+  /// half-angle beta as a rotation by the same angle); the threshold times
+  /// are scaled so that this is a lower bound (criterion.cpp).
   EventRates(const CriterionConstants& cam, double rho, double omega, double cap, double cap_w,
-             double turn_per_move = 1.0);
+             double turn_per_move = 1.0, double reach = std::numeric_limits<double>::infinity());
   double rho, inv_rho, omega, inv_omega;
   double
       size_scale;  ///< pixel_scale / theta: the distance at which r reaches theta is r * size_scale
   double cap, cap_w;
   double split;  ///< omega * turn_per_move: radians per rho unit the camera turns
+  double reach;  ///< model units a zoom by a factor e counts as
 };
 
 /// When unfold_test, false now, can become true (a folded node): translation
