@@ -234,8 +234,8 @@ struct EventQueueStrategy::Records {
 // by level with the nodes ahead prefetched (detail::level_pass): after event
 // iterations the hierarchy's arrays are cold, and the recursion of figure 3
 // waited for memory at every node (a pass at a teleport took 1.3-1.4 times
-// topdown's; level by level 1.0, docs/event-driven.md). On the hierarchy's
-// arrays rather than the records: half the bytes a node.
+// topdown's; level by level 0.99-1.14, docs/benchmarks.md). On the
+// hierarchy's arrays rather than the records: fewer bytes a node.
 bool EventQueueStrategy::pass(const IterationInput& input, TreeCut& cut, IterationResult& r) {
   const detail::HierarchyNodes tree{input.hierarchy};
   const auto& cr = input.hierarchy.arrays().center_radius;
@@ -360,14 +360,21 @@ void EventQueueStrategy::handle(NodeId n, bool boundary, const Decision& dec,
   }
 }
 
-// detail::fold_subtree on the node records: the children's records are in
-// cache already (run() prefetched them).
+// detail::fold_subtree (the same edits in the same order) on the node
+// records: the children's records are in cache already (run() prefetched
+// them), and a leaf child is known from its record without reading the
+// cut's slot of it (on the terrain flythrough, 6,000 folds an iteration,
+// that read took the iteration from 4.1 to 4.7 ms).
 void EventQueueStrategy::fold(NodeId n, TreeCut& cut, IterationResult& r) {
-  auto drop = [&](NodeId c) {
+  const NodeId first = state_[n].first_child;
+  const unsigned count = state_[n].child_count;
+  for (NodeId c = first; c < first + count; ++c) {
+    if (state_[c].child_count != 0 && !cut.contains(c)) fold(c, cut, r);
     erase(c);
     drop_rotation(c);
-  };
-  detail::fold_subtree(Records{&state_[0]}, cut, n, r, drop);
+  }
+  cut.coarsen_known(n, first, count);
+  ++r.coarsened;
 }
 
 void EventQueueStrategy::take(std::uint32_t slot) {
@@ -521,8 +528,8 @@ double EventQueueStrategy::predicted_from_samples(double dm, double dw) const {
   const double w = dw > 0.0 ? dw + 1.0 / kWPerUnit : 0.0;
   double due = 0.0;
   for (const EventTime& t : samples_) {
-    const double rm = t.m > m ? m / t.m : 1.0;
-    const double rw = t.w > w ? w / t.w : 1.0;  // 0 for t.w infinite
+    const double rm = m <= 0.0 ? 0.0 : t.m > m ? m / t.m : 1.0;
+    const double rw = w <= 0.0 ? 0.0 : t.w > w ? w / t.w : 1.0;  // 0 for t.w infinite
     due += std::min(kRotationWeight, rm + kRotationWeight * rw);
   }
   return due * pass_tests_ / double(samples_.size());
