@@ -47,6 +47,31 @@ void fold_subtree(const Tree& tree, TreeCut& cut, NodeId n, IterationResult& r, 
   ++r.coarsened;
 }
 
+/// Figure 3's step at the non-leaf node n, reached with every ancestor
+/// active: tests it, unfolds or folds it, tells decided(n, active). Returns
+/// true when n is active now (its children are to be visited).
+template <class Tree, class Test, class Decided, class Drop>
+bool figure3_step(const Tree& tree, TreeCut& cut, IterationResult& r, NodeId n, Test& test,
+                  Decided& decided, Drop& drop) {
+  const bool pass = test(n);
+  if (cut.contains(n)) {
+    // Inactive: unfold when the test passes, else the subtree stays folded.
+    if (!pass) {
+      decided(n, false);
+      return false;
+    }
+    cut.refine_known(n, tree.first(n), tree.count(n));
+    ++r.refined;
+  } else if (!pass) {
+    // Active, and no longer meets the criterion: fold it and its subtree.
+    fold_subtree(tree, cut, n, r, drop);
+    decided(n, false);
+    return false;
+  }
+  decided(n, true);
+  return true;
+}
+
 /// Figure 3 from `n` down. `test(n)` is the unfold test; `decided(n, active)`
 /// is told each non-leaf node's state once it is final, right after its test
 /// (the event queue schedules its next event). Returns false when cancelled
@@ -64,24 +89,9 @@ class TopDown {
       r_.cancelled = true;
       return false;
     }
-    const bool pass = test_(n);
+    if (!figure3_step(tree_, cut_, r_, n, test_, decided_, drop_)) return true;
     const NodeId first = tree_.first(n);
     const unsigned count = tree_.count(n);
-    if (cut_.contains(n)) {
-      // Inactive: unfold when the test passes, else the subtree stays folded.
-      if (!pass) {
-        decided_(n, false);
-        return true;
-      }
-      cut_.refine_known(n, first, count);
-      ++r_.refined;
-    } else if (!pass) {
-      // Active, and no longer meets the criterion: fold it and its subtree.
-      fold_subtree(tree_, cut_, n, r_, drop_);
-      decided_(n, false);
-      return true;
-    }
-    decided_(n, true);
     for (NodeId c = first; c < first + count; ++c) {
       if (!run(c)) return false;
     }
@@ -125,22 +135,9 @@ bool level_pass(const Tree& tree, TreeCut& cut, IterationResult& r, const Iterat
         r.cancelled = true;
         return false;
       }
-      const bool pass = test(n);
+      if (!figure3_step(tree, cut, r, n, test, decided, drop)) continue;
       const NodeId first = tree.first(n);
       const unsigned children = tree.count(n);
-      if (cut.contains(n)) {
-        if (!pass) {
-          decided(n, false);
-          continue;
-        }
-        cut.refine_known(n, first, children);
-        ++r.refined;
-      } else if (!pass) {
-        fold_subtree(tree, cut, n, r, drop);
-        decided(n, false);
-        continue;
-      }
-      decided(n, true);
       for (NodeId c = first; c < first + children; ++c) {
         if (!tree.leaf(c)) b.push_back(c);
       }
