@@ -292,6 +292,10 @@ void BM_Selection(benchmark::State& state) {
         ev.s.set_param("adaptive", std::atof(a));
       if (const char* k = std::getenv("TREECUT_SELECTION_EVENT_COST"))
         ev.s.set_param("event_cost", std::atof(k));
+      // TREECUT_SELECTION_FOLLOW: the translation unit's factor on the eye's
+      // pace (0: rho only).
+      if (const char* f = std::getenv("TREECUT_SELECTION_FOLLOW"))
+        ev.s.set_param("follow", std::atof(f));
       for (auto* v : {&top_ns, &event_ns, &cut, &events, &tests, &advanced, &changed, &unfolded,
                       &descended}) {
         v->clear();

@@ -177,6 +177,16 @@ std::vector<ViewSnapshot> make_path(const std::string& kind, const Scene& s) {
       angle += (f >= 30 && f < 60) ? 0.1f : 0.0015f;
       path.push_back(camera(s, orbit_eye(angle, 0.8f), s.center, path.size() + 1));
     }
+  } else if (kind == "accelerating") {
+    // A sweep past the model speeding up from 1 to 32 rho a frame and
+    // slowing down again: the translation unit follows the eye both ways.
+    const glm::vec3 side(0.0f, 0.0f, 1.0f);
+    float u = -0.6f;
+    for (int f = 0; f < 100; ++f) {
+      u += 0.002f * std::exp2(0.1f * float(f < 50 ? f : 100 - f));
+      const glm::vec3 eye = s.center + s.extent * glm::vec3(0.7f, 0.2f, 0.0f) + u * s.extent * side;
+      path.push_back(camera(s, eye, eye + glm::vec3(-1.0f, -0.2f, 0.0f), path.size() + 1));
+    }
   } else if (kind == "teleport") {
     // Slow stretches between jumps across the model.
     for (int leg = 0; leg < 5; ++leg) {
@@ -214,7 +224,8 @@ TEST_P(EventQueuePath, event_queue_exact_vs_topdown) {
   ASSERT_FALSE(path.empty());
   using Method = EventQueueStrategy::Method;
   std::uint64_t top_tests = 0, event_tests = 0, multi_frame = 0, rebuilds = 0, advances = 0;
-  std::uint64_t passes = 0, changes = 0;
+  std::uint64_t passes = 0, changes = 0, rescaled_up = 0, rescaled_down = 0;
+  double unit = 0.0, widest = 0.0;
   // The work of each, in top-down tests: an event costs event_cost tests, a
   // rebuild's test three (a test, the event time, the list insert).
   double cost = 0.0;
@@ -240,6 +251,13 @@ TEST_P(EventQueuePath, event_queue_exact_vs_topdown) {
                                     : st.method == Method::kRebuild ? 3.0
                                                                     : 1.0);
     }
+    if (st.rescaled) {
+      // Only by a factor of 2 or more.
+      ASSERT_TRUE(st.unit >= 2.0 * unit || st.unit <= 0.5 * unit) << "frame " << i;
+      (st.unit > unit ? rescaled_up : rescaled_down) += 1;
+    }
+    if (st.method != Method::kNone) unit = st.unit;
+    widest = std::max(widest, unit);
     rebuilds += st.rebuilt ? 1 : 0;
     passes += st.method == Method::kTopDown ? 1 : 0;
     advances += st.method == Method::kEvents || st.method == Method::kNone ? 1 : 0;
@@ -270,6 +288,19 @@ TEST_P(EventQueuePath, event_queue_exact_vs_topdown) {
     EXPECT_EQ(passes, 0u);
     EXPECT_EQ(multi_frame, 0u);
     EXPECT_LT(event_tests * 5, top_tests) << "event tests " << event_tests << " top " << top_tests;
+  }
+  const double rho = ev.s.param("rho");
+  if (kind == "slow" || kind == "rotating" || kind == "turn_fast") {
+    EXPECT_DOUBLE_EQ(widest, rho) << kind;  // a slow or still eye: rho
+  }
+  if (kind == "accelerating") {
+    // The unit followed the eye up to 32 rho a frame, and back down.
+    EXPECT_GE(widest, 16.0 * rho);
+    EXPECT_LE(unit, widest / 4.0);
+    if (adaptive == 0) {
+      EXPECT_GT(rescaled_up, 0u);
+      EXPECT_GT(rescaled_down, 0u);
+    }
   }
   if (adaptive == 0) {
     // The path really exercised the queue (not a rebuild per frame); a new
@@ -308,7 +339,7 @@ INSTANTIATE_TEST_SUITE_P(
     Paths, EventQueuePath,
     ::testing::Combine(::testing::Values("slow", "fast", "rotating", "flythrough", "teleport",
                                          "sweep_fast", "turn_fast", "zoom", "dolly",
-                                         "zoom_while_moving", "speed_changes"),
+                                         "zoom_while_moving", "speed_changes", "accelerating"),
                        ::testing::Values(0, 1)),
     [](const ::testing::TestParamInfo<PathCase>& p) {
       return std::get<0>(p.param) + (std::get<1>(p.param) != 0 ? "_adaptive" : "_events");

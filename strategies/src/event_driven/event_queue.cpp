@@ -88,6 +88,10 @@ EventQueueStrategy::EventQueueStrategy()
            1.0, 0.0, 1.0, true},
           {"event_cost", "an event's cost in top-down tests, for that choice", 3.5, 0.5, 100.0,
            false},
+          {"follow",
+           "the translation clock's unit: at least rho, and this many times the eye's recent "
+           "peak motion an iteration (0: rho)",
+           2.0, 0.0, 100.0, false},
       }) {}
 
 void EventQueueStrategy::reset(const Hierarchy& hierarchy) {
@@ -107,6 +111,7 @@ void EventQueueStrategy::reset(const Hierarchy& hierarchy) {
   level_.clear();
   next_level_.clear();
   slots_.assign(kMSlots, {});
+  spare_.assign(kMSlots, {});
   wslots_.assign(kWSlots, {});
   work_.clear();
   wwork_.clear();
@@ -115,6 +120,7 @@ void EventQueueStrategy::reset(const Hierarchy& hierarchy) {
   mfrac_ = wfrac_ = 0.0;
   queued_ = wlive_ = wentries_ = 0;
   pace_m_ = pace_w_ = 1.0;
+  unit_ = peak_ = last_moved_ = 0.0;
   valid_ = false;
   stats_ = {};
 }
@@ -222,26 +228,21 @@ void EventQueueStrategy::compact_rotation_lists() {
   wentries_ = kept;
 }
 
-struct EventQueueStrategy::Records {
-  const NodeState* s;
-  [[nodiscard]] bool leaf(NodeId n) const { return s[n].child_count == 0; }
-  [[nodiscard]] NodeId first(NodeId n) const { return s[n].first_child; }
-  [[nodiscard]] unsigned count(NodeId n) const { return s[n].child_count; }
-  void prefetch(NodeId n) const { __builtin_prefetch(s + n); }
-};
-
 // topdown's pass (the same test on the same floats, the same edits), level
 // by level with the nodes ahead prefetched (detail::level_pass): after event
 // iterations the hierarchy's arrays are cold, and the recursion of figure 3
 // waited for memory at every node (a pass at a teleport took 1.3-1.4 times
 // topdown's; level by level 0.99-1.14, docs/benchmarks.md). On the
-// hierarchy's arrays rather than the records: fewer bytes a node.
+// hierarchy's arrays rather than the records: fewer bytes a node (on the
+// records a pass at a teleport took 1.26-1.30 times topdown's, on the arrays
+// 1.08-1.10 in the same runs).
 bool EventQueueStrategy::pass(const IterationInput& input, TreeCut& cut, IterationResult& r) {
   const detail::HierarchyNodes tree{input.hierarchy};
   const auto& cr = input.hierarchy.arrays().center_radius;
   // Every kSampleEvery-th test is decide(): the same test, and the event
   // time a rebuild would give the node, for predicting what the events
-  // would cost (choose()); 1/128 of the tests at about three times the cost.
+  // would cost (choose()); 1/512 of the tests (1/128 cost a teleport's pass
+  // 2-4 % more; 200 to 300 samples still predict the events of the dragon).
   samples_.clear();
   std::uint32_t k = 0;
   auto test = [&](NodeId n) {
@@ -258,9 +259,14 @@ bool EventQueueStrategy::pass(const IterationInput& input, TreeCut& cut, Iterati
 
 // A jump: one top-down pass (figure 3, the code `topdown` runs) decides every
 // active and boundary node under the current camera and schedules its next
-// event. Each was just tested, so no event is due before the next slot.
+// event. Each was just tested, so no event is due before the next slot. It
+// walks the hierarchy's arrays like pass(), not the records it writes: the
+// next pass (a teleport) then finds them warm (a teleport after a rebuild
+// from the records took 1.08-1.11 times topdown's, from the arrays
+// 1.00-1.04 in the same runs, and the rebuild itself no longer).
 void EventQueueStrategy::rebuild(const IterationInput& input, TreeCut& cut, IterationResult& r) {
   clear_queue();
+  const auto& cr = input.hierarchy.arrays().center_radius;
   // The pass tells decided(n) right after test(n), with no other test
   // between, so the test's decision (the test and the event of its result,
   // one look() at the node instead of two) is kept for it: the node is
@@ -268,7 +274,7 @@ void EventQueueStrategy::rebuild(const IterationInput& input, TreeCut& cut, Iter
   // position (clear_queue()): reset before it is queued.
   Decision last{};
   auto test = [&](NodeId n) {
-    last = event_time::decide(camera_, state_[n].sphere, rates_);
+    last = event_time::decide(camera_, cr[n], rates_);
     return last.pass;
   };
   auto decided = [&](NodeId n, bool active) {
@@ -278,7 +284,7 @@ void EventQueueStrategy::rebuild(const IterationInput& input, TreeCut& cut, Iter
   };
   // A folded subtree is below the nodes this pass has queued: nothing to erase.
   auto drop = [](NodeId) {};
-  const Records tree{&state_[0]};
+  const detail::HierarchyNodes tree{input.hierarchy};
   valid_ = detail::level_pass(tree, cut, r, input, test, decided, drop, input.hierarchy.root(),
                               level_, next_level_);
   stats_.rebuilt = true;
@@ -584,6 +590,87 @@ EventQueueStrategy::Method EventQueueStrategy::choose(double dm, double dw) {
   return Method::kTopDown;
 }
 
+// The translation unit a pace asks for (docs/event-driven.md, "Units that
+// follow the eye"): `follow` times the eye's recent peak motion an
+// iteration, rho at least. With the unit near the motion, an iteration
+// advances the clock a few slots and the horizon (kMCap units) grows with
+// the speed; with rho fixed a sweep at 6 rho an iteration ran at 0.46-0.49
+// of topdown, at its own pace 0.38-0.40. The rotation clock keeps omega: a
+// turn's unit at its pace was as often dearer as cheaper (0.58 and 0.62
+// against 0.51 and 0.66 on the dragon's and the lion's middle turn).
+double EventQueueStrategy::follow_unit(double rho) const {
+  return std::max(rho, param_at(kFollow) * peak_);
+}
+
+// Each list of a slot o ahead of the clock holds events whose time is at
+// least o - mfrac_ slots of the old unit away: at least (o - mfrac_) u / u'
+// slots of the new one, rounded down (and at most the horizon). The clock's
+// fraction starts again at 0. One read of each entry and one write of its
+// record: about a pass's memory traffic, so only at a factor of 2.
+void EventQueueStrategy::rescale(double unit) {
+  const double ratio = unit_ / unit;
+  slots_.swap(spare_);  // slots_ gets spare_'s empty lists
+  constexpr std::uint64_t kHorizon = kMSlots / 2 - 1;
+  for (std::uint64_t o = 0; o <= kHorizon; ++o) {
+    std::vector<NodeId>& old = spare_[(mbase_ + o) & kMMask];
+    if (old.empty()) continue;
+    const double ahead = std::clamp((double(o) - mfrac_) * ratio, 0.0, double(kHorizon));
+    const auto to =
+        static_cast<std::uint16_t>((mbase_ + static_cast<std::uint64_t>(ahead)) & kMMask);
+    std::vector<NodeId>& list = slots_[to];
+    for (const NodeId entry : old) {
+      NodeState& st = state_[entry & ~kBoundary];
+      st.slot = to;
+      st.index = static_cast<std::uint32_t>(list.size());
+      list.push_back(entry);
+    }
+    old.clear();
+  }
+  mfrac_ = 0.0;
+  pace_m_ *= ratio;
+  unit_ = unit;
+  stats_.rescaled = true;
+}
+
+// How far the camera moved (model units) and turned (units of omega) since
+// last_camera_; the angle between unit vectors from their chord. A new lens
+// counts as motion (criterion.cpp): its cone's half-angle as a turn, its
+// zoom by e^z as a translation of z diameters.
+EventQueueStrategy::Motion EventQueueStrategy::motion_since_last(double diameter) const {
+  const double mx = camera_.ex - last_camera_.ex;
+  const double my = camera_.ey - last_camera_.ey;
+  const double mz = camera_.ez - last_camera_.ez;
+  const double wx = camera_.ux - last_camera_.ux;
+  const double wy = camera_.uy - last_camera_.uy;
+  const double wz = camera_.uz - last_camera_.uz;
+  Motion m;
+  m.moved = std::sqrt(mx * mx + my * my + mz * mz);
+  m.turned = 2.0 * std::asin(std::min(1.0, 0.5 * std::sqrt(wx * wx + wy * wy + wz * wz))) / omega_;
+  if (camera_.pixel_scale != last_camera_.pixel_scale) {
+    m.moved += std::abs(std::log(camera_.pixel_scale / last_camera_.pixel_scale)) * diameter;
+  }
+  if (camera_.beta != last_camera_.beta)
+    m.turned += std::abs(camera_.beta - last_camera_.beta) / omega_;
+  return m;
+}
+
+// The eye's pace: what it moved in two iterations in a row, the smaller (a
+// single step, a short jump or a wheel notch, is not a pace), as a maximum
+// that decays; a far jump does not count. A valid queue far from the unit
+// that pace asks for is converted, at a factor of 2 (a pace that wavers
+// does not convert it again and again).
+void EventQueueStrategy::follow_pace(double moved, bool far, bool known, double rho) {
+  if (!known || far) {
+    if (!known) peak_ = 0.0;
+    last_moved_ = 0.0;
+    return;
+  }
+  peak_ = std::max(std::min(moved, last_moved_), peak_ * kPeakDecay);
+  last_moved_ = moved;
+  const double want = follow_unit(rho);
+  if (valid_ && (want > 2.0 * unit_ || want < 0.5 * unit_)) rescale(want);
+}
+
 void EventQueueStrategy::iterate(const IterationInput& input, IterationOutput& output) {
   const Hierarchy& h = input.hierarchy;
   TreeCut& cut = *output.cut;
@@ -592,7 +679,7 @@ void EventQueueStrategy::iterate(const IterationInput& input, IterationOutput& o
   stats_ = {};
   camera_ = CriterionConstants::from_view(input.view, param_at(kTheta));
   const double diameter = 2.0 * double(h.radius(h.root()));
-  rho_ = param_at(kRho) * diameter;
+  const double rho = param_at(kRho) * diameter;
   omega_ = param_at(kOmega);
   const bool adaptive = param_at(kAdaptive) != 0.0;
 
@@ -607,27 +694,12 @@ void EventQueueStrategy::iterate(const IterationInput& input, IterationOutput& o
     stats_.rotation_queued = wlive_;
     return;
   }
-  double dm = 0.0, dw = 0.0;
-  if (known) {
-    // How far the camera moved and turned since the last iteration, in units
-    // of rho and omega; the angle between unit vectors from their chord. A
-    // new lens counts as motion (criterion.cpp): its cone's half-angle as a
-    // turn, its zoom by e^z as a translation of z diameters.
-    const double mx = camera_.ex - last_camera_.ex;
-    const double my = camera_.ey - last_camera_.ey;
-    const double mz = camera_.ez - last_camera_.ez;
-    const double wx = camera_.ux - last_camera_.ux;
-    const double wy = camera_.uy - last_camera_.uy;
-    const double wz = camera_.uz - last_camera_.uz;
-    dm = std::sqrt(mx * mx + my * my + mz * mz) / rho_;
-    dw = 2.0 * std::asin(std::min(1.0, 0.5 * std::sqrt(wx * wx + wy * wy + wz * wz))) / omega_;
-    if (camera_.pixel_scale != last_camera_.pixel_scale) {
-      dm += std::abs(std::log(camera_.pixel_scale / last_camera_.pixel_scale)) * diameter / rho_;
-    }
-    if (camera_.beta != last_camera_.beta)
-      dw += std::abs(camera_.beta - last_camera_.beta) / omega_;
-  }
+  const Motion motion = known ? motion_since_last(diameter) : Motion{};
+  const double moved = motion.moved, dw = motion.turned;
+  if (unit_ == 0.0) unit_ = rho;
+  follow_pace(moved, !(moved / unit_ < kMCap && dw < kWCap), known, rho);
   // A far jump (or NaN): the events would all be due.
+  const double dm = moved / unit_;
   const bool far = !(dm < kMCap && dw < kWCap);
   Method method = Method::kRebuild;
   if (!camera_.perspective) {
@@ -647,8 +719,16 @@ void EventQueueStrategy::iterate(const IterationInput& input, IterationOutput& o
     pace_m_ += (dm - pace_m_) * 0.125;
     pace_w_ += (dw - pace_w_) * 0.125;
   }
+  // Without a queue left valid the unit is free: the pace's (a pass's
+  // sampled times are then in the unit the next choice measures in).
+  if (method == Method::kRebuild || method == Method::kTopDown) {
+    const double want = follow_unit(rho);
+    pace_m_ *= unit_ / want;
+    unit_ = want;
+  }
   rates_ =
-      EventRates(camera_, rho_, omega_, kMCap, kWCap, pace_w_ / std::max(pace_m_, 1e-9), diameter);
+      EventRates(camera_, unit_, omega_, kMCap, kWCap, pace_w_ / std::max(pace_m_, 1e-9), diameter);
+  stats_.unit = unit_ / diameter;
   stats_.method = method;
   bool done = true;
   switch (method) {

@@ -17,9 +17,9 @@
 
 namespace treecut::strategies::detail {
 
-/// The tree a pass walks: the hierarchy's arrays (topdown), or event_queue's
-/// node records, which copy them into one cache line per two nodes. Both give
-/// the same children, so the same pass makes the same edits.
+/// The tree a pass walks: the hierarchy's arrays. (A template parameter of
+/// the passes: event_queue's node records, a copy of the spheres and the
+/// children in one cache line per two nodes, made its passes slower.)
 struct HierarchyNodes {
   const Hierarchy& h;
   [[nodiscard]] bool leaf(NodeId n) const { return h.is_leaf(n); }

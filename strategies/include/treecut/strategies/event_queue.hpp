@@ -1,7 +1,8 @@
 // Event-driven refinement: Zach & Karner, "Fast Event-Driven Refinement of
 // Dynamic Levels of Detail" (2003), section 3 and figure 7. Every node whose
-// state can change carries how far the eye must move (in units of rho) or
-// the view direction turn (in units of omega) before its fold/unfold test
+// state can change carries how far the eye must move (in the translation
+// unit, rho or more) or the view direction turn (in units of omega) before
+// its fold/unfold test
 // (refinement_criterion.hpp, the same test as `topdown`) can change; an
 // iteration tests only the nodes whose time has come on either clock. The result equals `topdown`'s
 // under the same view, node for node (tests/strategies/event_queue_gl_test.cpp).
@@ -27,11 +28,14 @@
 // threshold than its children's, so its events are rare), an unfold queues
 // the node's non-leaf children and a fold erases its subtree's events.
 //
-// Clocks: two real-valued clocks, one for the eye's translation (units of
-// rho) and one for the view direction's rotation (units of omega), each with
-// its own circular buffer of lists; an iteration advances each by what the
-// camera really did since the strategy's last camera (moved / rho, turned /
-// omega, fractions kept) and handles the lists the clocks passed. A node is
+// Clocks: two real-valued clocks, one for the eye's translation (in a unit
+// that is rho, or `follow` times the eye's recent pace where that is more:
+// a fast eye's queue is converted to a larger unit, rounding every time
+// down) and one for the view direction's rotation (units of omega), each
+// with its own circular buffer of lists; an iteration advances each by
+// what the camera really did since the strategy's last camera (moved /
+// unit, turned / omega, fractions kept) and handles the lists the clocks
+// passed. A node is
 // due when either of its two times has come (criterion.cpp: a rotation time
 // only where visibility is what keeps the node's change late), so a camera
 // that only flies never makes a rotation event due and one that only turns
@@ -119,6 +123,7 @@ class EventQueueStrategy final : public Strategy {
     kOmega,      ///< maximal rotation of the view direction per frame, radians
     kAdaptive,   ///< 1: each iteration takes the cheaper of the events and a top-down pass
     kEventCost,  ///< an event's cost in top-down tests, for that choice
+    kFollow,     ///< the translation unit: at least rho, and this times the eye's peak motion
   };
   /// How the last iteration got its cut.
   enum class Method : std::uint8_t {
@@ -127,10 +132,10 @@ class EventQueueStrategy final : public Strategy {
     kRebuild,  ///< a top-down pass that also scheduled every node's event
     kTopDown,  ///< a plain top-down pass; the queue waits, out of date
   };
-  /// Lists in the circular buffer of each clock, and lists per unit (rho,
-  /// omega); events farther than half a buffer are tested then (and
-  /// rescheduled): after 511.75 rho or 63.98 omega. A camera that moves or
-  /// turns that much in one iteration rebuilds the queue.
+  /// Lists in the circular buffer of each clock, and lists per unit (the
+  /// translation unit, omega); events farther than half a buffer are tested
+  /// then (and rescheduled): after 511.75 units or 63.98 omega. A camera
+  /// that moves or turns that much in one iteration is a jump.
   static constexpr std::uint32_t kTranslationSlots = 4096;
   static constexpr std::uint32_t kTranslationSlotsPerUnit = 4;
   static constexpr std::uint32_t kRotationSlots = 8192;
@@ -144,9 +149,11 @@ class EventQueueStrategy final : public Strategy {
 
   /// Statistics of the last iteration, for tests and benchmarks.
   struct Stats {
-    std::uint64_t frames_advanced = 0;  ///< ceil(max(moved / rho, turned / omega)); 0: nothing due
-    double moved = 0.0;                 ///< translation clock advance, units of rho
+    std::uint64_t frames_advanced = 0;  ///< ceil(max(moved, turned)); 0: nothing due
+    double moved = 0.0;                 ///< translation clock advance, in its unit
     double turned = 0.0;                ///< rotation clock advance, units of omega
+    double unit = 0.0;                  ///< the translation clock's unit, model diameters
+    bool rescaled = false;              ///< the queue's translation times were converted to it
     Method method = Method::kNone;      ///< how the cut was made
     bool rebuilt = false;               ///< the queue was rebuilt (method kRebuild)
     std::size_t predicted = 0;          ///< events predicted due (method kEvents or kTopDown)
@@ -204,8 +211,6 @@ class EventQueueStrategy final : public Strategy {
   void clear_queue();
   void compact_rotation_lists();
   void rebuild(const IterationInput& input, TreeCut& cut, IterationResult& r);
-  // The node records as the tree a top-down pass walks (top_down.hpp).
-  struct Records;
   // A plain top-down pass over the records; the queue is left as it is.
   bool pass(const IterationInput& input, TreeCut& cut, IterationResult& r);
   // The events in the lists an advance by (dm, dw) would handle (rotation
@@ -266,7 +271,7 @@ class EventQueueStrategy final : public Strategy {
   static constexpr int kShortRun = 8;
   double tests_per_event_ = 1.0;
   double pass_tests_ = 0.0;
-  static constexpr std::uint32_t kSampleEvery = 128;
+  static constexpr std::uint32_t kSampleEvery = 512;
   std::vector<EventTime> samples_;
   std::vector<NodeId> level_, next_level_;  // a pass's frontier
   CriterionConstants camera_;               // the camera of this iteration
@@ -275,8 +280,31 @@ class EventQueueStrategy final : public Strategy {
   std::uint64_t last_version_ = 0;
   std::uint64_t last_params_ = 0;
   std::size_t last_cut_size_ = 0;
-  double rho_ = 0.0;  // model units per frame
+  // The translation clock's unit (model units): rho, or more for a fast
+  // eye (follow_unit()); fixed while the queue is valid unless converted
+  // (rescale()). The rotation clock's unit is omega.
+  double unit_ = 0.0;
   double omega_ = 0.0;
+  // The eye's recent peak motion an iteration (model units): a maximum that
+  // decays by kPeakDecay an iteration.
+  double peak_ = 0.0;
+  double last_moved_ = 0.0;  // the eye's motion in the last iteration
+  static constexpr double kPeakDecay = 0.9;
+  // The unit the eye's pace asks for: rho at least.
+  [[nodiscard]] double follow_unit(double rho) const;
+  // Tracks the eye's pace (peak_) and converts a valid queue to the unit it
+  // asks for when that is 2 times off.
+  void follow_pace(double moved, bool far, bool known, double rho);
+  struct Motion {
+    double moved = 0.0;   // model units, a zoom included
+    double turned = 0.0;  // units of omega, a new cone included
+  };
+  [[nodiscard]] Motion motion_since_last(double diameter) const;
+  // Converts the queued translation times to a new unit (each rounded
+  // down: an earlier test is always correct); the lists are swapped with
+  // spare_, so no list is allocated.
+  void rescale(double unit);
+  std::vector<std::vector<NodeId>> spare_;
   Stats stats_;
 };
 
