@@ -19,6 +19,7 @@
 #include <sstream>
 #include <string>
 #include <tuple>
+#include <utility>
 #include <vector>
 
 #include "strategy_fixtures.hpp"
@@ -538,6 +539,25 @@ TEST(EventQueue, event_times_are_lower_bounds) {
   EXPECT_GT(checked, 10000u);
 }
 
+// A camera move of the bound tests below: the eye `dist` towards the node
+// (`d`, from the eye; every third m) or in a random direction, the view
+// direction turned by `angle` about an axis across the node's direction
+// (even m) or a random one, either way round (every other pair of m).
+// Returns the new eye and a target ahead of it.
+std::pair<glm::vec3, glm::vec3> moved_camera(glm::vec3 eye, glm::vec3 target, glm::dvec3 d,
+                                             double dist, double angle, int m, std::mt19937& rng,
+                                             std::uniform_real_distribution<double>& u) {
+  const glm::dvec3 move =
+      m % 3 == 0 ? glm::normalize(d) : glm::normalize(glm::dvec3(u(rng), u(rng), u(rng)));
+  const glm::vec3 e1 = glm::vec3(glm::dvec3(eye) + dist * move);
+  const glm::dvec3 fwd = glm::normalize(glm::dvec3(target - eye));
+  const glm::dvec3 axis =
+      glm::normalize(glm::cross(fwd, m % 2 == 0 ? d : glm::dvec3(u(rng), u(rng), u(rng))));
+  const double a = angle * (m % 4 < 2 ? 1.0 : -1.0);
+  const glm::dvec3 f1 = fwd * std::cos(a) + glm::cross(axis, fwd) * std::sin(a);
+  return {e1, e1 + glm::vec3(f1)};
+}
+
 // The two clocks: while the eye has moved less than m rho AND the direction
 // has turned less than w omega, the test cannot change, for any split of the
 // visibility gap (the camera's pace) and any mix of the two motions: brute
@@ -571,16 +591,8 @@ TEST(EventQueue, two_clock_event_times_are_lower_bounds) {
         const double f_w = m % 2 == 0 ? 0.999 : 0.999 * 0.5 * (u(rng) + 1.0);
         const double dist = f_m * t.m * rho;
         const double angle = f_w * std::min(std::isinf(t.w) ? 1e9 : t.w * omega, 3.0);
-        glm::dvec3 move =
-            m % 3 == 0 ? glm::normalize(d) : glm::normalize(glm::dvec3(u(rng), u(rng), u(rng)));
-        const glm::vec3 e1 = glm::vec3(glm::dvec3(eye) + dist * move);
-        const glm::dvec3 fwd = glm::normalize(glm::dvec3(target - eye));
-        const glm::dvec3 axis =
-            glm::normalize(glm::cross(fwd, m % 2 == 0 ? d : glm::dvec3(u(rng), u(rng), u(rng))));
-        const double a = angle * (m % 4 < 2 ? 1.0 : -1.0);
-        const glm::dvec3 f1 = fwd * std::cos(a) + glm::cross(axis, fwd) * std::sin(a);
-        const auto c1 =
-            strategies::CriterionConstants::from_view(camera(s, e1, e1 + glm::vec3(f1), 2), 1.5);
+        const auto [e1, t1] = moved_camera(eye, target, d, dist, angle, m, rng, u);
+        const auto c1 = strategies::CriterionConstants::from_view(camera(s, e1, t1, 2), 1.5);
         ASSERT_EQ(strategies::unfold_test(c1, cr[n]), now)
             << "node " << n << " event (m " << t.m << ", w " << t.w << ") changed after "
             << dist / rho << " rho and " << angle / omega << " omega";
@@ -650,16 +662,9 @@ TEST(EventQueue, lens_event_times_are_lower_bounds) {
         const double dist = (budget_m - zoom) * 0.5 * (u(rng) + 1.0);
         const double angle = std::min(budget_w - cone, 3.0) * 0.5 * (u(rng) + 1.0);
         const glm::dvec3 d = glm::dvec3(glm::vec3(cr[n])) - glm::dvec3(eye);
-        const glm::dvec3 move =
-            m % 3 == 0 ? glm::normalize(d) : glm::normalize(glm::dvec3(u(rng), u(rng), u(rng)));
-        const glm::vec3 e1 = glm::vec3(glm::dvec3(eye) + dist * move);
-        const glm::dvec3 fwd = glm::normalize(glm::dvec3(target - eye));
-        const glm::dvec3 axis =
-            glm::normalize(glm::cross(fwd, m % 2 == 0 ? d : glm::dvec3(u(rng), u(rng), u(rng))));
-        const double a = angle * (m % 4 < 2 ? 1.0 : -1.0);
-        const glm::dvec3 f1 = fwd * std::cos(a) + glm::cross(axis, fwd) * std::sin(a);
-        const auto c2 = strategies::CriterionConstants::from_view(
-            camera(s, e1, e1 + glm::vec3(f1), 3, fov1, w1), 1.5);
+        const auto [e1, t1] = moved_camera(eye, target, d, dist, angle, m, rng, u);
+        const auto c2 =
+            strategies::CriterionConstants::from_view(camera(s, e1, t1, 3, fov1, w1), 1.5);
         ASSERT_EQ(strategies::unfold_test(c2, cr[n]), now)
             << "node " << n << " event (m " << t.m << ", w " << t.w << ") changed after "
             << dist / rho << " rho, " << angle / omega << " omega and a lens of " << zoom / rho
