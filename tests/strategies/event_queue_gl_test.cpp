@@ -14,8 +14,10 @@
 #include <functional>
 #include <glm/geometric.hpp>
 #include <limits>
+#include <memory>
 #include <random>
 #include <set>
+#include <span>
 #include <sstream>
 #include <string>
 #include <tuple>
@@ -493,17 +495,27 @@ TEST(EventQueue, cancelled_iteration_leaves_a_valid_cut_and_recovers) {
   EXPECT_TRUE(cancelled_in.count(EventQueueStrategy::Method::kTopDown));
 }
 
+// What the brute-force tests of the event times share: a 20,000-point
+// sphere, a seeded generator of [-1, 1], rho and omega at their defaults
+// (model units, radians).
+struct BoundSetup {
+  explicit BoundSetup(unsigned seed) : rng(seed) {}
+  std::shared_ptr<const Hierarchy> h = small_hierarchy(tools::ModelKind::Sphere, 20000);
+  Scene s = scene_of(*h);
+  std::span<const glm::vec4> cr = h->arrays().center_radius;
+  std::mt19937 rng;
+  std::uniform_real_distribution<double> u{-1.0, 1.0};
+  double diameter = 2.0 * double(h->radius(0));
+  double rho = 0.002 * diameter;
+  double omega = 0.02;
+};
+
 // Each event time is a lower bound: brute force over random nodes and random
 // camera moves within k frames of rho and omega, the test never differs
 // before the frame the event names.
 TEST(EventQueue, event_times_are_lower_bounds) {
-  const auto h = small_hierarchy(tools::ModelKind::Sphere, 20000);
-  const Scene s = scene_of(*h);
-  const auto& cr = h->arrays().center_radius;
-  std::mt19937 rng(5);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
-  const double rho = 0.002 * 2.0 * double(h->radius(0));
-  const double omega = 0.02;
+  BoundSetup setup(5);
+  auto& [h, s, cr, rng, u, diameter, rho, omega] = setup;
   std::size_t checked = 0;
   for (int trial = 0; trial < 300; ++trial) {
     const auto [eye, target] = random_camera(s, rng, u);
@@ -563,13 +575,8 @@ std::pair<glm::vec3, glm::vec3> moved_camera(glm::vec3 eye, glm::vec3 target, gl
 // visibility gap (the camera's pace) and any mix of the two motions: brute
 // force over random nodes and moves up to just below both bounds.
 TEST(EventQueue, two_clock_event_times_are_lower_bounds) {
-  const auto h = small_hierarchy(tools::ModelKind::Sphere, 20000);
-  const Scene s = scene_of(*h);
-  const auto& cr = h->arrays().center_radius;
-  std::mt19937 rng(7);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
-  const double rho = 0.002 * 2.0 * double(h->radius(0));
-  const double omega = 0.02;
+  BoundSetup setup(7);
+  auto& [h, s, cr, rng, u, diameter, rho, omega] = setup;
   const double paces[] = {0.0, 0.05, 1.0, 20.0};
   std::size_t checked = 0, rotation_bounded = 0;
   for (int trial = 0; trial < 300; ++trial) {
@@ -612,14 +619,8 @@ TEST(EventQueue, two_clock_event_times_are_lower_bounds) {
 // and out, new aspects and window sizes, each budget split at random
 // between the motion and the lens.
 TEST(EventQueue, lens_event_times_are_lower_bounds) {
-  const auto h = small_hierarchy(tools::ModelKind::Sphere, 20000);
-  const Scene s = scene_of(*h);
-  const auto& cr = h->arrays().center_radius;
-  std::mt19937 rng(13);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
-  const double diameter = 2.0 * double(h->radius(0));
-  const double rho = 0.002 * diameter;
-  const double omega = 0.02;
+  BoundSetup setup(13);
+  auto& [h, s, cr, rng, u, diameter, rho, omega] = setup;
   const glm::ivec2 windows[] = {{640, 480}, {800, 480}, {400, 300}, {1920, 1080}};
   std::size_t checked = 0, zoom_bounded = 0, cone_bounded = 0;
   for (int trial = 0; trial < 300; ++trial) {
@@ -685,12 +686,8 @@ TEST(EventQueue, lens_event_times_are_lower_bounds) {
 // two event functions): bit for bit, over random nodes (leaves, inner nodes,
 // the eye inside spheres), cameras and paces.
 TEST(EventQueue, decide_equals_test_and_event_time) {
-  const auto h = small_hierarchy(tools::ModelKind::Sphere, 20000);
-  const Scene s = scene_of(*h);
-  const auto& cr = h->arrays().center_radius;
-  std::mt19937 rng(9);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
-  const double rho = 0.002 * 2.0 * double(h->radius(0));
+  BoundSetup setup(9);
+  auto& [h, s, cr, rng, u, diameter, rho, omega] = setup;
   const double paces[] = {0.0, 0.05, 1.0, 20.0};
   std::size_t passes = 0, fails = 0, inside = 0;
   for (int trial = 0; trial < 200; ++trial) {
