@@ -237,7 +237,6 @@ void EventQueueStrategy::compact_rotation_lists() {
 // records a pass at a teleport took 1.26-1.30 times topdown's, on the arrays
 // 1.08-1.10 in the same runs).
 bool EventQueueStrategy::pass(const IterationInput& input, TreeCut& cut, IterationResult& r) {
-  const detail::HierarchyNodes tree{input.hierarchy};
   const auto& cr = input.hierarchy.arrays().center_radius;
   // Every kSampleEvery-th test is decide(): the same test, and the event
   // time a rebuild would give the node, for predicting what the events
@@ -253,8 +252,8 @@ bool EventQueueStrategy::pass(const IterationInput& input, TreeCut& cut, Iterati
   };
   auto decided = [](NodeId, bool) {};
   auto drop = [](NodeId) {};
-  return detail::level_pass(tree, cut, r, input, test, decided, drop, input.hierarchy.root(),
-                            level_, next_level_);
+  return detail::level_pass(input.hierarchy, cut, r, input, test, decided, drop, level_,
+                            next_level_);
 }
 
 // A jump: one top-down pass (figure 3, the code `topdown` runs) decides every
@@ -284,9 +283,8 @@ void EventQueueStrategy::rebuild(const IterationInput& input, TreeCut& cut, Iter
   };
   // A folded subtree is below the nodes this pass has queued: nothing to erase.
   auto drop = [](NodeId) {};
-  const detail::HierarchyNodes tree{input.hierarchy};
-  valid_ = detail::level_pass(tree, cut, r, input, test, decided, drop, input.hierarchy.root(),
-                              level_, next_level_);
+  valid_ =
+      detail::level_pass(input.hierarchy, cut, r, input, test, decided, drop, level_, next_level_);
   stats_.rebuilt = true;
 }
 

@@ -17,30 +17,25 @@
 
 namespace treecut::strategies::detail {
 
-/// The tree a pass walks: the hierarchy's arrays. (A template parameter of
-/// the passes: event_queue's node records, a copy of the spheres and the
-/// children in one cache line per two nodes, made its passes slower.)
-struct HierarchyNodes {
-  const Hierarchy& h;
-  [[nodiscard]] bool leaf(NodeId n) const { return h.is_leaf(n); }
-  [[nodiscard]] NodeId first(NodeId n) const { return h.first_child(n); }
-  [[nodiscard]] unsigned count(NodeId n) const { return h.child_count(n); }
-  void prefetch(NodeId n) const {
-    __builtin_prefetch(h.arrays().center_radius.data() + n);
-    __builtin_prefetch(h.arrays().first_child.data() + n);
-    __builtin_prefetch(h.arrays().child_count.data() + n);
-  }
-};
+/// What a pass reads of node n in the hierarchy's arrays, asked for ahead.
+/// (The passes walk these arrays: on event_queue's node records, a copy of
+/// the spheres and the children in one cache line per two nodes, they were
+/// slower; docs/event-driven.md.)
+inline void prefetch_node(const Hierarchy& h, NodeId n) {
+  __builtin_prefetch(h.arrays().center_radius.data() + n);
+  __builtin_prefetch(h.arrays().first_child.data() + n);
+  __builtin_prefetch(h.arrays().child_count.data() + n);
+}
 
 /// Folds the active node `n`: its subtree collapses into it (bottom up, each
 /// coarsen a valid cut). `drop(m)` is told every node below n that was active
 /// or a cut node (the event queue erases their events).
-template <class Tree, class Drop>
-void fold_subtree(const Tree& tree, TreeCut& cut, NodeId n, IterationResult& r, Drop&& drop) {
-  const NodeId first = tree.first(n);
-  const unsigned count = tree.count(n);
+template <class Drop>
+void fold_subtree(const Hierarchy& h, TreeCut& cut, NodeId n, IterationResult& r, Drop&& drop) {
+  const NodeId first = h.first_child(n);
+  const unsigned count = h.child_count(n);
   for (NodeId c = first; c < first + count; ++c) {
-    if (!cut.contains(c)) fold_subtree(tree, cut, c, r, drop);
+    if (!cut.contains(c)) fold_subtree(h, cut, c, r, drop);
     drop(c);
   }
   cut.coarsen_known(n, first, count);
@@ -50,8 +45,8 @@ void fold_subtree(const Tree& tree, TreeCut& cut, NodeId n, IterationResult& r, 
 /// Figure 3's step at the non-leaf node n, reached with every ancestor
 /// active: tests it, unfolds or folds it, tells decided(n, active). Returns
 /// true when n is active now (its children are to be visited).
-template <class Tree, class Test, class Decided, class Drop>
-bool figure3_step(const Tree& tree, TreeCut& cut, IterationResult& r, NodeId n, Test& test,
+template <class Test, class Decided, class Drop>
+bool figure3_step(const Hierarchy& h, TreeCut& cut, IterationResult& r, NodeId n, Test& test,
                   Decided& decided, Drop& drop) {
   const bool pass = test(n);
   if (cut.contains(n)) {
@@ -60,11 +55,11 @@ bool figure3_step(const Tree& tree, TreeCut& cut, IterationResult& r, NodeId n, 
       decided(n, false);
       return false;
     }
-    cut.refine_known(n, tree.first(n), tree.count(n));
+    cut.refine_known(n, h.first_child(n), h.child_count(n));
     ++r.refined;
   } else if (!pass) {
     // Active, and no longer meets the criterion: fold it and its subtree.
-    fold_subtree(tree, cut, n, r, drop);
+    fold_subtree(h, cut, n, r, drop);
     decided(n, false);
     return false;
   }
@@ -76,22 +71,22 @@ bool figure3_step(const Tree& tree, TreeCut& cut, IterationResult& r, NodeId n, 
 /// is told each non-leaf node's state once it is final, right after its test
 /// (the event queue schedules its next event). Returns false when cancelled
 /// (the cut is valid: every step is one refine or coarsen).
-template <class Tree, class Test, class Decided, class Drop>
+template <class Test, class Decided, class Drop>
 class TopDown {
  public:
-  TopDown(const Tree& tree, TreeCut& cut, IterationResult& r, const IterationInput& input,
+  TopDown(const Hierarchy& h, TreeCut& cut, IterationResult& r, const IterationInput& input,
           Test& test, Decided& decided, Drop& drop)
-      : tree_(tree), cut_(cut), r_(r), input_(input), test_(test), decided_(decided), drop_(drop) {}
+      : h_(h), cut_(cut), r_(r), input_(input), test_(test), decided_(decided), drop_(drop) {}
 
   bool run(NodeId n) {
-    if (tree_.leaf(n)) return true;
+    if (h_.is_leaf(n)) return true;
     if ((++r_.visited & 4095) == 0 && input_.cancelled()) {
       r_.cancelled = true;
       return false;
     }
-    if (!figure3_step(tree_, cut_, r_, n, test_, decided_, drop_)) return true;
-    const NodeId first = tree_.first(n);
-    const unsigned count = tree_.count(n);
+    if (!figure3_step(h_, cut_, r_, n, test_, decided_, drop_)) return true;
+    const NodeId first = h_.first_child(n);
+    const unsigned count = h_.child_count(n);
     for (NodeId c = first; c < first + count; ++c) {
       if (!run(c)) return false;
     }
@@ -99,7 +94,7 @@ class TopDown {
   }
 
  private:
-  const Tree& tree_;
+  const Hierarchy& h_;
   TreeCut& cut_;
   IterationResult& r_;
   const IterationInput& input_;
@@ -115,19 +110,19 @@ class TopDown {
 /// 1.1 times topdown's, 48 0.8 to 1.0 in the same runs), and a pass over
 /// cold memory (after event iterations) waits for it far less. `a` and `b`
 /// are scratch.
-template <class Tree, class Test, class Decided, class Drop>
-bool level_pass(const Tree& tree, TreeCut& cut, IterationResult& r, const IterationInput& input,
-                Test& test, Decided& decided, Drop& drop, NodeId root, std::vector<NodeId>& a,
+template <class Test, class Decided, class Drop>
+bool level_pass(const Hierarchy& h, TreeCut& cut, IterationResult& r, const IterationInput& input,
+                Test& test, Decided& decided, Drop& drop, std::vector<NodeId>& a,
                 std::vector<NodeId>& b) {
   constexpr std::size_t kAhead = 48;
   a.clear();
-  if (!tree.leaf(root)) a.push_back(root);
+  if (!h.is_leaf(h.root())) a.push_back(h.root());
   while (!a.empty()) {
     b.clear();
     const std::size_t count = a.size();
     for (std::size_t i = 0; i < count; ++i) {
       if (i + kAhead < count) {
-        tree.prefetch(a[i + kAhead]);
+        prefetch_node(h, a[i + kAhead]);
         cut.prefetch(a[i + kAhead]);
       }
       const NodeId n = a[i];
@@ -135,11 +130,11 @@ bool level_pass(const Tree& tree, TreeCut& cut, IterationResult& r, const Iterat
         r.cancelled = true;
         return false;
       }
-      if (!figure3_step(tree, cut, r, n, test, decided, drop)) continue;
-      const NodeId first = tree.first(n);
-      const unsigned children = tree.count(n);
+      if (!figure3_step(h, cut, r, n, test, decided, drop)) continue;
+      const NodeId first = h.first_child(n);
+      const unsigned children = h.child_count(n);
       for (NodeId c = first; c < first + children; ++c) {
-        if (!tree.leaf(c)) b.push_back(c);
+        if (!h.is_leaf(c)) b.push_back(c);
       }
     }
     a.swap(b);
@@ -152,15 +147,14 @@ bool level_pass(const Tree& tree, TreeCut& cut, IterationResult& r, const Iterat
 inline bool topdown_pass(const Hierarchy& h, TreeCut& cut, IterationResult& r,
                          const IterationInput& input, const CriterionConstants& cam) {
   const auto& cr = h.arrays().center_radius;
-  const HierarchyNodes tree{h};
   auto decided = [](NodeId, bool) {};
   auto drop = [](NodeId) {};
   if (cam.perspective) {
     auto test = [&](NodeId n) { return unfold_test(cam, cr[n]); };
-    return TopDown(tree, cut, r, input, test, decided, drop).run(h.root());
+    return TopDown(h, cut, r, input, test, decided, drop).run(h.root());
   }
   auto test = [&](NodeId n) { return unfold_test(cam, input.view, cr[n]); };
-  return TopDown(tree, cut, r, input, test, decided, drop).run(h.root());
+  return TopDown(h, cut, r, input, test, decided, drop).run(h.root());
 }
 
 }  // namespace treecut::strategies::detail
