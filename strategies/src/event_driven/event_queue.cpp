@@ -695,10 +695,13 @@ void EventQueueStrategy::iterate(const IterationInput& input, IterationOutput& o
   const Motion motion = known ? motion_since_last(diameter) : Motion{};
   const double moved = motion.moved, dw = motion.turned;
   if (unit_ == 0.0) unit_ = rho;
-  follow_pace(moved, !(moved / unit_ < kMCap && dw < kWCap), known, rho);
-  // A far jump (or NaN): the events would all be due.
+  // A far jump (or NaN): the events would all be due. Judged in the queue's
+  // unit for the pace (a jump is not a pace), then in the unit follow_pace()
+  // leaves for the method (converted down, a fast step may be one).
+  const auto beyond = [&](double unit) { return !(moved / unit < kMCap && dw < kWCap); };
+  follow_pace(moved, beyond(unit_), known, rho);
   const double dm = moved / unit_;
-  const bool far = !(dm < kMCap && dw < kWCap);
+  const bool far = beyond(unit_);
   Method method = Method::kRebuild;
   if (!camera_.perspective) {
     method = Method::kTopDown;  // no distance, no event times

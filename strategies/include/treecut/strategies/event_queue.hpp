@@ -211,7 +211,7 @@ class EventQueueStrategy final : public Strategy {
   void clear_queue();
   void compact_rotation_lists();
   void rebuild(const IterationInput& input, TreeCut& cut, IterationResult& r);
-  // A plain top-down pass over the records; the queue is left as it is.
+  // A plain top-down pass on the hierarchy's arrays; the queue is left as it is.
   bool pass(const IterationInput& input, TreeCut& cut, IterationResult& r);
   // The events in the lists an advance by (dm, dw) would handle (rotation
   // entries counted as live in the proportion the lists hold).
