@@ -49,12 +49,11 @@ void run_cache(const CacheArgs& a) {
       a.folder.empty() ? default_cache_folder() : std::filesystem::path(a.folder);
   if (folder.empty()) throw std::runtime_error("no cache folder (HOME and XDG_CACHE_HOME unset)");
   std::optional<std::uint64_t> max_size;
-  if (!a.max_size.empty()) {
-    max_size = parse_byte_size(a.max_size);
-    if (!max_size) {
-      throw InputError("--max-size: '" + a.max_size +
-                       "' is not a size (bytes, or with K, M, G or T)");
-    }
+  if (!a.max_size.empty()) max_size = parse_byte_size(a.max_size);
+  if (const FileKind kind = file_kind(folder);
+      kind != FileKind::Missing && kind != FileKind::Directory) {
+    throw InputError(quoted_name(folder) + ": is " + std::string(describe(kind)) +
+                     ", not a cache folder");
   }
   std::vector<CacheFileInfo> caches = list_caches(folder);
   std::vector<CacheFileInfo> remove;
@@ -115,9 +114,15 @@ void add_cache_command(CLI::App& app) {
   cmd->add_flag("--clear", args->clear, "Remove every cache");
   cmd->add_option("--older-than", args->older_than_days,
                   "Remove the caches not used for this many days")
-      ->check(CLI::Range(0.0, 1e6));
+      ->check(finite_number(0.0, 1e6));
   cmd->add_option("--max-size", args->max_size,
-                  "Remove the least recently used caches until the rest fit (e.g. 5G, 500M)");
+                  "Remove the least recently used caches until the rest fit (e.g. 5G, 500M)")
+      ->check(CLI::Validator(
+          [](const std::string& v) {
+            return parse_byte_size(v) ? std::string()
+                                      : "'" + v + "' is not a size (bytes, or with K, M, G or T)";
+          },
+          "SIZE"));
   cmd->callback([args] { run_cache(*args); });
 }
 

@@ -46,7 +46,7 @@ Format format_of(const std::filesystem::path& out) {
 }
 
 // The points whose classification passes FILTER (splat::parse_class_filter's
-// lists), every array kept in step.
+// lists), every array kept in step (PointSet::keep_if).
 std::size_t keep_classes(PointSet& p, const splat::ColorBy& filter, const std::string& model) {
   const PointAttribute* cls = nullptr;
   for (const PointAttribute& a : p.attributes) {
@@ -54,50 +54,34 @@ std::size_t keep_classes(PointSet& p, const splat::ColorBy& filter, const std::s
   }
   if (cls == nullptr)
     throw InputError(quoted_name(model) + ": --classes: no classification attribute");
-  std::vector<char> keep(p.size());
+  std::vector<bool> keep(p.size());
   for (std::size_t i = 0; i < p.size(); ++i) {
-    const float v = cls->values[i];
-    const int c = std::isnan(v) ? -1 : static_cast<int>(std::lround(cls->offset + double(v)));
-    keep[i] = !splat::class_hidden(filter, c);
+    const double v = cls->value(i);
+    keep[i] = !splat::class_hidden(filter, std::isnan(v) ? -1 : static_cast<int>(std::lround(v)));
   }
-  auto compact = [&](auto& array) {
-    if (array.empty()) return;
-    std::size_t k = 0;
-    for (std::size_t i = 0; i < keep.size(); ++i) {
-      if (keep[i]) array[k++] = array[i];
-    }
-    array.resize(k);
-  };
-  compact(p.positions), compact(p.normals), compact(p.colors), compact(p.radii),
-      compact(p.curvature);
-  for (PointAttribute& a : p.attributes) compact(a.values);
-  p.triangles.clear();  // faces of a filtered cloud would refer to moved points
+  p.keep_if(keep);
   return p.size();
+}
+
+OwnFile own_file(Format format) {
+  return format == Format::las ? is_own_las : format == Format::ply ? is_own_ply : is_own_pcd;
 }
 
 void run_export(const ExportArgs& a) {
   const std::filesystem::path model(a.model), out(a.out);
   const Format format = format_of(out);
   check_distinct_files({{out, "the export (-o)"}}, {{model, "the model"}});
-  const char* magic = format == Format::las ? "LASF" : format == Format::ply ? "ply\n" : "# .PCD";
   const char* kind = format == Format::las   ? "a LAS file"
                      : format == Format::ply ? "a PLY file"
                                              : "a PCD file";
-  check_replaceable_output(out, magic, "the export", kind);
+  check_replaceable_output(out, own_file(format), "the export", kind);
+  if (format == Format::las && a.relative)
+    throw InputError("--relative: a LAS file holds the coordinates themselves; drop --relative");
   splat::ColorBy filter;
   if (!a.classes.empty()) splat::parse_class_filter(a.classes, filter);
   std::string read_as;
   PointSet points = load_point_file(
       model, [](const std::string& w) { print_warning(w); }, &read_as, a.columns);
-  const glm::dvec3 o = points.frame.origin;
-  if (format != Format::las && o != glm::dvec3(0.0) && !a.relative) {
-    char where[96];
-    std::snprintf(where, sizeof where, "[%.3f %.3f %.3f]", o.x, o.y, o.z);
-    throw InputError(quoted_name(model) + ": the points are at map coordinates (origin " + where +
-                     "); a " + (format == Format::ply ? "PLY" : "PCD") +
-                     " holds floats without an origin: export to .las, or give --relative to "
-                     "write them relative to the origin");
-  }
   const std::size_t read = points.size();
   if (!a.classes.empty() && keep_classes(points, filter, a.model) == 0) {
     throw InputError(quoted_name(model) + ": --classes " + a.classes + " keeps no point");
@@ -107,20 +91,23 @@ void run_export(const ExportArgs& a) {
     std::filesystem::create_directories(out.parent_path(), ec);
     if (ec) throw std::runtime_error(system_error_text(out.parent_path(), ec.value()));
   }
+  SaveOptions options;
+  options.relative = a.relative;
   switch (format) {
     case Format::las:
       save_las(out, points);
       break;
     case Format::ply:
-      save_ply(out, points);
+      save_ply(out, points, options);
       break;
     case Format::pcd:
-      save_pcd(out, points);
+      save_pcd(out, points, PcdData::binary_compressed, options);
       break;
   }
   std::printf("wrote %s (%zu of %zu points, %zu attributes, from %s)\n", quoted_name(out).c_str(),
               points.size(), read, points.attributes.size(), read_as.c_str());
-  if (format != Format::las && o != glm::dvec3(0.0)) {
+  const glm::dvec3 o = points.frame.origin;
+  if (a.relative && o != glm::dvec3(0.0)) {
     std::printf(
         "origin %.3f %.3f %.3f: add it to the written positions for the file's coordinates\n", o.x,
         o.y, o.z);
@@ -141,8 +128,8 @@ void add_export_command(CLI::App& app) {
                   "Only these classes (2,6) or all but these (-7,-18) of the classification");
   add_columns_option(*cmd, args->columns);
   cmd->add_flag("--relative", args->relative,
-                "PLY and PCD of map coordinates: write the positions relative to the model's "
-                "origin (printed)");
+                "PLY and PCD: write float positions relative to the model's origin (printed, and "
+                "kept in a comment treecut reads back) for programs that read no doubles");
   cmd->callback([args] { run_export(*args); });
 }
 

@@ -71,12 +71,17 @@ void print_attributes(const Hierarchy& h) {
   std::printf("attributes  %zu (colour by one with --color NAME)\n", h.attributes().size());
   for (const NodeAttribute& a : h.attributes()) {
     const bool category = a.kind == AttributeKind::category;
+    const char* kind = category ? "category" : "measure";
     if (std::isnan(a.min)) {
-      std::printf("  %-22s %-8s no values\n", a.name.c_str(), category ? "category" : "measure");
-      continue;
+      std::printf("  %-22s %-8s no values\n", a.name.c_str(), kind);
+    } else if (a.min == a.max) {
+      std::printf("  %-22s %-8s %s at every point\n", a.name.c_str(), kind,
+                  exact_number(a.min).c_str());
+    } else {
+      // The file's values, exact (a GPS time keeps its microseconds).
+      std::printf("  %-22s %-8s %s .. %s\n", a.name.c_str(), kind, exact_number(a.min).c_str(),
+                  exact_number(a.max).c_str());
     }
-    std::printf("  %-22s %-8s %.10g .. %.10g\n", a.name.c_str(), category ? "category" : "measure",
-                a.offset + double(a.min), a.offset + double(a.max));
   }
 }
 
@@ -97,19 +102,13 @@ void print_summary(const std::filesystem::path& model, const OpenedModel& m) {
     std::printf("file bounds [%.3f %.3f %.3f] .. [%.3f %.3f %.3f]\n", o.x + lo.x, o.y + lo.y,
                 o.z + lo.z, o.x + hi.x, o.y + hi.y, o.z + hi.z);
   }
-  if (m.format == "LAS") {
-    const LasInfo& l = m.las.info;
-    std::printf("format      LAS %d.%d, point format %d (%u bytes a point)%s%s\n", l.version_major,
-                l.version_minor, l.point_format, l.record_length,
-                l.system_identifier.empty() ? "" : ", from ",
-                one_line(l.system_identifier).c_str());
-  } else if (!m.format.empty()) {
-    std::printf("format      %s\n", m.format.c_str());  // built now: PLY, PCD or text
-  }
+  // As the first read said it (cached with the hierarchy).
+  if (!h.notes().format.empty())
+    std::printf("format      %s\n", one_line(h.notes().format).c_str());
   // The coordinate system, kept in the cache with the origin.
   if (!h.frame().crs.empty()) {
     std::printf("crs         %s\n", one_line(h.frame().crs).c_str());
-  } else if (m.format == "LAS") {
+  } else if (h.notes().format.starts_with("LAS")) {
     std::printf("crs         none in the file\n");
   }
   const UpAxis up = detect_up_axis(h);  // what `render` and `view` use with --up auto
@@ -150,28 +149,21 @@ void print_summary(const std::filesystem::path& model, const OpenedModel& m) {
 // user's, never a directory or a FIFO. Checked before any work, so nothing is
 // touched when it is refused.
 void check_cache_output(const std::filesystem::path& out, const std::filesystem::path& model) {
-  const FileKind kind = file_kind(out);
-  if (kind == FileKind::Missing) return;
   if (same_file(out, model))
     throw InputError(quoted_name(out) +
                      ": is the model itself; refusing to overwrite it with a cache");
-  if (kind != FileKind::Regular)
-    throw InputError(quoted_name(out) + ": is " + std::string(describe(kind)) +
-                     "; refusing to write a cache there");
-  if (!looks_like_cache(out))
-    throw InputError(quoted_name(out) +
-                     ": exists and is not a treecut cache; refusing to overwrite it");
+  check_replaceable_output(out, is_own_cache, "a cache", "a treecut cache");
 }
 
 // `gen -o PATH` (a model), `gen --walk PATH`, `gen city-block | hall -o PATH`.
 void check_ply_output(const std::filesystem::path& out) {
-  check_replaceable_output(out, "ply\n", "a model", "a PLY file");
+  check_replaceable_output(out, is_own_ply, "a model", "a PLY file");
 }
 void check_walk_output(const std::filesystem::path& out) {
-  check_replaceable_output(out, "treecut-camera-path", "a camera path", "a camera path");
+  check_replaceable_output(out, is_own_camera_path, "a camera path", "a camera path");
 }
 void check_scene_output(const std::filesystem::path& out) {
-  check_replaceable_output(out, "treecut-scene", "a scene", "a scene file");
+  check_replaceable_output(out, is_own_scene, "a scene", "a scene file");
 }
 
 double mib(std::size_t bytes) {
@@ -379,19 +371,14 @@ void generate_model_kind(const GenArgs& g) {
   std::vector<std::pair<std::filesystem::path, std::string>> inputs;
   for (const auto& s : g.source) inputs.emplace_back(s, "the source scan (--source)");
   check_distinct_files(outputs, inputs);
-  // The format by the name: .las writes LAS (double coordinates through its
-  // scale and offset), anything else PLY (floats).
+  // The format by the name: .las writes LAS, .pcd PCD, anything else PLY
+  // (each with double coordinates where the model has an origin).
   const bool las = out.extension() == ".las" || out.extension() == ".LAS";
   const bool pcd = out.extension() == ".pcd" || out.extension() == ".PCD";
-  if (!g.origin.empty() && !las) {
-    throw InputError(quoted_name(out) +
-                     ": --origin needs a .las output (a PLY holds float coordinates, which "
-                     "lose the millimetres at map coordinates)");
-  }
   if (las) {
-    check_replaceable_output(out, "LASF", "a model", "a LAS file");
+    check_replaceable_output(out, is_own_las, "a model", "a LAS file");
   } else if (pcd) {
-    check_replaceable_output(out, "# .PCD", "a model", "a PCD file");
+    check_replaceable_output(out, is_own_pcd, "a model", "a PCD file");
   } else {
     check_ply_output(out);
   }
@@ -505,9 +492,9 @@ void add_gen_command(CLI::App& app) {
       ->check(non_empty_path());
   gen->add_option("--origin", gen_args->origin,
                   "X Y Z: place the model there in file coordinates (map coordinates such as "
-                  "500000 5000000 0; LAS output only)")
+                  "500000 5000000 0)")
       ->expected(3)
-      ->check(CLI::Range(-1e9, 1e9));
+      ->check(finite_number(-1e9, 1e9));
   gen->add_option("--seed", gen_args->seed, "Random seed")
       ->check(whole_number(0, std::numeric_limits<std::uint64_t>::max()));
   gen->add_option("--source", gen_args->source,

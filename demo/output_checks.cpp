@@ -1,23 +1,61 @@
 // Checks of a command's output files (output_checks.hpp).
 #include "output_checks.hpp"
 
+#include <sys/stat.h>
+
+#include <cerrno>
+
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
+#include "treecut/scene.hpp"
+#include "treecut/splat/camera_path.hpp"
+#include "treecut/tools/scene_generate.hpp"
 
 namespace treecut::cli {
 
 // `gen` replaces an output only when it is a file of the kind it writes
-// (regenerating is what gen is for), `export` likewise.
-void check_replaceable_output(const std::filesystem::path& out, std::string_view magic,
+// and treecut wrote it (regenerating is what gen is for), `export` likewise.
+void check_replaceable_output(const std::filesystem::path& out, OwnFile ours,
                               std::string_view written, std::string_view kind) {
+  struct stat st {};
+  if (::lstat(out.c_str(), &st) != 0) {
+    if (errno == ENOENT) return;
+    throw InputError(system_error_text(out, errno));
+  }
+  if (S_ISLNK(st.st_mode))
+    throw InputError(quoted_name(out) + ": is a symbolic link; refusing to replace it with " +
+                     std::string(written) + " (write to the file it names, or remove the link)");
   const FileKind file = file_kind(out);
-  if (file == FileKind::Missing) return;
   if (file != FileKind::Regular)
     throw InputError(quoted_name(out) + ": is " + std::string(describe(file)) +
                      "; refusing to write " + std::string(written) + " there");
-  if (!file_starts_with(out, magic))
+  if ((st.st_mode & 0222) == 0)
+    throw InputError(quoted_name(out) + ": is read-only; refusing to replace it");
+  if (!ours(out))
     throw InputError(quoted_name(out) + ": exists and is not " + std::string(kind) +
-                     "; refusing to overwrite it");
+                     " treecut wrote; refusing to overwrite it");
+}
+
+bool is_own_camera_path(const std::filesystem::path& path) {
+  try {
+    if (!file_starts_with(path, "treecut-camera-path")) return false;
+    (void)splat::load_camera_path(path);
+    return true;
+  } catch (const std::exception&) {
+    return false;
+  }
+}
+
+bool is_own_scene(const std::filesystem::path& path) {
+  try {
+    if (!file_starts_with(path, "treecut-scene")) return false;
+    SceneParseOptions options;
+    options.generator = tools::scene_generator();
+    (void)parse_scene_file(path, options);
+    return true;
+  } catch (const std::exception&) {
+    return false;
+  }
 }
 
 // One command never writes one file twice, nor over a file it reads:

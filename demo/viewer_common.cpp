@@ -402,8 +402,26 @@ void apply_clip(splat::RenderSettings& settings, const std::vector<double>& box,
       scene.world || !scene.hierarchy ? glm::dvec3(0.0) : scene.hierarchy->frame().origin;
   const glm::dvec3 a(box[0], box[1], box[2]);
   const glm::dvec3 b(box[3], box[4], box[5]);
-  settings.clip_min = glm::vec3(glm::min(a, b) - o);
-  settings.clip_max = glm::vec3(glm::max(a, b) - o);
+  // The corners in order: a reversed box (1 1 1 0 0 0) is a mistake, not a
+  // box to draw blank frames in.
+  for (int k = 0; k < 3; ++k) {
+    if (a[k] > b[k]) {
+      throw InputError(std::string("--clip: the first corner's ") + "xyz"[k] + " (" +
+                       exact_number(a[k]) + ") is past the second's (" + exact_number(b[k]) +
+                       "); give X0 Y0 Z0 X1 Y1 Z1 with X0 <= X1, Y0 <= Y1, Z0 <= Z1");
+    }
+  }
+  settings.clip_min = glm::vec3(a - o);
+  settings.clip_max = glm::vec3(b - o);
+  const glm::vec3 lo = scene.bounds_min, hi = scene.bounds_max;
+  const bool apart = glm::any(glm::lessThan(settings.clip_max, lo)) ||
+                     glm::any(glm::greaterThan(settings.clip_min, hi));
+  if (apart) {
+    print_warning("--clip: the box holds no point of the model (it lies within " +
+                  exact_number(o.x + lo.x) + " " + exact_number(o.y + lo.y) + " " +
+                  exact_number(o.z + lo.z) + " .. " + exact_number(o.x + hi.x) + " " +
+                  exact_number(o.y + hi.y) + " " + exact_number(o.z + hi.z) + ")");
+  }
 }
 
 }  // namespace treecut::cli

@@ -69,7 +69,7 @@ void Viewer::pick_at(glm::ivec2 pixel) {
       std::snprintf(line, sizeof line, " rgb %d %d %d", c.x, c.y, c.z);
       what += line;
       for (const NodeAttribute& a : h.attributes()) {
-        const float v = a.values[leaf];
+        const float v = a.value(leaf);
         if (std::isnan(v)) continue;
         std::snprintf(line, sizeof line, " %s %.6g", a.name.c_str(), a.offset + double(v));
         what += line;

@@ -123,9 +123,7 @@ TEST(Cli, GenLasAtMapCoordinatesAndInfo) {
   r = run_treecut("build " + quote(dir / "s.las") + " -o " + quote(dir / "s.tch"));
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("format      LAS 1.2, point format 2"), std::string::npos) << r.out;
-  // What gen writes beyond the intensity is the same at every point: named.
-  EXPECT_NE(r.out.find("the same at every point, not kept: return_number 1"), std::string::npos)
-      << r.out;
+  EXPECT_EQ(r.out.find("warning"), std::string::npos) << r.out;
   for (const char* model : {"s.las", "s.tch"}) {
     r = run_treecut("info " + quote(dir / model));
     ASSERT_EQ(r.code, 0) << r.out;
@@ -133,17 +131,22 @@ TEST(Cli, GenLasAtMapCoordinatesAndInfo) {
         << model << "\n"
         << r.out;
     EXPECT_NE(r.out.find("file bounds [499999.0"), std::string::npos) << r.out;
-    EXPECT_NE(r.out.find("bounds      [-1"), std::string::npos) << "relative to it: " << r.out;
-    EXPECT_NE(r.out.find("attributes  1 (colour by one with --color NAME)\n  intensity"),
+    EXPECT_NE(r.out.find("bounds      [-0.99"), std::string::npos) << "relative to it: " << r.out;
+    // What gen writes beyond the intensity is the same at every point: kept
+    // (issue 43, item 1), and the format line from the cache too (item 18).
+    EXPECT_NE(r.out.find("attributes  10 (colour by one with --color NAME)\n  intensity"),
               std::string::npos)
         << model << "\n"
         << r.out;
+    EXPECT_NE(r.out.find("  return_number          category 1 at every point\n"), std::string::npos)
+        << r.out;
+    EXPECT_NE(r.out.find("format      LAS 1.2, point format 2"), std::string::npos) << r.out;
   }
-  // A PLY holds floats: --origin is refused for one, before anything is written.
+  // A PLY holds the same map coordinates in double (issue 43, item 2).
   r = run_treecut("gen sphere -n 100 --origin 500000 5000000 0 -o " + quote(dir / "s.ply"));
-  EXPECT_EQ(r.code, 2) << r.out;
-  EXPECT_NE(r.out.find("--origin needs a .las output"), std::string::npos) << r.out;
-  EXPECT_FALSE(fs::exists(dir / "s.ply"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  r = run_treecut("info " + quote(dir / "s.ply"));
+  EXPECT_NE(r.out.find("origin      [500000.000 5000000.000 0.000]"), std::string::npos) << r.out;
   // gen replaces a LAS only: not a PLY (or anything else) under a .las name.
   r = run_treecut("gen sphere -n 100 -o " + quote(dir / "p.ply"));
   ASSERT_EQ(r.code, 0);
@@ -193,15 +196,20 @@ TEST(Cli, ExportConvertsBetweenFormatsKeepingTheAttributes) {
   treecut::test::CommandResult r =
       run_treecut("gen city -n 5000 --origin 500000 5000000 10 -o " + quote(dir / "c.las"));
   ASSERT_EQ(r.code, 0) << r.out;
+  // Map coordinates go to a PLY in double, nothing to ask (issue 43).
   r = run_treecut("export " + quote(dir / "c.las") + " -o " + quote(dir / "c.ply"));
-  EXPECT_EQ(r.code, 2) << r.out;
-  EXPECT_NE(r.out.find("the points are at map coordinates (origin [500000.000"), std::string::npos)
-      << r.out;
-  EXPECT_FALSE(fs::exists(dir / "c.ply"));
-  r = run_treecut("export " + quote(dir / "c.las") + " --relative -o " + quote(dir / "c.ply"));
   ASSERT_EQ(r.code, 0) << r.out;
-  EXPECT_NE(r.out.find("(5000 of 5000 points, 2 attributes, from LAS)"), std::string::npos)
+  EXPECT_NE(r.out.find("(5000 of 5000 points, 10 attributes, from LAS)"), std::string::npos)
       << r.out;
+  r = run_treecut("info " + quote(dir / "c.ply"));
+  EXPECT_NE(r.out.find("origin      [500000.000 5000000.000 10.000]"), std::string::npos) << r.out;
+  // --relative asks for floats, the origin printed and in a comment that
+  // treecut reads back.
+  r = run_treecut("export " + quote(dir / "c.las") + " --relative -o " + quote(dir / "r.ply"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("origin 500000.000 5000000.000 10.000: add it"), std::string::npos) << r.out;
+  r = run_treecut("info " + quote(dir / "r.ply"));
+  EXPECT_NE(r.out.find("origin      [500000.000 5000000.000 10.000]"), std::string::npos) << r.out;
   r = run_treecut("export " + quote(dir / "c.ply") + " -o " + quote(dir / "c.pcd"));
   ASSERT_EQ(r.code, 0) << r.out;
   r = run_treecut("export " + quote(dir / "c.pcd") + " --classes 6 -o " + quote(dir / "b.las"));
@@ -210,12 +218,14 @@ TEST(Cli, ExportConvertsBetweenFormatsKeepingTheAttributes) {
   r = run_treecut("info " + quote(dir / "b.las"));
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("  intensity"), std::string::npos) << r.out;
-  // Only buildings: one class, which a reader names and does not keep.
-  EXPECT_EQ(r.out.find("  classification"), std::string::npos) << r.out;
+  // Only buildings: one class, kept as what it is.
+  EXPECT_NE(r.out.find("  classification         category 6 at every point"), std::string::npos)
+      << r.out;
   r = run_treecut("export " + quote(dir / "b.las") + " -o " + quote(dir / "b.pcd"));
   ASSERT_EQ(r.code, 0) << r.out;
-  EXPECT_NE(r.out.find("the same at every point, not kept: "), std::string::npos) << r.out;
-  EXPECT_NE(r.out.find("classification 6"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("warning"), std::string::npos) << r.out;
+  r = run_treecut("export " + quote(dir / "b.pcd") + " --classes 6 -o " + quote(dir / "c6.las"));
+  EXPECT_EQ(r.code, 0) << "a constant classification still filters: " << r.out;
   // Refused, nothing written: the input itself, another kind of file, a
   // format it does not write, a filter that keeps nothing.
   std::ofstream(dir / "notes.las") << "my notes\n";

@@ -12,9 +12,11 @@
 #include <unistd.h>
 
 #include <csignal>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <random>
 #include <string>
 #include <thread>
 
@@ -113,29 +115,74 @@ TEST(MappedFile, TheContentHashOfAShortenedFileIsAnErrorNotASignal) {
   ::close(fd);
 }
 
-// A mapping read outside read_guarded (a renderer drawing from a cache) that
-// shrinks ends the process with exit code 1 and one line naming the file,
-// and removes the temporaries of the outputs in progress first.
-TEST(MappedFileDeathTest, AShrunkCacheEndsTheProcessWithOneLineAndNoTemporaries) {
+// A mapping read outside read_guarded that shrinks ends the process with
+// exit code 1 and one line naming the file, and removes the temporaries of
+// the outputs in progress first (what any unguarded reader of a mapping
+// gets; caches are no longer mapped, below).
+TEST(MappedFileDeathTest, AShrunkMappingEndsTheProcessWithOneLineAndNoTemporaries) {
   GTEST_FLAG_SET(death_test_style, "threadsafe");
-  const fs::path dir = test::scratch_dir("changes_cache_death");
-  const fs::path cache = built_cache(dir);
+  const fs::path dir = test::scratch_dir("changes_mapping_death");
+  const fs::path file = dir / "m.bin";
+  write_bytes(file, 1 << 20);
   EXPECT_EXIT(
       {
-        OpenedModel m = open_model(cache);
+        const int fd = open_read(file);
+        const MappedFile map(fd, 1 << 20, file);
+        ::close(fd);
         AtomicFile output(dir / "frame.png");  // an output in progress
         output.write("half a frame");
-        shrink_from_another_thread(cache, 4096);
-        // What a renderer does every frame: read the node arrays.
-        const auto bounds = m.hierarchy.arrays().center_radius;
-        volatile float sum = 0;
-        for (const auto& b : bounds) sum = sum + b.w;
-        std::fprintf(stderr, "read %f without a signal\n", static_cast<double>(sum));
+        shrink_from_another_thread(file, 4096);
+        volatile unsigned sum = 0;
+        for (std::size_t i = 0; i < map.size(); i += 4096) sum = sum + map.data()[i];
+        std::fprintf(stderr, "read %u without a signal\n", static_cast<unsigned>(sum));
       },
       ::testing::ExitedWithCode(1),
-      "^treecut: error: " + cache.string() +
+      "^treecut: error: " + file.string() +
           ": changed while being read \\(truncated or rewritten by another program\\)\n$");
   EXPECT_EQ(temporaries_in(dir), 0u) << "the output's temporary was left";
+}
+
+// Issue 43, item 8: a cache rewritten in place (`dd conv=notrunc`, same
+// size) or truncated while a renderer draws from it changes nothing the
+// loaded hierarchy holds: the bytes were read into the process and
+// verified once, so the links every strategy indexes with stay the ones
+// checked (a mapping showed the new bytes, and the strategies crashed).
+TEST(CacheChanges, ACacheRewrittenInPlaceAfterItsLoadChangesNothingLoaded) {
+  const fs::path dir = test::scratch_dir("changes_cache_rewritten");
+  const fs::path cache = built_cache(dir);
+  std::string why;
+  const std::optional<Hierarchy> h = load_cache(cache, std::nullopt, &why);
+  ASSERT_TRUE(h) << why;
+  const HierarchyArrays& a = h->arrays();
+  const std::vector<NodeId> first_child(a.first_child.begin(), a.first_child.end());
+  const std::vector<NodeId> parent(a.parent.begin(), a.parent.end());
+  const std::vector<glm::vec4> bounds(a.center_radius.begin(), a.center_radius.end());
+  const auto size = fs::file_size(cache);
+  std::thread([&] {
+    // 8 blocks of 64 KiB of random bytes over the file, as dd conv=notrunc.
+    std::FILE* f = std::fopen(cache.c_str(), "r+b");
+    ASSERT_NE(f, nullptr);
+    std::mt19937 rng(43);
+    std::string noise(std::size_t{1} << 16, '\0');
+    for (int block = 0; block < 8; ++block) {
+      for (char& c : noise) c = static_cast<char>(rng());
+      std::fseek(f, static_cast<long>((size / 8) * static_cast<unsigned>(block)), SEEK_SET);
+      std::fwrite(noise.data(), 1, std::min<std::size_t>(noise.size(), size / 8), f);
+    }
+    std::fclose(f);
+  }).join();
+  EXPECT_EQ(fs::file_size(cache), size);
+  EXPECT_TRUE(std::equal(first_child.begin(), first_child.end(), a.first_child.begin()));
+  EXPECT_TRUE(std::equal(parent.begin(), parent.end(), a.parent.begin()));
+  EXPECT_EQ(std::memcmp(bounds.data(), a.center_radius.data(), bounds.size() * sizeof(glm::vec4)),
+            0);
+  EXPECT_EQ(check_invariants(*h), "");
+  // Truncated too: still nothing moves, and no signal.
+  shrink_from_another_thread(cache, 64);
+  EXPECT_TRUE(std::equal(parent.begin(), parent.end(), a.parent.begin()));
+  // The rewritten file itself is refused at the next load, naming why.
+  EXPECT_FALSE(load_cache(cache, std::nullopt, &why));
+  EXPECT_FALSE(why.empty());
 }
 
 // A cache that shrinks while it is verified (the checksum reads all of it)

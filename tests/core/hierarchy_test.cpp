@@ -98,8 +98,8 @@ TEST(Hierarchy, LeavesAreExactlyTheInputPoints) {
 // node the children's value with the most points; NaN counts for nothing.
 TEST(Hierarchy, AttributesAreSummarizedPerNode) {
   PointSet ps = generate_model(ModelKind::Terrain, 4000, 5);
-  PointAttribute intensity{"intensity", AttributeKind::measure, 0.0, {}};
-  PointAttribute cls{"classification", AttributeKind::category, 0.0, {}};
+  PointAttribute intensity{.name = "intensity", .kind = AttributeKind::measure, .offset = 0.0};
+  PointAttribute cls{.name = "classification", .kind = AttributeKind::category, .offset = 0.0};
   for (std::size_t i = 0; i < ps.size(); ++i) {
     const glm::vec3 p = ps.positions[i];
     intensity.values.push_back(i % 17 == 0 ? NAN : 100.0f + 50.0f * p.x);

@@ -229,8 +229,9 @@ TEST(PlyLoad, ReadsTheRadiusPropertyInAsciiAndBinary) {
 }
 
 // Issue 29: every other scalar vertex property is kept, by name, in ascii
-// (transcoded for OpenMesh) and binary (read in place) alike; a constant one
-// is named instead; a point dropped for its position takes its values along.
+// (transcoded for OpenMesh) and binary (read in place) alike, a constant one
+// as its value (issue 43); a point dropped for its position takes its values
+// along.
 TEST(PlyLoad, OtherScalarPropertiesAreKeptAsAttributes) {
   const std::string ascii =
       "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
@@ -241,7 +242,7 @@ TEST(PlyLoad, OtherScalarPropertiesAreKeptAsAttributes) {
   const PointSet a = load_ply_from_memory(ascii, "a.ply", nullptr,
                                           [&](const std::string& w) { warnings.push_back(w); });
   ASSERT_EQ(a.size(), 3u);
-  ASSERT_EQ(a.attributes.size(), 2u) << "alpha is colour's, scanner is constant";
+  ASSERT_EQ(a.attributes.size(), 3u) << "alpha is colour's";
   EXPECT_EQ(a.attributes[0].name, "intensity");
   EXPECT_EQ(a.attributes[0].kind, treecut::AttributeKind::measure);
   EXPECT_EQ(a.attributes[0].values[0], 0.5f);
@@ -250,11 +251,12 @@ TEST(PlyLoad, OtherScalarPropertiesAreKeptAsAttributes) {
   EXPECT_EQ(a.attributes[1].name, "label");
   EXPECT_EQ(a.attributes[1].kind, treecut::AttributeKind::category);
   EXPECT_EQ(a.attributes[1].values, (std::vector<float>{1, 2, 1}));
-  bool named = false;
-  for (const std::string& w : warnings) {
-    named = named || w == "a.ply: the same at every vertex, not kept: scanner 3";
-  }
-  EXPECT_TRUE(named);
+  EXPECT_EQ(a.attributes[1].type, treecut::ValueType::u8) << "the file's type, for an export";
+  EXPECT_EQ(a.attributes[2].name, "scanner");
+  EXPECT_TRUE(a.attributes[2].is_constant()) << "stored once";
+  EXPECT_EQ(a.attributes[2].value(1), 3.0);
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_EQ(warnings[0], "a.ply: dropped 1 point with non-finite coordinates");
 
   Body body;
   for (int i = 0; i < 3; ++i) body.put(float(i)).put(0.0f).put(0.0f).put(std::uint16_t(100 * i));
@@ -361,9 +363,12 @@ TEST(PlyLoad, DoubleAndIntegerPositionsLoad) {
       doubles.bytes + Body{}.put(0.5).put(0.5).put(0.5).bytes;
   PlyLoadReport report;
   PointSet p = load(doubles_file, &report);
-  // 1e300 does not fit a float: that point is non-finite and dropped.
+  // 1e300 is beyond the coordinate limit: that point is dropped; the other
+  // is near zero, so no origin (issue 43, item 7), and its doubles are kept
+  // for an export.
   EXPECT_EQ(report.dropped_nonfinite, 1u);
   EXPECT_EQ(p.positions, (std::vector<glm::vec3>{glm::vec3(0.5f)}));
+  EXPECT_EQ(p.frame.origin, glm::dvec3(0.0));
 }
 
 TEST(PlyLoad, HeaderVariantsAreAccepted) {

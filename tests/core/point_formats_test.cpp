@@ -138,8 +138,14 @@ std::string error_of(const std::string& bytes) {
 const std::vector<Point> kThree = {
     {100, 200, 300, 65535, 0, 0}, {-100, 0, 50, 0, 65535, 0}, {0, -200, 0, 0, 0, 65535}};
 
+// Point I in the file's coordinates, as the floats give it.
 glm::dvec3 file_position(const PointSet& p, std::size_t i) {
   return p.frame.origin + glm::dvec3(p.positions[i]);
+}
+
+// ... and as the reader kept it where the floats do not give it back.
+glm::dvec3 exact_position(const PointSet& p, std::size_t i) {
+  return p.exact_positions.empty() ? file_position(p, i) : p.exact_positions[i];
 }
 
 TEST(LasLoad, EveryPointFormatGivesItsPointsAndColours) {
@@ -168,14 +174,19 @@ TEST(LasLoad, EveryPointFormatGivesItsPointsAndColours) {
     }
     const bool waveform = format == 4 || format == 5 || format >= 9;
     EXPECT_EQ(report.info.waveform, waveform);
-    bool said_waveform = false, said_kept = false;
+    bool said_waveform = false, said_not_kept = false;
     for (const std::string& w : warnings) {
       said_waveform = said_waveform || w.find("waveform") != std::string::npos;
-      said_kept = said_kept || w.find("not kept: intensity") != std::string::npos;
+      said_not_kept = said_not_kept || w.find("not kept") != std::string::npos;
       EXPECT_EQ(w.find('\n'), std::string::npos);
     }
     EXPECT_EQ(said_waveform, waveform) << format;
-    EXPECT_TRUE(said_kept) << "the fields not kept are named: " << format;
+    // Issue 43: a field with one value at every point is kept, once.
+    EXPECT_FALSE(said_not_kept) << format;
+    ASSERT_FALSE(p.attributes.empty());
+    EXPECT_EQ(p.attributes[0].name, "intensity");
+    EXPECT_TRUE(p.attributes[0].is_constant()) << format;
+    EXPECT_EQ(p.attributes[0].value(2), 0.0) << format;
   }
 }
 
@@ -238,7 +249,27 @@ TEST(LasLoad, CoordinateSystemRecordsAreRead) {
   for (const std::uint16_t v : {1, 1, 0, 1, 3072, 0, 1, 32633}) put<std::uint16_t>(keys, v);
   (void)load_las_from_memory(
       las_file(2, 0, kThree, 0.01, 0.0, 0, {{"LASF_Projection", 34735, keys}}), "mem.las", &r);
-  EXPECT_EQ(r.info.crs, "GeoTIFF: EPSG code 32633");
+  EXPECT_EQ(r.info.crs, "EPSG:32633 (projected)");
+  // Issue 43, item 3: the projected key wins over the geographic one (the
+  // datum under it), wherever it stands; 32767 is user-defined.
+  keys.clear();
+  for (const std::uint16_t v : {1, 1, 0, 3, 1024, 0, 1, 1, 2048, 0, 1, 4269, 3072, 0, 1, 3597})
+    put<std::uint16_t>(keys, v);
+  (void)load_las_from_memory(
+      las_file(2, 0, kThree, 0.01, 0.0, 0, {{"LASF_Projection", 34735, keys}}), "mem.las", &r);
+  EXPECT_EQ(r.info.crs, "EPSG:3597 (projected)");
+  keys.clear();
+  for (const std::uint16_t v : {1, 1, 0, 2, 1024, 0, 1, 1, 3072, 0, 1, 32767})
+    put<std::uint16_t>(keys, v);
+  (void)load_las_from_memory(
+      las_file(2, 0, kThree, 0.01, 0.0, 0, {{"LASF_Projection", 34735, keys}}), "mem.las", &r);
+  EXPECT_EQ(r.info.crs, "user-defined (projected)");
+  keys.clear();
+  for (const std::uint16_t v : {1, 1, 0, 2, 1024, 0, 1, 2, 2048, 0, 1, 4326})
+    put<std::uint16_t>(keys, v);
+  (void)load_las_from_memory(
+      las_file(2, 0, kThree, 0.01, 0.0, 0, {{"LASF_Projection", 34735, keys}}), "mem.las", &r);
+  EXPECT_EQ(r.info.crs, "EPSG:4326 (geographic)");
   // Extra bytes: two named fields.
   std::string extra(384, '\0');
   std::memcpy(extra.data() + 4, "reflectance", 11);
@@ -370,7 +401,7 @@ TEST(LasLoad, EveryFieldIsKeptAsANamedAttribute) {
     for (const treecut::PointAttribute& a : p.attributes) {
       if (a.name == name) {
         std::vector<double> v;
-        for (const float x : a.values) v.push_back(a.offset + double(x));
+        for (std::size_t i = 0; i < p.size(); ++i) v.push_back(a.value(i));
         return v;
       }
     }
@@ -396,15 +427,10 @@ TEST(LasLoad, EveryFieldIsKeptAsANamedAttribute) {
   EXPECT_EQ(values(a, "scan_angle"), (std::vector<double>{-10, 0, 10}));
   // A GPS time of 3e8 s keeps its quarter seconds (float relative to an offset).
   EXPECT_EQ(values(a, "gps_time"), (std::vector<double>{3.0e8, 3.0e8 + 0.25, 3.0e8 + 0.5}));
-  EXPECT_TRUE(values(a, "number_of_returns").empty()) << "3 everywhere: not kept";
-  EXPECT_TRUE(values(a, "point_source_id").empty());
-  bool constant_named = false;
-  for (const std::string& w : warnings) {
-    constant_named = constant_named || (w.find("not kept: ") != std::string::npos &&
-                                        w.find("number_of_returns 3") != std::string::npos &&
-                                        w.find("point_source_id 7") != std::string::npos);
-  }
-  EXPECT_TRUE(constant_named);
+  // Issue 43, item 1: one value everywhere is kept, stored once.
+  EXPECT_EQ(values(a, "number_of_returns"), (std::vector<double>{3, 3, 3}));
+  EXPECT_EQ(values(a, "point_source_id"), (std::vector<double>{7, 7, 7}));
+  EXPECT_TRUE(warnings.empty()) << warnings.front();
   for (const treecut::PointAttribute& x : a.attributes) {
     EXPECT_EQ(x.kind, x.name == "intensity" || x.name == "scan_angle" || x.name == "gps_time"
                           ? treecut::AttributeKind::measure
@@ -446,10 +472,14 @@ TEST(LasLoad, EveryFieldIsKeptAsANamedAttribute) {
 TEST(LasSave, AttributesRoundTrip) {
   PointSet p;
   p.frame.origin = glm::dvec3(600000.0, 4000000.0, 50.0);
-  treecut::PointAttribute intensity{"intensity", treecut::AttributeKind::measure, 0.0, {}};
-  treecut::PointAttribute cls{"classification", treecut::AttributeKind::category, 0.0, {}};
-  treecut::PointAttribute time{"gps_time", treecut::AttributeKind::measure, 2.0e8, {}};
-  treecut::PointAttribute reflectance{"reflectance", treecut::AttributeKind::measure, 0.0, {}};
+  treecut::PointAttribute intensity{
+      .name = "intensity", .kind = treecut::AttributeKind::measure, .offset = 0.0};
+  treecut::PointAttribute cls{
+      .name = "classification", .kind = treecut::AttributeKind::category, .offset = 0.0};
+  treecut::PointAttribute time{
+      .name = "gps_time", .kind = treecut::AttributeKind::measure, .offset = 2.0e8};
+  treecut::PointAttribute reflectance{
+      .name = "reflectance", .kind = treecut::AttributeKind::measure, .offset = 0.0};
   for (int i = 0; i < 500; ++i) {
     p.positions.push_back({0.1f * float(i), 0.2f * float(i % 7), 0.0f});
     intensity.values.push_back(float(i * 13 % 4000));
@@ -473,7 +503,7 @@ TEST(LasSave, AttributesRoundTrip) {
     const treecut::PointAttribute* b = find(a.name);
     ASSERT_NE(b, nullptr) << a.name;
     for (std::size_t i = 0; i < p.size(); ++i) {
-      EXPECT_NEAR(b->offset + double(b->values[i]), a.offset + double(a.values[i]), 1e-6) << a.name;
+      EXPECT_NEAR(b->value(i), a.value(i), 1e-6) << a.name;
     }
   }
 }
@@ -482,10 +512,21 @@ TEST(LasSave, RefusesWhatLasCannotHold) {
   PointSet p;
   p.positions = {{0, 0, 0}, {1e9f, 0, 0}};
   const auto dir = treecut::test::scratch_dir("las_refuse");
-  EXPECT_THROW(treecut::save_las(dir / "x.las", p), std::invalid_argument);
-  EXPECT_FALSE(std::filesystem::exists(dir / "x.las"));
   treecut::LasWriteOptions o;
-  o.scale = 0.0;
+  o.scale = 0.001;
+  // 1e12 steps of a millimetre: the message names the file, not a function.
+  try {
+    treecut::save_las(dir / "x.las", p, o);
+    ADD_FAILURE() << "written";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()).rfind((dir / "x.las").string() + ": the points span", 0), 0u)
+        << e.what();
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir / "x.las"));
+  // Without a scale the writer picks one that reaches them.
+  treecut::save_las(dir / "x.las", p);
+  EXPECT_EQ(treecut::load_las(dir / "x.las").size(), 2u);
+  o.scale = -1.0;
   EXPECT_THROW(treecut::save_las(dir / "y.las", PointSet{}, o), std::invalid_argument);
 }
 
@@ -541,10 +582,11 @@ TEST(TextCloud, XyzPtsAndCsvAreRecognizedAndRead) {
   ASSERT_EQ(c.size(), 1u);
   EXPECT_EQ(file_position(c, 0), glm::dvec3(1, 2, 3));
   EXPECT_EQ(c.colors[0], glm::u8vec4(9, 8, 7, 255));
-  ASSERT_EQ(warnings.size(), 1u);
-  // A column with one value colours nothing: named, not kept.
-  EXPECT_EQ(warnings[0], "c.csv: the same at every point, not kept: classification 2");
-  EXPECT_TRUE(c.attributes.empty());
+  // A column with one value is kept, once (issue 43, item 1).
+  EXPECT_TRUE(warnings.empty()) << warnings.front();
+  ASSERT_EQ(c.attributes.size(), 1u);
+  EXPECT_TRUE(c.attributes[0].is_constant());
+  EXPECT_EQ(c.attributes[0].value(0), 2.0);
   // A header's other columns are attributes, by name and kind.
   const PointSet k = treecut::load_text_cloud_from_memory(
       "x y z intensity class\n0 0 0 10 2\n1 0 0 30 6\n0 1 0 20 2\n", "k.txt");
@@ -661,7 +703,8 @@ TEST(PcdLoad, AsciiBinaryAndCompressedAgree) {
     const PointSet q = treecut::load_pcd(dir / "p.pcd");
     ASSERT_EQ(q.size(), p.size());
     for (std::size_t i = 0; i < p.size(); ++i) {
-      EXPECT_NEAR(glm::distance(file_position(q, i), glm::dvec3(p.positions[i])), 0.0, 1e-6);
+      // The file's coordinates, exactly (doubles where there is an origin).
+      EXPECT_EQ(exact_position(q, i), exact_position(p, i));
       EXPECT_EQ(q.normals[i], p.normals[i]);
       EXPECT_EQ(q.colors[i], p.colors[i]);
     }

@@ -482,8 +482,9 @@ TEST(SceneFile, CliErrorsExitWithTwoAndOneLine) {
   write(dir / "notes.txt", "keep me\n");
   r = run_treecut("gen city-block --objects 10 -n 100 -o " + quote(dir / "notes.txt"));
   EXPECT_EQ(r.code, 2) << r.out;
-  EXPECT_EQ(r.out, "treecut: " + (dir / "notes.txt").string() +
-                       ": exists and is not a scene file; refusing to overwrite it\n");
+  EXPECT_EQ(r.out,
+            "treecut: " + (dir / "notes.txt").string() +
+                ": exists and is not a scene file treecut wrote; refusing to overwrite it\n");
   EXPECT_EQ(treecut::read_text_file(dir / "notes.txt"), "keep me\n");
   r = run_treecut("gen hall --objects 10 -o " + quote(dir / "h.scene"));
   EXPECT_EQ(r.code, 2) << r.out;

@@ -55,16 +55,28 @@ inline std::string check_point_set(const PointSet& p) {
     if (c.w != 255) return "a colour is not opaque";
   for (const glm::uvec3& t : p.triangles)
     if (t.x >= n || t.y >= n || t.z >= n) return "a triangle index is out of range";
-  // Attributes (issue 29): one value a point, finite or NaN, at most
-  // kMaxAttributes of short names, offsets finite.
+  // Attributes (issues 29 and 43): one value a point (stored in one of the
+  // three forms), finite or NaN, at most kMaxAttributes of short names,
+  // offsets finite; exact positions, where kept, one a point and finite.
   if (p.attributes.size() > kMaxAttributes) return "more attributes than kMaxAttributes";
   for (const PointAttribute& a : p.attributes) {
-    if (a.values.size() != n) return "attribute " + a.name + " is not of the point count";
+    if (!a.values.empty() && !a.wide.empty()) return "attribute " + a.name + " is stored twice";
+    if (!a.is_constant() && a.stored() != n)
+      return "attribute " + a.name + " is not of the point count";
     if (a.name.size() > kMaxAttributeName) return "an attribute name is too long";
     if (!std::isfinite(a.offset)) return "attribute " + a.name + " has a non-finite offset";
-    for (const float v : a.values) {
-      if (std::isinf(v)) return "attribute " + a.name + " holds an infinity";
+    for (std::size_t i = 0; i < a.stored(); ++i) {
+      if (std::isinf(a.value(i))) return "attribute " + a.name + " holds an infinity";
     }
+    if (std::isinf(a.constant)) return "attribute " + a.name + " is an infinity";
+  }
+  if (!p.exact_positions.empty() && p.exact_positions.size() != n)
+    return "exact positions are not of the point count";
+  if (!p.colors16.empty() && p.colors16.size() != n)
+    return "16-bit colours are not of the point count";
+  for (const glm::dvec3& e : p.exact_positions) {
+    if (!std::isfinite(e.x) || !std::isfinite(e.y) || !std::isfinite(e.z))
+      return "an exact position is not finite";
   }
   return {};
 }
@@ -80,7 +92,8 @@ inline std::string check_loaded_hierarchy(const Hierarchy& h) {
   if (n == 0 || h.level_count() < 1) return "loaded empty";
   if (h.parent(h.root()) != kNoNode) return "the root has a parent";
   for (const NodeAttribute& a : h.attributes()) {
-    if (a.values.size() != n) return "attribute " + a.name + " is not of the node count";
+    if (!a.is_constant() && a.values.size() != n)
+      return "attribute " + a.name + " is not of the node count";
     // Any float is a value the colouring takes (NaN: none; infinities clamp).
     if (a.name.size() > kMaxAttributeName) return "an attribute name is too long";
   }

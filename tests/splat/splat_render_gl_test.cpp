@@ -557,8 +557,8 @@ TEST(SplatPick, PicksWhatThePixelShowsAndMeasuresDistances) {
 // right, with an intensity rising from left to right.
 Hierarchy classified_plane() {
   PointSet p;
-  PointAttribute intensity{"intensity", AttributeKind::measure, 0.0, {}};
-  PointAttribute cls{"classification", AttributeKind::category, 0.0, {}};
+  PointAttribute intensity{.name = "intensity", .kind = AttributeKind::measure, .offset = 0.0};
+  PointAttribute cls{.name = "classification", .kind = AttributeKind::category, .offset = 0.0};
   for (int i = 0; i < 120; ++i) {
     for (int j = 0; j < 90; ++j) {
       const float x = -0.6f + 0.01f * float(i);

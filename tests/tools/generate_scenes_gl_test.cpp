@@ -231,8 +231,9 @@ TEST(GenWalk, WritesTheWalkthroughAndRefusesToOverwriteOtherFiles) {
   r = treecut::test::run_treecut("gen city -n 500 -o " + quote(dir / "c.ply") + " --walk " +
                                  quote(dir / "notes.txt"));
   EXPECT_EQ(r.code, 2) << r.out;
-  EXPECT_EQ(r.out, "treecut: " + (dir / "notes.txt").string() +
-                       ": exists and is not a camera path; refusing to overwrite it\n");
+  EXPECT_EQ(r.out,
+            "treecut: " + (dir / "notes.txt").string() +
+                ": exists and is not a camera path treecut wrote; refusing to overwrite it\n");
   EXPECT_FALSE(fs::exists(dir / "c.ply"));
   EXPECT_EQ(fs::file_size(dir / "notes.txt"), 5u);
   r = treecut::test::run_treecut("gen sphere -n 500 -o " + quote(dir / "s.ply") + " --walk " +

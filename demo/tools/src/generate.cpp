@@ -140,7 +140,9 @@ PointSet generate_model(ModelKind kind, std::size_t points, std::uint64_t seed) 
 }
 
 void add_survey_attributes(PointSet& points, ModelKind kind) {
-  PointAttribute intensity{"intensity", AttributeKind::measure, 0.0, {}};
+  PointAttribute intensity;
+  intensity.name = "intensity";
+  intensity.type = ValueType::u16;
   intensity.values.resize(points.size(), 32768.0f);
   if (points.has_colors()) {
     for (std::size_t i = 0; i < points.size(); ++i) {
@@ -151,7 +153,10 @@ void add_survey_attributes(PointSet& points, ModelKind kind) {
   points.attributes.push_back(std::move(intensity));
   if (kind == ModelKind::City) {
     // The city's ground is the plane z = 0; roofs and walls rise from it.
-    PointAttribute cls{"classification", AttributeKind::category, 0.0, {}};
+    PointAttribute cls;
+    cls.name = "classification";
+    cls.kind = AttributeKind::category;
+    cls.type = ValueType::u8;
     cls.values.resize(points.size());
     for (std::size_t i = 0; i < points.size(); ++i) {
       cls.values[i] = points.positions[i].z > 1e-5f ? 6.0f : 2.0f;

@@ -76,6 +76,14 @@ std::uint64_t content_hash_of(const std::filesystem::path& source);
 /// bytes only; load_cache verifies the rest). Never blocks.
 bool looks_like_cache(const std::filesystem::path& path);
 
+/// Whether PATH is a cache treecut wrote, as far as its header can tell
+/// without reading the rest: not a symbolic link, the magic, a version
+/// treecut has written, this machine's byte order, a header size of that
+/// version and, for this version, the file's exact size. What `build -o`,
+/// `cache --clear` and the folder's size limit may replace or remove (a
+/// 25-byte file that starts with the magic is the user's).
+bool is_own_cache(const std::filesystem::path& path);
+
 /// Writes atomically (AtomicFile: temporary + rename). Creates the folder.
 /// Throws std::runtime_error "PATH: REASON" (the system's reason) on failure;
 /// the previous file at CACHE, if any, is left as it was.

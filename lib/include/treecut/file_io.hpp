@@ -49,6 +49,16 @@ std::string read_text_file(const std::filesystem::path& path, std::size_t limit 
 /// format's magic). Never blocks; false for anything it cannot read.
 bool file_starts_with(const std::filesystem::path& path, std::string_view prefix);
 
+/// The first bytes of a regular file and its size, read without following
+/// a final symbolic link and without blocking (a FIFO, a directory, a link
+/// or an unreadable file: `regular` false, nothing read).
+struct FileHead {
+  bool regular = false;
+  std::uint64_t size = 0;
+  std::string bytes;  ///< at most the N asked for
+};
+FileHead read_file_head(const std::filesystem::path& path, std::size_t n);
+
 /// Whether two paths name the same file (same device and inode: hard links
 /// and symbolic links to it count). False when either does not exist.
 bool same_file(const std::filesystem::path& a, const std::filesystem::path& b);

@@ -61,14 +61,34 @@ struct HierarchyArrays {
 
 /// One of the file's per-point scalars over the nodes (PointSet::attributes):
 /// a leaf holds its point's value, an interior node its subtree's summary
-/// (a measure's point-weighted mean, a category's most frequent value).
+/// (a measure's point-weighted mean, a category's most frequent value), as
+/// a float relative to `offset`, which keeps classes exact and a GPS time
+/// to microseconds; an attribute with one value at every point holds it
+/// once.
 struct NodeAttribute {
   std::string name;
   AttributeKind kind = AttributeKind::measure;
-  double offset = 0.0;  ///< the file's value is offset + values[n]
-  /// Of the points' finite values (relative, as `values`); NaN when none.
-  float min = 0.0f, max = 0.0f;
-  std::span<const float> values;  ///< node_count() values, NaN: no value
+  double offset = 0.0;  ///< the file's value is offset + value(n)
+  /// The points' smallest and largest values, the file's (exact); NaN when
+  /// none has a value.
+  double min = 0.0, max = 0.0;
+  std::span<const float> values;  ///< node_count() values, NaN: no value; empty: constant
+  float constant = 0.0f;          ///< every node's value when `values` is empty
+
+  [[nodiscard]] bool is_constant() const { return values.empty(); }
+  [[nodiscard]] float value(NodeId n) const { return values.empty() ? constant : values[n]; }
+};
+
+/// What the model's file said when it was read, kept with the hierarchy
+/// (and in its cache) so that a warm open says the same as the first
+/// (issue 43, item 18).
+struct SourceNotes {
+  /// The file's format as `info` words it ("LAS 1.4, point format 6 (30
+  /// bytes a point), from LAStools"; "PLY", "PCD", "text"); empty when
+  /// unknown (built from points in memory).
+  std::string format;
+  /// The read's warnings, one line each, as they were printed.
+  std::vector<std::string> warnings;
 };
 
 class Hierarchy {
@@ -91,6 +111,14 @@ class Hierarchy {
   /// (PointSet::frame): a node at p lies at frame().origin + p there; 0 for
   /// models read as floats, near the points for map coordinates (LAS).
   [[nodiscard]] const CoordinateFrame& frame() const { return frame_; }
+  /// What the file said when it was read (cached with the hierarchy).
+  [[nodiscard]] const SourceNotes& notes() const { return notes_; }
+  /// A copy (sharing the arrays) with NOTES.
+  [[nodiscard]] Hierarchy with_notes(SourceNotes notes) const {
+    Hierarchy h = *this;
+    h.notes_ = std::move(notes);
+    return h;
+  }
   [[nodiscard]] const HierarchyArrays& arrays() const { return a_; }
   /// The file's other per-point scalars, in file order (may be none).
   [[nodiscard]] const std::vector<NodeAttribute>& attributes() const { return attributes_; }
@@ -135,6 +163,7 @@ class Hierarchy {
   glm::vec3 bounds_max_{0.0f};
   CoordinateFrame frame_;
   std::vector<NodeAttribute> attributes_;
+  SourceNotes notes_;
 };
 
 /// Packs a unit vector and a cone cosine into the snorm16 layout above.

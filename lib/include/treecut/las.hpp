@@ -37,9 +37,12 @@ namespace treecut {
 /// descriptor (LAS 1.4 R15, section 2.5.13) says.
 struct LasExtraBytes {
   std::string name;
-  std::uint8_t data_type = 0;  ///< 1-10: uchar .. double; 0: `options` undocumented bytes
-  std::uint8_t options = 0;    ///< bit 0 no_data, 3 scale, 4 offset are used
-  double no_data = 0.0, scale = 1.0, offset = 0.0;  ///< of the first element
+  /// 1-10: uchar .. double; 11-30: arrays of 2 or 3 of them (deprecated in
+  /// 1.4, still written); 0: `options` undocumented bytes.
+  std::uint8_t data_type = 0;
+  std::uint8_t options = 0;  ///< bit 0 no_data, 3 scale, 4 offset are used
+  /// Of each element (one, or an array's two or three).
+  double no_data[3] = {0, 0, 0}, scale[3] = {1, 1, 1}, offset[3] = {0, 0, 0};
 };
 
 /// What a LAS file's header and records say.
@@ -53,9 +56,18 @@ struct LasInfo {
   double min[3] = {0, 0, 0};  ///< the header's bounds (file coordinates)
   double max[3] = {0, 0, 0};
   std::string system_identifier, generating_software;
-  /// The coordinate system: "WKT: ..." (OGC WKT record) or "GeoTIFF: EPSG
-  /// code N" / "GeoTIFF: N keys" (GeoKeyDirectory record); empty if none.
+  std::uint16_t file_source_id = 0;
+  std::uint16_t global_encoding = 0;  ///< bit 0: adjusted standard GPS time; bit 4: WKT
+  /// The coordinate system in words: "WKT: ..." (OGC WKT record), else from
+  /// the GeoTIFF keys "EPSG:26915 (projected)" (the projected key wins over
+  /// the geographic one, which names only its datum), "EPSG:4326
+  /// (geographic)", "user-defined (projected)" (code 32767), or "GeoTIFF: N
+  /// keys"; empty if none.
   std::string crs;
+  CrsRecords crs_records;  ///< the records themselves, as the file holds them
+  /// The other VLRs and EVLRs, kept for an export (not those that describe
+  /// this file's encoding: extra bytes, waveform packets, LASzip, COPC).
+  std::vector<FileRecord> records;
   std::vector<LasExtraBytes> extra_bytes;  ///< the extra-bytes fields, in record order
   bool waveform = false;                   ///< the format carries wave packets (not read)
 };
@@ -81,19 +93,30 @@ PointSet load_las_from_memory(std::string_view bytes, const std::string& name,
 
 struct LasWriteOptions {
   /// The coordinates' resolution (file units per integer step): a round
-  /// trip is exact to it.
-  double scale = 0.001;
+  /// trip is exact to it. 0: the file's own (frame.resolution, a LAS
+  /// scale), else the finest power of ten the float positions resolve.
+  double scale = 0.0;
 };
 
-/// Writes LAS 1.2, point format 0 to 3 (3 with RGB and a gps_time
-/// attribute): the standard fields from the attributes of those names
-/// (return 1 of 1 and class 1 without them), every other attribute as a
-/// float in the extra bytes (the VLR names it); each position origin + positions[i] as integers of
-/// `scale` around an offset near the points. Through an AtomicFile like save_ply. Throws
-/// std::invalid_argument for a bad scale or sizes, or for coordinates the
-/// scale cannot hold in 32 bits; std::runtime_error "PATH: REASON" on I/O
-/// errors.
+/// Writes LAS in the smallest point format that holds every field of every
+/// point (issue 43): LAS 1.2 formats 0-3 (GPS time 1, RGB 2), or LAS 1.4
+/// formats 6-8 when a field needs them (a scanner channel or NIR, classes
+/// past 31, returns past 7, the overlap flag, scan angles that are not whole
+/// degrees). The standard fields come from the attributes of those names
+/// (return 1 of 1 and class 1 without them), every other attribute is an
+/// extra-bytes field of its own type, scale and offset; RGB at 16 bits
+/// (colors16, else 8 bits x 257); the coordinate system's records as VLRs;
+/// the GPS time type in the global encoding. Positions origin +
+/// positions[i] as integers of the scale around an offset near the points.
+/// Through an AtomicFile like save_ply. Throws std::invalid_argument for a
+/// bad scale or sizes, InputError "PATH: ..." for coordinates the scale
+/// cannot hold in 32 bits; std::runtime_error "PATH: REASON" on I/O errors.
 void save_las(const std::filesystem::path& path, const PointSet& points,
               const LasWriteOptions& options = {});
+
+/// Whether PATH is a LAS file treecut wrote whose whole header checks out:
+/// treecut's generating software, a header a LAS reader accepts and a size
+/// that is exactly its records' (what `export` and `gen` may replace).
+[[nodiscard]] bool is_own_las(const std::filesystem::path& path);
 
 }  // namespace treecut

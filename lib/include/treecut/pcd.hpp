@@ -7,13 +7,17 @@
 // POINTS, DATA) and the points as DATA says: ascii (a line a point), binary
 // (packed records, little-endian) or binary_compressed (LZF, liblzf, of the
 // fields one after the other). What is kept: x y z (in double, relative to
-// an origin near the first point, as LAS's), normal_x/y/z, the colour of an
-// `rgb` or `rgba` field (the bytes of a float or an unsigned int, as PCL
-// packs them), and every other scalar field as a named attribute
-// (intensity, label, curvature, ...). Fields with a COUNT above 1
+// an origin where they need one, as every reader), normal_x/y/z, the colour
+// of an `rgb` or `rgba` field (the bytes of a float or an unsigned int, as
+// PCL packs them) or of separate red, green and blue fields (8 or 16 bits),
+// and every other scalar field as a named attribute in its own type
+// (intensity, label, curvature, ...); field names are matched without
+// regard to case (X Y Z, as PDAL writes them). Fields with a COUNT above 1
 // (descriptors such as fpfh) and `_` padding are named in one warning.
 // Points whose position is NaN (an organized cloud's holes) are dropped,
-// counted in a warning. The VIEWPOINT is not used.
+// counted in a warning. The VIEWPOINT of an organized cloud (a depth
+// camera's), or any that is not the identity, is the sensor's pose
+// (CoordinateFrame::viewpoint): the first view opens from it.
 //
 // Guarded as the other readers: every header line checked (known types and
 // sizes, counts that agree, WIDTH x HEIGHT = POINTS), the data's bytes
@@ -44,13 +48,25 @@ PointSet load_pcd_from_memory(std::string_view bytes, const std::string& name,
 
 enum class PcdData { ascii, binary, binary_compressed };
 
-/// Writes a PCD v0.7 file: x y z as floats relative to points.frame.origin
-/// (PCD has no offset: the origin is lost, as in PCL), normal_x/y/z and rgb
-/// (packed) when the points have them, every attribute as a float field of
-/// its name (its offset added). Through an AtomicFile like save_ply; throws
+/// The first line save_pcd writes: how is_own_pcd knows treecut's files.
+inline constexpr std::string_view kPcdSignature =
+    "# .PCD v0.7 - Point Cloud Data file format (treecut)\n";
+
+/// Writes a PCD v0.7 file: x y z (doubles of the file's coordinates where
+/// the model has an origin, floats otherwise; relative floats with
+/// OPTIONS.relative), normal_x/y/z, the colour (a packed rgb, or red green
+/// blue of 16 bits with colors16) and every attribute as a field of its
+/// name in a type that holds it, the coordinate system and GPS time type
+/// as treecut comments. Through an AtomicFile like save_ply; throws
 /// std::invalid_argument for inconsistent sizes, std::runtime_error "PATH:
-/// REASON" on I/O errors. What `gen -o X.pcd` and the tests write.
+/// REASON" on I/O errors. What `gen -o X.pcd`, `export` and the tests
+/// write.
 void save_pcd(const std::filesystem::path& path, const PointSet& points,
-              PcdData data = PcdData::binary_compressed);
+              PcdData data = PcdData::binary_compressed, const SaveOptions& options = {});
+
+/// Whether PATH is a PCD file save_pcd wrote, whole: its first line, a
+/// header that parses and a body of the size the header says (what `export`
+/// and `gen` may replace).
+[[nodiscard]] bool is_own_pcd(const std::filesystem::path& path);
 
 }  // namespace treecut

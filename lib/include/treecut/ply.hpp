@@ -54,18 +54,34 @@ PointSet load_ply(const std::filesystem::path& path, PlyLoadReport* report = nul
 PointSet load_ply_from_memory(std::string_view bytes, const std::string& name,
                               PlyLoadReport* report = nullptr, const WarningSink& warn = {});
 
-/// Writes binary little-endian PLY: x y z float, then nx ny nz float, red green
-/// blue uchar and radius float when present (curvature is not written), every
-/// attribute as a float property of its name (a double with its offset added
-/// when it has one), and a face element (list uchar int) when triangles are
-/// present. Positions are written as they are, relative to points.frame's
-/// origin (a PLY has none). Writes through an
-/// AtomicFile (a temporary beside PATH, renamed over it when complete), so
-/// readers never see a partial file and a failed write (full disk) leaves
-/// PATH as it was and no temporary. Throws std::invalid_argument if an
-/// attribute array has the wrong size or a triangle index is out of range,
-/// std::runtime_error "PATH: REASON" on I/O errors (and when PATH is a
-/// directory or a FIFO).
-void save_ply(const std::filesystem::path& path, const PointSet& points);
+/// How save_ply and save_pcd write positions.
+struct SaveOptions {
+  /// Positions relative to points.frame.origin, as floats, with the origin
+  /// in a treecut comment (which treecut's readers add back): for programs
+  /// that read no double positions (`export --relative`). Otherwise the
+  /// file's coordinates: doubles where the model has an origin.
+  bool relative = false;
+};
+
+/// Writes binary little-endian PLY that holds everything the points have
+/// (issue 43): x y z (doubles of the file's coordinates where the model has
+/// an origin, floats otherwise), nx ny nz float, red green blue (uchar, or
+/// ushort with colors16) and radius float when present (curvature is not
+/// written), every attribute as a property of its name in a type that holds
+/// it (typed_values: the file's own, or a double), a face element (list
+/// uchar int) when triangles are present, and the coordinate system and GPS
+/// time type as treecut comments. Writes through an AtomicFile (a temporary
+/// beside PATH, renamed over it when complete), so readers never see a
+/// partial file and a failed write (full disk) leaves PATH as it was and no
+/// temporary. Throws std::invalid_argument if an attribute array has the
+/// wrong size or a triangle index is out of range, std::runtime_error "PATH:
+/// REASON" on I/O errors (and when PATH is a directory or a FIFO).
+void save_ply(const std::filesystem::path& path, const PointSet& points,
+              const SaveOptions& options = {});
+
+/// Whether PATH is a PLY file save_ply wrote, whole: its header line for
+/// line and the size its header implies (what `export` and `gen` may
+/// replace).
+[[nodiscard]] bool is_own_ply(const std::filesystem::path& path);
 
 }  // namespace treecut

@@ -13,8 +13,8 @@
 // scalar), 6 (x y z r g b when the last three are whole numbers from 0 to
 // 255, else x y z nx ny nz), 7 (PTS's x y z intensity r g b).
 //
-// Positions are read in double and kept relative to an origin near the
-// first point, as LAS's (PointSet::frame). Guarded as the other readers: a
+// Positions are read in double and kept relative to an origin where they
+// need one, by the rule every reader follows (PointSet::frame). Guarded as the other readers: a
 // line that does not parse, a column count that changes, a PTS count that
 // disagrees with the lines, a colour out of 0-255 is one InputError
 // "NAME:LINE: problem" (exit 2); nothing is sized from a count before the

@@ -1,11 +1,20 @@
 // Hierarchy cache files: one header, the node arrays (64-byte aligned, so the
-// loader can hand out spans straight into a read-only mapping), and a trailing
+// loader can hand out spans straight into the bytes it read), and a trailing
 // 64-bit checksum. Every field is checked before any of it is used, so any
 // truncation or flipped byte is reported, never rendered. Which cache serves
 // which model (identity, content hash, the lookup) is cache_lookup.cpp's.
+//
+// A cache is read into this process's own memory, not mapped (issue 43,
+// item 8): the links the loader verifies (children, parents, counts) are
+// what every strategy indexes with, unchecked on the hot path, and a
+// mapping shows whatever another program writes into the file afterwards
+// (`dd conv=notrunc` into a cache being drawn crashed the strategies). Read
+// once and verified once, the bytes cannot change under the renderer; the
+// checksum pass touched every page anyway.
 #include "treecut/cache.hpp"
 
 #include <fcntl.h>
+#include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -20,7 +29,6 @@
 #include "cache_format.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
-#include "treecut/mapped_file.hpp"
 
 namespace treecut {
 
@@ -36,7 +44,10 @@ constexpr char kMagic[8] = {'T', 'C', 'U', 'T', 'H', 'I', 'E', 'R'};
 // 5: and the file's per-point attributes per node: a table of records
 //    (name, kind, offset, range, where the values are) after the crs text.
 // 6: and HierarchyArrays::splat_radius, after center_radius (issue 30).
-constexpr std::uint32_t kVersion = 6;
+// 7: attributes at the file's precision: an exact double range, a constant
+//    stored once; the sensor's viewpoint; the first read's notes (format
+//    and warnings) (issue 43).
+constexpr std::uint32_t kVersion = 7;
 constexpr std::uint32_t kEndianTag = 0x01020304u;
 constexpr std::size_t kAlign = 64;
 constexpr int kArrays = 10;
@@ -66,8 +77,10 @@ struct Header {
   std::uint64_t offsets[kArrays];  // in HierarchyArrays member order
   std::uint64_t payload_end;       // checksum follows, file size = payload_end + 8
   std::uint32_t attribute_count;   // Hierarchy::attributes(), at most kMaxAttributes,
-  std::uint32_t reserved;
-  std::uint64_t attribute_table;  // where their AttributeRecords are
+  std::uint32_t notes_size;        // the notes' bytes (format, then warnings, a line each),
+  std::uint64_t attribute_table;   // where their AttributeRecords are
+  std::uint64_t notes_offset;      // and where the notes are
+  double viewpoint[7];             // frame().viewpoint when flags bit 2: x y z, w x y z
 };
 static_assert(std::is_trivially_copyable_v<Header>);
 
@@ -75,11 +88,15 @@ static_assert(std::is_trivially_copyable_v<Header>);
 struct AttributeRecord {
   char name[kMaxAttributeName + 1];
   std::uint32_t kind;
-  float min, max;
+  std::uint32_t flags;  // bit 0: constant (no values; `constant` at every node)
+  double min, max;      // the file's values
   double offset;
-  std::uint64_t values;  // offset of node_count floats
+  float constant;
+  std::uint32_t reserved;
+  std::uint64_t values;  // offset of node_count floats (0 when constant)
 };
-static_assert(std::is_trivially_copyable_v<AttributeRecord> && sizeof(AttributeRecord) == 80);
+static_assert(std::is_trivially_copyable_v<AttributeRecord> && sizeof(AttributeRecord) == 96);
+constexpr std::uint32_t kMaxNotesBytes = 65536;
 
 CacheKey key_of(const Header& h) {
   return {h.source_size,   h.source_mtime_ns, h.options_bits,    h.source_hash,
@@ -153,8 +170,7 @@ bool fail(std::string* why, std::string text) {
 // Structural sanity of the links, O(nodes): what a reader relies on to never
 // index out of bounds. (Geometric invariants are the builder's business and
 // are covered by the checksum.)
-// Returns what is wrong, or nullptr. (No std::string: it runs under
-// MappedFile::read_guarded, which may leave it by a jump.)
+// Returns what is wrong, or nullptr.
 const char* link_problem(const HierarchyArrays& a, std::span<const NodeId> levels) {
   const std::size_t n = a.center_radius.size();
   if (levels.size() < 2 || levels.front() != 0 || levels.back() != n)
@@ -210,14 +226,15 @@ int open_for_reading(const std::filesystem::path& path, std::string* why) {
   }
 }
 
-// The model's CoordinateFrame (version 4): a finite origin, known flags, a
-// short coordinate-system text inside the payload.
-std::optional<CoordinateFrame> read_frame(const Header& h, const MappedFile& map,
+// The model's CoordinateFrame (versions 4 and 7): a finite origin, known
+// flags, a short coordinate-system text inside the payload, a finite
+// viewpoint of unit orientation.
+std::optional<CoordinateFrame> read_frame(const Header& h, const unsigned char* bytes,
                                           std::string* why) {
   for (const double o : h.origin) {
     if (!std::isfinite(o)) return fail(why, "the origin is not finite"), std::nullopt;
   }
-  if ((h.flags & ~3u) != 0) return fail(why, "unknown flags"), std::nullopt;
+  if ((h.flags & ~7u) != 0) return fail(why, "unknown flags"), std::nullopt;
   // The coordinate system's text: short (a WKT is cut to 400 bytes), inside.
   if (h.crs_size > kMaxCrsBytes ||
       (h.crs_size > 0 && (h.crs_offset < sizeof(Header) || h.crs_offset > h.payload_end ||
@@ -226,20 +243,47 @@ std::optional<CoordinateFrame> read_frame(const Header& h, const MappedFile& map
   CoordinateFrame frame;
   frame.origin = glm::dvec3(h.origin[0], h.origin[1], h.origin[2]);
   frame.z_up = (h.flags & 1u) != 0;
-  // Bit 1 came with issue 30 in the same version: a cache written before
-  // says 0 (a LAS, z-up, has no normals of its own either way).
   frame.normals_estimated = (h.flags & 2u) != 0;
-  frame.crs.resize(h.crs_size);
-  map.read_guarded([&] {
-    if (h.crs_size > 0) std::memcpy(frame.crs.data(), map.data() + h.crs_offset, h.crs_size);
-  });
+  if ((h.flags & 4u) != 0) {
+    const double* v = h.viewpoint;
+    for (int i = 0; i < 7; ++i) {
+      if (!std::isfinite(v[i])) return fail(why, "the viewpoint is not finite"), std::nullopt;
+    }
+    const glm::dquat q(v[3], v[4], v[5], v[6]);
+    if (!(std::fabs(glm::length(q) - 1.0) < 1e-6))
+      return fail(why, "the viewpoint's rotation is not a unit quaternion"), std::nullopt;
+    frame.viewpoint = Viewpoint{glm::dvec3(v[0], v[1], v[2]), q};
+  }
+  frame.crs.assign(reinterpret_cast<const char*>(bytes) + h.crs_offset, h.crs_size);
   return frame;
 }
 
-// The attribute table (version 5): known kinds, NUL-terminated names, a
-// range that is ordered or NaN, values inside the payload.
+// The first read's notes (version 7): the format, then a warning a line.
+std::optional<SourceNotes> read_notes(const Header& h, const unsigned char* bytes,
+                                      std::string* why) {
+  SourceNotes notes;
+  if (h.notes_size == 0) return notes;
+  if (h.notes_size > kMaxNotesBytes || h.notes_offset < sizeof(Header) ||
+      h.notes_offset > h.payload_end || h.notes_size > h.payload_end - h.notes_offset)
+    return fail(why, "bad notes record"), std::nullopt;
+  const std::string text(reinterpret_cast<const char*>(bytes) + h.notes_offset, h.notes_size);
+  std::size_t at = 0;
+  const std::size_t end = std::min(text.find('\n'), text.size());
+  notes.format = text.substr(0, end);
+  at = end + 1;
+  while (at < text.size()) {
+    const std::size_t stop = std::min(text.find('\n', at), text.size());
+    notes.warnings.push_back(text.substr(at, stop - at));
+    at = stop + 1;
+  }
+  return notes;
+}
+
+// The attribute table (version 7): known kinds and flags, NUL-terminated
+// names, a range that is ordered or NaN, values inside the payload.
 template <class InBounds>
-std::optional<std::vector<NodeAttribute>> read_attributes(const Header& h, const MappedFile& map,
+std::optional<std::vector<NodeAttribute>> read_attributes(const Header& h,
+                                                          const unsigned char* bytes,
                                                           InBounds in_bounds, std::string* why) {
   std::vector<NodeAttribute> out;
   if (h.attribute_count == 0) return out;
@@ -247,58 +291,80 @@ std::optional<std::vector<NodeAttribute>> read_attributes(const Header& h, const
       !in_bounds(h.attribute_table, std::uint64_t{h.attribute_count} * sizeof(AttributeRecord)))
     return fail(why, "attribute table out of bounds"), std::nullopt;
   std::vector<AttributeRecord> records(h.attribute_count);
-  map.read_guarded([&] {
-    std::memcpy(records.data(), map.data() + h.attribute_table,
-                records.size() * sizeof(AttributeRecord));
-  });
+  std::memcpy(records.data(), bytes + h.attribute_table, records.size() * sizeof(AttributeRecord));
   const std::size_t n = h.node_count;
   for (const AttributeRecord& r : records) {
     const bool range_ok = (std::isnan(r.min) && std::isnan(r.max)) ||
                           (std::isfinite(r.min) && std::isfinite(r.max) && r.min <= r.max);
-    if (r.name[kMaxAttributeName] != '\0' || r.kind > 1 || !range_ok || !std::isfinite(r.offset))
+    if (r.name[kMaxAttributeName] != '\0' || r.kind > 1 || (r.flags & ~1u) != 0 || !range_ok ||
+        !std::isfinite(r.offset))
       return fail(why, "bad attribute record"), std::nullopt;
-    if (!in_bounds(r.values, n * sizeof(float)))
-      return fail(why, "attribute values out of bounds"), std::nullopt;
-    out.push_back({std::string(r.name),
-                   static_cast<AttributeKind>(r.kind),
-                   r.offset,
-                   r.min,
-                   r.max,
-                   {reinterpret_cast<const float*>(map.data() + r.values), n}});
+    NodeAttribute a{
+        std::string(r.name), static_cast<AttributeKind>(r.kind), r.offset, r.min, r.max, {},
+        r.constant};
+    if ((r.flags & 1u) == 0) {
+      if (!in_bounds(r.values, n * sizeof(float)))
+        return fail(why, "attribute values out of bounds"), std::nullopt;
+      a.values = {reinterpret_cast<const float*>(bytes + r.values), n};
+    }
+    out.push_back(std::move(a));
   }
   return out;
 }
 
-std::optional<Hierarchy> map_and_verify(const std::filesystem::path& path, Header* out_header,
-                                        std::string* why) {
+// A cache's bytes in anonymous pages of this process (see the top).
+class CacheBytes {
+ public:
+  explicit CacheBytes(std::size_t size) : size_(size) {
+    void* p = ::mmap(nullptr, size, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+    if (p == MAP_FAILED) throw std::bad_alloc();
+    data_ = static_cast<unsigned char*>(p);
+  }
+  CacheBytes(const CacheBytes&) = delete;
+  CacheBytes& operator=(const CacheBytes&) = delete;
+  ~CacheBytes() { ::munmap(data_, size_); }
+  [[nodiscard]] unsigned char* data() const { return data_; }
+
+ private:
+  unsigned char* data_;
+  std::size_t size_;
+};
+
+// Reads the SIZE bytes an fstat saw of the file open as FD; a file that got
+// shorter meanwhile is a FileChangedError, as for a model.
+std::shared_ptr<CacheBytes> read_bytes(int fd, std::uint64_t size,
+                                       const std::filesystem::path& path) {
+  auto bytes = std::make_shared<CacheBytes>(static_cast<std::size_t>(size));
+  std::uint64_t at = 0;
+  while (at < size) {
+    const std::size_t want = static_cast<std::size_t>(std::min<std::uint64_t>(size - at, 1 << 26));
+    const ssize_t got = ::pread(fd, bytes->data() + at, want, static_cast<off_t>(at));
+    if (got < 0 && errno == EINTR) continue;
+    if (got < 0) throw std::runtime_error(system_error_text(path, errno));
+    if (got == 0) {
+      throw FileChangedError(quoted_name(path) + ": changed while being read (it got shorter)");
+    }
+    at += static_cast<std::uint64_t>(got);
+  }
+  return bytes;
+}
+
+std::optional<Hierarchy> read_and_verify(const std::filesystem::path& path, Header* out_header,
+                                         std::string* why) {
   const int fd = open_for_reading(path, why);
   if (fd < 0) return std::nullopt;
+  struct Close {
+    int fd;
+    ~Close() { ::close(fd); }
+  } closer{fd};
   struct stat st {};
-  if (fstat(fd, &st) != 0) {
-    const int error = errno;
-    ::close(fd);
-    return fail(why, std::strerror(error)), std::nullopt;
-  }
+  if (fstat(fd, &st) != 0) return fail(why, std::strerror(errno)), std::nullopt;
   const auto size = static_cast<std::uint64_t>(st.st_size);
-  if (size < sizeof(Header) + 8) {
-    ::close(fd);
+  if (size < sizeof(Header) + 8)
     return fail(why, "truncated (shorter than a header)"), std::nullopt;
-  }
-  std::shared_ptr<MappedFile> map;
-  try {
-    map = std::make_shared<MappedFile>(fd, size, path);
-  } catch (const std::exception& e) {
-    ::close(fd);
-    const std::string text = e.what();  // "NAME: REASON"
-    return fail(why, "cannot map: " + text.substr(text.rfind(": ") + 2)), std::nullopt;
-  }
-  ::close(fd);
-  const unsigned char* bytes = map->data();
-
-  // Every read of the mapping below is guarded: a cache truncated meanwhile
-  // is a FileChangedError, not a SIGBUS.
   Header h;
-  map->read_guarded([&] { std::memcpy(&h, bytes, sizeof h); });
+  if (::pread(fd, &h, sizeof h, 0) != static_cast<ssize_t>(sizeof h))
+    return fail(why, "truncated (shorter than a header)"), std::nullopt;
   if (std::memcmp(h.magic, kMagic, sizeof kMagic) != 0)
     return fail(why, "not a treecut cache"), std::nullopt;
   if (h.version != kVersion)
@@ -310,21 +376,29 @@ std::optional<Hierarchy> map_and_verify(const std::filesystem::path& path, Heade
   if (h.header_size != sizeof(Header)) return fail(why, "header size mismatch"), std::nullopt;
   if (h.payload_end != size - 8)
     return fail(why, "truncated or extended (size mismatch)"), std::nullopt;
-  bool sum_ok = false;
-  map->read_guarded([&] {
-    std::uint64_t stored;
-    std::memcpy(&stored, bytes + size - 8, 8);
-    sum_ok = checksum(bytes, size - 8) == stored;
-  });
-  if (!sum_ok) return fail(why, "checksum mismatch (corrupted)"), std::nullopt;
+  std::shared_ptr<CacheBytes> storage;
+  try {
+    storage = read_bytes(fd, size, path);
+  } catch (const std::bad_alloc&) {
+    return fail(why, "not enough memory to read it (" + std::to_string(size >> 20) + " MiB)"),
+           std::nullopt;
+  }
+  const unsigned char* bytes = storage->data();
+  std::memcpy(&h, bytes, sizeof h);
+  std::uint64_t stored;
+  std::memcpy(&stored, bytes + size - 8, 8);
+  if (h.payload_end != size - 8 || checksum(bytes, size - 8) != stored)
+    return fail(why, "checksum mismatch (corrupted)"), std::nullopt;
 
   // The checksum only proves the file is what some writer wrote; still check
   // every offset before building spans.
   const std::uint64_t n = h.node_count;
   if (n == 0 || h.level_count == 0 || h.level_count > 256)
     return fail(why, "bad counts"), std::nullopt;
-  std::optional<CoordinateFrame> frame = read_frame(h, *map, why);
+  std::optional<CoordinateFrame> frame = read_frame(h, bytes, why);
   if (!frame) return std::nullopt;
+  std::optional<SourceNotes> notes = read_notes(h, bytes, why);
+  if (!notes) return std::nullopt;
   auto in_bounds = [&](std::uint64_t off, std::uint64_t bytes_needed) {
     return off % kAlign == 0 && off >= sizeof(Header) && off <= h.payload_end &&
            bytes_needed <= h.payload_end - off;
@@ -347,21 +421,18 @@ std::optional<Hierarchy> map_and_verify(const std::filesystem::path& path, Heade
                     {reinterpret_cast<const std::uint8_t*>(at(8)), nn},
                     {reinterpret_cast<const std::uint8_t*>(at(9)), nn}};
   std::optional<std::vector<NodeAttribute>> attributes = read_attributes(
-      h, *map,
+      h, bytes,
       [&](std::uint64_t off, std::uint64_t bytes_needed) { return in_bounds(off, bytes_needed); },
       why);
   if (!attributes) return std::nullopt;
   std::vector<NodeId> levels(h.level_count + 1);
-  const char* problem = nullptr;
-  map->read_guarded([&] {
-    std::memcpy(levels.data(), bytes + h.level_table, levels.size() * sizeof(NodeId));
-    problem = link_problem(a, levels);
-  });
-  if (problem != nullptr) return fail(why, problem), std::nullopt;
+  std::memcpy(levels.data(), bytes + h.level_table, levels.size() * sizeof(NodeId));
+  if (const char* problem = link_problem(a, levels)) return fail(why, problem), std::nullopt;
   if (out_header) *out_header = h;
   return Hierarchy::from_arrays(
-      std::move(map), a, std::move(levels), {h.bounds[0], h.bounds[1], h.bounds[2]},
-      {h.bounds[3], h.bounds[4], h.bounds[5]}, std::move(*frame), std::move(*attributes));
+             std::move(storage), a, std::move(levels), {h.bounds[0], h.bounds[1], h.bounds[2]},
+             {h.bounds[3], h.bounds[4], h.bounds[5]}, std::move(*frame), std::move(*attributes))
+      .with_notes(std::move(*notes));
 }
 
 // The header of CACHE as it is on disk, unverified (the checksum is checked
@@ -395,6 +466,24 @@ bool looks_like_cache(const std::filesystem::path& path) {
   return file_starts_with(path, std::string_view(kMagic, sizeof kMagic));
 }
 
+bool is_own_cache(const std::filesystem::path& path) {
+  const FileHead head = read_file_head(path, sizeof(Header));
+  if (!head.regular || head.bytes.size() < 20) return false;
+  const auto* b = reinterpret_cast<const unsigned char*>(head.bytes.data());
+  std::uint32_t version, endian, header_size;
+  std::memcpy(&version, b + 8, 4), std::memcpy(&endian, b + 12, 4);
+  std::memcpy(&header_size, b + 16, 4);
+  if (std::memcmp(b, kMagic, sizeof kMagic) != 0 || version < 1 || version > kVersion ||
+      endian != kEndianTag || header_size < 64 || header_size > 4096 ||
+      head.size < std::uint64_t{header_size} + 8)
+    return false;
+  if (version < kVersion) return true;  // an older build's: its layout is not this one
+  Header h;
+  if (head.bytes.size() < sizeof h) return false;
+  std::memcpy(&h, b, sizeof h);
+  return h.header_size == sizeof h && h.payload_end + 8 == head.size;
+}
+
 void save_cache(const Hierarchy& hier, const CacheKey& key, const std::filesystem::path& cache) {
   const auto& a = hier.arrays();
   Header h{};
@@ -417,7 +506,14 @@ void save_cache(const Hierarchy& hier, const CacheKey& key, const std::filesyste
   std::memcpy(h.bounds, b, sizeof b);
   const CoordinateFrame& frame = hier.frame();
   h.origin[0] = frame.origin.x, h.origin[1] = frame.origin.y, h.origin[2] = frame.origin.z;
-  h.flags = (frame.z_up ? 1u : 0u) | (frame.normals_estimated ? 2u : 0u);
+  h.flags =
+      (frame.z_up ? 1u : 0u) | (frame.normals_estimated ? 2u : 0u) | (frame.viewpoint ? 4u : 0u);
+  if (frame.viewpoint) {
+    const Viewpoint& v = *frame.viewpoint;
+    const double pose[7] = {v.position.x,    v.position.y,    v.position.z,   v.orientation.w,
+                            v.orientation.x, v.orientation.y, v.orientation.z};
+    std::memcpy(h.viewpoint, pose, sizeof pose);
+  }
   const std::string crs = frame.crs.substr(0, kMaxCrsBytes);
   h.crs_size = static_cast<std::uint32_t>(crs.size());
 
@@ -458,10 +554,25 @@ void save_cache(const Hierarchy& hier, const CacheKey& key, const std::filesyste
     std::memset(&r, 0, sizeof r);
     std::memcpy(r.name, attribute.name.data(), std::min(attribute.name.size(), kMaxAttributeName));
     r.kind = static_cast<std::uint32_t>(attribute.kind);
+    r.flags = attribute.is_constant() ? 1u : 0u;
     r.min = attribute.min, r.max = attribute.max, r.offset = attribute.offset;
-    r.values = off;
+    r.constant = attribute.constant;
+    r.values = attribute.is_constant() ? 0 : off;
     off = align_up(off + attribute.values.size_bytes());
   }
+  // The notes, cut at a whole line to what a header can vouch for.
+  std::string notes = hier.notes().format.substr(0, 4096);
+  for (const std::string& w : hier.notes().warnings) {
+    const std::string line = "\n" + w.substr(0, 4096);
+    if (notes.size() + line.size() > kMaxNotesBytes) break;
+    notes += line;
+  }
+  for (char& c : notes) {
+    if (c == '\0') c = '?';
+  }
+  h.notes_size = static_cast<std::uint32_t>(notes.size());
+  h.notes_offset = notes.empty() ? 0 : off;
+  off = align_up(off + notes.size());
   h.payload_end = off;
 
   // Temporary + rename (AtomicFile): readers see the old file or the complete
@@ -497,6 +608,7 @@ void save_cache(const Hierarchy& hier, const CacheKey& key, const std::filesyste
     put(records.data(), records.size() * sizeof(AttributeRecord), h.attribute_table);
   for (std::size_t k = 0; k < records.size(); ++k)
     put(attributes[k].values.data(), attributes[k].values.size_bytes(), records[k].values);
+  if (!notes.empty()) put(notes.data(), notes.size(), h.notes_offset);
   put(nullptr, 0, h.payload_end);
   const std::uint64_t digest = sum.finish();
   out.write(&digest, sizeof digest);
@@ -506,7 +618,7 @@ void save_cache(const Hierarchy& hier, const CacheKey& key, const std::filesyste
 std::optional<Hierarchy> load_cache(const std::filesystem::path& cache,
                                     const std::optional<CacheKey>& expected, std::string* why) {
   Header h;
-  auto hier = map_and_verify(cache, &h, why);
+  auto hier = read_and_verify(cache, &h, why);
   if (!hier) return std::nullopt;
   if (expected && !cache_key_matches(key_of(h), *expected))
     return fail(why, "stale (the model or the build options changed)"), std::nullopt;
@@ -516,14 +628,14 @@ std::optional<Hierarchy> load_cache(const std::filesystem::path& cache,
 std::optional<Hierarchy> load_cache_and_key(const std::filesystem::path& cache, CacheKey* stored,
                                             std::string* why) {
   Header h;
-  auto hier = map_and_verify(cache, &h, why);
+  auto hier = read_and_verify(cache, &h, why);
   if (hier && stored) *stored = key_of(h);
   return hier;
 }
 
 std::optional<CacheKey> read_cache_key(const std::filesystem::path& cache, std::string* why) {
   Header h;
-  if (!map_and_verify(cache, &h, why)) return std::nullopt;
+  if (!read_and_verify(cache, &h, why)) return std::nullopt;
   return key_of(h);
 }
 

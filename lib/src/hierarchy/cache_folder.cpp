@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <charconv>
 #include <cmath>
 #include <cstdlib>
 #include <stdexcept>
@@ -40,7 +41,7 @@ std::vector<CacheFileInfo> list_caches(const std::filesystem::path& folder) {
   if (ec) throw std::runtime_error(quoted_name(folder) + ": " + ec.message());
   for (const std::filesystem::directory_entry& e : it) {
     const std::filesystem::path& p = e.path();
-    if (p.extension() != ".tch" || !e.is_regular_file(ec) || !looks_like_cache(p)) continue;
+    if (p.extension() != ".tch" || !e.is_regular_file(ec) || !is_own_cache(p)) continue;
     CacheFileInfo info;
     info.file = p;
     info.bytes = e.file_size(ec);
@@ -85,7 +86,7 @@ std::vector<std::string> remove_caches(std::span<const CacheFileInfo> caches) {
   std::vector<std::string> failures;
   for (const CacheFileInfo& c : caches) {
     // Checked again just before: a file put there meanwhile is not ours.
-    if (!looks_like_cache(c.file)) continue;
+    if (!is_own_cache(c.file)) continue;
     std::error_code ec;
     std::filesystem::remove(c.file, ec);
     if (ec) failures.push_back(quoted_name(c.file) + ": " + ec.message());
@@ -94,11 +95,19 @@ std::vector<std::string> remove_caches(std::span<const CacheFileInfo> caches) {
 }
 
 std::optional<std::uint64_t> parse_byte_size(const std::string& text) {
-  if (text.empty()) return std::nullopt;
-  char* end = nullptr;
-  const double v = std::strtod(text.c_str(), &end);
-  if (end == text.c_str() || !std::isfinite(v) || v < 0.0) return std::nullopt;
-  std::string unit(end);
+  // Decimal digits with an optional fraction, then the unit: strtod would
+  // read "0x10" as sixteen and "nan" and "inf" as numbers.
+  std::size_t digits = 0;
+  while (digits < text.size() &&
+         (std::isdigit(static_cast<unsigned char>(text[digits])) || text[digits] == '.'))
+    ++digits;
+  if (digits == 0 ||
+      std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(digits), '.') > 1)
+    return std::nullopt;
+  double v = 0.0;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + digits, v);
+  if (ec != std::errc() || end != text.data() + digits || !std::isfinite(v)) return std::nullopt;
+  std::string unit(text.substr(digits));
   if (!unit.empty() && (unit.back() == 'B' || unit.back() == 'b')) unit.pop_back();
   if (unit.size() > 1 && (unit.back() == 'i')) unit.pop_back();  // 2GiB, 2Gi
   double scale = 1.0;

@@ -502,9 +502,11 @@ glm::i16vec4 pack_normal_cone(glm::vec3 normal, float cone_cos) {
 
 std::size_t Hierarchy::memory_bytes() const {
   const std::size_t n = node_count_;
-  return n * (sizeof(glm::vec4) + sizeof(float) + sizeof(glm::i16vec4) + sizeof(glm::u8vec4) +
-              sizeof(float) + sizeof(std::uint32_t) + 2 * sizeof(NodeId) +
-              2 * sizeof(std::uint8_t) + attributes_.size() * sizeof(float));
+  std::size_t bytes =
+      n * (sizeof(glm::vec4) + sizeof(float) + sizeof(glm::i16vec4) + sizeof(glm::u8vec4) +
+           sizeof(float) + sizeof(std::uint32_t) + 2 * sizeof(NodeId) + 2 * sizeof(std::uint8_t));
+  for (const NodeAttribute& a : attributes_) bytes += a.values.size_bytes();
+  return bytes;
 }
 
 const NodeAttribute* Hierarchy::find_attribute(std::string_view name) const {
@@ -520,7 +522,7 @@ Hierarchy Hierarchy::from_arrays(std::shared_ptr<const void> storage, const Hier
                                  std::vector<NodeAttribute> attributes) {
   const std::size_t n = a.center_radius.size();
   for (const NodeAttribute& attribute : attributes) {
-    if (attribute.values.size() != n)
+    if (!attribute.values.empty() && attribute.values.size() != n)
       throw std::invalid_argument("attribute values differ in size");
   }
   if (a.splat_radius.size() != n || a.normal_cone.size() != n || a.color.size() != n ||

@@ -208,9 +208,29 @@ std::string float_precision_warning(const PointSet& points) {
   return line;
 }
 
+// The file's format as `info` words it (SourceNotes::format).
+std::string format_text(const OpenedModel& out) {
+  if (out.format != "LAS") return out.format;
+  const LasInfo& l = out.las.info;
+  std::string text = "LAS " + std::to_string(l.version_major) + "." +
+                     std::to_string(l.version_minor) + ", point format " +
+                     std::to_string(l.point_format) + " (" + std::to_string(l.record_length) +
+                     " bytes a point)";
+  if (!l.system_identifier.empty()) text += ", from " + one_line(l.system_identifier);
+  return text;
+}
+
 // Read, attributes, hierarchy: the model built into `out`, each stage timed.
+// The read's warnings go out as they come and into the hierarchy's notes
+// (cached: a warm open says them again).
 void read_and_build(const std::filesystem::path& model, std::uint32_t bits, const CacheKey& key,
-                    const OpenOptions& options, OpenedModel& out) {
+                    const OpenOptions& given, OpenedModel& out) {
+  SourceNotes notes;
+  OpenOptions options = given;
+  options.warn = [&](const std::string& w) {
+    notes.warnings.push_back(w);
+    if (given.warn) given.warn(w);
+  };
   report_stage(options, "read");
   auto t0 = std::chrono::steady_clock::now();
   // The key (and the cache it names) is for the bytes hashed before the
@@ -232,6 +252,7 @@ void read_and_build(const std::filesystem::path& model, std::uint32_t bits, cons
   out.read_seconds = seconds_since(t0);
   if (changed()) throw changed_error();
   out.input_points = points.size();
+  std::vector<glm::dvec3>().swap(points.exact_positions);  // an export's; the hierarchy is floats
   if (options.warn) {
     if (const std::string w = float_precision_warning(points); !w.empty()) options.warn(w);
   }
@@ -247,7 +268,8 @@ void read_and_build(const std::filesystem::path& model, std::uint32_t bits, cons
       options.progress("hierarchy", done, total);
     };
   t0 = std::chrono::steady_clock::now();
-  out.hierarchy = build_hierarchy(std::move(points), build);
+  notes.format = format_text(out);
+  out.hierarchy = build_hierarchy(std::move(points), build).with_notes(std::move(notes));
   out.build_seconds = seconds_since(t0);
 }
 
@@ -358,6 +380,10 @@ OpenedModel open_model(const std::filesystem::path& model, const OpenOptions& op
     if (found.hierarchy) {
       out.hierarchy = std::move(*found.hierarchy);
       out.from_cache = true;
+      // What the first read said, said again.
+      if (options.warn) {
+        for (const std::string& w : out.hierarchy.notes().warnings) options.warn(w);
+      }
       // Used now: the default folder's eviction goes by it.
       if (!options.cache_path) mark_cache_used(out.cache);
       return out;

@@ -21,8 +21,9 @@ struct OwnedAttribute {
   std::string name;
   AttributeKind kind = AttributeKind::measure;
   double offset = 0.0;
-  float min = 0.0f, max = 0.0f;  // of the finite leaf values
-  std::vector<float> values;     // one per node
+  double min = 0.0, max = 0.0;  // of the points' finite values, the file's
+  std::vector<float> values;    // one per node, or empty: `constant` at every node
+  float constant = 0.0f;
 };
 
 /// Copies each point attribute to the leaves (LEAF_POINT[i]: the point of

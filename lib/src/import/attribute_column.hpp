@@ -1,19 +1,24 @@
 // The readers' way to keep a per-point scalar (PointSet::attributes): values
-// arrive as doubles in point order and are stored as floats relative to an
-// offset the first finite value fixes, so large values (a GPS time of 3e8 s)
-// keep their resolution and small ones (classes, intensities) stay exact.
+// arrive as doubles (the file's, scaled) in point order and are kept at the
+// precision of the file's type (issue 43): as floats relative to an offset
+// the first value fixes while every float gives its value back exactly
+// (classes, intensities, a float field), else as doubles (a GPS time, a
+// double extra-bytes field of 1e300), and a column with one value at every
+// point as that value alone.
 //
 // Nothing is stored while every value is the same: a LAS record has a dozen
 // fields, of which a file often fills half with one value (user data 0,
-// point source 1); they would cost 4 bytes a point each, touched twice (the
-// 20 M-point LAS read took 4.6 s instead of 1.3 s when every field was
-// stored). The values are stored from the first one that differs.
+// point source 1); stored per point they would cost 4 bytes a point each,
+// touched twice (the 20 M-point LAS read took 4.6 s instead of 1.3 s when
+// every field was stored). The values are stored from the first one that
+// differs.
 #pragma once
 
 #include <cmath>
 #include <cstddef>
 #include <cstring>
 #include <limits>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -25,75 +30,77 @@ namespace treecut::detail {
 class AttributeColumn {
  public:
   /// NAME is cut to kMaxAttributeName bytes, control bytes made '?'.
-  /// EXPECTED: the points to come (reserved once the values differ).
-  AttributeColumn(std::string name, std::size_t expected) : expected_(expected) {
-    if (name.size() > kMaxAttributeName) name.resize(kMaxAttributeName);
-    for (char& c : name) {
-      if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) c = '?';
-    }
-    attribute_.kind = attribute_kind_for(name);
-    attribute_.name = std::move(name);
-  }
+  /// EXPECTED: the points to come (reserved once the values differ). TYPE,
+  /// SCALE, BASE, NO_DATA: how the file encodes a value (PointAttribute).
+  AttributeColumn(std::string name, std::size_t expected, ValueType type = ValueType::f64,
+                  double scale = 1.0, double base = 0.0, std::optional<double> no_data = {});
 
-  /// The next point's value (the file's: the offset is taken off here).
+  /// The next point's value (the file's; not finite: no value).
   void push_back(double value) {
-    float f = std::numeric_limits<float>::quiet_NaN();
-    if (std::isfinite(value)) {
-      if (!offset_fixed_) {
-        // Below 1e6 a float keeps 1/16 and integers exactly: no offset, so
-        // the stored values read as the file's.
-        attribute_.offset = std::fabs(value) < 1e6 ? 0.0 : std::round(value);
-        offset_fixed_ = true;
-      }
-      const double relative = value - attribute_.offset;
-      if (std::fabs(relative) <= double(std::numeric_limits<float>::max())) {
-        f = static_cast<float>(relative);
-      }
-    }
-    if (!stored_) {
-      if (count_ == 0 || same(f, first_)) {
-        if (count_++ == 0) first_ = f;
+    if (!std::isfinite(value)) value = std::numeric_limits<double>::quiet_NaN();
+    if (!varying_) {
+      if (count_ == 0 || same(value, first_)) {
+        if (count_++ == 0) first_ = value;
         return;
       }
-      attribute_.values.reserve(std::max(expected_, count_ + 1));
-      attribute_.values.assign(count_, first_);
-      stored_ = true;
+      start_varying();
     }
-    attribute_.values.push_back(f);
+    store(value);
     ++count_;
   }
 
-  /// No two values differ (NaN counts as a value: none).
-  [[nodiscard]] bool constant() const { return !stored_; }
-  /// "name value" of a constant column, for a warning.
-  [[nodiscard]] std::string constant_text() const;
+  /// The attribute (a constant one as its value alone).
+  [[nodiscard]] PointAttribute take();
 
-  /// The attribute with every value (a constant one filled in).
-  [[nodiscard]] PointAttribute take() {
-    if (!stored_) attribute_.values.assign(count_, first_);
-    return std::move(attribute_);
-  }
+  /// Values whose 64-bit integers were beyond 2^53, where a double rounds
+  /// them (counted by the caller's decoder).
+  std::size_t rounded = 0;
 
  private:
-  static bool same(float a, float b) {
+  static bool same(double a, double b) {
     return std::memcmp(&a, &b, sizeof a) == 0 || (std::isnan(a) && std::isnan(b));
   }
+  void start_varying();
+  void store(double value) {
+    if (!attribute_.wide.empty() || wide_) {
+      attribute_.wide.push_back(value);
+      return;
+    }
+    if (std::isnan(value)) {
+      attribute_.values.push_back(std::numeric_limits<float>::quiet_NaN());
+      return;
+    }
+    if (!offset_fixed_) fix_offset(value);
+    const double relative = value - attribute_.offset;
+    const auto f = static_cast<float>(relative);
+    if (std::fabs(relative) <= double(std::numeric_limits<float>::max()) &&
+        attribute_.offset + double(f) == value) {
+      attribute_.values.push_back(f);
+    } else {
+      go_wide();
+      attribute_.wide.push_back(value);
+    }
+  }
+  void fix_offset(double value);
+  void go_wide();
 
   PointAttribute attribute_;
   std::size_t expected_ = 0;
   std::size_t count_ = 0;
-  float first_ = 0.0f;
+  double first_ = 0.0;
+  bool varying_ = false;
   bool offset_fixed_ = false;
-  bool stored_ = false;
+  bool wide_ = false;
 };
 
-/// Moves the columns with values that differ into OUT (in order) and
-/// returns "name value" for each constant one, for one warning: a constant
-/// colours nothing and would cost 4 bytes a point in every node and cache.
-std::vector<std::string> keep_varying(std::vector<AttributeColumn>& columns,
-                                      std::vector<PointAttribute>& out);
+/// Moves every column into OUT, in order.
+void take_columns(std::vector<AttributeColumn>& columns, std::vector<PointAttribute>& out);
 
 /// "a, b, c".
 std::string join(const std::vector<std::string>& items);
+
+/// One warning's text for long lists: the first LIMIT items, then "and N
+/// more" (a file may name millions of columns).
+std::string join_some(const std::vector<std::string>& items, std::size_t limit = 8);
 
 }  // namespace treecut::detail

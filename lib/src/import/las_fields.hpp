@@ -7,6 +7,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -26,23 +27,23 @@ class LasFields {
   /// RECORDS: field by field, so each loop has one type.
   void read(const unsigned char* records, std::size_t count, std::uint32_t length);
 
-  /// The attributes whose values differ into OUT, in record order; returns
-  /// "name value" of each constant one (keep_varying).
+  /// Every attribute into OUT, in record order; returns the names of those
+  /// with 64-bit integers beyond 2^53, which a double rounds.
   std::vector<std::string> take(std::vector<PointAttribute>& out);
 
  private:
-  enum class Raw : std::uint8_t { u8, i8, u16, i16, u32, i32, u64, i64, f32, f64 };
   struct Field {
     std::uint32_t at = 0;  // byte offset in the record
-    Raw raw = Raw::u8;
+    ValueType raw = ValueType::u8;
     std::uint8_t shift = 0, bits = 0;  // a bit field of an integer (bits 0: all)
     double scale = 1.0, offset = 0.0;
     bool has_no_data = false;
     double no_data = 0.0;  // a raw value that means "none" (extra bytes)
     AttributeColumn column;
   };
-  void add(std::string name, std::uint32_t at, Raw raw, std::uint8_t shift = 0,
-           std::uint8_t bits = 0, double scale = 1.0);
+  void add(std::string name, std::uint32_t at, ValueType raw, std::uint8_t shift = 0,
+           std::uint8_t bits = 0, double scale = 1.0, double offset = 0.0,
+           std::optional<double> no_data = {});
   template <class T>
   static void decode_all(Field& f, const unsigned char* records, std::size_t count,
                          std::uint32_t length);

@@ -18,8 +18,10 @@
 #include <string>
 #include <vector>
 
+#include "file_metadata.hpp"
 #include "las_fields.hpp"
 #include "little_endian.hpp"
+#include "position_frame.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
 #include "treecut/las.hpp"
@@ -106,41 +108,40 @@ std::string number(double v) {
   return b;
 }
 
-// The coordinate system of a LASF_Projection record.
-std::string crs_of(std::uint16_t record, const std::string& payload) {
-  if (record == 2112) {  // OGC coordinate system WKT
-    std::string wkt = payload.substr(0, std::strlen(payload.c_str()));
-    if (wkt.size() > 400) wkt = wkt.substr(0, 400) + "...";
-    return "WKT: " + wkt;
-  }
-  if (record == 34735 && payload.size() >= 8) {  // GeoKeyDirectoryTag
-    const auto* p = reinterpret_cast<const unsigned char*>(payload.data());
-    const std::size_t keys = get<std::uint16_t>(p + 6);
-    for (std::size_t k = 0; k < keys && 8 + 8 * (k + 1) <= payload.size(); ++k) {
-      const unsigned char* e = p + 8 + 8 * k;
-      const std::uint16_t id = get<std::uint16_t>(e), location = get<std::uint16_t>(e + 2);
-      // ProjectedCSTypeGeoKey, then GeographicTypeGeoKey: the EPSG code in place.
-      if ((id == 3072 || id == 2048) && location == 0) {
-        return "GeoTIFF: EPSG code " + std::to_string(get<std::uint16_t>(e + 6));
-      }
-    }
-    return "GeoTIFF: " + std::to_string(keys) + " keys";
-  }
-  return {};
-}
-
 struct Parsed {
   LasInfo info;
   std::uint64_t point_offset = 0;
+  std::uint64_t end = 0;  // of the last thing the header locates (points or EVLRs)
 };
 
-// One variable-length record (VLR or EVLR) whose payload is at `at`: what it
-// says about the coordinate system and the extra bytes.
-void read_record(const Source& f, const std::string& user, std::uint16_t id, std::uint64_t at,
-                 std::uint64_t length, LasInfo& info) {
-  const bool projection = user == "LASF_Projection" && (id == 2112 || id == 34735);
+// One variable-length record (VLR or EVLR) whose payload is at `at`: the
+// coordinate system's records (kept whole) and the extra bytes.
+// Records that describe this file's own encoding, which an export writes
+// anew or not at all: the extra bytes' descriptors, the waveform packet
+// descriptors, LASzip's and COPC's.
+bool encoding_record(const std::string& user, std::uint16_t id) {
+  return (user == "LASF_Spec" && (id == 4 || id == 7 || (id >= 100 && id < 355))) ||
+         user == "laszip encoded" || user == "copc";
+}
+
+// Records kept for an export, at most this many bytes in all.
+constexpr std::uint64_t kMaxKeptRecordBytes = std::uint64_t{16} << 20;
+
+void read_record(const Source& f, const std::string& user, std::uint16_t id,
+                 const std::string& description, std::uint64_t at, std::uint64_t length,
+                 LasInfo& info) {
+  const bool projection =
+      user == "LASF_Projection" && (id == 2112 || id == 34735 || id == 34736 || id == 34737);
   const bool extra = user == "LASF_Spec" && id == 4;
-  if (!projection && !extra) return;
+  if (!projection && !extra) {
+    std::uint64_t kept = 0;
+    for (const FileRecord& r : info.records) kept += r.payload.size();
+    if (encoding_record(user, id) || length > kMaxKeptRecordBytes - kept) return;
+    FileRecord r{user, id, description, std::string(static_cast<std::size_t>(length), '\0')};
+    f.read(at, r.payload.data(), r.payload.size());
+    info.records.push_back(std::move(r));
+    return;
+  }
   // A coordinate system is text of a few kB; the extra bytes 192 a field.
   if (length > (std::uint64_t{1} << 24)) {
     throw LasError("the " + user + " record " + std::to_string(id) + " is " +
@@ -149,9 +150,12 @@ void read_record(const Source& f, const std::string& user, std::uint16_t id, std
   std::string payload(static_cast<std::size_t>(length), '\0');
   f.read(at, payload.data(), payload.size());
   if (projection) {
-    // WKT wins over GeoTIFF keys when a file has both (the 1.4 rule for WKT files).
-    const std::string crs = crs_of(id, payload);
-    if (!crs.empty() && (info.crs.empty() || id == 2112)) info.crs = crs;
+    CrsRecords& r = info.crs_records;
+    (id == 2112    ? r.wkt
+     : id == 34735 ? r.geo_keys
+     : id == 34736 ? r.geo_doubles
+                   : r.geo_ascii) = std::move(payload);
+    info.crs = detail::crs_text(r);
     return;
   }
   for (std::size_t d = 0; d + 192 <= payload.size(); d += 192) {
@@ -160,16 +164,25 @@ void read_record(const Source& f, const std::string& user, std::uint16_t id, std
     field.data_type = e[2];
     field.options = e[3];
     field.name = text_field(e + 4, 32);
-    // no_data, min, max, scale and offset are three 8-byte slots each; a
-    // scalar uses the first (a double, or an integer for integer types).
+    // no_data, min, max, scale and offset are three 8-byte slots each, one
+    // per element of an array; a scalar uses the first (a double, or an
+    // integer for integer types).
     const int t = field.data_type;
-    const bool integral = t >= 1 && t <= 8;
-    field.no_data = !integral      ? get<double>(e + 40)
-                    : (t % 2 == 0) ? static_cast<double>(get<std::int64_t>(e + 40))
-                                   : static_cast<double>(get<std::uint64_t>(e + 40));
-    field.scale = get<double>(e + 112);
-    field.offset = get<double>(e + 136);
-    if (!(std::isfinite(field.scale) && std::isfinite(field.offset))) field.options &= ~24u;
+    const int base = t >= 1 && t <= 30 ? (t - 1) % 10 + 1 : 0;
+    const bool integral = base >= 1 && base <= 8;
+    for (int k = 0; k < 3; ++k) {
+      const unsigned char* slot = e + 40 + 8 * k;
+      field.no_data[k] = !integral         ? get<double>(slot)
+                         : (base % 2 == 0) ? static_cast<double>(get<std::int64_t>(slot))
+                                           : static_cast<double>(get<std::uint64_t>(slot));
+      field.scale[k] = get<double>(e + 112 + 8 * k);
+      field.offset[k] = get<double>(e + 136 + 8 * k);
+      if (!(std::isfinite(field.scale[k]) && field.scale[k] != 0.0 &&
+            std::isfinite(field.offset[k]))) {
+        field.scale[k] = 1.0, field.offset[k] = 0.0;
+        if (k == 0) field.options &= ~24u;
+      }
+    }
     info.extra_bytes.push_back(std::move(field));
   }
 }
@@ -191,15 +204,16 @@ void read_vlrs(const Source& f, std::uint64_t header_size, std::uint32_t count, 
                      std::to_string(count) + " (" + std::to_string(length) +
                      " bytes) runs past the point data offset " + std::to_string(end));
     }
-    read_record(f, text_field(h + 2, 16), get<std::uint16_t>(h + 18), at + kVlrHeader, length,
-                info);
+    read_record(f, text_field(h + 2, 16), get<std::uint16_t>(h + 18), text_field(h + 22, 32),
+                at + kVlrHeader, length, info);
     at += kVlrHeader + length;
   }
 }
 
-void read_evlrs(const Source& f, std::uint64_t start, std::uint32_t count, std::uint64_t points_end,
-                LasInfo& info) {
-  if (count == 0) return;
+// Returns where the last record ends.
+std::uint64_t read_evlrs(const Source& f, std::uint64_t start, std::uint32_t count,
+                         std::uint64_t points_end, LasInfo& info) {
+  if (count == 0) return points_end;
   if (start < points_end || start > f.size()) {
     throw LasError("the extended variable length records start at " + std::to_string(start) +
                    ", not between the end of the points (" + std::to_string(points_end) +
@@ -219,10 +233,11 @@ void read_evlrs(const Source& f, std::uint64_t start, std::uint32_t count, std::
                      std::to_string(count) + " (" + std::to_string(length) +
                      " bytes) runs past the end of the file");
     }
-    read_record(f, text_field(h + 2, 16), get<std::uint16_t>(h + 18), at + kEvlrHeader, length,
-                info);
+    read_record(f, text_field(h + 2, 16), get<std::uint16_t>(h + 18), text_field(h + 28, 32),
+                at + kEvlrHeader, length, info);
     at += kEvlrHeader + length;
   }
+  return at;
 }
 
 void check_scale_offset(const LasInfo& info) {
@@ -264,6 +279,8 @@ Parsed parse_header(const Source& f) {
     throw LasError("LAS version " + std::to_string(info.version_major) + "." +
                    std::to_string(info.version_minor) + " is not read (1.0 to 1.4 are)");
   }
+  info.file_source_id = get<std::uint16_t>(h + 4);
+  info.global_encoding = get<std::uint16_t>(h + 6);
   info.system_identifier = text_field(h + 26, 32);
   info.generating_software = text_field(h + 58, 32);
   const std::uint16_t header_size = get<std::uint16_t>(h + 94);
@@ -333,8 +350,8 @@ Parsed parse_header(const Source& f) {
                    std::to_string(out.point_offset) + ", the file holds " + std::to_string(room));
   }
   read_vlrs(f, header_size, vlr_count, out.point_offset, info);
-  read_evlrs(f, evlr_start, evlr_count, out.point_offset + info.point_count * info.record_length,
-             info);
+  out.end = read_evlrs(f, evlr_start, evlr_count,
+                       out.point_offset + info.point_count * info.record_length, info);
   return out;
 }
 
@@ -342,7 +359,8 @@ Parsed parse_header(const Source& f) {
 // units, when the first point lies inside them and they lie inside what the
 // integers can reach (a header may lie: then the first point itself,
 // rounded). Either way every point is within twice the integers' reach of
-// it, which check_scale_offset keeps below 1e18: finite floats.
+// it, which check_scale_offset keeps below 1e18: finite floats. Bounds
+// within 32,768 units of zero need no origin (position_frame.hpp).
 glm::dvec3 choose_origin(const LasInfo& info, glm::dvec3 first) {
   bool inside = true;
   glm::dvec3 centre;
@@ -354,7 +372,26 @@ glm::dvec3 choose_origin(const LasInfo& info, glm::dvec3 first) {
              hi <= info.offset[a] + reach;
     centre[a] = 0.5 * (lo + hi);
   }
+  const glm::dvec3 lo(info.min[0], info.min[1], info.min[2]);
+  const glm::dvec3 hi(info.max[0], info.max[1], info.max[2]);
+  if (inside && detail::near_zero(lo, hi)) return glm::dvec3(0.0);
   return glm::round(inside ? centre : first);
+}
+
+// The colours: 8 bits for drawing, and the file's 16 bits where the 8 do
+// not give them back. The spec scales colours to 16 bits (255 -> 65535);
+// some writers store 8-bit values in the 16-bit fields.
+void keep_colours(std::vector<glm::u16vec3>& rgb16, std::uint16_t max_channel, PointSet& points) {
+  const int shift = max_channel <= 255 ? 0 : 8;
+  points.colors.resize(rgb16.size());
+  bool deep = false;
+  for (std::size_t i = 0; i < rgb16.size(); ++i) {
+    const glm::u16vec3 c = rgb16[i];
+    points.colors[i] = glm::u8vec4(glm::u16vec3(c >> std::uint16_t(shift)), 255);
+    // What an export writes from 8 bits: c * 257.
+    deep = deep || c != glm::u16vec3(points.colors[i]) * std::uint16_t(257);
+  }
+  if (deep) points.colors16 = std::move(rgb16);
 }
 
 PointSet read_points(const Source& f, const Parsed& parsed, const WarningSink& warn) {
@@ -373,6 +410,8 @@ PointSet read_points(const Source& f, const Parsed& parsed, const WarningSink& w
   const glm::dvec3 offset(info.offset[0], info.offset[1], info.offset[2]);
   glm::dvec3 origin(0.0);
   std::uint16_t max_channel = 0;
+  std::vector<glm::dvec3>& exact = points.exact_positions;
+  bool keep_exact = false;
   std::vector<std::string> not_kept;
   detail::LasFields fields(info, static_cast<std::size_t>(n), not_kept);
   for (std::uint64_t begin = 0; begin < n; begin += chunk_points) {
@@ -390,7 +429,17 @@ PointSet read_points(const Source& f, const Parsed& parsed, const WarningSink& w
         origin = choose_origin(info, p);
         points.frame.origin = origin;
       }
-      points.positions[static_cast<std::size_t>(begin) + i] = glm::vec3(p - origin);
+      const std::size_t k = static_cast<std::size_t>(begin) + i;
+      points.positions[k] = glm::vec3(p - origin);
+      if (!keep_exact && !detail::float_exact(points.positions[k], origin, p)) {
+        // The floats do not give the file's coordinates back here: they are
+        // kept for an export (a build drops them).
+        keep_exact = true;
+        exact.reserve(static_cast<std::size_t>(n));
+        for (std::size_t j = 0; j < k; ++j)
+          exact.push_back(origin + glm::dvec3(points.positions[j]));
+      }
+      if (keep_exact) exact.push_back(p);
       if (rgb_at != 0) {
         const glm::u16vec3 c(get<std::uint16_t>(r + rgb_at), get<std::uint16_t>(r + rgb_at + 2),
                              get<std::uint16_t>(r + rgb_at + 4));
@@ -399,21 +448,15 @@ PointSet read_points(const Source& f, const Parsed& parsed, const WarningSink& w
       }
     }
   }
-  if (rgb_at != 0) {
-    // The spec scales colours to 16 bits; some writers store 8-bit values.
-    const int shift = max_channel <= 255 ? 0 : 8;
-    points.colors.resize(rgb16.size());
-    for (std::size_t i = 0; i < rgb16.size(); ++i) {
-      points.colors[i] = glm::u8vec4(glm::u16vec3(rgb16[i] >> std::uint16_t(shift)), 255);
-    }
-  }
-  const std::vector<std::string> constant = fields.take(points.attributes);
+  if (rgb_at != 0) keep_colours(rgb16, max_channel, points);
+  const std::vector<std::string> rounded = fields.take(points.attributes);
   if (warn) {
     if (info.waveform)
       warn("the waveform packets of point format " + std::to_string(info.point_format) +
            " are not read");
-    if (!constant.empty()) warn("the same at every point, not kept: " + detail::join(constant));
-    if (!not_kept.empty()) warn("not kept: " + detail::join(not_kept));
+    if (!not_kept.empty()) warn("not kept: " + detail::join_some(not_kept));
+    if (!rounded.empty())
+      warn("64-bit integers beyond 2^53 kept to 53 bits: " + detail::join(rounded));
   }
   return points;
 }
@@ -427,6 +470,13 @@ PointSet load(const Source& f, const std::string& name, LasLoadReport* report,
     };
     PointSet points = read_points(f, parsed, warn ? named : WarningSink{});
     points.frame.crs = parsed.info.crs;
+    points.frame.crs_records = parsed.info.crs_records;
+    points.records = parsed.info.records;
+    points.frame.resolution =
+        glm::dvec3(parsed.info.scale[0], parsed.info.scale[1], parsed.info.scale[2]);
+    points.frame.grid_offset =
+        glm::dvec3(parsed.info.offset[0], parsed.info.offset[1], parsed.info.offset[2]);
+    points.adjusted_gps_time = (parsed.info.global_encoding & 1u) != 0;
     if (report) report->info = parsed.info;
     return points;
   } catch (const LasError& e) {
@@ -435,6 +485,25 @@ PointSet load(const Source& f, const std::string& name, LasLoadReport* report,
 }
 
 }  // namespace
+
+bool is_own_las(const std::filesystem::path& path) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK | O_NOFOLLOW);
+  if (fd < 0) return false;
+  struct Close {
+    int fd;
+    ~Close() { ::close(fd); }
+  } closer{fd};
+  struct stat st {};
+  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) return false;
+  try {
+    const FileSource source(fd, static_cast<std::uint64_t>(st.st_size), path);
+    const Parsed parsed = parse_header(source);
+    return parsed.info.generating_software.starts_with("treecut") &&
+           parsed.end == static_cast<std::uint64_t>(st.st_size);
+  } catch (const std::exception&) {
+    return false;
+  }
+}
 
 bool looks_like_las(std::string_view bytes) {
   return bytes.size() >= 4 && bytes.substr(0, 4) == "LASF";

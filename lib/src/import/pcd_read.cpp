@@ -3,6 +3,7 @@
 #include <lzf.h>
 
 #include <algorithm>
+#include <cctype>
 #include <charconv>
 #include <cmath>
 #include <cstring>
@@ -12,7 +13,9 @@
 #include <vector>
 
 #include "attribute_column.hpp"
+#include "file_metadata.hpp"
 #include "little_endian.hpp"
+#include "position_frame.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
 #include "treecut/pcd.hpp"
@@ -40,6 +43,8 @@ enum class Data { ascii, binary, compressed };
 
 struct Header {
   std::vector<Field> fields;
+  double viewpoint[7] = {0, 0, 0, 1, 0, 0, 0};  // tx ty tz qw qx qy qz
+  std::vector<std::string> comments;            // the text after "# " (file_metadata.hpp)
   std::uint64_t width = 0, height = 1, points = 0;
   bool have_points = false;
   Data data = Data::ascii;
@@ -120,6 +125,11 @@ Header parse_header(std::string_view file) {
     const std::string_view line = trim(file.substr(at, end - at));
     at = end + 1;
     ++line_number;
+    if (!line.empty() && line.front() == '#' && h.comments.size() < 1024) {
+      std::string_view text = line.substr(1);
+      if (!text.empty() && text.front() == ' ') text.remove_prefix(1);
+      h.comments.emplace_back(text);
+    }
     if (line.empty() || line.front() == '#') continue;
     const std::vector<std::string_view> t = tokens_of(line);
     const std::string_view k = t.front();
@@ -139,7 +149,15 @@ Header parse_header(std::string_view file) {
       (k == "WIDTH" ? h.width : k == "HEIGHT" ? h.height : h.points) = v;
       if (k == "POINTS") h.have_points = true;
     } else if (k == "VIEWPOINT") {
-      continue;
+      if (t.size() != 8) throw PcdError("VIEWPOINT needs 7 numbers (tx ty tz qw qx qy qz)");
+      for (std::size_t i = 0; i < 7; ++i) {
+        const std::string_view v = t[i + 1];
+        double x = 0;
+        const auto [stop, ec] = std::from_chars(v.data(), v.data() + v.size(), x);
+        if (ec != std::errc() || stop != v.data() + v.size() || !std::isfinite(x))
+          throw PcdError("VIEWPOINT: '" + shown(v) + "' is not a finite number");
+        h.viewpoint[i] = x;
+      }
     } else if (k == "DATA") {
       if (t.size() != 2 || (t[1] != "ascii" && t[1] != "binary" && t[1] != "binary_compressed")) {
         throw PcdError("DATA '" + shown(t.size() > 1 ? t[1] : "") +
@@ -214,23 +232,45 @@ double element(const unsigned char* p, const Field& f) {
 struct Roles {
   int xyz[3] = {-1, -1, -1};
   int normal[3] = {-1, -1, -1};
-  int rgb = -1;
+  int rgb = -1;                   // a packed colour (rgb, rgba)
+  int channel[3] = {-1, -1, -1};  // separate red, green, blue fields
   std::vector<int> attributes;
   std::vector<std::string> not_kept;
 };
 
+std::string lower(std::string_view name) {
+  std::string s(name);
+  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+// Field names are matched without regard to case (PDAL and others write
+// X Y Z, Red Green Blue); attributes keep the file's spelling.
 Roles roles_of(const Header& h) {
   Roles r;
-  static constexpr const char* kXyz[3] = {"x", "y", "z"};
-  static constexpr const char* kNormal[3] = {"normal_x", "normal_y", "normal_z"};
+  static const std::vector<std::vector<std::string_view>> kNames = {{"x"},
+                                                                    {"y"},
+                                                                    {"z"},
+                                                                    {"normal_x", "nx"},
+                                                                    {"normal_y", "ny"},
+                                                                    {"normal_z", "nz"},
+                                                                    {"red", "r"},
+                                                                    {"green", "g"},
+                                                                    {"blue", "b"}};
   for (int i = 0; i < static_cast<int>(h.fields.size()); ++i) {
     const Field& f = h.fields[static_cast<std::size_t>(i)];
-    bool placed = false;
-    for (int a = 0; a < 3 && f.count == 1; ++a) {
-      if (f.name == kXyz[a] && r.xyz[a] < 0) r.xyz[a] = i, placed = true;
-      if (f.name == kNormal[a] && r.normal[a] < 0) r.normal[a] = i, placed = true;
+    const std::string name = lower(f.name);
+    int role = -1;
+    for (std::size_t k = 0; k < kNames.size() && role < 0 && f.count == 1; ++k) {
+      if (std::find(kNames[k].begin(), kNames[k].end(), name) != kNames[k].end()) role = int(k);
     }
-    if ((f.name == "rgb" || f.name == "rgba") && f.count == 1 && f.size == 4 && r.rgb < 0) {
+    int* slot = role < 0   ? nullptr
+                : role < 3 ? &r.xyz[role]
+                : role < 6 ? &r.normal[role - 3]
+                           : &r.channel[role - 6];
+    bool placed = false;
+    if (slot != nullptr && *slot < 0) *slot = i, placed = true;
+    if ((name == "rgb" || name == "rgba") && f.count == 1 && f.size == 4 && r.rgb < 0) {
       r.rgb = i, placed = true;
     }
     if (placed || f.name == "_") continue;
@@ -242,49 +282,68 @@ Roles roles_of(const Header& h) {
     }
   }
   if (r.xyz[0] < 0 || r.xyz[1] < 0 || r.xyz[2] < 0) throw PcdError("no x, y and z fields");
-  if (r.normal[0] < 0 || r.normal[1] < 0 || r.normal[2] < 0) {
-    for (int& n : r.normal) {
-      if (n >= 0) r.not_kept.push_back(h.fields[static_cast<std::size_t>(n)].name);
-      n = -1;
+  // A normal or a colour counts only whole; a packed colour wins over channels.
+  for (int* triple : {r.normal, r.channel}) {
+    const bool whole = triple[0] >= 0 && triple[1] >= 0 && triple[2] >= 0;
+    if (whole && !(triple == r.channel && r.rgb >= 0)) continue;
+    for (int k = 0; k < 3; ++k) {
+      if (triple[k] >= 0) r.attributes.push_back(triple[k]);
+      triple[k] = -1;
     }
   }
+  std::sort(r.attributes.begin(), r.attributes.end());
   return r;
 }
+
+ValueType value_type(const Field& f) {
+  if (f.type == 'F') return f.size == 4 ? ValueType::f32 : ValueType::f64;
+  const bool s = f.type == 'I';
+  switch (f.size) {
+    case 1:
+      return s ? ValueType::i8 : ValueType::u8;
+    case 2:
+      return s ? ValueType::i16 : ValueType::u16;
+    case 4:
+      return s ? ValueType::i32 : ValueType::u32;
+    default:
+      return s ? ValueType::i64 : ValueType::u64;
+  }
+}
+
+// One colour channel field's value: 8 bits (integers up to 255, floats in
+// [0, 1]) or 16 (integers past 255, 2-byte fields).
+struct ChannelDepth {
+  bool sixteen = false;
+  bool unit_float = false;
+};
 
 // The points, from values the body gives as value(point, field, element 0).
 struct Builder {
   const Header& h;
   const Roles& r;
   PointSet points;
+  std::vector<glm::dvec3> doubles;
+  std::vector<glm::dvec3> channels;  // separate colour fields, as read
   std::vector<detail::AttributeColumn> attributes;
-  std::size_t dropped = 0;
 
   Builder(const Header& header, const Roles& roles) : h(header), r(roles) {
+    // Reserved only for what the body was checked to hold (parse()).
     const auto n = static_cast<std::size_t>(h.points);
-    points.positions.reserve(n);
+    doubles.reserve(n);
     if (r.normal[0] >= 0) points.normals.reserve(n);
     if (r.rgb >= 0) points.colors.reserve(n);
-    for (const int a : r.attributes)
-      attributes.emplace_back(h.fields[static_cast<std::size_t>(a)].name, n);
+    if (r.channel[0] >= 0) channels.reserve(n);
+    for (const int a : r.attributes) {
+      const Field& f = h.fields[static_cast<std::size_t>(a)];
+      attributes.emplace_back(f.name, n, value_type(f));
+    }
   }
 
   // VALUE(field) gives the field's first element as a double; RAW(field)
   // its 4 bytes (the packed colour).
   template <class Value, class Raw>
   void add(Value&& value, Raw&& raw) {
-    const glm::dvec3 p(value(r.xyz[0]), value(r.xyz[1]), value(r.xyz[2]));
-    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) {
-      ++dropped;  // an organized cloud's hole
-      return;
-    }
-    if (points.positions.empty()) points.frame.origin = glm::round(p);
-    const glm::dvec3 q = p - points.frame.origin;
-    if (!(std::fabs(q.x) <= kMaxCoordinate && std::fabs(q.y) <= kMaxCoordinate &&
-          std::fabs(q.z) <= kMaxCoordinate)) {
-      ++dropped;
-      return;
-    }
-    points.positions.push_back(glm::vec3(q));
+    doubles.emplace_back(value(r.xyz[0]), value(r.xyz[1]), value(r.xyz[2]));
     if (r.normal[0] >= 0) {
       points.normals.push_back(
           detail::unit_or_zero(value(r.normal[0]), value(r.normal[1]), value(r.normal[2])));
@@ -293,8 +352,46 @@ struct Builder {
       const std::uint32_t c = raw(r.rgb);  // 0xAARRGGBB, as PCL packs it
       points.colors.emplace_back((c >> 16) & 255u, (c >> 8) & 255u, c & 255u, 255);
     }
+    if (r.channel[0] >= 0)
+      channels.emplace_back(value(r.channel[0]), value(r.channel[1]), value(r.channel[2]));
     for (std::size_t k = 0; k < attributes.size(); ++k)
       attributes[k].push_back(value(r.attributes[k]));
+  }
+
+  // Separate red, green and blue fields as the colour: floats in [0, 1],
+  // integers in 0-255, or 16 bits (2-byte fields, or values past 255).
+  void colours_from_channels() {
+    if (channels.empty()) return;
+    const Field& f = h.fields[static_cast<std::size_t>(r.channel[0])];
+    double top = 0.0;
+    for (const glm::dvec3& c : channels) {
+      for (int k = 0; k < 3; ++k) {
+        if (std::isfinite(c[k])) top = std::max(top, c[k]);
+      }
+    }
+    const bool unit = f.type == 'F' && top <= 1.0;
+    const bool sixteen = !unit && (f.size >= 2 && f.type != 'F' ? true : top > 255.0);
+    auto clamp = [](double v, double hi) {
+      return std::isfinite(v) ? std::clamp(v, 0.0, hi) : 0.0;
+    };
+    points.colors.resize(channels.size());
+    if (sixteen) points.colors16.resize(channels.size());
+    for (std::size_t i = 0; i < channels.size(); ++i) {
+      const glm::dvec3 c = channels[i];
+      if (sixteen) {
+        const glm::u16vec3 deep(
+            glm::round(glm::dvec3(clamp(c.x, 65535), clamp(c.y, 65535), clamp(c.z, 65535))));
+        points.colors16[i] = deep;
+        points.colors[i] = glm::u8vec4(glm::u16vec3(deep >> std::uint16_t(8)), 255);
+      } else {
+        const double s = unit ? 255.0 : 1.0;
+        points.colors[i] =
+            glm::u8vec4(glm::u8vec3(glm::round(glm::dvec3(clamp(c.x * s, 255), clamp(c.y * s, 255),
+                                                          clamp(c.z * s, 255)))),
+                        255);
+      }
+    }
+    std::vector<glm::dvec3>().swap(channels);
   }
 };
 
@@ -384,13 +481,54 @@ void read_ascii(std::string_view file, const Header& h, Builder& b) {
   }
 }
 
+// binary_compressed: the LZF block's sizes checked against the file, the
+// header and LZF's bound before anything is allocated, then unpacked.
+std::vector<unsigned char> unpack(const unsigned char* body, std::uint64_t left, const Header& h,
+                                  std::uint64_t need) {
+  if (left < 8) throw PcdError("the compressed data's sizes are cut off");
+  const std::uint32_t packed = detail::get_le<std::uint32_t>(body);
+  const std::uint32_t unpacked = detail::get_le<std::uint32_t>(body + 4);
+  if (packed > left - 8) {
+    throw PcdError("the compressed data (" + std::to_string(packed) +
+                   " bytes) runs past the end of the file");
+  }
+  if (unpacked != need) {
+    throw PcdError("the compressed data unpacks to " + std::to_string(unpacked) + " bytes, " +
+                   std::to_string(h.points) + " points of " + std::to_string(h.record) +
+                   " bytes need " + std::to_string(need));
+  }
+  // LZF turns 3 bytes into at most 264: a larger claim is not LZF.
+  if (need > std::uint64_t{packed} * 88 + 1024) {
+    throw PcdError("the compressed data's " + std::to_string(packed) + " bytes cannot unpack to " +
+                   std::to_string(need));
+  }
+  std::vector<unsigned char> columns(static_cast<std::size_t>(need));
+  const unsigned got = need == 0 ? 0 : lzf_decompress(body + 8, packed, columns.data(), unpacked);
+  if (got != unpacked) throw PcdError("the compressed data is damaged (LZF)");
+  return columns;
+}
+
+// The sensor's pose (VIEWPOINT) of an organized cloud, or of any cloud
+// whose pose is not the identity: the first view opens from it.
+void set_viewpoint(const Header& h, PointSet& points) {
+  const double* v = h.viewpoint;
+  const glm::dquat q(v[3], v[4], v[5], v[6]);
+  const bool identity = v[0] == 0 && v[1] == 0 && v[2] == 0 && q == glm::dquat(1, 0, 0, 0);
+  if (identity && h.height <= 1) return;
+  const double norm = glm::length(q);
+  if (!(norm > 1e-9)) return;  // no rotation at all: not a pose
+  points.frame.viewpoint = Viewpoint{glm::dvec3(v[0], v[1], v[2]), q / norm};
+}
+
 PointSet parse(std::string_view file, const WarningSink& warn) {
   const Header h = parse_header(file);
   const Roles r = roles_of(h);
   const std::uint64_t left = file.size() - h.body;
   const std::uint64_t need = h.points * h.record;
-  Builder b(h, r);
   const auto* body = reinterpret_cast<const unsigned char*>(file.data()) + h.body;
+  // The body's size is checked against the header before anything is
+  // sized from POINTS (the Builder reserves for every point).
+  std::vector<unsigned char> columns;
   if (h.data == Data::ascii) {
     // Each value needs a character and a separator.
     std::uint64_t per_line = 0;
@@ -400,45 +538,41 @@ PointSet parse(std::string_view file, const WarningSink& warn) {
                      " values cannot fit in the " + std::to_string(left) +
                      " bytes after the header");
     }
-    read_ascii(file, h, b);
   } else if (h.data == Data::binary) {
     if (need > left) {
       throw PcdError(std::to_string(h.points) + " points of " + std::to_string(h.record) +
                      " bytes declared, the data holds " + std::to_string(left / h.record));
     }
+  } else {
+    columns = unpack(body, left, h, need);
+  }
+  Builder b(h, r);
+  if (h.data == Data::ascii) {
+    read_ascii(file, h, b);
+  } else if (h.data == Data::binary) {
     read_packed(body, h, b);
   } else {
-    if (left < 8) throw PcdError("the compressed data's sizes are cut off");
-    const std::uint32_t packed = detail::get_le<std::uint32_t>(body);
-    const std::uint32_t unpacked = detail::get_le<std::uint32_t>(body + 4);
-    if (packed > left - 8) {
-      throw PcdError("the compressed data (" + std::to_string(packed) +
-                     " bytes) runs past the end of the file");
-    }
-    if (unpacked != need) {
-      throw PcdError("the compressed data unpacks to " + std::to_string(unpacked) + " bytes, " +
-                     std::to_string(h.points) + " points of " + std::to_string(h.record) +
-                     " bytes need " + std::to_string(need));
-    }
-    // LZF turns 3 bytes into at most 264: a larger claim is not LZF.
-    if (need > std::uint64_t{packed} * 88 + 1024) {
-      throw PcdError("the compressed data's " + std::to_string(packed) +
-                     " bytes cannot unpack to " + std::to_string(need));
-    }
-    std::vector<unsigned char> columns(static_cast<std::size_t>(need));
-    const unsigned got = need == 0 ? 0 : lzf_decompress(body + 8, packed, columns.data(), unpacked);
-    if (got != unpacked) throw PcdError("the compressed data is damaged (LZF)");
     read_columns(columns.data(), h, b);
+    std::vector<unsigned char>().swap(columns);
   }
-  if (b.points.positions.empty()) throw PcdError("no points with a finite position");
+  b.colours_from_channels();
   PointSet points = std::move(b.points);
-  const std::vector<std::string> constant = detail::keep_varying(b.attributes, points.attributes);
+  detail::take_columns(b.attributes, points.attributes);
+  const detail::Dropped dropped = detail::place_points(std::move(b.doubles), points);
+  if (points.positions.empty()) {
+    throw PcdError(dropped.far > 0
+                       ? "no usable points (" + dropped.far_message(dropped.first_far + 1) + ")"
+                       : "no points with a finite position");
+  }
+  std::vector<glm::dvec3>().swap(b.doubles);
+  set_viewpoint(h, points);
+  for (const std::string& comment : h.comments) detail::read_metadata_line(comment, points);
   if (warn) {
-    if (b.dropped > 0) {
-      warn("dropped " + std::to_string(b.dropped) + " points without a finite position");
+    if (dropped.nonfinite > 0) {
+      warn("dropped " + std::to_string(dropped.nonfinite) + " points without a finite position");
     }
-    if (!r.not_kept.empty()) warn("fields not kept: " + detail::join(r.not_kept));
-    if (!constant.empty()) warn("the same at every point, not kept: " + detail::join(constant));
+    if (dropped.far > 0) warn(dropped.far_message(dropped.first_far + 1));
+    if (!r.not_kept.empty()) warn("fields not kept: " + detail::join_some(r.not_kept));
   }
   return points;
 }
@@ -453,6 +587,30 @@ bool looks_like_pcd(std::string_view bytes) {
     at = end + 1;
     if (line.empty() || line.front() == '#') continue;
     return line.rfind("VERSION", 0) == 0 || line.rfind("FIELDS", 0) == 0;
+  }
+  return false;
+}
+
+bool is_own_pcd(const std::filesystem::path& path) {
+  const FileHead head = read_file_head(path, 65536);
+  if (!head.bytes.starts_with(kPcdSignature)) return false;
+  try {
+    // The header parses and the body is the size it says: a packed body
+    // exactly, a compressed one its two sizes and the block, an ascii one
+    // at least a character a value.
+    const Header h = parse_header(head.bytes);
+    switch (h.data) {
+      case Data::binary:
+        return head.size == h.body + h.points * h.record;
+      case Data::compressed: {
+        if (head.bytes.size() < h.body + 8) return false;
+        const auto* p = reinterpret_cast<const unsigned char*>(head.bytes.data()) + h.body;
+        return head.size == h.body + 8 + detail::get_le<std::uint32_t>(p);
+      }
+      case Data::ascii:
+        return head.size >= h.body + h.points * 2 * h.fields.size();
+    }
+  } catch (const std::exception&) {
   }
   return false;
 }

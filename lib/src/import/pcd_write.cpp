@@ -1,5 +1,7 @@
 // PCD export (treecut/pcd.hpp): a v0.7 header, then the points ascii, packed
-// or as LZF-compressed columns (liblzf).
+// or as LZF-compressed columns (liblzf). Every field in a type that holds it
+// (issue 43): x y z as doubles where the model has an origin, the
+// attributes in their own types, 16-bit colours as red green blue fields.
 #include <lzf.h>
 
 #include <cstdio>
@@ -7,115 +9,136 @@
 #include <string>
 #include <vector>
 
+#include "file_metadata.hpp"
 #include "little_endian.hpp"
 #include "treecut/file_io.hpp"
 #include "treecut/pcd.hpp"
+#include "typed_values.hpp"
 
 namespace treecut {
 
 namespace {
 
-// Every field is 4 bytes: x y z, the normal, rgb (U), the attributes (F).
-struct Columns {
-  std::vector<std::string> names;
-  std::vector<char> types;
-  std::size_t count() const { return names.size(); }
+// One field: its name, type and where its values come from.
+struct Column {
+  std::string name;
+  ValueType type = ValueType::f32;
+  enum class Source : std::uint8_t { position, normal, packed_rgb, rgb16, attribute } source{};
+  int index = 0;  // the axis, channel or attribute
 };
 
-Columns columns_of(const PointSet& p) {
-  Columns c{{"x", "y", "z"}, {'F', 'F', 'F'}};
+std::vector<Column> columns_of(const PointSet& p, const SaveOptions& options) {
+  std::vector<Column> c;
+  const bool doubles =
+      (p.frame.origin != glm::dvec3(0.0) || !p.exact_positions.empty()) && !options.relative;
+  const ValueType position = doubles ? ValueType::f64 : ValueType::f32;
+  for (int a = 0; a < 3; ++a)
+    c.push_back({std::string(1, "xyz"[a]), position, Column::Source::position, a});
   if (p.has_normals()) {
-    for (const char* n : {"normal_x", "normal_y", "normal_z"})
-      c.names.emplace_back(n), c.types.push_back('F');
+    for (int a = 0; a < 3; ++a)
+      c.push_back({std::string("normal_") + "xyz"[a], ValueType::f32, Column::Source::normal, a});
   }
-  if (p.has_colors()) c.names.emplace_back("rgb"), c.types.push_back('U');
-  for (const PointAttribute& a : p.attributes) {
+  if (p.has_colors() && p.colors16.empty()) {
+    c.push_back({"rgb", ValueType::u32, Column::Source::packed_rgb, 0});
+  } else if (p.has_colors()) {
+    static constexpr const char* kChannel[3] = {"red", "green", "blue"};
+    for (int k = 0; k < 3; ++k)
+      c.push_back({kChannel[k], ValueType::u16, Column::Source::rgb16, k});
+  }
+  for (std::size_t k = 0; k < p.attributes.size(); ++k) {
+    const PointAttribute& a = p.attributes[k];
     std::string name = a.name;
     for (char& ch : name) {
       if (ch == ' ' || ch == '\t') ch = '_';
     }
-    c.names.push_back(name), c.types.push_back('F');
+    c.push_back({name, detail::output_type(a, p.size(), /*no_int64=*/false),
+                 Column::Source::attribute, static_cast<int>(k)});
   }
   return c;
 }
 
-// Field K of point I: a float's or the packed colour's 4 bytes.
-std::uint32_t bits(const PointSet& p, std::size_t k, std::size_t i) {
-  float f = 0.0f;
-  if (k < 3) {
-    f = p.positions[i][static_cast<glm::length_t>(k)];
-  } else if (p.has_normals() && k < 6) {
-    f = p.normals[i][static_cast<glm::length_t>(k - 3)];
-  } else {
-    const std::size_t after = 3 + (p.has_normals() ? 3 : 0);
-    if (p.has_colors() && k == after) {
-      const glm::u8vec4 c = p.colors[i];
-      return 0xff000000u | (std::uint32_t{c.x} << 16) | (std::uint32_t{c.y} << 8) | c.z;
+// Field C of point I, as a double (the packed colour's 32 bits as an integer).
+double value_of(const PointSet& p, const Column& c, std::size_t i, bool relative) {
+  switch (c.source) {
+    case Column::Source::position:
+      if (relative || c.type == ValueType::f32) return double(p.positions[i][c.index]);
+      return p.exact_positions.empty() ? p.frame.origin[c.index] + double(p.positions[i][c.index])
+                                       : p.exact_positions[i][c.index];
+    case Column::Source::normal:
+      return p.normals[i][c.index];
+    case Column::Source::packed_rgb: {
+      const glm::u8vec4 k = p.colors[i];
+      return double(0xff000000u | (std::uint32_t{k.x} << 16) | (std::uint32_t{k.y} << 8) | k.z);
     }
-    const PointAttribute& a = p.attributes[k - after - (p.has_colors() ? 1 : 0)];
-    f = static_cast<float>(a.offset + double(a.values[i]));
+    case Column::Source::rgb16:
+      return p.colors16[i][c.index];
+    case Column::Source::attribute:
+      return p.attributes[static_cast<std::size_t>(c.index)].value(i);
   }
-  std::uint32_t u;
-  std::memcpy(&u, &f, 4);
-  return u;
+  return 0.0;
 }
 
-}  // namespace
-
-void save_pcd(const std::filesystem::path& path, const PointSet& points, PcdData data) {
-  const std::size_t n = points.size();
-  if ((points.has_normals() && points.normals.size() != n) ||
-      (points.has_colors() && points.colors.size() != n)) {
-    throw std::invalid_argument("save_pcd: normals or colours differ from the point count");
-  }
-  for (const PointAttribute& a : points.attributes) {
-    if (a.values.size() != n)
-      throw std::invalid_argument("save_pcd: attribute " + a.name +
-                                  " differs from the point count");
-  }
-  const Columns c = columns_of(points);
-  std::string out = "# .PCD v0.7 - Point Cloud Data file format (treecut)\nVERSION 0.7\nFIELDS";
-  for (const std::string& name : c.names) out += " " + name;
+std::string header(const PointSet& points, const std::vector<Column>& c, PcdData data,
+                   const SaveOptions& options) {
+  std::string out(kPcdSignature);
+  for (const std::string& line : detail::metadata_lines(points, options.relative))
+    out += "# " + line + "\n";
+  out += "VERSION 0.7\nFIELDS";
+  for (const Column& k : c) out += " " + k.name;
   out += "\nSIZE";
-  for (std::size_t k = 0; k < c.count(); ++k) out += " 4";
+  for (const Column& k : c) out += " " + std::to_string(value_size(k.type));
   out += "\nTYPE";
-  for (const char t : c.types) out += std::string(" ") + t;
+  for (const Column& k : c) out += !is_integer(k.type) ? " F" : is_signed(k.type) ? " I" : " U";
   out += "\nCOUNT";
-  for (std::size_t k = 0; k < c.count(); ++k) out += " 1";
-  out += "\nWIDTH " + std::to_string(n) + "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " +
-         std::to_string(n) + "\nDATA " +
+  for (std::size_t k = 0; k < c.size(); ++k) out += " 1";
+  const std::string n = std::to_string(points.size());
+  out += "\nWIDTH " + n + "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " + n + "\nDATA " +
          (data == PcdData::ascii    ? "ascii"
           : data == PcdData::binary ? "binary"
                                     : "binary_compressed") +
          "\n";
+  return out;
+}
+
+}  // namespace
+
+void save_pcd(const std::filesystem::path& path, const PointSet& points, PcdData data,
+              const SaveOptions& options) {
+  const std::size_t n = points.size();
+  if ((points.has_normals() && points.normals.size() != n) ||
+      (points.has_colors() && points.colors.size() != n) ||
+      (!points.colors16.empty() && points.colors16.size() != n)) {
+    throw std::invalid_argument("save_pcd: normals or colours differ from the point count");
+  }
+  for (const PointAttribute& a : points.attributes) {
+    if (!a.is_constant() && a.stored() != n)
+      throw std::invalid_argument("save_pcd: attribute " + a.name +
+                                  " differs from the point count");
+  }
+  const std::vector<Column> c = columns_of(points, options);
+  const bool relative = options.relative;
+  std::string out = header(points, c, data, options);
   AtomicFile file(path);  // throws "PATH: REASON"
   if (data == PcdData::ascii) {
-    char text[32];
     for (std::size_t i = 0; i < n; ++i) {
-      for (std::size_t k = 0; k < c.count(); ++k) {
-        const std::uint32_t u = bits(points, k, i);
-        float f;
-        std::memcpy(&f, &u, 4);
-        if (c.types[k] == 'U') {
-          std::snprintf(text, sizeof text, "%u", u);
-        } else {
-          std::snprintf(text, sizeof text, "%.9g", double(f));
-        }
-        out += (k ? " " : "") + std::string(text);
-      }
+      for (std::size_t k = 0; k < c.size(); ++k)
+        out += (k ? " " : "") + detail::value_text(c[k].type, value_of(points, c[k], i, relative));
       out += "\n";
       if (out.size() > (1u << 20)) file.write(out), out.clear();
     }
   } else if (data == PcdData::binary) {
     for (std::size_t i = 0; i < n; ++i) {
-      for (std::size_t k = 0; k < c.count(); ++k) detail::put_le(out, bits(points, k, i));
+      for (const Column& k : c) detail::put_value(out, k.type, value_of(points, k, i, relative));
       if (out.size() > (1u << 20)) file.write(out), out.clear();
     }
   } else {
+    std::size_t record = 0;
+    for (const Column& k : c) record += value_size(k.type);
     std::string columns;
-    columns.reserve(n * 4 * c.count());
-    for (std::size_t k = 0; k < c.count(); ++k) {
-      for (std::size_t i = 0; i < n; ++i) detail::put_le(columns, bits(points, k, i));
+    columns.reserve(n * record);
+    for (const Column& k : c) {
+      for (std::size_t i = 0; i < n; ++i)
+        detail::put_value(columns, k.type, value_of(points, k, i, relative));
     }
     if (columns.size() > 0xffffffffu / 2)
       throw std::invalid_argument("save_pcd: more than 2 GiB of points to compress");

@@ -57,6 +57,9 @@ struct Header {
   std::vector<Element> elements;
   std::size_t body_offset = 0;  ///< first byte after the end_header line
   std::size_t body_line = 0;    ///< 1-based line number of the first body line
+  /// The text of the comment lines (after "comment "), for treecut's own
+  /// metadata (file_metadata.hpp).
+  std::vector<std::string> comments;
 
   /// Index of the element called NAME, or -1.
   [[nodiscard]] int find(std::string_view element_name) const;

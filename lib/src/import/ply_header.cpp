@@ -311,6 +311,11 @@ Header parse_header(std::string_view file) {
     std::string_view keyword = t.items[0];
     // obj_info is part of the spec (as free text like comment) even though
     // OpenMesh's reader mis-parses it; the header we give OpenMesh drops both.
+    if (keyword == "comment" && line.size() > 8 && header.comments.size() < 1024) {
+      std::string_view text = line.substr(8);
+      if (!text.empty() && text.back() == '\r') text.remove_suffix(1);
+      header.comments.emplace_back(text);
+    }
     if (keyword == "comment" || keyword == "obj_info") continue;
     if (t.overflow) throw Error("malformed header line " + std::to_string(line_number));
     if (keyword == "format") {

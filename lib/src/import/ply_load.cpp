@@ -12,6 +12,7 @@
 // why: ply_plan.cpp.
 #include <string>
 
+#include "file_metadata.hpp"
 #include "ply_load_parts.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
@@ -81,6 +82,7 @@ PointSet load(std::string_view file, const Warnings& warn, PlyLoadReport& report
     }
   }
   PointSet points = ply_load::read_plan(plan, warn, report);
+  for (const std::string& comment : header.comments) detail::read_metadata_line(comment, points);
   ply_load::tidy(points, warn, report, plan.finite_beyond_float);
   return points;
 }

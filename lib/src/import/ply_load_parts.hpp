@@ -13,6 +13,7 @@
 #pragma once
 
 #include <cstddef>
+#include <glm/ext/vector_double3.hpp>
 #include <glm/vec3.hpp>
 #include <string>
 #include <string_view>
@@ -142,7 +143,11 @@ struct Plan {
   std::string vertex_bytes;  ///< transcoded vertex rows (unused when direct)
   std::string face_bytes;    ///< transcoded face rows (unused when direct)
   std::vector<float> radii;
-  std::vector<glm::u8vec4> colors;                  ///< colours OpenMesh does not read, or empty
+  std::vector<glm::u8vec4> colors;     ///< colours OpenMesh does not read, or empty
+  std::vector<glm::u16vec3> colors16;  ///< ushort colours as the file has them
+  /// Positions of a type a float does not hold (double, 32-bit integers),
+  /// as the file has them: they get an origin (position_frame.hpp).
+  std::vector<glm::dvec3> doubles;
   std::vector<detail::AttributeColumn> attributes;  ///< VertexRoles::attributes, in order
   StripSink strips;
   std::vector<BrokenElement> broken;  ///< ascii elements whose rows do not match
@@ -173,6 +178,9 @@ std::string broken_consequence(const Header& header, std::size_t index, bool bin
                                bool faces_lost);
 
 // ---- ply_plan.cpp: the way to OpenMesh
+
+// The value type of a PLY scalar type (PointAttribute::type).
+ValueType value_type(Type type);
 
 // Fills PLAN for OpenMesh: the file's own bytes under our header when
 // OpenMesh's reader decodes the layout correctly, else a canonical body

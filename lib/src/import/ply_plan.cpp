@@ -23,10 +23,26 @@
 #include <type_traits>
 
 #include "ply_load_parts.hpp"
+#include "position_frame.hpp"
 
 namespace treecut::ply_load {
 
 namespace {
+
+bool colors_are_u16(const Element& vertex, const VertexRoles& roles) {
+  return roles.colors() && property(vertex, roles.red).type == Type::u16 &&
+         property(vertex, roles.green).type == Type::u16 &&
+         property(vertex, roles.blue).type == Type::u16;
+}
+
+// Positions of these types are read as doubles: a float does not hold them.
+bool positions_need_doubles(const Element& vertex, const VertexRoles& roles) {
+  for (int p : {roles.x, roles.y, roles.z}) {
+    const Type t = property(vertex, p).type;
+    if (t == Type::f64 || t == Type::i32 || t == Type::u32) return true;
+  }
+  return false;
+}
 
 bool colors_are_u8(const Element& vertex, const VertexRoles& roles) {
   return roles.colors() && property(vertex, roles.red).type == Type::u8 &&
@@ -157,10 +173,19 @@ struct Transcoder {
   std::size_t vertex_rows = 0;
   std::size_t face_rows = 0;
 
+  bool doubles = false;   ///< positions_need_doubles
+  bool colors16 = false;  ///< colors_are_u16
+
   void vertex_row(const Row& row) {
     std::string& out = plan.vertex_bytes;
     plan.finite_beyond_float +=
         finite_beyond_float(row.scalar(roles.x), row.scalar(roles.y), row.scalar(roles.z));
+    if (doubles)
+      plan.doubles.emplace_back(row.scalar(roles.x), row.scalar(roles.y), row.scalar(roles.z));
+    if (colors16) {
+      plan.colors16.emplace_back(row.scalar(roles.red), row.scalar(roles.green),
+                                 row.scalar(roles.blue));
+    }
     for (int p : {roles.x, roles.y, roles.z}) append_le(out, ply::to_float(row.scalar(p)));
     if (roles.normals()) {
       for (int p : {roles.nx, roles.ny, roles.nz}) append_le(out, ply::to_float(row.scalar(p)));
@@ -246,35 +271,14 @@ void plan_direct(const Header& header, const ply::BinaryLayout& layout, std::str
   input.normals = roles.normals();
   input.colors = u8_colors;
 
-  // Double positions past the float range reach the PointSet as infinities:
-  // counted here, from the file's own values, for the messages.
-  if (property(vertex, roles.x).type == Type::f64 || property(vertex, roles.y).type == Type::f64 ||
-      property(vertex, roles.z).type == Type::f64) {
-    const std::size_t stride = vertex.fixed_stride();
-    std::array<std::size_t, 3> offset{};
-    std::array<Type, 3> type{};
-    const std::array<int, 3> axes{roles.x, roles.y, roles.z};
-    for (std::size_t a = 0; a < 3; ++a) {
-      for (int i = 0; i < axes[a]; ++i) offset[a] += ply::type_size(property(vertex, i).type);
-      type[a] = property(vertex, axes[a]).type;
-    }
-    for (std::size_t row = 0; row < vertex_count; ++row) {
-      const char* p = vertex_bytes.data() + row * stride;
-      plan.finite_beyond_float +=
-          finite_beyond_float(ply::load_scalar(p + offset[0], type[0], big_endian),
-                              ply::load_scalar(p + offset[1], type[1], big_endian),
-                              ply::load_scalar(p + offset[2], type[2], big_endian));
-    }
-  }
-
   if (roles.radius >= 0) {
     plan.radii.resize(vertex_count);
     for_each_fixed(vertex_bytes, vertex, roles.radius, big_endian,
                    [&](std::size_t i, double r) { plan.radii[i] = ply::to_float(r); });
   }
   for (const int p : roles.attributes) {
-    detail::AttributeColumn& column =
-        plan.attributes.emplace_back(property(vertex, p).name, vertex_count);
+    detail::AttributeColumn& column = plan.attributes.emplace_back(
+        property(vertex, p).name, vertex_count, value_type(property(vertex, p).type));
     for_each_fixed(vertex_bytes, vertex, p, big_endian,
                    [&](std::size_t, double v) { column.push_back(v); });
   }
@@ -286,6 +290,14 @@ void plan_direct(const Header& header, const ply::BinaryLayout& layout, std::str
       for_each_fixed(vertex_bytes, vertex, channels[c], big_endian, [&](std::size_t i, double x) {
         plan.colors[i][static_cast<glm::length_t>(c)] = ply::color_channel(x, type);
       });
+    }
+    if (colors_are_u16(vertex, roles)) {
+      plan.colors16.resize(vertex_count);
+      for (std::size_t c = 0; c < 3; ++c) {
+        for_each_fixed(vertex_bytes, vertex, channels[c], big_endian, [&](std::size_t i, double x) {
+          plan.colors16[i][static_cast<glm::length_t>(c)] = static_cast<std::uint16_t>(x);
+        });
+      }
     }
   }
   if (elements.strips >= 0) {
@@ -311,6 +323,9 @@ void plan_transcoded(const Header& header, const ply::BinaryLayout& layout, std:
       elements.face >= 0 ? index_property(header.elements[static_cast<std::size_t>(elements.face)])
                          : -1;
   Transcoder transcoder{vertex, elements.roles, face_indices, plan};
+  transcoder.doubles = positions_need_doubles(vertex, elements.roles);
+  transcoder.colors16 = colors_are_u16(vertex, elements.roles);
+  if (transcoder.doubles) plan.doubles.reserve(static_cast<std::size_t>(vertex.count));
 
   // Reserve only what the validated body can hold: binary counts were
   // checked byte for byte, ascii counts against the token capacity.
@@ -319,7 +334,8 @@ void plan_transcoded(const Header& header, const ply::BinaryLayout& layout, std:
   plan.vertex_bytes.reserve(vertex_count * kCanonicalVertexBytes);
   if (elements.roles.radius >= 0) plan.radii.reserve(vertex_count);
   for (const int p : elements.roles.attributes)
-    plan.attributes.emplace_back(property(vertex, p).name, vertex_count);
+    plan.attributes.emplace_back(property(vertex, p).name, vertex_count,
+                                 value_type(property(vertex, p).type));
 
   ply::AsciiRows ascii(file, header);
   Row row;
@@ -384,6 +400,28 @@ void plan_transcoded(const Header& header, const ply::BinaryLayout& layout, std:
 
 }  // namespace
 
+ValueType value_type(Type type) {
+  switch (type) {
+    case Type::i8:
+      return ValueType::i8;
+    case Type::u8:
+      return ValueType::u8;
+    case Type::i16:
+      return ValueType::i16;
+    case Type::u16:
+      return ValueType::u16;
+    case Type::i32:
+      return ValueType::i32;
+    case Type::u32:
+      return ValueType::u32;
+    case Type::f32:
+      return ValueType::f32;
+    case Type::f64:
+      return ValueType::f64;
+  }
+  return ValueType::f64;
+}
+
 void plan_openmesh_read(const Header& header, const ply::BinaryLayout& layout,
                         std::string_view file, const Elements& elements, Plan& plan) {
   if (openmesh_reads_directly(header, elements.roles, elements.face)) {
@@ -404,10 +442,26 @@ PointSet read_plan(Plan& plan, const Warnings& warn, PlyLoadReport& report) {
                      " faces" + (read.reader_ok ? "" : " and reported failure"));
   }
   if (!plan.colors.empty()) points.colors = std::move(plan.colors);
+  if (!plan.colors16.empty()) points.colors16 = std::move(plan.colors16);
   if (!plan.radii.empty()) points.radii = std::move(plan.radii);
-  const std::vector<std::string> constant =
-      detail::keep_varying(plan.attributes, points.attributes);
-  if (!constant.empty()) warn("the same at every vertex, not kept: " + detail::join(constant));
+  detail::take_columns(plan.attributes, points.attributes);
+  if (!plan.doubles.empty()) {
+    // Map coordinates in double: relative to an origin (position_frame.hpp);
+    // what is not finite or too far stays so for tidy() to drop and name.
+    std::vector<glm::dvec3> finite;
+    for (const glm::dvec3& d : plan.doubles) {
+      if (std::isfinite(d.x) && std::isfinite(d.y) && std::isfinite(d.z)) finite.push_back(d);
+    }
+    const glm::dvec3 origin = detail::choose_origin(finite);
+    points.frame.origin = origin;
+    bool exact = true;
+    for (std::size_t i = 0; i < plan.doubles.size(); ++i) {
+      const glm::dvec3 q = plan.doubles[i] - origin;
+      points.positions[i] = glm::vec3(ply::to_float(q.x), ply::to_float(q.y), ply::to_float(q.z));
+      exact = exact && detail::float_exact(points.positions[i], origin, plan.doubles[i]);
+    }
+    if (!exact) points.exact_positions = std::move(plan.doubles);
+  }
 
   const StripSink& strips = plan.strips;
   points.triangles.insert(points.triangles.end(), strips.triangles.begin(), strips.triangles.end());

@@ -9,9 +9,12 @@
 #include <stdexcept>
 #include <string>
 
+#include "file_metadata.hpp"
 #include "little_endian.hpp"
+#include "ply_format.hpp"
 #include "treecut/file_io.hpp"
 #include "treecut/ply.hpp"
+#include "typed_values.hpp"
 
 namespace treecut {
 
@@ -30,10 +33,10 @@ void check_sizes(const PointSet& points) {
   };
   check(points.normals.size(), "normals");
   check(points.colors.size(), "colors");
+  check(points.colors16.size(), "colors16");
+  check(points.exact_positions.size(), "exact_positions");
   check(points.radii.size(), "radii");
-  for (const PointAttribute& a : points.attributes) {
-    if (a.values.size() != n) check(a.values.size(), "an attribute");
-  }
+  for (const PointAttribute& a : points.attributes) check(a.stored(), "an attribute");
   if (n > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max())) {
     throw std::invalid_argument("save_ply: too many points for 32-bit face indices");
   }
@@ -63,20 +66,46 @@ std::vector<std::string> attribute_names(const PointSet& points) {
   return names;
 }
 
-std::string header(const PointSet& points) {
+std::string_view ply_type(ValueType type) {
+  static constexpr std::string_view kName[10] = {"uchar", "char",   "ushort", "short", "uint",
+                                                 "int",   "double", "double", "float", "double"};
+  return kName[static_cast<std::size_t>(type)];
+}
+
+// What a row holds: positions in double where the model has an origin (a
+// PLY has none: the file's coordinates, as LAS's), each attribute in a
+// type that holds it.
+struct Layout {
+  bool doubles = false;
+  std::vector<ValueType> types;
+};
+
+Layout layout_of(const PointSet& points, const SaveOptions& options) {
+  Layout l;
+  l.doubles = (points.frame.origin != glm::dvec3(0.0) || !points.exact_positions.empty()) &&
+              !options.relative;
+  for (const PointAttribute& a : points.attributes)
+    l.types.push_back(detail::output_type(a, points.size(), /*no_int64=*/true));
+  return l;
+}
+
+std::string header(const PointSet& points, const Layout& l, const SaveOptions& options) {
   std::string out = "ply\nformat binary_little_endian 1.0\ncomment written by treecut\n";
+  for (const std::string& line : detail::metadata_lines(points, options.relative))
+    out += "comment " + line + "\n";
   out += "element vertex " + std::to_string(points.size()) + "\n";
-  out += "property float x\nproperty float y\nproperty float z\n";
+  out += l.doubles ? "property double x\nproperty double y\nproperty double z\n"
+                   : "property float x\nproperty float y\nproperty float z\n";
   if (points.has_normals()) out += "property float nx\nproperty float ny\nproperty float nz\n";
-  if (points.has_colors()) out += "property uchar red\nproperty uchar green\nproperty uchar blue\n";
-  if (points.has_radii()) out += "property float radius\n";
-  // An attribute with an offset (a GPS time of 3e8 s) as a double: a float
-  // of the file's value would lose what the offset keeps.
-  const std::vector<std::string> names = attribute_names(points);
-  for (std::size_t k = 0; k < names.size(); ++k) {
-    out += std::string("property ") + (points.attributes[k].offset != 0.0 ? "double " : "float ") +
-           names[k] + "\n";
+  if (points.has_colors()) {
+    out += points.colors16.empty()
+               ? "property uchar red\nproperty uchar green\nproperty uchar blue\n"
+               : "property ushort red\nproperty ushort green\nproperty ushort blue\n";
   }
+  if (points.has_radii()) out += "property float radius\n";
+  const std::vector<std::string> names = attribute_names(points);
+  for (std::size_t k = 0; k < names.size(); ++k)
+    out += "property " + std::string(ply_type(l.types[k])) + " " + names[k] + "\n";
   if (!points.triangles.empty()) {
     out += "element face " + std::to_string(points.triangles.size()) + "\n";
     out += "property list uchar int vertex_indices\n";
@@ -87,43 +116,46 @@ std::string header(const PointSet& points) {
 
 }  // namespace
 
-void save_ply(const std::filesystem::path& path, const PointSet& points) {
+void save_ply(const std::filesystem::path& path, const PointSet& points,
+              const SaveOptions& options) {
   check_sizes(points);
+  const Layout l = layout_of(points, options);
   AtomicFile file(path);  // throws "PATH: REASON" (a directory or FIFO at PATH, a read-only folder)
 
   // Rows are encoded into a chunk and written in large blocks.
   constexpr std::size_t kChunk = std::size_t{1} << 20;
-  std::string chunk = header(points);
+  std::string chunk = header(points, l, options);
   auto flush = [&](bool force) {
     if (chunk.size() < kChunk && !force) return;
     file.write(chunk);
     chunk.clear();
   };
+  const glm::dvec3 origin = points.frame.origin;
   for (std::size_t i = 0; i < points.size(); ++i) {
     const glm::vec3& p = points.positions[i];
-    put_le(chunk, p.x);
-    put_le(chunk, p.y);
-    put_le(chunk, p.z);
+    if (l.doubles) {
+      const glm::dvec3 q =
+          points.exact_positions.empty() ? origin + glm::dvec3(p) : points.exact_positions[i];
+      put_le(chunk, q.x), put_le(chunk, q.y), put_le(chunk, q.z);
+    } else {
+      put_le(chunk, p.x), put_le(chunk, p.y), put_le(chunk, p.z);
+    }
     if (points.has_normals()) {
       const glm::vec3& n = points.normals[i];
-      put_le(chunk, n.x);
-      put_le(chunk, n.y);
-      put_le(chunk, n.z);
+      put_le(chunk, n.x), put_le(chunk, n.y), put_le(chunk, n.z);
     }
-    if (points.has_colors()) {
+    if (points.has_colors() && points.colors16.empty()) {
       const glm::u8vec4& c = points.colors[i];
       chunk.push_back(static_cast<char>(c.x));
       chunk.push_back(static_cast<char>(c.y));
       chunk.push_back(static_cast<char>(c.z));
+    } else if (points.has_colors()) {
+      const glm::u16vec3& c = points.colors16[i];
+      put_le(chunk, c.x), put_le(chunk, c.y), put_le(chunk, c.z);
     }
     if (points.has_radii()) put_le(chunk, points.radii[i]);
-    for (const PointAttribute& a : points.attributes) {
-      if (a.offset != 0.0) {
-        put_le(chunk, a.offset + double(a.values[i]));
-      } else {
-        put_le(chunk, a.values[i]);
-      }
-    }
+    for (std::size_t k = 0; k < points.attributes.size(); ++k)
+      detail::put_value(chunk, l.types[k], points.attributes[k].value(i));
     flush(false);
   }
   for (const glm::uvec3& t : points.triangles) {
@@ -135,6 +167,30 @@ void save_ply(const std::filesystem::path& path, const PointSet& points) {
   }
   flush(true);
   file.commit();
+}
+
+bool is_own_ply(const std::filesystem::path& path) {
+  // The header (at most 64 KiB here) and the size it implies: rows of a
+  // fixed stride and triangles of 13 bytes, as save_ply writes them.
+  const FileHead head = read_file_head(path, 65536);
+  if (!head.bytes.starts_with("ply\nformat binary_little_endian 1.0\ncomment written by treecut\n"))
+    return false;
+  try {
+    const ply::Header h = ply::parse_header(head.bytes);
+    std::uint64_t size = h.body_offset;
+    for (const ply::Element& e : h.elements) {
+      if (e.name == "face" && e.properties.size() == 1 && e.properties[0].is_list) {
+        size += e.count * 13;
+      } else if (!e.has_lists()) {
+        size += e.count * e.fixed_stride();
+      } else {
+        return false;
+      }
+    }
+    return head.size == size;
+  } catch (const std::exception&) {
+    return false;
+  }
 }
 
 }  // namespace treecut

@@ -23,44 +23,19 @@ bool out_of_range(const glm::vec3& p) {
 }
 
 // Drops points with a non-finite or out-of-range coordinate from every array,
-// and the faces that use them; remaps the remaining indices. Returns {points,
-// faces} dropped.
+// and the faces that use them (PointSet::keep_if). Returns {points, faces}
+// dropped.
 std::pair<std::size_t, std::size_t> drop_nonfinite(PointSet& points) {
-  const std::size_t n = points.size();
+  std::vector<bool> keep(points.size());
   std::size_t bad = 0;
-  for (const glm::vec3& p : points.positions) {
-    if (out_of_range(p)) ++bad;
+  for (std::size_t i = 0; i < keep.size(); ++i) {
+    keep[i] = !out_of_range(points.positions[i]);
+    bad += !keep[i];
   }
   if (bad == 0) return {0, 0};
-
-  constexpr auto kDropped = std::numeric_limits<std::uint32_t>::max();
-  std::vector<std::uint32_t> remap(n, kDropped);
-  std::size_t kept = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    if (out_of_range(points.positions[i])) continue;
-    remap[i] = static_cast<std::uint32_t>(kept);
-    points.positions[kept] = points.positions[i];
-    if (points.has_normals()) points.normals[kept] = points.normals[i];
-    if (points.has_colors()) points.colors[kept] = points.colors[i];
-    if (points.has_radii()) points.radii[kept] = points.radii[i];
-    for (PointAttribute& a : points.attributes) a.values[kept] = a.values[i];
-    ++kept;
-  }
-  points.positions.resize(kept);
-  if (points.has_normals()) points.normals.resize(kept);
-  if (points.has_colors()) points.colors.resize(kept);
-  if (points.has_radii()) points.radii.resize(kept);
-  for (PointAttribute& a : points.attributes) a.values.resize(kept);
-
-  std::size_t faces_kept = 0;
   const std::size_t faces = points.triangles.size();
-  for (const glm::uvec3& t : points.triangles) {
-    const glm::uvec3 r(remap[t.x], remap[t.y], remap[t.z]);
-    if (r.x == kDropped || r.y == kDropped || r.z == kDropped) continue;
-    points.triangles[faces_kept++] = r;
-  }
-  points.triangles.resize(faces_kept);
-  return {bad, faces - faces_kept};
+  points.keep_if(keep);
+  return {bad, faces - points.triangles.size()};
 }
 
 }  // namespace

@@ -3,8 +3,6 @@
 #include <array>
 #include <cctype>
 #include <cmath>
-#include <iomanip>
-#include <sstream>
 #include <string>
 
 #include "attribute_column.hpp"
@@ -44,35 +42,77 @@ AttributeKind attribute_kind_for(std::string_view name) {
 
 namespace detail {
 
-std::string AttributeColumn::constant_text() const {
-  std::ostringstream text;
-  text << attribute_.name << " ";
-  if (count_ == 0 || std::isnan(first_)) {
-    text << "(none)";
-  } else {
-    text << std::setprecision(15) << attribute_.offset + double(first_);
+AttributeColumn::AttributeColumn(std::string name, std::size_t expected, ValueType type,
+                                 double scale, double base, std::optional<double> no_data)
+    : expected_(expected) {
+  if (name.size() > kMaxAttributeName) name.resize(kMaxAttributeName);
+  for (char& c : name) {
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) c = '?';
   }
-  return text.str();
+  attribute_.kind = attribute_kind_for(name);
+  attribute_.name = std::move(name);
+  attribute_.type = type;
+  attribute_.scale = scale;
+  attribute_.base = base;
+  attribute_.no_data = no_data;
 }
 
-std::vector<std::string> keep_varying(std::vector<AttributeColumn>& columns,
-                                      std::vector<PointAttribute>& out) {
-  std::vector<std::string> constant;
-  for (AttributeColumn& c : columns) {
-    if (c.constant()) {
-      constant.push_back(c.constant_text());
-    } else {
-      out.push_back(c.take());
-    }
+// The first COUNT_ values were all FIRST_: stored now, in the form the
+// first one takes.
+void AttributeColumn::start_varying() {
+  varying_ = true;
+  const std::size_t n = count_;
+  store(first_);
+  if (!attribute_.wide.empty()) {
+    attribute_.wide.reserve(std::max(expected_, n + 1));
+    attribute_.wide.resize(n, attribute_.wide.back());
+  } else {
+    attribute_.values.reserve(std::max(expected_, n + 1));
+    attribute_.values.resize(n, attribute_.values.back());
   }
+}
+
+// Below 2^24 a float holds every integer: no offset, so the stored values
+// read as the file's; a float field is its own exact value. Past that the
+// first value, rounded, so that integers and times near it stay exact.
+void AttributeColumn::fix_offset(double value) {
+  offset_fixed_ = true;
+  const bool small = std::fabs(value) < 16777216.0;
+  attribute_.offset = attribute_.type == ValueType::f32 || small ? 0.0 : std::round(value);
+}
+
+// A value a float does not give back: every value from now on as a double.
+void AttributeColumn::go_wide() {
+  wide_ = true;
+  std::vector<double>& wide = attribute_.wide;
+  wide.reserve(std::max(expected_, attribute_.values.size() + 1));
+  for (const float f : attribute_.values) wide.push_back(attribute_.offset + double(f));
+  std::vector<float>().swap(attribute_.values);
+  attribute_.offset = 0.0;
+}
+
+PointAttribute AttributeColumn::take() {
+  if (!varying_)
+    attribute_.constant = count_ == 0 ? std::numeric_limits<double>::quiet_NaN() : first_;
+  return std::move(attribute_);
+}
+
+void take_columns(std::vector<AttributeColumn>& columns, std::vector<PointAttribute>& out) {
+  for (AttributeColumn& c : columns) out.push_back(c.take());
   columns.clear();
-  return constant;
 }
 
 std::string join(const std::vector<std::string>& items) {
   std::string out;
   for (const std::string& item : items) out += (out.empty() ? "" : ", ") + item;
   return out;
+}
+
+std::string join_some(const std::vector<std::string>& items, std::size_t limit) {
+  if (items.size() <= limit) return join(items);
+  const std::vector<std::string> first(items.begin(),
+                                       items.begin() + static_cast<std::ptrdiff_t>(limit));
+  return join(first) + " and " + std::to_string(items.size() - limit) + " more";
 }
 
 }  // namespace detail

@@ -1,6 +1,6 @@
 // Text point clouds (XYZ, PTS, CSV; treecut/text_cloud.hpp): every line
-// parsed and checked, positions in double relative to an origin near the
-// first point.
+// parsed and checked, positions in double relative to an origin where they
+// need one (position_frame.hpp).
 #include "treecut/text_cloud.hpp"
 
 #include <algorithm>
@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "attribute_column.hpp"
+#include "position_frame.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
 #include "unit_normal.hpp"
@@ -66,7 +67,10 @@ struct Columns {
   int rgb[3] = {-1, -1, -1};
   int normal[3] = {-1, -1, -1};
   std::vector<std::pair<int, std::string>> attributes;  // column, name
+  /// The first few columns not kept, and how many there are (a line of 25
+  /// million numbers must not make a warning of 25 million names).
   std::vector<std::string> not_kept;
+  std::size_t not_kept_count = 0;
   /// What sets the count, for a line that has another.
   std::string count_from = "the first line of points has";
 
@@ -74,8 +78,18 @@ struct Columns {
     if (attributes.size() < kMaxAttributes) {
       attributes.emplace_back(column, std::move(name));
     } else {
-      not_kept.push_back(std::move(name));
+      not_keep(std::move(name));
     }
+  }
+  void not_keep(std::string name) {
+    if (not_kept.size() < 8) not_kept.push_back(std::move(name));
+    ++not_kept_count;
+  }
+  [[nodiscard]] std::string not_kept_text() const {
+    std::string out = detail::join(not_kept);
+    if (not_kept_count > not_kept.size())
+      out += " and " + std::to_string(not_kept_count - not_kept.size()) + " more";
+    return out;
   }
 };
 
@@ -126,8 +140,7 @@ Columns from_header(const std::vector<std::string_view>& names) {
   for (int* triple : {c.rgb, c.normal}) {
     if (triple[0] >= 0 && triple[1] >= 0 && triple[2] >= 0) continue;
     for (int k = 0; k < 3; ++k) {
-      if (triple[k] >= 0)
-        c.not_kept.push_back(std::string(names[static_cast<std::size_t>(triple[k])]));
+      if (triple[k] >= 0) c.not_keep(std::string(names[static_cast<std::size_t>(triple[k])]));
       triple[k] = -1;
     }
   }
@@ -155,7 +168,16 @@ Columns from_count(const std::vector<std::string_view>& first, bool pts, bool co
     c.normal[0] = 3, c.normal[1] = 4, c.normal[2] = 5;
   }
   const int kept = c.rgb[0] >= 0 ? c.rgb[2] + 1 : c.normal[0] >= 0 ? 6 : 3;
-  for (int i = kept; i < c.count; ++i) c.keep(i, "column_" + std::to_string(i + 1));
+  for (int i = kept; i < c.count; ++i) {
+    if (c.attributes.size() < kMaxAttributes) {
+      c.keep(i, "column_" + std::to_string(i + 1));
+    } else {
+      c.not_kept_count += static_cast<std::size_t>(c.count - i);  // named by the first few
+      for (int j = i; j < c.count && c.not_kept.size() < 8; ++j)
+        c.not_kept.push_back("column_" + std::to_string(j + 1));
+      break;
+    }
+  }
   return c;
 }
 
@@ -230,11 +252,10 @@ TextError line_error(std::size_t number, const std::string& what) {
   return TextError(std::to_string(number) + ": " + what);
 }
 
-// One line of points into `points` (false: beyond the coordinate limit,
-// dropped). The first sets the origin.
-bool read_point(const Columns& columns, const std::vector<std::string_view>& tokens,
-                std::size_t number, std::vector<double>& values, PointSet& points,
-                std::vector<detail::AttributeColumn>& attributes) {
+// One line of points into `points` (its position into DOUBLES).
+void read_point(const Columns& columns, const std::vector<std::string_view>& tokens,
+                std::size_t number, std::vector<double>& values, std::vector<glm::dvec3>& doubles,
+                PointSet& points, std::vector<detail::AttributeColumn>& attributes) {
   if (static_cast<int>(tokens.size()) != columns.count) {
     throw line_error(number, std::to_string(tokens.size()) + " values, where " +
                                  columns.count_from + " " + std::to_string(columns.count));
@@ -246,14 +267,7 @@ bool read_point(const Columns& columns, const std::vector<std::string_view>& tok
     }
   }
   auto value = [&](int column) { return values[static_cast<std::size_t>(column)]; };
-  const glm::dvec3 p(value(columns.xyz[0]), value(columns.xyz[1]), value(columns.xyz[2]));
-  if (points.positions.empty()) points.frame.origin = glm::round(p);
-  const glm::dvec3 q = p - points.frame.origin;
-  if (!(std::fabs(q.x) <= kMaxCoordinate && std::fabs(q.y) <= kMaxCoordinate &&
-        std::fabs(q.z) <= kMaxCoordinate)) {
-    return false;
-  }
-  points.positions.push_back(glm::vec3(q));
+  doubles.emplace_back(value(columns.xyz[0]), value(columns.xyz[1]), value(columns.xyz[2]));
   for (std::size_t k = 0; k < attributes.size(); ++k) {
     attributes[k].push_back(value(columns.attributes[k].first));
   }
@@ -276,7 +290,6 @@ bool read_point(const Columns& columns, const std::vector<std::string_view>& tok
     points.normals.push_back(detail::unit_or_zero(
         value(columns.normal[0]), value(columns.normal[1]), value(columns.normal[2])));
   }
-  return true;
 }
 
 PointSet parse(std::string_view text, const WarningSink& warn,
@@ -286,31 +299,26 @@ PointSet parse(std::string_view text, const WarningSink& warn,
   std::string_view line;
   const Layout layout = read_layout(r, line, tokens, mapping);
   const Columns& columns = layout.columns;
-  if (warn && !columns.not_kept.empty()) {
-    std::string names;
-    for (const std::string& n : columns.not_kept) names += (names.empty() ? "" : ", ") + n;
-    warn("not kept: " + names);
-  }
+  if (warn && columns.not_kept_count > 0) warn("not kept: " + columns.not_kept_text());
   PointSet points;
   std::vector<detail::AttributeColumn> attributes;
   for (const auto& [column, name] : columns.attributes) attributes.emplace_back(name, 0);
   std::vector<double> values;
-  std::size_t dropped = 0;
+  std::vector<glm::dvec3> doubles;
   do {
     split(line, tokens);
-    if (!read_point(columns, tokens, r.line_number, values, points, attributes)) ++dropped;
+    read_point(columns, tokens, r.line_number, values, doubles, points, attributes);
   } while (r.next(line));
-  const std::vector<std::string> constant = detail::keep_varying(attributes, points.attributes);
-  if (warn && !constant.empty())
-    warn("the same at every point, not kept: " + detail::join(constant));
-  if (layout.pts && points.size() + dropped != layout.pts_count) {
+  if (layout.pts && doubles.size() != layout.pts_count) {
     throw TextError("1: the PTS count line says " + std::to_string(layout.pts_count) +
-                    " points, the file has " + std::to_string(points.size() + dropped));
+                    " points, the file has " + std::to_string(doubles.size()));
   }
-  if (dropped > 0 && warn) {
-    warn("dropped " + std::to_string(dropped) + " points beyond 1e18 of the first one");
+  detail::take_columns(attributes, points.attributes);
+  const detail::Dropped dropped = detail::place_points(std::move(doubles), points);
+  if (points.size() == 0) {
+    throw TextError("no usable points (" + dropped.far_message(dropped.first_far + 1) + ")");
   }
-  if (points.size() == 0) throw TextError("no usable points");
+  if (dropped.far > 0 && warn) warn(dropped.far_message(dropped.first_far + 1));
   return points;
 }
 

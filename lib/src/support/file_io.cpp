@@ -264,6 +264,28 @@ bool file_starts_with(const std::filesystem::path& path, std::string_view prefix
   return got == head.size() && head == prefix;
 }
 
+FileHead read_file_head(const std::filesystem::path& path, std::size_t n) {
+  FileHead head;
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK | O_NOFOLLOW);
+  if (fd < 0) return head;
+  struct stat st {};
+  if (::fstat(fd, &st) == 0 && S_ISREG(st.st_mode)) {
+    head.regular = true;
+    head.size = static_cast<std::uint64_t>(st.st_size);
+    head.bytes.resize(static_cast<std::size_t>(std::min<std::uint64_t>(n, head.size)));
+    std::size_t got = 0;
+    while (got < head.bytes.size()) {
+      const ssize_t r = ::read(fd, head.bytes.data() + got, head.bytes.size() - got);
+      if (r < 0 && errno == EINTR) continue;
+      if (r <= 0) break;
+      got += static_cast<std::size_t>(r);
+    }
+    head.bytes.resize(got);
+  }
+  ::close(fd);
+  return head;
+}
+
 bool same_file(const std::filesystem::path& a, const std::filesystem::path& b) {
   struct stat sa {
   }, sb{};

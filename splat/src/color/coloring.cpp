@@ -68,8 +68,8 @@ constexpr std::array<glm::u8vec3, 10> kDistinct = {{{31, 119, 180},
 
 constexpr glm::u8vec4 kNoValue{128, 128, 128, 255};
 
-// At most ~64k leaves, spread over the nodes: the percentiles and the
-// category shares from them.
+// At most ~64k leaves, spread over the nodes: the percentiles of a
+// continuous map from them.
 std::vector<NodeId> sample_leaves(const Hierarchy& h) {
   const std::size_t n = h.node_count();
   const std::size_t stride = std::max<std::size_t>(1, n / 65536);
@@ -135,19 +135,29 @@ void color_continuous(const Hierarchy& h, const ColorBy& by, const Values& v,
   }
 }
 
-void color_categories(const Hierarchy& h, const NodeAttribute& a, ColorMap map,
-                      std::span<const NodeId> sample, Coloring& out) {
+// The legend's shares are counted over every leaf (the points), exact: a
+// sample of node ids gave 77.1 / 22.9 % for a file of 76.27 / 23.73.
+void color_categories(const Hierarchy& h, const NodeAttribute& a, ColorMap map, Coloring& out) {
   const bool asprs = a.name == "classification" && a.offset == 0.0;
   // The node's value relative to the offset, as stored.
   auto color_of = [&](float v) {
     if (std::isnan(v)) return kNoValue;
     if (map == ColorMap::classes)
       return category_color(class_of(v) + static_cast<int>(a.offset), asprs);
-    return map_color(map, a.max > a.min ? (v - a.min) / (a.max - a.min) : 0.5f);
+    const double x = a.offset + double(v);
+    return map_color(map, a.max > a.min ? static_cast<float>((x - a.min) / (a.max - a.min)) : 0.5f);
   };
   std::map<int, std::size_t> counts;
-  for (const NodeId n : sample) ++counts[class_of(a.values[n])];
-  for (std::size_t n = 0; n < h.node_count(); ++n) out.colors[n] = color_of(a.values[n]);
+  const auto& child_count = h.arrays().child_count;
+  if (a.is_constant()) {
+    counts[class_of(a.constant)] = h.leaf_count();
+  } else {
+    for (std::size_t n = 0; n < h.node_count(); ++n) {
+      if (child_count[n] == 0) ++counts[class_of(a.values[n])];
+    }
+  }
+  for (std::size_t n = 0; n < h.node_count(); ++n)
+    out.colors[n] = color_of(a.value(static_cast<NodeId>(n)));
   Legend& legend = out.legend;
   legend.map = map;
   legend.continuous = false;
@@ -163,7 +173,7 @@ void color_categories(const Hierarchy& h, const NodeAttribute& a, ColorMap map,
     if (asprs && c >= 0 && !asprs_class_name(c).empty())
       e.label += " " + std::string(asprs_class_name(c));
     e.color = color_of(c < 0 ? NAN : static_cast<float>(c));
-    e.share = double(count) / double(std::max<std::size_t>(sample.size(), 1));
+    e.share = double(count) / double(std::max<std::uint32_t>(h.leaf_count(), 1));
     legend.entries.push_back(e);
   }
   std::sort(legend.entries.begin(), legend.entries.end(),
@@ -176,7 +186,7 @@ void hide_classes(const Hierarchy& h, const ColorBy& by, Coloring& out) {
   if (by.show_classes.empty() && by.hide_classes.empty()) return;
   const NodeAttribute* cls = h.find_attribute("classification");
   for (std::size_t n = 0; n < h.node_count(); ++n) {
-    const int c = class_of(cls->values[n]);
+    const int c = class_of(cls->value(static_cast<NodeId>(n)));
     if (class_hidden(by, c)) {
       out.colors[n].w = 0, ++out.hidden_nodes;
     }
@@ -305,10 +315,11 @@ Coloring color_nodes(const Hierarchy& h, const ColorBy& by, glm::vec3 up) {
                          : category                    ? ColorMap::classes
                                                        : ColorMap::viridis;
     if (category && !by.low && !by.high) {
-      color_categories(h, *a, map, sample, out);
+      color_categories(h, *a, map, out);
     } else {
       Values v;
-      v.of_nodes = a->values;
+      if (a->is_constant()) v.own.assign(h.node_count(), a->constant);
+      v.of_nodes = a->is_constant() ? std::span<const float>(v.own) : a->values;
       v.offset = a->offset;
       ColorBy continuous = by;
       continuous.map = map == ColorMap::classes ? ColorMap::viridis : map;
