@@ -71,6 +71,20 @@ std::string usage_message(const CLI::App& app, const CLI::ParseError& e) {
   return last.path + ": " + what + " (see " + last.path + " --help)";
 }
 
+// `--up -y`: a negative axis is a value, not an option (CLI11 would take
+// "-y" for a flag and say --up has no value). Written "--up=-y" instead.
+std::vector<std::string> joined_axis_values(int argc, char** argv) {
+  std::vector<std::string> out(argv, argv + argc);
+  for (std::size_t i = 1; i + 1 < out.size(); ++i) {
+    const std::string& next = out[i + 1];
+    if (out[i] == "--up" && (next == "-x" || next == "-y" || next == "-z")) {
+      out[i] = "--up=" + next;
+      out.erase(out.begin() + static_cast<std::ptrdiff_t>(i + 1));
+    }
+  }
+  return out;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -83,8 +97,11 @@ int main(int argc, char** argv) {
   treecut::cli::add_strategy_commands(app);
   treecut::cli::add_render_commands(app);
   treecut::cli::add_bench_commands(app);
+  std::vector<std::string> args = joined_axis_values(argc, argv);
+  std::vector<char*> pointers;
+  for (std::string& a : args) pointers.push_back(a.data());
   try {
-    app.parse(argc, argv);
+    app.parse(static_cast<int>(pointers.size()), pointers.data());
   } catch (const CLI::CallForHelp& e) {
     return app.exit(e);
   } catch (const CLI::CallForAllHelp& e) {

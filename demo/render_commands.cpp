@@ -427,12 +427,13 @@ void run_render(const RenderArgs& a) {
   const Scene scene = load_scene(a.scene, opening.callback());
   opening.finish();
   apply_model_settings(settings, a.scene, scene);
-  check_coloring(scene, color_by(a.scene));  // exit 2 before any output
+  std::string color_note;
+  const splat::ColorBy colors = resolve_color(scene, a.scene, &color_note);
+  check_coloring(scene, colors);  // exit 2 before any output
   // A scene file: its objects go through the stage (per object, or a
   // scene-level strategy) and are drawn by draw_scene in one call per pass.
   if (a.path.empty())
-    path = splat::orbit_path(scene.bounds_min, scene.bounds_max, aspect, a.orbit_seconds, 73,
-                             scene.up);
+    path = splat::orbit_path(scene.view_min, scene.view_max, aspect, a.orbit_seconds, 73, scene.up);
   describe_scene(a, registry, scene);
 
   const std::unique_ptr<splat::GlContext> context = open_headless(a.gl, a.width, a.height);
@@ -440,8 +441,8 @@ void run_render(const RenderArgs& a) {
               a.height, std::string(splat::splat_mode_name(settings.mode)).c_str(),
               settings.eye_dome > 0.0f ? ", eye-dome lighting" : "");
   splat::Renderer renderer(*scene.hierarchy, {a.width, a.height});
-  if (const splat::Legend legend = apply_coloring(scene, color_by(a.scene), renderer);
-      legend.title != "rgb") {
+  if (!color_note.empty()) std::printf("colour    %s\n", color_note.c_str());
+  if (const splat::Legend legend = apply_coloring(scene, colors, renderer); legend.title != "rgb") {
     std::printf("colour    %s\n", legend_line(legend).c_str());
   }
   splat::CutBuffer full;

@@ -47,9 +47,15 @@ Viewer::Viewer(const ViewArgs& args)
   strategy_ = args.scene.strategies.empty() ? "optimization" : args.scene.strategies.front();
   check_params(registry_, {strategy_}, args.scene.params);
   renderer_ = std::make_unique<splat::Renderer>(*scene_.hierarchy, window_.framebuffer_size());
-  color_by_ = color_by(args.scene);
+  std::string color_note;
+  color_auto_ = args.scene.color == "auto";
+  color_by_ = resolve_color(scene_, args.scene, &color_note);
+  if (!color_note.empty()) {
+    std::printf("colour    %s\n", color_note.c_str());
+    status_ = color_note;
+  }
   recolor(true);
-  fit();
+  open_view();
   auto strategy = make_strategy(registry_, strategy_, args.scene.params);
   read_params(*strategy);
   if (scene_.world) {
@@ -272,7 +278,7 @@ void Viewer::adopt_scene() {
   load_bookmarks();
   picks_.clear();
   glfwSetWindowTitle(window_.handle(), ("treecut - " + scene_.label).c_str());
-  fit();
+  open_view();
   // The governor caps a budget at the hierarchy's node count and its cost
   // model belongs to the old model: it starts again from the current value.
   if (governor_) {
@@ -283,6 +289,11 @@ void Viewer::adopt_scene() {
   }
   status_ = "opened " + scene_.label;
   apply_model_settings(settings_, args_.scene, scene_);
+  if (color_auto_) {
+    std::string note;
+    color_by_ = resolve_color(scene_, args_.scene, &note);
+    if (!note.empty()) std::printf("colour    %s\n", note.c_str());
+  }
   recolor();
   // The frames the window drew meanwhile (the old model): a load never blocks it.
   std::printf("opened %s (%zu nodes) after %llu frames of the old model\n", scene_.label.c_str(),

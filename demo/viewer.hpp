@@ -47,7 +47,7 @@ struct SceneArgs {
   bool validate = false;             ///< --validate: check every cut a strategy returns in full
   int stage_wait_bound_ms = 100;     ///< raise a starved stage after this wait; 0 = never
   unsigned blend_frames = 0;         ///< --blend N: exchanges fade over N frames (0 = swap)
-  std::string color = "rgb";         ///< --color rgb | elevation | ATTRIBUTE
+  std::string color = "auto";        ///< --color auto | rgb | elevation | ATTRIBUTE
   std::string color_map = "auto";    ///< --color-map auto | viridis | grey | classes
   std::vector<double> color_range;   ///< --color-range LOW HIGH (the file's values)
   std::string classes;               ///< --classes 2,6 | -7,-18
@@ -67,6 +67,14 @@ struct Scene {
   glm::vec3 up{0.0f, 1.0f, 0.0f};  ///< the model's up axis (orbits turn about it)
   UpAxis up_axis;                  ///< the same, named; reason set when --up auto chose it
   glm::vec3 bounds_min{0.0f}, bounds_max{0.0f};  ///< the model's, or the scene's (Scene::bounds)
+  /// The box the first view and the orbits fit (issue 43, item 12): the
+  /// bounds with a typical splat's reach on every side and at least 8 splats
+  /// across, so a lone point is a dot and ten points on a line fit the
+  /// frame, discs and all.
+  glm::vec3 view_min{0.0f}, view_max{0.0f};
+  /// Where the first view opens when the file says where its sensor stood
+  /// (a depth camera's PCD VIEWPOINT), as PCL's viewer opens it.
+  std::optional<splat::Camera> sensor_view;
   /// A scene file (looks_like_scene): its objects for the stage; `hierarchy`
   /// is then its first model's. Null for a model.
   std::shared_ptr<const StageScene> world;
@@ -126,6 +134,10 @@ void apply_clip(splat::RenderSettings& settings, const std::vector<double>& box,
 /// --color, --color-map, --color-range and --classes as a ColorBy; throws
 /// InputError for a bad map, range or class list.
 splat::ColorBy color_by(const SceneArgs& args);
+/// color_by() for SCENE's model, --color auto resolved
+/// (splat::resolve_auto_color), *NOTE saying what auto chose where the
+/// file's RGB was not usable.
+splat::ColorBy resolve_color(const Scene& scene, const SceneArgs& args, std::string* note);
 /// Colours every model of SCENE by BY in RENDERER (Renderer::set_node_colors;
 /// the models' own colours for plain rgb without a class filter). Returns
 /// the first model's legend. Throws InputError for an attribute a model

@@ -91,6 +91,9 @@ class Viewer {
 
   // viewer_input.cpp: camera controls.
   void fit();
+  /// The first view of a model: from its sensor where the file says (Scene::sensor_view), else
+  /// fit().
+  void open_view();
   void orbit(float dx, float dy);
   void handle_input(double dt);
 
@@ -145,7 +148,10 @@ class Viewer {
   double chosen_fps_ = 30.0;
   std::unique_ptr<splat::Renderer> renderer_;
   splat::ColorBy color_by_;  // --color, --classes and the HUD's colour panel
-  splat::Legend legend_;     // what the colours mean now
+  /// --color auto, not changed in the HUD since: a model opened later is
+  /// resolved again (its own RGB, intensity or elevation).
+  bool color_auto_ = false;
+  splat::Legend legend_;  // what the colours mean now
   std::unique_ptr<Controller> controller_;
   std::unique_ptr<splat::QueryExecutor> queries_;
   std::unique_ptr<splat::RenderThreadFrame> frame_loop_;  // after what it refers to

@@ -1,9 +1,8 @@
 // treecut view: camera bookmarks (issue 30). Shift+1..9 keeps the view in a
 // slot, 1..9 goes back to it; a model read from a file keeps its slots
-// beside it, in `MODEL.views` (a camera path whose key times are the slot
-// numbers, docs/camera-paths.md), read when the model opens. That file is
-// written only when it is missing or already one of treecut's camera paths:
-// never over a file of the user's.
+// beside it, in `MODEL.views` (views_file.hpp), read when the model opens.
+// That file is written only when it is missing or reads whole as treecut's
+// list of views: never over a file of the user's.
 #include <imgui.h>
 
 #include <cstdio>
@@ -14,6 +13,7 @@
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
 #include "viewer_app.hpp"
+#include "views_file.hpp"
 
 namespace treecut::cli {
 
@@ -25,13 +25,9 @@ std::filesystem::path Viewer::bookmarks_file() const {
 void Viewer::load_bookmarks() {
   bookmarks_.fill(std::nullopt);
   const std::filesystem::path file = bookmarks_file();
-  std::error_code ec;
-  if (file.empty() || !std::filesystem::is_regular_file(file, ec)) return;
+  if (file.empty()) return;
   try {
-    for (const splat::CameraKey& k : splat::load_camera_path(file).keys) {
-      const auto slot = static_cast<int>(k.time);
-      if (slot >= 1 && slot <= 9 && double(slot) == k.time) bookmarks_[slot - 1] = k.camera;
-    }
+    bookmarks_ = read_views(file);
   } catch (const std::exception& e) {
     // Not a list of views: named, and the viewer goes on without them.
     print_error(std::string(e.what()) + " (bookmarks not read)", true);
@@ -46,18 +42,11 @@ void Viewer::save_bookmark(int slot) {
     return;
   }
   try {
-    std::error_code ec;
-    if (std::filesystem::exists(file, ec) && !file_starts_with(file, "treecut-camera-path")) {
-      throw std::runtime_error(quoted_name(file) +
-                               ": exists and is not treecut's list of views; not replaced");
+    try {
+      bookmarks_ = save_view(file, slot, camera_);
+    } catch (const InputError& e) {
+      throw std::runtime_error(std::string(e.what()) + "; not replaced");
     }
-    splat::CameraPath path;
-    for (int s = 1; s <= 9; ++s) {
-      if (const auto& c = bookmarks_[static_cast<std::size_t>(s - 1)]) {
-        path.keys.push_back({double(s), *c});
-      }
-    }
-    splat::save_camera_path(file, path);
     status_ = "view " + std::to_string(slot) + " saved in " + file.filename().string();
     std::printf("bookmark  %d saved in %s\n", slot, quoted_name(file).c_str());
   } catch (const std::exception& e) {

@@ -54,9 +54,10 @@ void add_scene_options(CLI::App& cmd, SceneArgs& args) {
       ->check(whole_number(3, 64))
       ->capture_default_str();
   cmd.add_option("--up", args.up,
-                 "Up axis of the model: x | y | z | auto (from the data: a ground or base, the "
-                 "way the normals face, a flat extent; see docs/rendering.md)")
-      ->check(CLI::IsMember({"auto", "x", "y", "z"}))
+                 "Up axis of the model: x | y | z | -x | -y | -z | auto (a depth camera's "
+                 "viewpoint, else from the data: a ground or base, the way the normals face, a "
+                 "flat extent; see docs/rendering.md)")
+      ->check(CLI::IsMember({"auto", "x", "y", "z", "-x", "-y", "-z", "+x", "+y", "+z"}))
       ->capture_default_str();
   cmd.add_option("--points",
                  "The budget in points (splats drawn at most): the strategy's "
@@ -90,7 +91,8 @@ void add_scene_options(CLI::App& cmd, SceneArgs& args) {
       ->capture_default_str();
   cmd.add_option("--color", args.color,
                  "Colour by: rgb (the file's colours), elevation, or an attribute of the model "
-                 "(intensity, classification, ...; `treecut info` lists them)")
+                 "(intensity, classification, ...; `treecut info` lists them); auto: rgb where "
+                 "the file has usable colours, else intensity where it varies, else elevation")
       ->capture_default_str();
   cmd.add_option("--color-map", args.color_map,
                  "Colour map: auto (classes for categories, viridis for the rest) | viridis | "
@@ -157,6 +159,32 @@ Scene load_scene(const SceneArgs& args) {
   return load_scene(args, {});
 }
 
+namespace {
+
+// The median splat radius of at most ~64k leaves spread over H.
+float typical_splat(const Hierarchy& h) {
+  std::vector<float> radii;
+  const std::size_t stride = std::max<std::size_t>(1, h.node_count() / 65536);
+  for (std::size_t n = 0; n < h.node_count(); n += stride) {
+    if (h.is_leaf(static_cast<NodeId>(n))) radii.push_back(h.splat_radius(static_cast<NodeId>(n)));
+  }
+  if (radii.empty()) return 0.0f;
+  const auto mid = radii.begin() + static_cast<std::ptrdiff_t>(radii.size() / 2);
+  std::nth_element(radii.begin(), mid, radii.end());
+  return *mid;
+}
+
+// Scene::view_min/max from the bounds and a splat of radius SPLAT.
+void set_view_box(Scene& s, float splat) {
+  const glm::vec3 center = 0.5f * (s.bounds_min + s.bounds_max);
+  const glm::vec3 half =
+      glm::max(0.5f * (s.bounds_max - s.bounds_min) + splat, glm::vec3(4.0f * splat));
+  s.view_min = center - half;
+  s.view_max = center + half;
+}
+
+}  // namespace
+
 Scene load_scene(const SceneArgs& args, const LoadProgressFn& progress) {
   Scene s;
   if (!args.model.empty() && looks_like_scene(args.model)) {
@@ -192,6 +220,7 @@ Scene load_scene(const SceneArgs& args, const LoadProgressFn& progress) {
     }
     s.center = 0.5f * (s.bounds_min + s.bounds_max);
     s.radius = std::max(0.5f * glm::length(s.bounds_max - s.bounds_min), 1e-6f);
+    set_view_box(s, 0.0f);
     return s;
   }
   if (args.model.empty()) {
@@ -218,6 +247,17 @@ Scene load_scene(const SceneArgs& args, const LoadProgressFn& progress) {
   s.bounds_max = h.bounds_max();
   s.center = 0.5f * (h.bounds_min() + h.bounds_max());
   s.radius = std::max(0.5f * glm::length(h.bounds_max() - h.bounds_min()), 1e-6f);
+  set_view_box(s, typical_splat(h));
+  if (const std::optional<Viewpoint>& v = h.frame().viewpoint) {
+    // The camera looks along its +z with +y down (PCL's convention).
+    splat::Camera c;
+    c.eye = glm::vec3(v->position - h.frame().origin);
+    const glm::vec3 forward(v->orientation * glm::dvec3(0.0, 0.0, 1.0));
+    c.target = c.eye + forward * std::max(glm::distance(c.eye, s.center), 1e-3f);
+    c.up = glm::vec3(v->orientation * glm::dvec3(0.0, -1.0, 0.0));
+    splat::fit_clip_planes(c, s.center, s.radius + glm::distance(c.eye, s.center));
+    s.sensor_view = c;
+  }
   return s;
 }
 
@@ -250,6 +290,10 @@ std::vector<const Hierarchy*> scene_models(const Scene& scene) {
 }
 
 }  // namespace
+
+splat::ColorBy resolve_color(const Scene& scene, const SceneArgs& args, std::string* note) {
+  return splat::resolve_auto_color(*scene.hierarchy, color_by(args), note);
+}
 
 void check_coloring(const Scene& scene, const splat::ColorBy& by) {
   for (const Hierarchy* h : scene_models(scene)) splat::check_color_by(*h, by);

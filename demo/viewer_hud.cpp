@@ -250,6 +250,7 @@ void Viewer::color_panel() {
     for (const std::string& s : sources) {
       if (ImGui::Selectable(s.c_str(), s == color_by_.source) && s != color_by_.source) {
         color_by_.source = s;
+        color_auto_ = false;
         color_by_.low.reset();
         color_by_.high.reset();
         recolor();

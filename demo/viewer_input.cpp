@@ -11,10 +11,18 @@
 
 namespace treecut::cli {
 
+void Viewer::open_view() {
+  if (scene_.sensor_view) {
+    camera_ = *scene_.sensor_view;
+  } else {
+    fit();
+  }
+}
+
 void Viewer::fit() {
   const glm::ivec2 size = window_.framebuffer_size();
   // A model's bounds, or a scene's (load_scene fills both).
-  camera_ = splat::default_camera(scene_.bounds_min, scene_.bounds_max,
+  camera_ = splat::default_camera(scene_.view_min, scene_.view_max,
                                   float(size.x) / float(std::max(size.y, 1)), scene_.up);
 }
 

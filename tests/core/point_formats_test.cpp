@@ -547,10 +547,16 @@ TEST(TextCloud, XyzPtsAndCsvAreRecognizedAndRead) {
   EXPECT_TRUE(looks_like_text_cloud("2\n1 2 3 0 10 20 30\n4 5 6 0 40 50 60\n"));
   EXPECT_TRUE(looks_like_text_cloud("X,Y,Z,Intensity\n1,2,3,9\n"));
   EXPECT_TRUE(looks_like_text_cloud("# exported\n1;2;3\n"));
-  EXPECT_FALSE(looks_like_text_cloud("ply\nformat ascii 1.0\n"));
-  EXPECT_FALSE(looks_like_text_cloud("hello world\n"));
+  // Any text is the text reader's when no other signature claims it (issue
+  // 43, item 17): it says what is wrong (the caller tries PLY, LAS and PCD
+  // first); binary bytes are not text.
+  EXPECT_TRUE(looks_like_text_cloud("hello world\n"));
+  EXPECT_TRUE(looks_like_text_cloud("\xEF\xBB\xBFx,y,z\n1,2,3\n")) << "a byte order mark";
+  EXPECT_TRUE(looks_like_text_cloud("h\xC3\xB6he,x,y,z\n1,2,3,4\n")) << "UTF-8";
   EXPECT_FALSE(looks_like_text_cloud(std::string("LASF\0\0", 6)));
-  EXPECT_FALSE(looks_like_text_cloud("1 2\n"));
+  EXPECT_FALSE(looks_like_text_cloud("\x89PNG\r\n\x1a\n"));
+  EXPECT_FALSE(looks_like_text_cloud("h\xF6he\n")) << "Latin-1 is not UTF-8";
+  EXPECT_FALSE(looks_like_text_cloud(" \n\n"));
 
   // XYZ RGB at map coordinates: millimetres kept.
   const PointSet a = treecut::load_text_cloud_from_memory(
@@ -624,21 +630,26 @@ TEST(TextCloud, AColumnMappingNamesTheColumns) {
   };
   EXPECT_EQ(error("1 2 3 4\n", {"x", "y", "z"}), "m.txt:1: 4 values, where --columns names 3");
   EXPECT_EQ(error("1 2 3\n", {"x", "y", "_"}),
-            "m.txt: --columns: the header names no x, y and z columns");
+            "m.txt: --columns: the header names no z column (it names x, y, _)");
 }
 
 TEST(TextCloud, MalformedLinesAreOneLineNamingTheLine) {
   EXPECT_EQ(text_error_of("1 2 3\n4 5\n"),
             "mem.xyz:2: 2 values, where the first line of points has 3");
   EXPECT_EQ(text_error_of("1 2 3\n4 x 6\n"), "mem.xyz:2: 'x' is not a number");
-  EXPECT_EQ(text_error_of("1 2 3\n4 nan 6\n"), "mem.xyz:2: 'nan' is not a number");
+  EXPECT_EQ(text_error_of("1 2 3\n4 nan-ish 6\n"), "mem.xyz:2: 'nan-ish' is not a number");
+  // nan is no value (issue 43, item 17): a point without a position is dropped.
+  EXPECT_EQ(text_error_of("1 2 3\n4 nan 6\n"), "(loaded)");
+  EXPECT_EQ(text_error_of("nan nan nan\n"),
+            "mem.xyz: no points with a finite position (every one is nan)");
   EXPECT_EQ(text_error_of("x y z r g b\n1 2 3 1 2 3\n1 2 3 300 0 0\n"),
             "mem.xyz:3: colour 300 is not a whole number from 0 to 255");
   // Without a header, a 300 on the first lines makes the last three normals.
   EXPECT_EQ(text_error_of("1 2 3 1 2 3\n1 2 3 300 0 0\n"), "(loaded)");
   EXPECT_EQ(text_error_of("3\n1 2 3\n4 5 6\n"),
             "mem.xyz:1: the PTS count line says 3 points, the file has 2");
-  EXPECT_EQ(text_error_of("name,other\n1,2\n"), "mem.xyz: the header names no x, y and z columns");
+  EXPECT_EQ(text_error_of("name,other\n1,2\n"),
+            "mem.xyz: the header names no x, y, z columns (it names name, other)");
   EXPECT_EQ(text_error_of("# nothing\n"), "mem.xyz: no points (an empty text cloud)");
   EXPECT_EQ(text_error_of("1 2\n"), "mem.xyz: fewer than 3 numbers on a line (x y z)");
   // Every truncation of a small file is loaded or refused with one line.

@@ -122,9 +122,12 @@ TEST_P(RenderRanges, AnyOrderEqualsTheOneCallImageExceptAtDepthTies) {
       EXPECT_EQ(reversed, 0u) << parts;
       EXPECT_EQ(shuffled, 0u) << parts;
     } else {
-      // Ties of exactly equal 24-bit depth between different splats: rare.
-      EXPECT_LE(reversed, pixels / 1000) << parts;
-      EXPECT_LE(shuffled, pixels / 1000) << parts;
+      // Ties of exactly equal 24-bit depth between different splats: rare
+      // (under 0.4 % of the pixels with the city filling the frame, as the
+      // first view fits the box since issue 43; under 0.1 % at the distance
+      // of its bounding sphere).
+      EXPECT_LE(reversed, pixels / 250) << parts;
+      EXPECT_LE(shuffled, pixels / 250) << parts;
     }
     std::printf("%s, %zu ranges: %zu (reversed) and %zu (shuffled) of %zu pixels differ\n",
                 std::string(splat_mode_name(GetParam())).c_str(), parts, reversed, shuffled,

@@ -86,22 +86,47 @@ TEST(CameraPath, RejectsEveryMalformedLine) {
   }
 }
 
-TEST(Camera, FitSeesTheWholeBoundingSphere) {
-  const glm::vec3 lo(-2, 0, 1), hi(4, 3, 2);
-  for (glm::vec3 up : {glm::vec3(0, 1, 0), glm::vec3(0, 0, 1)}) {
-    const Camera c = default_camera(lo, hi, 16.0f / 9.0f, up);
-    const glm::vec3 center = 0.5f * (lo + hi);
-    const float r = 0.5f * glm::length(hi - lo);
-    const float d = glm::length(c.eye - center);
-    // The sphere fits the vertical field of view and lies between the planes.
-    EXPECT_GE(std::asin(r / d), 0.0f);
-    EXPECT_LE(std::asin(r / d), glm::radians(c.fov_y_deg) * 0.5f + 1e-4f);
-    EXPECT_LE(c.near_plane, d - r);
-    EXPECT_GE(c.far_plane, d + r);
-    EXPECT_NEAR(glm::length(c.target - center), 0.0f, 1e-5f);
-    // Seen from above the plane normal to `up`.
-    EXPECT_GT(glm::dot(c.eye - center, up), 0.0f);
+// Issue 43, item 12: the fit is the box's, not its bounding sphere's: every
+// corner is in view, and one touches the 5 % margin of the frame (or the
+// eye is 1.2 radii out), so a flat model fills the frame, not its middle
+// third; the clip planes bracket every corner.
+TEST(Camera, FitSeesTheWholeBoxAndFillsTheFrame) {
+  const float aspect = 16.0f / 9.0f;
+  for (const auto& [lo, hi] : {std::pair{glm::vec3(-2, 0, 1), glm::vec3(4, 3, 2)},
+                               std::pair{glm::vec3(0, 0, 0), glm::vec3(100, 80, 2)}}) {
+    for (glm::vec3 up : {glm::vec3(0, 1, 0), glm::vec3(0, 0, 1)}) {
+      const Camera c = default_camera(lo, hi, aspect, up);
+      const glm::mat4 vp = c.projection_matrix(aspect) * c.view_matrix();
+      float reach = 0.0f;  // the farthest corner from the centre of the frame, in NDC
+      for (int k = 0; k < 8; ++k) {
+        const glm::vec3 corner((k & 1) ? hi.x : lo.x, (k & 2) ? hi.y : lo.y, (k & 4) ? hi.z : lo.z);
+        const glm::vec4 p = vp * glm::vec4(corner, 1.0f);
+        ASSERT_GT(p.w, 0.0f);
+        const glm::vec3 ndc = glm::vec3(p) / p.w;
+        EXPECT_LE(std::fabs(ndc.x), 1.0f);
+        EXPECT_LE(std::fabs(ndc.y), 1.0f);
+        EXPECT_GE(ndc.z, -1.0f - 1e-5f) << "in front of the near plane";
+        EXPECT_LE(ndc.z, 1.0f + 1e-5f) << "before the far plane";
+        reach = std::max({reach, std::fabs(ndc.x), std::fabs(ndc.y)});
+      }
+      const float r = 0.5f * glm::length(hi - lo);
+      const bool out = glm::length(c.eye - 0.5f * (lo + hi)) > 1.2f * r * 1.001f;
+      if (!out) {
+        EXPECT_GT(reach, 0.9f) << "a corner at the margin";
+      }
+      EXPECT_GT(glm::dot(c.eye - 0.5f * (lo + hi), up), 0.0f) << "seen from above";
+    }
   }
+  // The flat one fills more than two thirds of the frame's width.
+  const Camera flat = default_camera({0, 0, 0}, {100, 80, 2}, aspect, {0, 0, 1});
+  const glm::mat4 vp = flat.projection_matrix(aspect) * flat.view_matrix();
+  float x_lo = 1.0f, x_hi = -1.0f;
+  for (int k = 0; k < 8; ++k) {
+    const glm::vec4 p = vp * glm::vec4((k & 1) ? 100.0f : 0.0f, (k & 2) ? 80.0f : 0.0f,
+                                       (k & 4) ? 2.0f : 0.0f, 1.0f);
+    x_lo = std::min(x_lo, p.x / p.w), x_hi = std::max(x_hi, p.x / p.w);
+  }
+  EXPECT_GT(x_hi - x_lo, 2.0f * 2.0f / 3.0f);
 }
 
 TEST(Camera, OrbitDirectionIsUnitAndTurnsAboutUp) {

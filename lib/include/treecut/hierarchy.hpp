@@ -32,6 +32,9 @@ namespace treecut {
 using NodeId = std::uint32_t;
 inline constexpr NodeId kNoNode = std::numeric_limits<NodeId>::max();
 
+/// The colour of the points of a file without colours.
+inline const glm::u8vec4 kUncoloured{200, 200, 200, 255};
+
 /// The arrays of a hierarchy; all have node_count() elements.
 struct HierarchyArrays {
   /// xyz: splat/sphere center, w: radius of the sphere bounding the node's whole

@@ -11,7 +11,9 @@
 //   columns of a file without a header, or instead of its header.
 // Without a header the columns say what they are: 3 (x y z), 4 (x y z and a
 // scalar), 6 (x y z r g b when the last three are whole numbers from 0 to
-// 255, else x y z nx ny nz), 7 (PTS's x y z intensity r g b).
+// 255, else x y z nx ny nz), 7 (PTS's x y z intensity r g b). Lines end at
+// LF, CR LF or a lone CR; a byte order mark is skipped; "nan" is no value
+// (a point without a finite position is dropped and counted).
 //
 // Positions are read in double and kept relative to an origin where they
 // need one, by the rule every reader follows (PointSet::frame). Guarded as the other readers: a
@@ -31,8 +33,11 @@
 
 namespace treecut {
 
-/// Whether BYTES (a file's first bytes) look like a text cloud: a first line
-/// of numbers (or of column names followed by a line of numbers).
+/// Whether BYTES (a file's first bytes) are text (printable ASCII or UTF-8,
+/// tabs and line ends, a byte order mark first): what the text reader takes
+/// when no other format's signature is there, so that a text that is no
+/// point cloud gets its message (the header names x twice, line 7 has 4
+/// values), not another reader's.
 [[nodiscard]] bool looks_like_text_cloud(std::string_view bytes);
 
 /// Loads a text cloud (see above). COLUMNS, when given, names every column

@@ -9,9 +9,11 @@
 //     flat layer. For each of the six directions d, the share of the points in
 //     the lowest 2% of the extent along d (extent between the 0.2% and 99.8%
 //     quantiles, so a few outliers do not move it); the largest share wins if
-//     it is at least 3.5% (a uniform spread gives 2%) and the layer spans at
+//     it is at least 3.5% (a uniform spread gives 2%), the layer spans at
 //     least a quarter of the model's cross-section (a pointed tip does not
-//     count). The ground of a scan, the base the Stanford dragon stands on,
+//     count) and the layer at the other end holds at most half as many (a
+//     base is at one end; a regular grid's edge columns are at both).
+//     The ground of a scan, the base the Stanford dragon stands on,
 //     the flat bottom of the bunny, the street of a city.
 //  2. Normals that face one way: the direction d with the largest mean n.d
 //     over the points, if at least 0.1. Scanners see surfaces from above and
@@ -25,7 +27,9 @@
 //  5. Otherwise +z, the convention of scans and of the generated models (a
 //     sphere, a closed object with nothing to tell).
 // Before all of them, for a hierarchy: a file format that says which way is
-// up (LAS, whose z is the height: Hierarchy::frame().z_up) is believed.
+// up (LAS, whose z is the height: Hierarchy::frame().z_up) is believed, and
+// a depth camera's viewpoint (a PCD's VIEWPOINT, frame().viewpoint): up is
+// the camera's -y.
 //
 // GL-free, deterministic, and cheap: at most about a million points are read.
 #pragma once

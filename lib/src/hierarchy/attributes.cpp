@@ -154,6 +154,27 @@ void from_faces(PointSet& ps, bool want_normals, bool want_radii, bool want_curv
   if (want_radii) fill_missing_radii(ps.radii);  // vertices outside every face: the typical radius
 }
 
+// The splat radius from a neighbourhood: FOUND neighbours within D2K (the
+// farthest's squared distance), spread as COV says. On a surface, discs of
+// radius r at local density rho = found / (pi d_k^2) leave a fraction
+// exp(-rho pi r^2) of a randomly sampled surface uncovered: r = d_k sqrt(7 /
+// found) -> 0.1%, no visible pinholes. Along a line (a wire, a scan line, a
+// handful of collinear points: the spread across under 1 % of the spread
+// along, which the sum of the covariance's principal 2x2 minors tells
+// without an eigen solve) the density is found / (2 d_k) and the same 0.1 %
+// is r = 3.45 d_k / found: the surface's rule there drew discs several
+// spacings wide, ten collinear points covering half a frame (issue 43,
+// item 12).
+float neighbourhood_radius(const detail::Sym3& cov, float d2k, int found) {
+  const double trace = double(cov.xx) + cov.yy + cov.zz;
+  const double minors = double(cov.xx) * cov.yy - double(cov.xy) * cov.xy +
+                        double(cov.xx) * cov.zz - double(cov.xz) * cov.xz +
+                        double(cov.yy) * cov.zz - double(cov.yz) * cov.yz;
+  const float dk = std::sqrt(d2k);
+  if (trace > 0.0 && minors <= 0.01 * trace * trace) return 3.45f * dk / static_cast<float>(found);
+  return dk * std::sqrt(7.0f / static_cast<float>(found));
+}
+
 void from_neighbours(PointSet& ps, int k, bool want_normals, bool want_radii, bool want_curvature) {
   const std::size_t n = ps.size();
   const detail::KnnGrid grid(ps.positions);
@@ -166,20 +187,18 @@ void from_neighbours(PointSet& ps, int k, bool want_normals, bool want_radii, bo
   const bool z_up = ps.frame.z_up;
   grid.for_each_knn(k, [&](std::uint32_t i, int found, const std::uint32_t* idx, const float* d2) {
     const glm::vec3 p = ps.positions[i];
-    if (want_radii && found > 0) {
-      // Discs of radius r at local density rho = found / (pi d_k^2) leave a
-      // fraction exp(-rho pi r^2) of a randomly sampled surface uncovered:
-      // r = d_k sqrt(7 / found) -> 0.1%, no visible pinholes.
-      ps.radii[i] = std::sqrt(d2[found - 1] * 7.0f / static_cast<float>(found));
-    }
-    if ((!want_normals && !want_curvature) || found < 2) return;
+    if (want_radii && found == 1) ps.radii[i] = std::sqrt(d2[0] * 7.0f);
+    if (found < 2) return;
     Moments m;
     for (int j = 0; j < found; ++j) m.add(ps.positions[idx[j]] - p);
+    const Sym3 cov = m.covariance();
+    if (want_radii) ps.radii[i] = neighbourhood_radius(cov, d2[found - 1], found);
+    if (!want_normals && !want_curvature) return;
     if (!want_normals) {  // the eigenvalue alone is much cheaper than the full solve
-      ps.curvature[i] = detail::surface_variation(m.covariance());
+      ps.curvature[i] = detail::surface_variation(cov);
       return;
     }
-    const detail::Eigen3 eig = detail::eigen_symmetric(m.covariance());
+    const detail::Eigen3 eig = detail::eigen_symmetric(cov);
     if (want_curvature) ps.curvature[i] = detail::surface_variation(eig);
     {
       glm::vec3 nrm = eig.smallest;

@@ -311,8 +311,7 @@ void fill_leaves(OwnedArrays& a, std::vector<Range>&& ranges, std::vector<Item>&
       [&](std::size_t b, std::size_t e) {
         for (std::size_t i = b; i < e; ++i)
           if (a.child_count[i] == 0)
-            a.color[i] =
-                has_colors ? points.colors[leaf_point[i]] : glm::u8vec4(200, 200, 200, 255);
+            a.color[i] = has_colors ? points.colors[leaf_point[i]] : kUncoloured;
       },
       threads);
   release(points.colors);

@@ -11,6 +11,7 @@
 #include <optional>
 #include <stdexcept>
 
+#include "import/ply_format.hpp"
 #include "treecut/cache_folder.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
@@ -50,7 +51,8 @@ std::filesystem::path default_cache_path(const std::filesystem::path& model) {
 // their output changes, so that caches written by an older build are stale.
 // 3: caches are keyed on the model's content hash.
 // 4: radii from the neighbours are capped at 4 times the median (issue 30).
-constexpr std::uint32_t kPipelineRevision = 4;
+// 5: radii along lines from the density along them (issue 43).
+constexpr std::uint32_t kPipelineRevision = 5;
 
 std::uint32_t options_bits(const AttributeOptions& attributes, const BuildOptions& build,
                            const std::vector<std::string>& columns) {
@@ -148,17 +150,22 @@ std::string read_head(const std::filesystem::path& path, std::size_t n) {
 }
 
 // The points of a model file, by its first bytes: LAS ("LASF"), PLY, PCD
-// (pcd.hpp) or a text cloud (text_cloud.hpp). A
-// file that is neither gets the PLY reader's message (it names the format
-// it recognizes: E57, PCD, an image...) and what treecut reads.
+// (pcd.hpp) or, for any other text, a text cloud (text_cloud.hpp), whose
+// reader comes closest to what such a file is (which column is named twice,
+// which line). A binary file that is neither gets the PLY reader's message
+// (it names the format it recognizes: E57, an image...) and what treecut
+// reads.
 PointSet read_point_file(const std::filesystem::path& model, OpenedModel& out,
                          const WarningSink& warn, const std::vector<std::string>& columns) {
   // The format from the first bytes, read once.
   const std::string head = read_head(model, 4096);
   const bool las = head.starts_with("LASF");
-  const bool ply = !las && head.starts_with("ply");
+  // A byte order mark before 'ply' is the PLY reader's to name.
+  const bool ply = !las && (head.starts_with("ply") || head.starts_with("\xEF\xBB\xBFply"));
   const bool pcd = !las && !ply && looks_like_pcd(head);
-  const bool text = !las && !ply && !pcd && looks_like_text_cloud(head);
+  // Text with another format's signature (E57's "ASTM-E57") is named as that.
+  const bool text =
+      !las && !ply && !pcd && ply::other_format(head).empty() && looks_like_text_cloud(head);
   if (!columns.empty() && !text) {
     throw InputError(quoted_name(model) +
                      ": --columns names the columns of a text cloud (XYZ, PTS, CSV); this file "
@@ -174,7 +181,14 @@ PointSet read_point_file(const std::filesystem::path& model, OpenedModel& out,
   }
   if (text) {
     out.format = "text";
-    return load_text_cloud(model, warn, columns);
+    try {
+      return load_text_cloud(model, warn, columns);
+    } catch (const InputError& e) {
+      // A text with no positions at all may be no point cloud: say what is read.
+      const std::string what = e.what();
+      if (what.find(": the header names no x, y, z columns") == std::string::npos) throw;
+      throw InputError(what + "; treecut reads PLY, LAS, PCD and text (XYZ, PTS, CSV) point files");
+    }
   }
   out.format = "PLY";
   if (ply) return load_ply(model, &out.ply, warn);

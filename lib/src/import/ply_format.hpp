@@ -65,6 +65,11 @@ struct Header {
   [[nodiscard]] int find(std::string_view element_name) const;
 };
 
+/// Point-cloud and image formats a user may hand treecut by mistake, by the
+/// signature FILE starts with ("an E57 point cloud", "a PNG image"), named
+/// rather than "no 'ply' magic line"; empty for none of them.
+std::string_view other_format(std::string_view file);
+
 /// Parses and validates the header: magic, format line, element and property
 /// declarations with known types, unique names, a vertex element with scalar
 /// x/y/z and at least one row, integer vertex_indices lists. Throws Error.

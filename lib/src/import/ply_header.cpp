@@ -242,10 +242,6 @@ std::string printable(std::string_view text) {
   return out;
 }
 
-namespace {
-
-// Point-cloud and image formats a user may hand treecut by mistake, by the
-// signature they start with: named, rather than "no 'ply' magic line".
 std::string_view other_format(std::string_view file) {
   struct Signature {
     std::string_view magic, name;
@@ -267,6 +263,8 @@ std::string_view other_format(std::string_view file) {
     if (file.starts_with(s.magic)) return s.name;
   return {};
 }
+
+namespace {
 
 // The two ways a text editor commonly spoils a PLY header, named as such
 // rather than as a missing magic line; and other formats, named.

@@ -48,10 +48,20 @@ bool parse_number(std::string_view t, double& v) {
   return ec == std::errc() && end == t.data() + t.size() && std::isfinite(v);
 }
 
+// A number, or no value: "nan" (an organized cloud's hole, an attribute
+// without a value), as the PCD reader takes it.
+bool parse_value(std::string_view t, double& v) {
+  if (t == "nan" || t == "NaN" || t == "-nan" || t == "NAN") {
+    v = std::numeric_limits<double>::quiet_NaN();
+    return true;
+  }
+  return parse_number(t, v);
+}
+
 bool all_numbers(const std::vector<std::string_view>& tokens) {
   double v;
   return !tokens.empty() && std::all_of(tokens.begin(), tokens.end(),
-                                        [&](std::string_view t) { return parse_number(t, v); });
+                                        [&](std::string_view t) { return parse_value(t, v); });
 }
 
 bool comment(std::string_view line) {
@@ -103,9 +113,20 @@ std::string lower(std::string_view t) {
   return s;
 }
 
+// "x, y, z" of NAMES, the first few.
+std::string names_text(const std::vector<std::string_view>& names) {
+  std::vector<std::string> shown;
+  for (std::size_t i = 0; i < names.size() && i < 8; ++i)
+    shown.push_back(std::string(names[i].substr(0, 24)));
+  std::string text = detail::join(shown);
+  if (names.size() > 8) text += " and " + std::to_string(names.size() - 8) + " more";
+  return text;
+}
+
 Columns from_header(const std::vector<std::string_view>& names) {
   Columns c;
   c.count = static_cast<int>(names.size());
+  static constexpr const char* kAxis[3] = {"x", "y", "z"};
   static const std::vector<std::vector<std::string_view>> kRoles = {
       {"x", "east", "easting"},
       {"y", "north", "northing"},
@@ -127,14 +148,25 @@ Columns from_header(const std::vector<std::string_view>& names) {
                 : role < 3 ? &c.xyz[role]
                 : role < 6 ? &c.rgb[role - 3]
                            : &c.normal[role - 6];
+    if (slot != nullptr && *slot >= 0 && role < 3) {
+      // A position named twice is a mistake, not an attribute.
+      throw TextError("the header names " + std::string(kAxis[role]) + " twice (columns " +
+                      std::to_string(*slot + 1) + " and " + std::to_string(i + 1) + ": " +
+                      names_text(names) + ")");
+    }
     if (slot != nullptr && *slot < 0) {
       *slot = i;
     } else {
       c.keep(i, n.empty() ? "column_" + std::to_string(i + 1) : n);
     }
   }
-  if (c.xyz[0] < 0 || c.xyz[1] < 0 || c.xyz[2] < 0) {
-    throw TextError("the header names no x, y and z columns");
+  std::vector<std::string> missing;
+  for (int a = 0; a < 3; ++a) {
+    if (c.xyz[a] < 0) missing.push_back(kAxis[a]);
+  }
+  if (!missing.empty()) {
+    throw TextError("the header names no " + detail::join(missing) + " column" +
+                    (missing.size() > 1 ? "s" : "") + " (it names " + names_text(names) + ")");
   }
   // A colour or a normal is kept only whole: red without green is not kept.
   for (int* triple : {c.rgb, c.normal}) {
@@ -187,9 +219,11 @@ struct Reader {
   std::size_t line_number = 0;
   bool next(std::string_view& line) {
     while (at < text.size()) {
-      const std::size_t end = std::min(text.find('\n', at), text.size());
+      // A line ends at LF, CR LF or a lone CR (old Mac exports).
+      const std::size_t end = std::min(text.find_first_of("\r\n", at), text.size());
       line = text.substr(at, end - at);
-      at = end + 1;
+      const bool crlf = end + 1 < text.size() && text[end] == '\r' && text[end + 1] == '\n';
+      at = end + (crlf ? 2 : 1);
       ++line_number;
       if (!comment(line)) return true;
     }
@@ -262,7 +296,7 @@ void read_point(const Columns& columns, const std::vector<std::string_view>& tok
   }
   values.resize(tokens.size());
   for (std::size_t i = 0; i < tokens.size(); ++i) {
-    if (!parse_number(tokens[i], values[i])) {
+    if (!parse_value(tokens[i], values[i])) {
       throw line_error(number, "'" + std::string(tokens[i].substr(0, 40)) + "' is not a number");
     }
   }
@@ -292,8 +326,11 @@ void read_point(const Columns& columns, const std::vector<std::string_view>& tok
   }
 }
 
+constexpr std::string_view kByteOrderMark = "\xEF\xBB\xBF";
+
 PointSet parse(std::string_view text, const WarningSink& warn,
                const std::vector<std::string>& mapping) {
+  if (text.starts_with(kByteOrderMark)) text.remove_prefix(kByteOrderMark.size());
   Reader r{text};
   std::vector<std::string_view> tokens;
   std::string_view line;
@@ -316,7 +353,12 @@ PointSet parse(std::string_view text, const WarningSink& warn,
   detail::take_columns(attributes, points.attributes);
   const detail::Dropped dropped = detail::place_points(std::move(doubles), points);
   if (points.size() == 0) {
-    throw TextError("no usable points (" + dropped.far_message(dropped.first_far + 1) + ")");
+    throw TextError(dropped.far > 0
+                        ? "no usable points (" + dropped.far_message(dropped.first_far + 1) + ")"
+                        : "no points with a finite position (every one is nan)");
+  }
+  if (dropped.nonfinite > 0 && warn) {
+    warn("dropped " + std::to_string(dropped.nonfinite) + " points without a finite position");
   }
   if (dropped.far > 0 && warn) warn(dropped.far_message(dropped.first_far + 1));
   return points;
@@ -325,32 +367,28 @@ PointSet parse(std::string_view text, const WarningSink& warn,
 }  // namespace
 
 bool looks_like_text_cloud(std::string_view bytes) {
-  const std::string_view head = bytes.substr(0, 4096);
-  for (const char c : head) {
-    const auto u = static_cast<unsigned char>(c);
-    if (u < 0x20 && c != '\n' && c != '\r' && c != '\t') return false;
-    if (u >= 0x7f) return false;
+  std::string_view head = bytes.substr(0, 4096);
+  if (head.starts_with(kByteOrderMark)) head.remove_prefix(kByteOrderMark.size());
+  if (head.find_first_not_of(" \t\r\n") == std::string_view::npos) return false;
+  // Printable ASCII, tabs and line ends, or UTF-8 (a header in another
+  // language); a sequence cut by the 4096 bytes counts.
+  for (std::size_t i = 0; i < head.size(); ++i) {
+    const auto u = static_cast<unsigned char>(head[i]);
+    if (u < 0x80) {
+      if ((u < 0x20 && u != '\n' && u != '\r' && u != '\t') || u == 0x7f) return false;
+      continue;
+    }
+    const std::size_t more = (u & 0xE0) == 0xC0   ? 1
+                             : (u & 0xF0) == 0xE0 ? 2
+                             : (u & 0xF8) == 0xF0 ? 3
+                                                  : 0;
+    if (more == 0 || u < 0xC2) return false;
+    for (std::size_t k = 1; k <= more && i + k < head.size(); ++k) {
+      if ((static_cast<unsigned char>(head[i + k]) & 0xC0) != 0x80) return false;
+    }
+    i += more;
   }
-  Reader r{head};
-  std::string_view line;
-  std::vector<std::string_view> tokens;
-  if (!r.next(line)) return false;
-  split(line, tokens);
-  if (all_numbers(tokens)) {
-    if (tokens.size() >= 3) return true;
-    if (tokens.size() != 1 || !r.next(line)) return false;  // a PTS count line?
-    split(line, tokens);
-    return tokens.size() >= 3 && all_numbers(tokens);
-  }
-  // A header naming x, y and z, then a line of numbers.
-  try {
-    (void)from_header(tokens);
-  } catch (const TextError&) {
-    return false;
-  }
-  if (!r.next(line)) return false;
-  split(line, tokens);
-  return all_numbers(tokens);
+  return true;
 }
 
 PointSet load_text_cloud_from_memory(std::string_view bytes, const std::string& name,

@@ -112,7 +112,12 @@ int ground_layer(const std::array<Layer, 6>& layers, const glm::vec3& lo, const 
     const double footprint =
         static_cast<double>(size.x) * size.y / (static_cast<double>(extent[u]) * extent[v]);
     const double share = static_cast<double>(layer.count) / static_cast<double>(n);
-    if (share >= kMinLayerShare && footprint >= kMinFootprint && share > best_share) {
+    // A ground or base is at one end: the layer at the other end holds at
+    // most half as many points. The edge columns of a regular grid are
+    // layers at both ends alike (a 20 x 20 terrain grid was laid on its side).
+    const std::size_t opposite = layers[static_cast<std::size_t>(d ^ 1)].count;
+    const bool one_sided = 2 * opposite <= layer.count;
+    if (share >= kMinLayerShare && footprint >= kMinFootprint && one_sided && share > best_share) {
       best_share = share;
       best_layer = d;
     }
@@ -211,6 +216,16 @@ UpAxis detect_up_axis(const Hierarchy& hierarchy) {
   if (hierarchy.empty()) return make(2, false, "no points; default z");
   if (hierarchy.frame().z_up)
     return make(2, false, "the file format says so (LAS: z is the height)");
+  if (const std::optional<Viewpoint>& v = hierarchy.frame().viewpoint) {
+    // A depth camera looks along its +z with +y down (PCL's convention):
+    // up is its -y, turned by its orientation, to the nearest axis.
+    const glm::dvec3 up = v->orientation * glm::dvec3(0.0, -1.0, 0.0);
+    int k = 0;
+    for (int a = 1; a < 3; ++a) {
+      if (std::fabs(up[a]) > std::fabs(up[k])) k = a;
+    }
+    return make(k, up[k] < 0.0, "the sensor's viewpoint (PCD VIEWPOINT): its -y");
+  }
   const std::uint32_t nodes = hierarchy.node_count();
   // Leaves make up most nodes, so a stride over node ids samples them evenly
   // (ids are breadth-first; the leaves of a level are spatially ordered).

@@ -175,13 +175,22 @@ CameraPath orbit_path(glm::vec3 bmin, glm::vec3 bmax, float aspect, double secon
                       glm::vec3 up, float elevation) {
   keys = std::max(keys, 2);
   CameraPath path;
+  float distance = 0.0f;
   for (int i = 0; i < keys; ++i) {
     const double f = double(i) / double(keys - 1);
     CameraKey k;
     k.time = f * seconds;
     k.camera = orbit_camera(bmin, bmax, aspect, static_cast<float>(f * 2.0 * std::numbers::pi),
                             elevation, up);
+    distance = std::max(distance, glm::distance(k.camera.eye, k.camera.target));
     path.keys.push_back(k);
+  }
+  // One distance all the way round: the farthest any direction needs, so
+  // the model does not breathe as the orbit turns.
+  for (CameraKey& k : path.keys) {
+    const float moved = distance - glm::distance(k.camera.eye, k.camera.target);
+    k.camera.eye = k.camera.target + k.camera.forward() * -distance;
+    k.camera.near_plane += moved, k.camera.far_plane += moved;
   }
   return path;
 }

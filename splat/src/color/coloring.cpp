@@ -5,9 +5,11 @@
 #include <array>
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
 #include <map>
+#include <optional>
 
 #include "treecut/error.hpp"
 
@@ -280,8 +282,39 @@ std::string_view asprs_class_name(int value) {
   return kAsprs[static_cast<std::size_t>(value)].name;
 }
 
+ColorBy resolve_auto_color(const Hierarchy& h, ColorBy by, std::string* note) {
+  if (note) note->clear();
+  if (by.source != "auto") return by;
+  // The leaves' colours are the points': the RGB is usable where two differ.
+  const auto& color = h.arrays().color;
+  const auto& child_count = h.arrays().child_count;
+  std::optional<glm::u8vec4> first;
+  bool varies = false;
+  for (std::size_t n = 0; n < h.node_count() && !varies; ++n) {
+    if (child_count[n] != 0) continue;
+    if (!first) first = color[n];
+    varies = color[n] != *first;
+  }
+  if (varies) {
+    by.source = "rgb";
+    return by;
+  }
+  const NodeAttribute* intensity = h.find_attribute("intensity");
+  by.source = intensity && !intensity->is_constant() && intensity->min < intensity->max
+                  ? "intensity"
+                  : "elevation";
+  if (note) {
+    char what[64] = "none in the file";
+    if (first && *first != kUncoloured)
+      std::snprintf(what, sizeof what, "every point %d %d %d", first->x, first->y, first->z);
+    *note = std::string("no usable RGB (") + what + "): coloured by " + by.source;
+  }
+  return by;
+}
+
 void check_color_by(const Hierarchy& h, const ColorBy& by) {
-  if (by.source != "rgb" && by.source != "elevation" && h.find_attribute(by.source) == nullptr) {
+  if (by.source != "rgb" && by.source != "elevation" && by.source != "auto" &&
+      h.find_attribute(by.source) == nullptr) {
     throw InputError("--color '" + by.source + "': the model has no such attribute (it has " +
                      attribute_names(h) + ")");
   }

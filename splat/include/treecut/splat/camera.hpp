@@ -34,9 +34,9 @@ struct Camera {
 /// seen from camera.eye, with a near plane no closer than radius / 1000.
 void fit_clip_planes(Camera& camera, glm::vec3 center, float radius);
 
-/// A camera that looks at the bounding sphere of the box [bmin, bmax] from
-/// `direction` (center -> eye, any length), far enough that the sphere fills
-/// the smaller of the two fields of view for `aspect`, with `up` as up.
+/// A camera that looks at the centre of the box [bmin, bmax] from
+/// `direction` (center -> eye, any length), as near as it can be with every
+/// corner of the box in view for `aspect` (5 % margins), with `up` as up.
 Camera fit_camera(glm::vec3 bmin, glm::vec3 bmax, float aspect, glm::vec3 direction,
                   glm::vec3 up = {0.0f, 1.0f, 0.0f}, float fov_y_deg = 45.0f);
 

@@ -32,8 +32,9 @@ std::string_view color_map_name(ColorMap map);
 ColorMap parse_color_map(std::string_view name);
 
 struct ColorBy {
-  /// "rgb" (the file's colours, grey without), "elevation" (along `up`), or
-  /// the name of an attribute.
+  /// "rgb" (the file's colours, grey without), "elevation" (along `up`), the
+  /// name of an attribute, or "auto" (resolve_auto_color: rgb where the file
+  /// has usable colours).
   std::string source = "rgb";
   /// automatic: classes for a category, viridis for the rest.
   ColorMap map = ColorMap::automatic;
@@ -75,6 +76,14 @@ struct Coloring {
   Legend legend;
   std::size_t hidden_nodes = 0;
 };
+
+/// BY with an "auto" source made what it means for H (issue 43, item 11):
+/// the file's RGB where its points' colours differ; else, the RGB absent or
+/// the same at every point (a file of all-zero colours drew 83 % near-black),
+/// the intensity where it varies, else the elevation. *NOTE (if given) says
+/// which and why, once ("no usable RGB (every point 0 0 0): coloured by
+/// intensity"); empty when RGB is used. Any other source is returned as it is.
+ColorBy resolve_auto_color(const Hierarchy& h, ColorBy by, std::string* note = nullptr);
 
 /// Throws what color_nodes would for H and BY (an attribute H lacks, a
 /// class filter without classification), before any work.

@@ -1,0 +1,34 @@
+// A model's list of views (issue 30): the viewer's bookmarks, kept beside a
+// model read from a file in MODEL.views, a camera path whose key times are
+// the slots 1 to 9 (docs/camera-paths.md). GL-free, for the viewer and the
+// tests.
+//
+// A user's data is sacred (issue 43, item 5): the file is written only when
+// it is missing or when it reads whole as treecut's list of views, read
+// again just before the write, so that what it held stays (a slot another
+// viewer saved meanwhile). A file that does not read whole (a line that
+// does not parse, past the text limit), a camera path of the user's (keys
+// that are not slots), a symbolic link or anything that is not a regular
+// file is never written over.
+#pragma once
+
+#include <array>
+#include <filesystem>
+#include <optional>
+
+#include "treecut/splat/camera.hpp"
+
+namespace treecut::cli {
+
+using ViewSlots = std::array<std::optional<splat::Camera>, 9>;
+
+/// The slots FILE holds (none when FILE is missing). Throws InputError
+/// "FILE: why" when it exists and is not treecut's list of views, read whole.
+ViewSlots read_views(const std::filesystem::path& file);
+
+/// Keeps CAMERA as SLOT (1-9) in FILE: the slots FILE holds now
+/// (read_views, which throws for a file that is not a list of views) with
+/// this one set, written atomically. Returns the slots written.
+ViewSlots save_view(const std::filesystem::path& file, int slot, const splat::Camera& camera);
+
+}  // namespace treecut::cli
