@@ -544,12 +544,14 @@ void run_bench_build(const BuildArgs& args) {
 
 void add_bench_build_command(CLI::App& bench) {
   auto args = std::make_shared<BuildArgs>();
-  auto* build = bench.add_subcommand("build",
-                                     "PLY -> ready hierarchy (read, normals/radii/curvature, "
-                                     "build): median wall time and peak memory");
+  auto* build =
+      bench.add_subcommand("build",
+                           "point file -> ready hierarchy (read, normals/radii/curvature, "
+                           "build): median wall time and peak memory");
   build
-      ->add_option("MODELS", args->models,
-                   "PLY files, or gen:KIND:POINTS for an in-memory generated model")
+      ->add_option(
+          "MODELS", args->models,
+          "Point files (PLY, LAS, PCD, text), or gen:KIND:POINTS for an in-memory generated model")
       ->check(non_empty_path())
       ->required();
   build->add_option("-r,--repeat", args->repeat, "Repetitions per model (median reported)")

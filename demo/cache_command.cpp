@@ -92,9 +92,11 @@ void run_cache(const CacheArgs& a) {
   std::printf("%s: %zu cache(s), %s\n", quoted_name(folder).c_str(), caches.size(),
               megabytes(total).c_str());
   for (const CacheFileInfo& c : caches) {
+    // Names as messages show them: a name with a newline or an escape
+    // sequence cannot break the listing or drive the terminal.
     std::printf("  %10s  %s  %s  (%s)\n", megabytes(c.bytes).c_str(),
-                local_time(c.last_used).c_str(), c.model.c_str(),
-                c.file.filename().string().c_str());
+                local_time(c.last_used).c_str(), quoted_name(c.model).c_str(),
+                quoted_name(c.file.filename().string()).c_str());
   }
   if (!failed.empty()) {
     for (const std::string& f : failed) print_error(f);

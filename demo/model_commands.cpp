@@ -39,10 +39,12 @@ struct ModelArgs {
   bool real_points = false;
   int k = 12;
   std::vector<std::string> columns;
+  std::string crs;
 };
 
 void add_build_options(CLI::App& cmd, ModelArgs& args) {
   add_columns_option(cmd, args.columns);
+  add_crs_option(cmd, args.crs);
   cmd.add_option("-k,--neighbours", args.k,
                  "Neighbours for normals, radii and curvature of point clouds")
       ->check(whole_number(3, 64));
@@ -56,6 +58,7 @@ OpenOptions open_options(const ModelArgs& args) {
   o.attributes.k = args.k;
   o.build.parent_at_real_point = args.real_points;
   o.columns = args.columns;
+  o.crs = args.crs;
   o.warn = print_warning;
   if (!args.out.empty()) o.cache_path = args.out;
   return o;
@@ -417,10 +420,12 @@ void generate_model_kind(const GenArgs& g) {
 
 void add_build_command(CLI::App& app) {
   auto build_args = std::make_shared<ModelArgs>();
-  auto* build =
-      app.add_subcommand("build", "Build (or refresh) the hierarchy cache of a PLY model");
+  auto* build = app.add_subcommand(
+      "build", "Build (or refresh) the hierarchy cache of a point file (PLY, LAS, PCD, text)");
   // No CLI::ExistingFile: open_model names what MODEL is ("is a FIFO", "is a directory").
-  build->add_option("MODEL", build_args->model, "PLY file")->check(non_empty_path())->required();
+  build->add_option("MODEL", build_args->model, "The point file (PLY, LAS, PCD, XYZ, PTS, CSV)")
+      ->check(non_empty_path())
+      ->required();
   build
       ->add_option("-o,--output", build_args->out,
                    "Cache file to write (default: the user cache folder)")
@@ -437,7 +442,7 @@ void add_build_command(CLI::App& app) {
     require_regular_file(build_args->model);
     if (looks_like_cache(build_args->model))
       throw InputError(quoted_name(build_args->model) +
-                       ": is a treecut cache already; build takes a PLY model (info shows the "
+                       ": is a treecut cache already; build takes a point file (info shows the "
                        "cache)");
     if (o.cache_path) check_cache_output(*o.cache_path, build_args->model);
     ProgressBar bar("read");
@@ -450,9 +455,10 @@ void add_build_command(CLI::App& app) {
 
 void add_info_command(CLI::App& app) {
   auto info_args = std::make_shared<ModelArgs>();
-  auto* info =
-      app.add_subcommand("info", "Summarize a model (PLY, through its cache) or a cache file");
-  info->add_option("MODEL", info_args->model, "PLY, .tch cache file or .scene")
+  auto* info = app.add_subcommand(
+      "info", "Summarize a point file (through its cache), a cache file or a scene");
+  info->add_option("MODEL", info_args->model,
+                   "A point file (PLY, LAS, PCD, XYZ, PTS, CSV), a .tch cache or a .scene")
       ->check(non_empty_path())
       ->required();
   add_build_options(*info, *info_args);

@@ -85,4 +85,14 @@ void add_columns_option(CLI::App& cmd, std::vector<std::string>& names) {
           "NAME", "COLUMN"));
 }
 
+void add_crs_option(CLI::App& cmd, std::string& crs) {
+  cmd.add_option("--crs", crs,
+                 "Draw in this coordinate system (EPSG:32633, a WKT or a PROJ string): a file "
+                 "that names its own is reprojected; default: geographic input goes to the UTM "
+                 "zone of its centre, projected input stays as it is")
+      ->check(CLI::Validator(
+          [](const std::string& v) { return v.empty() ? std::string("an empty --crs") : ""; },
+          "CRS"));
+}
+
 }  // namespace treecut::cli

@@ -27,4 +27,7 @@ CLI::Validator non_empty_path();
 /// empty name is refused.
 void add_columns_option(CLI::App& cmd, std::vector<std::string>& names);
 
+/// `--crs EPSG:32633`: the coordinate system to draw in (OpenOptions::crs).
+void add_crs_option(CLI::App& cmd, std::string& crs);
+
 }  // namespace treecut::cli

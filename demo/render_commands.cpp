@@ -395,7 +395,7 @@ RunSummary run_strategy(const RenderRig& rig, const StrategyRegistry& registry,
   for (int i = 0; i < a.warmup; ++i) frame(cam);
   for (int f = 0; f < a.frames; ++f) {
     bar.update(label, static_cast<std::size_t>(f), static_cast<std::size_t>(a.frames));
-    const double t = a.frames > 1 ? rig.path.duration() * f / (a.frames - 1) : 0.0;
+    const double t = rig.path.frame_time(f, a.frames);
     cam = rig.camera_at(t);
     const double ms = frame(cam);
     FrameRow row = frame_row(f, t, ms, controller.stage().counters(), frame_loop, world != nullptr,

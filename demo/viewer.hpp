@@ -52,6 +52,7 @@ struct SceneArgs {
   std::vector<double> color_range;   ///< --color-range LOW HIGH (the file's values)
   std::string classes;               ///< --classes 2,6 | -7,-18
   std::vector<std::string> columns;  ///< --columns: a text cloud's columns
+  std::string crs;                   ///< --crs: the coordinate system to draw in
   std::string edl = "auto";          ///< --edl auto | on | off: eye-dome lighting
   float edl_strength = 0.25f;        ///< --edl-strength
   std::vector<double> clip;          ///< --clip X0 Y0 Z0 X1 Y1 Z1 (file coordinates)

@@ -150,6 +150,8 @@ class Viewer {
   splat::ColorBy color_by_;  // --color, --classes and the HUD's colour panel
   /// --color auto, not changed in the HUD since: a model opened later is
   /// resolved again (its own RGB, intensity or elevation).
+  std::string shown_status_;   ///< status_ as the HUD last saw it
+  double status_since_ = 0.0;  ///< when it changed (glfwGetTime)
   bool color_auto_ = false;
   splat::Legend legend_;  // what the colours mean now
   std::unique_ptr<Controller> controller_;

@@ -26,9 +26,9 @@
 namespace treecut::cli {
 
 void add_scene_options(CLI::App& cmd, SceneArgs& args) {
-  cmd.add_option(
-         "MODEL", args.model,
-         "PLY model, .tch cache or .scene file (default: a generated model, see --default-kind)")
+  cmd.add_option("MODEL", args.model,
+                 "A point file (PLY, LAS, PCD, XYZ, PTS, CSV), a .tch cache or a .scene file "
+                 "(default: a generated model, see --default-kind)")
       ->check(non_empty_path());
   cmd.add_option("--default-kind", args.default_kind,
                  "Procedural model used without MODEL: sphere | terrain | city | plant")
@@ -107,6 +107,7 @@ void add_scene_options(CLI::App& cmd, SceneArgs& args) {
                  "Show only these classes (2,6: ground and buildings) or hide some (-7,-18: "
                  "noise) of the classification attribute");
   add_columns_option(cmd, args.columns);
+  add_crs_option(cmd, args.crs);
   cmd.add_option("--stage-wait-bound", args.stage_wait_bound_ms,
                  "Milliseconds an update may wait for the low-priority Feedback Stage before it "
                  "runs at normal priority until done (0 = never; docs/threading.md)")
@@ -191,6 +192,7 @@ Scene load_scene(const SceneArgs& args, const LoadProgressFn& progress) {
     SceneLoadOptions so;
     so.parse.generator = tools::scene_generator();
     so.open.attributes.k = args.k;
+    so.open.crs = args.crs;
     so.open.warn = [](const std::string& w) { print_warning(w); };
     const treecut::Scene scene = treecut::load_scene(std::filesystem::path(args.model), so);
     s.world = stage_scene(scene);
@@ -233,6 +235,7 @@ Scene load_scene(const SceneArgs& args, const LoadProgressFn& progress) {
     OpenOptions o;
     o.attributes.k = args.k;
     o.columns = args.columns;
+    o.crs = args.crs;
     o.warn = [](const std::string& w) { print_warning(w); };
     o.progress = progress;
     s.hierarchy = std::make_shared<const Hierarchy>(open_model(args.model, o).hierarchy);

@@ -18,8 +18,10 @@ namespace treecut::cli {
 
 namespace {
 
-// The HUD's width in pixels: the summary's lines fit.
+// The HUD's width in pixels: the summary's lines wrap within it.
 constexpr float kHudWidth = 300.0f;
+// How long a status line stays after it last changed.
+constexpr double kStatusSeconds = 6.0;
 
 // 1234 -> "1234", 56789 -> "56.8 k", 1.5e6 -> "1.50 M": the HUD's point counts.
 std::string compact(double v) {
@@ -57,8 +59,10 @@ void Viewer::hud(const splat::FrameStats& stats) {
   const double total = scene_.world       ? double(scene_.instanced_points)
                        : scene_.hierarchy ? double(scene_.hierarchy->leaf_count())
                                           : 0.0;
-  ImGui::Text("%s splats for %s of %s points", compact(double(stats.splats)).c_str(),
-              compact(double(stats.points)).c_str(), compact(total).c_str());
+  // Every summary line wraps at the HUD's width rather than being cut there
+  // (issue 43, item 18: "... of 110.0 k poin").
+  ImGui::TextWrapped("%s splats for %s of %s points", compact(double(stats.splats)).c_str(),
+                     compact(double(stats.points)).c_str(), compact(total).c_str());
   if (c.converged) {
     ImGui::TextUnformatted("converged");
   } else {
@@ -66,12 +70,18 @@ void Viewer::hud(const splat::FrameStats& stats) {
   }
   if (governor_ && target_fps_ > 0.0) {
     // The frame-rate control: what budget holds the rate on this machine.
-    ImGui::SameLine();
-    ImGui::TextDisabled("holding %.0f fps: %s %s", target_fps_, compact(governor_->value()).c_str(),
-                        governor_->param().c_str());
+    ImGui::PushStyleColor(ImGuiCol_Text, ImGui::GetStyle().Colors[ImGuiCol_TextDisabled]);
+    ImGui::TextWrapped("holding %.0f fps: %s %s", target_fps_, compact(governor_->value()).c_str(),
+                       governor_->param().c_str());
+    ImGui::PopStyleColor();
   }
   load_progress();
-  if (!status_.empty()) ImGui::TextWrapped("%s", status_.c_str());
+  // A status line stays for a few seconds after it last changed ("saved
+  // first_hud.png" stayed until the next message).
+  const double now = glfwGetTime();
+  if (status_ != shown_status_) shown_status_ = status_, status_since_ = now;
+  if (!status_.empty() && now - status_since_ < kStatusSeconds)
+    ImGui::TextWrapped("%s", status_.c_str());
   // One closed header over the sections, each closed too.
   hud_open_ = ImGui::CollapsingHeader("more");
   if (hud_open_) {
@@ -101,6 +111,13 @@ void Viewer::details_panel() {
   if (scene_.world) {
     ImGui::Text("scene: %zu objects of %zu models, %zu draw calls", scene_.world->objects.size(),
                 scene_.world->models.size(), stats.draw_calls);
+  }
+  if (scene_.hierarchy && !scene_.world) {
+    // The coordinate system (and what a reprojection made of it) and origin.
+    const CoordinateFrame& f = scene_.hierarchy->frame();
+    if (!f.crs.empty()) ImGui::TextWrapped("crs %s", f.crs.c_str());
+    if (f.origin != glm::dvec3(0.0))
+      ImGui::Text("origin %.3f %.3f %.3f", f.origin.x, f.origin.y, f.origin.z);
   }
   if (scene_.up_axis.reason.empty()) {
     ImGui::Text("up %s  (U: next axis)", scene_.up_axis.name().c_str());

@@ -20,7 +20,8 @@ ViewSlots read_views(const std::filesystem::path& file) {
     throw InputError(system_error_text(file, errno));
   }
   const std::string name = quoted_name(file);
-  if (S_ISLNK(st.st_mode)) throw InputError(name + ": is a symbolic link, not treecut's list of views");
+  if (S_ISLNK(st.st_mode))
+    throw InputError(name + ": is a symbolic link, not treecut's list of views");
   if (!file_starts_with(file, "treecut-camera-path"))
     throw InputError(name + ": exists and is not treecut's list of views");
   // Every line parses, within the text limit; then every key is a slot.
@@ -29,7 +30,8 @@ ViewSlots read_views(const std::filesystem::path& file) {
     const auto slot = static_cast<int>(k.time);
     if (!(slot >= 1 && slot <= 9 && double(slot) == k.time) ||
         slots[static_cast<std::size_t>(slot - 1)]) {
-      throw InputError(name + ": a camera path whose key times are not the slots 1 to 9 (a key at " +
+      throw InputError(name +
+                       ": a camera path whose key times are not the slots 1 to 9 (a key at " +
                        std::to_string(k.time) + " s), not treecut's list of views");
     }
     slots[static_cast<std::size_t>(slot - 1)] = k.camera;
@@ -42,7 +44,8 @@ ViewSlots save_view(const std::filesystem::path& file, int slot, const splat::Ca
   slots[static_cast<std::size_t>(slot - 1)] = camera;
   splat::CameraPath path;
   for (int s = 1; s <= 9; ++s) {
-    if (const auto& c = slots[static_cast<std::size_t>(s - 1)]) path.keys.push_back({double(s), *c});
+    if (const auto& c = slots[static_cast<std::size_t>(s - 1)])
+      path.keys.push_back({double(s), *c});
   }
   splat::save_camera_path(file, path);
   return slots;

@@ -35,6 +35,11 @@ struct OpenOptions {
   /// empty for the file's own header or count rule. Part of the cache key;
   /// given for another format, an InputError.
   std::vector<std::string> columns;
+  /// The coordinate system to draw in (`--crs`: "EPSG:32633", a WKT or a
+  /// PROJ string): a file that names its own is reprojected to it. Empty:
+  /// geographic input (longitude, latitude) goes to the UTM zone of its
+  /// centre, any other stays as it is. Part of the cache key.
+  std::string crs;
   WarningSink warn;  ///< PLY warnings and cache notes (may be empty)
   /// Called on the calling thread with the stage ("read", "attributes",
   /// "hierarchy", "cache") and (done, total) work units within it; may be empty.
@@ -72,9 +77,11 @@ struct OpenedModel {
 std::filesystem::path default_cache_path(const std::filesystem::path& model);
 
 /// The bits of the options that change a built hierarchy (part of the cache
-/// key); a column mapping as a 17-bit hash of its names (bits 3-7, 20-31).
+/// key); a column mapping and a --crs as a 17-bit hash of their names (bits
+/// 3-7, 20-31).
 std::uint32_t options_bits(const AttributeOptions& attributes, const BuildOptions& build,
-                           const std::vector<std::string>& columns = {});
+                           const std::vector<std::string>& columns = {},
+                           const std::string& crs = {});
 
 /// Opens a model: a cache file (.tch) directly, or a PLY through its cache,
 /// rebuilding (and rewriting the cache) when it is missing, stale or corrupt.

@@ -12,6 +12,7 @@
 #include <stdexcept>
 
 #include "import/ply_format.hpp"
+#include "reproject.hpp"
 #include "treecut/cache_folder.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
@@ -55,13 +56,14 @@ std::filesystem::path default_cache_path(const std::filesystem::path& model) {
 constexpr std::uint32_t kPipelineRevision = 5;
 
 std::uint32_t options_bits(const AttributeOptions& attributes, const BuildOptions& build,
-                           const std::vector<std::string>& columns) {
+                           const std::vector<std::string>& columns, const std::string& crs) {
   std::uint32_t mapping = 0;
-  if (!columns.empty()) {
+  if (!columns.empty() || !crs.empty()) {
     std::uint64_t h = 0x9e3779b97f4a7c15ull;  // FNV-style over the names and separators
     for (const std::string& c : columns) {
       for (const char ch : c + '\0') h = (h ^ static_cast<unsigned char>(ch)) * 0x100000001b3ull;
     }
+    for (const char ch : "\x01" + crs) h = (h ^ static_cast<unsigned char>(ch)) * 0x100000001b3ull;
     h ^= h >> 29;
     mapping = static_cast<std::uint32_t>(h % 131071u) + 1u;  // never 0: "no mapping"
   }
@@ -266,6 +268,10 @@ void read_and_build(const std::filesystem::path& model, std::uint32_t bits, cons
   out.read_seconds = seconds_since(t0);
   if (changed()) throw changed_error();
   out.input_points = points.size();
+  if (const std::string moved = detail::reproject(points, options.crs, quoted_name(model));
+      !moved.empty() && options.warn) {
+    options.warn(quoted_name(model) + ": reprojected to " + moved);
+  }
   std::vector<glm::dvec3>().swap(points.exact_positions);  // an export's; the hierarchy is floats
   if (options.warn) {
     if (const std::string w = float_precision_warning(points); !w.empty()) options.warn(w);
@@ -361,7 +367,8 @@ OpenedModel open_model(const std::filesystem::path& model, const OpenOptions& op
     throw InputError(quoted_name(model) +
                      ": not a treecut cache (it does not start with a cache's signature)");
   OpenedModel out;
-  const std::uint32_t bits = options_bits(options.attributes, options.build, options.columns);
+  const std::uint32_t bits =
+      options_bits(options.attributes, options.build, options.columns, options.crs);
   out.cache = options.cache_path ? *options.cache_path : default_cache_path(model);
   // A cache that cannot be: named by the caller, an error; the default one,
   // a warning, and the model opens without it.

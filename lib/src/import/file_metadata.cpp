@@ -131,6 +131,10 @@ std::vector<std::string> metadata_lines(const PointSet& points, bool relative) {
   return lines;
 }
 
+std::string name_line(const std::string& written, const std::string& original) {
+  return std::string(kPrefix) + "name " + written + " " + hex(original);
+}
+
 bool read_metadata_line(std::string_view text, PointSet& points) {
   if (!text.starts_with(kPrefix)) return false;
   text.remove_prefix(kPrefix.size());
@@ -161,6 +165,22 @@ bool read_metadata_line(std::string_view text, PointSet& points) {
       points.frame.grid_offset = glm::dvec3(v[3], v[4], v[5]);
     }
     return true;
+  }
+  if (key == "name") {
+    const std::size_t gap = value.find(' ');
+    if (gap == std::string_view::npos) return false;
+    std::string original;
+    if (!unhex(value.substr(gap + 1), original) || original.empty() ||
+        original.size() > kMaxAttributeName)
+      return false;
+    for (PointAttribute& a : points.attributes) {
+      if (a.name == value.substr(0, gap)) {
+        a.name = original;
+        a.kind = attribute_kind_for(original);
+        return true;
+      }
+    }
+    return false;
   }
   if (key == "record") {
     // USER ID DESCRIPTION PAYLOAD, hex but the ID; the payload ends in 'x'

@@ -22,6 +22,11 @@ namespace treecut::detail {
 /// X Y Z".
 std::vector<std::string> metadata_lines(const PointSet& points, bool relative = false);
 
+/// The line that gives an attribute written as WRITTEN (a format's field
+/// names take no spaces, nor a role's name) its name ORIGINAL back:
+/// "treecut name WRITTEN HEX".
+std::string name_line(const std::string& written, const std::string& original);
+
 /// Reads one comment's text into POINTS when it is such a line (true);
 /// anything else is left alone (false). Malformed hex is not metadata. An
 /// origin line adds to frame.origin: call it after the positions are read.

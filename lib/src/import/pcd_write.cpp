@@ -4,6 +4,8 @@
 // attributes in their own types, 16-bit colours as red green blue fields.
 #include <lzf.h>
 
+#include <algorithm>
+#include <cctype>
 #include <cstdio>
 #include <stdexcept>
 #include <string>
@@ -45,12 +47,26 @@ std::vector<Column> columns_of(const PointSet& p, const SaveOptions& options) {
     for (int k = 0; k < 3; ++k)
       c.push_back({kChannel[k], ValueType::u16, Column::Source::rgb16, k});
   }
+  // A field name is one token, and not one the reader takes for a role
+  // (without regard to case): "height above ground" -> height_above_ground,
+  // an extra-bytes field called Red -> Red_attribute. The name comes back
+  // through a treecut comment (header()).
+  std::vector<std::string> used = {"x",        "y",        "z",        "normal_x", "normal_y",
+                                   "normal_z", "nx",       "ny",       "nz",       "rgb",
+                                   "rgba",     "red",      "green",    "blue",     "r",
+                                   "g",        "b",        "_"};
+  auto lower = [](std::string t) {
+    for (char& ch : t) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+    return t;
+  };
   for (std::size_t k = 0; k < p.attributes.size(); ++k) {
     const PointAttribute& a = p.attributes[k];
-    std::string name = a.name;
+    std::string name = a.name.empty() ? "attribute" : a.name;
     for (char& ch : name) {
-      if (ch == ' ' || ch == '\t') ch = '_';
+      if (ch == ' ' || ch == '\t' || static_cast<unsigned char>(ch) < 0x20) ch = '_';
     }
+    while (std::find(used.begin(), used.end(), lower(name)) != used.end()) name += "_attribute";
+    used.push_back(lower(name));
     c.push_back({name, detail::output_type(a, p.size(), /*no_int64=*/false),
                  Column::Source::attribute, static_cast<int>(k)});
   }
@@ -83,6 +99,11 @@ std::string header(const PointSet& points, const std::vector<Column>& c, PcdData
   std::string out(kPcdSignature);
   for (const std::string& line : detail::metadata_lines(points, options.relative))
     out += "# " + line + "\n";
+  for (const Column& k : c) {
+    if (k.source != Column::Source::attribute) continue;
+    const std::string& original = points.attributes[static_cast<std::size_t>(k.index)].name;
+    if (k.name != original) out += "# " + detail::name_line(k.name, original) + "\n";
+  }
   out += "VERSION 0.7\nFIELDS";
   for (const Column& k : c) out += " " + k.name;
   out += "\nSIZE";

@@ -93,6 +93,11 @@ std::string header(const PointSet& points, const Layout& l, const SaveOptions& o
   std::string out = "ply\nformat binary_little_endian 1.0\ncomment written by treecut\n";
   for (const std::string& line : detail::metadata_lines(points, options.relative))
     out += "comment " + line + "\n";
+  const std::vector<std::string> names = attribute_names(points);
+  for (std::size_t k = 0; k < names.size(); ++k) {
+    if (names[k] != points.attributes[k].name)
+      out += "comment " + detail::name_line(names[k], points.attributes[k].name) + "\n";
+  }
   out += "element vertex " + std::to_string(points.size()) + "\n";
   out += l.doubles ? "property double x\nproperty double y\nproperty double z\n"
                    : "property float x\nproperty float y\nproperty float z\n";
@@ -103,7 +108,6 @@ std::string header(const PointSet& points, const Layout& l, const SaveOptions& o
                : "property ushort red\nproperty ushort green\nproperty ushort blue\n";
   }
   if (points.has_radii()) out += "property float radius\n";
-  const std::vector<std::string> names = attribute_names(points);
   for (std::size_t k = 0; k < names.size(); ++k)
     out += "property " + std::string(ply_type(l.types[k])) + " " + names[k] + "\n";
   if (!points.triangles.empty()) {

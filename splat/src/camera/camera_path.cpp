@@ -166,6 +166,19 @@ CameraPath load_camera_path(const std::filesystem::path& file) {
   return parse_camera_path(read_text_file(file, kTextInputLimit), quoted_name(file));
 }
 
+bool CameraPath::loops() const {
+  if (keys.size() < 3) return false;
+  const Camera &a = keys.front().camera, &b = keys.back().camera;
+  const float scale = std::max(glm::length(a.eye - a.target), 1e-6f);
+  return glm::distance(a.eye, b.eye) <= 1e-5f * scale &&
+         glm::distance(a.target, b.target) <= 1e-5f * scale && a.fov_y_deg == b.fov_y_deg;
+}
+
+double CameraPath::frame_time(int f, int frames) const {
+  if (frames <= 1) return 0.0;
+  return duration() * double(f) / double(loops() ? frames : frames - 1);
+}
+
 void save_camera_path(const std::filesystem::path& file, const CameraPath& path) {
   // Temporary + rename: a full disk leaves no truncated path that looks complete.
   write_file_atomically(file, format_camera_path(path));

@@ -33,6 +33,13 @@ struct CameraPath {
   /// The camera at time t (clamped to the path), eye/target/up/fov linearly
   /// interpolated between the surrounding keys. Requires !empty().
   [[nodiscard]] Camera at(double t) const;
+  /// The path ends where it starts (an orbit): the time after its last key
+  /// is its first key's view again.
+  [[nodiscard]] bool loops() const;
+  /// The time of frame F of FRAMES spread over the path: over [0, duration]
+  /// for a path that goes somewhere, over [0, duration) for one that loops,
+  /// so no two frames of an orbit look from one place (issue 43, item 18).
+  [[nodiscard]] double frame_time(int f, int frames) const;
 };
 
 /// Parses the text format; throws InputError "NAME:LINE: problem" on any
