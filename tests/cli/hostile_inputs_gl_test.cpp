@@ -300,7 +300,7 @@ TEST_F(Hostile, BuildOfACacheIsRefusedNotSilentlySkipped) {
   const fs::path model = sphere(dir, "m.ply");
   ASSERT_EQ(run_treecut("build " + quote(model) + " -o " + quote(dir / "m.tch")).code, 0);
   expect_failure(run_treecut("build " + quote(dir / "m.tch") + " -o " + quote(dir / "other.tch")),
-                 2, "m.tch: is a treecut cache already; build takes a PLY model");
+                 2, "m.tch: is a treecut cache already; build takes a point file");
   EXPECT_FALSE(fs::exists(dir / "other.tch"));
 }
 

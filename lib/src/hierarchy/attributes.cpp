@@ -155,24 +155,25 @@ void from_faces(PointSet& ps, bool want_normals, bool want_radii, bool want_curv
 }
 
 // The splat radius from a neighbourhood: FOUND neighbours within D2K (the
-// farthest's squared distance), spread as COV says. On a surface, discs of
-// radius r at local density rho = found / (pi d_k^2) leave a fraction
-// exp(-rho pi r^2) of a randomly sampled surface uncovered: r = d_k sqrt(7 /
-// found) -> 0.1%, no visible pinholes. Along a line (a wire, a scan line, a
-// handful of collinear points: the spread across under 1 % of the spread
-// along, which the sum of the covariance's principal 2x2 minors tells
-// without an eigen solve) the density is found / (2 d_k) and the same 0.1 %
-// is r = 3.45 d_k / found: the surface's rule there drew discs several
-// spacings wide, ten collinear points covering half a frame (issue 43,
-// item 12).
+// farthest's squared distance), spread as COV says (the point with its
+// neighbours). On a surface, discs of radius r at local density rho = found
+// / (pi d_k^2) leave a fraction exp(-rho pi r^2) of a randomly sampled
+// surface uncovered: r = d_k sqrt(7 / found) -> 0.1%, no visible pinholes.
+// Along a line (a wire, a scan line, a handful of collinear points: the
+// spread across under 1 % of the spread along, which the sum of the
+// covariance's principal 2x2 minors tells without an eigen solve) the
+// points span L = sqrt(12 var) (a uniform segment's variance is L^2 / 12),
+// their density is found / L, and the same 0.1 % is r = 3.45 / (2 rho) =
+// 1.725 L / found: the surface's rule there drew discs several spacings
+// wide, ten collinear points covering half a frame (issue 43, item 12).
 float neighbourhood_radius(const detail::Sym3& cov, float d2k, int found) {
   const double trace = double(cov.xx) + cov.yy + cov.zz;
   const double minors = double(cov.xx) * cov.yy - double(cov.xy) * cov.xy +
                         double(cov.xx) * cov.zz - double(cov.xz) * cov.xz +
                         double(cov.yy) * cov.zz - double(cov.yz) * cov.yz;
-  const float dk = std::sqrt(d2k);
-  if (trace > 0.0 && minors <= 0.01 * trace * trace) return 3.45f * dk / static_cast<float>(found);
-  return dk * std::sqrt(7.0f / static_cast<float>(found));
+  if (trace > 0.0 && minors <= 0.01 * trace * trace)
+    return static_cast<float>(1.725 * std::sqrt(12.0 * trace) / found);
+  return std::sqrt(d2k * 7.0f / static_cast<float>(found));
 }
 
 void from_neighbours(PointSet& ps, int k, bool want_normals, bool want_radii, bool want_curvature) {
