@@ -61,11 +61,13 @@ void run_cache(const CacheArgs& a) {
     remove = caches;
   } else {
     if (a.older_than_days >= 0.0) {
-      const auto cut = std::filesystem::file_time_type::clock::now() -
-                       std::chrono::duration_cast<std::filesystem::file_time_type::duration>(
-                           std::chrono::duration<double, std::ratio<86400>>(a.older_than_days));
+      // Each cache's age in days, in double: a cut-off of now less 60,000
+      // days overflowed the clock and made every cache old.
+      const auto now = std::filesystem::file_time_type::clock::now();
       for (const CacheFileInfo& c : caches) {
-        if (c.last_used < cut) remove.push_back(c);
+        const double days =
+            std::chrono::duration<double, std::ratio<86400>>(now - c.last_used).count();
+        if (days > a.older_than_days) remove.push_back(c);
       }
     }
     if (max_size) {

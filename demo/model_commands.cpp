@@ -75,14 +75,15 @@ void print_attributes(const Hierarchy& h) {
   for (const NodeAttribute& a : h.attributes()) {
     const bool category = a.kind == AttributeKind::category;
     const char* kind = category ? "category" : "measure";
+    const std::string name = one_line(a.name);
     if (std::isnan(a.min)) {
-      std::printf("  %-22s %-8s no values\n", a.name.c_str(), kind);
+      std::printf("  %-22s %-8s no values\n", name.c_str(), kind);
     } else if (a.min == a.max) {
-      std::printf("  %-22s %-8s %s at every point\n", a.name.c_str(), kind,
+      std::printf("  %-22s %-8s %s at every point\n", name.c_str(), kind,
                   exact_number(a.min).c_str());
     } else {
       // The file's values, exact (a GPS time keeps its microseconds).
-      std::printf("  %-22s %-8s %s .. %s\n", a.name.c_str(), kind, exact_number(a.min).c_str(),
+      std::printf("  %-22s %-8s %s .. %s\n", name.c_str(), kind, exact_number(a.min).c_str(),
                   exact_number(a.max).c_str());
     }
   }

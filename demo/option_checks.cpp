@@ -6,6 +6,7 @@
 #include <string>
 #include <string_view>
 
+#include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
 
 namespace treecut::cli {
@@ -74,15 +75,23 @@ CLI::Validator non_empty_path() {
 }
 
 void add_columns_option(CLI::App& cmd, std::vector<std::string>& names) {
-  cmd.add_option("--columns", names,
-                 "A text cloud's columns in order, e.g. x,y,z,intensity,_,r,g,b (x y z, r g b, "
-                 "nx ny nz, any other name an attribute, _ skipped); replaces its header")
-      ->delimiter(',')
-      ->check(CLI::Validator(
-          [](std::string& name) -> std::string {
-            return name.empty() ? std::string("an empty column name") : std::string();
-          },
-          "NAME", "COLUMN"));
+  cmd.add_option_function<std::string>(
+      "--columns",
+      [&names](const std::string& text) {
+        // Every name given, none empty: `--columns ''` is a mistake (an unset
+        // shell variable), not "no mapping".
+        names.clear();
+        std::size_t at = 0;
+        do {
+          const std::size_t end = std::min(text.find(',', at), text.size());
+          if (end == at)
+            throw InputError("--columns '" + text + "': an empty column name (give x,y,z,...)");
+          names.push_back(text.substr(at, end - at));
+          at = end + 1;
+        } while (at <= text.size());
+      },
+      "A text cloud's columns in order, e.g. x,y,z,intensity,_,r,g,b (x y z, r g b, nx ny nz, any "
+      "other name an attribute, _ skipped); replaces its header");
 }
 
 void add_crs_option(CLI::App& cmd, std::string& crs) {

@@ -36,9 +36,15 @@ void check_replaceable_output(const std::filesystem::path& out, OwnFile ours,
                      " treecut wrote; refusing to overwrite it");
 }
 
+// The first two lines treecut writes (save_camera_path; gen's scenes),
+// then the whole file parses: a user's hand-written path or scene, whose
+// lines are not those, is the user's.
 bool is_own_camera_path(const std::filesystem::path& path) {
   try {
-    if (!file_starts_with(path, "treecut-camera-path")) return false;
+    if (!file_starts_with(path,
+                          "treecut-camera-path 1\n# time eye.x eye.y eye.z target.x "
+                          "target.y target.z up.x up.y up.z fov_y_deg\n"))
+      return false;
     (void)splat::load_camera_path(path);
     return true;
   } catch (const std::exception&) {
@@ -48,7 +54,7 @@ bool is_own_camera_path(const std::filesystem::path& path) {
 
 bool is_own_scene(const std::filesystem::path& path) {
   try {
-    if (!file_starts_with(path, "treecut-scene")) return false;
+    if (!file_starts_with(path, "treecut-scene 1\n# treecut gen ")) return false;
     SceneParseOptions options;
     options.generator = tools::scene_generator();
     (void)parse_scene_file(path, options);

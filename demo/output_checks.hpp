@@ -25,8 +25,9 @@ using OwnFile = bool (*)(const std::filesystem::path&);
 void check_replaceable_output(const std::filesystem::path& out, OwnFile ours,
                               std::string_view written, std::string_view kind);
 
-/// A camera path or scene file treecut wrote: its first line and the whole
-/// file parses (a text input, at most 16 MiB).
+/// A camera path or scene file treecut wrote: the lines treecut writes
+/// first (the format line and treecut's comment) and the whole file parses
+/// (a text input, at most 16 MiB).
 bool is_own_camera_path(const std::filesystem::path& path);
 bool is_own_scene(const std::filesystem::path& path);
 

@@ -29,8 +29,9 @@ void Viewer::load_bookmarks() {
   try {
     bookmarks_ = read_views(file);
   } catch (const std::exception& e) {
-    // Not a list of views: named, and the viewer goes on without them.
-    print_error(std::string(e.what()) + " (bookmarks not read)", true);
+    // Not a list of views: a warning, and the viewer goes on without them
+    // (a save later is the failure, in one line of its own).
+    print_warning(std::string(e.what()) + " (bookmarks not read)");
   }
 }
 
@@ -45,7 +46,8 @@ void Viewer::save_bookmark(int slot) {
     try {
       bookmarks_ = save_view(file, slot, camera_);
     } catch (const InputError& e) {
-      throw std::runtime_error(std::string(e.what()) + "; not replaced");
+      const std::string what = e.what();
+      throw std::runtime_error(what.ends_with("not replaced") ? what : what + "; not replaced");
     }
     status_ = "view " + std::to_string(slot) + " saved in " + file.filename().string();
     std::printf("bookmark  %d saved in %s\n", slot, quoted_name(file).c_str());

@@ -4,6 +4,7 @@
 #include <sys/stat.h>
 
 #include <cerrno>
+#include <cstdio>
 #include <string>
 
 #include "treecut/error.hpp"
@@ -22,17 +23,26 @@ ViewSlots read_views(const std::filesystem::path& file) {
   const std::string name = quoted_name(file);
   if (S_ISLNK(st.st_mode))
     throw InputError(name + ": is a symbolic link, not treecut's list of views");
+  if (!S_ISREG(st.st_mode)) {
+    throw InputError(name + ": is " + std::string(describe(file_kind(file))) +
+                     ", not treecut's list of views");
+  }
   if (!file_starts_with(file, "treecut-camera-path"))
     throw InputError(name + ": exists and is not treecut's list of views");
-  // Every line parses, within the text limit; then every key is a slot.
+  // Every line parses, within the text limit; then every key is a slot, once.
   const splat::CameraPath path = splat::load_camera_path(file);
   for (const splat::CameraKey& k : path.keys) {
     const auto slot = static_cast<int>(k.time);
-    if (!(slot >= 1 && slot <= 9 && double(slot) == k.time) ||
-        slots[static_cast<std::size_t>(slot - 1)]) {
+    if (!(slot >= 1 && slot <= 9 && double(slot) == k.time)) {
+      char at[32];
+      std::snprintf(at, sizeof at, "%.9g", k.time);
       throw InputError(name +
-                       ": a camera path whose key times are not the slots 1 to 9 (a key at " +
-                       std::to_string(k.time) + " s), not treecut's list of views");
+                       ": a camera path whose key times are not the slots 1 to 9 (a key at " + at +
+                       " s), not treecut's list of views");
+    }
+    if (slots[static_cast<std::size_t>(slot - 1)]) {
+      throw InputError(name + ": slot " + std::to_string(slot) +
+                       " twice, not treecut's list of views");
     }
     slots[static_cast<std::size_t>(slot - 1)] = k.camera;
   }
@@ -41,6 +51,9 @@ ViewSlots read_views(const std::filesystem::path& file) {
 
 ViewSlots save_view(const std::filesystem::path& file, int slot, const splat::Camera& camera) {
   ViewSlots slots = read_views(file);
+  struct stat st {};
+  if (::stat(file.c_str(), &st) == 0 && (st.st_mode & 0222) == 0)
+    throw InputError(quoted_name(file) + ": is read-only; not replaced");
   slots[static_cast<std::size_t>(slot - 1)] = camera;
   splat::CameraPath path;
   for (int s = 1; s <= 9; ++s) {

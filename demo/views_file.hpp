@@ -28,7 +28,8 @@ ViewSlots read_views(const std::filesystem::path& file);
 
 /// Keeps CAMERA as SLOT (1-9) in FILE: the slots FILE holds now
 /// (read_views, which throws for a file that is not a list of views) with
-/// this one set, written atomically. Returns the slots written.
+/// this one set, written atomically; a read-only FILE is an InputError
+/// too. Returns the slots written.
 ViewSlots save_view(const std::filesystem::path& file, int slot, const splat::Camera& camera);
 
 }  // namespace treecut::cli

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 #include <sys/stat.h>
 
+#include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -37,19 +38,7 @@ using test::run_treecut;
 using test::scratch_dir;
 using test::write_text;
 
-std::size_t lines(const std::string& text) {
-  std::size_t n = 0;
-  std::istringstream in(text);
-  for (std::string line; std::getline(in, line);) ++n;
-  return n;
-}
-
-// A failure as the house rule has it: CODE, one line, saying TEXT.
-void expect_refused(const CommandResult& r, int code, const std::string& text) {
-  EXPECT_EQ(r.code, code) << r.out;
-  EXPECT_EQ(lines(r.out), 1u) << r.out;
-  EXPECT_NE(r.out.find(text), std::string::npos) << r.out;
-}
+const auto expect_refused = test::expect_failure;
 
 // A LAS tile of every class in CLASSES' proportions (class, points), with a
 // varying intensity and GPS week times; no colours unless ZERO_RGB (every
@@ -146,6 +135,27 @@ TEST(FieldFilesCli, AnExportReplacesOnlyAFileItWrote) {
   expect_refused(export_to(dir / "note.pcd"), 2, "is not a PCD file treecut wrote");
 }
 
+// Hostile round: a text cloud's intensity of -2048 or 0.5, a class of 256,
+// do not fit LAS's fields: refused naming them (they were clamped without a
+// word); PLY keeps them. A hand-written camera path is the user's.
+TEST(FieldFilesCli, AnExportRefusesWhatLasCannotHoldAndReplacesNoHandWrittenPath) {
+  const fs::path dir = scratch_dir("cli_field_fit");
+  write_text(dir / "s.pts", "3\n0 0 0 -2048 10 20 30\n1 0 0 -5 10 20 30\n2 0 0 100 10 20 30\n");
+  expect_refused(
+      run_treecut("export " + quote(dir / "s.pts") + " -o " + quote(dir / "s.las")), 2,
+      "s.las: intensity -2048 does not fit LAS's intensity (whole numbers from 0 to 65535)");
+  EXPECT_FALSE(fs::exists(dir / "s.las"));
+  write_text(dir / "a.csv", "x,y,z,classification\n0,0,0,256\n1,0,0,3\n2,0,0,3\n");
+  expect_refused(run_treecut("export " + quote(dir / "a.csv") + " -o " + quote(dir / "a.las")), 2,
+                 "classification 256 does not fit LAS's classification");
+  EXPECT_EQ(run_treecut("export " + quote(dir / "s.pts") + " -o " + quote(dir / "s.ply")).code, 0);
+  write_text(dir / "mine.campath",
+             "treecut-camera-path 1\n# my hand-tuned path\n0 0 -3 1 0 0 0 0 0 1 45\n");
+  expect_refused(run_treecut("gen city -n 300 -o " + quote(dir / "c.ply") + " --walk " +
+                             quote(dir / "mine.campath")),
+                 2, "is not a camera path treecut wrote");
+}
+
 // Item 4: cache --clear removes only caches whose header checks out: a
 // 25-byte file that starts with the cache's signature is the user's.
 TEST(FieldFilesCli, CacheClearRemovesOnlyWholeCaches) {
@@ -153,12 +163,32 @@ TEST(FieldFilesCli, CacheClearRemovesOnlyWholeCaches) {
   const fs::path folder = dir / "caches";
   fs::create_directories(folder);
   write_text(folder / "mine.tch", "TCUTHIER and then my own");
+  // One that claims an older version (1) with a header of 64 bytes: its
+  // header cannot be verified, so it is the user's (hostile round).
+  std::string old = "TCUTHIER";
+  for (const std::uint32_t v : {1u, 0x01020304u, 64u})
+    old.append(reinterpret_cast<const char*>(&v), 4);
+  old.resize(72, '\0');
+  write_text(folder / "old.tch", old);
   const fs::path model = tile(dir, "m.las", {{2, 50}});
   ASSERT_EQ(run_treecut("build " + quote(model) + " -o " + quote(folder / "m.tch")).code, 0);
   const CommandResult r = run_treecut("cache --folder " + quote(folder) + " --clear");
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_FALSE(fs::exists(folder / "m.tch"));
   EXPECT_EQ(read_all(folder / "mine.tch"), "TCUTHIER and then my own");
+  EXPECT_EQ(read_all(folder / "old.tch"), old);
+  // --older-than of 60,000 days keeps a cache used two days ago (the cut-off
+  // overflowed the clock and every cache went).
+  ASSERT_EQ(run_treecut("build " + quote(model) + " -o " + quote(folder / "m.tch")).code, 0);
+  fs::last_write_time(folder / "m.tch", fs::file_time_type::clock::now() - std::chrono::hours(48));
+  for (const char* days : {"60000", "1e6", "3"}) {
+    const CommandResult older =
+        run_treecut("cache --folder " + quote(folder) + " --older-than " + days);
+    EXPECT_EQ(older.code, 0) << older.out;
+    EXPECT_TRUE(fs::exists(folder / "m.tch")) << days;
+  }
+  EXPECT_EQ(run_treecut("cache --folder " + quote(folder) + " --older-than 1").code, 0);
+  EXPECT_FALSE(fs::exists(folder / "m.tch")) << "two days old: past one";
   // build -o refuses to replace it as well.
   expect_refused(run_treecut("build " + quote(model) + " -o " + quote(folder / "mine.tch")), 2,
                  "is not a treecut cache treecut wrote");
@@ -195,12 +225,33 @@ TEST(FieldFilesCli, AViewsFileIsWrittenOnlyWhenMissingOrReadWhole) {
   splat::save_camera_path(dir / "path.views", user);
   write_text(dir / "huge.views", read_all(dir / "m.views") + std::string(17 << 20, '#'));
   fs::create_symlink(dir / "m.views", dir / "link.views");
-  for (const char* name : {"broken.views", "path.views", "huge.views", "link.views"}) {
+  fs::copy_file(dir / "m.views", dir / "locked.views");
+  fs::permissions(dir / "locked.views", fs::perms::owner_read);
+  std::string twice = read_all(dir / "m.views");
+  twice += twice.substr(twice.rfind('\n', twice.size() - 2) + 1);  // the last slot again
+  write_text(dir / "twice.views", twice);
+  for (const char* name :
+       {"broken.views", "path.views", "huge.views", "link.views", "locked.views", "twice.views"}) {
     const std::string before = read_all(dir / name);
     EXPECT_THROW((void)save_view(dir / name, 1, cam), InputError) << name;
     EXPECT_EQ(read_all(dir / name), before) << name;
   }
   EXPECT_TRUE(fs::is_symlink(dir / "link.views"));
+  EXPECT_EQ(fs::status(dir / "locked.views").permissions() & fs::perms::all, fs::perms::owner_read);
+  // Each named as what it is.
+  fs::create_directories(dir / "folder.views");
+  const auto reason = [&](const char* name) {
+    try {
+      (void)read_views(dir / name);
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("(read)");
+  };
+  EXPECT_NE(reason("folder.views").find("is a directory, not treecut's list of views"),
+            std::string::npos);
+  EXPECT_NE(reason("twice.views").find(": slot 7 twice"), std::string::npos)
+      << reason("twice.views");
 }
 
 // Item 11: no usable RGB (none, or 0 0 0 everywhere) is coloured by the

@@ -40,12 +40,7 @@ std::size_t line_count(const std::string& text) {
   return n;
 }
 
-// Exit CODE, exactly one line of output, which contains TEXT.
-void expect_failure(const CommandResult& r, int code, const std::string& text) {
-  EXPECT_EQ(r.code, code) << r.out;
-  EXPECT_EQ(line_count(r.out), 1u) << r.out;
-  EXPECT_NE(r.out.find(text), std::string::npos) << "wanted: " << text << "\ngot: " << r.out;
-}
+using treecut::test::expect_failure;
 
 std::vector<fs::path> files_in(const fs::path& dir) {
   std::vector<fs::path> out;

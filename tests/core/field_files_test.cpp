@@ -148,6 +148,33 @@ TEST(FieldFiles, APlyOfDoublesAtMapCoordinatesGetsAnOrigin) {
   EXPECT_EQ(q.exact_positions, p.exact_positions) << "written as the doubles they were";
 }
 
+// Hostile round: a 64-bit integer past 2^53 (an int64 of 2^62 + 1, a
+// uint64 of 2^64 - 1) survives LAS -> LAS and LAS -> PCD -> LAS exactly.
+TEST(FieldFiles, SixtyFourBitIntegersPastADoublesRangeAreExact) {
+  const fs::path dir = test::scratch_dir("field_int64");
+  PointSet p;
+  PointAttribute big{.name = "big", .type = ValueType::i64};
+  PointAttribute huge{.name = "huge", .type = ValueType::u64};
+  for (int i = 0; i < 10; ++i) {
+    p.positions.push_back({float(i), 0.0f, 0.0f});
+    big.integers.push_back(i == 1 ? (std::int64_t{1} << 62) + 1 : -i);
+    huge.integers.push_back(i == 2 ? -1 : i);  // the bits of 2^64 - 1
+  }
+  p.attributes = {big, huge};
+  save_las(dir / "a.las", p);
+  const PointSet a = load_las(dir / "a.las");
+  ASSERT_NE(find(a, "big"), nullptr);
+  ASSERT_EQ(find(a, "big")->integers.size(), 10u);
+  EXPECT_EQ(find(a, "big")->integers[1], (std::int64_t{1} << 62) + 1);
+  EXPECT_EQ(static_cast<std::uint64_t>(find(a, "huge")->integers[2]), ~std::uint64_t{0});
+  save_pcd(dir / "a.pcd", a);
+  const PointSet b = load_pcd(dir / "a.pcd");
+  save_las(dir / "b.las", b);
+  const PointSet c = load_las(dir / "b.las");
+  EXPECT_EQ(find(c, "big")->integers, find(a, "big")->integers);
+  EXPECT_EQ(find(c, "huge")->integers, find(a, "huge")->integers);
+}
+
 // Item 6: a first point at 1e20 is the one dropped and named, not the
 // other four (it used to become the origin).
 TEST(FieldFiles, AnOutlierIsDroppedAndNamedAndTheRestKept) {
@@ -159,8 +186,8 @@ TEST(FieldFiles, AnOutlierIsDroppedAndNamedAndTheRestKept) {
     EXPECT_EQ(p.size(), 4u) << far;
     EXPECT_EQ(p.frame.origin, glm::dvec3(0.0)) << far;
     ASSERT_EQ(warnings.size(), 1u) << far;
-    EXPECT_EQ(warnings[0].rfind("o.xyz: dropped 1 point more than 1e18 from the others (the "
-                                "first: point 1 at ",
+    EXPECT_EQ(warnings[0].rfind("o.xyz: dropped 1 point beyond the coordinate limit, 1e18 from "
+                                "the others or from zero (the first: point 1 at ",
                                 0),
               0u)
         << warnings[0];
@@ -169,6 +196,17 @@ TEST(FieldFiles, AnOutlierIsDroppedAndNamedAndTheRestKept) {
       "VERSION 0.7\nFIELDS x y z\nSIZE 8 8 8\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 5\nHEIGHT 1\n"
       "POINTS 5\nDATA ascii\n1e20 0 0\n1 2 3\n4 5 6\n7 8 9\n2 2 2\n";
   EXPECT_EQ(load_pcd_from_memory(pcd, "o.pcd").size(), 4u);
+  // A cloud wholly past the limit is none: its LAS would be refused by every
+  // reader (the hostile round exported one).
+  try {
+    (void)load_text_cloud_from_memory("0 0 1e19\n1 2 1e19\n", "far.xyz");
+    ADD_FAILURE() << "loaded";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("no usable points (dropped 2 points beyond the coordinate "
+                                         "limit"),
+              std::string::npos)
+        << e.what();
+  }
 }
 
 // Item 7: a float cloud near the origin is not "map coordinates" (the
@@ -327,6 +365,26 @@ TEST(FieldFiles, PcdFieldNamesIgnoreCaseAndChannelsAreTheColour) {
   EXPECT_EQ(p.attributes[0].type, ValueType::u16);
 }
 
+// Hostile round: a PCD that opens with a 70 kB comment, or with WIDTH
+// before FIELDS, is a PCD; an ascii PCD is never treecut's own to replace.
+TEST(FieldFiles, APcdIsKnownByAnyOfItsHeaderLines) {
+  const fs::path dir = test::scratch_dir("field_pcd_header");
+  const std::string header =
+      "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nHEIGHT 1\n"
+      "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 3\nDATA ascii\n1 2 3\n4 5 6\n7 8 9\n";
+  test::write_text(dir / "comment.pcd", "# " + std::string(70000, 'c') + "\nWIDTH 3\n" + header);
+  test::write_text(dir / "width.pcd", "WIDTH 3\n" + header);
+  std::string format;
+  for (const char* name : {"comment.pcd", "width.pcd"}) {
+    EXPECT_EQ(load_point_file(dir / name, {}, &format).size(), 3u) << name;
+    EXPECT_EQ(format, "PCD") << name;
+  }
+  save_pcd(dir / "own.pcd", load_point_file(dir / "width.pcd"), PcdData::ascii);
+  EXPECT_FALSE(is_own_pcd(dir / "own.pcd"));
+  save_pcd(dir / "own.pcd", load_point_file(dir / "width.pcd"));
+  EXPECT_TRUE(is_own_pcd(dir / "own.pcd"));
+}
+
 // Item 17: when no other format claims a text, the text reader says what
 // is wrong with it (a column named twice, one missing); a first line of
 // nan, CR-only line ends and a byte order mark are read.
@@ -353,6 +411,12 @@ TEST(FieldFiles, TheTextReaderSaysWhatIsWrongWithAText) {
                   "1 2 3\n4 5 6\n"),
             "(loaded)");
   EXPECT_EQ(error("line.xyz", "1 2 3\n4 5 6\n7 eight 9\n"), ":3: 'eight' is not a number");
+  EXPECT_EQ(error("nul.xyz", std::string("1 2 3\n4 5\0"
+                                         "6\n7 8 9\n",
+                                         18))
+                .substr(0, 4),
+            ":2: ")
+      << "a stray byte is named with its line, not as 'not a PLY file'";
   std::string format;
   EXPECT_EQ(load_point_file(dir / "cr.xyz", {}, &format).size(), 3u);
   EXPECT_EQ(format, "text");

@@ -10,6 +10,7 @@
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <sstream>
 
 namespace treecut::test {
 
@@ -39,6 +40,15 @@ std::filesystem::path scratch_dir(const std::string& name) {
   std::filesystem::remove_all(p);
   std::filesystem::create_directories(p);
   return p;
+}
+
+void expect_failure(const CommandResult& r, int code, const std::string& text) {
+  std::size_t lines = 0;
+  std::istringstream in(r.out);
+  for (std::string line; std::getline(in, line);) ++lines;
+  EXPECT_EQ(r.code, code) << r.out;
+  EXPECT_EQ(lines, 1u) << r.out;
+  EXPECT_NE(r.out.find(text), std::string::npos) << "wanted: " << text << "\ngot: " << r.out;
 }
 
 CommandResult run_treecut(const std::string& args, int timeout_seconds) {

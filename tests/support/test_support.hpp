@@ -23,6 +23,9 @@ struct CommandResult {
 /// `timeout`: a command that hangs fails the test with code 124 instead of
 /// stalling the suite.
 CommandResult run_treecut(const std::string& args, int timeout_seconds = 300);
+/// The house rule for a failure (docs/files.md): exit CODE and exactly one
+/// line of output, which contains TEXT (an EXPECT each).
+void expect_failure(const CommandResult& r, int code, const std::string& text);
 /// Runs the built `treecut` with `args` (already shell-quoted) in a window
 /// under Xvfb (`xvfb-run -a`, screen WxHxDEPTH), from folder `dir`, with the
 /// environment assignments `env` ("A=1 B=2") and no leak check (Mesa's GLX

@@ -77,11 +77,12 @@ std::uint64_t content_hash_of(const std::filesystem::path& source);
 bool looks_like_cache(const std::filesystem::path& path);
 
 /// Whether PATH is a cache treecut wrote, as far as its header can tell
-/// without reading the rest: not a symbolic link, the magic, a version
-/// treecut has written, this machine's byte order, a header size of that
-/// version and, for this version, the file's exact size. What `build -o`,
-/// `cache --clear` and the folder's size limit may replace or remove (a
-/// 25-byte file that starts with the magic is the user's).
+/// without reading the rest: not a symbolic link, the magic, this format
+/// version or the one before (6), this machine's byte order, that
+/// version's header size, and the file's exact size as its header gives it.
+/// What `build -o`, `cache --clear` and the folder's size limit may replace
+/// or remove (a 25-byte file that starts with the magic is the user's, and
+/// so is one that claims an older version).
 bool is_own_cache(const std::filesystem::path& path);
 
 /// Writes atomically (AtomicFile: temporary + rename). Creates the folder.

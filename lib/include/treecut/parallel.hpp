@@ -28,11 +28,11 @@ inline unsigned worker_count(unsigned requested = 0) {
 /// A fixed set of worker threads: the one parallel loop of the engine. The
 /// per-frame passes of the many-objects culler and the budget strategy keep
 /// one (Peng & Cao's "object-level parallelism" on CUDA threads, here on
-/// cores); parallel_for() below makes one for a call. run() splits [0, n) into chunks of `grain` indices that the workers and
-/// the calling thread take in turn; it returns when all are done. Results
-/// written per index (or per chunk, indexed by chunk) do not depend on the
-/// thread count or the schedule. One run() at a time (one thread drives
-/// it); the first exception of a body is rethrown.
+/// cores); parallel_for() below makes one for a call. run() splits [0, n) into chunks of `grain`
+/// indices that the workers and the calling thread take in turn; it returns when all are done.
+/// Results written per index (or per chunk, indexed by chunk) do not depend on the thread count or
+/// the schedule. One run() at a time (one thread drives it); the first exception of a body is
+/// rethrown.
 class WorkerPool {
  public:
   /// `threads` >= 1 participants, the calling thread included

@@ -65,8 +65,8 @@ void save_pcd(const std::filesystem::path& path, const PointSet& points,
               PcdData data = PcdData::binary_compressed, const SaveOptions& options = {});
 
 /// Whether PATH is a PCD file save_pcd wrote, whole: its first line, a
-/// header that parses and a body of the size the header says (what `export`
-/// and `gen` may replace).
+/// header that parses and a binary or compressed body of the size the
+/// header says (what `export` and `gen` may replace; they write no ascii).
 [[nodiscard]] bool is_own_pcd(const std::filesystem::path& path);
 
 }  // namespace treecut

@@ -125,23 +125,33 @@ struct PointAttribute {
   ValueType type = ValueType::f64;
   double scale = 1.0, base = 0.0;
   std::optional<double> no_data{};
-  /// The values (the file's, scaled; NaN: none), in one of three forms:
+  /// The values (the file's, scaled; NaN: none), in one of four forms:
   /// floats relative to `offset` where each gives its value back exactly,
-  /// else doubles (`wide`), else, both empty, `constant` at every point.
+  /// else doubles (`wide`), a 64-bit integer field past 2^53 as its
+  /// integers, else, all empty, `constant` at every point.
   double offset = 0.0;
   std::vector<float> values{};
   std::vector<double> wide{};
   double constant = std::numeric_limits<double>::quiet_NaN();
+  /// A 64-bit integer field (unscaled) with a value past 2^53, where a
+  /// double rounds: every raw value exactly (a u64's as its bits).
+  std::vector<std::int64_t> integers{};
 
-  [[nodiscard]] bool is_constant() const { return values.empty() && wide.empty(); }
+  [[nodiscard]] bool is_constant() const {
+    return values.empty() && wide.empty() && integers.empty();
+  }
   /// Point I's value (the file's; NaN: none).
   [[nodiscard]] double value(std::size_t i) const {
     if (!values.empty()) return offset + double(values[i]);
     if (!wide.empty()) return wide[i];
+    if (!integers.empty()) {
+      return type == ValueType::u64 ? double(static_cast<std::uint64_t>(integers[i]))
+                                    : double(integers[i]);
+    }
     return constant;
   }
   /// Values stored per point (0: constant).
-  [[nodiscard]] std::size_t stored() const { return values.size() + wide.size(); }
+  [[nodiscard]] std::size_t stored() const { return values.size() + wide.size() + integers.size(); }
 };
 
 /// Attributes kept per model; a file with more keeps the first ones and

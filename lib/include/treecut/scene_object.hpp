@@ -54,7 +54,9 @@ struct StageScene {
   std::vector<std::shared_ptr<const Hierarchy>> models;
   std::vector<SceneObject> objects;  ///< `model` indexes `models`
   /// The hierarchy object `i` draws (its model's, shared by every instance).
-  [[nodiscard]] const Hierarchy& hierarchy(std::size_t i) const { return *models[objects[i].model]; }
+  [[nodiscard]] const Hierarchy& hierarchy(std::size_t i) const {
+    return *models[objects[i].model];
+  }
   /// The sum over objects of their model's node count (what per-object state costs).
   [[nodiscard]] std::uint64_t object_nodes() const;
 };

@@ -18,12 +18,14 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <bit>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
 #include <stdexcept>
+#include <tuple>
 
 #include "cache_checksum.hpp"
 #include "cache_format.hpp"
@@ -296,8 +298,13 @@ std::optional<std::vector<NodeAttribute>> read_attributes(const Header& h,
   for (const AttributeRecord& r : records) {
     const bool range_ok = (std::isnan(r.min) && std::isnan(r.max)) ||
                           (std::isfinite(r.min) && std::isfinite(r.max) && r.min <= r.max);
-    if (r.name[kMaxAttributeName] != '\0' || r.kind > 1 || (r.flags & ~1u) != 0 || !range_ok ||
-        !std::isfinite(r.offset))
+    // A name as the readers make them: no control bytes (a forged cache's
+    // escape sequence would reach the terminal through info and the HUD).
+    const bool printable = std::none_of(r.name, r.name + std::strlen(r.name), [](char c) {
+      return static_cast<unsigned char>(c) < 0x20 || c == 0x7f;
+    });
+    if (r.name[kMaxAttributeName] != '\0' || !printable || r.kind > 1 || (r.flags & ~1u) != 0 ||
+        !range_ok || !std::isfinite(r.offset))
       return fail(why, "bad attribute record"), std::nullopt;
     NodeAttribute a{
         std::string(r.name), static_cast<AttributeKind>(r.kind), r.offset, r.min, r.max, {},
@@ -473,19 +480,29 @@ bool is_own_cache(const std::filesystem::path& path) {
   std::uint32_t version, endian, header_size;
   std::memcpy(&version, b + 8, 4), std::memcpy(&endian, b + 12, 4);
   std::memcpy(&header_size, b + 16, 4);
-  if (std::memcmp(b, kMagic, sizeof kMagic) != 0 || version < 1 || version > kVersion ||
-      endian != kEndianTag || header_size < 64 || header_size > 4096 ||
-      head.size < std::uint64_t{header_size} + 8)
+  if (std::memcmp(b, kMagic, sizeof kMagic) != 0 || endian != kEndianTag) return false;
+  // Where the header says the payload ends, and its own size, in the two
+  // layouts whose headers can be verified: this one, and version 6's (264
+  // bytes, the payload's end at byte 240) that the builds before issue 43
+  // wrote. Older caches are not told apart from a user's file.
+  std::uint64_t payload_end = 0;
+  if (version == kVersion && header_size == sizeof(Header) && head.bytes.size() >= sizeof(Header)) {
+    Header h;
+    std::memcpy(&h, b, sizeof h);
+    payload_end = h.payload_end;
+  } else if (version == 6 && header_size == 264 && head.bytes.size() >= 248) {
+    std::memcpy(&payload_end, b + 240, 8);
+  } else {
     return false;
-  if (version < kVersion) return true;  // an older build's: its layout is not this one
-  Header h;
-  if (head.bytes.size() < sizeof h) return false;
-  std::memcpy(&h, b, sizeof h);
-  return h.header_size == sizeof h && h.payload_end + 8 == head.size;
+  }
+  return payload_end >= header_size && payload_end + 8 == head.size;
 }
 
-void save_cache(const Hierarchy& hier, const CacheKey& key, const std::filesystem::path& cache) {
-  const auto& a = hier.arrays();
+namespace {
+
+// The header's fields that say what the cache is of: the key, the bounds,
+// the coordinate frame (the offsets are laid out by save_cache).
+Header header_of(const Hierarchy& hier, const CacheKey& key) {
   Header h{};
   std::memcpy(h.magic, kMagic, sizeof kMagic);
   h.version = kVersion;
@@ -514,9 +531,86 @@ void save_cache(const Hierarchy& hier, const CacheKey& key, const std::filesyste
                             v.orientation.x, v.orientation.y, v.orientation.z};
     std::memcpy(h.viewpoint, pose, sizeof pose);
   }
-  const std::string crs = frame.crs.substr(0, kMaxCrsBytes);
-  h.crs_size = static_cast<std::uint32_t>(crs.size());
+  return h;
+}
 
+// The first read's notes as the cache holds them: the format, then a
+// warning a line, cut at a whole line to what a header can vouch for.
+std::string notes_text(const SourceNotes& source) {
+  std::string notes = source.format.substr(0, 4096);
+  for (const std::string& w : source.warnings) {
+    const std::string line = "\n" + w.substr(0, 4096);
+    if (notes.size() + line.size() > kMaxNotesBytes) break;
+    notes += line;
+  }
+  for (char& c : notes) {
+    if (c == '\0') c = '?';
+  }
+  return notes;
+}
+
+// The attribute table, laid out from OFF on (advanced past the values).
+std::vector<AttributeRecord> attribute_records(const std::vector<NodeAttribute>& attributes,
+                                               std::uint64_t& off) {
+  if (attributes.size() > kMaxAttributes)
+    throw std::invalid_argument("save_cache: more than " + std::to_string(kMaxAttributes) +
+                                " attributes");
+  std::vector<AttributeRecord> records(attributes.size());
+  for (std::size_t k = 0; k < attributes.size(); ++k) {
+    const NodeAttribute& attribute = attributes[k];
+    AttributeRecord& r = records[k];
+    std::memset(&r, 0, sizeof r);
+    std::memcpy(r.name, attribute.name.data(), std::min(attribute.name.size(), kMaxAttributeName));
+    r.kind = static_cast<std::uint32_t>(attribute.kind);
+    r.flags = attribute.is_constant() ? 1u : 0u;
+    r.min = attribute.min, r.max = attribute.max, r.offset = attribute.offset;
+    r.constant = attribute.constant;
+    r.values = attribute.is_constant() ? 0 : off;
+    off = align_up(off + attribute.values.size_bytes());
+  }
+  return records;
+}
+
+// Writes PIECES (data, size, offset; in increasing offsets) as the file
+// CACHE, zero padding between them, then the checksum: through an
+// AtomicFile (temporary + rename), so readers see the old file or the
+// complete new one, and a failed write (full disk, read-only folder) leaves
+// no file.
+void write_pieces(const std::filesystem::path& cache,
+                  const std::vector<std::tuple<const void*, std::size_t, std::uint64_t>>& pieces) {
+  if (cache.has_parent_path()) {
+    std::error_code ec;
+    std::filesystem::create_directories(cache.parent_path(), ec);
+    if (ec) throw std::runtime_error(system_error_text(cache.parent_path(), ec.value()));
+  }
+  AtomicFile out(cache);
+  Checksum sum;
+  std::uint64_t at = 0;
+  const unsigned char zeros[kAlign] = {};
+  for (const auto& [data, size, offset] : pieces) {
+    while (at < offset) {  // alignment padding
+      const auto pad = static_cast<std::size_t>(std::min<std::uint64_t>(offset - at, kAlign));
+      out.write(zeros, pad);
+      sum.update(zeros, pad);
+      at += pad;
+    }
+    if (size == 0) continue;
+    out.write(data, size);
+    sum.update(static_cast<const unsigned char*>(data), size);
+    at += size;
+  }
+  const std::uint64_t digest = sum.finish();
+  out.write(&digest, sizeof digest);
+  out.commit();
+}
+
+}  // namespace
+
+void save_cache(const Hierarchy& hier, const CacheKey& key, const std::filesystem::path& cache) {
+  const auto& a = hier.arrays();
+  Header h = header_of(hier, key);
+  const std::string crs = hier.frame().crs.substr(0, kMaxCrsBytes);
+  h.crs_size = static_cast<std::uint32_t>(crs.size());
   const std::array<std::pair<const void*, std::size_t>, kArrays> arrays = {{
       {a.center_radius.data(), a.center_radius.size_bytes()},
       {a.splat_radius.data(), a.splat_radius.size_bytes()},
@@ -531,6 +625,7 @@ void save_cache(const Hierarchy& hier, const CacheKey& key, const std::filesyste
   }};
   std::vector<NodeId> levels;
   for (int d = 0; d <= hier.level_count(); ++d) levels.push_back(hier.level_begin(d));
+  // The layout: each piece 64-byte aligned after the header.
   std::uint64_t off = align_up(sizeof(Header));
   h.level_table = off;
   off = align_up(off + levels.size() * sizeof(NodeId));
@@ -541,78 +636,28 @@ void save_cache(const Hierarchy& hier, const CacheKey& key, const std::filesyste
   h.crs_offset = crs.empty() ? 0 : off;
   off = align_up(off + crs.size());
   const std::vector<NodeAttribute>& attributes = hier.attributes();
-  if (attributes.size() > kMaxAttributes)
-    throw std::invalid_argument("save_cache: more than " + std::to_string(kMaxAttributes) +
-                                " attributes");
-  std::vector<AttributeRecord> records(attributes.size());
   h.attribute_count = static_cast<std::uint32_t>(attributes.size());
   h.attribute_table = attributes.empty() ? 0 : off;
-  off = align_up(off + records.size() * sizeof(AttributeRecord));
-  for (std::size_t k = 0; k < attributes.size(); ++k) {
-    const NodeAttribute& attribute = attributes[k];
-    AttributeRecord& r = records[k];
-    std::memset(&r, 0, sizeof r);
-    std::memcpy(r.name, attribute.name.data(), std::min(attribute.name.size(), kMaxAttributeName));
-    r.kind = static_cast<std::uint32_t>(attribute.kind);
-    r.flags = attribute.is_constant() ? 1u : 0u;
-    r.min = attribute.min, r.max = attribute.max, r.offset = attribute.offset;
-    r.constant = attribute.constant;
-    r.values = attribute.is_constant() ? 0 : off;
-    off = align_up(off + attribute.values.size_bytes());
-  }
-  // The notes, cut at a whole line to what a header can vouch for.
-  std::string notes = hier.notes().format.substr(0, 4096);
-  for (const std::string& w : hier.notes().warnings) {
-    const std::string line = "\n" + w.substr(0, 4096);
-    if (notes.size() + line.size() > kMaxNotesBytes) break;
-    notes += line;
-  }
-  for (char& c : notes) {
-    if (c == '\0') c = '?';
-  }
+  off = align_up(off + attributes.size() * sizeof(AttributeRecord));
+  const std::vector<AttributeRecord> records = attribute_records(attributes, off);
+  const std::string notes = notes_text(hier.notes());
   h.notes_size = static_cast<std::uint32_t>(notes.size());
   h.notes_offset = notes.empty() ? 0 : off;
-  off = align_up(off + notes.size());
-  h.payload_end = off;
+  h.payload_end = align_up(off + notes.size());
 
-  // Temporary + rename (AtomicFile): readers see the old file or the complete
-  // new one, and a failed write (full disk, read-only folder) leaves no file.
-  if (cache.has_parent_path()) {
-    std::error_code ec;
-    std::filesystem::create_directories(cache.parent_path(), ec);
-    if (ec) throw std::runtime_error(system_error_text(cache.parent_path(), ec.value()));
-  }
-  AtomicFile out(cache);
-  Checksum sum;
-  std::uint64_t at = 0;
-  const unsigned char zeros[kAlign] = {};
-  auto put = [&](const void* data, std::size_t size, std::uint64_t offset) {
-    while (at < offset) {  // alignment padding
-      const auto pad = static_cast<std::size_t>(std::min<std::uint64_t>(offset - at, kAlign));
-      out.write(zeros, pad);
-      sum.update(zeros, pad);
-      at += pad;
-    }
-    if (size == 0) return;
-    out.write(data, size);
-    sum.update(static_cast<const unsigned char*>(data), size);
-    at += size;
-  };
-  put(&h, sizeof h, 0);
-  put(levels.data(), levels.size() * sizeof(NodeId), h.level_table);
+  std::vector<std::tuple<const void*, std::size_t, std::uint64_t>> pieces = {
+      {&h, sizeof h, 0}, {levels.data(), levels.size() * sizeof(NodeId), h.level_table}};
   for (int i = 0; i < kArrays; ++i)
-    put(arrays[static_cast<std::size_t>(i)].first, arrays[static_cast<std::size_t>(i)].second,
-        h.offsets[i]);
-  if (!crs.empty()) put(crs.data(), crs.size(), h.crs_offset);
-  if (!records.empty())
-    put(records.data(), records.size() * sizeof(AttributeRecord), h.attribute_table);
+    pieces.emplace_back(arrays[static_cast<std::size_t>(i)].first,
+                        arrays[static_cast<std::size_t>(i)].second, h.offsets[i]);
+  pieces.emplace_back(crs.data(), crs.size(), h.crs_offset);
+  pieces.emplace_back(records.data(), records.size() * sizeof(AttributeRecord), h.attribute_table);
   for (std::size_t k = 0; k < records.size(); ++k)
-    put(attributes[k].values.data(), attributes[k].values.size_bytes(), records[k].values);
-  if (!notes.empty()) put(notes.data(), notes.size(), h.notes_offset);
-  put(nullptr, 0, h.payload_end);
-  const std::uint64_t digest = sum.finish();
-  out.write(&digest, sizeof digest);
-  out.commit();
+    pieces.emplace_back(attributes[k].values.data(), attributes[k].values.size_bytes(),
+                        records[k].values);
+  pieces.emplace_back(notes.data(), notes.size(), h.notes_offset);
+  pieces.emplace_back(nullptr, 0, h.payload_end);
+  write_pieces(cache, pieces);
 }
 
 std::optional<Hierarchy> load_cache(const std::filesystem::path& cache,

@@ -151,6 +151,17 @@ std::string read_head(const std::filesystem::path& path, std::size_t n) {
   return head;
 }
 
+// Whether TEXT is comment lines ('#') only, the last perhaps cut off.
+bool only_comments(std::string_view text) {
+  for (std::size_t at = 0; at < text.size();) {
+    const std::size_t end = std::min(text.find('\n', at), text.size());
+    const std::string_view line = text.substr(at, end - at);
+    if (!line.empty() && line.front() != '#' && line != "\r") return false;
+    at = end + 1;
+  }
+  return true;
+}
+
 // The points of a model file, by its first bytes: LAS ("LASF"), PLY, PCD
 // (pcd.hpp) or, for any other text, a text cloud (text_cloud.hpp), whose
 // reader comes closest to what such a file is (which column is named twice,
@@ -159,8 +170,10 @@ std::string read_head(const std::filesystem::path& path, std::size_t n) {
 // reads.
 PointSet read_point_file(const std::filesystem::path& model, OpenedModel& out,
                          const WarningSink& warn, const std::vector<std::string>& columns) {
-  // The format from the first bytes, read once.
-  const std::string head = read_head(model, 4096);
+  // The format from the first bytes: 4 KiB, or up to 1 MiB while they are
+  // only comment lines (a PCD may open with a long one).
+  std::string head = read_head(model, 4096);
+  if (head.size() == 4096 && only_comments(head)) head = read_head(model, std::size_t{1} << 20);
   const bool las = head.starts_with("LASF");
   // A byte order mark before 'ply' is the PLY reader's to name.
   const bool ply = !las && (head.starts_with("ply") || head.starts_with("\xEF\xBB\xBFply"));

@@ -49,11 +49,16 @@ class AttributeColumn {
     ++count_;
   }
 
+  /// The next point's raw value of a 64-bit integer field (a u64's bits):
+  /// as push_back while a double holds every one exactly, then every value
+  /// as its integer (PointAttribute::integers), where the field is unscaled.
+  void push_back_raw64(std::uint64_t bits);
+
   /// The attribute (a constant one as its value alone).
   [[nodiscard]] PointAttribute take();
 
-  /// Values whose 64-bit integers were beyond 2^53, where a double rounds
-  /// them (counted by the caller's decoder).
+  /// Values of a 64-bit integer field past 2^53 that a double rounded (a
+  /// scaled field's; named in a warning by the reader).
   std::size_t rounded = 0;
 
  private:
@@ -83,6 +88,7 @@ class AttributeColumn {
   }
   void fix_offset(double value);
   void go_wide();
+  void go_integers();
 
   PointAttribute attribute_;
   std::size_t expected_ = 0;
@@ -91,6 +97,7 @@ class AttributeColumn {
   bool varying_ = false;
   bool offset_fixed_ = false;
   bool wide_ = false;
+  bool integers_ = false;
 };
 
 /// Moves every column into OUT, in order.

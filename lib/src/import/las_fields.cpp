@@ -116,9 +116,13 @@ void LasFields::decode_all(Field& f, const unsigned char* records, std::size_t c
       raw = double((unsigned{*p} >> f.shift) & mask);
     } else if constexpr (sizeof(T) == 8 && std::is_integral_v<T>) {
       const T v = get_le<T>(p);
+      if (!f.has_no_data) {
+        // Exactly, past 2^53 too (AttributeColumn::push_back_raw64).
+        f.column.push_back_raw64(static_cast<std::uint64_t>(v));
+        continue;
+      }
       raw = static_cast<double>(v);
-      // A double holds integers to 2^53 exactly.
-      constexpr T kExact = T{1} << 53;
+      constexpr T kExact = T{1} << 53;  // a double's integers
       f.column.rounded += v > kExact || (std::is_signed_v<T> && v < -kExact);
     } else {
       raw = static_cast<double>(get_le<T>(p));

@@ -113,8 +113,10 @@ Grid grid_of(const std::filesystem::path& path, const PointSet& points, double s
       g.offset[a] = own;
     const double reach = std::max(hi[a] - g.offset[a], g.offset[a] - lo[a]) / g.scale[a];
     if (!(reach < 2147483647.0)) {
+      char scale_text[32];
+      std::snprintf(scale_text, sizeof scale_text, "%g", g.scale[a]);
       throw InputError(quoted_name(path) + ": the points span more than 2^31 steps of the scale " +
-                       std::to_string(g.scale[a]) + " on the " + "xyz"[a] +
+                       scale_text + " on the " + "xyz"[a] +
                        " axis, more than a LAS file's 32-bit coordinates hold");
     }
   }
@@ -251,6 +253,54 @@ Layout layout_of(const PointSet& points, std::vector<PointAttribute>& widened) {
   if (l.record_length() > 65535 || l.extra.size() > 340)
     throw std::invalid_argument("save_las: more extra bytes than a LAS record holds");
   return l;
+}
+
+// A standard field's values must fit its slot in the chosen format (a text
+// cloud's intensity of -2048 or 0.5, a class of 256): a value that does not
+// is refused, naming the file, the field and what LAS holds there, rather
+// than clamped or rounded without a word; PLY and PCD hold it as it is.
+void check_standard_fields(const std::filesystem::path& path, const Layout& l, std::size_t n) {
+  const bool ext = l.extended();
+  struct Slot {
+    const PointAttribute* a;
+    double lo, hi, step;  // step 0: any finite value
+  };
+  const Slot slots[] = {
+      {l.intensity, 0, 65535, 1},
+      {l.return_number, 0, ext ? 15.0 : 7.0, 1},
+      {l.number_of_returns, 0, ext ? 15.0 : 7.0, 1},
+      {l.scan_direction, 0, 1, 1},
+      {l.edge, 0, 1, 1},
+      {l.classification, 0, ext ? 255.0 : 31.0, 1},
+      {l.flags, 0, ext ? 15.0 : 7.0, 1},
+      {l.scan_angle, ext ? -32768 * 0.006 : -128.0, ext ? 32767 * 0.006 : 127.0, ext ? 0.006 : 1.0},
+      {l.user_data, 0, 255, 1},
+      {l.point_source_id, 0, 65535, 1},
+      {l.gps_time, -1.7e308, 1.7e308, 0},
+      {l.scanner_channel, 0, 3, 1},
+      {l.nir, 0, 65535, 1}};
+  for (const Slot& s : slots) {
+    if (s.a == nullptr) continue;
+    double bad = 0.0;
+    const bool found = any_value(s.a, n, [&](double v) {
+      const double steps = s.step > 0.0 ? v / s.step : 0.0;
+      const bool fits = v >= s.lo && v <= s.hi &&
+                        (s.step == 0.0 || std::fabs(steps - std::round(steps)) <=
+                                              1e-9 * std::max(1.0, std::fabs(steps)));
+      if (!fits) bad = v;
+      return !fits;  // NaN fits nothing: LAS's standard fields always hold a value
+    });
+    if (!found) continue;
+    char what[160];
+    std::snprintf(what, sizeof what, "%s %.17g does not fit LAS's %s (%s from %g to %g)",
+                  s.a->name.c_str(), bad, s.a->name.c_str(),
+                  s.step == 1.0  ? "whole numbers"
+                  : s.step > 0.0 ? "steps of 0.006"
+                                 : "numbers",
+                  s.lo, s.hi);
+    throw InputError(quoted_name(path) + ": " + what +
+                     "; export to .ply or .pcd, which hold it as it is");
+  }
 }
 
 // The file's value of attribute A at point I as an integer in [lo, hi] in
@@ -405,6 +455,10 @@ std::string header(const PointSet& points, const Grid& g, const Layout& l, const
 // One extra-bytes value in its type: (value - base) / scale, rounded for
 // integers; NaN is the no-data value.
 void put_extra(std::string& out, const PointAttribute& a, std::size_t i) {
+  if (!a.integers.empty()) {  // a 64-bit field past 2^53, exactly (unscaled)
+    detail::put_le(out, a.integers[i]);
+    return;
+  }
   const double v = a.value(i);
   detail::put_value(out, a.type, std::isnan(v) ? a.no_data.value_or(v) : (v - a.base) / a.scale);
 }
@@ -486,6 +540,7 @@ void save_las(const std::filesystem::path& path, const PointSet& points,
   if (n > 0) g.min = lo, g.max = hi;
   std::vector<PointAttribute> widened;
   const Layout l = layout_of(points, widened);
+  check_standard_fields(path, l, n);
   if (!l.extended() && n > std::numeric_limits<std::uint32_t>::max())
     throw std::invalid_argument("save_las: more points than LAS 1.2 counts (2^32 - 1)");
   const bool v14 = l.extended() || !points.frame.crs_records.wkt.empty();

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -340,9 +341,10 @@ struct Builder {
   }
 
   // VALUE(field) gives the field's first element as a double; RAW(field)
-  // its 4 bytes (the packed colour).
-  template <class Value, class Raw>
-  void add(Value&& value, Raw&& raw) {
+  // its 4 bytes (the packed colour), RAW64(field) an 8-byte integer's bits
+  // (exactly, past 2^53 too).
+  template <class Value, class Raw, class Raw64>
+  void add(Value&& value, Raw&& raw, Raw64&& raw64) {
     doubles.emplace_back(value(r.xyz[0]), value(r.xyz[1]), value(r.xyz[2]));
     if (r.normal[0] >= 0) {
       points.normals.push_back(
@@ -354,8 +356,17 @@ struct Builder {
     }
     if (r.channel[0] >= 0)
       channels.emplace_back(value(r.channel[0]), value(r.channel[1]), value(r.channel[2]));
-    for (std::size_t k = 0; k < attributes.size(); ++k)
-      attributes[k].push_back(value(r.attributes[k]));
+    for (std::size_t k = 0; k < attributes.size(); ++k) {
+      const int f = r.attributes[k];
+      const Field& x = h.fields[static_cast<std::size_t>(f)];
+      const std::optional<std::uint64_t> bits =
+          x.type != 'F' && x.size == 8 ? raw64(f) : std::nullopt;
+      if (bits) {
+        attributes[k].push_back_raw64(*bits);
+      } else {
+        attributes[k].push_back(value(f));
+      }
+    }
   }
 
   // Separate red, green and blue fields as the colour: floats in [0, 1],
@@ -405,6 +416,9 @@ void read_packed(const unsigned char* body, const Header& h, Builder& b) {
         },
         [&](int f) {
           return detail::get_le<std::uint32_t>(rec + h.fields[static_cast<std::size_t>(f)].offset);
+        },
+        [&](int f) -> std::optional<std::uint64_t> {
+          return detail::get_le<std::uint64_t>(rec + h.fields[static_cast<std::size_t>(f)].offset);
         });
   }
 }
@@ -423,7 +437,10 @@ void read_columns(const unsigned char* body, const Header& h, Builder& b) {
       return body + start[static_cast<std::size_t>(f)] + i * x.size * x.count;
     };
     b.add([&](int f) { return element(where(f), h.fields[static_cast<std::size_t>(f)]); },
-          [&](int f) { return detail::get_le<std::uint32_t>(where(f)); });
+          [&](int f) { return detail::get_le<std::uint32_t>(where(f)); },
+          [&](int f) -> std::optional<std::uint64_t> {
+            return detail::get_le<std::uint64_t>(where(f));
+          });
   }
 }
 
@@ -476,6 +493,24 @@ void read_ascii(std::string_view file, const Header& h, Builder& b) {
               return bits;
             }
             return static_cast<std::uint32_t>(std::clamp(v, 0.0, 4294967295.0));
+          },
+          [&](int f) -> std::optional<std::uint64_t> {
+            // An 8-byte integer from its digits (a double rounds past 2^53);
+            // anything else (nan) goes as a value.
+            const Field& x = h.fields[static_cast<std::size_t>(f)];
+            std::string_view token = t[first[static_cast<std::size_t>(f)]];
+            if (!token.empty() && token.front() == '+') token.remove_prefix(1);
+            const char* last = token.data() + token.size();
+            std::uint64_t u = 0;
+            std::int64_t i = 0;
+            if (x.type == 'U') {
+              const auto [p, ec] = std::from_chars(token.data(), last, u);
+              if (ec == std::errc() && p == last) return u;
+            } else {
+              const auto [p, ec] = std::from_chars(token.data(), last, i);
+              if (ec == std::errc() && p == last) return static_cast<std::uint64_t>(i);
+            }
+            return std::nullopt;
           });
     ++read;
   }
@@ -580,13 +615,20 @@ PointSet parse(std::string_view file, const WarningSink& warn) {
 }  // namespace
 
 bool looks_like_pcd(std::string_view bytes) {
+  // PCL's own first line; else the first line that is no comment opens a
+  // header (any of its keywords: WIDTH may come before VERSION).
+  if (bytes.starts_with("# .PCD")) return true;
+  static constexpr std::string_view kKeywords[] = {"VERSION",   "FIELDS", "COLUMNS", "SIZE",
+                                                   "TYPE",      "COUNT",  "WIDTH",   "HEIGHT",
+                                                   "VIEWPOINT", "POINTS", "DATA"};
   std::size_t at = 0;
   while (at < bytes.size()) {
     const std::size_t end = std::min(bytes.find('\n', at), bytes.size());
     const std::string_view line = trim(bytes.substr(at, end - at));
     at = end + 1;
     if (line.empty() || line.front() == '#') continue;
-    return line.rfind("VERSION", 0) == 0 || line.rfind("FIELDS", 0) == 0;
+    const std::string_view first = line.substr(0, line.find_first_of(" \t"));
+    return std::find(std::begin(kKeywords), std::end(kKeywords), first) != std::end(kKeywords);
   }
   return false;
 }
@@ -596,8 +638,7 @@ bool is_own_pcd(const std::filesystem::path& path) {
   if (!head.bytes.starts_with(kPcdSignature)) return false;
   try {
     // The header parses and the body is the size it says: a packed body
-    // exactly, a compressed one its two sizes and the block, an ascii one
-    // at least a character a value.
+    // exactly, a compressed one its two sizes and the block.
     const Header h = parse_header(head.bytes);
     switch (h.data) {
       case Data::binary:
@@ -608,7 +649,10 @@ bool is_own_pcd(const std::filesystem::path& path) {
         return head.size == h.body + 8 + detail::get_le<std::uint32_t>(p);
       }
       case Data::ascii:
-        return head.size >= h.body + h.points * 2 * h.fields.size();
+        // save_pcd's ascii body is not what `gen` or `export` write, and its
+        // end cannot be told from a note appended to it without reading it
+        // all: never treecut's own to replace.
+        return false;
     }
   } catch (const std::exception&) {
   }

@@ -51,10 +51,9 @@ std::vector<Column> columns_of(const PointSet& p, const SaveOptions& options) {
   // (without regard to case): "height above ground" -> height_above_ground,
   // an extra-bytes field called Red -> Red_attribute. The name comes back
   // through a treecut comment (header()).
-  std::vector<std::string> used = {"x",        "y",        "z",        "normal_x", "normal_y",
-                                   "normal_z", "nx",       "ny",       "nz",       "rgb",
-                                   "rgba",     "red",      "green",    "blue",     "r",
-                                   "g",        "b",        "_"};
+  std::vector<std::string> used = {"x",     "y",    "z",  "normal_x", "normal_y", "normal_z",
+                                   "nx",    "ny",   "nz", "rgb",      "rgba",     "red",
+                                   "green", "blue", "r",  "g",        "b",        "_"};
   auto lower = [](std::string t) {
     for (char& ch : t) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
     return t;
@@ -140,16 +139,36 @@ void save_pcd(const std::filesystem::path& path, const PointSet& points, PcdData
   const bool relative = options.relative;
   std::string out = header(points, c, data, options);
   AtomicFile file(path);  // throws "PATH: REASON"
+  // A 64-bit integer field past 2^53 is written from its integers, exactly.
+  auto exact = [&](const Column& k) -> const std::vector<std::int64_t>* {
+    if (k.source != Column::Source::attribute || value_size(k.type) != 8 || !is_integer(k.type))
+      return nullptr;
+    const auto& integers = points.attributes[static_cast<std::size_t>(k.index)].integers;
+    return integers.empty() ? nullptr : &integers;
+  };
+  auto put = [&](std::string& to, const Column& k, std::size_t i) {
+    if (const auto* integers = exact(k)) {
+      detail::put_le(to, (*integers)[i]);
+    } else {
+      detail::put_value(to, k.type, value_of(points, k, i, relative));
+    }
+  };
   if (data == PcdData::ascii) {
     for (std::size_t i = 0; i < n; ++i) {
-      for (std::size_t k = 0; k < c.size(); ++k)
-        out += (k ? " " : "") + detail::value_text(c[k].type, value_of(points, c[k], i, relative));
+      for (std::size_t k = 0; k < c.size(); ++k) {
+        const auto* integers = exact(c[k]);
+        out += k ? " " : "";
+        out += !integers ? detail::value_text(c[k].type, value_of(points, c[k], i, relative))
+               : c[k].type == ValueType::u64
+                   ? std::to_string(static_cast<std::uint64_t>((*integers)[i]))
+                   : std::to_string((*integers)[i]);
+      }
       out += "\n";
       if (out.size() > (1u << 20)) file.write(out), out.clear();
     }
   } else if (data == PcdData::binary) {
     for (std::size_t i = 0; i < n; ++i) {
-      for (const Column& k : c) detail::put_value(out, k.type, value_of(points, k, i, relative));
+      for (const Column& k : c) put(out, k, i);
       if (out.size() > (1u << 20)) file.write(out), out.clear();
     }
   } else {
@@ -158,8 +177,7 @@ void save_pcd(const std::filesystem::path& path, const PointSet& points, PcdData
     std::string columns;
     columns.reserve(n * record);
     for (const Column& k : c) {
-      for (std::size_t i = 0; i < n; ++i)
-        detail::put_value(columns, k.type, value_of(points, k, i, relative));
+      for (std::size_t i = 0; i < n; ++i) put(columns, k, i);
     }
     if (columns.size() > 0xffffffffu / 2)
       throw std::invalid_argument("save_pcd: more than 2 GiB of points to compress");

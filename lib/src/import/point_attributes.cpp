@@ -91,6 +91,43 @@ void AttributeColumn::go_wide() {
   attribute_.offset = 0.0;
 }
 
+void AttributeColumn::push_back_raw64(std::uint64_t bits) {
+  const bool is_unsigned = attribute_.type == ValueType::u64;
+  const double raw = is_unsigned ? double(bits) : double(static_cast<std::int64_t>(bits));
+  if (!integers_) {
+    constexpr double kExact = 9007199254740992.0;  // 2^53: a double's integers
+    const bool unscaled = attribute_.scale == 1.0 && attribute_.base == 0.0;
+    if (std::fabs(raw) <= kExact || !unscaled) {
+      if (std::fabs(raw) > kExact) ++rounded;
+      push_back(raw * attribute_.scale + attribute_.base);
+      return;
+    }
+    go_integers();
+  }
+  attribute_.integers.push_back(static_cast<std::int64_t>(bits));
+  ++count_;
+}
+
+// A value past 2^53: every value from now on as its integer, those before
+// (exact as doubles) converted.
+void AttributeColumn::go_integers() {
+  integers_ = true;
+  const bool is_unsigned = attribute_.type == ValueType::u64;
+  std::vector<std::int64_t>& out = attribute_.integers;
+  out.reserve(std::max(expected_, count_ + 1));
+  for (std::size_t i = 0; i < count_; ++i) {
+    const double v = !varying_                    ? first_
+                     : !attribute_.values.empty() ? attribute_.offset + double(attribute_.values[i])
+                                                  : attribute_.wide[i];
+    out.push_back(is_unsigned ? static_cast<std::int64_t>(static_cast<std::uint64_t>(v))
+                              : static_cast<std::int64_t>(v));
+  }
+  std::vector<float>().swap(attribute_.values);
+  std::vector<double>().swap(attribute_.wide);
+  attribute_.offset = 0.0;
+  varying_ = true;
+}
+
 PointAttribute AttributeColumn::take() {
   if (!varying_)
     attribute_.constant = count_ == 0 ? std::numeric_limits<double>::quiet_NaN() : first_;

@@ -64,7 +64,9 @@ void PointSet::keep_if(const std::vector<bool>& keep) {
   compact(positions, keep), compact(exact_positions, keep), compact(normals, keep);
   compact(radii, keep);
   compact(colors, keep), compact(colors16, keep), compact(curvature, keep);
-  for (PointAttribute& a : attributes) compact(a.values, keep), compact(a.wide, keep);
+  for (PointAttribute& a : attributes) {
+    compact(a.values, keep), compact(a.wide, keep), compact(a.integers, keep);
+  }
   std::size_t faces = 0;
   for (const glm::uvec3& t : triangles) {
     const glm::uvec3 r(remap[t.x], remap[t.y], remap[t.z]);

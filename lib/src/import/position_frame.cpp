@@ -46,7 +46,7 @@ glm::dvec3 choose_origin(std::span<const glm::dvec3> points) {
   const glm::dvec3 m = median(points);
   glm::dvec3 lo(INFINITY), hi(-INFINITY);
   for (const glm::dvec3& p : points) {
-    if (!within(p - m, double(kMaxCoordinate))) continue;
+    if (!within(p - m, double(kMaxCoordinate)) || !within(p, double(kMaxCoordinate))) continue;
     lo = glm::min(lo, p), hi = glm::max(hi, p);
   }
   if (near_zero(lo, hi)) return glm::dvec3(0.0);
@@ -57,8 +57,8 @@ std::string Dropped::far_message(std::size_t first_number) const {
   char at[96];
   std::snprintf(at, sizeof at, "%.6g %.6g %.6g", first_far_at.x, first_far_at.y, first_far_at.z);
   return "dropped " + std::to_string(far) + (far == 1 ? " point" : " points") +
-         " more than 1e18 from the others (the first: point " + std::to_string(first_number) +
-         " at " + at + ")";
+         " beyond the coordinate limit, 1e18 from the others or from zero (the first: point " +
+         std::to_string(first_number) + " at " + at + ")";
 }
 
 Dropped place_points(std::vector<glm::dvec3>&& doubles, PointSet& points) {
@@ -77,7 +77,9 @@ Dropped place_points(std::vector<glm::dvec3>&& doubles, PointSet& points) {
   bool exact = true;
   for (std::size_t i = 0; i < doubles.size(); ++i) {
     const glm::dvec3 q = doubles[i] - origin;
-    if (within(q, double(kMaxCoordinate))) {
+    // Within the limit of the origin and of zero (a file's coordinates past
+    // 1e18 would make a LAS no reader takes).
+    if (within(q, double(kMaxCoordinate)) && within(doubles[i], double(kMaxCoordinate))) {
       points.positions[i] = glm::vec3(q);
       exact = exact && float_exact(points.positions[i], origin, doubles[i]);
       continue;

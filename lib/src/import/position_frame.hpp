@@ -9,8 +9,9 @@
 //    whole units: a model up to 65 km across keeps millimetres.
 //  - One far point does not decide for the others: the bounds are those of
 //    the points within kMaxCoordinate of the median, and a point beyond
-//    kMaxCoordinate of the origin is dropped and named (a first point at
-//    1e20 used to become the origin, and the real points were dropped).
+//    kMaxCoordinate of the origin (or of zero: the coordinate limit) is
+//    dropped and named (a first point at 1e20 used to become the origin,
+//    and the real points were dropped).
 #pragma once
 
 #include <cstddef>
@@ -35,12 +36,12 @@ bool near_zero(const glm::dvec3& lo, const glm::dvec3& hi);
 /// What place_points() dropped.
 struct Dropped {
   std::size_t nonfinite = 0;  ///< without a finite position (an organized cloud's holes)
-  std::size_t far = 0;        ///< beyond kMaxCoordinate of the origin
+  std::size_t far = 0;        ///< beyond kMaxCoordinate of the origin or of zero
   std::size_t first_far = 0;  ///< the first far one's index among the points given
   glm::dvec3 first_far_at{0.0};
-  /// "dropped 1 point more than 1e18 from the others (the first: point 1 at
-  /// 1e+20 0 0)", with FIRST_NUMBER as the first far point's number (its
-  /// line, for text).
+  /// "dropped 1 point beyond the coordinate limit, 1e18 from the others or
+  /// from zero (the first: point 1 at 1e+20 0 0)", FIRST_NUMBER the first
+  /// far point's number.
   [[nodiscard]] std::string far_message(std::size_t first_number) const;
 };
 

@@ -371,24 +371,30 @@ bool looks_like_text_cloud(std::string_view bytes) {
   if (head.starts_with(kByteOrderMark)) head.remove_prefix(kByteOrderMark.size());
   if (head.find_first_not_of(" \t\r\n") == std::string_view::npos) return false;
   // Printable ASCII, tabs and line ends, or UTF-8 (a header in another
-  // language); a sequence cut by the 4096 bytes counts.
+  // language; a sequence cut by the 4096 bytes counts), but for a stray
+  // byte or two (a NUL on line 2, an escape in a column's name): the text
+  // reader then names the line and the token. A binary file has far more.
+  std::size_t stray = 0;
   for (std::size_t i = 0; i < head.size(); ++i) {
     const auto u = static_cast<unsigned char>(head[i]);
     if (u < 0x80) {
-      if ((u < 0x20 && u != '\n' && u != '\r' && u != '\t') || u == 0x7f) return false;
+      stray += (u < 0x20 && u != '\n' && u != '\r' && u != '\t') || u == 0x7f;
       continue;
     }
     const std::size_t more = (u & 0xE0) == 0xC0   ? 1
                              : (u & 0xF0) == 0xE0 ? 2
                              : (u & 0xF8) == 0xF0 ? 3
                                                   : 0;
-    if (more == 0 || u < 0xC2) return false;
-    for (std::size_t k = 1; k <= more && i + k < head.size(); ++k) {
-      if ((static_cast<unsigned char>(head[i + k]) & 0xC0) != 0x80) return false;
+    bool valid = more > 0 && u >= 0xC2;
+    for (std::size_t k = 1; valid && k <= more && i + k < head.size(); ++k)
+      valid = (static_cast<unsigned char>(head[i + k]) & 0xC0) == 0x80;
+    if (!valid) {
+      ++stray;
+      continue;
     }
     i += more;
   }
-  return true;
+  return stray <= std::max<std::size_t>(1, head.size() / 100);
 }
 
 PointSet load_text_cloud_from_memory(std::string_view bytes, const std::string& name,
