@@ -29,9 +29,9 @@ void Viewer::load_bookmarks() {
   try {
     bookmarks_ = read_views(file);
   } catch (const std::exception& e) {
-    // Not a list of views: a warning, and the viewer goes on without them
-    // (a save later is the failure, in one line of its own).
-    print_warning(std::string(e.what()) + " (bookmarks not read)");
+    // Not a list of views: said in the HUD, and the viewer goes on without
+    // them; a save is then the failure, in its one line on stderr.
+    status_ = std::string(e.what()) + " (bookmarks not read)";
   }
 }
 

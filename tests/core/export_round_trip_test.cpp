@@ -51,7 +51,7 @@ struct Decoded {
   int format = 0;
   bool adjusted_time = false;
   std::vector<Fields> points;
-  std::map<std::string, std::string> records;  // "user/id" -> payload, but the encoding's
+  std::map<std::string, std::string> records;  // "user/id" -> payload, but the extra bytes'
 };
 
 std::string text(const std::string& b, std::size_t at, std::size_t n) {
@@ -150,8 +150,8 @@ Decoded decode(const std::string& b) {
   auto record = [&](const std::string& user, std::uint16_t id, const std::string& payload) {
     if (user == "LASF_Spec" && id == 4) {
       descriptors = payload;
-    } else if (!payload.empty() || user != "LASF_Projection") {
-      d.records[user + "/" + std::to_string(id)] = payload;
+    } else {
+      d.records[user + "/" + std::to_string(id)] = payload;  // empty ones too
     }
   };
   std::size_t at = header;

@@ -130,8 +130,10 @@ constexpr std::uint64_t kMaxKeptRecordBytes = std::uint64_t{16} << 20;
 void read_record(const Source& f, const std::string& user, std::uint16_t id,
                  const std::string& description, std::uint64_t at, std::uint64_t length,
                  LasInfo& info) {
-  const bool projection =
-      user == "LASF_Projection" && (id == 2112 || id == 34735 || id == 34736 || id == 34737);
+  // An empty coordinate-system record says nothing: kept as any other
+  // record, so an export writes it back as it was.
+  const bool projection = user == "LASF_Projection" && length > 0 &&
+                          (id == 2112 || id == 34735 || id == 34736 || id == 34737);
   const bool extra = user == "LASF_Spec" && id == 4;
   if (!projection && !extra) {
     std::uint64_t kept = 0;

@@ -379,8 +379,8 @@ struct Records {
 Records records_of(const PointSet& points, const Layout& l, bool v14) {
   Records r;
   auto add = [&](std::string_view user, std::uint16_t id, std::string_view what,
-                 const std::string& payload) {
-    if (payload.empty() && user == "LASF_Projection") return;
+                 const std::string& payload, bool keep_empty = false) {
+    if (payload.empty() && !keep_empty) return;
     if (payload.size() <= 65535) {
       r.vlrs += vlr(user, id, what, payload), ++r.vlr_count;
     } else if (v14) {
@@ -396,7 +396,7 @@ Records records_of(const PointSet& points, const Layout& l, bool v14) {
   add("LASF_Projection", 34736, "GeoDoubleParamsTag", crs.geo_doubles);
   add("LASF_Projection", 34737, "GeoAsciiParamsTag", crs.geo_ascii);
   add("LASF_Spec", 4, "extra bytes", extra_bytes_payload(l));
-  for (const FileRecord& k : points.records) add(k.user, k.id, k.description, k.payload);
+  for (const FileRecord& k : points.records) add(k.user, k.id, k.description, k.payload, true);
   return r;
 }
 
