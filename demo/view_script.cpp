@@ -5,6 +5,7 @@
 #include <cmath>
 #include <system_error>
 
+#include "messages.hpp"
 #include "treecut/error.hpp"
 #include "treecut/feedback_stage.hpp"
 #include "treecut/file_io.hpp"
@@ -182,6 +183,7 @@ ScriptCommand parse_command(const std::vector<std::string_view>& words, int line
     if (words.size() == 2 && words[1] == "off") return c;
     require_arguments(words, 6, "six numbers X0 Y0 Z0 X1 Y1 Z1 (or off)", where, c.verb);
     for (std::size_t i = 1; i <= 6; ++i) c.box.push_back(parse_real(words[i], at));
+    check_box_corners(c.box, at);
   } else if (c.verb == "bookmark") {
     // bookmark N (go back to view N) | bookmark save N (keep the view as N)
     const bool save = words.size() == 3 && words[1] == "save";
@@ -210,6 +212,16 @@ ScriptCommand parse_command(const std::vector<std::string_view>& words, int line
 }
 
 }  // namespace
+
+void check_box_corners(const std::vector<double>& box, const std::string& what) {
+  for (std::size_t k = 0; k < 3 && box.size() == 6; ++k) {
+    if (box[k] > box[k + 3]) {
+      throw InputError(what + "the first corner's " + "xyz"[k] + " (" + exact_number(box[k]) +
+                       ") is past the second's (" + exact_number(box[k + 3]) +
+                       "); give X0 Y0 Z0 X1 Y1 Z1 with X0 <= X1, Y0 <= Y1, Z0 <= Z1");
+    }
+  }
+}
 
 std::vector<ScriptCommand> parse_view_script(std::string_view text,
                                              const std::filesystem::path& file,

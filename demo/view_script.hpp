@@ -46,6 +46,12 @@ struct ScriptChecks {
   std::string scene;
 };
 
+/// Throws InputError "WHAT the first corner's x (1) is past the second's (0)
+/// ..." unless the box X0 Y0 Z0 X1 Y1 Z1 has X0 <= X1, Y0 <= Y1, Z0 <= Z1:
+/// a reversed box (--clip, a script's `clip`) is a mistake, not a box to
+/// draw blank frames in.
+void check_box_corners(const std::vector<double>& box, const std::string& what);
+
 /// Parses a script's text; `file` names it in messages and locates `play`
 /// paths. Throws InputError "FILE:LINE: problem" for a missing header, an
 /// unknown command, a missing or extra argument, a number that is not one or

@@ -21,6 +21,7 @@
 #include "treecut/strategies/builtin.hpp"
 #include "treecut/tools/generate.hpp"
 #include "treecut/tools/scene_generate.hpp"
+#include "view_script.hpp"
 #include "viewer.hpp"
 
 namespace treecut::cli {
@@ -64,8 +65,15 @@ void add_scene_options(CLI::App& cmd, SceneArgs& args) {
                  "max_nodes, or a scene budget's points")
       ->check(finite_number(1.0, 4e9))
       ->each([&args](const std::string& v) { args.params.push_back("budget=" + v); });
-  cmd.add_option("--clip", args.clip,
-                 "Draw only what lies in the box X0 Y0 Z0 X1 Y1 Z1 (the file's coordinates)")
+  // Checked as it is parsed: a reversed box is refused before the model is
+  // read (and before a stale cache is rebuilt for nothing).
+  cmd.add_option_function<std::vector<double>>(
+         "--clip",
+         [&args](const std::vector<double>& box) {
+           check_box_corners(box, "--clip: ");
+           args.clip = box;
+         },
+         "Draw only what lies in the box X0 Y0 Z0 X1 Y1 Z1 (the file's coordinates)")
       ->expected(6)
       ->check(finite_number(-1e18, 1e18));
   cmd.add_option("--edl", args.edl,
@@ -449,15 +457,6 @@ void apply_clip(splat::RenderSettings& settings, const std::vector<double>& box,
       scene.world || !scene.hierarchy ? glm::dvec3(0.0) : scene.hierarchy->frame().origin;
   const glm::dvec3 a(box[0], box[1], box[2]);
   const glm::dvec3 b(box[3], box[4], box[5]);
-  // The corners in order: a reversed box (1 1 1 0 0 0) is a mistake, not a
-  // box to draw blank frames in.
-  for (int k = 0; k < 3; ++k) {
-    if (a[k] > b[k]) {
-      throw InputError(std::string("--clip: the first corner's ") + "xyz"[k] + " (" +
-                       exact_number(a[k]) + ") is past the second's (" + exact_number(b[k]) +
-                       "); give X0 Y0 Z0 X1 Y1 Z1 with X0 <= X1, Y0 <= Y1, Z0 <= Z1");
-    }
-  }
   settings.clip_min = glm::vec3(a - o);
   settings.clip_max = glm::vec3(b - o);
   const glm::vec3 lo = scene.bounds_min, hi = scene.bounds_max;

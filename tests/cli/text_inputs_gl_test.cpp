@@ -278,6 +278,7 @@ TEST(ViewScript, CountsAndNumbersThatDoNotFitAreErrorsNamingFileLine) {
       {"mode sparkly", "mode: unknown splat mode 'sparkly'"},
       {"classes 2,x", "classes: --classes '2,x': expected class numbers 0-255"},
       {"color", "color needs an argument"},
+      {"clip 0 0 2 1 1 1", "clip: the first corner's z (2) is past the second's (1)"},
   };
   for (const Case& c : cases) {
     const std::string text = kScript + "frames 2  # fine\n" + c.line + "\n";

@@ -256,7 +256,9 @@ std::optional<CoordinateFrame> read_frame(const Header& h, const unsigned char* 
       return fail(why, "the viewpoint's rotation is not a unit quaternion"), std::nullopt;
     frame.viewpoint = Viewpoint{glm::dvec3(v[0], v[1], v[2]), q};
   }
-  frame.crs.assign(reinterpret_cast<const char*>(bytes) + h.crs_offset, h.crs_size);
+  // (An empty text's offset may be anything: no pointer is made from it.)
+  if (h.crs_size > 0)
+    frame.crs.assign(reinterpret_cast<const char*>(bytes) + h.crs_offset, h.crs_size);
   return frame;
 }
 
@@ -300,9 +302,9 @@ std::optional<std::vector<NodeAttribute>> read_attributes(const Header& h,
                           (std::isfinite(r.min) && std::isfinite(r.max) && r.min <= r.max);
     // A name as the readers make them: no control bytes (a forged cache's
     // escape sequence would reach the terminal through info and the HUD).
-    const bool printable = std::none_of(r.name, r.name + std::strlen(r.name), [](char c) {
-      return static_cast<unsigned char>(c) < 0x20 || c == 0x7f;
-    });
+    const bool printable =
+        std::none_of(r.name, r.name + strnlen(r.name, sizeof r.name),
+                     [](char c) { return static_cast<unsigned char>(c) < 0x20 || c == 0x7f; });
     if (r.name[kMaxAttributeName] != '\0' || !printable || r.kind > 1 || (r.flags & ~1u) != 0 ||
         !range_ok || !std::isfinite(r.offset))
       return fail(why, "bad attribute record"), std::nullopt;

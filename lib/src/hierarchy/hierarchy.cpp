@@ -411,10 +411,11 @@ void fill_interior_node(OwnedArrays& a, std::size_t i, bool at_real_point) {
   glm::vec3 lo(INFINITY), hi(-INFINITY), nsum(0.0f);
   glm::vec4 csum(0.0f);
   std::uint32_t count = 0;
-  float prio = 0.0f, cover2 = 0.0f;
+  float prio = 0.0f;
+  double cover2 = 0.0;  // in double: discs of 1e-23 squared underflow a float to 0
   for (std::size_t c = c0; c < c0 + cc; ++c) {
     const glm::vec4 s = a.center_radius[c];
-    cover2 += a.splat_radius[c] * a.splat_radius[c];
+    cover2 += double(a.splat_radius[c]) * double(a.splat_radius[c]);
     lo = glm::min(lo, glm::vec3(s) - s.w);
     hi = glm::max(hi, glm::vec3(s) + s.w);
     const float w = static_cast<float>(a.point_count[c]);
@@ -431,7 +432,8 @@ void fill_interior_node(OwnedArrays& a, std::size_t i, bool at_real_point) {
   a.color[i] = glm::u8vec4(glm::round(glm::clamp(avg, 0.0f, 255.0f)));
   a.priority[i] = std::max(prio, cone_priority(cone_cos));
   a.point_count[i] = count;
-  a.splat_radius[i] = std::sqrt(cover2);  // the cover; finish_splat_radii bounds it
+  a.splat_radius[i] =
+      static_cast<float>(std::sqrt(cover2));  // the cover; finish_splat_radii bounds it
 }
 
 // How much larger than its leaves' discs together (in radius) an interior

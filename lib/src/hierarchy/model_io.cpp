@@ -52,7 +52,8 @@ std::filesystem::path default_cache_path(const std::filesystem::path& model) {
 // their output changes, so that caches written by an older build are stale.
 // 3: caches are keyed on the model's content hash.
 // 4: radii from the neighbours are capped at 4 times the median (issue 30).
-// 5: radii along lines from the density along them (issue 43).
+// 5: radii along lines from the density along them, interior covers summed
+//    in double (issue 43).
 constexpr std::uint32_t kPipelineRevision = 5;
 
 std::uint32_t options_bits(const AttributeOptions& attributes, const BuildOptions& build,

@@ -236,7 +236,10 @@ struct Reader {
 struct Layout {
   Columns columns;
   bool pts = false;
-  std::size_t pts_count = 0;
+  // As written and as a number: a count past any size_t (a hostile file's
+  // 5e128) is still compared, never converted.
+  std::string pts_text;
+  double pts_count = 0;
 };
 
 Layout read_layout(Reader& r, std::string_view& line, std::vector<std::string_view>& tokens,
@@ -248,7 +251,8 @@ Layout read_layout(Reader& r, std::string_view& line, std::vector<std::string_vi
   if (tokens.size() == 1 && parse_number(tokens[0], whole) && whole == std::floor(whole) &&
       whole >= 0) {
     out.pts = true;  // a PTS count line
-    out.pts_count = static_cast<std::size_t>(whole);
+    out.pts_count = whole;
+    out.pts_text = std::string(tokens[0]);
     if (!r.next(line)) throw TextError("a PTS count line and no points");
   } else if (!all_numbers(tokens)) {
     // A header: the columns' names, unless --columns names them instead.
@@ -346,9 +350,9 @@ PointSet parse(std::string_view text, const WarningSink& warn,
     split(line, tokens);
     read_point(columns, tokens, r.line_number, values, doubles, points, attributes);
   } while (r.next(line));
-  if (layout.pts && doubles.size() != layout.pts_count) {
-    throw TextError("1: the PTS count line says " + std::to_string(layout.pts_count) +
-                    " points, the file has " + std::to_string(doubles.size()));
+  if (layout.pts && static_cast<double>(doubles.size()) != layout.pts_count) {
+    throw TextError("1: the PTS count line says " + layout.pts_text + " points, the file has " +
+                    std::to_string(doubles.size()));
   }
   detail::take_columns(attributes, points.attributes);
   const detail::Dropped dropped = detail::place_points(std::move(doubles), points);
