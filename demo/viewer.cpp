@@ -52,7 +52,7 @@ Viewer::Viewer(const ViewArgs& args)
   color_by_ = resolve_color(scene_, args.scene, &color_note);
   if (!color_note.empty()) {
     std::printf("colour    %s\n", color_note.c_str());
-    status_ = color_note;
+    say(color_note);
   }
   recolor(true);
   open_view();
@@ -287,7 +287,7 @@ void Viewer::adopt_scene() {
     governor_ = splat::FrameRateGovernor::for_params(specs, governor_->value(),
                                                      scene_.hierarchy->node_count());
   }
-  status_ = "opened " + scene_.label;
+  say("opened " + scene_.label);
   apply_model_settings(settings_, args_.scene, scene_);
   if (color_auto_) {
     std::string note;
@@ -333,7 +333,7 @@ void Viewer::replace_stage(Scene loaded) {
       std::make_unique<splat::RenderThreadFrame>(*controller_, *renderer_, queries_.get());
   read_params(*make_strategy(registry_, strategy_, {}));
   glfwSetWindowTitle(window_.handle(), ("treecut - " + scene_.label).c_str());
-  status_ = "opened " + scene_.label;
+  say("opened " + scene_.label);
   apply_model_settings(settings_, args_.scene, scene_);
   recolor();
   if (scene_.world) {
@@ -350,7 +350,7 @@ void Viewer::recolor(bool strict) {
     legend_ = apply_coloring(scene_, color_by_, *renderer_);
   } catch (const InputError& e) {
     if (strict) throw;
-    status_ = std::string(e.what()) + "; colours: rgb";
+    say(std::string(e.what()) + "; colours: rgb");
     color_by_.source = "rgb";
     color_by_.show_classes.clear();
     color_by_.hide_classes.clear();

@@ -29,6 +29,7 @@
 #define GLFW_INCLUDE_NONE
 #include <GLFW/glfw3.h>
 
+#include "hud_summary.hpp"
 #include "treecut/controller.hpp"
 #include "treecut/registry.hpp"
 #include "treecut/splat/camera.hpp"
@@ -123,6 +124,8 @@ class Viewer {
 
   // viewer_hud.cpp.
   void hud(const splat::FrameStats& stats);
+  /// TEXT on the HUD's status line, from now for StatusLine::kSeconds.
+  void say(std::string text) { status_.say(std::move(text), glfwGetTime()); }
   void details_panel();  ///< reads last_stats_
   void strategy_panel();
   void load_progress();
@@ -150,8 +153,6 @@ class Viewer {
   splat::ColorBy color_by_;  // --color, --classes and the HUD's colour panel
   /// --color auto, not changed in the HUD since: a model opened later is
   /// resolved again (its own RGB, intensity or elevation).
-  std::string shown_status_;   ///< status_ as the HUD last saw it
-  double status_since_ = 0.0;  ///< when it changed (glfwGetTime)
   bool color_auto_ = false;
   splat::Legend legend_;  // what the colours mean now
   std::unique_ptr<Controller> controller_;
@@ -204,7 +205,7 @@ class Viewer {
   /// 0: the window's.
   glm::ivec2 screenshot_size_{0};
   int screenshot_scale_index_ = 0;  ///< the HUD's selector: 1x, 2x, 4x (1 << index)
-  std::string status_;
+  StatusLine status_;               ///< the HUD's last message, shown while fresh (say())
   bool recording_ = false;
   splat::CameraPath recorded_;
   std::chrono::steady_clock::time_point record_start_;

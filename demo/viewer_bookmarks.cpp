@@ -31,7 +31,7 @@ void Viewer::load_bookmarks() {
   } catch (const std::exception& e) {
     // Not a list of views: said in the HUD, and the viewer goes on without
     // them; a save is then the failure, in its one line on stderr.
-    status_ = std::string(e.what()) + " (bookmarks not read)";
+    say(std::string(e.what()) + " (bookmarks not read)");
   }
 }
 
@@ -39,7 +39,7 @@ void Viewer::save_bookmark(int slot) {
   bookmarks_[static_cast<std::size_t>(slot - 1)] = camera_;
   const std::filesystem::path file = bookmarks_file();
   if (file.empty()) {
-    status_ = "view " + std::to_string(slot) + " kept (a generated model: not saved)";
+    say("view " + std::to_string(slot) + " kept (a generated model: not saved)");
     return;
   }
   try {
@@ -49,10 +49,10 @@ void Viewer::save_bookmark(int slot) {
       const std::string what = e.what();
       throw std::runtime_error(what.ends_with("not replaced") ? what : what + "; not replaced");
     }
-    status_ = "view " + std::to_string(slot) + " saved in " + file.filename().string();
+    say("view " + std::to_string(slot) + " saved in " + file.filename().string());
     std::printf("bookmark  %d saved in %s\n", slot, quoted_name(file).c_str());
   } catch (const std::exception& e) {
-    status_ = std::string("bookmark not saved: ") + e.what();
+    say(std::string("bookmark not saved: ") + e.what());
     if (!script_.empty()) throw;
     print_error(e.what());
   }
@@ -61,13 +61,13 @@ void Viewer::save_bookmark(int slot) {
 void Viewer::go_to_bookmark(int slot) {
   const auto& c = bookmarks_[static_cast<std::size_t>(slot - 1)];
   if (!c) {
-    status_ = "no view " + std::to_string(slot) + " (Shift+" + std::to_string(slot) + " keeps one)";
+    say("no view " + std::to_string(slot) + " (Shift+" + std::to_string(slot) + " keeps one)");
     return;
   }
   const float near_plane = camera_.near_plane, far_plane = camera_.far_plane;
   camera_ = *c;
   camera_.near_plane = near_plane, camera_.far_plane = far_plane;  // fitted each frame
-  status_ = "view " + std::to_string(slot);
+  say("view " + std::to_string(slot));
 }
 
 // The HUD's bookmarks: a button per slot kept, to go back there.

@@ -11,77 +11,37 @@
 #include <utility>
 #include <vector>
 
+#include "hud_summary.hpp"
 #include "ticks.hpp"
 #include "viewer_app.hpp"
 
 namespace treecut::cli {
 
-namespace {
-
-// The HUD's width in pixels: the summary's lines wrap within it.
-constexpr float kHudWidth = 300.0f;
-// How long a status line stays after it last changed.
-constexpr double kStatusSeconds = 6.0;
-
-// 1234 -> "1234", 56789 -> "56.8 k", 1.5e6 -> "1.50 M": the HUD's point counts.
-std::string compact(double v) {
-  char text[32];
-  if (v >= 1e9) {
-    std::snprintf(text, sizeof text, "%.2f G", v * 1e-9);
-  } else if (v >= 1e6) {
-    std::snprintf(text, sizeof text, "%.2f M", v * 1e-6);
-  } else if (v >= 1e4) {
-    std::snprintf(text, sizeof text, "%.1f k", v * 1e-3);
-  } else {
-    std::snprintf(text, sizeof text, "%.0f", v);
-  }
-  return text;
-}
-
-}  // namespace
-
-// Out of the way (issue 30): the top-left corner, a summary of a few lines,
-// and every section closed until opened; H (or a script's `hud off`) hides
-// it, and screenshots leave it out unless asked (Shift+F12).
+// The summary (hud_summary.cpp), the load's progress, the status line and
+// the sections, every one closed until opened; H (or a script's `hud off`)
+// hides it, and screenshots leave it out unless asked (Shift+F12).
 void Viewer::hud(const splat::FrameStats& stats) {
-  ImGui::SetNextWindowPos(ImVec2(8, 8), ImGuiCond_FirstUseEver);
-  ImGui::SetNextWindowBgAlpha(0.6f);
-  // As narrow as the summary while the sections are closed (long lines wrap
-  // or clip rather than widen it); as wide as they need once opened.
-  ImGui::SetNextWindowSizeConstraints(ImVec2(kHudWidth, 0.0f),
-                                      ImVec2(hud_open_ ? FLT_MAX : kHudWidth, FLT_MAX));
-  ImGui::Begin("treecut", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
+  begin_hud_window(hud_open_);
   const StageCounters& c = controller_->stage().counters();
-  ImGui::TextUnformatted(scene_.label.c_str());
-  ImGui::Text("%.1f fps  %.1f ms", frame_ms_ > 0 ? 1000.0 / frame_ms_ : 0.0, frame_ms_);
-  ImGui::SameLine();
-  ImGui::TextDisabled("(H hides this)");
-  const double total = scene_.world       ? double(scene_.instanced_points)
-                       : scene_.hierarchy ? double(scene_.hierarchy->leaf_count())
-                                          : 0.0;
-  // Every summary line wraps at the HUD's width rather than being cut there
-  // (issue 43, item 18: "... of 110.0 k poin").
-  ImGui::TextWrapped("%s splats for %s of %s points", compact(double(stats.splats)).c_str(),
-                     compact(double(stats.points)).c_str(), compact(total).c_str());
-  if (c.converged) {
-    ImGui::TextUnformatted("converged");
-  } else {
-    ImGui::Text("refining (iteration %.1f ms)", c.iteration_ns_last * 1e-6);
-  }
+  HudSummary summary;
+  summary.label = scene_.label;
+  summary.frame_ms = frame_ms_;
+  summary.splats = double(stats.splats);
+  summary.points = double(stats.points);
+  summary.total = scene_.world       ? double(scene_.instanced_points)
+                  : scene_.hierarchy ? double(scene_.hierarchy->leaf_count())
+                                     : 0.0;
+  summary.converged = c.converged;
+  summary.iteration_ms = c.iteration_ns_last * 1e-6;
   if (governor_ && target_fps_ > 0.0) {
-    // The frame-rate control: what budget holds the rate on this machine.
-    ImGui::PushStyleColor(ImGuiCol_Text, ImGui::GetStyle().Colors[ImGuiCol_TextDisabled]);
-    ImGui::TextWrapped("holding %.0f fps: %s %s", target_fps_, compact(governor_->value()).c_str(),
-                       governor_->param().c_str());
-    ImGui::PopStyleColor();
+    summary.holding_fps = target_fps_;
+    summary.budget = governor_->value();
+    summary.budget_param = governor_->param();
   }
+  draw_hud_summary(summary);
   load_progress();
-  // A status line stays for a few seconds after it last changed ("saved
-  // first_hud.png" stayed until the next message).
-  const double now = glfwGetTime();
-  if (status_ != shown_status_) shown_status_ = status_, status_since_ = now;
-  if (!status_.empty() && now - status_since_ < kStatusSeconds)
-    ImGui::TextWrapped("%s", status_.c_str());
+  if (const std::string& said = status_.shown(glfwGetTime()); !said.empty())
+    ImGui::TextWrapped("%s", said.c_str());
   // One closed header over the sections, each closed too.
   hud_open_ = ImGui::CollapsingHeader("more");
   if (hud_open_) {

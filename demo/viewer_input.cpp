@@ -160,7 +160,7 @@ void Viewer::handle_input(double dt) {
   if (pressed_once(GLFW_KEY_O)) {
     // The next model named on the command line (the first after the last).
     if (models_.size() < 2) {
-      status_ = "O: name more models on the command line (treecut view A B), or drop a file";
+      say("O: name more models on the command line (treecut view A B), or drop a file");
     } else {
       model_index_ = (model_index_ + 1) % models_.size();
       open_model(models_[model_index_]);

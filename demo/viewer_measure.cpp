@@ -48,7 +48,7 @@ Measure measure(glm::dvec3 a, glm::dvec3 b, glm::vec3 up) {
 void Viewer::pick_at(glm::ivec2 pixel) {
   const std::optional<glm::vec3> at = renderer_->pick(pixel, camera_);
   if (!at) {
-    status_ = "pick: nothing drawn there";
+    say("pick: nothing drawn there");
     std::printf("pick %d %d: nothing drawn there\n", pixel.x, pixel.y);
     return;
   }
@@ -90,9 +90,9 @@ void Viewer::pick_at(glm::ivec2 pixel) {
     char line[120];
     std::snprintf(line, sizeof line, "distance %.4f (height %+.4f, horizontal %.4f)", m.distance,
                   m.height, m.horizontal);
-    status_ = line;
+    say(line);
   } else {
-    status_ = "picked; Ctrl+click another point to measure";
+    say("picked; Ctrl+click another point to measure");
   }
 }
 

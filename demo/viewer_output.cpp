@@ -41,14 +41,14 @@ void Viewer::save_screenshot(const std::string& file, glm::ivec2 size) {
     }
     p = write_file_to_free_name(wanted, bytes);
   } catch (const std::exception& e) {
-    status_ = std::string("screenshot failed: ") + e.what();
+    say(std::string("screenshot failed: ") + e.what());
     // A scripted run is automation: its failure is the run's (exit code 1,
     // one line); an interactive one reports on the HUD and stderr and goes on.
     if (!script_.empty()) throw std::runtime_error(e.what());
     print_error(std::string("screenshot ") + e.what());
     return;
   }
-  status_ = "saved " + p.filename().string();
+  say("saved " + p.filename().string());
   if (screenshot_hud_ && show_hud_) {
     // What the HUD covers, for whoever checks it stays out of the way.
     std::printf("screenshot %s (HUD %dx%d of %dx%d)\n", quoted_name(p).c_str(), hud_size_.x,

@@ -33,7 +33,7 @@ void Viewer::toggle_recording() {
         write_file_to_free_name(next_name("campath"), splat::format_camera_path(recorded_))
             .string();
     path_ = recorded_;
-    status_ = "saved " + file;
+    say("saved " + file);
   }
 }
 

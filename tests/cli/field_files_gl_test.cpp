@@ -2,9 +2,12 @@
 // runs it: exports that keep what a file holds and replace nothing of the
 // user's, the list of views, colours from the first frame, the legend's
 // shares, options that refuse what they cannot mean, and a warm cache that
-// says what the first read said. The library-level cases are in
+// says what the first read said; the HUD's summary and status line. The
+// library-level cases are in
 // tests/core/field_files_test.cpp.
 #include <gtest/gtest.h>
+#include <imgui.h>
+#include <imgui_internal.h>
 #include <sys/stat.h>
 
 #include <chrono>
@@ -16,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "hud_summary.hpp"
 #include "test_support.hpp"
 #include "treecut/error.hpp"
 #include "treecut/las.hpp"
@@ -393,6 +397,62 @@ TEST(FieldFilesCli, AWarmCacheSaysWhatTheFirstReadSaid) {
   line.keys.resize(10);
   EXPECT_FALSE(line.loops());
   EXPECT_EQ(line.frame_time(2, 3), line.duration());
+}
+
+// Item 18, the HUD: its summary's lines wrap within its width (they were cut
+// at it: "20.0 k splats for 110.0 k of 110.0 k poin"), drawn here in a
+// headless Dear ImGui frame; a status line goes away once stale ("saved
+// first_hud.png" stayed until the next message), timed by its own clock.
+TEST(HudSummaryLines, WrapWithinTheHudsWidth) {
+  ImGuiContext* context = ImGui::CreateContext();
+  ImGuiIO& io = ImGui::GetIO();
+  io.DisplaySize = ImVec2(1280, 720);
+  io.DeltaTime = 1.0f / 60.0f;
+  io.IniFilename = nullptr;
+  unsigned char* pixels = nullptr;
+  int width = 0, height = 0;
+  io.Fonts->GetTexDataAsRGBA32(&pixels, &width, &height);  // the built-in font
+  cli::HudSummary s;
+  s.label = "tile.las";
+  s.frame_ms = 33.0;
+  s.splats = 20000;
+  s.points = 110000;
+  s.total = 110000;
+  s.iteration_ms = 12.5;
+  s.holding_fps = 30;
+  s.budget = 20000;
+  s.budget_param = "max_nodes";
+  float reach = 0.0f, hud = 0.0f, lines = 0.0f;
+  for (int frame = 0; frame < 3; ++frame) {  // an auto-sized window settles
+    ImGui::NewFrame();
+    cli::begin_hud_window(false);
+    const float top = ImGui::GetCursorPosY();
+    cli::draw_hud_summary(s);
+    const ImGuiWindow* window = ImGui::GetCurrentWindow();
+    reach = window->DC.CursorMaxPos.x - window->Pos.x;
+    hud = window->Size.x;
+    lines = (ImGui::GetCursorPosY() - top) / ImGui::GetTextLineHeightWithSpacing();
+    ImGui::End();
+    ImGui::Render();
+  }
+  ImGui::DestroyContext(context);
+  EXPECT_EQ(hud, cli::kHudWidth);
+  EXPECT_LE(reach, hud) << "a line runs past the HUD's edge";
+  EXPECT_GE(lines, 5.0f) << "the long lines wrap onto more lines";
+}
+
+TEST(HudSummaryLines, AStatusLineShowsWhileFreshAndAgainWhenSaidAgain) {
+  cli::StatusLine status;
+  EXPECT_EQ(status.shown(0.0), "");
+  status.say("saved first_hud.png", 100.0);
+  EXPECT_EQ(status.shown(100.0), "saved first_hud.png");
+  EXPECT_EQ(status.shown(100.0 + cli::StatusLine::kSeconds * 0.99), "saved first_hud.png");
+  EXPECT_EQ(status.shown(100.0 + cli::StatusLine::kSeconds), "");
+  EXPECT_EQ(status.shown(1000.0), "");
+  status.say("saved first_hud.png", 1000.0);  // the same words, news again
+  EXPECT_EQ(status.shown(1000.5), "saved first_hud.png");
+  status.clear();
+  EXPECT_EQ(status.shown(1000.5), "");
 }
 
 }  // namespace
