@@ -1,6 +1,5 @@
-// Hierarchy cache files: one header, the node arrays (64-byte aligned, so the
-// loader can hand out spans straight into the bytes it read), and a trailing
-// 64-bit checksum. Every field is checked before any of it is used, so any
+// Reading hierarchy cache files (the layout is cache_layout.hpp's, the writer
+// cache_write.cpp). Every field is checked before any of it is used, so any
 // truncation or flipped byte is reported, never rendered. Which cache serves
 // which model (identity, content hash, the lookup) is cache_lookup.cpp's.
 //
@@ -19,149 +18,26 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <array>
-#include <bit>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
 #include <stdexcept>
-#include <tuple>
 
 #include "cache_checksum.hpp"
 #include "cache_format.hpp"
+#include "cache_layout.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
 
 namespace treecut {
 
+using namespace cache_layout;
+
 namespace {
-
-constexpr char kMagic[8] = {'T', 'C', 'U', 'T', 'H', 'I', 'E', 'R'};
-// Bump whenever the layout or the meaning of any array changes.
-// 2: the header carries the source's content hash.
-// 3: and the source's identity (device, inode, ctime) and when it was taken.
-// 4: and the model's CoordinateFrame: the positions' double-precision
-//    origin, the format's z-up and the coordinate system's text (map
-//    coordinates, issue 29).
-// 5: and the file's per-point attributes per node: a table of records
-//    (name, kind, offset, range, where the values are) after the crs text.
-// 6: and HierarchyArrays::splat_radius, after center_radius (issue 30).
-// 7: attributes at the file's precision: an exact double range, a constant
-//    stored once; the sensor's viewpoint; the first read's notes (format
-//    and warnings) (issue 43).
-constexpr std::uint32_t kVersion = 7;
-constexpr std::uint32_t kEndianTag = 0x01020304u;
-constexpr std::size_t kAlign = 64;
-constexpr int kArrays = 10;
-constexpr std::uint32_t kMaxCrsBytes = 4096;
-
-struct Header {
-  char magic[8];
-  std::uint32_t version;
-  std::uint32_t endian_tag;
-  std::uint32_t header_size;
-  std::uint32_t node_count;
-  std::uint32_t level_count;
-  std::uint32_t options_bits;
-  std::uint64_t source_size;
-  std::int64_t source_mtime_ns;
-  std::uint64_t source_hash;  // XXH3-64 of the source file's bytes
-  std::uint64_t source_device;
-  std::uint64_t source_inode;
-  std::int64_t source_ctime_ns;
-  std::int64_t identity_ns;  // CLOCK_REALTIME when the identity was taken
-  float bounds[6];
-  double origin[3];                // Hierarchy::frame(): origin,
-  std::uint32_t flags;             // bit 0: z_up, bit 1: normals_estimated,
-  std::uint32_t crs_size;          // and the crs text's bytes
-  std::uint64_t crs_offset;        // where they are (after the arrays)
-  std::uint64_t level_table;       // offset of level_count + 1 NodeIds
-  std::uint64_t offsets[kArrays];  // in HierarchyArrays member order
-  std::uint64_t payload_end;       // checksum follows, file size = payload_end + 8
-  std::uint32_t attribute_count;   // Hierarchy::attributes(), at most kMaxAttributes,
-  std::uint32_t notes_size;        // the notes' bytes (format, then warnings, a line each),
-  std::uint64_t attribute_table;   // where their AttributeRecords are
-  std::uint64_t notes_offset;      // and where the notes are
-  double viewpoint[7];             // frame().viewpoint when flags bit 2: x y z, w x y z
-};
-static_assert(std::is_trivially_copyable_v<Header>);
-
-// One attribute: its name (NUL-padded), kind, offset, range and values.
-struct AttributeRecord {
-  char name[kMaxAttributeName + 1];
-  std::uint32_t kind;
-  std::uint32_t flags;  // bit 0: constant (no values; `constant` at every node)
-  double min, max;      // the file's values
-  double offset;
-  float constant;
-  std::uint32_t reserved;
-  std::uint64_t values;  // offset of node_count floats (0 when constant)
-};
-static_assert(std::is_trivially_copyable_v<AttributeRecord> && sizeof(AttributeRecord) == 96);
-constexpr std::uint32_t kMaxNotesBytes = 65536;
 
 CacheKey key_of(const Header& h) {
   return {h.source_size,   h.source_mtime_ns, h.options_bits,    h.source_hash,
           h.source_device, h.source_inode,    h.source_ctime_ns, h.identity_ns};
-}
-
-constexpr std::array<std::size_t, kArrays> kElementSize = {
-    sizeof(glm::vec4),    sizeof(float),         sizeof(glm::i16vec4), sizeof(glm::u8vec4),
-    sizeof(float),        sizeof(std::uint32_t), sizeof(NodeId),       sizeof(NodeId),
-    sizeof(std::uint8_t), sizeof(std::uint8_t)};
-
-std::uint64_t align_up(std::uint64_t x) {
-  return (x + kAlign - 1) / kAlign * kAlign;
-}
-
-// Four independent multiply-rotate lanes over 8-byte words (bandwidth-bound,
-// several GB/s), folded together with the length. Streaming, so the writer
-// never holds a second copy of the arrays.
-class Checksum {
- public:
-  void update(const unsigned char* data, std::size_t size) {
-    if (size == 0) return;
-    size_ += size;
-    if (fill_) {
-      const std::size_t take = std::min(size, sizeof block_ - fill_);
-      std::memcpy(block_ + fill_, data, take);
-      fill_ += take, data += take, size -= take;
-      if (fill_ < sizeof block_) return;
-      mix(block_);
-      fill_ = 0;
-    }
-    for (; size >= sizeof block_; data += sizeof block_, size -= sizeof block_) mix(data);
-    std::memcpy(block_, data, size);
-    fill_ = size;
-  }
-  [[nodiscard]] std::uint64_t finish() const {
-    std::uint64_t h = static_cast<std::uint64_t>(size_) * P1;
-    for (auto v : lane_) h = std::rotl(h ^ (v * P2), 27) * P1 + P2;
-    for (std::size_t i = 0; i < fill_; ++i) h = std::rotl(h ^ (block_[i] * P1), 11) * P2;
-    h ^= h >> 33;
-    h *= P2;
-    return h ^ (h >> 29);
-  }
-
- private:
-  static constexpr std::uint64_t P1 = 0x9e3779b185ebca87ull, P2 = 0xc2b2ae3d27d4eb4full;
-  void mix(const unsigned char* b) {
-    for (int l = 0; l < 4; ++l) {
-      std::uint64_t w;
-      std::memcpy(&w, b + 8 * l, 8);
-      lane_[l] = std::rotl(lane_[l] ^ (w * P2), 31) * P1;
-    }
-  }
-  std::uint64_t lane_[4] = {P1, P2, P1 ^ P2, ~P1};
-  unsigned char block_[32] = {};
-  std::size_t fill_ = 0;
-  std::uint64_t size_ = 0;
-};
-
-std::uint64_t checksum(const unsigned char* data, std::size_t size) {
-  Checksum c;
-  c.update(data, size);
-  return c.finish();
 }
 
 bool fail(std::string* why, std::string text) {
@@ -515,168 +391,6 @@ bool is_own_cache(const std::filesystem::path& path) {
   return payload_end >= header_size && payload_end + 8 == head.size;
 }
 
-namespace {
-
-// The header's fields that say what the cache is of: the key, the bounds,
-// the coordinate frame (the offsets are laid out by save_cache).
-Header header_of(const Hierarchy& hier, const CacheKey& key) {
-  Header h{};
-  std::memcpy(h.magic, kMagic, sizeof kMagic);
-  h.version = kVersion;
-  h.endian_tag = kEndianTag;
-  h.header_size = sizeof(Header);
-  h.node_count = hier.node_count();
-  h.level_count = static_cast<std::uint32_t>(hier.level_count());
-  h.options_bits = key.options_bits;
-  h.source_size = key.source_size;
-  h.source_mtime_ns = key.source_mtime_ns;
-  h.source_hash = key.content_hash;
-  h.source_device = key.source_device;
-  h.source_inode = key.source_inode;
-  h.source_ctime_ns = key.source_ctime_ns;
-  h.identity_ns = key.identity_ns;
-  const glm::vec3 lo = hier.bounds_min(), hi = hier.bounds_max();
-  const float b[6] = {lo.x, lo.y, lo.z, hi.x, hi.y, hi.z};
-  std::memcpy(h.bounds, b, sizeof b);
-  const CoordinateFrame& frame = hier.frame();
-  h.origin[0] = frame.origin.x, h.origin[1] = frame.origin.y, h.origin[2] = frame.origin.z;
-  h.flags =
-      (frame.z_up ? 1u : 0u) | (frame.normals_estimated ? 2u : 0u) | (frame.viewpoint ? 4u : 0u);
-  if (frame.viewpoint) {
-    const Viewpoint& v = *frame.viewpoint;
-    const double pose[7] = {v.position.x,    v.position.y,    v.position.z,   v.orientation.w,
-                            v.orientation.x, v.orientation.y, v.orientation.z};
-    std::memcpy(h.viewpoint, pose, sizeof pose);
-  }
-  return h;
-}
-
-// The first read's notes as the cache holds them: the format, then a
-// warning a line, cut at a whole line to what a header can vouch for.
-std::string notes_text(const SourceNotes& source) {
-  std::string notes = source.format.substr(0, 4096);
-  for (const std::string& w : source.warnings) {
-    const std::string line = "\n" + w.substr(0, 4096);
-    if (notes.size() + line.size() > kMaxNotesBytes) break;
-    notes += line;
-  }
-  for (char& c : notes) {
-    if (c == '\0') c = '?';
-  }
-  return notes;
-}
-
-// The attribute table, laid out from OFF on (advanced past the values).
-std::vector<AttributeRecord> attribute_records(const std::vector<NodeAttribute>& attributes,
-                                               std::uint64_t& off) {
-  if (attributes.size() > kMaxAttributes)
-    throw std::invalid_argument("save_cache: more than " + std::to_string(kMaxAttributes) +
-                                " attributes");
-  std::vector<AttributeRecord> records(attributes.size());
-  for (std::size_t k = 0; k < attributes.size(); ++k) {
-    const NodeAttribute& attribute = attributes[k];
-    AttributeRecord& r = records[k];
-    std::memset(&r, 0, sizeof r);
-    std::memcpy(r.name, attribute.name.data(), std::min(attribute.name.size(), kMaxAttributeName));
-    r.kind = static_cast<std::uint32_t>(attribute.kind);
-    r.flags = attribute.is_constant() ? 1u : 0u;
-    r.min = attribute.min, r.max = attribute.max, r.offset = attribute.offset;
-    r.constant = attribute.constant;
-    r.values = attribute.is_constant() ? 0 : off;
-    off = align_up(off + attribute.values.size_bytes());
-  }
-  return records;
-}
-
-// Writes PIECES (data, size, offset; in increasing offsets) as the file
-// CACHE, zero padding between them, then the checksum: through an
-// AtomicFile (temporary + rename), so readers see the old file or the
-// complete new one, and a failed write (full disk, read-only folder) leaves
-// no file.
-void write_pieces(const std::filesystem::path& cache,
-                  const std::vector<std::tuple<const void*, std::size_t, std::uint64_t>>& pieces) {
-  if (cache.has_parent_path()) {
-    std::error_code ec;
-    std::filesystem::create_directories(cache.parent_path(), ec);
-    if (ec) throw std::runtime_error(system_error_text(cache.parent_path(), ec.value()));
-  }
-  AtomicFile out(cache);
-  Checksum sum;
-  std::uint64_t at = 0;
-  const unsigned char zeros[kAlign] = {};
-  for (const auto& [data, size, offset] : pieces) {
-    while (at < offset) {  // alignment padding
-      const auto pad = static_cast<std::size_t>(std::min<std::uint64_t>(offset - at, kAlign));
-      out.write(zeros, pad);
-      sum.update(zeros, pad);
-      at += pad;
-    }
-    if (size == 0) continue;
-    out.write(data, size);
-    sum.update(static_cast<const unsigned char*>(data), size);
-    at += size;
-  }
-  const std::uint64_t digest = sum.finish();
-  out.write(&digest, sizeof digest);
-  out.commit();
-}
-
-}  // namespace
-
-void save_cache(const Hierarchy& hier, const CacheKey& key, const std::filesystem::path& cache) {
-  const auto& a = hier.arrays();
-  Header h = header_of(hier, key);
-  const std::string crs = hier.frame().crs.substr(0, kMaxCrsBytes);
-  h.crs_size = static_cast<std::uint32_t>(crs.size());
-  const std::array<std::pair<const void*, std::size_t>, kArrays> arrays = {{
-      {a.center_radius.data(), a.center_radius.size_bytes()},
-      {a.splat_radius.data(), a.splat_radius.size_bytes()},
-      {a.normal_cone.data(), a.normal_cone.size_bytes()},
-      {a.color.data(), a.color.size_bytes()},
-      {a.priority.data(), a.priority.size_bytes()},
-      {a.point_count.data(), a.point_count.size_bytes()},
-      {a.parent.data(), a.parent.size_bytes()},
-      {a.first_child.data(), a.first_child.size_bytes()},
-      {a.child_count.data(), a.child_count.size_bytes()},
-      {a.depth.data(), a.depth.size_bytes()},
-  }};
-  std::vector<NodeId> levels;
-  for (int d = 0; d <= hier.level_count(); ++d) levels.push_back(hier.level_begin(d));
-  // The layout: each piece 64-byte aligned after the header.
-  std::uint64_t off = align_up(sizeof(Header));
-  h.level_table = off;
-  off = align_up(off + levels.size() * sizeof(NodeId));
-  for (int i = 0; i < kArrays; ++i) {
-    h.offsets[i] = off;
-    off = align_up(off + arrays[static_cast<std::size_t>(i)].second);
-  }
-  h.crs_offset = crs.empty() ? 0 : off;
-  off = align_up(off + crs.size());
-  const std::vector<NodeAttribute>& attributes = hier.attributes();
-  h.attribute_count = static_cast<std::uint32_t>(attributes.size());
-  h.attribute_table = attributes.empty() ? 0 : off;
-  off = align_up(off + attributes.size() * sizeof(AttributeRecord));
-  const std::vector<AttributeRecord> records = attribute_records(attributes, off);
-  const std::string notes = notes_text(hier.notes());
-  h.notes_size = static_cast<std::uint32_t>(notes.size());
-  h.notes_offset = notes.empty() ? 0 : off;
-  h.payload_end = align_up(off + notes.size());
-
-  std::vector<std::tuple<const void*, std::size_t, std::uint64_t>> pieces = {
-      {&h, sizeof h, 0}, {levels.data(), levels.size() * sizeof(NodeId), h.level_table}};
-  for (int i = 0; i < kArrays; ++i)
-    pieces.emplace_back(arrays[static_cast<std::size_t>(i)].first,
-                        arrays[static_cast<std::size_t>(i)].second, h.offsets[i]);
-  pieces.emplace_back(crs.data(), crs.size(), h.crs_offset);
-  pieces.emplace_back(records.data(), records.size() * sizeof(AttributeRecord), h.attribute_table);
-  for (std::size_t k = 0; k < records.size(); ++k)
-    pieces.emplace_back(attributes[k].values.data(), attributes[k].values.size_bytes(),
-                        records[k].values);
-  pieces.emplace_back(notes.data(), notes.size(), h.notes_offset);
-  pieces.emplace_back(nullptr, 0, h.payload_end);
-  write_pieces(cache, pieces);
-}
-
 std::optional<Hierarchy> load_cache(const std::filesystem::path& cache,
                                     const std::optional<CacheKey>& expected, std::string* why) {
   Header h;
@@ -702,7 +416,9 @@ std::optional<CacheKey> read_cache_key(const std::filesystem::path& cache, std::
 }
 
 std::uint64_t detail::cache_checksum(const unsigned char* data, std::size_t size) {
-  return checksum(data, size);
+  Checksum c;
+  c.update(data, size);
+  return c.finish();
 }
 
 }  // namespace treecut
