@@ -1,4 +1,4 @@
-// The checksum that ends every hierarchy cache file (cache.cpp). Private, but
+// The checksum that ends every hierarchy cache file (cache_layout.hpp). Private, but
 // shared with the cache fuzz target (tests/fuzz/cache_fuzz.cpp), which reseals
 // mutated files with it to reach the structural checks behind the checksum.
 #pragma once

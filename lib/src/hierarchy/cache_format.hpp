@@ -1,6 +1,7 @@
 // What cache_lookup.cpp needs of the cache file beyond the public cache.hpp:
 // the key in a cache's header without verifying the file. Private to the
-// library; the layout itself stays inside cache.cpp.
+// library; the layout itself stays in cache_layout.hpp, for cache.cpp and
+// cache_write.cpp.
 #pragma once
 
 #include <cstdint>

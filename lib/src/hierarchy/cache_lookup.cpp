@@ -2,7 +2,8 @@
 // mtime, ctime) and content hash (XXH3-64), the settled rule that lets the
 // identity alone decide, and the lookup that runs the hash beside the cache's
 // verification. The file itself (layout, checksum, reading and writing) is
-// cache.cpp's; this file sees it only through cache_format.hpp.
+// cache_layout.hpp's, cache.cpp's and cache_write.cpp's; this file sees it
+// only through cache_format.hpp.
 #include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
