@@ -13,6 +13,7 @@
 #include "option_checks.hpp"
 #include "output_checks.hpp"
 #include "progress.hpp"
+#include "survey_command.hpp"
 #include "treecut/attributes.hpp"
 #include "treecut/cache.hpp"
 #include "treecut/error.hpp"
@@ -333,9 +334,10 @@ struct GenArgs {
   std::vector<std::string> source;
   std::string walk;
   std::size_t objects = 0;
-  std::size_t points = 200000;
+  std::uint64_t points = 200000;
   std::uint64_t seed = 1;
   std::vector<double> origin;  // --origin X Y Z: where the model sits in file coordinates
+  SurveyArgs survey;           // --area, --density, --tile
 };
 
 // gen KIND for a scene kind (city-block, hall): the scene file, its models
@@ -357,6 +359,8 @@ void generate_scene_kind(const GenArgs& g, bool points_given) {
 // gen KIND for a model kind: its options checked, then the PLY (and the
 // walkthrough path with --walk) written.
 void generate_model_kind(const GenArgs& g) {
+  if (g.points > std::uint64_t{1} << 31)
+    throw InputError("gen " + g.kind + ": at most 2^31 points (survey writes more, in tiles)");
   if (g.objects) throw InputError("gen " + g.kind + ": --objects is only for city-block and hall");
   if (g.source.size() > 1) throw InputError("gen " + g.kind + ": one --source only");
   const tools::ModelKind kind = tools::parse_model_kind(g.kind);
@@ -484,14 +488,14 @@ void add_gen_command(CLI::App& app) {
   auto gen_args = std::make_shared<GenArgs>();
   auto* gen = app.add_subcommand(
       "gen",
-      "Write a procedural model (sphere, terrain, city, field, plant) as PLY, or a scene "
-      "(city-block, hall) as a scene file");
+      "Write a procedural model (sphere, terrain, city, field, plant) as PLY, a scene "
+      "(city-block, hall) as a scene file, or a survey's LAS tiles into a folder");
   gen->add_option("KIND", gen_args->kind,
-                  "sphere | terrain | city | field | plant | city-block | hall")
+                  "sphere | terrain | city | field | plant | city-block | hall | survey")
       ->required();
   gen->add_option("-n,--points", gen_args->points,
                   "Number of points (city-block, hall: of each generated model, default 20000)")
-      ->check(whole_number(1, std::uint64_t{1} << 31));
+      ->check(whole_number(1, std::uint64_t{1} << 40));
   gen->add_option("-o,--output", gen_args->out,
                   "Output PLY, LAS when it ends in .las, PCD (binary_compressed) in .pcd (default: "
                   "assets/KIND.ply; a scene: "
@@ -516,7 +520,30 @@ void add_gen_command(CLI::App& app) {
          "city, field, plant, city-block, hall: also write the scene's walkthrough camera path "
          "(assets/paths/KIND_walk.campath is made this way)")
       ->check(non_empty_path());
+  gen->add_option("--area", gen_args->survey.area,
+                  "survey: W H, the area east and north in km (default: a square of -n points at "
+                  "the density, else 1 x 1)")
+      ->expected(2)
+      ->check(finite_number(0.001, 1e4));
+  gen->add_option("--density", gen_args->survey.density,
+                  "survey: returns per square metre (default 8; with -n and --area, -n decides)")
+      ->check(finite_number(0.01, 1e4));
+  gen->add_option("--tile", gen_args->survey.tile, "survey: tile edge in metres (default 500)")
+      ->check(finite_number(1.0, 1e5));
   gen->callback([gen_args, gen] {
+    const bool survey = gen_args->kind == "survey";
+    for (const char* o : {"--area", "--density", "--tile"}) {
+      if (!survey && gen->count(o) != 0)
+        throw InputError("gen " + gen_args->kind + ": " + o + " is only for survey");
+    }
+    if (survey) {
+      if (!gen_args->source.empty() || !gen_args->walk.empty() || gen_args->objects != 0)
+        throw InputError("gen survey: --source, --walk and --objects are not for a survey");
+      generate_survey(gen_args->survey, gen_args->out,
+                      gen->count("--points") != 0 ? gen_args->points : 0, gen_args->seed,
+                      gen_args->origin);
+      return;
+    }
     if (gen_args->kind == "city-block" || gen_args->kind == "hall") {
       generate_scene_kind(*gen_args, gen->count("--points") != 0);
       return;
