@@ -155,18 +155,24 @@ TEST(FieldFiles, SixtyFourBitIntegersPastADoublesRangeAreExact) {
   PointSet p;
   PointAttribute big{.name = "big", .type = ValueType::i64};
   PointAttribute huge{.name = "huge", .type = ValueType::u64};
+  // The first integer a double rounds (to 2^53, which passed for exact).
+  PointAttribute edge{.name = "edge", .type = ValueType::u64};
   for (int i = 0; i < 10; ++i) {
     p.positions.push_back({float(i), 0.0f, 0.0f});
     big.integers.push_back(i == 1 ? (std::int64_t{1} << 62) + 1 : -i);
     huge.integers.push_back(i == 2 ? -1 : i);  // the bits of 2^64 - 1
+    edge.integers.push_back(i == 3 ? (std::int64_t{1} << 53) + 1 : i);
   }
-  p.attributes = {big, huge};
+  p.attributes = {big, huge, edge};
   save_las(dir / "a.las", p);
   const PointSet a = load_las(dir / "a.las");
   ASSERT_NE(find(a, "big"), nullptr);
   ASSERT_EQ(find(a, "big")->integers.size(), 10u);
   EXPECT_EQ(find(a, "big")->integers[1], (std::int64_t{1} << 62) + 1);
   EXPECT_EQ(static_cast<std::uint64_t>(find(a, "huge")->integers[2]), ~std::uint64_t{0});
+  ASSERT_NE(find(a, "edge"), nullptr);
+  ASSERT_EQ(find(a, "edge")->integers.size(), 10u);
+  EXPECT_EQ(find(a, "edge")->integers[3], (std::int64_t{1} << 53) + 1);
   save_pcd(dir / "a.pcd", a);
   const PointSet b = load_pcd(dir / "a.pcd");
   save_las(dir / "b.las", b);

@@ -95,10 +95,15 @@ void AttributeColumn::push_back_raw64(std::uint64_t bits) {
   const bool is_unsigned = attribute_.type == ValueType::u64;
   const double raw = is_unsigned ? double(bits) : double(static_cast<std::int64_t>(bits));
   if (!integers_) {
-    constexpr double kExact = 9007199254740992.0;  // 2^53: a double's integers
+    // A double's integers reach 2^53; decided on the integer, since 2^53 + 1
+    // as a double is 2^53.
+    constexpr std::int64_t kExact = std::int64_t{1} << 53;
+    const auto value = static_cast<std::int64_t>(bits);
+    const bool exact =
+        is_unsigned ? bits <= std::uint64_t(kExact) : value >= -kExact && value <= kExact;
     const bool unscaled = attribute_.scale == 1.0 && attribute_.base == 0.0;
-    if (std::fabs(raw) <= kExact || !unscaled) {
-      if (std::fabs(raw) > kExact) ++rounded;
+    if (exact || !unscaled) {
+      if (!exact) ++rounded;
       push_back(raw * attribute_.scale + attribute_.base);
       return;
     }
