@@ -35,6 +35,7 @@ namespace {
 
 struct ModelArgs {
   std::string model;
+  std::vector<std::string> models;  // build: one model of several files
   std::string out;
   bool force = false;
   bool real_points = false;
@@ -423,12 +424,33 @@ void generate_model_kind(const GenArgs& g) {
   }
 }
 
+// What `build` takes: a point file, a folder of them or several files (one
+// model: issue 44), each checked to be one before any work.
+std::vector<std::filesystem::path> build_inputs(const std::vector<std::string>& models) {
+  std::vector<std::filesystem::path> files(models.begin(), models.end());
+  for (const std::filesystem::path& f : files) {
+    std::error_code ec;
+    if (files.size() == 1 && std::filesystem::is_directory(f, ec)) break;
+    require_regular_file(f);
+    if (looks_like_cache(f))
+      throw InputError(quoted_name(f) +
+                       ": is a treecut cache already; build takes point files (info shows the "
+                       "cache)");
+  }
+  return files;
+}
+
 void add_build_command(CLI::App& app) {
   auto build_args = std::make_shared<ModelArgs>();
   auto* build = app.add_subcommand(
-      "build", "Build (or refresh) the hierarchy cache of a point file (PLY, LAS, PCD, text)");
+      "build",
+      "Build (or refresh) the hierarchy cache of a point file (PLY, LAS, PCD, text), or of "
+      "several files or a folder of them as one model");
   // No CLI::ExistingFile: open_model names what MODEL is ("is a FIFO", "is a directory").
-  build->add_option("MODEL", build_args->model, "The point file (PLY, LAS, PCD, XYZ, PTS, CSV)")
+  build
+      ->add_option("MODEL", build_args->models,
+                   "The point file (PLY, LAS, PCD, XYZ, PTS, CSV); several files, or a folder "
+                   "of them, are one model (a survey's tiles, sharing a coordinate system)")
       ->check(non_empty_path())
       ->required();
   build
@@ -444,17 +466,19 @@ void add_build_command(CLI::App& app) {
     o.require_cache = true;
     // -f removes nothing up front: the old cache stays until the new one replaces it.
     o.rebuild = build_args->force;
-    require_regular_file(build_args->model);
-    if (looks_like_cache(build_args->model))
-      throw InputError(quoted_name(build_args->model) +
-                       ": is a treecut cache already; build takes a point file (info shows the "
-                       "cache)");
-    if (o.cache_path) check_cache_output(*o.cache_path, build_args->model);
+    const std::vector<std::filesystem::path> files = build_inputs(build_args->models);
+    if (o.cache_path) {
+      for (const std::filesystem::path& f : files) check_cache_output(*o.cache_path, f);
+    }
     ProgressBar bar("read");
     o.progress = bar.callback();
-    const OpenedModel m = open_model(build_args->model, o);
+    const OpenedModel m = open_model(files, o);
     bar.finish();
-    print_summary(build_args->model, m);
+    print_summary(files.size() == 1
+                      ? files.front()
+                      : std::filesystem::path(files.front().string() + " and " +
+                                              std::to_string(files.size() - 1) + " more"),
+                  m);
   });
 }
 

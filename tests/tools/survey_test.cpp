@@ -226,5 +226,40 @@ TEST(SurveyCli, WritesTilesThatReadBackAndReplacesNothingOfTheUsers) {
   EXPECT_FALSE(fs::exists(dir / "big"));
 }
 
+TEST(SurveyCli, AFolderOfTilesOrSeveralFilesBuildAsOneModel) {
+  const fs::path dir = test::scratch_dir("survey_build");
+  const fs::path out = dir / "flight";
+  ASSERT_EQ(
+      test::run_treecut("gen survey --area 0.2 0.1 --tile 100 -n 30000 -o " + test::quote(out))
+          .code,
+      0);
+  const std::string cache = " -o " + test::quote(dir / "flight.tch");
+  test::CommandResult r = test::run_treecut("build " + test::quote(out) + cache);
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("points      30000\n"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("; 2 files"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("EPSG:32633 (projected)"), std::string::npos) << r.out;
+  r = test::run_treecut("info " + test::quote(dir / "flight.tch"));
+  EXPECT_NE(r.out.find("points      30000\n"), std::string::npos) << r.out;
+  r = test::run_treecut("build " + test::quote(out / "tile_500000_5000000.las") + " " +
+                        test::quote(out / "tile_500100_5000000.las") + " -o " +
+                        test::quote(dir / "two.tch"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("points      30000\n"), std::string::npos) << r.out;
+  // A compressed tile among them is named, not left out; nothing is written.
+  test::write_text(out / "tile_500200_5000000.laz", "LASF and then compressed points");
+  const std::string before = test::read_all(dir / "flight.tch");
+  test::expect_failure(test::run_treecut("build -f " + test::quote(out) + cache), 2,
+                       "tile_500200_5000000.laz");
+  EXPECT_EQ(test::read_all(dir / "flight.tch"), before);
+  fs::create_directories(dir / "none");
+  test::write_text(dir / "none" / "readme.md", "tiles come later\n");
+  test::expect_failure(test::run_treecut("build " + test::quote(dir / "none")), 2,
+                       "no point files in this folder");
+  test::expect_failure(test::run_treecut("build " + test::quote(out / "tile_500000_5000000.las") +
+                                         " " + test::quote(dir / "flight.tch")),
+                       2, "is a treecut cache already");
+}
+
 }  // namespace
 }  // namespace treecut

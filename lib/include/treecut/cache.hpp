@@ -28,6 +28,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <optional>
+#include <span>
 #include <string>
 
 #include "treecut/hierarchy.hpp"
@@ -63,6 +64,15 @@ CacheKey cache_key_for(const std::filesystem::path& source, std::uint32_t option
 
 /// cache_key_for() without reading the content (content_hash 0): one fstat.
 CacheKey cache_identity_of(const std::filesystem::path& source, std::uint32_t options_bits);
+
+/// The key of a model made of several files, in order (a folder of tiles,
+/// issue 44): one file's own key, else the sizes summed, the content hash
+/// over each file's name, size and hash, the identity fields over each
+/// file's (the newest change time: settled when every file is). A renamed,
+/// added, removed or edited file gives another key.
+CacheKey cache_key_for(std::span<const std::filesystem::path> sources, std::uint32_t options_bits);
+CacheKey cache_identity_of(std::span<const std::filesystem::path> sources,
+                           std::uint32_t options_bits);
 
 /// Whether a cache written for STORED serves a source whose identity is NOW
 /// without hashing it: the same options, device, inode, size, mtime and ctime,
@@ -124,6 +134,10 @@ struct CacheLookup {
 /// Throws InputError when SOURCE is not a readable regular file.
 CacheLookup lookup_cache(const std::filesystem::path& source, const std::filesystem::path& cache,
                          std::uint32_t options_bits, bool refresh);
+/// lookup_cache() for a model of several files (cache_key_for of them).
+CacheLookup lookup_cache(std::span<const std::filesystem::path> sources,
+                         const std::filesystem::path& cache, std::uint32_t options_bits,
+                         bool refresh);
 
 /// Reads the key stored in a cache header (for `treecut info CACHE`), after full verification.
 std::optional<CacheKey> read_cache_key(const std::filesystem::path& cache, std::string* why);

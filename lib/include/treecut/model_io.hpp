@@ -56,6 +56,7 @@ struct OpenedModel {
   PlyLoadReport ply;             ///< when built from a PLY
   LasLoadReport las;             ///< when built from a LAS
   std::size_t input_points = 0;  ///< points after dropping non-finite ones
+  std::size_t files = 1;         ///< the point files of the model (a folder's, a list)
   double read_seconds = 0, attribute_seconds = 0, build_seconds = 0, cache_seconds = 0;
   double hash_seconds = 0;  ///< the model's content hash (the cache key)
   /// The model's content was read and hashed: always when built, and on a
@@ -75,6 +76,16 @@ struct OpenedModel {
 /// (no cache: open_model warns and goes on). The file name is cut to 180
 /// bytes (the hash keeps caches apart).
 std::filesystem::path default_cache_path(const std::filesystem::path& model);
+/// The default cache of a model of several files: named after the first
+/// ("a.las-and-11-more"), the hash over all their absolute paths.
+std::filesystem::path default_cache_path(const std::vector<std::filesystem::path>& files);
+
+/// The point files of FOLDER, one model (issue 44: a survey's tiles): its
+/// regular files (not its subfolders) named .las, .laz, .ply, .pcd, .xyz,
+/// .pts, .csv or .txt in any case, in byte order of their names (a .laz is
+/// listed so that reading names it). InputError when there is none or the
+/// folder cannot be listed.
+std::vector<std::filesystem::path> point_files_in(const std::filesystem::path& folder);
 
 /// The bits of the options that change a built hierarchy (part of the cache
 /// key); a column mapping and a --crs as a 17-bit hash of their names (bits
@@ -91,6 +102,15 @@ std::uint32_t options_bits(const AttributeOptions& attributes, const BuildOption
 /// model file, a model that is not a regular file ("is a FIFO", never blocking) and a cache path
 /// that names the model itself.
 OpenedModel open_model(const std::filesystem::path& model, const OpenOptions& options = {});
+
+/// Many files are one model (issue 44): a folder (MODEL above; its
+/// point_files_in) or FILES in order, read one after another into one cloud
+/// (PointSet::append) and cached as one, keyed on all of them
+/// (cache_key_for of several files). Their coordinate systems must be the
+/// same: another is an InputError naming both files. One file: open_model
+/// of it.
+OpenedModel open_model(const std::vector<std::filesystem::path>& files,
+                       const OpenOptions& options = {});
 
 /// The points of a model file as open_model reads them, chosen by its first
 /// bytes (PLY, LAS, PCD or a text cloud), before attributes and build:

@@ -194,6 +194,16 @@ struct PointSet {
   /// curvature and attributes; the faces that use a dropped point go, the
   /// others are renumbered.
   void keep_if(const std::vector<bool>& keep);
+
+  /// MORE's points after these, as one cloud (issue 44: the tiles of a
+  /// survey are one model): its positions moved to this origin, arrays both
+  /// have joined (normals, radii, curvature only one has are dropped for
+  /// all, as for a file without them; colours a file lacks are grey),
+  /// attributes joined by name (NaN where a file has none; one encoding for
+  /// both, doubles where types, scales or offsets differ), faces renumbered.
+  /// This frame, records and coordinate system stay; the caller checks that
+  /// MORE's coordinate system is the same.
+  void append(PointSet&& more);
 };
 
 }  // namespace treecut

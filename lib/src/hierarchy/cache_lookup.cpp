@@ -13,10 +13,15 @@
 #include <chrono>
 #include <ctime>
 #include <future>
+#include <optional>
+#include <span>
 #include <stdexcept>
+#include <string>
+#include <vector>
 
 #include "cache_format.hpp"
 #include "treecut/cache.hpp"
+#include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
 #include "treecut/mapped_file.hpp"
 
@@ -91,14 +96,74 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
 
 }  // namespace
 
+namespace {
+
+// The key of a model made of SOURCES (one file, or the tiles of one cloud):
+// one file's own key, else one key over all, whose fields still say what
+// cache_identity_serves() and cache_key_matches() ask: the sizes summed, the
+// content hash over each file's name and hash in order (a renamed or
+// reordered tile is another model), the devices, inodes and modification
+// times hashed with the names, the newest change time (settled when every
+// file is) and the first identity time. Each file's identity and hash come
+// from one descriptor, opened in turn (a folder of thousands of tiles holds
+// no more than one open).
+CacheKey key_of_files(std::span<const std::filesystem::path> sources, std::uint32_t options_bits,
+                      bool hash) {
+  if (sources.empty()) throw std::invalid_argument("a model of no files");
+  std::vector<CacheKey> keys;
+  keys.reserve(sources.size());
+  for (const std::filesystem::path& source : sources) {
+    const Descriptor file(open_regular_file(source));  // InputError: missing, a FIFO...
+    keys.push_back(hash ? key_of_descriptor(source, file.fd, options_bits)
+                        : identity_of_descriptor(source, file.fd, options_bits));
+  }
+  if (keys.size() == 1) return keys.front();
+  XXH3_state_t* identity = XXH3_createState();
+  XXH3_state_t* content = XXH3_createState();
+  if (!identity || !content) throw std::bad_alloc();
+  XXH3_64bits_reset(identity);
+  XXH3_64bits_reset(content);
+  CacheKey all = keys.front();
+  all.source_size = 0;
+  for (std::size_t i = 0; i < keys.size(); ++i) {
+    const CacheKey& k = keys[i];
+    const std::string name = sources[i].filename().string();
+    const std::uint64_t fields[] = {k.source_device, k.source_inode,
+                                    static_cast<std::uint64_t>(k.source_mtime_ns), k.source_size};
+    XXH3_64bits_update(identity, name.data(), name.size() + 1);
+    XXH3_64bits_update(identity, fields, sizeof fields);
+    const std::uint64_t named[] = {k.source_size, k.content_hash};
+    XXH3_64bits_update(content, name.data(), name.size() + 1);
+    XXH3_64bits_update(content, named, sizeof named);
+    all.source_size += k.source_size;
+    all.source_ctime_ns = std::max(all.source_ctime_ns, k.source_ctime_ns);
+  }
+  all.source_device = 0;
+  all.source_inode = XXH3_64bits_digest(identity);
+  all.source_mtime_ns = static_cast<std::int64_t>(all.source_inode >> 1);
+  all.content_hash = hash ? XXH3_64bits_digest(content) : 0;
+  XXH3_freeState(identity);
+  XXH3_freeState(content);
+  return all;
+}
+
+}  // namespace
+
+CacheKey cache_key_for(std::span<const std::filesystem::path> sources, std::uint32_t options_bits) {
+  return key_of_files(sources, options_bits, true);
+}
+
+CacheKey cache_identity_of(std::span<const std::filesystem::path> sources,
+                           std::uint32_t options_bits) {
+  return key_of_files(sources, options_bits, false);
+}
+
 CacheKey cache_key_for(const std::filesystem::path& source, std::uint32_t options_bits) {
-  const Descriptor file(open_regular_file(source));  // InputError: missing, a FIFO, a directory...
-  return key_of_descriptor(source, file.fd, options_bits);
+  return cache_key_for(std::span(&source, 1), options_bits);
 }
 
 CacheKey cache_identity_of(const std::filesystem::path& source, std::uint32_t options_bits) {
-  const Descriptor file(open_regular_file(source));
-  return identity_of_descriptor(source, file.fd, options_bits);
+  return cache_identity_of(std::span(&source, 1), options_bits);
 }
 
 bool cache_identity_serves(const CacheKey& stored, const CacheKey& now) {
@@ -108,14 +173,33 @@ bool cache_identity_serves(const CacheKey& stored, const CacheKey& now) {
          stored.source_ctime_ns == now.source_ctime_ns;
 }
 
-CacheLookup lookup_cache(const std::filesystem::path& source, const std::filesystem::path& cache,
-                         std::uint32_t options_bits, bool refresh) {
+CacheLookup lookup_cache(std::span<const std::filesystem::path> sources,
+                         const std::filesystem::path& cache, std::uint32_t options_bits,
+                         bool refresh) {
   CacheLookup out;
-  const Descriptor file(open_regular_file(source));  // InputError: missing, a FIFO, a directory...
-  out.key = identity_of_descriptor(source, file.fd, options_bits);
+  // One file is held open from its identity to its hash; a model of many
+  // files takes each file's identity and hash from one descriptor, and a
+  // file that changes between the identity pass and the hash is caught by
+  // the key's identity fields (the hash pass's replace them).
+  std::optional<Descriptor> file;
+  if (sources.size() == 1) {
+    file.emplace(open_regular_file(sources.front()));  // InputError: missing, a FIFO...
+    out.key = identity_of_descriptor(sources.front(), file->fd, options_bits);
+  } else {
+    out.key = key_of_files(sources, options_bits, false);
+  }
   auto hash = [&] {
     const auto t0 = std::chrono::steady_clock::now();
-    const std::uint64_t h = detail::hash_descriptor(source, file.fd, out.key.source_size);
+    std::uint64_t h = 0;
+    if (file) {
+      h = detail::hash_descriptor(sources.front(), file->fd, out.key.source_size);
+    } else {
+      const CacheKey hashed = key_of_files(sources, options_bits, true);
+      h = hashed.content_hash;
+      if (hashed.source_inode != out.key.source_inode || hashed.source_size != out.key.source_size)
+        throw FileChangedError(quoted_name(sources.front().parent_path()) +
+                               ": a file of the model changed while it was hashed");
+    }
     out.hash_seconds = seconds_since(t0);
     return h;
   };
@@ -162,6 +246,11 @@ CacheLookup lookup_cache(const std::filesystem::path& source, const std::filesys
     }
   }
   return out;
+}
+
+CacheLookup lookup_cache(const std::filesystem::path& source, const std::filesystem::path& cache,
+                         std::uint32_t options_bits, bool refresh) {
+  return lookup_cache(std::span(&source, 1), cache, options_bits, refresh);
 }
 
 std::uint64_t content_hash_of(const std::filesystem::path& source) {

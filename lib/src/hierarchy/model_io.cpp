@@ -12,6 +12,7 @@
 #include <stdexcept>
 
 #include "import/ply_format.hpp"
+#include "model_read.hpp"
 #include "reproject.hpp"
 #include "treecut/cache_folder.hpp"
 #include "treecut/error.hpp"
@@ -35,17 +36,46 @@ std::uint64_t fnv1a(const std::string& s) {
 
 }  // namespace
 
+namespace {
+
+// DIR/NAME-HASH.tch, NAME cut so that the cache's name (and its
+// temporary's) stays within NAME_MAX.
+std::filesystem::path cache_named(const std::filesystem::path& dir, const std::string& name,
+                                  const std::string& identity) {
+  char hex[17];
+  std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(fnv1a(identity)));
+  return dir / (name.substr(0, 180) + "-" + hex + ".tch");
+}
+
+}  // namespace
+
 std::filesystem::path default_cache_path(const std::filesystem::path& model) {
   const std::filesystem::path dir = default_cache_folder();
   if (dir.empty()) return {};
   std::error_code ec;
   const auto abs = std::filesystem::weakly_canonical(model, ec);
-  char hex[17];
-  std::snprintf(hex, sizeof hex, "%016llx",
-                static_cast<unsigned long long>(fnv1a((ec ? model : abs).string())));
-  // The hash names the model; its file name is for people, cut so that the
-  // cache's name (and its temporary's) stays within NAME_MAX.
-  return dir / (model.filename().string().substr(0, 180) + "-" + hex + ".tch");
+  // The hash names the model; its file name is for people ("tiles/" names
+  // its folder).
+  const std::filesystem::path& named = ec ? model : abs;
+  const std::string name =
+      model.filename().empty() ? named.filename().string() : model.filename().string();
+  return cache_named(dir, name, named.string());
+}
+
+std::filesystem::path default_cache_path(const std::vector<std::filesystem::path>& files) {
+  if (files.size() == 1) return default_cache_path(files.front());
+  const std::filesystem::path dir = default_cache_folder();
+  if (dir.empty() || files.empty()) return {};
+  std::string identity;
+  for (const std::filesystem::path& f : files) {
+    std::error_code ec;
+    const auto abs = std::filesystem::weakly_canonical(f, ec);
+    identity += (ec ? f : abs).string() + '\n';
+  }
+  return cache_named(dir,
+                     files.front().filename().string().substr(0, 160) + "-and-" +
+                         std::to_string(files.size() - 1) + "-more",
+                     identity);
 }
 
 // Revision of what the pipeline computes (attributes and build). Bump it when
@@ -120,100 +150,29 @@ OpenedModel open_cache_file(const std::filesystem::path& model) {
 
 // Why `cache` cannot be the model's cache (empty: it can): none at all, or
 // the model itself (an error when the caller named it).
-std::string cache_problem(const std::filesystem::path& model, const std::filesystem::path& cache,
-                          const OpenOptions& options) {
-  std::string no_cache;
+std::string cache_problem(std::span<const std::filesystem::path> files,
+                          const std::filesystem::path& cache, const OpenOptions& options) {
   if (cache.empty()) {
-    no_cache =
-        "no cache folder (HOME and XDG_CACHE_HOME are unset and there is no usable temporary "
-        "folder)";
-  } else if (same_file(cache, model)) {
-    no_cache = quoted_name(cache) + ": is the model itself (" + quoted_name(model) +
-               "); refusing to write a cache over it";
-    if (options.cache_path) throw InputError(no_cache);
+    return "no cache folder (HOME and XDG_CACHE_HOME are unset and there is no usable temporary "
+           "folder)";
   }
-  return no_cache;
+  for (const std::filesystem::path& model : files) {
+    if (!same_file(cache, model)) continue;
+    std::string no_cache = quoted_name(cache) + ": is the model itself (" + quoted_name(model) +
+                           "); refusing to write a cache over it";
+    if (options.cache_path) throw InputError(no_cache);
+    return no_cache;
+  }
+  return {};
 }
 
-CacheKey hash_model(const std::filesystem::path& model, std::uint32_t bits, OpenedModel& out) {
+CacheKey hash_model(std::span<const std::filesystem::path> files, std::uint32_t bits,
+                    OpenedModel& out) {
   const auto t0 = std::chrono::steady_clock::now();
-  CacheKey k = cache_key_for(model, bits);
+  CacheKey k = cache_key_for(files, bits);
   out.hash_seconds = seconds_since(t0);
   out.hashed = true;
   return k;
-}
-
-// The first `n` bytes of a file (fewer if it is shorter).
-std::string read_head(const std::filesystem::path& path, std::size_t n) {
-  std::ifstream in(path, std::ios::binary);
-  std::string head(n, '\0');
-  in.read(head.data(), static_cast<std::streamsize>(n));
-  head.resize(static_cast<std::size_t>(std::max<std::streamsize>(in.gcount(), 0)));
-  return head;
-}
-
-// Whether TEXT is comment lines ('#') only, the last perhaps cut off.
-bool only_comments(std::string_view text) {
-  for (std::size_t at = 0; at < text.size();) {
-    const std::size_t end = std::min(text.find('\n', at), text.size());
-    const std::string_view line = text.substr(at, end - at);
-    if (!line.empty() && line.front() != '#' && line != "\r") return false;
-    at = end + 1;
-  }
-  return true;
-}
-
-// The points of a model file, by its first bytes: LAS ("LASF"), PLY, PCD
-// (pcd.hpp) or, for any other text, a text cloud (text_cloud.hpp), whose
-// reader comes closest to what such a file is (which column is named twice,
-// which line). A binary file that is neither gets the PLY reader's message
-// (it names the format it recognizes: E57, an image...) and what treecut
-// reads.
-PointSet read_point_file(const std::filesystem::path& model, OpenedModel& out,
-                         const WarningSink& warn, const std::vector<std::string>& columns) {
-  // The format from the first bytes: 4 KiB, or up to 1 MiB while they are
-  // only comment lines (a PCD may open with a long one).
-  std::string head = read_head(model, 4096);
-  if (head.size() == 4096 && only_comments(head)) head = read_head(model, std::size_t{1} << 20);
-  const bool las = head.starts_with("LASF");
-  // A byte order mark before 'ply' is the PLY reader's to name.
-  const bool ply = !las && (head.starts_with("ply") || head.starts_with("\xEF\xBB\xBFply"));
-  const bool pcd = !las && !ply && looks_like_pcd(head);
-  // Text with another format's signature (E57's "ASTM-E57") is named as that.
-  const bool text =
-      !las && !ply && !pcd && ply::other_format(head).empty() && looks_like_text_cloud(head);
-  if (!columns.empty() && !text) {
-    throw InputError(quoted_name(model) +
-                     ": --columns names the columns of a text cloud (XYZ, PTS, CSV); this file "
-                     "names its own fields");
-  }
-  if (las) {
-    out.format = "LAS";
-    return load_las(model, &out.las, warn);
-  }
-  if (pcd) {
-    out.format = "PCD";
-    return load_pcd(model, warn);
-  }
-  if (text) {
-    out.format = "text";
-    try {
-      return load_text_cloud(model, warn, columns);
-    } catch (const InputError& e) {
-      // A text with no positions at all may be no point cloud: say what is read.
-      const std::string what = e.what();
-      if (what.find(": the header names no x, y, z columns") == std::string::npos) throw;
-      throw InputError(what + "; treecut reads PLY, LAS, PCD and text (XYZ, PTS, CSV) point files");
-    }
-  }
-  out.format = "PLY";
-  if (ply) return load_ply(model, &out.ply, warn);
-  try {
-    return load_ply(model, &out.ply, warn);
-  } catch (const InputError& e) {
-    throw InputError(std::string(e.what()) +
-                     "; treecut reads PLY, LAS, PCD and text (XYZ, PTS, CSV) point files");
-  }
 }
 
 // Positions are floats relative to the model's origin (point_set.hpp): a
@@ -240,21 +199,25 @@ std::string float_precision_warning(const PointSet& points) {
 
 // The file's format as `info` words it (SourceNotes::format).
 std::string format_text(const OpenedModel& out) {
-  if (out.format != "LAS") return out.format;
+  const std::string files = out.files > 1 ? "; " + std::to_string(out.files) + " files" : "";
+  if (out.format != "LAS") return out.format + files;
   const LasInfo& l = out.las.info;
   std::string text = "LAS " + std::to_string(l.version_major) + "." +
                      std::to_string(l.version_minor) + ", point format " +
                      std::to_string(l.point_format) + " (" + std::to_string(l.record_length) +
                      " bytes a point)";
   if (!l.system_identifier.empty()) text += ", from " + one_line(l.system_identifier);
-  return text;
+  return text + files;
 }
 
 // Read, attributes, hierarchy: the model built into `out`, each stage timed.
 // The read's warnings go out as they come and into the hierarchy's notes
 // (cached: a warm open says them again).
-void read_and_build(const std::filesystem::path& model, std::uint32_t bits, const CacheKey& key,
-                    const OpenOptions& given, OpenedModel& out) {
+void read_and_build(std::span<const std::filesystem::path> files, std::uint32_t bits,
+                    const CacheKey& key, const OpenOptions& given, OpenedModel& out) {
+  // One file names itself; a cloud of many, the folder of its first.
+  const std::filesystem::path& model =
+      files.size() == 1 ? files.front() : files.front().parent_path();
   SourceNotes notes;
   OpenOptions options = given;
   options.warn = [&](const std::string& w) {
@@ -267,14 +230,19 @@ void read_and_build(const std::filesystem::path& model, std::uint32_t bits, cons
   // read: a model replaced or edited meanwhile (`cp new.ply model.ply` during
   // a load) would give a hierarchy of one content under the key of another,
   // or a parse error about bytes the user never wrote.
-  const auto changed = [&] { return !same_identity(cache_identity_of(model, bits), key); };
+  const auto changed = [&] { return !same_identity(cache_identity_of(files, bits), key); };
   const auto changed_error = [&] {
     return FileChangedError(quoted_name(model) +
-                            ": changed while being read (its size, times or inode moved)");
+                            (files.size() == 1
+                                 ? ": changed while being read (its size, times or inode moved)"
+                                 : ": a file of the model changed while being read"));
   };
   PointSet points;
   try {
-    points = read_point_file(model, out, options.warn, options.columns);
+    points = files.size() == 1 ? detail::read_point_file(model, out, options.warn, options.columns)
+                               : detail::read_point_files(files, out, options.warn, options.columns,
+                                                          options.progress);
+    out.files = files.size();
   } catch (const InputError&) {
     if (changed()) throw changed_error();
     throw;
@@ -360,33 +328,17 @@ void write_model_cache(const CacheKey& key, const OpenOptions& options, OpenedMo
   out.cache_seconds += seconds_since(t0);
 }
 
-}  // namespace
-
-PointSet load_point_file(const std::filesystem::path& model, const WarningSink& warn,
-                         std::string* format, const std::vector<std::string>& columns) {
-  require_regular_file(model);
-  OpenedModel opened;
-  PointSet points = read_point_file(model, opened, warn, columns);
-  if (format) *format = opened.format;
-  return points;
-}
-
-OpenedModel open_model(const std::filesystem::path& model, const OpenOptions& options) {
-  // Checked without opening: a FIFO would block, a directory is "no such file" to ifstream.
-  require_regular_file(model);
-  if (looks_like_cache(model)) return open_cache_file(model);
-  // A .tch that is not a cache is named as such, not as a bad PLY (unless it
-  // is a PLY under that name).
-  if (model.extension() == ".tch" && !file_starts_with(model, "ply"))
-    throw InputError(quoted_name(model) +
-                     ": not a treecut cache (it does not start with a cache's signature)");
+// The cached open of a model made of FILES (one, or a cloud's tiles), its
+// default cache DEFAULT_CACHE.
+OpenedModel open_sources(std::span<const std::filesystem::path> files,
+                         const std::filesystem::path& default_cache, const OpenOptions& options) {
   OpenedModel out;
   const std::uint32_t bits =
       options_bits(options.attributes, options.build, options.columns, options.crs);
-  out.cache = options.cache_path ? *options.cache_path : default_cache_path(model);
+  out.cache = options.cache_path ? *options.cache_path : default_cache;
   // A cache that cannot be: named by the caller, an error; the default one,
   // a warning, and the model opens without it.
-  const std::string no_cache = cache_problem(model, out.cache, options);
+  const std::string no_cache = cache_problem(files, out.cache, options);
   const bool use_cache = options.use_cache && no_cache.empty();
   if (options.use_cache && !no_cache.empty()) {
     if (options.require_cache) throw std::runtime_error(no_cache);
@@ -407,7 +359,7 @@ OpenedModel open_model(const std::filesystem::path& model, const OpenOptions& op
   if (use_cache && kind == FileKind::Regular && !options.rebuild) {
     // The cache module decides (cache.hpp): the model's identity when it is
     // unchanged and settled, its content hash otherwise.
-    CacheLookup found = lookup_cache(model, out.cache, bits, write_cache);
+    CacheLookup found = lookup_cache(files, out.cache, bits, write_cache);
     out.hashed = found.hashed;
     out.hash_seconds = found.hash_seconds;
     out.cache_seconds += found.cache_seconds;
@@ -427,12 +379,53 @@ OpenedModel open_model(const std::filesystem::path& model, const OpenOptions& op
     if (options.warn) options.warn(quoted_name(out.cache) + ": " + out.cache_note + "; rebuilding");
     key = found.key;
   } else {
-    key = hash_model(model, bits, out);
+    key = hash_model(files, bits, out);
   }
   if (write_cache && options.require_cache) probe_cache_destination(out.cache);
-  read_and_build(model, bits, *key, options, out);
+  read_and_build(files, bits, *key, options, out);
   if (write_cache) write_model_cache(*key, options, out);
   return out;
+}
+
+}  // namespace
+
+PointSet load_point_file(const std::filesystem::path& model, const WarningSink& warn,
+                         std::string* format, const std::vector<std::string>& columns) {
+  require_regular_file(model);
+  OpenedModel opened;
+  PointSet points = detail::read_point_file(model, opened, warn, columns);
+  if (format) *format = opened.format;
+  return points;
+}
+
+OpenedModel open_model(const std::filesystem::path& model, const OpenOptions& options) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(model, ec)) {
+    const std::vector<std::filesystem::path> files = point_files_in(model);
+    return open_sources(files, default_cache_path(model), options);
+  }
+  // Checked without opening: a FIFO would block, a directory is "no such file" to ifstream.
+  require_regular_file(model);
+  if (looks_like_cache(model)) return open_cache_file(model);
+  // A .tch that is not a cache is named as such, not as a bad PLY (unless it
+  // is a PLY under that name).
+  if (model.extension() == ".tch" && !file_starts_with(model, "ply"))
+    throw InputError(quoted_name(model) +
+                     ": not a treecut cache (it does not start with a cache's signature)");
+  return open_sources(std::span(&model, 1), default_cache_path(model), options);
+}
+
+OpenedModel open_model(const std::vector<std::filesystem::path>& files,
+                       const OpenOptions& options) {
+  if (files.size() == 1) return open_model(files.front(), options);
+  if (files.empty()) throw InputError("a model of no files");
+  for (const std::filesystem::path& f : files) {
+    require_regular_file(f);
+    if (looks_like_cache(f))
+      throw InputError(quoted_name(f) +
+                       ": is a treecut cache; a model of several files is made of point files");
+  }
+  return open_sources(files, default_cache_path(files), options);
 }
 
 }  // namespace treecut

@@ -1,0 +1,29 @@
+// Reading a model's points for open_model (model_io.cpp): one file by its
+// first bytes, or the files of one cloud (a folder of tiles, issue 44)
+// joined into one PointSet.
+#pragma once
+
+#include <filesystem>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "treecut/model_io.hpp"
+
+namespace treecut::detail {
+
+/// The points of MODEL by its first bytes (LAS, PLY, PCD or a text cloud);
+/// OUT gets the format and the reader's report.
+PointSet read_point_file(const std::filesystem::path& model, OpenedModel& out,
+                         const WarningSink& warn, const std::vector<std::string>& columns);
+
+/// The points of FILES in order as one cloud (PointSet::append), each read
+/// as read_point_file does; OUT gets the first file's format and report.
+/// A file whose coordinate system differs from the first's is an InputError
+/// naming both. PROGRESS (may be empty) gets ("read", files done, files).
+PointSet read_point_files(
+    std::span<const std::filesystem::path> files, OpenedModel& out, const WarningSink& warn,
+    const std::vector<std::string>& columns,
+    const std::function<void(std::string_view, std::size_t, std::size_t)>& progress);
+
+}  // namespace treecut::detail

@@ -1,0 +1,193 @@
+// Many files are one model (issue 44, item 1): PointSet::append joins the
+// points of the files of one cloud, every attribute at the precision both
+// files allow; a model of several files is keyed on all of them, opened
+// through one cache, and refuses files of another coordinate system. The
+// command-line cases (a folder of survey tiles) are in
+// tests/tools/survey_test.cpp.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "test_support.hpp"
+#include "treecut/cache.hpp"
+#include "treecut/error.hpp"
+#include "treecut/las.hpp"
+#include "treecut/model_io.hpp"
+#include "treecut/ply.hpp"
+#include "treecut/tools/survey.hpp"
+
+namespace treecut {
+namespace {
+
+namespace fs = std::filesystem;
+
+const PointAttribute* find(const PointSet& ps, const std::string& name) {
+  for (const PointAttribute& a : ps.attributes) {
+    if (a.name == name) return &a;
+  }
+  return nullptr;
+}
+
+// A tile of N points on a line from START along x, at map coordinates.
+PointSet tile(std::size_t n, glm::dvec3 origin, float start) {
+  PointSet p;
+  p.frame.origin = origin;
+  p.frame.crs = "EPSG:32633 (projected)";
+  p.frame.crs_records.geo_keys = tools::geotiff_keys_for_epsg(32633);
+  for (std::size_t i = 0; i < n; ++i) p.positions.emplace_back(start + float(i), 0.5f, 1.0f);
+  return p;
+}
+
+TEST(PointSetAppend, PositionsMoveToTheFirstOriginAndArraysStayInStep) {
+  PointSet a = tile(3, {500000, 5000000, 100}, 0.0f);
+  a.colors.assign(3, glm::u8vec4(10, 20, 30, 255));
+  a.normals.assign(3, glm::vec3(0, 0, 1));
+  a.triangles.emplace_back(0, 1, 2);
+  PointSet b = tile(2, {500100, 5000000, 90}, 0.0f);
+  b.triangles.emplace_back(0, 1, 1);
+  a.append(std::move(b));
+  ASSERT_EQ(a.size(), 5u);
+  EXPECT_EQ(a.frame.origin, glm::dvec3(500000, 5000000, 100));
+  // B's first point: 500100 + 0 in file coordinates, 100 from A's origin.
+  EXPECT_EQ(a.positions[3], glm::vec3(100.0f, 0.5f, -9.0f));
+  // Only A had normals: estimated for all, as for a file without them.
+  EXPECT_FALSE(a.has_normals());
+  // B had no colours: the grey of an uncoloured file.
+  ASSERT_EQ(a.colors.size(), 5u);
+  EXPECT_EQ(a.colors[4], glm::u8vec4(200, 200, 200, 255));
+  ASSERT_EQ(a.triangles.size(), 2u);
+  EXPECT_EQ(a.triangles[1], glm::uvec3(3, 4, 4));
+}
+
+TEST(PointSetAppend, AttributesJoinByNameAtThePrecisionOfBoth) {
+  PointSet a = tile(3, {0, 0, 0}, 0.0f);
+  a.attributes.push_back({.name = "classification",
+                          .kind = AttributeKind::category,
+                          .type = ValueType::u8,
+                          .constant = 2.0});
+  a.attributes.push_back({.name = "gps_time",
+                          .type = ValueType::f64,
+                          .wide = {245379.3984375001, 245380.5, 245381.25}});
+  a.attributes.push_back(
+      {.name = "id", .type = ValueType::u64, .integers = {std::int64_t(9007199254740993), 1, 2}});
+  PointSet b = tile(2, {0, 0, 0}, 10.0f);
+  b.attributes.push_back({.name = "classification",
+                          .kind = AttributeKind::category,
+                          .type = ValueType::u8,
+                          .constant = 6.0});
+  b.attributes.push_back({.name = "id", .type = ValueType::u64, .values = {7.0f, 8.0f}});
+  b.attributes.push_back({.name = "height", .type = ValueType::f32, .values = {1.5f, 2.5f}});
+  a.append(std::move(b));
+  ASSERT_EQ(a.attributes.size(), 4u);
+  const PointAttribute* cls = find(a, "classification");
+  ASSERT_NE(cls, nullptr);
+  EXPECT_EQ(cls->kind, AttributeKind::category);
+  EXPECT_EQ(cls->type, ValueType::u8);
+  EXPECT_EQ(cls->value(2), 2.0);
+  EXPECT_EQ(cls->value(3), 6.0);
+  const PointAttribute* time = find(a, "gps_time");
+  ASSERT_NE(time, nullptr);
+  EXPECT_EQ(time->value(0), 245379.3984375001);  // a double stays a double
+  EXPECT_TRUE(std::isnan(time->value(3)));       // B has none
+  const PointAttribute* id = find(a, "id");
+  ASSERT_NE(id, nullptr);
+  ASSERT_EQ(id->integers.size(), 5u);  // past 2^53: every value as its integer
+  EXPECT_EQ(id->integers[0], std::int64_t(9007199254740993));
+  EXPECT_EQ(id->integers[4], 8);
+  const PointAttribute* height = find(a, "height");
+  ASSERT_NE(height, nullptr);
+  EXPECT_TRUE(std::isnan(height->value(0)));  // A has none
+  EXPECT_EQ(height->value(4), 2.5);
+}
+
+TEST(PointSetAppend, FieldsOfOtherTypesOrScalesBecomeDoubles) {
+  PointSet a = tile(2, {0, 0, 0}, 0.0f);
+  a.attributes.push_back({.name = "intensity", .type = ValueType::u8, .values = {1, 2}});
+  a.attributes.push_back(
+      {.name = "angle", .type = ValueType::i16, .scale = 0.006, .values = {0.006f, 0.012f}});
+  PointSet b = tile(2, {0, 0, 0}, 5.0f);
+  b.attributes.push_back({.name = "intensity", .type = ValueType::u16, .values = {300, 60000}});
+  b.attributes.push_back({.name = "angle", .type = ValueType::i8, .values = {3, -4}});
+  a.append(std::move(b));
+  EXPECT_EQ(find(a, "intensity")->type, ValueType::u16);  // the wider integer
+  EXPECT_EQ(find(a, "intensity")->value(3), 60000.0);
+  EXPECT_EQ(find(a, "angle")->type, ValueType::f64);  // scales differ: the values themselves
+  EXPECT_EQ(find(a, "angle")->scale, 1.0);
+  EXPECT_EQ(find(a, "angle")->value(3), -4.0);
+  EXPECT_FLOAT_EQ(float(find(a, "angle")->value(1)), 0.012f);
+}
+
+TEST(ManyFiles, AModelOfSeveralFilesIsKeyedOnAllOfThemInOrder) {
+  const fs::path dir = test::scratch_dir("many_files_key");
+  save_las(dir / "a.las", tile(50, {500000, 5000000, 0}, 0.0f));
+  save_las(dir / "b.las", tile(60, {500100, 5000000, 0}, 0.0f));
+  const std::vector<fs::path> ab{dir / "a.las", dir / "b.las"}, ba{dir / "b.las", dir / "a.las"};
+  const CacheKey k_ab = cache_key_for(ab, 7), k_ba = cache_key_for(ba, 7);
+  EXPECT_EQ(k_ab.source_size, fs::file_size(ab[0]) + fs::file_size(ab[1]));
+  EXPECT_NE(k_ab.content_hash, k_ba.content_hash);
+  EXPECT_FALSE(cache_key_matches(k_ab, k_ba));
+  EXPECT_NE(k_ab.content_hash, cache_key_for(ab[0], 7).content_hash);
+  // One file's key is its own (the caches of single files stay valid).
+  EXPECT_EQ(cache_key_for(std::vector<fs::path>{ab[0]}, 7).content_hash,
+            cache_key_for(ab[0], 7).content_hash);
+  // The same bytes under the same names elsewhere: the same content.
+  fs::create_directories(dir / "copy");
+  fs::copy_file(ab[0], dir / "copy" / "a.las");
+  fs::copy_file(ab[1], dir / "copy" / "b.las");
+  const CacheKey copied =
+      cache_key_for(std::vector<fs::path>{dir / "copy" / "a.las", dir / "copy" / "b.las"}, 7);
+  EXPECT_TRUE(cache_key_matches(k_ab, copied));
+  EXPECT_FALSE(cache_identity_serves(k_ab, copied));  // other inodes: hashed, not trusted
+  // An edited tile is another model.
+  save_las(dir / "copy" / "b.las", tile(61, {500100, 5000000, 0}, 0.0f));
+  EXPECT_FALSE(cache_key_matches(
+      k_ab,
+      cache_key_for(std::vector<fs::path>{dir / "copy" / "a.las", dir / "copy" / "b.las"}, 7)));
+}
+
+TEST(ManyFiles, AFolderOpensAsOneModelThroughOneCache) {
+  const fs::path dir = test::scratch_dir("many_files_open");
+  fs::create_directories(dir / "tiles");
+  save_las(dir / "tiles" / "a.las", tile(300, {500000, 5000000, 0}, 0.0f));
+  save_las(dir / "tiles" / "b.LAS", tile(200, {500400, 5000000, 0}, 0.0f));
+  test::write_text(dir / "tiles" / "notes.md", "not a point file\n");
+  ASSERT_EQ(point_files_in(dir / "tiles").size(), 2u);
+  OpenOptions o;
+  o.cache_path = dir / "tiles.tch";
+  const OpenedModel built = open_model(dir / "tiles", o);
+  EXPECT_FALSE(built.from_cache);
+  EXPECT_EQ(built.files, 2u);
+  EXPECT_EQ(built.input_points, 500u);
+  EXPECT_EQ(built.hierarchy.leaf_count(), 500u);
+  EXPECT_NE(built.hierarchy.notes().format.find("2 files"), std::string::npos);
+  // The second tile's points lie 400 m east of the first's.
+  EXPECT_NEAR(built.hierarchy.bounds_max().x - built.hierarchy.bounds_min().x, 599.0, 1e-3);
+  const OpenedModel again = open_model(dir / "tiles", o);
+  EXPECT_TRUE(again.from_cache);
+  // A tile more: another model, rebuilt.
+  save_las(dir / "tiles" / "c.las", tile(10, {500800, 5000000, 0}, 0.0f));
+  const OpenedModel more = open_model(dir / "tiles", o);
+  EXPECT_FALSE(more.from_cache);
+  EXPECT_EQ(more.input_points, 510u);
+  // A file of another coordinate system is named with the first.
+  PointSet other = tile(10, {500800, 5000000, 0}, 0.0f);
+  other.frame.crs = "EPSG:32632 (projected)";
+  other.frame.crs_records.geo_keys = tools::geotiff_keys_for_epsg(32632);
+  save_las(dir / "tiles" / "d.las", other);
+  try {
+    open_model(dir / "tiles", o);
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("d.las"), std::string::npos) << what;
+    EXPECT_NE(what.find("a.las"), std::string::npos) << what;
+  }
+  fs::create_directories(dir / "empty");
+  EXPECT_THROW(open_model(dir / "empty", o), InputError);
+}
+
+}  // namespace
+}  // namespace treecut
