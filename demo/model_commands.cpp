@@ -433,9 +433,10 @@ std::vector<std::filesystem::path> build_inputs(const std::vector<std::string>& 
     if (files.size() == 1 && std::filesystem::is_directory(f, ec)) break;
     require_regular_file(f);
     if (looks_like_cache(f))
-      throw InputError(quoted_name(f) +
-                       ": is a treecut cache already; build takes point files (info shows the "
-                       "cache)");
+      throw InputError(
+          quoted_name(f) +
+          ": is a treecut cache already; build takes a point file, several or a folder of them "
+          "(info shows the cache)");
   }
   return files;
 }

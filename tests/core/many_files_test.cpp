@@ -1,4 +1,5 @@
-// Many files are one model (issue 44, item 1): PointSet::append joins the
+// Many files are one model (issue 44, item 1): a LAS file read in batches
+// gives what one read gives; PointSet::append joins the
 // points of the files of one cloud, every attribute at the precision both
 // files allow; a model of several files is keyed on all of them, opened
 // through one cache, and refuses files of another coordinate system. The
@@ -118,6 +119,47 @@ TEST(PointSetAppend, FieldsOfOtherTypesOrScalesBecomeDoubles) {
   EXPECT_EQ(find(a, "angle")->scale, 1.0);
   EXPECT_EQ(find(a, "angle")->value(3), -4.0);
   EXPECT_FLOAT_EQ(float(find(a, "angle")->value(1)), 0.012f);
+}
+
+TEST(LasReader, BatchesJoinedAreTheWholeFile) {
+  const fs::path dir = test::scratch_dir("las_batches");
+  tools::SurveyOptions survey;
+  survey.width = survey.height = survey.tile = 40.0;
+  survey.density = 5.0;  // 8,000 points of a flight: classes, returns, GPS times, colours
+  PointSet made = tools::generate_survey_tile(survey, tools::survey_tiles(survey).front());
+  // A 16-bit colour channel past 255 only after the first batch.
+  made.colors16.assign(made.size(), glm::u16vec3(100, 120, 140));
+  made.colors16.back() = glm::u16vec3(40000, 120, 140);
+  save_las(dir / "t.las", made);
+  const PointSet whole = load_las(dir / "t.las");
+  LasReader reader(dir / "t.las");
+  EXPECT_EQ(reader.remaining(), made.size());
+  PointSet joined;
+  std::size_t batches = 0;
+  for (PointSet batch = reader.next(777); batch.size() != 0; batch = reader.next(777)) {
+    EXPECT_LE(batch.size(), 777u);
+    EXPECT_EQ(batch.frame.origin, whole.frame.origin);  // fixed when the file opened
+    joined.append(std::move(batch));
+    ++batches;
+  }
+  EXPECT_EQ(batches, 11u);
+  EXPECT_EQ(reader.remaining(), 0u);
+  ASSERT_EQ(joined.size(), whole.size());
+  EXPECT_EQ(joined.positions, whole.positions);
+  EXPECT_EQ(joined.frame.crs, whole.frame.crs);
+  EXPECT_EQ(joined.frame.resolution, whole.frame.resolution);
+  EXPECT_EQ(joined.colors16, whole.colors16);
+  // The last record's bright channel, sampled when the file opened, makes
+  // the first batches' colours 16-bit too.
+  EXPECT_EQ(joined.colors, whole.colors);
+  ASSERT_EQ(joined.attributes.size(), whole.attributes.size());
+  for (std::size_t k = 0; k < whole.attributes.size(); ++k) {
+    const PointAttribute& a = joined.attributes[k];
+    const PointAttribute& b = whole.attributes[k];
+    EXPECT_EQ(a.name, b.name);
+    EXPECT_EQ(a.type, b.type) << a.name;
+    for (std::size_t i = 0; i < whole.size(); ++i) ASSERT_EQ(a.value(i), b.value(i)) << a.name << i;
+  }
 }
 
 TEST(ManyFiles, AModelOfSeveralFilesIsKeyedOnAllOfThemInOrder) {

@@ -24,6 +24,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -75,6 +76,40 @@ struct LasInfo {
 struct LasLoadReport {
   LasInfo info;
   std::size_t dropped_nonfinite = 0;  ///< points beyond kMaxCoordinate, dropped
+};
+
+/// A LAS file's points in batches (issue 44: a build that holds a batch,
+/// not the file). The header, VLRs and EVLRs are parsed and checked when it
+/// opens, the origin fixed from them and the first point (as load_las
+/// does), so every batch has the same frame: its positions relative to one
+/// origin, the file's grid, coordinate system and records. load_las() is
+/// one batch of every point. Throws as load_las() does, when it opens and
+/// from next().
+class LasReader {
+ public:
+  /// Opens PATH (held open until destruction).
+  explicit LasReader(const std::filesystem::path& path, const WarningSink& warn = {});
+  /// Reads BYTES (which must outlive the reader); NAME stands for the path.
+  LasReader(std::string_view bytes, const std::string& name, const WarningSink& warn = {});
+  ~LasReader();
+  LasReader(LasReader&&) noexcept;
+  LasReader& operator=(LasReader&&) noexcept;
+
+  [[nodiscard]] const LasInfo& info() const;
+  /// Points not handed out yet.
+  [[nodiscard]] std::uint64_t remaining() const;
+  /// The next min(MAX_POINTS, remaining()) points (none at the end): their
+  /// positions, colours and fields as attributes (each batch keeps a field
+  /// with one value in it once). What cannot be kept is said once, by the
+  /// first batch; 64-bit integers a double rounded, by the last. Colours
+  /// are the file's 16 bits when a channel past 255 is in any of 1,024
+  /// records spread over the file (the last one included, looked at when it
+  /// opens) or in any batch so far; else 8-bit values in the 16-bit fields.
+  PointSet next(std::size_t max_points);
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
 };
 
 /// True when BYTES start as a LAS or LAZ file does ("LASF").
