@@ -121,6 +121,28 @@ TEST(PointSetAppend, FieldsOfOtherTypesOrScalesBecomeDoubles) {
   EXPECT_FLOAT_EQ(float(find(a, "angle")->value(1)), 0.012f);
 }
 
+TEST(PointSetAppend, FloatsFromAnotherOffsetStayFloatsOrBecomeDoubles) {
+  PointSet a = tile(2, {0, 0, 0}, 0.0f);
+  a.attributes.push_back(
+      {.name = "t", .type = ValueType::f64, .offset = 1e6, .values = {0.5f, 1.5f}});
+  PointSet b = tile(2, {0, 0, 0}, 5.0f);
+  b.attributes.push_back({.name = "t", .type = ValueType::f64, .values = {3.0f, 4.0f}});
+  a.append(std::move(b));
+  const PointAttribute* t = find(a, "t");
+  ASSERT_EQ(t->values.size(), 4u);  // 3 - 1e6 is a float: still floats from 1e6
+  EXPECT_EQ(t->value(0), 1000000.5);
+  EXPECT_EQ(t->value(2), 3.0);
+  PointSet c = tile(2, {0, 0, 0}, 9.0f);
+  c.attributes.push_back({.name = "t", .type = ValueType::f64, .wide = {0.1, 7.25}});
+  a.append(std::move(c));
+  t = find(a, "t");
+  EXPECT_TRUE(t->values.empty());  // 0.1 - 1e6 is no float: doubles for all
+  ASSERT_EQ(t->wide.size(), 6u);
+  EXPECT_EQ(t->value(1), 1000001.5);
+  EXPECT_EQ(t->value(4), 0.1);
+  EXPECT_EQ(t->value(5), 7.25);
+}
+
 TEST(LasReader, BatchesJoinedAreTheWholeFile) {
   const fs::path dir = test::scratch_dir("las_batches");
   tools::SurveyOptions survey;
