@@ -42,11 +42,13 @@ struct ModelArgs {
   int k = 12;
   std::vector<std::string> columns;
   std::string crs;
+  std::uint64_t memory = 0;  // --memory
 };
 
 void add_build_options(CLI::App& cmd, ModelArgs& args) {
   add_columns_option(cmd, args.columns);
   add_crs_option(cmd, args.crs);
+  add_memory_option(cmd, args.memory);
   cmd.add_option("-k,--neighbours", args.k,
                  "Neighbours for normals, radii and curvature of point clouds")
       ->check(whole_number(3, 64));
@@ -61,6 +63,7 @@ OpenOptions open_options(const ModelArgs& args) {
   o.build.parent_at_real_point = args.real_points;
   o.columns = args.columns;
   o.crs = args.crs;
+  o.memory = args.memory;
   o.warn = print_warning;
   if (!args.out.empty()) o.cache_path = args.out;
   return o;

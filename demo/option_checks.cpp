@@ -3,9 +3,11 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <string>
 #include <string_view>
 
+#include "treecut/cache_folder.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
 
@@ -102,6 +104,21 @@ void add_crs_option(CLI::App& cmd, std::string& crs) {
       ->check(CLI::Validator(
           [](const std::string& v) { return v.empty() ? std::string("an empty --crs") : ""; },
           "CRS"));
+}
+
+void add_memory_option(CLI::App& cmd, std::uint64_t& bytes) {
+  cmd.add_option_function<std::string>(
+         "--memory",
+         [&bytes](const std::string& text) {
+           const std::optional<std::uint64_t> v = parse_byte_size(text);
+           if (!v || *v == 0)
+             throw CLI::ValidationError("--memory",
+                                        "'" + text + "' is not a size (bytes, or K, M, G, T)");
+           bytes = *v;
+         },
+         "The memory a build may use (bytes, or K, M, G, T; default: what the machine has "
+         "available): a model that would need more is refused before it is read")
+      ->type_name("SIZE");
 }
 
 }  // namespace treecut::cli

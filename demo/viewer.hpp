@@ -53,6 +53,7 @@ struct SceneArgs {
   std::string classes;               ///< --classes 2,6 | -7,-18
   std::vector<std::string> columns;  ///< --columns: a text cloud's columns
   std::string crs;                   ///< --crs: the coordinate system to draw in
+  std::uint64_t memory = 0;          ///< --memory: the bytes a build may use
   std::string edl = "auto";          ///< --edl auto | on | off: eye-dome lighting
   float edl_strength = 0.25f;        ///< --edl-strength
   std::vector<double> clip;          ///< --clip X0 Y0 Z0 X1 Y1 Z1 (file coordinates)

@@ -116,6 +116,7 @@ void add_scene_options(CLI::App& cmd, SceneArgs& args) {
                  "noise) of the classification attribute");
   add_columns_option(cmd, args.columns);
   add_crs_option(cmd, args.crs);
+  add_memory_option(cmd, args.memory);
   cmd.add_option("--stage-wait-bound", args.stage_wait_bound_ms,
                  "Milliseconds an update may wait for the low-priority Feedback Stage before it "
                  "runs at normal priority until done (0 = never; docs/threading.md)")
@@ -201,6 +202,7 @@ Scene load_scene(const SceneArgs& args, const LoadProgressFn& progress) {
     so.parse.generator = tools::scene_generator();
     so.open.attributes.k = args.k;
     so.open.crs = args.crs;
+    so.open.memory = args.memory;
     so.open.warn = [](const std::string& w) { print_warning(w); };
     const treecut::Scene scene = treecut::load_scene(std::filesystem::path(args.model), so);
     s.world = stage_scene(scene);
@@ -244,10 +246,13 @@ Scene load_scene(const SceneArgs& args, const LoadProgressFn& progress) {
     o.attributes.k = args.k;
     o.columns = args.columns;
     o.crs = args.crs;
+    o.memory = args.memory;
     o.warn = [](const std::string& w) { print_warning(w); };
     o.progress = progress;
     s.hierarchy = std::make_shared<const Hierarchy>(open_model(args.model, o).hierarchy);
-    s.label = std::filesystem::path(args.model).filename().string();
+    const std::filesystem::path model(args.model);
+    // A folder of tiles ("flight/") by its own name.
+    s.label = (model.filename().empty() ? model.parent_path() : model).filename().string();
   }
   const Hierarchy& h = *s.hierarchy;
   // The same rule for files and generated models: the data decides.

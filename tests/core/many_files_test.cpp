@@ -2,7 +2,8 @@
 // gives what one read gives; PointSet::append joins the
 // points of the files of one cloud, every attribute at the precision both
 // files allow; a model of several files is keyed on all of them, opened
-// through one cache, and refuses files of another coordinate system. The
+// through one cache, and refuses files of another coordinate system; a
+// build past the memory is refused with its figures before it reads. The
 // command-line cases (a folder of survey tiles) are in
 // tests/tools/survey_test.cpp.
 #include <gtest/gtest.h>
@@ -17,6 +18,7 @@
 #include "treecut/error.hpp"
 #include "treecut/las.hpp"
 #include "treecut/model_io.hpp"
+#include "treecut/pcd.hpp"
 #include "treecut/ply.hpp"
 #include "treecut/tools/survey.hpp"
 
@@ -251,6 +253,65 @@ TEST(ManyFiles, AFolderOpensAsOneModelThroughOneCache) {
   }
   fs::create_directories(dir / "empty");
   EXPECT_THROW(open_model(dir / "empty", o), InputError);
+}
+
+TEST(BuildMemory, TheHeadersSayHowManyPointsABuildHolds) {
+  const fs::path dir = test::scratch_dir("build_memory");
+  const PointSet p = tile(1000, {500000, 5000000, 0}, 0.0f);
+  save_las(dir / "a.las", p);
+  save_ply(dir / "a.ply", p);
+  save_pcd(dir / "a.pcd", p);
+  std::string text;
+  for (int i = 0; i < 1000; ++i) text += std::to_string(i) + ".125 2.5 -3.75\n";
+  test::write_text(dir / "a.xyz", text);
+  test::write_text(dir / "bad.ply", "ply\nformat nonsense\n");
+  const auto points = [](const fs::path& f) {
+    return build_memory_estimate(std::span(&f, 1)).points;
+  };
+  EXPECT_EQ(points(dir / "a.las"), 1000u);
+  EXPECT_EQ(points(dir / "a.ply"), 1000u);
+  EXPECT_EQ(points(dir / "a.pcd"), 1000u);
+  EXPECT_NEAR(double(points(dir / "a.xyz")), 1000.0, 50.0);  // by its lines' length
+  EXPECT_EQ(points(dir / "bad.ply"), 0u);                    // the reader says what is wrong
+  const std::vector<fs::path> all{dir / "a.las", dir / "a.ply"};
+  const BuildMemory two = build_memory_estimate(all);
+  EXPECT_EQ(two.points, 2000u);
+  EXPECT_EQ(two.bytes, 2000u * kBuildBytesPerPoint);
+
+  EXPECT_EQ(build_memory_problem("m", two, two.bytes, true), "");
+  EXPECT_EQ(build_memory_problem("m", two, 0, false), "");  // unknown: no limit
+  const std::string over = build_memory_problem("m", two, two.bytes - 1, false);
+  EXPECT_EQ(over.rfind("m: 2000 points need about ", 0), 0u) << over;
+  EXPECT_NE(over.find("--memory SIZE"), std::string::npos) << over;
+  const std::string huge = build_memory_problem(
+      "m", {kMaxBuildPoints + 1, (kMaxBuildPoints + 1) * kBuildBytesPerPoint}, 0, false);
+  EXPECT_NE(huge.find("one hierarchy holds at most 2000000000"), std::string::npos) << huge;
+  EXPECT_GT(available_memory(), 0u);
+}
+
+TEST(BuildMemory, ABuildPastItsBudgetIsRefusedBeforeItReads) {
+  const fs::path dir = test::scratch_dir("build_memory_refused");
+  save_las(dir / "a.las", tile(1000, {500000, 5000000, 0}, 0.0f));
+  OpenOptions o;
+  o.cache_path = dir / "a.tch";
+  o.memory = 1000 * kBuildBytesPerPoint - 1;
+  try {
+    open_model(dir / "a.las", o);
+    ADD_FAILURE() << "not refused";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("a.las: 1000 points need about"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_FALSE(fs::exists(dir / "a.tch"));
+  o.memory = 1000 * kBuildBytesPerPoint;
+  EXPECT_EQ(open_model(dir / "a.las", o).input_points, 1000u);
+  // From its cache, nothing is built: no budget applies.
+  o.memory = 1;
+  EXPECT_TRUE(open_model(dir / "a.las", o).from_cache);
+  const test::CommandResult r = test::run_treecut(
+      "build --memory 64K " + test::quote(dir / "a.las") + " -f -o " + test::quote(dir / "b.tch"));
+  test::expect_failure(r, 1, "--memory allows 0.00 GiB");
+  EXPECT_FALSE(fs::exists(dir / "b.tch"));
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <functional>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -40,6 +41,10 @@ struct OpenOptions {
   /// geographic input (longitude, latitude) goes to the UTM zone of its
   /// centre, any other stays as it is. Part of the cache key.
   std::string crs;
+  /// The bytes a build may use (`--memory`); 0: what the machine has
+  /// available (available_memory()). A build that would need more
+  /// (build_memory_estimate) is refused before it reads.
+  std::uint64_t memory = 0;
   WarningSink warn;  ///< PLY warnings and cache notes (may be empty)
   /// Called on the calling thread with the stage ("read", "attributes",
   /// "hierarchy", "cache") and (done, total) work units within it; may be empty.
@@ -93,6 +98,35 @@ std::vector<std::filesystem::path> point_files_in(const std::filesystem::path& f
 std::uint32_t options_bits(const AttributeOptions& attributes, const BuildOptions& build,
                            const std::vector<std::string>& columns = {},
                            const std::string& crs = {});
+
+/// The peak bytes a point costs a build held in memory, through read,
+/// attributes, hierarchy and cache write (measured: 83-97 for terrain
+/// without attributes, 116 for a survey with RGB and seven varying fields;
+/// docs/files.md, "Memory").
+inline constexpr std::uint64_t kBuildBytesPerPoint = 110;
+/// The most points one hierarchy holds: its node ids (NodeId) are 32-bit
+/// and a model has about 1.5 nodes a point.
+inline constexpr std::uint64_t kMaxBuildPoints = 2'000'000'000;
+
+/// What a build of FILES held in memory needs, from their headers alone:
+/// the points they declare (LAS, PLY, PCD; a text cloud's by its size over
+/// the length of its first lines) times kBuildBytesPerPoint. A file whose
+/// header says nothing usable counts 0 (its reader says what is wrong).
+struct BuildMemory {
+  std::uint64_t points = 0;
+  std::uint64_t bytes = 0;
+};
+BuildMemory build_memory_estimate(std::span<const std::filesystem::path> files);
+
+/// The bytes this process may still take: /proc/meminfo's MemAvailable, or
+/// less under a cgroup's memory.max.
+std::uint64_t available_memory();
+
+/// Why a build of NEED cannot run (empty: it can): past kMaxBuildPoints, or
+/// more than BUDGET bytes (0: unknown, no limit). One line after NAME,
+/// with the figures; BUDGET_GIVEN: it came from --memory.
+std::string build_memory_problem(const std::string& name, const BuildMemory& need,
+                                 std::uint64_t budget, bool budget_given);
 
 /// Opens a model: a cache file (.tch) directly, or a PLY through its cache,
 /// rebuilding (and rewriting the cache) when it is missing, stale or corrupt.

@@ -382,6 +382,14 @@ OpenedModel open_sources(std::span<const std::filesystem::path> files,
     key = hash_model(files, bits, out);
   }
   if (write_cache && options.require_cache) probe_cache_destination(out.cache);
+  // A build past the memory is refused with its figures before it reads,
+  // not ended by the kernel's out-of-memory kill, which says nothing.
+  const std::uint64_t budget = options.memory ? options.memory : available_memory();
+  if (const std::string why = build_memory_problem(
+          quoted_name(files.size() == 1 ? files.front() : files.front().parent_path()),
+          build_memory_estimate(files), budget, options.memory != 0);
+      !why.empty())
+    throw std::runtime_error(why);
   read_and_build(files, bits, *key, options, out);
   if (write_cache) write_model_cache(*key, options, out);
   return out;
