@@ -9,7 +9,8 @@
 
 namespace treecut::cli {
 
-void add_model_commands(CLI::App& app);     // build, info, gen (model_commands.cpp)
+void add_model_commands(CLI::App& app);     // build, info, then gen (model_commands.cpp)
+void add_gen_command(CLI::App& app);        // gen (gen_command.cpp)
 void add_export_command(CLI::App& app);     // export (export_command.cpp)
 void add_cache_command(CLI::App& app);      // cache (cache_command.cpp)
 void add_strategy_commands(CLI::App& app);  // strategies (strategy_commands.cpp)
