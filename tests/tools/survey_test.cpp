@@ -255,7 +255,7 @@ TEST(SurveyCli, AFolderOfTilesOrSeveralFilesBuildAsOneModel) {
   fs::create_directories(dir / "none");
   test::write_text(dir / "none" / "readme.md", "tiles come later\n");
   test::expect_failure(test::run_treecut("build " + test::quote(dir / "none")), 2,
-                       "no point files in this folder");
+                       "is a directory without point files");
   test::expect_failure(test::run_treecut("build " + test::quote(out / "tile_500000_5000000.las") +
                                          " " + test::quote(dir / "flight.tch")),
                        2, "is a treecut cache already");

@@ -39,12 +39,15 @@ std::uint64_t declared_points(const std::filesystem::path& path) {
   try {
     const std::string head = head_of(path, std::size_t{1} << 16);
     if (looks_like_las(head)) return LasReader(path).info().point_count;
+    // A header may declare more than its file holds (the reader says so,
+    // exit 2): no more points than 3-byte records fill.
+    const std::uint64_t room = std::filesystem::file_size(path) / 3;
     if (head.starts_with("ply")) {
       const ply::Header h = ply::parse_header(head);
       const int v = h.find("vertex");
-      return v < 0 ? 0 : h.elements[static_cast<std::size_t>(v)].count;
+      return v < 0 ? 0 : std::min(room, h.elements[static_cast<std::size_t>(v)].count);
     }
-    if (looks_like_pcd(head)) return pcd::parse_header(head).points;
+    if (looks_like_pcd(head)) return std::min(room, pcd::parse_header(head).points);
     std::size_t lines = 0, bytes = 0;
     for (std::size_t at = 0; at < head.size();) {
       const std::size_t end = head.find('\n', at);

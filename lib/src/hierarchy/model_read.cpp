@@ -111,7 +111,8 @@ std::vector<std::filesystem::path> point_files_in(const std::filesystem::path& f
   if (ec) throw InputError(system_error_text(folder, ec.value()));
   if (files.empty())
     throw InputError(quoted_name(folder) +
-                     ": no point files in this folder (.las, .ply, .pcd, .xyz, .pts, .csv, .txt)");
+                     ": is a directory without point files (.las, .laz, .ply, .pcd, .xyz, .pts, "
+                     ".csv, .txt); a folder is the model of the point files in it");
   std::sort(files.begin(), files.end());
   return files;
 }
