@@ -1,4 +1,4 @@
-// The scenes with depth complexity (generate.hpp, lib/src/import/generate_{city,plant,field}.cpp):
+// The scenes with depth complexity (generate.hpp, demo/tools/src/generate_{city,plant,field}.cpp):
 // determinism per seed, exact counts, unit normals, points on the intended
 // surfaces, walkthroughs that stay in the free lanes and see occlusion at
 // street level, and the committed assets/paths/*_walk.campath reproduced.

@@ -1,7 +1,7 @@
 // The sampling shared by the scene generators (generate_city.cpp,
 // generate_plant.cpp): hashing per (seed, index, stream), colours, surfaces
 // (quads, cylinders, discs) and the stratified sampling uniform by area.
-// Internal to lib/src/import.
+// Internal to demo/tools/src.
 #pragma once
 
 #include <algorithm>

@@ -39,7 +39,7 @@ PointSet generate_model(ModelKind kind, std::size_t points, std::uint64_t seed =
 void add_survey_attributes(PointSet& points, ModelKind kind);
 
 // ---------------------------------------------------------------------------
-// Scenes with depth complexity (lib/src/import/generate_{city,plant,field}.cpp; docs/scenes.md).
+// Scenes with depth complexity (demo/tools/src/generate_{city,plant,field}.cpp; docs/scenes.md).
 // All three stand on the ground square [-1, 1]^2 at z = 0, z up; think of one
 // unit as 500 m for the city. Points are spread uniformly by area over the
 // visible surfaces (ground minus footprints, walls, roofs, pipes, caps), so
