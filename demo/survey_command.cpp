@@ -86,10 +86,11 @@ void generate_survey(const SurveyArgs& args, const std::string& out_arg, std::ui
   });
   bar.finish();
   std::printf(
-      "wrote %zu LAS tiles into %s: %llu points, %.3g x %.3g km at %.3g points/m^2, "
+      "wrote %zu LAS %s into %s: %llu points, %.3g x %.3g km at %.3g points/m^2, "
       "EPSG:%d\n",
-      tiles.size(), quoted_name(out).c_str(), static_cast<unsigned long long>(total),
-      o.width / 1000.0, o.height / 1000.0, o.density, o.epsg);
+      tiles.size(), tiles.size() == 1 ? "tile" : "tiles", quoted_name(out).c_str(),
+      static_cast<unsigned long long>(total), o.width / 1000.0, o.height / 1000.0, o.density,
+      o.epsg);
 }
 
 }  // namespace treecut::cli
