@@ -503,11 +503,15 @@ struct BuildArgs {
 // bench build: every model built `repeat` times, each in a child process;
 // one table row per model.
 void run_bench_build(const BuildArgs& args) {
-  // Every input is checked before the first run: a FIFO or a folder is
-  // refused at once (a child would block on it), a bad gen: spec too.
+  // Every input is checked before the first run: a FIFO is refused at
+  // once (a child would block on it), a bad gen: spec too. A folder is the
+  // model of its point files (a survey's tiles).
   for (const auto& model : args.models) {
+    std::error_code ec;
     if (model.rfind("gen:", 0) == 0) {
       (void)parse_gen_spec(model);
+    } else if (std::filesystem::is_directory(model, ec)) {
+      (void)point_files_in(model);
     } else {
       require_regular_file(model);
     }
@@ -532,8 +536,10 @@ void run_bench_build(const BuildArgs& args) {
       std::printf("|---|---:|---:|---:|---:|---:|---:|---:|---:|\n");
       header = true;
     }
-    std::printf("| %s | %llu | %llu | %.3f | %.3f | %.3f | %.3f | %.0f | %.1f |\n",
-                std::filesystem::path(model).filename().string().c_str(),
+    // A folder given as "tiles/" by its own name.
+    const std::filesystem::path path(model);
+    const std::string name = (path.filename().empty() ? path.parent_path() : path).filename();
+    std::printf("| %s | %llu | %llu | %.3f | %.3f | %.3f | %.3f | %.0f | %.1f |\n", name.c_str(),
                 static_cast<unsigned long long>(last.points),
                 static_cast<unsigned long long>(last.nodes), median(read), median(attr),
                 median(hier), median(total), pk / (1024.0 * 1024.0),
@@ -549,9 +555,9 @@ void add_bench_build_command(CLI::App& bench) {
                            "point file -> ready hierarchy (read, normals/radii/curvature, "
                            "build): median wall time and peak memory");
   build
-      ->add_option(
-          "MODELS", args->models,
-          "Point files (PLY, LAS, PCD, text), or gen:KIND:POINTS for an in-memory generated model")
+      ->add_option("MODELS", args->models,
+                   "Point files (PLY, LAS, PCD, text), folders of them (one model each), or "
+                   "gen:KIND:POINTS for an in-memory generated model")
       ->check(non_empty_path())
       ->required();
   build->add_option("-r,--repeat", args->repeat, "Repetitions per model (median reported)")

@@ -100,9 +100,9 @@ std::uint32_t options_bits(const AttributeOptions& attributes, const BuildOption
                            const std::string& crs = {});
 
 /// The peak bytes a point costs a build held in memory, through read,
-/// attributes, hierarchy and cache write (measured: 83-97 for terrain
-/// without attributes, 116 for a survey with RGB and seven varying fields;
-/// docs/files.md, "Memory").
+/// attributes, hierarchy and cache write (`bench build`, 20 M points: 78-82
+/// for terrain with one attribute or none, 118 for a survey with RGB and
+/// seven varying fields; more below a few million; docs/files.md, "Memory").
 inline constexpr std::uint64_t kBuildBytesPerPoint = 110;
 /// The most points one hierarchy holds: its node ids (NodeId) are 32-bit
 /// and a model has about 1.5 nodes a point.
