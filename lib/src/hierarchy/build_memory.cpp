@@ -14,6 +14,7 @@
 
 #include "import/pcd_header.hpp"
 #include "import/ply_format.hpp"
+#include "model_read.hpp"
 #include "treecut/las.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/pcd.hpp"
@@ -22,22 +23,13 @@ namespace treecut {
 
 namespace {
 
-// The first N bytes of PATH (fewer if it is shorter).
-std::string head_of(const std::filesystem::path& path, std::size_t n) {
-  std::ifstream in(path, std::ios::binary);
-  std::string head(n, '\0');
-  in.read(head.data(), static_cast<std::streamsize>(n));
-  head.resize(static_cast<std::size_t>(std::max<std::streamsize>(in.gcount(), 0)));
-  return head;
-}
-
 // Points a file declares: a LAS header's count, a PLY's vertex element, a
 // PCD's POINTS; a text cloud's lines by its size over the mean length of
 // its first data lines. 0 when its header says nothing usable (the reader
 // then says what is wrong).
 std::uint64_t declared_points(const std::filesystem::path& path) {
   try {
-    const std::string head = head_of(path, std::size_t{1} << 16);
+    const std::string head = detail::read_head(path, std::size_t{1} << 16);
     if (looks_like_las(head)) return LasReader(path).info().point_count;
     // A header may declare more than its file holds (the reader says so,
     // exit 2): no more points than 3-byte records fill.

@@ -16,15 +16,6 @@ namespace treecut {
 
 namespace {
 
-// The first `n` bytes of a file (fewer if it is shorter).
-std::string read_head(const std::filesystem::path& path, std::size_t n) {
-  std::ifstream in(path, std::ios::binary);
-  std::string head(n, '\0');
-  in.read(head.data(), static_cast<std::streamsize>(n));
-  head.resize(static_cast<std::size_t>(std::max<std::streamsize>(in.gcount(), 0)));
-  return head;
-}
-
 // Whether TEXT is comment lines ('#') only, the last perhaps cut off.
 bool only_comments(std::string_view text) {
   for (std::size_t at = 0; at < text.size();) {
@@ -38,6 +29,14 @@ bool only_comments(std::string_view text) {
 
 }  // namespace
 
+std::string detail::read_head(const std::filesystem::path& path, std::size_t n) {
+  std::ifstream in(path, std::ios::binary);
+  std::string head(n, '\0');
+  in.read(head.data(), static_cast<std::streamsize>(n));
+  head.resize(static_cast<std::size_t>(std::max<std::streamsize>(in.gcount(), 0)));
+  return head;
+}
+
 // The points of a model file, by its first bytes: LAS ("LASF"), PLY, PCD
 // (pcd.hpp) or, for any other text, a text cloud (text_cloud.hpp), whose
 // reader comes closest to what such a file is (which column is named twice,
@@ -48,8 +47,9 @@ PointSet detail::read_point_file(const std::filesystem::path& model, OpenedModel
                                  const WarningSink& warn, const std::vector<std::string>& columns) {
   // The format from the first bytes: 4 KiB, or up to 1 MiB while they are
   // only comment lines (a PCD may open with a long one).
-  std::string head = read_head(model, 4096);
-  if (head.size() == 4096 && only_comments(head)) head = read_head(model, std::size_t{1} << 20);
+  std::string head = detail::read_head(model, 4096);
+  if (head.size() == 4096 && only_comments(head))
+    head = detail::read_head(model, std::size_t{1} << 20);
   const bool las = head.starts_with("LASF");
   // A byte order mark before 'ply' is the PLY reader's to name.
   const bool ply = !las && (head.starts_with("ply") || head.starts_with("\xEF\xBB\xBFply"));

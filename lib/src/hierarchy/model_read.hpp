@@ -12,6 +12,10 @@
 
 namespace treecut::detail {
 
+/// The first N bytes of PATH (fewer if it is shorter; none if it cannot be
+/// read).
+std::string read_head(const std::filesystem::path& path, std::size_t n);
+
 /// The points of MODEL by its first bytes (LAS, PLY, PCD or a text cloud);
 /// OUT gets the format and the reader's report.
 PointSet read_point_file(const std::filesystem::path& model, OpenedModel& out,
