@@ -6,19 +6,15 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <fstream>
 #include <mutex>
 #include <optional>
 #include <stdexcept>
 
-#include "import/ply_format.hpp"
 #include "model_read.hpp"
 #include "reproject.hpp"
 #include "treecut/cache_folder.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
-#include "treecut/pcd.hpp"
-#include "treecut/text_cloud.hpp"
 
 namespace treecut {
 
@@ -33,10 +29,6 @@ std::uint64_t fnv1a(const std::string& s) {
   for (unsigned char c : s) h = (h ^ c) * 0x100000001b3ull;
   return h;
 }
-
-}  // namespace
-
-namespace {
 
 // DIR/NAME-HASH.tch, NAME cut so that the cache's name (and its
 // temporary's) stays within NAME_MAX.
