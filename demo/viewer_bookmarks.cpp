@@ -19,7 +19,7 @@ namespace treecut::cli {
 
 std::filesystem::path Viewer::bookmarks_file() const {
   if (current_file_.empty()) return {};  // a generated model: slots for this session only
-  return std::filesystem::path(current_file_ + ".views");
+  return views_file_for(current_file_);
 }
 
 void Viewer::load_bookmarks() {

@@ -64,4 +64,9 @@ ViewSlots save_view(const std::filesystem::path& file, int slot, const splat::Ca
   return slots;
 }
 
+std::filesystem::path views_file_for(const std::filesystem::path& model) {
+  const std::filesystem::path named = model.filename().empty() ? model.parent_path() : model;
+  return named.string() + ".views";
+}
+
 }  // namespace treecut::cli

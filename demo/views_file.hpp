@@ -22,6 +22,11 @@ namespace treecut::cli {
 
 using ViewSlots = std::array<std::optional<splat::Camera>, 9>;
 
+/// Where the views of MODEL (the path it was opened by) are kept:
+/// `MODEL.views` beside it; a folder of tiles opened as "tiles/" keeps them
+/// beside the folder too, in `tiles.views`, not hidden inside it.
+std::filesystem::path views_file_for(const std::filesystem::path& model);
+
 /// The slots FILE holds (none when FILE is missing). Throws InputError
 /// "FILE: why" when it exists and is not treecut's list of views, read whole.
 ViewSlots read_views(const std::filesystem::path& file);

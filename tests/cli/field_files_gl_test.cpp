@@ -201,6 +201,10 @@ TEST(FieldFilesCli, CacheClearRemovesOnlyWholeCaches) {
 // Item 5: the list of views is written only when missing or read whole.
 TEST(FieldFilesCli, AViewsFileIsWrittenOnlyWhenMissingOrReadWhole) {
   using cli::read_views;
+  EXPECT_EQ(cli::views_file_for("m.las"), fs::path("m.las.views"));
+  // A folder of tiles keeps its views beside it, however it was named.
+  EXPECT_EQ(cli::views_file_for("d/tiles/"), fs::path("d/tiles.views"));
+  EXPECT_EQ(cli::views_file_for("d/tiles"), fs::path("d/tiles.views"));
   using cli::save_view;
   const fs::path dir = scratch_dir("cli_field_views");
   splat::Camera cam;
