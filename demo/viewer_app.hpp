@@ -96,7 +96,15 @@ class Viewer {
   /// fit().
   void open_view();
   void orbit(float dx, float dy);
+  /// A frame's input: a dropped file, then the mouse and the keys unless
+  /// the HUD has them or a path or script owns the camera, then fly moves.
   void handle_input(double dt);
+  void open_dropped();
+  /// Orbit, fly-look, pan, zoom; Ctrl+click picks (CLICKED: the left
+  /// button pressed this frame). CURSOR in window pixels.
+  void handle_mouse(glm::dvec2 cursor, glm::vec2 delta, bool clicked);
+  void handle_keys();
+  void fly(double dt);
 
   // viewer_playback.cpp: scripts and camera paths.
   std::string next_name(const char* ext);

@@ -45,17 +45,7 @@ void Viewer::orbit(float dx, float dy) {
 }
 
 void Viewer::handle_input(double dt) {
-  // A drop opens the last file dropped (several at once: the others are
-  // named on stderr as ignored, not queued behind it).
-  if (!input_.dropped.empty()) {
-    for (std::size_t i = 0; i + 1 < input_.dropped.size(); ++i) {
-      print_error(
-          quoted_name(input_.dropped[i]) + ": ignored (several files dropped; opening the last)",
-          true);
-    }
-    open_model(input_.dropped.back());
-    input_.dropped.clear();
-  }
+  open_dropped();
   GLFWwindow* w = window_.handle();
   double x = 0.0, y = 0.0;
   glfwGetCursorPos(w, &x, &y);
@@ -63,53 +53,77 @@ void Viewer::handle_input(double dt) {
   const glm::vec2 delta = have_mouse_ ? mouse - last_mouse_ : glm::vec2(0.0f);
   last_mouse_ = mouse;
   have_mouse_ = true;
-  const ImGuiIO& io = ImGui::GetIO();
   if (playing_ || !script_.empty()) return;  // the path or the script owns the camera
-  const float scale = scene_.radius;
+  // A press is new against the last frame's button, whoever had the mouse.
   const bool left = glfwGetMouseButton(w, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS;
-  const bool ctrl = glfwGetKey(w, GLFW_KEY_LEFT_CONTROL) == GLFW_PRESS ||
-                    glfwGetKey(w, GLFW_KEY_RIGHT_CONTROL) == GLFW_PRESS;
   const bool clicked = left && !left_down_;
   left_down_ = left;
-  if (!io.WantCaptureMouse && ctrl) {
+  if (!ImGui::GetIO().WantCaptureMouse) handle_mouse(glm::dvec2(x, y), delta, clicked);
+  input_.scroll = 0.0;
+  if (ImGui::GetIO().WantCaptureKeyboard) return;
+  handle_keys();
+  if (fly_) fly(dt);
+}
+
+void Viewer::open_dropped() {
+  // A drop opens the last file dropped (several at once: the others are
+  // named on stderr as ignored, not queued behind it).
+  if (input_.dropped.empty()) return;
+  for (std::size_t i = 0; i + 1 < input_.dropped.size(); ++i) {
+    print_error(
+        quoted_name(input_.dropped[i]) + ": ignored (several files dropped; opening the last)",
+        true);
+  }
+  open_model(input_.dropped.back());
+  input_.dropped.clear();
+}
+
+void Viewer::handle_mouse(glm::dvec2 cursor, glm::vec2 delta, bool clicked) {
+  GLFWwindow* w = window_.handle();
+  const bool left = left_down_;
+  const bool ctrl = glfwGetKey(w, GLFW_KEY_LEFT_CONTROL) == GLFW_PRESS ||
+                    glfwGetKey(w, GLFW_KEY_RIGHT_CONTROL) == GLFW_PRESS;
+  if (ctrl) {
     // Ctrl+click picks (after this frame is drawn), in framebuffer pixels.
     if (clicked) {
       int ww = 1, wh = 1;
       glfwGetWindowSize(w, &ww, &wh);
       const glm::ivec2 fb = window_.framebuffer_size();
-      pending_pick_ = glm::ivec2(static_cast<int>(x * fb.x / std::max(ww, 1)),
-                                 static_cast<int>(y * fb.y / std::max(wh, 1)));
+      pending_pick_ = glm::ivec2(static_cast<int>(cursor.x * fb.x / std::max(ww, 1)),
+                                 static_cast<int>(cursor.y * fb.y / std::max(wh, 1)));
     }
-  } else if (!io.WantCaptureMouse) {
-    if (left) {
-      if (fly_) {
-        const glm::vec3 f = camera_.forward();
-        glm::mat4 rot = glm::rotate(glm::mat4(1.0f), -delta.x * 0.005f, scene_.up);
-        const glm::vec3 right = glm::normalize(glm::cross(f, camera_.up));
-        rot = glm::rotate(rot, -delta.y * 0.005f, right);
-        const glm::vec3 nf = glm::vec3(rot * glm::vec4(f, 0.0f));
-        camera_.target = camera_.eye + nf * glm::length(camera_.target - camera_.eye);
-      } else {
-        orbit(delta.x * 0.008f, delta.y * 0.008f);
-      }
-    }
-    if (glfwGetMouseButton(w, GLFW_MOUSE_BUTTON_RIGHT) == GLFW_PRESS ||
-        glfwGetMouseButton(w, GLFW_MOUSE_BUTTON_MIDDLE) == GLFW_PRESS) {
+    return;
+  }
+  if (left) {
+    if (fly_) {
       const glm::vec3 f = camera_.forward();
+      glm::mat4 rot = glm::rotate(glm::mat4(1.0f), -delta.x * 0.005f, scene_.up);
       const glm::vec3 right = glm::normalize(glm::cross(f, camera_.up));
-      const glm::vec3 up = glm::cross(right, f);
-      const float k = glm::length(camera_.eye - camera_.target) * 0.0015f;
-      const glm::vec3 move = (-delta.x * right + delta.y * up) * k;
-      camera_.eye += move;
-      camera_.target += move;
-    }
-    if (input_.scroll != 0.0) {
-      const glm::vec3 offset = camera_.eye - camera_.target;
-      camera_.eye = camera_.target + offset * static_cast<float>(std::pow(0.88, input_.scroll));
+      rot = glm::rotate(rot, -delta.y * 0.005f, right);
+      const glm::vec3 nf = glm::vec3(rot * glm::vec4(f, 0.0f));
+      camera_.target = camera_.eye + nf * glm::length(camera_.target - camera_.eye);
+    } else {
+      orbit(delta.x * 0.008f, delta.y * 0.008f);
     }
   }
-  input_.scroll = 0.0;
-  if (io.WantCaptureKeyboard) return;
+  if (glfwGetMouseButton(w, GLFW_MOUSE_BUTTON_RIGHT) == GLFW_PRESS ||
+      glfwGetMouseButton(w, GLFW_MOUSE_BUTTON_MIDDLE) == GLFW_PRESS) {
+    const glm::vec3 f = camera_.forward();
+    const glm::vec3 right = glm::normalize(glm::cross(f, camera_.up));
+    const glm::vec3 up = glm::cross(right, f);
+    const float k = glm::length(camera_.eye - camera_.target) * 0.0015f;
+    const glm::vec3 move = (-delta.x * right + delta.y * up) * k;
+    camera_.eye += move;
+    camera_.target += move;
+  }
+  if (input_.scroll != 0.0) {
+    const glm::vec3 offset = camera_.eye - camera_.target;
+    camera_.eye = camera_.target + offset * static_cast<float>(std::pow(0.88, input_.scroll));
+  }
+}
+
+void Viewer::handle_keys() {
+  GLFWwindow* w = window_.handle();
   auto pressed_once = [&](int key) {
     const bool down = glfwGetKey(w, key) == GLFW_PRESS;
     const bool was = keys_down_[key];
@@ -152,8 +166,7 @@ void Viewer::handle_input(double dt) {
   if (pressed_once(GLFW_KEY_F12) || pressed_once(GLFW_KEY_P)) {
     // The scene alone; with Shift, the window as shown (HUD included).
     pending_screenshot_ = next_name("png");
-    screenshot_hud_ = glfwGetKey(w, GLFW_KEY_LEFT_SHIFT) == GLFW_PRESS ||
-                      glfwGetKey(w, GLFW_KEY_RIGHT_SHIFT) == GLFW_PRESS;
+    screenshot_hud_ = shift;
   }
   if (pressed_once(GLFW_KEY_R)) toggle_recording();
   if (pressed_once(GLFW_KEY_SPACE)) start_playback();
@@ -166,21 +179,24 @@ void Viewer::handle_input(double dt) {
       open_model(models_[model_index_]);
     }
   }
-  if (fly_) {
-    const float speed = scale * (glfwGetKey(w, GLFW_KEY_LEFT_SHIFT) == GLFW_PRESS ? 1.5f : 0.4f) *
-                        static_cast<float>(dt);
-    const glm::vec3 f = camera_.forward();
-    const glm::vec3 right = glm::normalize(glm::cross(f, camera_.up));
-    glm::vec3 move(0.0f);
-    if (glfwGetKey(w, GLFW_KEY_W) == GLFW_PRESS) move += f;
-    if (glfwGetKey(w, GLFW_KEY_S) == GLFW_PRESS) move -= f;
-    if (glfwGetKey(w, GLFW_KEY_D) == GLFW_PRESS) move += right;
-    if (glfwGetKey(w, GLFW_KEY_A) == GLFW_PRESS) move -= right;
-    if (glfwGetKey(w, GLFW_KEY_E) == GLFW_PRESS) move += camera_.up;
-    if (glfwGetKey(w, GLFW_KEY_Q) == GLFW_PRESS) move -= camera_.up;
-    camera_.eye += move * speed;
-    camera_.target += move * speed;
-  }
+}
+
+void Viewer::fly(double dt) {
+  GLFWwindow* w = window_.handle();
+  const float speed = scene_.radius *
+                      (glfwGetKey(w, GLFW_KEY_LEFT_SHIFT) == GLFW_PRESS ? 1.5f : 0.4f) *
+                      static_cast<float>(dt);
+  const glm::vec3 f = camera_.forward();
+  const glm::vec3 right = glm::normalize(glm::cross(f, camera_.up));
+  glm::vec3 move(0.0f);
+  if (glfwGetKey(w, GLFW_KEY_W) == GLFW_PRESS) move += f;
+  if (glfwGetKey(w, GLFW_KEY_S) == GLFW_PRESS) move -= f;
+  if (glfwGetKey(w, GLFW_KEY_D) == GLFW_PRESS) move += right;
+  if (glfwGetKey(w, GLFW_KEY_A) == GLFW_PRESS) move -= right;
+  if (glfwGetKey(w, GLFW_KEY_E) == GLFW_PRESS) move += camera_.up;
+  if (glfwGetKey(w, GLFW_KEY_Q) == GLFW_PRESS) move -= camera_.up;
+  camera_.eye += move * speed;
+  camera_.target += move * speed;
 }
 
 }  // namespace treecut::cli
