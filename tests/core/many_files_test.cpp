@@ -173,7 +173,7 @@ TEST(LasReader, BatchesJoinedAreTheWholeFile) {
   EXPECT_EQ(joined.frame.crs, whole.frame.crs);
   EXPECT_EQ(joined.frame.resolution, whole.frame.resolution);
   EXPECT_EQ(joined.colors16, whole.colors16);
-  // The last record's bright channel, sampled when the file opened, makes
+  // The last record's bright channel, sampled by the first batch, makes
   // the first batches' colours 16-bit too.
   EXPECT_EQ(joined.colors, whole.colors);
   ASSERT_EQ(joined.attributes.size(), whole.attributes.size());

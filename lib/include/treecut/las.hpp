@@ -103,8 +103,9 @@ class LasReader {
   /// with one value in it once). What cannot be kept is said once, by the
   /// first batch; 64-bit integers a double rounded, by the last. Colours
   /// are the file's 16 bits when a channel past 255 is in any of 1,024
-  /// records spread over the file (the last one included, looked at when it
-  /// opens) or in any batch so far; else 8-bit values in the 16-bit fields.
+  /// records spread over the file (the last one included, looked at by the
+  /// first batch) or in any batch so far; else 8-bit values in the 16-bit
+  /// fields.
   PointSet next(std::size_t max_points);
 
  private:

@@ -85,6 +85,10 @@ struct LasReader::State {
   std::uint64_t next = 0;
   glm::dvec3 origin{0.0};
   bool deep_colours = false;  // a channel past 255 seen: the file's colours are 16-bit
+  // The colours are sampled by the first batch, not when the file opens: a
+  // reader opened for its header alone (build_memory_estimate, over a
+  // folder of thousands of tiles) reads no more than the header.
+  bool sampled = false;
   std::vector<std::string> rounded;
   std::vector<unsigned char> chunk;
 
@@ -103,7 +107,6 @@ struct LasReader::State {
       unsigned char first[12];
       source->read(parsed.point_offset, first, sizeof first);
       origin = choose_origin(info, record_position(first, info));
-      deep_colours = sampled_colours_are_deep();
       std::vector<std::string> not_kept;
       const detail::LasFields fields(info, 0, not_kept);
       if (warn && info.waveform)
@@ -158,6 +161,8 @@ void LasReader::State::read(PointSet& points, std::size_t n) {
   const std::uint32_t rgb_at = detail::kLasRgbAt[info.point_format];
   std::vector<glm::u16vec3> rgb16;
   if (rgb_at != 0) rgb16.resize(n);
+  if (rgb_at != 0 && !sampled) deep_colours = deep_colours || sampled_colours_are_deep();
+  sampled = true;
   const std::uint32_t length = info.record_length;
   const std::size_t chunk_points = std::max<std::size_t>(1, (std::size_t{1} << 20) / length);
   chunk.resize(chunk_points * length);
