@@ -10,6 +10,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -178,6 +179,28 @@ TEST(OutputSafety, BuildForceReplacesTheCacheOnlyWhenTheNewOneIsComplete) {
   EXPECT_EQ(r.code, 2) << r.out;
   EXPECT_EQ(read_all(cache), rebuilt) << "-f removed the cache before the build succeeded";
   EXPECT_EQ(files_under(dir).size(), 2u) << "no temporary left behind";
+}
+
+// A cache given by name whose page is corrupted: one line naming the file
+// and the page, a non-zero exit, nothing drawn (issue 44).
+TEST(OutputSafety, ACorruptedPageOfANamedCacheIsOneLineNamingFileAndPage) {
+  const fs::path dir = treecut::test::scratch_dir("cli_page");
+  const fs::path model = dir / "m.ply", cache = dir / "m.tch";
+  ASSERT_EQ(run_treecut("gen sphere -n 6000 -o " + quote(model)).code, 0);
+  ASSERT_EQ(run_treecut("build " + quote(model) + " -o " + quote(cache)).code, 0);
+  std::string bytes = read_all(cache);
+  bytes[bytes.size() - 9] = static_cast<char>(bytes[bytes.size() - 9] ^ 0x20);
+  std::ofstream(cache, std::ios::binary | std::ios::trunc) << bytes;
+  for (const std::string& command :
+       {std::string("info "), "render -o " + quote(dir / "frames") + " "}) {
+    const auto r = run_treecut(command + quote(cache));
+    EXPECT_NE(r.code, 0) << command << r.out;
+    EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+    EXPECT_NE(r.out.find("m.tch"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find(": page "), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("checksum mismatch (corrupted)"), std::string::npos) << r.out;
+  }
+  EXPECT_FALSE(fs::exists(dir / "frames")) << "nothing drawn";
 }
 
 TEST(OutputSafety, BuildRefusesADirectoryOrAFifoAtTheOutput) {

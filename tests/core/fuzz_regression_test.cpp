@@ -116,11 +116,8 @@ void replay_cache(const Regression& r, std::string bytes) {
       "input.tch";
   for (bool sealed : {false, true}) {
     SCOPED_TRACE(sealed ? "resealed" : "as found");
-    if (sealed) {
-      const std::uint64_t sum = treecut::detail::cache_checksum(
-          reinterpret_cast<const unsigned char*>(bytes.data()), bytes.size() - 8);
-      std::memcpy(bytes.data() + bytes.size() - 8, &sum, 8);
-    }
+    if (sealed)
+      treecut::detail::reseal_cache(reinterpret_cast<unsigned char*>(bytes.data()), bytes.size());
     std::ofstream(file, std::ios::binary | std::ios::trunc) << bytes;
     std::string why;
     const auto h = treecut::load_cache(file, std::nullopt, &why);

@@ -1,7 +1,8 @@
 // libFuzzer target: hierarchy cache loading (load_cache, read_cache_key) on
 // arbitrary file contents. Each input is loaded twice: as it is, and resealed
-// with a valid checksum, which reaches the checks behind the checksum (header
-// fields, offsets, level table, links). A rejection must say why; a cache
+// with valid checksums (the meta part's and every page's), which reaches the
+// checks behind them (header fields, offsets, the page table, the pages'
+// decompression and links). A rejection must say why; a cache
 // that loads must be safe to traverse (fuzz_checks.hpp). Seeded with small
 // caches written by cache_seeds; run by .ci/fuzz.
 #include <fcntl.h>
@@ -16,8 +17,8 @@
 #include <string>
 #include <vector>
 
-#include "hierarchy/cache_checksum.hpp"
 #include "fuzz_checks.hpp"
+#include "hierarchy/cache_checksum.hpp"
 #include "treecut/cache.hpp"
 
 namespace {
@@ -78,9 +79,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   load(data, size);
   if (size > 8) {
     std::vector<std::uint8_t> sealed(data, data + size);
-    const std::uint64_t sum = treecut::detail::cache_checksum(sealed.data(), size - 8);
-    std::memcpy(sealed.data() + size - 8, &sum, 8);
-    load(sealed.data(), sealed.size());
+    if (treecut::detail::reseal_cache(sealed.data(), sealed.size()))
+      load(sealed.data(), sealed.size());
   }
   return 0;
 }

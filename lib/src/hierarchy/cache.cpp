@@ -21,11 +21,13 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <memory>
 #include <stdexcept>
 
 #include "cache_checksum.hpp"
 #include "cache_format.hpp"
 #include "cache_layout.hpp"
+#include "cache_pages.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
 
@@ -43,48 +45,6 @@ CacheKey key_of(const Header& h) {
 bool fail(std::string* why, std::string text) {
   if (why) *why = std::move(text);
   return false;
-}
-
-// Structural sanity of the links, O(nodes): what a reader relies on to never
-// index out of bounds. (Geometric invariants are the builder's business and
-// are covered by the checksum.)
-// Returns what is wrong, or nullptr.
-const char* link_problem(const HierarchyArrays& a, std::span<const NodeId> levels) {
-  const std::size_t n = a.center_radius.size();
-  if (levels.size() < 2 || levels.front() != 0 || levels.back() != n)
-    return "level table does not span the nodes";
-  for (std::size_t d = 0; d + 1 < levels.size(); ++d)
-    if (levels[d] >= levels[d + 1]) return "level table not increasing";
-  if (a.parent[0] != kNoNode || a.depth[0] != 0) return "bad root";
-  for (std::size_t d = 0; d + 1 < levels.size(); ++d) {
-    std::uint64_t children = 0;  // of this level: must be the whole next level
-    for (NodeId i = levels[d]; i < levels[d + 1]; ++i) {
-      if (a.depth[i] != d) return "node depth disagrees with the level table";
-      const unsigned cc = a.child_count[i];
-      if (cc == 0) {
-        if (a.point_count[i] != 1) return "leaf point count is not 1";
-        continue;
-      }
-      const NodeId c0 = a.first_child[i];
-      if (cc > 4 || c0 < levels[d + 1] || c0 > n || cc > n - c0 ||
-          (d + 2 < levels.size() && c0 + cc > levels[d + 2]))
-        return "child range out of bounds";
-      std::uint64_t points = 0;
-      for (NodeId c = c0; c < c0 + cc; ++c) {
-        if (a.parent[c] != i) return "parent link broken";
-        points += a.point_count[c];
-      }
-      // leaf_count() is the root's count and sizes allocations: every count
-      // must be the sum of the children's, down to the leaves' 1.
-      if (a.point_count[i] != points) return "point count is not the children's sum";
-      children += cc;
-    }
-    // The parent links make the child ranges disjoint; covering the next
-    // level as well leaves no node unreachable from the root.
-    const std::uint64_t next = d + 2 < levels.size() ? levels[d + 2] - levels[d + 1] : 0;
-    if (children != next) return "a node is nobody's child";
-  }
-  return nullptr;
 }
 
 // open_regular_file() without the exception: the reason as *why, without the
@@ -115,8 +75,8 @@ std::optional<CoordinateFrame> read_frame(const Header& h, const unsigned char* 
   if ((h.flags & ~7u) != 0) return fail(why, "unknown flags"), std::nullopt;
   // The coordinate system's text: short (a WKT is cut to 400 bytes), inside.
   if (h.crs_size > kMaxCrsBytes ||
-      (h.crs_size > 0 && (h.crs_offset < sizeof(Header) || h.crs_offset > h.payload_end ||
-                          h.crs_size > h.payload_end - h.crs_offset)))
+      (h.crs_size > 0 && (h.crs_offset < sizeof(Header) || h.crs_offset > h.meta_end ||
+                          h.crs_size > h.meta_end - h.crs_offset)))
     return fail(why, "bad coordinate system record"), std::nullopt;
   CoordinateFrame frame;
   frame.origin = glm::dvec3(h.origin[0], h.origin[1], h.origin[2]);
@@ -144,7 +104,7 @@ std::optional<SourceNotes> read_notes(const Header& h, const unsigned char* byte
   SourceNotes notes;
   if (h.notes_size == 0) return notes;
   if (h.notes_size > kMaxNotesBytes || h.notes_offset < sizeof(Header) ||
-      h.notes_offset > h.payload_end || h.notes_size > h.payload_end - h.notes_offset)
+      h.notes_offset > h.meta_end || h.notes_size > h.meta_end - h.notes_offset)
     return fail(why, "bad notes record"), std::nullopt;
   const std::string text(reinterpret_cast<const char*>(bytes) + h.notes_offset, h.notes_size);
   std::size_t at = 0;
@@ -159,12 +119,15 @@ std::optional<SourceNotes> read_notes(const Header& h, const unsigned char* byte
   return notes;
 }
 
-// The attribute table (version 7): known kinds and flags, NUL-terminated
-// names, a range that is ordered or NaN, values inside the payload.
+// The attribute table: known kinds and flags, NUL-terminated names, a range
+// that is ordered or NaN; the values of those not constant are the pages'
+// (VALUES, in the records' order, checked for their number by the pages).
 template <class InBounds>
 std::optional<std::vector<NodeAttribute>> read_attributes(const Header& h,
                                                           const unsigned char* bytes,
-                                                          InBounds in_bounds, std::string* why) {
+                                                          InBounds in_bounds,
+                                                          std::vector<bool>& varying,
+                                                          std::string* why) {
   std::vector<NodeAttribute> out;
   if (h.attribute_count == 0) return out;
   if (h.attribute_count > kMaxAttributes ||
@@ -172,7 +135,6 @@ std::optional<std::vector<NodeAttribute>> read_attributes(const Header& h,
     return fail(why, "attribute table out of bounds"), std::nullopt;
   std::vector<AttributeRecord> records(h.attribute_count);
   std::memcpy(records.data(), bytes + h.attribute_table, records.size() * sizeof(AttributeRecord));
-  const std::size_t n = h.node_count;
   for (const AttributeRecord& r : records) {
     const bool range_ok = (std::isnan(r.min) && std::isnan(r.max)) ||
                           (std::isfinite(r.min) && std::isfinite(r.max) && r.min <= r.max);
@@ -184,29 +146,27 @@ std::optional<std::vector<NodeAttribute>> read_attributes(const Header& h,
     if (r.name[kMaxAttributeName] != '\0' || !printable || r.kind > 1 || (r.flags & ~1u) != 0 ||
         !range_ok || !std::isfinite(r.offset))
       return fail(why, "bad attribute record"), std::nullopt;
-    NodeAttribute a{
-        std::string(r.name), static_cast<AttributeKind>(r.kind), r.offset, r.min, r.max, {},
-        r.constant};
-    if ((r.flags & 1u) == 0) {
-      if (!in_bounds(r.values, n * sizeof(float)))
-        return fail(why, "attribute values out of bounds"), std::nullopt;
-      a.values = {reinterpret_cast<const float*>(bytes + r.values), n};
-    }
-    out.push_back(std::move(a));
+    out.push_back({std::string(r.name),
+                   static_cast<AttributeKind>(r.kind),
+                   r.offset,
+                   r.min,
+                   r.max,
+                   {},
+                   r.constant});
+    varying.push_back((r.flags & 1u) == 0);
   }
   return out;
 }
 
-// A cache's bytes in anonymous pages of this process (see the top).
+// A cache's bytes in anonymous pages of this process (see the top), only
+// while they are decoded.
 class CacheBytes {
  public:
   explicit CacheBytes(std::size_t size) : size_(size) {
     void* p = ::mmap(nullptr, size, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
     if (p == MAP_FAILED) throw std::bad_alloc();
     // Huge pages where the kernel gives them on request (THP "madvise", as on
-    // Debian): a 400 MB cache is then ~200 page faults, not ~100,000, the
-    // most of the time a read into fresh pages takes. Advice only: a kernel
-    // without it reads the same bytes into small pages.
+    // Debian): fewer page faults for a large read. Advice only.
     (void)::madvise(p, size, MADV_HUGEPAGE);
     data_ = static_cast<unsigned char*>(p);
   }
@@ -220,16 +180,12 @@ class CacheBytes {
   std::size_t size_;
 };
 
-// Reads the SIZE bytes an fstat saw of the file open as FD, and into SUM the
-// checksum of all but the last 8 (the stored one). A piece at a time, each
-// summed while it is still in the CPU's cache: one pass over memory, not
-// two. A file that got shorter meanwhile is a FileChangedError, as for a
-// model.
-std::shared_ptr<CacheBytes> read_bytes(int fd, std::uint64_t size,
-                                       const std::filesystem::path& path, std::uint64_t* sum) {
-  auto bytes = std::make_shared<CacheBytes>(static_cast<std::size_t>(size));
+// Reads the SIZE bytes an fstat saw of the file open as FD. A file that got
+// shorter meanwhile is a FileChangedError, as for a model.
+std::unique_ptr<CacheBytes> read_bytes(int fd, std::uint64_t size,
+                                       const std::filesystem::path& path) {
+  auto bytes = std::make_unique<CacheBytes>(static_cast<std::size_t>(size));
   constexpr std::uint64_t kPiece = 1 << 20;
-  Checksum checksum;
   std::uint64_t at = 0;
   while (at < size) {
     const std::size_t want = static_cast<std::size_t>(std::min(size - at, kPiece));
@@ -239,16 +195,23 @@ std::shared_ptr<CacheBytes> read_bytes(int fd, std::uint64_t size,
     if (got == 0) {
       throw FileChangedError(quoted_name(path) + ": changed while being read (it got shorter)");
     }
-    const std::uint64_t end = at + static_cast<std::uint64_t>(got);
-    const std::uint64_t summed_end = std::min(end, size - 8);
-    if (summed_end > at) checksum.update(bytes->data() + at, summed_end - at);
-    at = end;
+    at += static_cast<std::uint64_t>(got);
   }
-  *sum = checksum.finish();
   return bytes;
 }
 
-std::optional<Hierarchy> read_and_verify(const std::filesystem::path& path, Header* out_header,
+// The header's own checks: magic, version, byte order, size.
+bool header_problem(const Header& h, std::string* why) {
+  if (std::memcmp(h.magic, kMagic, sizeof kMagic) != 0) return !fail(why, "not a treecut cache");
+  if (h.version != kVersion)
+    return !fail(why, "cache format version " + std::to_string(h.version) + ", expected " +
+                          std::to_string(kVersion));
+  if (h.endian_tag != kEndianTag) return !fail(why, "written on a machine of other endianness");
+  if (h.header_size != sizeof(Header)) return !fail(why, "header size mismatch");
+  return false;
+}
+
+std::optional<Hierarchy> read_and_verify(const std::filesystem::path& path, CacheKey* key,
                                          std::string* why) {
   const int fd = open_for_reading(path, why);
   if (fd < 0) return std::nullopt;
@@ -259,80 +222,20 @@ std::optional<Hierarchy> read_and_verify(const std::filesystem::path& path, Head
   struct stat st {};
   if (fstat(fd, &st) != 0) return fail(why, std::strerror(errno)), std::nullopt;
   const auto size = static_cast<std::uint64_t>(st.st_size);
-  if (size < sizeof(Header) + 8)
-    return fail(why, "truncated (shorter than a header)"), std::nullopt;
   Header h;
-  if (::pread(fd, &h, sizeof h, 0) != static_cast<ssize_t>(sizeof h))
+  if (size < sizeof(Header) + 8 || ::pread(fd, &h, sizeof h, 0) != static_cast<ssize_t>(sizeof h))
     return fail(why, "truncated (shorter than a header)"), std::nullopt;
-  if (std::memcmp(h.magic, kMagic, sizeof kMagic) != 0)
-    return fail(why, "not a treecut cache"), std::nullopt;
-  if (h.version != kVersion)
-    return fail(why, "cache format version " + std::to_string(h.version) + ", expected " +
-                         std::to_string(kVersion)),
-           std::nullopt;
-  if (h.endian_tag != kEndianTag)
-    return fail(why, "written on a machine of other endianness"), std::nullopt;
-  if (h.header_size != sizeof(Header)) return fail(why, "header size mismatch"), std::nullopt;
+  if (header_problem(h, why)) return std::nullopt;
   if (h.payload_end != size - 8)
     return fail(why, "truncated or extended (size mismatch)"), std::nullopt;
-  std::shared_ptr<CacheBytes> storage;
-  std::uint64_t sum = 0;
+  std::unique_ptr<CacheBytes> bytes;
   try {
-    storage = read_bytes(fd, size, path, &sum);
+    bytes = read_bytes(fd, size, path);
   } catch (const std::bad_alloc&) {
     return fail(why, "not enough memory to read it (" + std::to_string(size >> 20) + " MiB)"),
            std::nullopt;
   }
-  const unsigned char* bytes = storage->data();
-  std::memcpy(&h, bytes, sizeof h);
-  std::uint64_t stored;
-  std::memcpy(&stored, bytes + size - 8, 8);
-  if (h.payload_end != size - 8 || sum != stored)
-    return fail(why, "checksum mismatch (corrupted)"), std::nullopt;
-
-  // The checksum only proves the file is what some writer wrote; still check
-  // every offset before building spans.
-  const std::uint64_t n = h.node_count;
-  if (n == 0 || h.level_count == 0 || h.level_count > 256)
-    return fail(why, "bad counts"), std::nullopt;
-  std::optional<CoordinateFrame> frame = read_frame(h, bytes, why);
-  if (!frame) return std::nullopt;
-  std::optional<SourceNotes> notes = read_notes(h, bytes, why);
-  if (!notes) return std::nullopt;
-  auto in_bounds = [&](std::uint64_t off, std::uint64_t bytes_needed) {
-    return off % kAlign == 0 && off >= sizeof(Header) && off <= h.payload_end &&
-           bytes_needed <= h.payload_end - off;
-  };
-  if (!in_bounds(h.level_table, (h.level_count + 1) * sizeof(NodeId)))
-    return fail(why, "level table out of bounds"), std::nullopt;
-  for (int i = 0; i < kArrays; ++i)
-    if (!in_bounds(h.offsets[i], n * kElementSize[static_cast<std::size_t>(i)]))
-      return fail(why, "array out of bounds"), std::nullopt;
-  auto at = [&](int i) { return bytes + h.offsets[i]; };
-  const std::size_t nn = static_cast<std::size_t>(n);
-  HierarchyArrays a{{reinterpret_cast<const glm::vec4*>(at(0)), nn},
-                    {reinterpret_cast<const float*>(at(1)), nn},
-                    {reinterpret_cast<const glm::i16vec4*>(at(2)), nn},
-                    {reinterpret_cast<const glm::u8vec4*>(at(3)), nn},
-                    {reinterpret_cast<const float*>(at(4)), nn},
-                    {reinterpret_cast<const std::uint32_t*>(at(5)), nn},
-                    {reinterpret_cast<const NodeId*>(at(6)), nn},
-                    {reinterpret_cast<const NodeId*>(at(7)), nn},
-                    {reinterpret_cast<const std::uint8_t*>(at(8)), nn},
-                    {reinterpret_cast<const std::uint8_t*>(at(9)), nn}};
-  std::optional<std::vector<NodeAttribute>> attributes = read_attributes(
-      h, bytes,
-      [&](std::uint64_t off, std::uint64_t bytes_needed) { return in_bounds(off, bytes_needed); },
-      why);
-  if (!attributes) return std::nullopt;
-  std::vector<NodeId> levels(h.level_count + 1);
-  std::memcpy(levels.data(), bytes + h.level_table, levels.size() * sizeof(NodeId));
-  if (const char* problem = link_problem(a, levels)) return fail(why, problem), std::nullopt;
-  if (out_header) *out_header = h;
-  return Hierarchy::from_arrays(
-             std::move(storage), a, std::move(levels), {h.bounds[0], h.bounds[1], h.bounds[2]},
-             {h.bounds[3], h.bounds[4], h.bounds[5]}, std::move(*frame), std::move(*attributes))
-      .with_notes(std::move(*notes));
+  return detail::decode_cache_image(bytes->data(), size, key, why);
 }
 
 // The header of CACHE as it is on disk, unverified (the checksum is checked
@@ -375,16 +278,18 @@ bool is_own_cache(const std::filesystem::path& path) {
   std::memcpy(&header_size, b + 16, 4);
   if (std::memcmp(b, kMagic, sizeof kMagic) != 0 || endian != kEndianTag) return false;
   // Where the header says the payload ends, and its own size, in the two
-  // layouts whose headers can be verified: this one, and version 6's (264
-  // bytes, the payload's end at byte 240) that the builds before issue 43
-  // wrote. Older caches are not told apart from a user's file.
+  // layouts whose headers can be verified: this one, and version 7's (328
+  // bytes, the payload's end at byte 240) that the builds before the paged
+  // cache (issue 44) wrote. Older caches are not told apart from a user's
+  // file.
   std::uint64_t payload_end = 0;
   if (version == kVersion && header_size == sizeof(Header) && head.bytes.size() >= sizeof(Header)) {
     Header h;
     std::memcpy(&h, b, sizeof h);
     payload_end = h.payload_end;
-  } else if (version == 6 && header_size == 264 && head.bytes.size() >= 248) {
-    std::memcpy(&payload_end, b + 240, 8);
+  } else if (version == 7 && header_size == kV7HeaderSize &&
+             head.bytes.size() >= kV7PayloadEndAt + 8) {
+    std::memcpy(&payload_end, b + kV7PayloadEndAt, 8);
   } else {
     return false;
   }
@@ -393,32 +298,112 @@ bool is_own_cache(const std::filesystem::path& path) {
 
 std::optional<Hierarchy> load_cache(const std::filesystem::path& cache,
                                     const std::optional<CacheKey>& expected, std::string* why) {
-  Header h;
-  auto hier = read_and_verify(cache, &h, why);
+  CacheKey stored{};
+  auto hier = read_and_verify(cache, &stored, why);
   if (!hier) return std::nullopt;
-  if (expected && !cache_key_matches(key_of(h), *expected))
+  if (expected && !cache_key_matches(stored, *expected))
     return fail(why, "stale (the model or the build options changed)"), std::nullopt;
   return hier;
 }
 
 std::optional<Hierarchy> load_cache_and_key(const std::filesystem::path& cache, CacheKey* stored,
                                             std::string* why) {
-  Header h;
-  auto hier = read_and_verify(cache, &h, why);
-  if (hier && stored) *stored = key_of(h);
-  return hier;
+  return read_and_verify(cache, stored, why);
 }
 
 std::optional<CacheKey> read_cache_key(const std::filesystem::path& cache, std::string* why) {
+  CacheKey key{};
+  if (!read_and_verify(cache, &key, why)) return std::nullopt;
+  return key;
+}
+
+std::optional<Hierarchy> detail::decode_cache_image(const unsigned char* bytes, std::uint64_t size,
+                                                    CacheKey* key, std::string* why) {
   Header h;
-  if (!read_and_verify(cache, &h, why)) return std::nullopt;
-  return key_of(h);
+  if (size < sizeof(Header) + 8)
+    return fail(why, "truncated (shorter than a header)"), std::nullopt;
+  std::memcpy(&h, bytes, sizeof h);
+  if (header_problem(h, why)) return std::nullopt;
+  if (h.payload_end != size - 8)
+    return fail(why, "truncated or extended (size mismatch)"), std::nullopt;
+  if (h.meta_end < sizeof(Header) || h.meta_end > h.payload_end)
+    return fail(why, "bad meta part"), std::nullopt;
+  std::uint64_t stored;
+  std::memcpy(&stored, bytes + h.payload_end, 8);
+  if (cache_checksum(bytes, h.meta_end) != stored)
+    return fail(why, "checksum mismatch (corrupted)"), std::nullopt;
+
+  // The checksum only proves the meta part is what some writer wrote; still
+  // check every offset before anything is read at it.
+  if (h.node_count == 0 || h.level_count == 0 || h.level_count > 256 || h.page_count == 0 ||
+      h.page_count > h.node_count)
+    return fail(why, "bad counts"), std::nullopt;
+  auto in_meta = [&](std::uint64_t off, std::uint64_t bytes_needed) {
+    return off >= sizeof(Header) && off <= h.meta_end && bytes_needed <= h.meta_end - off;
+  };
+  if (!in_meta(h.page_table, h.page_count * sizeof(PageRecord)))
+    return fail(why, "page table out of bounds"), std::nullopt;
+  std::optional<CoordinateFrame> frame = read_frame(h, bytes, why);
+  if (!frame) return std::nullopt;
+  std::optional<SourceNotes> notes = read_notes(h, bytes, why);
+  if (!notes) return std::nullopt;
+  std::vector<bool> varying;
+  std::optional<std::vector<NodeAttribute>> attributes =
+      read_attributes(h, bytes, in_meta, varying, why);
+  if (!attributes) return std::nullopt;
+  std::vector<PageRecord> table(static_cast<std::size_t>(h.page_count));
+  std::memcpy(table.data(), bytes + h.page_table, table.size() * sizeof(PageRecord));
+  // The pages tile the rest of the file, in order, with no byte outside one.
+  std::uint64_t at = h.meta_end;
+  for (std::size_t p = 0; p < table.size(); ++p) {
+    if (table[p].offset != at || table[p].bytes == 0 || table[p].bytes > h.payload_end - at)
+      return fail(why, "page " + std::to_string(p) + " of " + std::to_string(table.size()) +
+                           ": out of place"),
+             std::nullopt;
+    at += table[p].bytes;
+  }
+  if (at != h.payload_end) return fail(why, "bytes after the last page"), std::nullopt;
+  const auto streams = static_cast<std::uint32_t>(std::count(varying.begin(), varying.end(), true));
+  std::optional<cache_pages::Decoded> nodes =
+      cache_pages::decode(table, bytes, h.node_count, streams, h.level_count, why);
+  if (!nodes) return std::nullopt;
+  if (nodes->arrays.point_count[0] != h.point_count)
+    return fail(why, "point count disagrees with the pages"), std::nullopt;
+  for (std::size_t k = 0, s = 0; k < attributes->size(); ++k)
+    if (varying[k]) (*attributes)[k].values = nodes->attribute_values[s++];
+  if (key) *key = key_of(h);
+  return Hierarchy::from_arrays(
+             std::move(nodes->storage), nodes->arrays, std::move(nodes->level_begin),
+             {h.bounds[0], h.bounds[1], h.bounds[2]}, {h.bounds[3], h.bounds[4], h.bounds[5]},
+             std::move(*frame), std::move(*attributes))
+      .with_notes(std::move(*notes));
 }
 
 std::uint64_t detail::cache_checksum(const unsigned char* data, std::size_t size) {
   Checksum c;
   c.update(data, size);
   return c.finish();
+}
+
+bool detail::reseal_cache(unsigned char* data, std::size_t size) {
+  Header h;
+  if (size < sizeof h + 8) return false;
+  std::memcpy(&h, data, sizeof h);
+  const std::uint64_t meta = std::min<std::uint64_t>(h.meta_end, size - 8);
+  if (h.page_table >= sizeof h && h.page_table <= meta &&
+      h.page_count <= (meta - h.page_table) / sizeof(PageRecord)) {
+    for (std::uint64_t p = 0; p < h.page_count; ++p) {
+      PageRecord r;
+      unsigned char* at = data + h.page_table + p * sizeof r;
+      std::memcpy(&r, at, sizeof r);
+      if (r.offset > size - 8 || r.bytes > size - 8 - r.offset) continue;
+      r.checksum = cache_checksum(data + r.offset, r.bytes);
+      std::memcpy(at, &r, sizeof r);
+    }
+  }
+  const std::uint64_t sum = cache_checksum(data, meta);
+  std::memcpy(data + size - 8, &sum, 8);
+  return true;
 }
 
 }  // namespace treecut

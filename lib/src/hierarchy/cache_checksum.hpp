@@ -8,8 +8,15 @@
 
 namespace treecut::detail {
 
-/// Over DATA[0, SIZE): the value stored in the last 8 bytes of a cache file,
-/// computed over everything before them.
+/// Over DATA[0, SIZE): the checksum a cache file stores of its meta part
+/// (in its last 8 bytes) and of each page (in the page table).
 std::uint64_t cache_checksum(const unsigned char* data, std::size_t size);
+
+/// Rewrites every checksum of a cache file's bytes (each page's in the
+/// table, where the table and the page lie inside the file, then the meta
+/// part's) so that a mutated file reaches the checks behind them. For the
+/// fuzz target and its regressions; false when the header is too broken to
+/// say where anything is.
+bool reseal_cache(unsigned char* data, std::size_t size);
 
 }  // namespace treecut::detail

@@ -7,10 +7,39 @@
 #include <cstdint>
 #include <filesystem>
 #include <optional>
+#include <string>
+#include <vector>
 
 #include "treecut/cache.hpp"
 
+namespace treecut {
+
+/// A cache file's bytes made in memory from a hierarchy, once: what
+/// save_cache writes, and the hierarchy that file loads as (quantized page
+/// by page, cache_pages.hpp). A build goes through one, so a model is the
+/// same opened cold or from its cache.
+class CacheImage {
+ public:
+  CacheImage(const Hierarchy& h, const CacheKey& key);
+  /// Writes the file atomically (AtomicFile); throws "PATH: REASON".
+  void save(const std::filesystem::path& cache) const;
+  /// The hierarchy the file loads as (load_cache's decoding of these bytes).
+  [[nodiscard]] Hierarchy load() const;
+  [[nodiscard]] std::size_t size() const { return bytes_.size(); }
+
+ private:
+  std::vector<unsigned char> bytes_;
+};
+
+}  // namespace treecut
+
 namespace treecut::detail {
+
+/// Verifies and decodes a whole cache file's SIZE bytes (the header, the
+/// meta part's checksum, every page); the key it was written for in *KEY.
+/// nullopt with *WHY when anything does not hold.
+std::optional<Hierarchy> decode_cache_image(const unsigned char* bytes, std::uint64_t size,
+                                            CacheKey* key, std::string* why);
 
 /// The key recorded in CACHE's header as it is on disk, unverified (the
 /// checksum is checked by load_cache_and_key before anything is served): only

@@ -1,9 +1,11 @@
 // The layout of a hierarchy cache file (cache.cpp reads it, cache_write.cpp
-// writes it): one header, the level table and the node arrays, each 64-byte
-// aligned so the loader can hand out spans straight into the bytes it read,
-// the coordinate system's text, the attribute records and their values, the
-// first read's notes, and a trailing 64-bit checksum of everything before
-// it. Private to the library.
+// writes it, cache_pages.cpp and cache_page_decode.cpp its pages): one header, the
+// page table, the coordinate system's text, the attribute records and the
+// first read's notes (the "meta" part, up to meta_end), then the pages, one
+// after the other without gaps, and last a 64-bit checksum of the meta part.
+// Each page carries its own checksum in the page table, so a reader can
+// verify the table and read any page alone, and every byte of the file is
+// under exactly one checksum. Private to the library.
 #pragma once
 
 #include <array>
@@ -18,7 +20,7 @@
 namespace treecut::cache_layout {
 
 inline constexpr char kMagic[8] = {'T', 'C', 'U', 'T', 'H', 'I', 'E', 'R'};
-// Bump whenever the layout or the meaning of any array changes.
+// Bump whenever the layout or the meaning of any field changes.
 // 2: the header carries the source's content hash.
 // 3: and the source's identity (device, inode, ctime) and when it was taken.
 // 4: and the model's CoordinateFrame: the positions' double-precision
@@ -30,44 +32,73 @@ inline constexpr char kMagic[8] = {'T', 'C', 'U', 'T', 'H', 'I', 'E', 'R'};
 // 7: attributes at the file's precision: an exact double range, a constant
 //    stored once; the sensor's viewpoint; the first read's notes (format
 //    and warnings) (issue 43).
-inline constexpr std::uint32_t kVersion = 7;
+// 8: paged (issue 44): nodes in pages of whole subtrees, each compressed
+//    and checksummed on its own, positions and radii quantized per page
+//    (cache_pages.hpp); 64-bit node and point counts.
+inline constexpr std::uint32_t kVersion = 8;
 inline constexpr std::uint32_t kEndianTag = 0x01020304u;
-inline constexpr std::size_t kAlign = 64;
-inline constexpr int kArrays = 10;
+inline constexpr std::size_t kAlign = 8;
 inline constexpr std::uint32_t kMaxCrsBytes = 4096;
+/// Version 7's header: what is_own_cache still recognises as a cache
+/// treecut wrote (its size, and where it kept the payload's end).
+inline constexpr std::uint32_t kV7HeaderSize = 328, kV7PayloadEndAt = 240;
 
 struct Header {
   char magic[8];
   std::uint32_t version;
   std::uint32_t endian_tag;
   std::uint32_t header_size;
-  std::uint32_t node_count;
   std::uint32_t level_count;
-  std::uint32_t options_bits;
+  std::uint64_t node_count;
+  std::uint64_t point_count;  // the root's: leaves
+  std::uint64_t page_count;
+  std::uint64_t page_table;  // offset of page_count PageRecords
+  std::uint64_t meta_end;    // the first page starts here
   std::uint64_t source_size;
   std::int64_t source_mtime_ns;
+  std::int64_t identity_ns;   // CLOCK_REALTIME when the identity was taken (at byte 80,
+                              // as in every version before: tests compare caches but it)
   std::uint64_t source_hash;  // XXH3-64 of the source file's bytes
   std::uint64_t source_device;
   std::uint64_t source_inode;
   std::int64_t source_ctime_ns;
-  std::int64_t identity_ns;  // CLOCK_REALTIME when the identity was taken
+  std::uint32_t options_bits;
   float bounds[6];
-  double origin[3];                // Hierarchy::frame(): origin,
-  std::uint32_t flags;             // bit 0: z_up, bit 1: normals_estimated,
-  std::uint32_t crs_size;          // and the crs text's bytes
-  std::uint64_t crs_offset;        // where they are (after the arrays)
-  std::uint64_t level_table;       // offset of level_count + 1 NodeIds
-  std::uint64_t offsets[kArrays];  // in HierarchyArrays member order
-  std::uint64_t payload_end;       // checksum follows, file size = payload_end + 8
-  std::uint32_t attribute_count;   // Hierarchy::attributes(), at most kMaxAttributes,
-  std::uint32_t notes_size;        // the notes' bytes (format, then warnings, a line each),
-  std::uint64_t attribute_table;   // where their AttributeRecords are
-  std::uint64_t notes_offset;      // and where the notes are
-  double viewpoint[7];             // frame().viewpoint when flags bit 2: x y z, w x y z
+  std::uint32_t flags;            // bit 0: z_up, bit 1: normals_estimated, bit 2: viewpoint
+  double origin[3];               // Hierarchy::frame(): origin,
+  std::uint64_t crs_offset;       // where the crs text is,
+  std::uint32_t crs_size;         // and its bytes
+  std::uint32_t attribute_count;  // Hierarchy::attributes(), at most kMaxAttributes,
+  std::uint64_t attribute_table;  // where their AttributeRecords are
+  std::uint64_t notes_offset;     // the notes (format, then warnings, a line each)
+  std::uint32_t notes_size;
+  std::uint32_t reserved;
+  std::uint64_t payload_end;  // the pages end here; the checksum follows
+  double viewpoint[7];        // frame().viewpoint when flags bit 2: x y z, w x y z
 };
-static_assert(std::is_trivially_copyable_v<Header>);
+static_assert(std::is_trivially_copyable_v<Header> && sizeof(Header) % 8 == 0 &&
+              offsetof(Header, identity_ns) == 80);
 
-// One attribute: its name (NUL-padded), kind, offset, range and values.
+// One page (cache_pages.hpp): where its compressed bytes are, what they
+// hold, and where it hangs in the hierarchy. Page 0 holds the root; every
+// other page's root is a child of node PARENT_LOCAL of page PARENT_PAGE,
+// an earlier page.
+struct PageRecord {
+  std::uint64_t offset;    // of the compressed bytes
+  std::uint64_t checksum;  // Checksum of those bytes
+  std::uint32_t bytes;     // compressed
+  std::uint32_t raw_bytes;
+  std::uint32_t node_count;
+  std::uint32_t parent_page;  // 0xffffffff for page 0
+  std::uint32_t parent_local;
+  std::uint32_t root_depth;
+  float bounds[6];  // the box around its nodes' spheres, as loaded
+};
+static_assert(std::is_trivially_copyable_v<PageRecord> && sizeof(PageRecord) == 64);
+inline constexpr std::uint32_t kNoPage = 0xffffffffu;
+
+// One attribute: its name (NUL-padded), kind, offset and range; the values
+// of one that is not constant are in the pages, in the records' order.
 struct AttributeRecord {
   char name[kMaxAttributeName + 1];
   std::uint32_t kind;
@@ -76,15 +107,10 @@ struct AttributeRecord {
   double offset;
   float constant;
   std::uint32_t reserved;
-  std::uint64_t values;  // offset of node_count floats (0 when constant)
+  std::uint64_t reserved2;
 };
 static_assert(std::is_trivially_copyable_v<AttributeRecord> && sizeof(AttributeRecord) == 96);
 inline constexpr std::uint32_t kMaxNotesBytes = 65536;
-
-inline constexpr std::array<std::size_t, kArrays> kElementSize = {
-    sizeof(glm::vec4),    sizeof(float),         sizeof(glm::i16vec4), sizeof(glm::u8vec4),
-    sizeof(float),        sizeof(std::uint32_t), sizeof(NodeId),       sizeof(NodeId),
-    sizeof(std::uint8_t), sizeof(std::uint8_t)};
 
 inline std::uint64_t align_up(std::uint64_t x) {
   return (x + kAlign - 1) / kAlign * kAlign;

@@ -1,6 +1,8 @@
-// Writing a hierarchy cache file (the layout is cache_layout.hpp's): the
-// header, every array at its aligned offset, the checksum streamed over the
-// pieces as they are written, all through a temporary renamed into place.
+// Writing a hierarchy cache file (the layout is cache_layout.hpp's, the
+// pages cache_pages.cpp's): the header and the tables, the pages after them,
+// the meta part's checksum last; the whole image is made in memory (its
+// pages are compressed: a fraction of the hierarchy) and written through a
+// temporary renamed into place.
 #include <algorithm>
 #include <array>
 #include <cstring>
@@ -9,7 +11,9 @@
 #include <tuple>
 #include <vector>
 
+#include "cache_format.hpp"
 #include "cache_layout.hpp"
+#include "cache_pages.hpp"
 #include "treecut/cache.hpp"
 #include "treecut/file_io.hpp"
 
@@ -28,6 +32,7 @@ Header header_of(const Hierarchy& hier, const CacheKey& key) {
   h.endian_tag = kEndianTag;
   h.header_size = sizeof(Header);
   h.node_count = hier.node_count();
+  h.point_count = hier.leaf_count();
   h.level_count = static_cast<std::uint32_t>(hier.level_count());
   h.options_bits = key.options_bits;
   h.source_size = key.source_size;
@@ -68,9 +73,8 @@ std::string notes_text(const SourceNotes& source) {
   return notes;
 }
 
-// The attribute table, laid out from OFF on (advanced past the values).
-std::vector<AttributeRecord> attribute_records(const std::vector<NodeAttribute>& attributes,
-                                               std::uint64_t& off) {
+// The attribute table (the values are in the pages).
+std::vector<AttributeRecord> attribute_records(const std::vector<NodeAttribute>& attributes) {
   if (attributes.size() > kMaxAttributes)
     throw std::invalid_argument("save_cache: more than " + std::to_string(kMaxAttributes) +
                                 " attributes");
@@ -84,99 +88,83 @@ std::vector<AttributeRecord> attribute_records(const std::vector<NodeAttribute>&
     r.flags = attribute.is_constant() ? 1u : 0u;
     r.min = attribute.min, r.max = attribute.max, r.offset = attribute.offset;
     r.constant = attribute.constant;
-    r.values = attribute.is_constant() ? 0 : off;
-    off = align_up(off + attribute.values.size_bytes());
   }
   return records;
 }
 
-// Writes PIECES (data, size, offset; in increasing offsets) as the file
-// CACHE, zero padding between them, then the checksum: through an
-// AtomicFile (temporary + rename), so readers see the old file or the
-// complete new one, and a failed write (full disk, read-only folder) leaves
-// no file.
-void write_pieces(const std::filesystem::path& cache,
-                  const std::vector<std::tuple<const void*, std::size_t, std::uint64_t>>& pieces) {
+}  // namespace
+
+CacheImage::CacheImage(const Hierarchy& hier, const CacheKey& key) {
+  Header h = header_of(hier, key);
+  const std::string crs = hier.frame().crs.substr(0, kMaxCrsBytes);
+  const std::vector<NodeAttribute>& attributes = hier.attributes();
+  const std::vector<AttributeRecord> records = attribute_records(attributes);
+  const std::string notes = notes_text(hier.notes());
+  cache_pages::Encoded pages = cache_pages::encode(hier);
+  // The meta part: header, page table, crs text, attribute records, notes.
+  std::uint64_t off = align_up(sizeof(Header));
+  h.page_count = pages.table.size();
+  h.page_table = off;
+  off = align_up(off + pages.table.size() * sizeof(cache_layout::PageRecord));
+  h.crs_size = static_cast<std::uint32_t>(crs.size());
+  h.crs_offset = crs.empty() ? 0 : off;
+  off = align_up(off + crs.size());
+  h.attribute_count = static_cast<std::uint32_t>(attributes.size());
+  h.attribute_table = attributes.empty() ? 0 : off;
+  off = align_up(off + records.size() * sizeof(AttributeRecord));
+  h.notes_size = static_cast<std::uint32_t>(notes.size());
+  h.notes_offset = notes.empty() ? 0 : off;
+  h.meta_end = align_up(off + notes.size());
+  off = h.meta_end;
+  for (std::size_t p = 0; p < pages.table.size(); ++p) {
+    pages.table[p].offset = off;
+    off += pages.pages[p].size();
+  }
+  h.payload_end = off;
+
+  bytes_.assign(h.payload_end + 8, 0);
+  unsigned char* b = bytes_.data();
+  std::memcpy(b, &h, sizeof h);
+  std::memcpy(b + h.page_table, pages.table.data(),
+              pages.table.size() * sizeof(cache_layout::PageRecord));
+  if (!crs.empty()) std::memcpy(b + h.crs_offset, crs.data(), crs.size());
+  if (!records.empty())
+    std::memcpy(b + h.attribute_table, records.data(), records.size() * sizeof(AttributeRecord));
+  if (!notes.empty()) std::memcpy(b + h.notes_offset, notes.data(), notes.size());
+  for (std::size_t p = 0; p < pages.table.size(); ++p) {
+    std::memcpy(b + pages.table[p].offset, pages.pages[p].data(), pages.pages[p].size());
+    std::vector<unsigned char>().swap(pages.pages[p]);
+  }
+  Checksum sum;
+  sum.update(b, h.meta_end);
+  const std::uint64_t digest = sum.finish();
+  std::memcpy(b + h.payload_end, &digest, sizeof digest);
+}
+
+// Through an AtomicFile (temporary + rename), so readers see the old file or
+// the complete new one, and a failed write (full disk, read-only folder)
+// leaves no file.
+void CacheImage::save(const std::filesystem::path& cache) const {
   if (cache.has_parent_path()) {
     std::error_code ec;
     std::filesystem::create_directories(cache.parent_path(), ec);
     if (ec) throw std::runtime_error(system_error_text(cache.parent_path(), ec.value()));
   }
   AtomicFile out(cache);
-  Checksum sum;
-  std::uint64_t at = 0;
-  const unsigned char zeros[kAlign] = {};
-  for (const auto& [data, size, offset] : pieces) {
-    while (at < offset) {  // alignment padding
-      const auto pad = static_cast<std::size_t>(std::min<std::uint64_t>(offset - at, kAlign));
-      out.write(zeros, pad);
-      sum.update(zeros, pad);
-      at += pad;
-    }
-    if (size == 0) continue;
-    out.write(data, size);
-    sum.update(static_cast<const unsigned char*>(data), size);
-    at += size;
-  }
-  const std::uint64_t digest = sum.finish();
-  out.write(&digest, sizeof digest);
+  out.write(bytes_.data(), bytes_.size());
   out.commit();
 }
 
-}  // namespace
+Hierarchy CacheImage::load() const {
+  std::string why;
+  std::optional<Hierarchy> h =
+      detail::decode_cache_image(bytes_.data(), bytes_.size(), nullptr, &why);
+  if (!h) throw std::logic_error("a cache image made here does not load: " + why);
+  return std::move(*h);
+}
 
 void save_cache(const Hierarchy& hier, const CacheKey& key, const std::filesystem::path& cache) {
-  const auto& a = hier.arrays();
-  Header h = header_of(hier, key);
-  const std::string crs = hier.frame().crs.substr(0, kMaxCrsBytes);
-  h.crs_size = static_cast<std::uint32_t>(crs.size());
-  const std::array<std::pair<const void*, std::size_t>, kArrays> arrays = {{
-      {a.center_radius.data(), a.center_radius.size_bytes()},
-      {a.splat_radius.data(), a.splat_radius.size_bytes()},
-      {a.normal_cone.data(), a.normal_cone.size_bytes()},
-      {a.color.data(), a.color.size_bytes()},
-      {a.priority.data(), a.priority.size_bytes()},
-      {a.point_count.data(), a.point_count.size_bytes()},
-      {a.parent.data(), a.parent.size_bytes()},
-      {a.first_child.data(), a.first_child.size_bytes()},
-      {a.child_count.data(), a.child_count.size_bytes()},
-      {a.depth.data(), a.depth.size_bytes()},
-  }};
-  std::vector<NodeId> levels;
-  for (int d = 0; d <= hier.level_count(); ++d) levels.push_back(hier.level_begin(d));
-  // The layout: each piece 64-byte aligned after the header.
-  std::uint64_t off = align_up(sizeof(Header));
-  h.level_table = off;
-  off = align_up(off + levels.size() * sizeof(NodeId));
-  for (int i = 0; i < kArrays; ++i) {
-    h.offsets[i] = off;
-    off = align_up(off + arrays[static_cast<std::size_t>(i)].second);
-  }
-  h.crs_offset = crs.empty() ? 0 : off;
-  off = align_up(off + crs.size());
-  const std::vector<NodeAttribute>& attributes = hier.attributes();
-  h.attribute_count = static_cast<std::uint32_t>(attributes.size());
-  h.attribute_table = attributes.empty() ? 0 : off;
-  off = align_up(off + attributes.size() * sizeof(AttributeRecord));
-  const std::vector<AttributeRecord> records = attribute_records(attributes, off);
-  const std::string notes = notes_text(hier.notes());
-  h.notes_size = static_cast<std::uint32_t>(notes.size());
-  h.notes_offset = notes.empty() ? 0 : off;
-  h.payload_end = align_up(off + notes.size());
-
-  std::vector<std::tuple<const void*, std::size_t, std::uint64_t>> pieces = {
-      {&h, sizeof h, 0}, {levels.data(), levels.size() * sizeof(NodeId), h.level_table}};
-  for (int i = 0; i < kArrays; ++i)
-    pieces.emplace_back(arrays[static_cast<std::size_t>(i)].first,
-                        arrays[static_cast<std::size_t>(i)].second, h.offsets[i]);
-  pieces.emplace_back(crs.data(), crs.size(), h.crs_offset);
-  pieces.emplace_back(records.data(), records.size() * sizeof(AttributeRecord), h.attribute_table);
-  for (std::size_t k = 0; k < records.size(); ++k)
-    pieces.emplace_back(attributes[k].values.data(), attributes[k].values.size_bytes(),
-                        records[k].values);
-  pieces.emplace_back(notes.data(), notes.size(), h.notes_offset);
-  pieces.emplace_back(nullptr, 0, h.payload_end);
-  write_pieces(cache, pieces);
+  CacheImage(hier, key).save(cache);
 }
 
 }  // namespace treecut

@@ -10,6 +10,7 @@
 #include <optional>
 #include <stdexcept>
 
+#include "cache_format.hpp"
 #include "model_read.hpp"
 #include "reproject.hpp"
 #include "treecut/cache_folder.hpp"
@@ -202,11 +203,12 @@ std::string format_text(const OpenedModel& out) {
   return text + files;
 }
 
-// Read, attributes, hierarchy: the model built into `out`, each stage timed.
-// The read's warnings go out as they come and into the hierarchy's notes
-// (cached: a warm open says them again).
-void read_and_build(std::span<const std::filesystem::path> files, std::uint32_t bits,
-                    const CacheKey& key, const OpenOptions& given, OpenedModel& out) {
+// Read, attributes, hierarchy: the model built into `out`, each stage timed,
+// in pages as its cache holds it (the image returned, to be saved): a model
+// is the same opened cold or warm. The read's warnings go out as they come
+// and into the hierarchy's notes (cached: a warm open says them again).
+CacheImage read_and_build(std::span<const std::filesystem::path> files, std::uint32_t bits,
+                          const CacheKey& key, const OpenOptions& given, OpenedModel& out) {
   // One file names itself; a cloud of many, the folder of its first.
   const std::filesystem::path& model =
       files.size() == 1 ? files.front() : files.front().parent_path();
@@ -263,8 +265,10 @@ void read_and_build(std::span<const std::filesystem::path> files, std::uint32_t 
     };
   t0 = std::chrono::steady_clock::now();
   notes.format = format_text(out);
-  out.hierarchy = build_hierarchy(std::move(points), build).with_notes(std::move(notes));
+  CacheImage image(build_hierarchy(std::move(points), build).with_notes(std::move(notes)), key);
+  out.hierarchy = image.load();
   out.build_seconds = seconds_since(t0);
+  return image;
 }
 
 // The built hierarchy saved as the model's cache; failing to is an error
@@ -296,7 +300,7 @@ void hold_cache_limit(const std::filesystem::path& written, const WarningSink& w
   }
 }
 
-void write_model_cache(const CacheKey& key, const OpenOptions& options, OpenedModel& out) {
+void write_model_cache(const CacheImage& image, const OpenOptions& options, OpenedModel& out) {
   report_stage(options, "cache");
   const auto t0 = std::chrono::steady_clock::now();
   // The default cache folder is treecut's own: what killed writers left
@@ -308,7 +312,7 @@ void write_model_cache(const CacheKey& key, const OpenOptions& options, OpenedMo
     std::call_once(swept, [&] { remove_stale_temporaries(out.cache.parent_path(), ".tch"); });
   }
   try {
-    save_cache(out.hierarchy, key, out.cache);
+    image.save(out.cache);
     out.cache_written = true;
   } catch (const std::exception& e) {
     if (options.require_cache) throw;
@@ -382,8 +386,8 @@ OpenedModel open_sources(std::span<const std::filesystem::path> files,
           build_memory_estimate(files), budget, options.memory != 0);
       !why.empty())
     throw std::runtime_error(why);
-  read_and_build(files, bits, *key, options, out);
-  if (write_cache) write_model_cache(*key, options, out);
+  const CacheImage image = read_and_build(files, bits, *key, options, out);
+  if (write_cache) write_model_cache(image, options, out);
   return out;
 }
 

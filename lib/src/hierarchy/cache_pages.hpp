@@ -1,0 +1,78 @@
+// The pages of a hierarchy cache (issue 44, item 3): the nodes cut into
+// subtrees of at most kPageNodes, each page quantized against its own box,
+// stored as byte planes and compressed with zstd on its own, so a reader can
+// verify and decode any page alone (what paged drawing will load). The
+// anchors are Nexus and 3D Tiles (pages of a fixed size) and QSplat (the
+// file is the hierarchy, quantized relative to the parent; here relative to
+// the page).
+//
+// What a page keeps, and how exactly (the error bounds, tested in
+// cache_test.cpp):
+// - centers: 16 bits an axis on a grid of a power of two anchored at 0,
+//   just fine enough for the page's box: the error is at most half a step,
+//   a step under 2 * extent / 65535 of the page's box (or the float
+//   precision of the coordinates, where that is coarser);
+// - bounding radii: recomputed from the quantized centers and children
+//   (the smallest sphere around the children's, as the builder makes
+//   them), then rounded up on a logarithmic grid of 512 steps an octave
+//   (at most +0.14 % a level; the levels below add up to under 0.3 %,
+//   plus the centers' moves), so every sphere still contains its
+//   children's;
+// - the drawn radius of an interior node: 8 bits of its bounding radius;
+//   a leaf's is its bounding radius;
+// - normals: two 16-bit octahedral coordinates (under 1e-4 rad, inside
+//   the margin the builder leaves its cones);
+// - priorities: 16 bits (monotone, as the refinement needs);
+// - cones, colours and attributes: exact.
+// Each value is stored as its difference from its parent's in the page
+// (children lie near their parent, face its way and share its colour),
+// which zstd then finds in the byte planes.
+// The quantization is idempotent: a decoded hierarchy encodes to the same
+// pages, so a cache rewritten from a loaded one changes nothing. Private
+// to the library.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "cache_layout.hpp"
+#include "treecut/hierarchy.hpp"
+
+namespace treecut::cache_pages {
+
+/// Nodes a page holds at most (a subtree, or the top of one).
+inline constexpr std::uint32_t kPageNodes = 4096;
+
+/// A hierarchy's pages: the table (offsets from 0) and the compressed bytes.
+struct Encoded {
+  std::vector<cache_layout::PageRecord> table;
+  std::vector<std::vector<unsigned char>> pages;
+};
+
+/// Cuts H into pages, quantizes and compresses them (in parallel).
+Encoded encode(const Hierarchy& h);
+
+/// The nodes of a cache decoded from its pages.
+struct Decoded {
+  std::shared_ptr<const void> storage;  ///< owns every span below
+  HierarchyArrays arrays;
+  std::vector<NodeId> level_begin;
+  /// The values of each attribute that is not constant, in record order.
+  std::vector<std::span<const float>> attribute_values;
+};
+
+/// Verifies and decodes every page of TABLE, whose bytes are at their
+/// offsets in FILE, into NODE_COUNT nodes with VALUE_STREAMS non-constant
+/// attributes. Never trusts a byte: a page whose checksum, size, counts or
+/// links do not hold is named in *WHY ("page 3 of 12: checksum mismatch
+/// (corrupted)") and nothing is returned.
+std::optional<Decoded> decode(std::span<const cache_layout::PageRecord> table,
+                              const unsigned char* file, std::uint64_t node_count,
+                              std::uint32_t value_streams, std::uint32_t level_count,
+                              std::string* why);
+
+}  // namespace treecut::cache_pages
