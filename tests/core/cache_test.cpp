@@ -9,10 +9,12 @@
 #include <chrono>
 #include <csignal>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <iterator>
 #include <optional>
 
+#include "hierarchy/cache_format.hpp"
 #include "test_support.hpp"
 #include "treecut/cache_folder.hpp"
 #include "treecut/error.hpp"
@@ -91,8 +93,8 @@ void rewrite_key(const fs::path& cache, const CacheKey& key) {
 // center moves by at most half a grid step (under extent / 65534 of its
 // page's box, so of the model's), a radius is recomputed around the moved
 // children and rounded up (0.14 % a level, under 0.3 % over all the
-// levels below, plus the centers' moves), a normal turns by under 1e-4
-// rad; the links and counts are
+// levels below, plus the centers' moves); normals, cones, colours, the
+// links and counts are
 // exact; and a loaded hierarchy saved again is the same, byte for byte and
 // value for value.
 TEST(Cache, ARoundTripKeepsTheLinksAndMovesNothingPastTheBound) {
@@ -118,10 +120,7 @@ TEST(Cache, ARoundTripKeepsTheLinksAndMovesNothingPastTheBound) {
     if (h.is_leaf(n)) {
       ASSERT_GE(loaded->radius(n), h.radius(n)) << n;
     }
-    // Normals in 16-bit octahedral codes: within 1e-4 rad; cones exact.
-    const glm::vec3 was = h.normal(n), now = loaded->normal(n);
-    ASSERT_LT(std::atan2(glm::length(glm::cross(was, now)), glm::dot(was, now)), 1e-4f) << n;
-    ASSERT_EQ(loaded->arrays().normal_cone[n].w, h.arrays().normal_cone[n].w);
+    ASSERT_EQ(loaded->arrays().normal_cone[n], h.arrays().normal_cone[n]);
     ASSERT_EQ(loaded->arrays().color[n], h.arrays().color[n]);
     ASSERT_NEAR(loaded->arrays().priority[n], h.arrays().priority[n], 0.5f / 65535.0f);
     ASSERT_EQ(loaded->arrays().first_child[n], h.arrays().first_child[n]);
@@ -216,6 +215,38 @@ TEST(Cache, TheAttributesRoundTrip) {
 // Each page has its own checksum (issue 44): a byte flipped inside one is
 // refused naming that page, so a reader of one page knows which; a byte of
 // the meta part (header, page table, records) is the file's checksum's.
+// A build's hierarchy is quantized in place as its image is made (no
+// decoding): value for value what the image's bytes load as.
+TEST(Cache, ABuildQuantizedInPlaceIsWhatItsCacheLoadsAs) {
+  PointSet p = generate_model(ModelKind::City, 20000, 5);
+  tools::add_survey_attributes(p, ModelKind::City);
+  const CacheImage image(build_from_points(std::move(p)), {1, 2, 3});
+  const Hierarchy& built = image.hierarchy();
+  const Hierarchy loaded = image.load();
+  ASSERT_EQ(loaded.node_count(), built.node_count());
+  EXPECT_EQ(check_invariants(built), "");
+  const HierarchyArrays &a = built.arrays(), &b = loaded.arrays();
+  for (NodeId n = 0; n < built.node_count(); ++n) {
+    ASSERT_EQ(a.center_radius[n], b.center_radius[n]) << n;
+    ASSERT_EQ(a.splat_radius[n], b.splat_radius[n]) << n;
+    ASSERT_EQ(a.normal_cone[n], b.normal_cone[n]) << n;
+    ASSERT_EQ(a.color[n], b.color[n]) << n;
+    ASSERT_EQ(a.priority[n], b.priority[n]) << n;
+    ASSERT_EQ(a.first_child[n], b.first_child[n]) << n;
+    ASSERT_EQ(a.parent[n], b.parent[n]) << n;
+    ASSERT_EQ(a.point_count[n], b.point_count[n]) << n;
+    ASSERT_EQ(a.depth[n], b.depth[n]) << n;
+  }
+  ASSERT_EQ(built.attributes().size(), loaded.attributes().size());
+  for (std::size_t k = 0; k < built.attributes().size(); ++k) {
+    const NodeAttribute &x = built.attributes()[k], &y = loaded.attributes()[k];
+    ASSERT_EQ(x.values.size(), y.values.size());
+    EXPECT_TRUE(std::equal(x.values.begin(), x.values.end(), y.values.begin(),
+                           [](float u, float v) { return std::memcmp(&u, &v, 4) == 0; }))
+        << x.name;
+  }
+}
+
 TEST(Cache, ACorruptedPageIsNamedByItsNumber) {
   const fs::path dir = test::scratch_dir("cache_page");
   save_cache(small(5000), {1, 2, 3}, dir / "a.tch");

@@ -158,48 +158,6 @@ std::optional<std::vector<NodeAttribute>> read_attributes(const Header& h,
   return out;
 }
 
-// A cache's bytes in anonymous pages of this process (see the top), only
-// while they are decoded.
-class CacheBytes {
- public:
-  explicit CacheBytes(std::size_t size) : size_(size) {
-    void* p = ::mmap(nullptr, size, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
-    if (p == MAP_FAILED) throw std::bad_alloc();
-    // Huge pages where the kernel gives them on request (THP "madvise", as on
-    // Debian): fewer page faults for a large read. Advice only.
-    (void)::madvise(p, size, MADV_HUGEPAGE);
-    data_ = static_cast<unsigned char*>(p);
-  }
-  CacheBytes(const CacheBytes&) = delete;
-  CacheBytes& operator=(const CacheBytes&) = delete;
-  ~CacheBytes() { ::munmap(data_, size_); }
-  [[nodiscard]] unsigned char* data() const { return data_; }
-
- private:
-  unsigned char* data_;
-  std::size_t size_;
-};
-
-// Reads the SIZE bytes an fstat saw of the file open as FD. A file that got
-// shorter meanwhile is a FileChangedError, as for a model.
-std::unique_ptr<CacheBytes> read_bytes(int fd, std::uint64_t size,
-                                       const std::filesystem::path& path) {
-  auto bytes = std::make_unique<CacheBytes>(static_cast<std::size_t>(size));
-  constexpr std::uint64_t kPiece = 1 << 20;
-  std::uint64_t at = 0;
-  while (at < size) {
-    const std::size_t want = static_cast<std::size_t>(std::min(size - at, kPiece));
-    const ssize_t got = ::pread(fd, bytes->data() + at, want, static_cast<off_t>(at));
-    if (got < 0 && errno == EINTR) continue;
-    if (got < 0) throw std::runtime_error(system_error_text(path, errno));
-    if (got == 0) {
-      throw FileChangedError(quoted_name(path) + ": changed while being read (it got shorter)");
-    }
-    at += static_cast<std::uint64_t>(got);
-  }
-  return bytes;
-}
-
 // The header's own checks: magic, version, byte order, size.
 bool header_problem(const Header& h, std::string* why) {
   if (std::memcmp(h.magic, kMagic, sizeof kMagic) != 0) return !fail(why, "not a treecut cache");
@@ -211,6 +169,36 @@ bool header_problem(const Header& h, std::string* why) {
   return false;
 }
 
+// The header's word on where its parts are, against the file's SIZE.
+bool meta_in_place(const Header& h, std::uint64_t size, std::string* why) {
+  if (header_problem(h, why)) return false;
+  if (h.payload_end != size - 8) return fail(why, "truncated or extended (size mismatch)");
+  if (h.meta_end < sizeof(Header) || h.meta_end > h.payload_end) return fail(why, "bad meta part");
+  return true;
+}
+
+std::optional<Hierarchy> decode_cache(const unsigned char* meta, std::uint64_t stored,
+                                      const cache_pages::PageSource& source, CacheKey* key,
+                                      std::string* why);
+
+// Reads COUNT bytes at AT of the file open as FD into OUT; a file that got
+// shorter meanwhile is a FileChangedError, as for a model.
+void read_exactly(int fd, std::uint64_t at, std::size_t count, unsigned char* out,
+                  const std::filesystem::path& path) {
+  std::size_t done = 0;
+  while (done < count) {
+    const ssize_t got = ::pread(fd, out + done, count - done, static_cast<off_t>(at + done));
+    if (got < 0 && errno == EINTR) continue;
+    if (got < 0) throw std::runtime_error(system_error_text(path, errno));
+    if (got == 0)
+      throw FileChangedError(quoted_name(path) + ": changed while being read (it got shorter)");
+    done += static_cast<std::size_t>(got);
+  }
+}
+
+// The header and the meta part are read whole; each page is read when it
+// is decoded (twice: cache_pages::decode), so the file's bytes are never
+// all in memory beside the nodes they decode to.
 std::optional<Hierarchy> read_and_verify(const std::filesystem::path& path, CacheKey* key,
                                          std::string* why) {
   const int fd = open_for_reading(path, why);
@@ -225,17 +213,25 @@ std::optional<Hierarchy> read_and_verify(const std::filesystem::path& path, Cach
   Header h;
   if (size < sizeof(Header) + 8 || ::pread(fd, &h, sizeof h, 0) != static_cast<ssize_t>(sizeof h))
     return fail(why, "truncated (shorter than a header)"), std::nullopt;
-  if (header_problem(h, why)) return std::nullopt;
-  if (h.payload_end != size - 8)
-    return fail(why, "truncated or extended (size mismatch)"), std::nullopt;
-  std::unique_ptr<CacheBytes> bytes;
+  if (!meta_in_place(h, size, why)) return std::nullopt;
+  std::vector<unsigned char> meta;
   try {
-    bytes = read_bytes(fd, size, path);
+    meta.resize(static_cast<std::size_t>(h.meta_end));
   } catch (const std::bad_alloc&) {
-    return fail(why, "not enough memory to read it (" + std::to_string(size >> 20) + " MiB)"),
+    return fail(why, "not enough memory to read it (" + std::to_string(h.meta_end >> 20) + " MiB)"),
            std::nullopt;
   }
-  return detail::decode_cache_image(bytes->data(), size, key, why);
+  std::uint64_t stored = 0;
+  read_exactly(fd, 0, meta.size(), meta.data(), path);
+  read_exactly(fd, h.payload_end, 8, reinterpret_cast<unsigned char*>(&stored), path);
+  return decode_cache(
+      meta.data(), stored,
+      [&](const PageRecord& r, std::vector<unsigned char>& buffer) {
+        buffer.resize(r.bytes);
+        read_exactly(fd, r.offset, r.bytes, buffer.data(), path);
+        return static_cast<const unsigned char*>(buffer.data());
+      },
+      key, why);
 }
 
 // The header of CACHE as it is on disk, unverified (the checksum is checked
@@ -323,14 +319,26 @@ std::optional<Hierarchy> detail::decode_cache_image(const unsigned char* bytes, 
   if (size < sizeof(Header) + 8)
     return fail(why, "truncated (shorter than a header)"), std::nullopt;
   std::memcpy(&h, bytes, sizeof h);
-  if (header_problem(h, why)) return std::nullopt;
-  if (h.payload_end != size - 8)
-    return fail(why, "truncated or extended (size mismatch)"), std::nullopt;
-  if (h.meta_end < sizeof(Header) || h.meta_end > h.payload_end)
-    return fail(why, "bad meta part"), std::nullopt;
+  if (!meta_in_place(h, size, why)) return std::nullopt;
   std::uint64_t stored;
   std::memcpy(&stored, bytes + h.payload_end, 8);
-  if (cache_checksum(bytes, h.meta_end) != stored)
+  return decode_cache(
+      bytes, stored,
+      [bytes](const PageRecord& r, std::vector<unsigned char>&) { return bytes + r.offset; }, key,
+      why);
+}
+
+namespace {
+
+// The meta part (at least H.meta_end bytes at META), verified by its
+// checksum STORED, and the pages read through SOURCE.
+std::optional<Hierarchy> decode_cache(const unsigned char* meta, std::uint64_t stored,
+                                      const cache_pages::PageSource& source, CacheKey* key,
+                                      std::string* why) {
+  Header h;
+  std::memcpy(&h, meta, sizeof h);
+  const unsigned char* bytes = meta;
+  if (detail::cache_checksum(bytes, h.meta_end) != stored)
     return fail(why, "checksum mismatch (corrupted)"), std::nullopt;
 
   // The checksum only proves the meta part is what some writer wrote; still
@@ -365,7 +373,7 @@ std::optional<Hierarchy> detail::decode_cache_image(const unsigned char* bytes, 
   if (at != h.payload_end) return fail(why, "bytes after the last page"), std::nullopt;
   const auto streams = static_cast<std::uint32_t>(std::count(varying.begin(), varying.end(), true));
   std::optional<cache_pages::Decoded> nodes =
-      cache_pages::decode(table, bytes, h.node_count, streams, h.level_count, why);
+      cache_pages::decode(table, source, h.node_count, streams, h.level_count, why);
   if (!nodes) return std::nullopt;
   if (nodes->arrays.point_count[0] != h.point_count)
     return fail(why, "point count disagrees with the pages"), std::nullopt;
@@ -378,6 +386,8 @@ std::optional<Hierarchy> detail::decode_cache_image(const unsigned char* bytes, 
              std::move(*frame), std::move(*attributes))
       .with_notes(std::move(*notes));
 }
+
+}  // namespace
 
 std::uint64_t detail::cache_checksum(const unsigned char* data, std::size_t size) {
   Checksum c;

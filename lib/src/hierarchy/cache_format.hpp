@@ -21,14 +21,25 @@ namespace treecut {
 class CacheImage {
  public:
   CacheImage(const Hierarchy& h, const CacheKey& key);
+  /// The image of a hierarchy that is its own (a build's), H rewritten on
+  /// the way to the values the file decodes to (cache_pages::
+  /// encode_in_place), so that nothing is decoded: hierarchy() is then the
+  /// same, value for value, as load().
+  CacheImage(Hierarchy&& h, const CacheKey& key);
+  [[nodiscard]] const Hierarchy& hierarchy() const { return hierarchy_; }
   /// Writes the file atomically (AtomicFile); throws "PATH: REASON".
   void save(const std::filesystem::path& cache) const;
   /// The hierarchy the file loads as (load_cache's decoding of these bytes).
   [[nodiscard]] Hierarchy load() const;
-  [[nodiscard]] std::size_t size() const { return bytes_.size(); }
+  /// The file's size.
+  [[nodiscard]] std::size_t size() const;
 
  private:
-  std::vector<unsigned char> bytes_;
+  void make(const Hierarchy& h, const CacheKey& key, bool in_place);
+  std::vector<unsigned char> meta_;                // header, tables, records, notes
+  std::vector<std::vector<unsigned char>> pages_;  // compressed, in file order
+  unsigned char checksum_[8] = {};                 // of meta_
+  Hierarchy hierarchy_;                            // with the second constructor
 };
 
 }  // namespace treecut

@@ -2,6 +2,7 @@
 // decompressed in parallel, the links rebuilt by one walk over the levels
 // (which also proves every node is reached once), the values scattered in
 // parallel.
+#include <sys/mman.h>
 #include <zstd.h>
 
 #include <algorithm>
@@ -11,6 +12,7 @@
 
 #include "cache_pages.hpp"
 #include "page_codec.hpp"
+#include "treecut/error.hpp"
 #include "treecut/parallel.hpp"
 
 namespace treecut::cache_pages {
@@ -33,30 +35,54 @@ struct OwnedNodes {
   std::vector<std::vector<float>> values;
 };
 
+// Sizes V to N values of FILL, its memory advised into huge pages first
+// where the kernel gives them on request (THP "madvise", as on Debian): the
+// arrays of a large model are then a few hundred page faults, not some
+// hundred thousand, most of the time that touching fresh memory costs.
+// Advice only.
+template <class T>
+void size_huge(std::vector<T>& v, std::size_t n, T fill = T{}) {
+  v.reserve(n);
+  const auto at = reinterpret_cast<std::uintptr_t>(v.data());
+  const std::uintptr_t page = 4096, begin = (at + page - 1) / page * page,
+                       end = (at + n * sizeof(T)) / page * page;
+  if (end > begin) (void)::madvise(reinterpret_cast<void*>(begin), end - begin, MADV_HUGEPAGE);
+  v.assign(n, fill);
+}
+
 bool fail(std::string* why, std::string text) {
   if (why) *why = std::move(text);
   return false;
 }
 
 // A page's bytes verified and decompressed, or what is wrong with them.
+// The first pass keeps only the head and the nodes' bytes (the links are
+// made of them); the values are decompressed again by the second, a page at
+// a time, so the decoded pages are never all in memory beside the nodes.
 struct RawPage {
   std::vector<unsigned char> bytes;
   PageHead head{};
   std::string problem;
 };
 
-RawPage unpack(const PageRecord& r, const unsigned char* file, std::uint32_t value_streams) {
+// Decompresses the R.bytes at PACKED into OUT; false when they do not.
+bool decompress(const PageRecord& r, const unsigned char* packed, std::vector<unsigned char>& out) {
+  out.resize(r.raw_bytes);
+  const std::size_t got = ZSTD_decompress(out.data(), out.size(), packed, r.bytes);
+  return !ZSTD_isError(got) && got == r.raw_bytes;
+}
+
+RawPage unpack(const PageRecord& r, const PageSource& source, std::uint32_t value_streams) {
   RawPage page;
+  thread_local std::vector<unsigned char> buffer;
+  const unsigned char* file = source(r, buffer);
   Checksum sum;
-  sum.update(file + r.offset, r.bytes);
+  sum.update(file, r.bytes);
   if (sum.finish() != r.checksum) return page.problem = "checksum mismatch (corrupted)", page;
   if (r.raw_bytes < sizeof(PageHead) ||
       r.raw_bytes > sizeof(PageHead) + std::uint64_t{r.node_count} * (26 + 4 * value_streams))
     return page.problem = "bad size", page;
-  page.bytes.resize(r.raw_bytes);
-  const std::size_t got =
-      ZSTD_decompress(page.bytes.data(), page.bytes.size(), file + r.offset, r.bytes);
-  if (ZSTD_isError(got) || got != r.raw_bytes) return page.problem = "does not decompress", page;
+  if (!decompress(r, file, page.bytes)) return page.problem = "does not decompress", page;
   std::memcpy(&page.head, page.bytes.data(), sizeof page.head);
   const PageHead& h = page.head;
   bool finite = std::isfinite(h.lo[0]) && std::isfinite(h.lo[1]) && std::isfinite(h.lo[2]);
@@ -71,6 +97,8 @@ RawPage unpack(const PageRecord& r, const unsigned char* file, std::uint32_t val
                                       [](unsigned char c) { return (c & kCountBits) != 0; });
   if (static_cast<std::uint32_t>(interior) != h.interior_count)
     return page.problem = "interior count disagrees", page;
+  page.bytes.resize(sizeof(PageHead) + h.node_count);  // the head and the nodes' bytes
+  page.bytes.shrink_to_fit();
   return page;
 }
 
@@ -112,7 +140,7 @@ bool link(std::span<const PageRecord> table, const std::vector<RawPage>& raw,
       const std::uint8_t byte = raw[at.page].bytes[sizeof(PageHead) + at.local];
       const unsigned cc = byte & kCountBits;
       o.child_count[self] = static_cast<std::uint8_t>(cc);
-      if (cc > 4 || (byte & ~(kCountBits | kExternal | kNoNormal)) ||
+      if (cc > 4 || (byte & ~(kCountBits | kExternal | kNegativeZ)) ||
           (cc == 0 && (byte & kExternal)))
         return page_fail(at.page, "bad child count");
       if (cc == 0) continue;
@@ -156,15 +184,28 @@ bool link(std::span<const PageRecord> table, const std::vector<RawPage>& raw,
   if (level_begin.size() != level_count + 1) return fail(why, "fewer levels than the header says");
   return true;
 }
-// Every value of a page's nodes, at their ids.
-void scatter(const RawPage& page, std::span<const NodeId> ids, OwnedNodes& o) {
-  const PageCodes c = read_planes(page.head, page.bytes.data());
+
+// Every value of page R's nodes, at their ids IDS (its bytes decompressed
+// again into BUFFER: the first pass verified them).
+void scatter(const PageRecord& r, const PageSource& source, const PageHead& head,
+             std::span<const NodeId> ids, OwnedNodes& o, std::vector<unsigned char>& buffer) {
+  thread_local std::vector<unsigned char> packed;
+  const unsigned char* bytes = source(r, packed);
+  // Verified again: the links were made of the first read's bytes, and a
+  // file rewritten in between must not reach the planes.
+  Checksum sum;
+  sum.update(bytes, r.bytes);
+  if (sum.finish() != r.checksum || !decompress(r, bytes, buffer))
+    throw FileChangedError("a page changed while being read");
+  const PageCodes c = read_planes(head, buffer.data());
   const PageHead& h = c.head;
+  AxisGrid grid[3];
+  for (int axis = 0; axis < 3; ++axis) grid[axis] = AxisGrid::of(h.lo[axis], h.step_exp[axis]);
   for (std::size_t k = 0; k < h.node_count; ++k) {
     const NodeId i = ids[k];
     glm::vec3 center;
-    for (std::size_t axis = 0; axis < 3; ++axis)
-      center[static_cast<int>(axis)] = decode_axis(c.q[axis][k], {h.lo[axis], h.step_exp[axis]});
+    for (int axis = 0; axis < 3; ++axis)
+      center[axis] = decode_axis(c.q[static_cast<std::size_t>(axis)][k], grid[axis]);
     const float radius = decode_radius(c.radius[k], h.radius_exp);
     o.center_radius[i] = glm::vec4(center, radius);
     o.splat_radius[i] = (c.cc[k] & kCountBits) ? decode_splat(c.splat[k], radius) : radius;
@@ -178,7 +219,7 @@ void scatter(const RawPage& page, std::span<const NodeId> ids, OwnedNodes& o) {
 
 }  // namespace
 
-std::optional<Decoded> decode(std::span<const PageRecord> table, const unsigned char* file,
+std::optional<Decoded> decode(std::span<const PageRecord> table, const PageSource& source,
                               std::uint64_t node_count, std::uint32_t value_streams,
                               std::uint32_t level_count, std::string* why) {
   const std::size_t pages = table.size();
@@ -206,7 +247,7 @@ std::optional<Decoded> decode(std::span<const PageRecord> table, const unsigned 
   parallel_for(
       pages,
       [&](std::size_t b, std::size_t e) {
-        for (std::size_t p = b; p < e; ++p) raw[p] = unpack(table[p], file, value_streams);
+        for (std::size_t p = b; p < e; ++p) raw[p] = unpack(table[p], source, value_streams);
       },
       0, 1);
   for (std::size_t p = 0; p < pages; ++p)
@@ -217,19 +258,23 @@ std::optional<Decoded> decode(std::span<const PageRecord> table, const unsigned 
 
   const auto n = static_cast<std::size_t>(node_count);
   auto o = std::make_shared<OwnedNodes>();
-  o->parent.resize(n), o->first_child.assign(n, kNoNode), o->child_count.resize(n),
-      o->depth.resize(n);
-  std::vector<NodeId> gid(n), level_begin;
+  size_huge(o->parent, n), size_huge(o->first_child, n, kNoNode), size_huge(o->child_count, n),
+      size_huge(o->depth, n);
+  std::vector<NodeId> gid, level_begin;
+  size_huge(gid, n);
   if (!link(table, raw, first, level_count, *o, gid, level_begin, why)) return std::nullopt;
 
-  o->center_radius.resize(n), o->splat_radius.resize(n), o->normal_cone.resize(n);
-  o->color.resize(n), o->priority.resize(n), o->point_count.resize(n);
-  o->values.assign(value_streams, std::vector<float>(n));
+  size_huge(o->center_radius, n), size_huge(o->splat_radius, n), size_huge(o->normal_cone, n);
+  size_huge(o->color, n), size_huge(o->priority, n), size_huge(o->point_count, n);
+  o->values.resize(value_streams);
+  for (std::vector<float>& v : o->values) size_huge(v, n);
   parallel_for(
       pages,
       [&](std::size_t b, std::size_t e) {
+        std::vector<unsigned char> buffer;
         for (std::size_t p = b; p < e; ++p) {
-          scatter(raw[p], std::span<const NodeId>(gid.data() + first[p], table[p].node_count), *o);
+          scatter(table[p], source, raw[p].head,
+                  std::span<const NodeId>(gid.data() + first[p], table[p].node_count), *o, buffer);
           raw[p] = RawPage{};
         }
       },

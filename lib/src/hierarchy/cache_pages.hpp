@@ -20,10 +20,9 @@
 //   children's;
 // - the drawn radius of an interior node: 8 bits of its bounding radius;
 //   a leaf's is its bounding radius;
-// - normals: two 16-bit octahedral coordinates (under 1e-4 rad, inside
-//   the margin the builder leaves its cones);
 // - priorities: 16 bits (monotone, as the refinement needs);
-// - cones, colours and attributes: exact.
+// - normals (x and y, z as its difference from the unit vector's), cones,
+//   colours and attributes: exact.
 // Each value is stored as its difference from its parent's in the page
 // (children lie near their parent, face its way and share its colour),
 // which zstd then finds in the byte planes.
@@ -33,6 +32,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <span>
@@ -56,6 +56,12 @@ struct Encoded {
 /// Cuts H into pages, quantizes and compresses them (in parallel).
 Encoded encode(const Hierarchy& h);
 
+/// encode(), and H's centers, radii, drawn radii and priorities rewritten
+/// to the values its pages decode to: H becomes the hierarchy its cache
+/// loads as, without decoding it. H's storage must be its own (no other
+/// copy shares it: a build's, not a loaded cache's).
+Encoded encode_in_place(const Hierarchy& h);
+
 /// The nodes of a cache decoded from its pages.
 struct Decoded {
   std::shared_ptr<const void> storage;  ///< owns every span below
@@ -65,13 +71,21 @@ struct Decoded {
   std::vector<std::span<const float>> attribute_values;
 };
 
-/// Verifies and decodes every page of TABLE, whose bytes are at their
-/// offsets in FILE, into NODE_COUNT nodes with VALUE_STREAMS non-constant
+/// Where a page's compressed bytes are read from: R.bytes of them, at
+/// R.offset in the file, returned in place or read into BUFFER. Called from
+/// the worker pool's threads; throws FileChangedError when the file no
+/// longer has them.
+using PageSource = std::function<const unsigned char*(const cache_layout::PageRecord& r,
+                                                      std::vector<unsigned char>& buffer)>;
+
+/// Verifies and decodes every page of TABLE (each read twice from SOURCE:
+/// once for the links, once for the values, so the decompressed pages are
+/// never all in memory) into NODE_COUNT nodes with VALUE_STREAMS non-constant
 /// attributes. Never trusts a byte: a page whose checksum, size, counts or
 /// links do not hold is named in *WHY ("page 3 of 12: checksum mismatch
 /// (corrupted)") and nothing is returned.
 std::optional<Decoded> decode(std::span<const cache_layout::PageRecord> table,
-                              const unsigned char* file, std::uint64_t node_count,
+                              const PageSource& source, std::uint64_t node_count,
                               std::uint32_t value_streams, std::uint32_t level_count,
                               std::string* why);
 

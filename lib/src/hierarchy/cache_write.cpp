@@ -95,12 +95,21 @@ std::vector<AttributeRecord> attribute_records(const std::vector<NodeAttribute>&
 }  // namespace
 
 CacheImage::CacheImage(const Hierarchy& hier, const CacheKey& key) {
+  make(hier, key, false);
+}
+
+CacheImage::CacheImage(Hierarchy&& hier, const CacheKey& key) : hierarchy_(std::move(hier)) {
+  make(hierarchy_, key, true);
+}
+
+void CacheImage::make(const Hierarchy& hier, const CacheKey& key, bool in_place) {
   Header h = header_of(hier, key);
   const std::string crs = hier.frame().crs.substr(0, kMaxCrsBytes);
   const std::vector<NodeAttribute>& attributes = hier.attributes();
   const std::vector<AttributeRecord> records = attribute_records(attributes);
   const std::string notes = notes_text(hier.notes());
-  cache_pages::Encoded pages = cache_pages::encode(hier);
+  cache_pages::Encoded pages =
+      in_place ? cache_pages::encode_in_place(hier) : cache_pages::encode(hier);
   // The meta part: header, page table, crs text, attribute records, notes.
   std::uint64_t off = align_up(sizeof(Header));
   h.page_count = pages.table.size();
@@ -122,8 +131,10 @@ CacheImage::CacheImage(const Hierarchy& hier, const CacheKey& key) {
   }
   h.payload_end = off;
 
-  bytes_.assign(h.payload_end + 8, 0);
-  unsigned char* b = bytes_.data();
+  // The meta part and its checksum; the pages stay as they were compressed
+  // (written after it one by one: never a second copy of them).
+  meta_.assign(h.meta_end, 0);
+  unsigned char* b = meta_.data();
   std::memcpy(b, &h, sizeof h);
   std::memcpy(b + h.page_table, pages.table.data(),
               pages.table.size() * sizeof(cache_layout::PageRecord));
@@ -131,14 +142,17 @@ CacheImage::CacheImage(const Hierarchy& hier, const CacheKey& key) {
   if (!records.empty())
     std::memcpy(b + h.attribute_table, records.data(), records.size() * sizeof(AttributeRecord));
   if (!notes.empty()) std::memcpy(b + h.notes_offset, notes.data(), notes.size());
-  for (std::size_t p = 0; p < pages.table.size(); ++p) {
-    std::memcpy(b + pages.table[p].offset, pages.pages[p].data(), pages.pages[p].size());
-    std::vector<unsigned char>().swap(pages.pages[p]);
-  }
+  pages_ = std::move(pages.pages);
   Checksum sum;
   sum.update(b, h.meta_end);
   const std::uint64_t digest = sum.finish();
-  std::memcpy(b + h.payload_end, &digest, sizeof digest);
+  std::memcpy(checksum_, &digest, sizeof digest);
+}
+
+std::size_t CacheImage::size() const {
+  std::size_t bytes = meta_.size() + sizeof checksum_;
+  for (const std::vector<unsigned char>& page : pages_) bytes += page.size();
+  return bytes;
 }
 
 // Through an AtomicFile (temporary + rename), so readers see the old file or
@@ -151,14 +165,21 @@ void CacheImage::save(const std::filesystem::path& cache) const {
     if (ec) throw std::runtime_error(system_error_text(cache.parent_path(), ec.value()));
   }
   AtomicFile out(cache);
-  out.write(bytes_.data(), bytes_.size());
+  out.write(meta_.data(), meta_.size());
+  for (const std::vector<unsigned char>& page : pages_) out.write(page.data(), page.size());
+  out.write(checksum_, sizeof checksum_);
   out.commit();
 }
 
 Hierarchy CacheImage::load() const {
+  std::vector<unsigned char> bytes(meta_);
+  bytes.reserve(size());
+  for (const std::vector<unsigned char>& page : pages_)
+    bytes.insert(bytes.end(), page.begin(), page.end());
+  bytes.insert(bytes.end(), checksum_, checksum_ + sizeof checksum_);
   std::string why;
   std::optional<Hierarchy> h =
-      detail::decode_cache_image(bytes_.data(), bytes_.size(), nullptr, &why);
+      detail::decode_cache_image(bytes.data(), bytes.size(), nullptr, &why);
   if (!h) throw std::logic_error("a cache image made here does not load: " + why);
   return std::move(*h);
 }

@@ -266,7 +266,7 @@ CacheImage read_and_build(std::span<const std::filesystem::path> files, std::uin
   t0 = std::chrono::steady_clock::now();
   notes.format = format_text(out);
   CacheImage image(build_hierarchy(std::move(points), build).with_notes(std::move(notes)), key);
-  out.hierarchy = image.load();
+  out.hierarchy = image.hierarchy();
   out.build_seconds = seconds_since(t0);
   return image;
 }

@@ -44,11 +44,17 @@ class PlaneReader {
     const unsigned char* p;
     std::size_t count;
     T operator[](std::size_t i) const {
-      unsigned char b[sizeof(T)];
-      for (std::size_t k = 0; k < sizeof(T); ++k) b[k] = p[k * count + i];
-      T v;
-      std::memcpy(&v, b, sizeof(T));
-      return v;
+      if constexpr (sizeof(T) == 1) {
+        return static_cast<T>(p[i]);
+      } else if constexpr (sizeof(T) == 2) {
+        return static_cast<T>(static_cast<std::uint16_t>(p[i] | (p[count + i] << 8)));
+      } else {
+        unsigned char b[sizeof(T)];
+        for (std::size_t k = 0; k < sizeof(T); ++k) b[k] = p[k * count + i];
+        T v;
+        std::memcpy(&v, b, sizeof(T));
+        return v;
+      }
     }
   };
   template <class T>
@@ -115,11 +121,12 @@ int ceil_log2(double x) {
 }
 
 // The exponent of the largest power of two that divides D (> 0).
-int lowest_bit(double d) {
-  int e = 0;
-  const double f = std::frexp(d, &e);
-  const auto mantissa = static_cast<std::uint64_t>(std::ldexp(f, 53));
-  return e - 53 + std::countr_zero(mantissa);
+int lowest_bit(double d) {  // from the bits: frexp and ldexp are calls
+  const auto bits = std::bit_cast<std::uint64_t>(d);
+  const auto biased = static_cast<int>(bits >> 52);  // d > 0: no sign bit
+  const std::uint64_t mantissa =
+      (bits & ((std::uint64_t{1} << 52) - 1)) | (biased != 0 ? std::uint64_t{1} << 52 : 0);
+  return (biased != 0 ? biased : 1) - 1075 + std::countr_zero(mantissa);
 }
 
 }  // namespace
@@ -128,7 +135,10 @@ int lowest_bit(double d) {
 // J - 512 * radius_exp in 16 bits.
 float radius_at(std::int32_t j) {
   const std::int32_t octave = j >= 0 ? j / 512 : -((511 - j) / 512);
-  return std::ldexp(radius_mantissas()[static_cast<std::size_t>(j - 512 * octave)], octave);
+  const float mantissa = radius_mantissas()[static_cast<std::size_t>(j - 512 * octave)];
+  if (octave < -125 || octave > 126) return std::ldexp(mantissa, octave);
+  // 2^octave built from its exponent bits: ldexp is a call per node.
+  return mantissa * std::bit_cast<float>(static_cast<std::uint32_t>(octave + 127) << 23);
 }
 
 float decode_radius(std::uint16_t q, int exp) {
@@ -150,14 +160,18 @@ std::int32_t radius_index(float need) {
 // that values already on a grid keep it (the encoding is idempotent).
 std::optional<AxisGrid> exact_grid(const std::vector<float>& values) {
   const auto [lo, hi] = std::minmax_element(values.begin(), values.end());
-  AxisGrid g{*lo, -126};
-  if (*lo == *hi) return g;
+  if (*lo == *hi) return AxisGrid::of(*lo, -126);
+  // The grid's exponent only falls as values come: once the span needs
+  // more than 65536 steps of it, no grid holds them (raw floats fail fast).
+  const double span = double(*hi) - double(*lo);
   int exp = 1024;
-  for (const float v : values)
-    if (const double d = double(v) - double(*lo); d > 0.0) exp = std::min(exp, lowest_bit(d));
-  if ((double(*hi) - double(*lo)) / std::ldexp(1.0, exp) > 65535.0) return std::nullopt;
-  g.exp = exp;
-  return g;
+  for (const float v : values) {
+    const double d = double(v) - double(*lo);
+    if (d <= 0.0) continue;
+    exp = std::min(exp, lowest_bit(d));
+    if (span > std::ldexp(65535.0, exp)) return std::nullopt;
+  }
+  return AxisGrid::of(*lo, exp);
 }
 
 // Where values on no such grid go first: a power-of-two step fine enough
@@ -177,12 +191,12 @@ void round_to_grid(std::vector<float>& values) {
     v = float(corner + std::min(std::round((double(v) - corner) / step), 65535.0) * step);
 }
 
-std::uint16_t encode_axis(float v, const AxisGrid& g) {  // V on the grid
-  return static_cast<std::uint16_t>((double(v) - double(g.lo)) / std::ldexp(1.0, g.exp));
+std::uint16_t encode_axis(float v, const AxisGrid& g) {  // V on the grid: exact
+  return static_cast<std::uint16_t>((double(v) - double(g.lo)) * g.inverse);
 }
 
 float decode_axis(std::uint16_t q, const AxisGrid& g) {  // exact: a float on the grid
-  return float(double(g.lo) + std::ldexp(double(q), g.exp));
+  return float(double(g.lo) + double(q) * g.step);
 }
 
 std::uint8_t encode_splat(float splat, float radius) {
@@ -202,49 +216,13 @@ float decode_priority(std::uint16_t q) {
   return float(q) / 65535.0f;
 }
 
-// Normals as two 16-bit octahedral coordinates (Meyer et al. 2010, "On
-// floating-point normal vectors"): 4 bytes instead of 6, about 4e-5 rad,
-// decoded to the snorm16 the hierarchy holds. The builder's cones keep
-// 2e-4 rad of margin beyond the normals they were measured on, which this
-// stays well inside (cache_test checks the invariants on decoded caches).
-using Oct = std::array<std::uint16_t, 2>;
-
-glm::i16vec3 decode_oct(Oct code) {
-  float x = float(code[0]) / 65535.0f * 2.0f - 1.0f, y = float(code[1]) / 65535.0f * 2.0f - 1.0f;
-  const float z = 1.0f - std::fabs(x) - std::fabs(y);
-  if (z < 0.0f) {
-    const float fx = (1.0f - std::fabs(y)) * (x >= 0.0f ? 1.0f : -1.0f);
-    const float fy = (1.0f - std::fabs(x)) * (y >= 0.0f ? 1.0f : -1.0f);
-    x = fx, y = fy;
-  }
-  const glm::i16vec4 packed = pack_normal_cone(glm::normalize(glm::vec3(x, y, z)), 1.0f);
-  return {packed.x, packed.y, packed.z};
-}
-
-// The code whose decoding is N exactly, where one near its projection has
-// it (so a decoded normal encodes to the code it came from: idempotent),
-// else the nearest.
-Oct encode_oct(glm::i16vec3 n) {
-  const glm::vec3 v =
-      glm::vec3(n) / (std::fabs(float(n.x)) + std::fabs(float(n.y)) + std::fabs(float(n.z)));
-  float x = v.x, y = v.y;
-  if (v.z < 0.0f) {
-    const float fx = (1.0f - std::fabs(y)) * (x >= 0.0f ? 1.0f : -1.0f);
-    const float fy = (1.0f - std::fabs(x)) * (y >= 0.0f ? 1.0f : -1.0f);
-    x = fx, y = fy;
-  }
-  auto grid = [](float t) {
-    return std::clamp(std::lround((t + 1.0f) * 0.5f * 65535.0f), 0L, 65535L);
-  };
-  const long gx = grid(x), gy = grid(y);
-  for (const long d : {0L, 1L, -1L, 2L, -2L})
-    for (const long e : {0L, 1L, -1L, 2L, -2L}) {
-      const long cx = gx + d, cy = gy + e;
-      if (cx < 0 || cx > 65535 || cy < 0 || cy > 65535) continue;
-      const Oct c{static_cast<std::uint16_t>(cx), static_cast<std::uint16_t>(cy)};
-      if (decode_oct(c) == n) return c;
-    }
-  return {static_cast<std::uint16_t>(gx), static_cast<std::uint16_t>(gy)};
+// The z a unit normal with X and Y has, in snorm16, without its sign: the
+// planes store z as its difference from this (0 or +-1 on most nodes, a
+// byte zstd all but drops), so a normal costs about 4 bytes, exactly.
+std::int16_t unit_z(std::int16_t x, std::int16_t y) {
+  const double fx = x / 32767.0, fy = y / 32767.0;
+  return static_cast<std::int16_t>(
+      std::lround(std::sqrt(std::max(0.0, 1.0 - fx * fx - fy * fy)) * 32767.0));
 }
 
 // The head, then the planes (raw_size()'s order), each value as its
@@ -267,8 +245,13 @@ std::vector<unsigned char> write_planes(const PageCodes& c) {
   for (const auto& axis : c.q)
     w.put<std::uint16_t>(n, [&](std::size_t k) { return predicted(axis, k); });
   w.put<std::uint16_t>(n, [&](std::size_t k) { return predicted(c.radius, k); });
-  for (const auto& axis : c.oct)
-    w.put<std::uint16_t>(n, [&](std::size_t k) { return predicted(axis, k); });
+  for (int m = 0; m < 2; ++m)
+    w.put<std::int16_t>(n, [&](std::size_t k) { return predicted(c.normal[m], k); });
+  w.put<std::int16_t>(n, [&](std::size_t k) {
+    const std::int16_t z = unit_z(c.normal[0][k], c.normal[1][k]);
+    return static_cast<std::int16_t>(static_cast<std::uint16_t>(c.normal[2][k]) -
+                                     static_cast<std::uint16_t>((c.cc[k] & kNegativeZ) ? -z : z));
+  });
   w.put<std::int16_t>(interior.size(),
                       [&](std::size_t k) { return predicted(c.normal[3], interior[k]); });
   if (head.flags & kLeafCones)
@@ -300,11 +283,13 @@ PageCodes read_planes(const PageHead& h, const unsigned char* planes) {
   };
   for (auto& axis : c.q) undo(axis, r.take<std::uint16_t>(n));
   undo(c.radius, r.take<std::uint16_t>(n));
-  for (auto& axis : c.oct) undo(axis, r.take<std::uint16_t>(n));
+  for (int m = 0; m < 2; ++m) undo(c.normal[m], r.take<std::int16_t>(n));
+  const auto dz = r.take<std::int16_t>(n);
   for (std::size_t k = 0; k < n; ++k) {
-    if (c.cc[k] & kNoNormal) continue;  // (0, 0, 0)
-    const glm::i16vec3 v = decode_oct({c.oct[0][k], c.oct[1][k]});
-    c.normal[0][k] = v.x, c.normal[1][k] = v.y, c.normal[2][k] = v.z;
+    const std::int16_t z = unit_z(c.normal[0][k], c.normal[1][k]);
+    c.normal[2][k] =
+        static_cast<std::int16_t>(static_cast<std::uint16_t>(dz[k]) +
+                                  static_cast<std::uint16_t>((c.cc[k] & kNegativeZ) ? -z : z));
   }
   const auto inner_cone = r.take<std::int16_t>(h.interior_count);
   const auto leaf_cones = r.take<std::int16_t>(h.flags & kLeafCones ? n - h.interior_count : 0);

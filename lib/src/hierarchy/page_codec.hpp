@@ -7,6 +7,7 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <optional>
 #include <vector>
@@ -30,12 +31,13 @@ static_assert(sizeof(PageHead) == 44);
 constexpr std::uint32_t kLeafCones = 1;  // leaves' cone cosines stored (not the rule below)
 constexpr std::uint32_t kAlpha = 2;      // alphas stored (not all 255)
 // A node's byte: its child count, whether its children are in other pages,
-// whether it has no normal (a zero vector: no octahedral code says that).
-constexpr std::uint8_t kCountBits = 7, kExternal = 8, kNoNormal = 16;
+// whether its normal's z is negative (the planes hold x and y, and z as its
+// difference from the unit vector's, +-sqrt(1 - x^2 - y^2)).
+constexpr std::uint8_t kCountBits = 7, kExternal = 8, kNegativeZ = 16;
 
 inline std::uint64_t raw_size(const PageHead& h) {
   const std::uint64_t n = h.node_count, ni = h.interior_count;
-  std::uint64_t bytes = sizeof(PageHead) + n * (1 + 6 + 2 + 4 + 3 + 2) + ni * (2 + 1);
+  std::uint64_t bytes = sizeof(PageHead) + n * (1 + 6 + 2 + 6 + 3 + 2) + ni * (2 + 1);
   if (h.flags & kLeafCones) bytes += (n - ni) * 2;
   if (h.flags & kAlpha) bytes += n;
   return bytes + std::uint64_t{h.value_streams} * n * 4;
@@ -62,6 +64,10 @@ std::int32_t radius_index(float need);
 struct AxisGrid {
   float lo = 0.0f;
   int exp = -126;
+  double step = 0.0, inverse = 0.0;  // 2^exp, 2^-exp: exact in double
+  static AxisGrid of(float lo, int exp) {
+    return {lo, exp, std::ldexp(1.0, exp), std::ldexp(1.0, -exp)};
+  }
 };
 /// The coarsest grid on which every one of VALUES lies exactly, if 65536
 /// steps of it span them: how a page's (quantized) values are stored, so
@@ -79,12 +85,6 @@ float decode_splat(std::uint8_t k, float radius);
 std::uint16_t encode_priority(float p);
 float decode_priority(std::uint16_t q);
 
-/// Normals as two 16-bit octahedral coordinates, decoded to the snorm16 the
-/// hierarchy holds.
-using Oct = std::array<std::uint16_t, 2>;
-glm::i16vec3 decode_oct(Oct code);
-Oct encode_oct(glm::i16vec3 n);
-
 // ---- A page's values and its planes ----------------------------------------
 
 // One page's values as integers, in local order: what the planes hold
@@ -96,8 +96,7 @@ struct PageCodes {
   std::vector<std::uint8_t> cc;  // child count | kExternal
   std::array<std::vector<std::uint16_t>, 3> q;
   std::vector<std::uint16_t> radius, priority;
-  std::array<std::vector<std::int16_t>, 4> normal;  // x y z (decoded), cone
-  std::array<std::vector<std::uint16_t>, 2> oct;    // the normal's code
+  std::array<std::vector<std::int16_t>, 4> normal;  // x y z, cone
   std::array<std::vector<std::uint8_t>, 4> color;
   std::vector<std::uint8_t> splat;
   std::vector<std::vector<std::uint32_t>> values;  // float bits
@@ -107,7 +106,6 @@ struct PageCodes {
     cc.resize(n), radius.resize(n), priority.resize(n), splat.resize(n);
     for (auto& v : q) v.resize(n);
     for (auto& v : normal) v.resize(n);
-    for (auto& v : oct) v.resize(n);
     for (auto& v : color) v.assign(n, 255);
     values.assign(h.value_streams, std::vector<std::uint32_t>(n));
   }
