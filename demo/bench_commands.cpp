@@ -21,6 +21,7 @@
 #include <utility>
 #include <vector>
 
+#include "bench_cache.hpp"
 #include "bench_common.hpp"
 #include "bench_hlod.hpp"
 #include "bench_scene.hpp"
@@ -638,6 +639,7 @@ void add_bench_commands(CLI::App& app) {
   add_bench_build_command(*bench);
   add_bench_occlusion_command(*bench);
   add_bench_scene_command(*bench);
+  add_bench_cache_command(*bench);
 }
 
 }  // namespace treecut::cli

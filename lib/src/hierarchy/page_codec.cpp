@@ -149,10 +149,19 @@ float decode_radius(std::uint16_t q, int exp) {
 std::int32_t radius_index(float need) {
   if (!(need > 0.0f) || !std::isfinite(need))
     throw std::runtime_error("a radius that is not a positive number");
-  auto j = static_cast<std::int32_t>(std::ceil(std::log2(double(need)) * 512.0));
-  while (radius_at(j) < need) ++j;
-  while (radius_at(j - 1) >= need) --j;
-  return j;
+  const auto bits = std::bit_cast<std::uint32_t>(need);
+  const auto biased = static_cast<std::int32_t>(bits >> 23);
+  if (biased == 0) {  // subnormal: from the logarithm, then exact
+    auto j = static_cast<std::int32_t>(std::ceil(std::log2(double(need)) * 512.0));
+    while (radius_at(j) < need) ++j;
+    while (radius_at(j - 1) >= need) --j;
+    return j;
+  }
+  // NEED = f 2^octave with f in [1, 2): the first mantissa not below f.
+  const float f = std::bit_cast<float>((bits & 0x007fffffu) | 0x3f800000u);
+  const std::array<float, 512>& m = radius_mantissas();
+  const auto at = static_cast<std::int32_t>(std::lower_bound(m.begin(), m.end(), f) - m.begin());
+  return 512 * (biased - 127) + at;  // at == 512: the next octave's first
 }
 
 // The coarsest grid on which every one of VALUES lies exactly, if 65536
