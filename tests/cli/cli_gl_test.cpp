@@ -425,6 +425,30 @@ TEST(Cli, UnknownCommandsAndOptionsAreNamedOnOneLine) {
   }
 }
 
+// bench cache (issue 44): one row a model, its cache's bytes a point; the
+// scratch cache it measured is gone; a malformed model is one line.
+TEST(Cli, BenchCacheMeasuresEachModelsCacheAndLeavesNothing) {
+  const fs::path dir = treecut::test::scratch_dir("cli_bench_cache");
+  const fs::path model = dir / "sphere.ply";
+  ASSERT_EQ(treecut::test::run_treecut("gen sphere -n 3000 -o " + treecut::test::quote(model)).code,
+            0);
+  treecut::test::CommandResult r =
+      treecut::test::run_treecut("bench cache -r 2 " + treecut::test::quote(model));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("| model | points | nodes | arrays MiB | cache MiB"), std::string::npos)
+      << r.out;
+  const std::size_t row = r.out.find("| sphere.ply | 3000 | ");
+  ASSERT_NE(row, std::string::npos) << r.out;
+  EXPECT_EQ(lines_of(r.out), 3u) << r.out;
+  for (const auto& e : fs::directory_iterator(fs::temp_directory_path()))
+    EXPECT_EQ(e.path().filename().string().rfind("treecut-bench-cache-", 0), std::string::npos)
+        << e.path();
+  std::ofstream(dir / "bad.ply") << "ply\nformat nonsense 1.0\nend_header\n";
+  r = treecut::test::run_treecut("bench cache " + treecut::test::quote(dir / "bad.ply"));
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_EQ(lines_of(r.out), 1u) << r.out;
+}
+
 TEST(Cli, BenchBuildOnAMalformedPlyExitsWithTwoAndOneLine) {
   const auto shared = treecut::test::shared_dir();
   if (!shared) GTEST_SKIP() << "../shared is absent";
