@@ -71,6 +71,19 @@ OpenOptions open_options(const ModelArgs& args) {
 
 // Every attribute with its kind and range in the file's values: what
 // `--color NAME` and `--classes` can use.
+// The cache's pages from its table alone (issue 44): how many, how large.
+void print_cache_pages(const std::filesystem::path& cache, const Hierarchy& h) {
+  std::string why;
+  const std::optional<std::vector<CachePage>> pages = read_cache_pages(cache, &why);
+  if (!pages) return;  // rewritten since it was read: the next open says so
+  std::uint64_t bytes = 0;
+  std::uint32_t largest = 0;
+  for (const CachePage& p : *pages) bytes += p.bytes, largest = std::max(largest, p.nodes);
+  std::printf("pages       %zu (largest %u nodes), %.1f MiB (%.1f bytes/point)\n", pages->size(),
+              largest, double(bytes) / (1024.0 * 1024.0),
+              double(bytes) / double(std::max(1u, h.leaf_count())));
+}
+
 void print_attributes(const Hierarchy& h) {
   if (h.attributes().empty()) {
     std::printf("attributes  none beyond position, normal and colour\n");
@@ -127,9 +140,10 @@ void print_summary(const std::filesystem::path& model, const OpenedModel& m) {
               static_cast<double>(h.memory_bytes()) / (1024.0 * 1024.0),
               static_cast<double>(h.memory_bytes()) / std::max(1u, h.leaf_count()));
   // Only a cache that exists is printed as the cache (build fails otherwise).
-  if (m.from_cache || m.cache_written)
+  if (m.from_cache || m.cache_written) {
     std::printf("cache       %s\n", quoted_name(m.cache).c_str());
-  else
+    print_cache_pages(m.cache, h);
+  } else
     std::printf("cache       none (not written: %s)\n", one_line(m.cache_note).c_str());
   if (m.from_cache && m.cache == model) {
     std::printf("loaded      from cache in %.3f s\n", m.cache_seconds);

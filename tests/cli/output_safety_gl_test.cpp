@@ -187,7 +187,9 @@ TEST(OutputSafety, ACorruptedPageOfANamedCacheIsOneLineNamingFileAndPage) {
   const fs::path dir = treecut::test::scratch_dir("cli_page");
   const fs::path model = dir / "m.ply", cache = dir / "m.tch";
   ASSERT_EQ(run_treecut("gen sphere -n 6000 -o " + quote(model)).code, 0);
-  ASSERT_EQ(run_treecut("build " + quote(model) + " -o " + quote(cache)).code, 0);
+  const auto built = run_treecut("build " + quote(model) + " -o " + quote(cache));
+  ASSERT_EQ(built.code, 0) << built.out;
+  EXPECT_NE(built.out.find("\npages       "), std::string::npos) << built.out;
   std::string bytes = read_all(cache);
   bytes[bytes.size() - 9] = static_cast<char>(bytes[bytes.size() - 9] ^ 0x20);
   std::ofstream(cache, std::ios::binary | std::ios::trunc) << bytes;

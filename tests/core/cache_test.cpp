@@ -259,14 +259,36 @@ TEST(Cache, ACorruptedPageIsNamedByItsNumber) {
     EXPECT_FALSE(load_cache(dir / "b.tch", std::nullopt, &why)) << "byte " << at;
     return why;
   };
+  // The table alone: every node in a page, the pages under their parents.
+  std::string why;
+  const auto pages = read_cache_pages(dir / "a.tch", &why);
+  ASSERT_TRUE(pages) << why;
+  std::uint64_t nodes = 0, bytes_in_pages = 0;
+  for (std::size_t p = 0; p < pages->size(); ++p) {
+    const CachePage& page = (*pages)[p];
+    nodes += page.nodes, bytes_in_pages += page.bytes;
+    EXPECT_LE(page.nodes, 4096u);
+    if (p > 0) {
+      EXPECT_LT(page.parent_page, p);
+    }
+  }
+  EXPECT_EQ(nodes, small(5000).node_count());
+  EXPECT_LT(bytes_in_pages, bytes.size());
   const std::string last = why_with(bytes.size() - 9);  // the last page's last byte
   EXPECT_EQ(last.rfind("page ", 0), 0u) << last;
   EXPECT_NE(last.find(" of "), std::string::npos) << last;
   EXPECT_NE(last.find("checksum mismatch (corrupted)"), std::string::npos) << last;
-  const int page = std::stoi(last.substr(5)), pages = std::stoi(last.substr(last.find(" of ") + 4));
-  EXPECT_GT(pages, 1) << "5,000 points make several pages of 4,096 nodes at most";
-  EXPECT_EQ(page, pages - 1);
+  const int page = std::stoi(last.substr(5)), count = std::stoi(last.substr(last.find(" of ") + 4));
+  EXPECT_GT(count, 1) << "5,000 points make several pages of 4,096 nodes at most";
+  EXPECT_EQ(page, count - 1);
+  EXPECT_EQ(static_cast<std::size_t>(count), pages->size());
+  // A page's damage is the page's: the table still reads alone.
+  bytes[bytes.size() - 9] ^= 0x08;
+  write_all(dir / "b.tch", bytes, bytes.size());
+  bytes[bytes.size() - 9] ^= 0x08;
+  EXPECT_TRUE(read_cache_pages(dir / "b.tch", &why)) << why;
   EXPECT_EQ(why_with(40), "checksum mismatch (corrupted)");  // the header's page count
+  EXPECT_FALSE(read_cache_pages(dir / "b.tch", &why));
 }
 
 TEST(Cache, SameInputGivesAByteIdenticalFile) {

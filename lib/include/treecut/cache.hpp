@@ -30,6 +30,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <vector>
 
 #include "treecut/hierarchy.hpp"
 
@@ -138,6 +139,22 @@ CacheLookup lookup_cache(const std::filesystem::path& source, const std::filesys
 CacheLookup lookup_cache(std::span<const std::filesystem::path> sources,
                          const std::filesystem::path& cache, std::uint32_t options_bits,
                          bool refresh);
+
+/// One page of a cache (format 8, issue 44) as its page table gives it.
+struct CachePage {
+  std::uint32_t nodes = 0;        ///< at most 4,096: a subtree, or the top of one
+  std::uint32_t bytes = 0;        ///< compressed, on disk
+  std::uint32_t parent_page = 0;  ///< the page its root hangs from (itself for page 0)
+  std::uint32_t root_depth = 0;
+  glm::vec3 bounds_min{0.0f}, bounds_max{0.0f};  ///< around its nodes' spheres
+};
+
+/// The page table of CACHE, read with the header and the records and
+/// verified by their checksum, without reading a page (what a reader that
+/// loads pages on demand starts from). nullopt and *WHY when the file is no
+/// cache of this format or its table does not check out.
+std::optional<std::vector<CachePage>> read_cache_pages(const std::filesystem::path& cache,
+                                                       std::string* why);
 
 /// Reads the key stored in a cache header (for `treecut info CACHE`), after full verification.
 std::optional<CacheKey> read_cache_key(const std::filesystem::path& cache, std::string* why);

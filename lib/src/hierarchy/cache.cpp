@@ -307,6 +307,44 @@ std::optional<Hierarchy> load_cache_and_key(const std::filesystem::path& cache, 
   return read_and_verify(cache, stored, why);
 }
 
+std::optional<std::vector<CachePage>> read_cache_pages(const std::filesystem::path& cache,
+                                                       std::string* why) {
+  const int fd = open_for_reading(cache, why);
+  if (fd < 0) return std::nullopt;
+  struct Close {
+    int fd;
+    ~Close() { ::close(fd); }
+  } closer{fd};
+  struct stat st {};
+  if (fstat(fd, &st) != 0) return fail(why, std::strerror(errno)), std::nullopt;
+  const auto size = static_cast<std::uint64_t>(st.st_size);
+  Header h;
+  if (size < sizeof(Header) + 8 || ::pread(fd, &h, sizeof h, 0) != static_cast<ssize_t>(sizeof h))
+    return fail(why, "truncated (shorter than a header)"), std::nullopt;
+  if (!meta_in_place(h, size, why)) return std::nullopt;
+  std::vector<unsigned char> meta(static_cast<std::size_t>(h.meta_end));
+  std::uint64_t stored = 0;
+  read_exactly(fd, 0, meta.size(), meta.data(), cache);
+  read_exactly(fd, h.payload_end, 8, reinterpret_cast<unsigned char*>(&stored), cache);
+  if (detail::cache_checksum(meta.data(), meta.size()) != stored)
+    return fail(why, "checksum mismatch (corrupted)"), std::nullopt;
+  if (h.page_count == 0 || h.page_table < sizeof(Header) || h.page_table > h.meta_end ||
+      h.page_count > (h.meta_end - h.page_table) / sizeof(PageRecord))
+    return fail(why, "page table out of bounds"), std::nullopt;
+  std::vector<CachePage> pages(static_cast<std::size_t>(h.page_count));
+  for (std::size_t p = 0; p < pages.size(); ++p) {
+    PageRecord r;
+    std::memcpy(&r, meta.data() + h.page_table + p * sizeof r, sizeof r);
+    pages[p] = {r.node_count,
+                r.bytes,
+                p == 0 ? 0 : r.parent_page,
+                r.root_depth,
+                {r.bounds[0], r.bounds[1], r.bounds[2]},
+                {r.bounds[3], r.bounds[4], r.bounds[5]}};
+  }
+  return pages;
+}
+
 std::optional<CacheKey> read_cache_key(const std::filesystem::path& cache, std::string* why) {
   CacheKey key{};
   if (!read_and_verify(cache, &key, why)) return std::nullopt;
