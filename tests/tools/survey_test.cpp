@@ -252,6 +252,14 @@ TEST(SurveyCli, AFolderOfTilesOrSeveralFilesBuildAsOneModel) {
   test::expect_failure(test::run_treecut("build -f " + test::quote(out) + cache), 2,
                        "tile_500200_5000000.laz");
   EXPECT_EQ(test::read_all(dir / "flight.tch"), before);
+  fs::remove(out / "tile_500200_5000000.laz");
+  // A tile that ends halfway through its records, among the others (its
+  // header read, its points not): named, nothing written.
+  const std::string whole = test::read_all(out / "tile_500100_5000000.las");
+  test::write_text(out / "tile_500050_5000000.las", whole.substr(0, whole.size() / 2));
+  test::expect_failure(test::run_treecut("build -f " + test::quote(out) + cache), 2,
+                       "tile_500050_5000000.las");
+  EXPECT_EQ(test::read_all(dir / "flight.tch"), before);
   fs::create_directories(dir / "none");
   test::write_text(dir / "none" / "readme.md", "tiles come later\n");
   test::expect_failure(test::run_treecut("build " + test::quote(dir / "none")), 2,
