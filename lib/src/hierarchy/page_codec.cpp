@@ -102,17 +102,6 @@ T unzigzag(T z, T parent) {
   return static_cast<T>(static_cast<U>(static_cast<U>(parent) + d));
 }
 
-// 2^(j / 512) for j < 512: the radius grid's mantissas (exact in double,
-// rounded once to float; the same table encodes and decodes).
-const std::array<float, 512>& radius_mantissas() {
-  static const std::array<float, 512> table = [] {
-    std::array<float, 512> t{};
-    for (int j = 0; j < 512; ++j) t[static_cast<std::size_t>(j)] = float(std::exp2(j / 512.0));
-    return t;
-  }();
-  return table;
-}
-
 // The exponent of the smallest power of two >= X (X > 0).
 int ceil_log2(double x) {
   int e = 0;
@@ -131,20 +120,19 @@ int lowest_bit(double d) {  // from the bits: frexp and ldexp are calls
 
 }  // namespace
 
+// 2^(j / 512) for j < 512: the radius grid's mantissas (exact in double,
+// rounded once to float; the same table encodes and decodes).
+const std::array<float, 512>& radius_mantissas() {
+  static const std::array<float, 512> table = [] {
+    std::array<float, 512> t{};
+    for (int j = 0; j < 512; ++j) t[static_cast<std::size_t>(j)] = float(std::exp2(j / 512.0));
+    return t;
+  }();
+  return table;
+}
+
 // Radii lie on one absolute grid, index J: 2^(J / 512). A page stores
 // J - 512 * radius_exp in 16 bits.
-float radius_at(std::int32_t j) {
-  const std::int32_t octave = j >= 0 ? j / 512 : -((511 - j) / 512);
-  const float mantissa = radius_mantissas()[static_cast<std::size_t>(j - 512 * octave)];
-  if (octave < -125 || octave > 126) return std::ldexp(mantissa, octave);
-  // 2^octave built from its exponent bits: ldexp is a call per node.
-  return mantissa * std::bit_cast<float>(static_cast<std::uint32_t>(octave + 127) << 23);
-}
-
-float decode_radius(std::uint16_t q, int exp) {
-  return radius_at(512 * exp + q);
-}
-
 // The smallest index whose radius is at least NEED (> 0, finite).
 std::int32_t radius_index(float need) {
   if (!(need > 0.0f) || !std::isfinite(need))
@@ -204,34 +192,21 @@ std::uint16_t encode_axis(float v, const AxisGrid& g) {  // V on the grid: exact
   return static_cast<std::uint16_t>((double(v) - double(g.lo)) * g.inverse);
 }
 
-float decode_axis(std::uint16_t q, const AxisGrid& g) {  // exact: a float on the grid
-  return float(double(g.lo) + double(q) * g.step);
-}
-
 std::uint8_t encode_splat(float splat, float radius) {
   return static_cast<std::uint8_t>(std::clamp(std::lround(splat / radius * 255.0f), 1L, 255L));
-}
-
-float decode_splat(std::uint8_t k, float radius) {
-  const float s = std::min(radius, radius * float(k) / 255.0f);
-  return s > 0.0f ? s : radius;
 }
 
 std::uint16_t encode_priority(float p) {
   return static_cast<std::uint16_t>(std::lround(std::clamp(p, 0.0f, 1.0f) * 65535.0f));
 }
 
-float decode_priority(std::uint16_t q) {
-  return float(q) / 65535.0f;
-}
-
 // The z a unit normal with X and Y has, in snorm16, without its sign: the
 // planes store z as its difference from this (0 or +-1 on most nodes, a
 // byte zstd all but drops), so a normal costs about 4 bytes, exactly.
-std::int16_t unit_z(std::int16_t x, std::int16_t y) {
+std::int16_t unit_z(std::int16_t x, std::int16_t y) {  // any rule will do: both sides use it
   const double fx = x / 32767.0, fy = y / 32767.0;
-  return static_cast<std::int16_t>(
-      std::lround(std::sqrt(std::max(0.0, 1.0 - fx * fx - fy * fy)) * 32767.0));
+  return static_cast<std::int16_t>(std::sqrt(std::max(0.0, 1.0 - fx * fx - fy * fy)) * 32767.0 +
+                                   0.5);
 }
 
 // The head, then the planes (raw_size()'s order), each value as its

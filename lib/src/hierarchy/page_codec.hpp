@@ -6,7 +6,9 @@
 // Private to the library.
 #pragma once
 
+#include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <cstdint>
 #include <optional>
@@ -52,10 +54,22 @@ inline std::int16_t leaf_cone(glm::i16vec4 nc) {
 // ---- Quantization (each decode is exact and each encode of a decoded
 // value gives its code back: the encoding is idempotent) ----------------------
 
+/// 2^(j / 512) for j < 512 (exact in double, rounded once to float).
+const std::array<float, 512>& radius_mantissas();
+
 /// Radii lie on one absolute grid of index J: 2^(J / 512). A page stores
-/// J - 512 * radius_exp in 16 bits.
-float radius_at(std::int32_t j);
-float decode_radius(std::uint16_t q, int exp);
+/// J - 512 * radius_exp in 16 bits. (The decoders are inline: a call per
+/// value cost a tenth of a cache's opening.)
+inline float radius_at(std::int32_t j) {
+  const std::int32_t octave = j >= 0 ? j / 512 : -((511 - j) / 512);
+  const float mantissa = radius_mantissas()[static_cast<std::size_t>(j - 512 * octave)];
+  if (octave < -125 || octave > 126) return std::ldexp(mantissa, octave);
+  // 2^octave from its exponent bits: ldexp is a call.
+  return mantissa * std::bit_cast<float>(static_cast<std::uint32_t>(octave + 127) << 23);
+}
+inline float decode_radius(std::uint16_t q, int exp) {
+  return radius_at(512 * exp + q);
+}
 /// The smallest index whose radius is at least NEED (> 0, finite; throws
 /// otherwise).
 std::int32_t radius_index(float need);
@@ -77,13 +91,20 @@ std::optional<AxisGrid> exact_grid(const std::vector<float>& values);
 /// that 65534 steps span them, coarse enough (two ulps of the largest
 /// magnitude) that every grid value is a float; the values rounded to it.
 void round_to_grid(std::vector<float>& values);
-std::uint16_t encode_axis(float v, const AxisGrid& g);  // V on the grid
-float decode_axis(std::uint16_t q, const AxisGrid& g);
+std::uint16_t encode_axis(float v, const AxisGrid& g);          // V on the grid
+inline float decode_axis(std::uint16_t q, const AxisGrid& g) {  // exact: a float on the grid
+  return float(double(g.lo) + double(q) * g.step);
+}
 
 std::uint8_t encode_splat(float splat, float radius);
-float decode_splat(std::uint8_t k, float radius);
+inline float decode_splat(std::uint8_t k, float radius) {
+  const float s = std::min(radius, radius * float(k) / 255.0f);
+  return s > 0.0f ? s : radius;
+}
 std::uint16_t encode_priority(float p);
-float decode_priority(std::uint16_t q);
+inline float decode_priority(std::uint16_t q) {
+  return float(q) / 65535.0f;
+}
 
 // ---- A page's values and its planes ----------------------------------------
 
