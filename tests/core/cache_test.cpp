@@ -15,6 +15,8 @@
 #include <optional>
 
 #include "hierarchy/cache_format.hpp"
+#include "hierarchy/cache_layout.hpp"
+#include "hierarchy/cache_pages.hpp"
 #include "test_support.hpp"
 #include "treecut/cache_folder.hpp"
 #include "treecut/error.hpp"
@@ -245,6 +247,37 @@ TEST(Cache, ABuildQuantizedInPlaceIsWhatItsCacheLoadsAs) {
                            [](float u, float v) { return std::memcmp(&u, &v, 4) == 0; }))
         << x.name;
   }
+}
+
+// A page is read twice when a cache opens (links, then values) and
+// verified both times: one that another program rewrites in between is a
+// FileChangedError, never unverified values (or counts) in the planes.
+TEST(Cache, APageThatChangesBetweenItsTwoReadsIsAFileChangedError) {
+  const fs::path dir = test::scratch_dir("cache_reread");
+  save_cache(small(5000), {1, 2, 3}, dir / "a.tch");
+  std::vector<char> file = read_all(dir / "a.tch");
+  const auto* bytes = reinterpret_cast<const unsigned char*>(file.data());
+  cache_layout::Header h;
+  std::memcpy(&h, bytes, sizeof h);
+  std::vector<cache_layout::PageRecord> table(h.page_count);
+  std::memcpy(table.data(), bytes + h.page_table, table.size() * sizeof table[0]);
+  std::size_t streams = 0;
+  std::vector<int> reads(table.size(), 0);
+  const cache_pages::PageSource flip_on_second_read = [&](const cache_layout::PageRecord& r,
+                                                          std::vector<unsigned char>& buffer) {
+    buffer.assign(bytes + r.offset, bytes + r.offset + r.bytes);
+    const std::size_t page = static_cast<std::size_t>(&r - table.data());
+    if (++reads[page] == 2 && page == table.size() - 1) buffer[r.bytes / 2] ^= 0x10;
+    return static_cast<const unsigned char*>(buffer.data());
+  };
+  std::string why;
+  EXPECT_THROW((void)cache_pages::decode(table, flip_on_second_read, h.node_count,
+                                         static_cast<std::uint32_t>(streams), h.level_count, &why),
+               FileChangedError);
+  std::fill(reads.begin(), reads.end(), 3);  // no flips: it decodes
+  EXPECT_TRUE(cache_pages::decode(table, flip_on_second_read, h.node_count,
+                                  static_cast<std::uint32_t>(streams), h.level_count, &why))
+      << why;
 }
 
 TEST(Cache, ACorruptedPageIsNamedByItsNumber) {

@@ -224,14 +224,20 @@ std::optional<Hierarchy> read_and_verify(const std::filesystem::path& path, Cach
   std::uint64_t stored = 0;
   read_exactly(fd, 0, meta.size(), meta.data(), path);
   read_exactly(fd, h.payload_end, 8, reinterpret_cast<unsigned char*>(&stored), path);
-  return decode_cache(
-      meta.data(), stored,
-      [&](const PageRecord& r, std::vector<unsigned char>& buffer) {
-        buffer.resize(r.bytes);
-        read_exactly(fd, r.offset, r.bytes, buffer.data(), path);
-        return static_cast<const unsigned char*>(buffer.data());
-      },
-      key, why);
+  try {
+    return decode_cache(
+        meta.data(), stored,
+        [&](const PageRecord& r, std::vector<unsigned char>& buffer) {
+          buffer.resize(r.bytes);
+          read_exactly(fd, r.offset, r.bytes, buffer.data(), path);
+          return static_cast<const unsigned char*>(buffer.data());
+        },
+        key, why);
+  } catch (const FileChangedError& e) {  // a page rewritten between its two reads
+    const std::string text = e.what();
+    if (text.rfind(quoted_name(path), 0) == 0) throw;
+    throw FileChangedError(quoted_name(path) + ": " + text);
+  }
 }
 
 // The header of CACHE as it is on disk, unverified (the checksum is checked

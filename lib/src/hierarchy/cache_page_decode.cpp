@@ -196,7 +196,7 @@ void scatter(const PageRecord& r, const PageSource& source, const PageHead& head
   Checksum sum;
   sum.update(bytes, r.bytes);
   if (sum.finish() != r.checksum || !decompress(r, bytes, buffer))
-    throw FileChangedError("a page changed while being read");
+    throw FileChangedError("changed while being read (a page differs between its two reads)");
   const PageCodes c = read_planes(head, buffer.data());
   const PageHead& h = c.head;
   AxisGrid grid[3];
