@@ -6,6 +6,7 @@
 #include <zstd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstring>
 #include <tuple>
@@ -279,17 +280,23 @@ std::optional<Decoded> decode(std::span<const PageRecord> table, const PageSourc
         }
       },
       0, 1);
-  // Point counts from the leaves up: 64-bit sums, refused past 32 bits.
-  bool overflow = false;
+  // Point counts from the leaves up, a level's nodes in parallel: 64-bit
+  // sums, refused past 32 bits.
+  std::atomic<bool> overflow{false};
   for (std::size_t d = level_begin.size() - 1; d-- > 0;) {
-    for (NodeId i = level_begin[d]; i < level_begin[d + 1]; ++i) {
-      const unsigned cc = o->child_count[i];
-      std::uint64_t count = cc == 0 ? 1 : 0;
-      for (NodeId c = o->first_child[i]; c < o->first_child[i] + cc; ++c)
-        count += o->point_count[c];
-      overflow = overflow || count > 0xffffffffu;
-      o->point_count[i] = static_cast<std::uint32_t>(count);
-    }
+    const NodeId lb = level_begin[d];
+    parallel_for(level_begin[d + 1] - lb, [&](std::size_t b, std::size_t e) {
+      bool over = false;
+      for (NodeId i = lb + NodeId(b); i < lb + NodeId(e); ++i) {
+        const unsigned cc = o->child_count[i];
+        std::uint64_t count = cc == 0 ? 1 : 0;
+        for (NodeId c = o->first_child[i]; c < o->first_child[i] + cc; ++c)
+          count += o->point_count[c];
+        over = over || count > 0xffffffffu;
+        o->point_count[i] = static_cast<std::uint32_t>(count);
+      }
+      if (over) overflow = true;
+    });
   }
   if (overflow) return fail(why, "more than 2^32 points under a node"), std::nullopt;
 
