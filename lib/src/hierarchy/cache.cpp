@@ -1,19 +1,20 @@
 // Reading hierarchy cache files (the layout is cache_layout.hpp's, the writer
-// cache_write.cpp). Every field is checked before any of it is used, so any
-// truncation or flipped byte is reported, never rendered. Which cache serves
-// which model (identity, content hash, the lookup) is cache_lookup.cpp's.
+// cache_write.cpp, the pages cache_page_decode.cpp's). Every field is
+// checked before any of it is used, so any truncation or flipped byte is
+// reported, never rendered. Which cache serves which model (identity,
+// content hash, the lookup) is cache_lookup.cpp's.
 //
 // A cache is read into this process's own memory, not mapped (issue 43,
 // item 8): the links the loader verifies (children, parents, counts) are
 // what every strategy indexes with, unchecked on the hot path, and a
 // mapping shows whatever another program writes into the file afterwards
-// (`dd conv=notrunc` into a cache being drawn crashed the strategies). Read
-// once and verified once, the bytes cannot change under the renderer; the
-// checksum pass touched every page anyway.
+// (`dd conv=notrunc` into a cache being drawn crashed the strategies). The
+// header and the meta part are read whole, the pages one at a time as they
+// are decoded, each verified when read: the decoded arrays cannot change
+// under the renderer.
 #include "treecut/cache.hpp"
 
 #include <fcntl.h>
-#include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -196,40 +197,54 @@ void read_exactly(int fd, std::uint64_t at, std::size_t count, unsigned char* ou
   }
 }
 
+// A cache file open, its header and meta part read and in place (not yet
+// checksummed).
+struct OpenCache {
+  int fd = -1;
+  Header header{};
+  std::vector<unsigned char> meta;  // [0, meta_end)
+  std::uint64_t stored = 0;         // the meta part's checksum, as stored
+  OpenCache() = default;
+  OpenCache(const OpenCache&) = delete;
+  OpenCache& operator=(const OpenCache&) = delete;
+  ~OpenCache() {
+    if (fd >= 0) ::close(fd);
+  }
+};
+
+bool open_cache(const std::filesystem::path& path, OpenCache& c, std::string* why) {
+  c.fd = open_for_reading(path, why);
+  if (c.fd < 0) return false;
+  struct stat st {};
+  if (fstat(c.fd, &st) != 0) return fail(why, std::strerror(errno));
+  const auto size = static_cast<std::uint64_t>(st.st_size);
+  Header& h = c.header;
+  if (size < sizeof(Header) + 8 || ::pread(c.fd, &h, sizeof h, 0) != static_cast<ssize_t>(sizeof h))
+    return fail(why, "truncated (shorter than a header)");
+  if (!meta_in_place(h, size, why)) return false;
+  try {
+    c.meta.resize(static_cast<std::size_t>(h.meta_end));
+  } catch (const std::bad_alloc&) {
+    return fail(why, "not enough memory to read it (" + std::to_string(h.meta_end >> 20) + " MiB)");
+  }
+  read_exactly(c.fd, 0, c.meta.size(), c.meta.data(), path);
+  read_exactly(c.fd, h.payload_end, 8, reinterpret_cast<unsigned char*>(&c.stored), path);
+  return true;
+}
+
 // The header and the meta part are read whole; each page is read when it
 // is decoded (twice: cache_pages::decode), so the file's bytes are never
 // all in memory beside the nodes they decode to.
 std::optional<Hierarchy> read_and_verify(const std::filesystem::path& path, CacheKey* key,
                                          std::string* why) {
-  const int fd = open_for_reading(path, why);
-  if (fd < 0) return std::nullopt;
-  struct Close {
-    int fd;
-    ~Close() { ::close(fd); }
-  } closer{fd};
-  struct stat st {};
-  if (fstat(fd, &st) != 0) return fail(why, std::strerror(errno)), std::nullopt;
-  const auto size = static_cast<std::uint64_t>(st.st_size);
-  Header h;
-  if (size < sizeof(Header) + 8 || ::pread(fd, &h, sizeof h, 0) != static_cast<ssize_t>(sizeof h))
-    return fail(why, "truncated (shorter than a header)"), std::nullopt;
-  if (!meta_in_place(h, size, why)) return std::nullopt;
-  std::vector<unsigned char> meta;
-  try {
-    meta.resize(static_cast<std::size_t>(h.meta_end));
-  } catch (const std::bad_alloc&) {
-    return fail(why, "not enough memory to read it (" + std::to_string(h.meta_end >> 20) + " MiB)"),
-           std::nullopt;
-  }
-  std::uint64_t stored = 0;
-  read_exactly(fd, 0, meta.size(), meta.data(), path);
-  read_exactly(fd, h.payload_end, 8, reinterpret_cast<unsigned char*>(&stored), path);
+  OpenCache c;
+  if (!open_cache(path, c, why)) return std::nullopt;
   try {
     return decode_cache(
-        meta.data(), stored,
+        c.meta.data(), c.stored,
         [&](const PageRecord& r, std::vector<unsigned char>& buffer) {
           buffer.resize(r.bytes);
-          read_exactly(fd, r.offset, r.bytes, buffer.data(), path);
+          read_exactly(c.fd, r.offset, r.bytes, buffer.data(), path);
           return static_cast<const unsigned char*>(buffer.data());
         },
         key, why);
@@ -315,24 +330,11 @@ std::optional<Hierarchy> load_cache_and_key(const std::filesystem::path& cache, 
 
 std::optional<std::vector<CachePage>> read_cache_pages(const std::filesystem::path& cache,
                                                        std::string* why) {
-  const int fd = open_for_reading(cache, why);
-  if (fd < 0) return std::nullopt;
-  struct Close {
-    int fd;
-    ~Close() { ::close(fd); }
-  } closer{fd};
-  struct stat st {};
-  if (fstat(fd, &st) != 0) return fail(why, std::strerror(errno)), std::nullopt;
-  const auto size = static_cast<std::uint64_t>(st.st_size);
-  Header h;
-  if (size < sizeof(Header) + 8 || ::pread(fd, &h, sizeof h, 0) != static_cast<ssize_t>(sizeof h))
-    return fail(why, "truncated (shorter than a header)"), std::nullopt;
-  if (!meta_in_place(h, size, why)) return std::nullopt;
-  std::vector<unsigned char> meta(static_cast<std::size_t>(h.meta_end));
-  std::uint64_t stored = 0;
-  read_exactly(fd, 0, meta.size(), meta.data(), cache);
-  read_exactly(fd, h.payload_end, 8, reinterpret_cast<unsigned char*>(&stored), cache);
-  if (detail::cache_checksum(meta.data(), meta.size()) != stored)
+  OpenCache c;
+  if (!open_cache(cache, c, why)) return std::nullopt;
+  const Header& h = c.header;
+  const std::vector<unsigned char>& meta = c.meta;
+  if (detail::cache_checksum(meta.data(), meta.size()) != c.stored)
     return fail(why, "checksum mismatch (corrupted)"), std::nullopt;
   if (h.page_count == 0 || h.page_table < sizeof(Header) || h.page_table > h.meta_end ||
       h.page_count > (h.meta_end - h.page_table) / sizeof(PageRecord))

@@ -12,6 +12,7 @@
 #include <tuple>
 
 #include "cache_pages.hpp"
+#include "node_arrays.hpp"
 #include "page_codec.hpp"
 #include "treecut/error.hpp"
 #include "treecut/parallel.hpp"
@@ -24,16 +25,8 @@ using cache_layout::PageRecord;
 
 namespace {
 
-struct OwnedNodes {
-  std::vector<glm::vec4> center_radius;
-  std::vector<float> splat_radius;
-  std::vector<glm::i16vec4> normal_cone;
-  std::vector<glm::u8vec4> color;
-  std::vector<float> priority;
-  std::vector<std::uint32_t> point_count;
-  std::vector<NodeId> parent, first_child;
-  std::vector<std::uint8_t> child_count, depth;
-  std::vector<std::vector<float>> values;
+struct OwnedNodes : detail::NodeArrays {
+  std::vector<std::vector<float>> values;  // the attributes that are not constant
 };
 
 // Sizes V to N values of FILL, its memory advised into huge pages first
@@ -301,8 +294,7 @@ std::optional<Decoded> decode(std::span<const PageRecord> table, const PageSourc
   if (overflow) return fail(why, "more than 2^32 points under a node"), std::nullopt;
 
   Decoded out;
-  out.arrays = {o->center_radius, o->splat_radius, o->normal_cone, o->color,       o->priority,
-                o->point_count,   o->parent,       o->first_child, o->child_count, o->depth};
+  out.arrays = o->spans();
   for (const std::vector<float>& v : o->values) out.attribute_values.emplace_back(v);
   out.level_begin = std::move(level_begin);
   out.storage = std::move(o);

@@ -29,6 +29,7 @@
 #include <vector>
 
 #include "bottom_up.hpp"
+#include "node_arrays.hpp"
 #include "node_attributes.hpp"
 #include "treecut/parallel.hpp"
 
@@ -36,17 +37,7 @@ namespace treecut {
 
 namespace {
 
-struct OwnedArrays {
-  std::vector<glm::vec4> center_radius;
-  std::vector<float> splat_radius;
-  std::vector<glm::i16vec4> normal_cone;
-  std::vector<glm::u8vec4> color;
-  std::vector<float> priority;
-  std::vector<std::uint32_t> point_count;
-  std::vector<NodeId> parent;
-  std::vector<NodeId> first_child;
-  std::vector<std::uint8_t> child_count;
-  std::vector<std::uint8_t> depth;
+struct OwnedArrays : detail::NodeArrays {
   std::vector<detail::OwnedAttribute> attributes;  // the file's scalars per node
 };
 
@@ -479,10 +470,7 @@ void fill_interior(OwnedArrays& a, const std::vector<NodeId>& level_begin, std::
 Hierarchy assemble(OwnedArrays&& a, std::vector<NodeId>&& level_begin, const BuildOrder& order,
                    CoordinateFrame frame) {
   auto owned = std::make_shared<OwnedArrays>(std::move(a));
-  HierarchyArrays spans{owned->center_radius, owned->splat_radius, owned->normal_cone,
-                        owned->color,         owned->priority,     owned->point_count,
-                        owned->parent,        owned->first_child,  owned->child_count,
-                        owned->depth};
+  const HierarchyArrays spans = owned->spans();
   std::vector<NodeAttribute> attributes = detail::node_attribute_views(owned->attributes);
   return Hierarchy::from_arrays(owned, spans, std::move(level_begin), order.bounds_min,
                                 order.bounds_max, std::move(frame), std::move(attributes));
