@@ -218,13 +218,18 @@ TEST(Cache, TheAttributesRoundTrip) {
 // refused naming that page, so a reader of one page knows which; a byte of
 // the meta part (header, page table, records) is the file's checksum's.
 // A build's hierarchy is quantized in place as its image is made (no
-// decoding): value for value what the image's bytes load as.
+// decoding): value for value what the image's file loads as.
 TEST(Cache, ABuildQuantizedInPlaceIsWhatItsCacheLoadsAs) {
   PointSet p = generate_model(ModelKind::City, 20000, 5);
   tools::add_survey_attributes(p, ModelKind::City);
   const CacheImage image(build_from_points(std::move(p)), {1, 2, 3});
   const Hierarchy& built = image.hierarchy();
-  const Hierarchy loaded = image.load();
+  const fs::path file = test::scratch_dir("cache_in_place") / "a.tch";
+  image.save(file);
+  std::string why;
+  const std::optional<Hierarchy> read = load_cache(file, std::nullopt, &why);
+  ASSERT_TRUE(read) << why;
+  const Hierarchy& loaded = *read;
   ASSERT_EQ(loaded.node_count(), built.node_count());
   EXPECT_EQ(check_invariants(built), "");
   const HierarchyArrays &a = built.arrays(), &b = loaded.arrays();

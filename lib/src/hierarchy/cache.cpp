@@ -178,9 +178,62 @@ bool meta_in_place(const Header& h, std::uint64_t size, std::string* why) {
   return true;
 }
 
+// The meta part (at least H.meta_end bytes at META), verified by its
+// checksum STORED, and the pages read through SOURCE.
 std::optional<Hierarchy> decode_cache(const unsigned char* meta, std::uint64_t stored,
                                       const cache_pages::PageSource& source, CacheKey* key,
-                                      std::string* why);
+                                      std::string* why) {
+  Header h;
+  std::memcpy(&h, meta, sizeof h);
+  const unsigned char* bytes = meta;
+  if (detail::cache_checksum(bytes, h.meta_end) != stored)
+    return fail(why, "checksum mismatch (corrupted)"), std::nullopt;
+
+  // The checksum only proves the meta part is what some writer wrote; still
+  // check every offset before anything is read at it.
+  if (h.node_count == 0 || h.level_count == 0 || h.level_count > 256 || h.page_count == 0 ||
+      h.page_count > h.node_count)
+    return fail(why, "bad counts"), std::nullopt;
+  auto in_meta = [&](std::uint64_t off, std::uint64_t bytes_needed) {
+    return off >= sizeof(Header) && off <= h.meta_end && bytes_needed <= h.meta_end - off;
+  };
+  if (!in_meta(h.page_table, h.page_count * sizeof(PageRecord)))
+    return fail(why, "page table out of bounds"), std::nullopt;
+  std::optional<CoordinateFrame> frame = read_frame(h, bytes, why);
+  if (!frame) return std::nullopt;
+  std::optional<SourceNotes> notes = read_notes(h, bytes, why);
+  if (!notes) return std::nullopt;
+  std::vector<bool> varying;
+  std::optional<std::vector<NodeAttribute>> attributes =
+      read_attributes(h, bytes, in_meta, varying, why);
+  if (!attributes) return std::nullopt;
+  std::vector<PageRecord> table(static_cast<std::size_t>(h.page_count));
+  std::memcpy(table.data(), bytes + h.page_table, table.size() * sizeof(PageRecord));
+  // The pages tile the rest of the file, in order, with no byte outside one.
+  std::uint64_t at = h.meta_end;
+  for (std::size_t p = 0; p < table.size(); ++p) {
+    if (table[p].offset != at || table[p].bytes == 0 || table[p].bytes > h.payload_end - at)
+      return fail(why, "page " + std::to_string(p) + " of " + std::to_string(table.size()) +
+                           ": out of place"),
+             std::nullopt;
+    at += table[p].bytes;
+  }
+  if (at != h.payload_end) return fail(why, "bytes after the last page"), std::nullopt;
+  const auto streams = static_cast<std::uint32_t>(std::count(varying.begin(), varying.end(), true));
+  std::optional<cache_pages::Decoded> nodes =
+      cache_pages::decode(table, source, h.node_count, streams, h.level_count, why);
+  if (!nodes) return std::nullopt;
+  if (nodes->arrays.point_count[0] != h.point_count)
+    return fail(why, "point count disagrees with the pages"), std::nullopt;
+  for (std::size_t k = 0, s = 0; k < attributes->size(); ++k)
+    if (varying[k]) (*attributes)[k].values = nodes->attribute_values[s++];
+  if (key) *key = key_of(h);
+  return Hierarchy::from_arrays(
+             std::move(nodes->storage), nodes->arrays, std::move(nodes->level_begin),
+             {h.bounds[0], h.bounds[1], h.bounds[2]}, {h.bounds[3], h.bounds[4], h.bounds[5]},
+             std::move(*frame), std::move(*attributes))
+      .with_notes(std::move(*notes));
+}
 
 // Reads COUNT bytes at AT of the file open as FD into OUT; a file that got
 // shorter meanwhile is a FileChangedError, as for a model.
@@ -358,82 +411,6 @@ std::optional<CacheKey> read_cache_key(const std::filesystem::path& cache, std::
   if (!read_and_verify(cache, &key, why)) return std::nullopt;
   return key;
 }
-
-std::optional<Hierarchy> detail::decode_cache_image(const unsigned char* bytes, std::uint64_t size,
-                                                    CacheKey* key, std::string* why) {
-  Header h;
-  if (size < sizeof(Header) + 8)
-    return fail(why, "truncated (shorter than a header)"), std::nullopt;
-  std::memcpy(&h, bytes, sizeof h);
-  if (!meta_in_place(h, size, why)) return std::nullopt;
-  std::uint64_t stored;
-  std::memcpy(&stored, bytes + h.payload_end, 8);
-  return decode_cache(
-      bytes, stored,
-      [bytes](const PageRecord& r, std::vector<unsigned char>&) { return bytes + r.offset; }, key,
-      why);
-}
-
-namespace {
-
-// The meta part (at least H.meta_end bytes at META), verified by its
-// checksum STORED, and the pages read through SOURCE.
-std::optional<Hierarchy> decode_cache(const unsigned char* meta, std::uint64_t stored,
-                                      const cache_pages::PageSource& source, CacheKey* key,
-                                      std::string* why) {
-  Header h;
-  std::memcpy(&h, meta, sizeof h);
-  const unsigned char* bytes = meta;
-  if (detail::cache_checksum(bytes, h.meta_end) != stored)
-    return fail(why, "checksum mismatch (corrupted)"), std::nullopt;
-
-  // The checksum only proves the meta part is what some writer wrote; still
-  // check every offset before anything is read at it.
-  if (h.node_count == 0 || h.level_count == 0 || h.level_count > 256 || h.page_count == 0 ||
-      h.page_count > h.node_count)
-    return fail(why, "bad counts"), std::nullopt;
-  auto in_meta = [&](std::uint64_t off, std::uint64_t bytes_needed) {
-    return off >= sizeof(Header) && off <= h.meta_end && bytes_needed <= h.meta_end - off;
-  };
-  if (!in_meta(h.page_table, h.page_count * sizeof(PageRecord)))
-    return fail(why, "page table out of bounds"), std::nullopt;
-  std::optional<CoordinateFrame> frame = read_frame(h, bytes, why);
-  if (!frame) return std::nullopt;
-  std::optional<SourceNotes> notes = read_notes(h, bytes, why);
-  if (!notes) return std::nullopt;
-  std::vector<bool> varying;
-  std::optional<std::vector<NodeAttribute>> attributes =
-      read_attributes(h, bytes, in_meta, varying, why);
-  if (!attributes) return std::nullopt;
-  std::vector<PageRecord> table(static_cast<std::size_t>(h.page_count));
-  std::memcpy(table.data(), bytes + h.page_table, table.size() * sizeof(PageRecord));
-  // The pages tile the rest of the file, in order, with no byte outside one.
-  std::uint64_t at = h.meta_end;
-  for (std::size_t p = 0; p < table.size(); ++p) {
-    if (table[p].offset != at || table[p].bytes == 0 || table[p].bytes > h.payload_end - at)
-      return fail(why, "page " + std::to_string(p) + " of " + std::to_string(table.size()) +
-                           ": out of place"),
-             std::nullopt;
-    at += table[p].bytes;
-  }
-  if (at != h.payload_end) return fail(why, "bytes after the last page"), std::nullopt;
-  const auto streams = static_cast<std::uint32_t>(std::count(varying.begin(), varying.end(), true));
-  std::optional<cache_pages::Decoded> nodes =
-      cache_pages::decode(table, source, h.node_count, streams, h.level_count, why);
-  if (!nodes) return std::nullopt;
-  if (nodes->arrays.point_count[0] != h.point_count)
-    return fail(why, "point count disagrees with the pages"), std::nullopt;
-  for (std::size_t k = 0, s = 0; k < attributes->size(); ++k)
-    if (varying[k]) (*attributes)[k].values = nodes->attribute_values[s++];
-  if (key) *key = key_of(h);
-  return Hierarchy::from_arrays(
-             std::move(nodes->storage), nodes->arrays, std::move(nodes->level_begin),
-             {h.bounds[0], h.bounds[1], h.bounds[2]}, {h.bounds[3], h.bounds[4], h.bounds[5]},
-             std::move(*frame), std::move(*attributes))
-      .with_notes(std::move(*notes));
-}
-
-}  // namespace
 
 std::uint64_t detail::cache_checksum(const unsigned char* data, std::size_t size) {
   Checksum c;

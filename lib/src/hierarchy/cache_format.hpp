@@ -15,22 +15,20 @@
 namespace treecut {
 
 /// A cache file's bytes made in memory from a hierarchy, once: what
-/// save_cache writes, and the hierarchy that file loads as (quantized page
-/// by page, cache_pages.hpp). A build goes through one, so a model is the
-/// same opened cold or from its cache.
+/// save_cache writes. A build goes through one, its hierarchy quantized as
+/// the file loads it (cache_pages.hpp), so a model is the same opened cold
+/// or from its cache.
 class CacheImage {
  public:
   CacheImage(const Hierarchy& h, const CacheKey& key);
   /// The image of a hierarchy that is its own (a build's), H rewritten on
   /// the way to the values the file decodes to (cache_pages::
   /// encode_in_place), so that nothing is decoded: hierarchy() is then the
-  /// same, value for value, as load().
+  /// same, value for value, as the saved file loads.
   CacheImage(Hierarchy&& h, const CacheKey& key);
   [[nodiscard]] const Hierarchy& hierarchy() const { return hierarchy_; }
   /// Writes the file atomically (AtomicFile); throws "PATH: REASON".
   void save(const std::filesystem::path& cache) const;
-  /// The hierarchy the file loads as (load_cache's decoding of these bytes).
-  [[nodiscard]] Hierarchy load() const;
   /// The file's size.
   [[nodiscard]] std::size_t size() const;
 
@@ -45,12 +43,6 @@ class CacheImage {
 }  // namespace treecut
 
 namespace treecut::detail {
-
-/// Verifies and decodes a whole cache file's SIZE bytes (the header, the
-/// meta part's checksum, every page); the key it was written for in *KEY.
-/// nullopt with *WHY when anything does not hold.
-std::optional<Hierarchy> decode_cache_image(const unsigned char* bytes, std::uint64_t size,
-                                            CacheKey* key, std::string* why);
 
 /// The key recorded in CACHE's header as it is on disk, unverified (the
 /// checksum is checked by load_cache_and_key before anything is served): only

@@ -10,7 +10,7 @@
 // cache_test.cpp):
 // - centers: 16 bits an axis on a grid of a power of two anchored at 0,
 //   just fine enough for the page's box: the error is at most half a step,
-//   a step under 2 * extent / 65535 of the page's box (or the float
+//   a step under 2 * extent / 65534 of the page's box (or the float
 //   precision of the coordinates, where that is coarser);
 // - bounding radii: recomputed from the quantized centers and children
 //   (the smallest sphere around the children's, as the builder makes

@@ -171,19 +171,6 @@ void CacheImage::save(const std::filesystem::path& cache) const {
   out.commit();
 }
 
-Hierarchy CacheImage::load() const {
-  std::vector<unsigned char> bytes(meta_);
-  bytes.reserve(size());
-  for (const std::vector<unsigned char>& page : pages_)
-    bytes.insert(bytes.end(), page.begin(), page.end());
-  bytes.insert(bytes.end(), checksum_, checksum_ + sizeof checksum_);
-  std::string why;
-  std::optional<Hierarchy> h =
-      detail::decode_cache_image(bytes.data(), bytes.size(), nullptr, &why);
-  if (!h) throw std::logic_error("a cache image made here does not load: " + why);
-  return std::move(*h);
-}
-
 void save_cache(const Hierarchy& hier, const CacheKey& key, const std::filesystem::path& cache) {
   CacheImage(hier, key).save(cache);
 }
