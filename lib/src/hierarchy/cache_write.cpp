@@ -4,11 +4,9 @@
 // pages are compressed: a fraction of the hierarchy) and written through a
 // temporary renamed into place.
 #include <algorithm>
-#include <array>
 #include <cstring>
 #include <stdexcept>
 #include <string>
-#include <tuple>
 #include <vector>
 
 #include "cache_format.hpp"
