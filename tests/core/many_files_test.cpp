@@ -289,20 +289,31 @@ TEST(BuildMemory, TheHeadersSayHowManyPointsABuildHolds) {
   EXPECT_GT(available_memory(), 0u);
 }
 
-TEST(BuildMemory, ABuildPastItsBudgetIsRefusedBeforeItReads) {
+// Past its budget a build goes in chunks (chunked_build_threaded_test.cpp);
+// below the least a chunked build needs, or with no cache to build into,
+// it is refused with its figures before it reads.
+TEST(BuildMemory, ABuildPastItsBudgetThatCannotGoInChunksIsRefusedBeforeItReads) {
   const fs::path dir = test::scratch_dir("build_memory_refused");
   save_las(dir / "a.las", tile(1000, {500000, 5000000, 0}, 0.0f));
   OpenOptions o;
   o.cache_path = dir / "a.tch";
   o.memory = 1000 * kBuildBytesPerPoint - 1;
-  try {
-    open_model(dir / "a.las", o);
-    ADD_FAILURE() << "not refused";
-  } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find("a.las: 1000 points need about"), std::string::npos)
-        << e.what();
-  }
+  const auto refusal = [&] {
+    try {
+      open_model(dir / "a.las", o);
+    } catch (const std::runtime_error& e) {
+      return std::string(e.what());
+    }
+    return std::string("not refused");
+  };
+  EXPECT_NE(
+      refusal().find("a.las: --memory allows 0.00 GiB; a build in chunks needs at least 16 MiB"),
+      std::string::npos)
+      << refusal();
   EXPECT_FALSE(fs::exists(dir / "a.tch"));
+  o.use_cache = false;  // nothing to build into
+  EXPECT_NE(refusal().find("a.las: 1000 points need about"), std::string::npos) << refusal();
+  o.use_cache = true;
   o.memory = 1000 * kBuildBytesPerPoint;
   EXPECT_EQ(open_model(dir / "a.las", o).input_points, 1000u);
   // From its cache, nothing is built: no budget applies.

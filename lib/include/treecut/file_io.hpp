@@ -110,6 +110,9 @@ class AtomicFile {
 
   void write(const void* data, std::size_t size);
   void write(std::string_view text) { write(text.data(), text.size()); }
+  /// Hands what write() buffered to the file (so that the temporary can be
+  /// read back: ScratchFile).
+  void flush();
   /// Makes the new content visible at the target, atomically.
   void commit();
   /// Makes it visible at NAME (in the target's folder) only if nothing is
@@ -134,6 +137,39 @@ class AtomicFile {
   int signal_slot_ = -1;  // support/signal_guard.hpp
   std::uint64_t written_ = 0;
   std::string buffer_;  // writes are batched into 1 MiB system calls
+};
+
+/// Intermediate results too large for memory (the chunked build's points,
+/// issue 44) in a file that is never a user's: AtomicFile's temporary beside
+/// TARGET, never committed, so it is removed when the ScratchFile goes, by
+/// SIGINT, SIGTERM, SIGHUP or SIGQUIT, and, after a kill -9, by the next
+/// AtomicFile or ScratchFile of the same target. Appended to, read back
+/// anywhere, and what was read for the last time released (a hole punched
+/// where the file system can: the disk is freed as the build goes). Errors
+/// throw std::runtime_error "TARGET: REASON" (a full disk). Not for use
+/// from several threads at once.
+class ScratchFile {
+ public:
+  explicit ScratchFile(const std::filesystem::path& target);
+  ScratchFile(const ScratchFile&) = delete;
+  ScratchFile& operator=(const ScratchFile&) = delete;
+  ~ScratchFile();
+
+  /// Appends SIZE bytes; returns where they start.
+  std::uint64_t append(const void* data, std::size_t size);
+  /// SIZE bytes at OFFSET, which an append wrote.
+  void read(std::uint64_t offset, void* data, std::size_t size);
+  /// The bytes [OFFSET, OFFSET + SIZE) will not be read again: their disk
+  /// space is given back (fallocate's punched hole; nothing where the file
+  /// system cannot).
+  void release(std::uint64_t offset, std::uint64_t size) noexcept;
+  [[nodiscard]] std::uint64_t size() const { return file_.bytes_written(); }
+  [[nodiscard]] const std::filesystem::path& path() const { return file_.temporary(); }
+
+ private:
+  AtomicFile file_;
+  int fd_ = -1;  // read and punch: the writer's descriptor is write-only
+  bool dirty_ = false;
 };
 
 /// Writes `bytes` to `target` through an AtomicFile.

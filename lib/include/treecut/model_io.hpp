@@ -41,9 +41,10 @@ struct OpenOptions {
   /// geographic input (longitude, latitude) goes to the UTM zone of its
   /// centre, any other stays as it is. Part of the cache key.
   std::string crs;
-  /// The bytes a build may use (`--memory`); 0: what the machine has
-  /// available (available_memory()). A build that would need more
-  /// (build_memory_estimate) is refused before it reads.
+  /// The bytes a build may use (`--memory`); 0: default_build_budget().
+  /// A model that needs more (build_memory_estimate) is built in chunks into
+  /// its cache (a point cloud with a cache to write), else refused before
+  /// it reads.
   std::uint64_t memory = 0;
   WarningSink warn;  ///< PLY warnings and cache notes (may be empty)
   /// Called on the calling thread with the stage ("read", "attributes",
@@ -51,8 +52,23 @@ struct OpenOptions {
   std::function<void(std::string_view stage, std::size_t done, std::size_t total)> progress;
 };
 
+/// How a build in chunks went (issue 44; chunks 0: the model was built
+/// held in memory).
+struct ChunkedBuildFigures {
+  std::size_t chunks = 0;
+  std::uint64_t largest_chunk = 0;     ///< points, halo included
+  std::uint64_t halo_points = 0;       ///< copies of points in other chunks' halos
+  std::uint64_t short_neighbours = 0;  ///< points whose neighbours may reach past the halo
+  float halo = 0.0f;                   ///< the halo's width, model units
+  std::uint64_t scratch_bytes = 0;     ///< the most temporary disk held at once
+  std::uint64_t budget = 0;            ///< the memory it was built within
+};
+
 struct OpenedModel {
+  /// Empty after a chunked build whose hierarchy is larger than the memory
+  /// budget (the cache is written; drawing it needs paged drawing, issue 45).
   Hierarchy hierarchy;
+  ChunkedBuildFigures chunked;
   std::filesystem::path cache;  ///< where the cache is (or would be)
   bool from_cache = false;
   bool cache_written = false;    ///< a cache was written after the build
@@ -121,6 +137,10 @@ BuildMemory build_memory_estimate(std::span<const std::filesystem::path> files);
 /// The bytes this process may still take: /proc/meminfo's MemAvailable, or
 /// less under a cgroup's memory.max.
 std::uint64_t available_memory();
+
+/// A build's memory when `--memory` says none: a quarter of the machine's
+/// memory, or what is available if that is less.
+std::uint64_t default_build_budget();
 
 /// Why a build of NEED cannot run (empty: it can): past kMaxBuildPoints, or
 /// more than BUDGET bytes (0: unknown, no limit). One line after NAME,

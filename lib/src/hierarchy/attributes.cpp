@@ -176,18 +176,33 @@ float neighbourhood_radius(const detail::Sym3& cov, float d2k, int found) {
   return std::sqrt(d2k * 7.0f / static_cast<float>(found));
 }
 
-void from_neighbours(PointSet& ps, int k, bool want_normals, bool want_radii, bool want_curvature) {
+// What a point cloud's neighbours give: normals, radii, curvature of the
+// points below QUERIED (the rest are neighbours only), normals oriented
+// with CENTROID; each queried point's reach (the distance to its farthest
+// neighbour, infinite with fewer than k) into REACH when given.
+struct NeighbourJob {
+  int k;
+  bool want_normals, want_radii, want_curvature;
+  glm::vec3 centroid;
+  std::size_t queried;
+  std::vector<float>* reach = nullptr;
+};
+
+void from_neighbours(PointSet& ps, const NeighbourJob& job) {
   const std::size_t n = ps.size();
+  const bool want_normals = job.want_normals, want_radii = job.want_radii,
+             want_curvature = job.want_curvature;
+  const int k = job.k;
   const detail::KnnGrid grid(ps.positions);
   if (want_normals) ps.normals.assign(n, glm::vec3(0.0f));
   if (want_radii) ps.radii.assign(n, 0.0f);
   if (want_curvature) ps.curvature.assign(n, 0.0f);
-  glm::dvec3 centroid(0.0);
-  for (const auto& p : ps.positions) centroid += glm::dvec3(p);
-  const glm::vec3 c = glm::vec3(centroid / static_cast<double>(std::max<std::size_t>(n, 1)));
+  if (job.reach) job.reach->assign(job.queried, INFINITY);
+  const glm::vec3 c = job.centroid;
   const bool z_up = ps.frame.z_up;
-  grid.for_each_knn(k, [&](std::uint32_t i, int found, const std::uint32_t* idx, const float* d2) {
+  const auto visit = [&](std::uint32_t i, int found, const std::uint32_t* idx, const float* d2) {
     const glm::vec3 p = ps.positions[i];
+    if (job.reach && found == k) (*job.reach)[i] = std::sqrt(d2[found - 1]);
     if (want_radii && found == 1) ps.radii[i] = std::sqrt(d2[0] * 7.0f);
     if (found < 2) return;
     Moments m;
@@ -213,16 +228,23 @@ void from_neighbours(PointSet& ps, int k, bool want_normals, bool want_radii, bo
       }
       ps.normals[i] = nrm;
     }
-  });
-  if (want_radii) {
-    fill_missing_radii(ps.radii);
-    cap_sparse_radii(ps.radii);
-  }
+  };
+  grid.for_each_knn(k, visit, static_cast<std::uint32_t>(std::min<std::size_t>(job.queried, n)));
 }
 
-}  // namespace
+glm::vec3 centroid_of(const std::vector<glm::vec3>& positions) {
+  glm::dvec3 sum(0.0);
+  for (const auto& p : positions) sum += glm::dvec3(p);
+  return glm::vec3(sum / static_cast<double>(std::max<std::size_t>(positions.size(), 1)));
+}
 
-void complete_attributes(PointSet& ps, const AttributeOptions& options) {
+// Which attributes OPTIONS and the file leave to compute (the file's own
+// normalized and its radii completed as they are kept).
+struct Wanted {
+  bool normals, radii, curvature;
+};
+
+Wanted prepare(PointSet& ps, const AttributeOptions& options, bool fill_file_radii) {
   const std::size_t n = ps.size();
   if (options.recompute_normals) ps.normals.clear();
   if (options.recompute_radii) ps.radii.clear();
@@ -230,15 +252,46 @@ void complete_attributes(PointSet& ps, const AttributeOptions& options) {
   if (ps.radii.size() != n) ps.radii.clear();
   if (ps.curvature.size() != n) ps.curvature.clear();
   if (ps.has_normals()) normalize_normals(ps.normals);
-  if (ps.has_radii()) fill_missing_radii(ps.radii);
-  const bool want_normals = !ps.has_normals(), want_radii = !ps.has_radii(),
-             want_curvature = !ps.has_curvature();
-  if (want_normals) ps.frame.normals_estimated = true;
-  if (!want_normals && !want_radii && !want_curvature) return;
-  if (!ps.triangles.empty())
-    from_faces(ps, want_normals, want_radii, want_curvature);
-  else
-    from_neighbours(ps, std::max(3, options.k), want_normals, want_radii, want_curvature);
+  if (ps.has_radii() && fill_file_radii) fill_missing_radii(ps.radii);
+  const Wanted w{!ps.has_normals(), !ps.has_radii(), !ps.has_curvature()};
+  if (w.normals) ps.frame.normals_estimated = true;
+  return w;
+}
+
+}  // namespace
+
+void complete_attributes(PointSet& ps, const AttributeOptions& options) {
+  const Wanted w = prepare(ps, options, true);
+  if (!w.normals && !w.radii && !w.curvature) return;
+  if (!ps.triangles.empty()) {
+    from_faces(ps, w.normals, w.radii, w.curvature);
+    return;
+  }
+  from_neighbours(ps, {std::max(3, options.k), w.normals, w.radii, w.curvature,
+                       w.normals ? centroid_of(ps.positions) : glm::vec3(0.0f), ps.size()});
+  if (w.radii) {
+    fill_missing_radii(ps.radii);
+    cap_sparse_radii(ps.radii);
+  }
+}
+
+bool complete_part_attributes(PointSet& ps, const AttributeOptions& options, const CloudPart& part,
+                              std::vector<float>* reach) {
+  const Wanted w = prepare(ps, options, false);
+  if (w.normals || w.radii || w.curvature)
+    from_neighbours(ps, {std::max(3, options.k), w.normals, w.radii, w.curvature, part.centroid,
+                         part.queried, reach});
+  else if (reach)
+    reach->assign(part.queried, 0.0f);
+  return w.radii;
+}
+
+void finish_part_radii(std::vector<float>& radii, float median, bool from_neighbours) {
+  for (float& r : radii)
+    if (!(r > 0.0f) || !std::isfinite(r)) r = median > 0.0f ? median : 1.0f;
+  if (!from_neighbours || !(median > 0.0f)) return;
+  const float cap = kSparseRadiusCap * median;
+  for (float& r : radii) r = std::min(r, cap);
 }
 
 }  // namespace treecut

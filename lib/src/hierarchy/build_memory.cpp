@@ -87,6 +87,14 @@ std::uint64_t available_memory() {
   return available;
 }
 
+std::uint64_t default_build_budget() {
+  struct sysinfo info {};
+  const std::uint64_t total =
+      ::sysinfo(&info) == 0 ? std::uint64_t(info.totalram) * info.mem_unit : 0;
+  const std::uint64_t available = available_memory();
+  return total == 0 ? available : std::min(available, total / 4);
+}
+
 std::string build_memory_problem(const std::string& name, const BuildMemory& need,
                                  std::uint64_t budget, bool budget_given) {
   char line[400];
@@ -105,8 +113,8 @@ std::string build_memory_problem(const std::string& name, const BuildMemory& nee
                 "%s %.2f GiB%s",
                 name.c_str(), static_cast<unsigned long long>(need.points),
                 double(need.bytes) / kGiB, static_cast<unsigned long long>(kBuildBytesPerPoint),
-                budget_given ? "--memory allows" : "this machine has", double(budget) / kGiB,
-                budget_given ? "" : " available (--memory SIZE to try with another budget)");
+                budget_given ? "--memory allows" : "the build may use", double(budget) / kGiB,
+                budget_given ? "" : " (a quarter of the memory; --memory SIZE for another budget)");
   return line;
 }
 

@@ -4,12 +4,15 @@
 // cache_write.cpp.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
+#include "cache_layout.hpp"
 #include "treecut/cache.hpp"
 
 namespace treecut {
@@ -36,13 +39,33 @@ class CacheImage {
   void make(const Hierarchy& h, const CacheKey& key, bool in_place);
   std::vector<unsigned char> meta_;                // header, tables, records, notes
   std::vector<std::vector<unsigned char>> pages_;  // compressed, in file order
-  unsigned char checksum_[8] = {};                 // of meta_
+  std::array<unsigned char, 8> checksum_{};        // of meta_
   Hierarchy hierarchy_;                            // with the second constructor
 };
 
 }  // namespace treecut
 
 namespace treecut::detail {
+
+/// What a cache's meta part says of its model beside the page table.
+struct CacheMeta {
+  const CacheKey& key;
+  const CoordinateFrame& frame;
+  glm::vec3 bounds_min, bounds_max;
+  std::uint64_t node_count, point_count;
+  std::uint32_t level_count;
+  const std::vector<NodeAttribute>& attributes;  ///< their records (values ignored)
+  const SourceNotes& notes;
+};
+
+/// The meta part of a cache file (header, page table, crs, attribute
+/// records, notes) for pages of TABLE's sizes written in its order right
+/// after it: TABLE's offsets are set. What CacheImage and the chunked build
+/// (which writes its pages from disk) write first.
+std::vector<unsigned char> cache_meta(const CacheMeta& meta,
+                                      std::vector<cache_layout::PageRecord>& table);
+/// The checksum a cache file ends with: of its meta part.
+std::array<unsigned char, 8> meta_checksum(std::span<const unsigned char> meta);
 
 /// The key recorded in CACHE's header as it is on disk, unverified (the
 /// checksum is checked by load_cache_and_key before anything is served): only

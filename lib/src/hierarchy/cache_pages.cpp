@@ -38,7 +38,9 @@ struct Partition {
   }
 };
 
-Partition partition(const Hierarchy& h) {
+// With LEAVES_APART (encode_over), every leaf is a page's root, and so
+// are its siblings.
+Partition partition(const Hierarchy& h, bool leaves_apart) {
   const HierarchyArrays& a = h.arrays();
   const std::size_t n = h.node_count();
   Partition p;
@@ -52,8 +54,10 @@ Partition partition(const Hierarchy& h) {
         const unsigned cc = a.child_count[i];
         if (cc == 0) continue;
         std::uint32_t sum = 1;
-        for (NodeId c = a.first_child[i]; c < a.first_child[i] + cc; ++c) sum += open[c];
-        if (sum > kPageNodes) {
+        bool leaf_child = false;
+        for (NodeId c = a.first_child[i]; c < a.first_child[i] + cc; ++c)
+          sum += open[c], leaf_child = leaf_child || a.child_count[c] == 0;
+        if (sum > kPageNodes || (leaves_apart && leaf_child)) {
           for (NodeId c = a.first_child[i]; c < a.first_child[i] + cc; ++c) p.is_root[c] = 1;
           sum = 1;
         }
@@ -116,12 +120,6 @@ Grid page_grid(const Hierarchy& h, const std::vector<NodeId>& nodes) {
   }
   return g;
 }
-
-// A page's root as decoded: what its parent's page needs of it.
-struct Root {
-  glm::vec3 center{0.0f};
-  float radius = 0.0f;
-};
 
 // The radius index of each of a page's nodes, deepest first: a leaf's
 // radius rounded up, an interior node's the smallest sphere around its
@@ -236,6 +234,7 @@ void encode_page(const Hierarchy& h, const Partition& p, std::uint32_t page,
     lo = glm::min(lo, g.centers[k] - radius[k]), hi = glm::max(hi, g.centers[k] + radius[k]);
   for (int a = 0; a < 3; ++a) r.bounds[a] = lo[a], r.bounds[a + 3] = hi[a];
   roots[page] = {g.centers[0], radius[0]};
+  if (page == 0) result.root = roots[0];
   // The child pages' records learn where they hang (they were encoded first).
   const HierarchyArrays& a = h.arrays();
   for (std::size_t k = 0; k < nodes.size(); ++k)
@@ -254,8 +253,11 @@ void encode_page(const Hierarchy& h, const Partition& p, std::uint32_t page,
   }
 }
 
-Encoded encode_pages(const Hierarchy& h, const Outputs* out) {
-  const Partition p = partition(h);
+// LEAF_ROOTS: encode_over's (the leaves' pages are not encoded here), or
+// empty.
+Encoded encode_pages(const Hierarchy& h, const Outputs* out, std::span<const Root> leaf_roots) {
+  const bool leaves_apart = !leaf_roots.empty();
+  const Partition p = partition(h, leaves_apart);
   const std::size_t pages = p.roots.size();
   // A page needs the roots of its child pages: the pages level by level of
   // the page tree, deepest first, those of one level in parallel.
@@ -270,6 +272,7 @@ Encoded encode_pages(const Hierarchy& h, const Outputs* out) {
   std::vector<std::vector<std::uint32_t>> by_level(levels);
   for (std::uint32_t q = 0; q < pages; ++q) by_level[level[q]].push_back(q);
   Encoded result;
+  result.roots = p.roots;
   result.table.assign(pages, PageRecord{});
   result.pages.resize(pages);
   std::vector<Root> roots(pages);
@@ -278,7 +281,15 @@ Encoded encode_pages(const Hierarchy& h, const Outputs* out) {
     parallel_for(
         these.size(),
         [&](std::size_t b, std::size_t e) {
-          for (std::size_t k = b; k < e; ++k) encode_page(h, p, these[k], roots, out, result);
+          for (std::size_t k = b; k < e; ++k) {
+            const NodeId root = p.roots[these[k]];
+            if (leaves_apart && h.arrays().child_count[root] == 0) {
+              roots[these[k]] = leaf_roots[root];
+              result.table[these[k]].root_depth = h.arrays().depth[root];
+              continue;
+            }
+            encode_page(h, p, these[k], roots, out, result);
+          }
         },
         0, 1);
   }
@@ -288,7 +299,13 @@ Encoded encode_pages(const Hierarchy& h, const Outputs* out) {
 }  // namespace
 
 Encoded encode(const Hierarchy& h) {
-  return encode_pages(h, nullptr);
+  return encode_pages(h, nullptr, {});
+}
+
+Encoded encode_over(const Hierarchy& top, std::span<const Root> leaf_roots) {
+  if (leaf_roots.size() != top.node_count())
+    throw std::invalid_argument("encode_over: a sphere for each node");
+  return encode_pages(top, nullptr, leaf_roots);
 }
 
 Encoded encode_in_place(const Hierarchy& h) {
@@ -296,7 +313,7 @@ Encoded encode_in_place(const Hierarchy& h) {
   const Outputs out{const_cast<glm::vec4*>(a.center_radius.data()),
                     const_cast<float*>(a.splat_radius.data()),
                     const_cast<float*>(a.priority.data())};
-  return encode_pages(h, &out);
+  return encode_pages(h, &out, {});
 }
 
 }  // namespace treecut::cache_pages

@@ -47,14 +47,31 @@ namespace treecut::cache_pages {
 /// Nodes a page holds at most (a subtree, or the top of one).
 inline constexpr std::uint32_t kPageNodes = 4096;
 
+/// A page's root as it decodes: what its parent's page makes its radii around.
+struct Root {
+  glm::vec3 center{0.0f};
+  float radius = 0.0f;
+};
+
 /// A hierarchy's pages: the table (offsets from 0) and the compressed bytes.
 struct Encoded {
   std::vector<cache_layout::PageRecord> table;
   std::vector<std::vector<unsigned char>> pages;
+  Root root;                  ///< the hierarchy's root as page 0 decodes it
+  std::vector<NodeId> roots;  ///< each page's root node
 };
 
 /// Cuts H into pages, quantizes and compresses them (in parallel).
 Encoded encode(const Hierarchy& h);
+
+/// The pages of the levels over subtrees encoded on their own (the chunks
+/// of the chunked build; subtree_roots.hpp): TOP's leaves stand for the
+/// subtrees' roots, LEAF_ROOTS[i] the decoded sphere of leaf i (indexed by
+/// node id). Each leaf is a page's root whose page is the subtree's first:
+/// its record gets only where it hangs (parent page and node) and its
+/// depth, its bytes are left empty, for the caller to put there. The
+/// children of a node above a leaf are all pages' roots.
+Encoded encode_over(const Hierarchy& top, std::span<const Root> leaf_roots);
 
 /// encode(), and H's centers, radii, drawn radii and priorities rewritten
 /// to the values its pages decode to: H becomes the hierarchy its cache

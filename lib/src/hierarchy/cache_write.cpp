@@ -4,6 +4,7 @@
 // pages are compressed: a fraction of the hierarchy) and written through a
 // temporary renamed into place.
 #include <algorithm>
+#include <array>
 #include <cstring>
 #include <stdexcept>
 #include <string>
@@ -22,16 +23,17 @@ using namespace cache_layout;
 namespace {
 
 // The header's fields that say what the cache is of: the key, the bounds,
-// the coordinate frame (the offsets are laid out by save_cache).
-Header header_of(const Hierarchy& hier, const CacheKey& key) {
+// the coordinate frame (the offsets are laid out by cache_meta).
+Header header_of(const detail::CacheMeta& m) {
+  const CacheKey& key = m.key;
   Header h{};
   std::memcpy(h.magic, kMagic, sizeof kMagic);
   h.version = kVersion;
   h.endian_tag = kEndianTag;
   h.header_size = sizeof(Header);
-  h.node_count = hier.node_count();
-  h.point_count = hier.leaf_count();
-  h.level_count = static_cast<std::uint32_t>(hier.level_count());
+  h.node_count = m.node_count;
+  h.point_count = m.point_count;
+  h.level_count = m.level_count;
   h.options_bits = key.options_bits;
   h.source_size = key.source_size;
   h.source_mtime_ns = key.source_mtime_ns;
@@ -40,10 +42,10 @@ Header header_of(const Hierarchy& hier, const CacheKey& key) {
   h.source_inode = key.source_inode;
   h.source_ctime_ns = key.source_ctime_ns;
   h.identity_ns = key.identity_ns;
-  const glm::vec3 lo = hier.bounds_min(), hi = hier.bounds_max();
+  const glm::vec3 lo = m.bounds_min, hi = m.bounds_max;
   const float b[6] = {lo.x, lo.y, lo.z, hi.x, hi.y, hi.z};
   std::memcpy(h.bounds, b, sizeof b);
-  const CoordinateFrame& frame = hier.frame();
+  const CoordinateFrame& frame = m.frame;
   h.origin[0] = frame.origin.x, h.origin[1] = frame.origin.y, h.origin[2] = frame.origin.z;
   h.flags =
       (frame.z_up ? 1u : 0u) | (frame.normals_estimated ? 2u : 0u) | (frame.viewpoint ? 4u : 0u);
@@ -100,55 +102,72 @@ CacheImage::CacheImage(Hierarchy&& hier, const CacheKey& key) : hierarchy_(std::
   make(hierarchy_, key, true);
 }
 
-void CacheImage::make(const Hierarchy& hier, const CacheKey& key, bool in_place) {
-  Header h = header_of(hier, key);
-  const std::string crs = hier.frame().crs.substr(0, kMaxCrsBytes);
-  const std::vector<NodeAttribute>& attributes = hier.attributes();
-  const std::vector<AttributeRecord> records = attribute_records(attributes);
-  const std::string notes = notes_text(hier.notes());
-  cache_pages::Encoded pages =
-      in_place ? cache_pages::encode_in_place(hier) : cache_pages::encode(hier);
+std::vector<unsigned char> detail::cache_meta(const CacheMeta& m, std::vector<PageRecord>& table) {
+  Header h = header_of(m);
+  const std::string crs = m.frame.crs.substr(0, kMaxCrsBytes);
+  const std::vector<AttributeRecord> records = attribute_records(m.attributes);
+  const std::string notes = notes_text(m.notes);
   // The meta part: header, page table, crs text, attribute records, notes.
   std::uint64_t off = align_up(sizeof(Header));
-  h.page_count = pages.table.size();
+  h.page_count = table.size();
   h.page_table = off;
-  off = align_up(off + pages.table.size() * sizeof(cache_layout::PageRecord));
+  off = align_up(off + table.size() * sizeof(PageRecord));
   h.crs_size = static_cast<std::uint32_t>(crs.size());
   h.crs_offset = crs.empty() ? 0 : off;
   off = align_up(off + crs.size());
-  h.attribute_count = static_cast<std::uint32_t>(attributes.size());
-  h.attribute_table = attributes.empty() ? 0 : off;
+  h.attribute_count = static_cast<std::uint32_t>(m.attributes.size());
+  h.attribute_table = m.attributes.empty() ? 0 : off;
   off = align_up(off + records.size() * sizeof(AttributeRecord));
   h.notes_size = static_cast<std::uint32_t>(notes.size());
   h.notes_offset = notes.empty() ? 0 : off;
   h.meta_end = align_up(off + notes.size());
   off = h.meta_end;
-  for (std::size_t p = 0; p < pages.table.size(); ++p) {
-    pages.table[p].offset = off;
-    off += pages.pages[p].size();
+  for (PageRecord& r : table) {
+    r.offset = off;
+    off += r.bytes;
   }
   h.payload_end = off;
-
-  // The meta part and its checksum; the pages stay as they were compressed
-  // (written after it one by one: never a second copy of them).
-  meta_.assign(h.meta_end, 0);
-  unsigned char* b = meta_.data();
+  std::vector<unsigned char> meta(h.meta_end, 0);
+  unsigned char* b = meta.data();
   std::memcpy(b, &h, sizeof h);
-  std::memcpy(b + h.page_table, pages.table.data(),
-              pages.table.size() * sizeof(cache_layout::PageRecord));
+  std::memcpy(b + h.page_table, table.data(), table.size() * sizeof(PageRecord));
   if (!crs.empty()) std::memcpy(b + h.crs_offset, crs.data(), crs.size());
   if (!records.empty())
     std::memcpy(b + h.attribute_table, records.data(), records.size() * sizeof(AttributeRecord));
   if (!notes.empty()) std::memcpy(b + h.notes_offset, notes.data(), notes.size());
-  pages_ = std::move(pages.pages);
+  return meta;
+}
+
+std::array<unsigned char, 8> detail::meta_checksum(std::span<const unsigned char> meta) {
   Checksum sum;
-  sum.update(b, h.meta_end);
+  sum.update(meta.data(), meta.size());
   const std::uint64_t digest = sum.finish();
-  std::memcpy(checksum_, &digest, sizeof digest);
+  std::array<unsigned char, 8> out;
+  std::memcpy(out.data(), &digest, sizeof digest);
+  return out;
+}
+
+void CacheImage::make(const Hierarchy& hier, const CacheKey& key, bool in_place) {
+  cache_pages::Encoded pages =
+      in_place ? cache_pages::encode_in_place(hier) : cache_pages::encode(hier);
+  const detail::CacheMeta m{key,
+                            hier.frame(),
+                            hier.bounds_min(),
+                            hier.bounds_max(),
+                            hier.node_count(),
+                            hier.leaf_count(),
+                            static_cast<std::uint32_t>(hier.level_count()),
+                            hier.attributes(),
+                            hier.notes()};
+  // The pages stay as they were compressed (written after the meta part
+  // one by one: never a second copy of them).
+  meta_ = detail::cache_meta(m, pages.table);
+  pages_ = std::move(pages.pages);
+  checksum_ = detail::meta_checksum(meta_);
 }
 
 std::size_t CacheImage::size() const {
-  std::size_t bytes = meta_.size() + sizeof checksum_;
+  std::size_t bytes = meta_.size() + checksum_.size();
   for (const std::vector<unsigned char>& page : pages_) bytes += page.size();
   return bytes;
 }
@@ -165,7 +184,7 @@ void CacheImage::save(const std::filesystem::path& cache) const {
   AtomicFile out(cache);
   out.write(meta_.data(), meta_.size());
   for (const std::vector<unsigned char>& page : pages_) out.write(page.data(), page.size());
-  out.write(checksum_, sizeof checksum_);
+  out.write(checksum_.data(), checksum_.size());
   out.commit();
 }
 

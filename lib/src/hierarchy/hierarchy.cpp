@@ -31,6 +31,7 @@
 #include "bottom_up.hpp"
 #include "node_arrays.hpp"
 #include "node_attributes.hpp"
+#include "subtree_roots.hpp"
 #include "treecut/parallel.hpp"
 
 namespace treecut {
@@ -477,6 +478,56 @@ Hierarchy assemble(OwnedArrays&& a, std::vector<NodeId>&& level_begin, const Bui
 }
 
 }  // namespace
+
+detail::TopLevels detail::build_over_roots(std::span<const SubtreeRoot> roots,
+                                           const std::vector<NodeAttribute>& attributes,
+                                           CoordinateFrame frame, bool parent_at_real_point) {
+  if (roots.empty()) throw std::invalid_argument("build_over_roots: no roots");
+  const auto N = static_cast<std::uint32_t>(roots.size());
+  const BuildOptions quiet;
+  BuildProgress progress(quiet, N);
+  BuildOrder order;
+  for (std::uint32_t k = 0; k < N; ++k) {
+    const glm::vec4 s = roots[k].center_radius;
+    order.items.push_back({glm::vec3(s), k});
+    order.bounds_min = glm::min(order.bounds_min, glm::vec3(s) - s.w);
+    order.bounds_max = glm::max(order.bounds_max, glm::vec3(s) + s.w);
+  }
+  OwnedArrays a;
+  Topology t = build_topology(order.items, a, 1, progress);
+  const std::size_t M = t.ranges.size();
+  TopLevels top;
+  top.root_of.assign(M, kNoNode);
+  a.center_radius.resize(M), a.splat_radius.resize(M), a.normal_cone.resize(M);
+  a.color.resize(M), a.priority.resize(M), a.point_count.resize(M);
+  for (const NodeAttribute& shape : attributes) {
+    OwnedAttribute& owned = a.attributes.emplace_back();
+    owned.name = shape.name, owned.kind = shape.kind, owned.offset = shape.offset;
+    owned.min = shape.min, owned.max = shape.max, owned.constant = shape.constant;
+    if (!shape.is_constant()) owned.values.resize(M);
+  }
+  for (std::size_t i = 0; i < M; ++i) {
+    if (a.child_count[i] != 0) continue;
+    const std::uint32_t k = order.items[t.ranges[i].begin].index;
+    const SubtreeRoot& r = roots[k];
+    top.root_of[i] = k;
+    a.center_radius[i] = r.center_radius;
+    a.splat_radius[i] = r.cover;  // the cover, as an interior child's is while parents fill
+    a.normal_cone[i] = r.normal_cone;
+    a.color[i] = r.color;
+    a.priority[i] = r.priority;
+    a.point_count[i] = r.point_count;
+    for (std::size_t s = 0; s < a.attributes.size(); ++s)
+      if (!a.attributes[s].values.empty()) a.attributes[s].values[i] = r.values.at(s);
+  }
+  fill_interior(a, t.level_begin, N, parent_at_real_point, 1, progress);
+  detail::fill_interior_values(a.attributes, a.child_count, a.first_child, a.point_count,
+                               t.level_begin, 1);
+  // The leaves keep their covers as drawn radii: they stand for the roots,
+  // whose pages are written apart (the leaves themselves are not).
+  top.hierarchy = assemble(std::move(a), std::move(t.level_begin), order, std::move(frame));
+  return top;
+}
 
 glm::i16vec4 pack_normal_cone(glm::vec3 normal, float cone_cos) {
   auto q = [](float v) {  // round to nearest (lround is a library call, this is not)

@@ -28,8 +28,10 @@ class KnnGrid {
   /// k nearest neighbours, nearest first, from several threads. Points of one
   /// cell share one gathered candidate list (the 27 surrounding cells), which
   /// answers most queries from contiguous memory; the rest fall back to query().
+  /// Only points below QUERIED are asked for (the others are neighbours
+  /// only: a chunk's halo).
   template <class Fn>
-  void for_each_knn(int k, Fn&& fn) const;
+  void for_each_knn(int k, Fn&& fn, std::uint32_t queried = 0xffffffffu) const;
 
  private:
   struct Cell {
@@ -67,7 +69,7 @@ class KnnGrid {
 };
 
 template <class Fn>
-void KnnGrid::for_each_knn(int k, Fn&& fn) const {
+void KnnGrid::for_each_knn(int k, Fn&& fn, std::uint32_t queried) const {
   const auto kk = static_cast<std::size_t>(std::max(k, 1));
   parallel_for(
       runs_.size(),
@@ -81,6 +83,7 @@ void KnnGrid::for_each_knn(int k, Fn&& fn) const {
           gather(cell, cand);
           for (std::uint32_t j = run.begin; j < run.end; ++j) {
             const std::uint32_t i = order_[j];
+            if (i >= queried) continue;
             int found = top_k(points_[i], i, k, cand, index.data(), dist2.data());
             const float r = reach(points_[i], cell, 1);
             if (found < k || dist2[kk - 1] > r * r) found = query(i, k, index.data(), dist2.data());

@@ -11,6 +11,7 @@
 #include <stdexcept>
 
 #include "cache_format.hpp"
+#include "chunked_build.hpp"
 #include "model_read.hpp"
 #include "reproject.hpp"
 #include "treecut/cache_folder.hpp"
@@ -190,19 +191,6 @@ std::string float_precision_warning(const PointSet& points) {
   return line;
 }
 
-// The file's format as `info` words it (SourceNotes::format).
-std::string format_text(const OpenedModel& out) {
-  const std::string files = out.files > 1 ? "; " + std::to_string(out.files) + " files" : "";
-  if (out.format != "LAS") return out.format + files;
-  const LasInfo& l = out.las.info;
-  std::string text = "LAS " + std::to_string(l.version_major) + "." +
-                     std::to_string(l.version_minor) + ", point format " +
-                     std::to_string(l.point_format) + " (" + std::to_string(l.record_length) +
-                     " bytes a point)";
-  if (!l.system_identifier.empty()) text += ", from " + one_line(l.system_identifier);
-  return text + files;
-}
-
 // Read, attributes, hierarchy: the model built into `out`, each stage timed,
 // in pages as its cache holds it (the image returned, to be saved): a model
 // is the same opened cold or warm. The read's warnings go out as they come
@@ -264,7 +252,7 @@ CacheImage read_and_build(std::span<const std::filesystem::path> files, std::uin
       options.progress("hierarchy", done, total);
     };
   t0 = std::chrono::steady_clock::now();
-  notes.format = format_text(out);
+  notes.format = detail::format_text(out);
   CacheImage image(build_hierarchy(std::move(points), build).with_notes(std::move(notes)), key);
   out.hierarchy = image.hierarchy();
   out.build_seconds = seconds_since(t0);
@@ -324,6 +312,62 @@ void write_model_cache(const CacheImage& image, const OpenOptions& options, Open
   out.cache_seconds += seconds_since(t0);
 }
 
+// The least memory a chunked build runs in: its grid, a batch of points
+// and a chunk of a few thousand.
+constexpr std::uint64_t kLeastChunkedBudget = std::uint64_t{16} << 20;
+
+// A model past BUDGET built in chunks straight into its cache, then
+// loaded from it when its hierarchy fits the budget (the nodes' arrays).
+void build_in_chunks(std::span<const std::filesystem::path> files, const CacheKey& key,
+                     std::uint64_t budget, const OpenOptions& given, OpenedModel& out) {
+  const std::string name =
+      quoted_name(files.size() == 1 ? files.front() : files.front().parent_path());
+  if (budget < kLeastChunkedBudget) {
+    char line[200];
+    std::snprintf(
+        line, sizeof line, ": --memory allows %.2f GiB; a build in chunks needs at least %.0f MiB",
+        double(budget) / double(1u << 30), double(kLeastChunkedBudget) / double(1u << 20));
+    throw std::runtime_error(name + line);
+  }
+  SourceNotes notes;
+  OpenOptions options = given;
+  options.warn = [&](const std::string& w) {
+    notes.warnings.push_back(w);
+    if (given.warn) given.warn(w);
+  };
+  if (!options.crs.empty())
+    throw InputError(name +
+                     ": --crs reprojects a model built held in memory; this one needs more "
+                     "than --memory allows");
+  detail::ChunkedBuildReport r;
+  try {
+    r = detail::build_chunked(files, options, key, out.cache, budget, notes, out);
+  } catch (const InputError&) {
+    if (!same_identity(cache_identity_of(files, key.options_bits), key))
+      throw FileChangedError(name + ": a file of the model changed while being read");
+    throw;
+  }
+  if (!same_identity(cache_identity_of(files, key.options_bits), key)) {
+    std::error_code ec;
+    std::filesystem::remove(out.cache, ec);  // written by this build, of another content
+    throw FileChangedError(name + ": a file of the model changed while being read");
+  }
+  out.cache_written = true;
+  out.chunked = {r.chunks, r.largest_chunk, r.halo_points, r.short_neighbours,
+                 r.halo,   r.scratch_bytes, budget};
+  const auto t0 = std::chrono::steady_clock::now();
+  // About 45 bytes a node held whole (Hierarchy::memory_bytes), 1.4 nodes a point.
+  if (r.points * 64 <= budget && r.points < kMaxBuildPoints) {
+    std::string why;
+    if (auto h = load_cache(out.cache, std::nullopt, &why))
+      out.hierarchy = std::move(*h);
+    else
+      throw std::runtime_error(quoted_name(out.cache) + ": " + why);
+  }
+  out.cache_seconds += seconds_since(t0);
+  if (!given.cache_path) hold_cache_limit(out.cache, given.warn);
+}
+
 // The cached open of a model made of FILES (one, or a cloud's tiles), its
 // default cache DEFAULT_CACHE.
 OpenedModel open_sources(std::span<const std::filesystem::path> files,
@@ -378,12 +422,19 @@ OpenedModel open_sources(std::span<const std::filesystem::path> files,
     key = hash_model(files, bits, out);
   }
   if (write_cache && options.require_cache) probe_cache_destination(out.cache);
-  // A build past the memory is refused with its figures before it reads,
-  // not ended by the kernel's out-of-memory kill, which says nothing.
-  const std::uint64_t budget = options.memory ? options.memory : available_memory();
-  if (const std::string why = build_memory_problem(
-          quoted_name(files.size() == 1 ? files.front() : files.front().parent_path()),
-          build_memory_estimate(files), budget, options.memory != 0);
+  // A model past the memory budget is built in chunks into its cache; one
+  // that cannot be (no cache to write) is refused with its figures before
+  // it reads, not ended by the kernel's out-of-memory kill, which says
+  // nothing.
+  const std::uint64_t budget = options.memory ? options.memory : default_build_budget();
+  const BuildMemory need = build_memory_estimate(files);
+  const std::string name =
+      quoted_name(files.size() == 1 ? files.front() : files.front().parent_path());
+  if (need.bytes > budget && write_cache) {
+    build_in_chunks(files, *key, budget, options, out);
+    return out;
+  }
+  if (const std::string why = build_memory_problem(name, need, budget, options.memory != 0);
       !why.empty())
     throw std::runtime_error(why);
   const CacheImage image = read_and_build(files, bits, *key, options, out);

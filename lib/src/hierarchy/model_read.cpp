@@ -117,6 +117,36 @@ std::vector<std::filesystem::path> point_files_in(const std::filesystem::path& f
   return files;
 }
 
+void detail::check_same_system(const std::filesystem::path& first_file, const PointSet& first,
+                               const std::filesystem::path& file, const PointSet& more,
+                               const WarningSink& warn) {
+  if (more.frame.crs != first.frame.crs) {
+    const auto words = [](const std::string& crs) {
+      return crs.empty() ? std::string("none") : "\"" + crs + "\"";
+    };
+    throw InputError(quoted_name(file) + ": its coordinate system (" + words(more.frame.crs) +
+                     ") is not that of " + quoted_name(first_file) + " (" + words(first.frame.crs) +
+                     "); the files of one model share one");
+  }
+  if (more.adjusted_gps_time != first.adjusted_gps_time && warn) {
+    warn(quoted_name(file) + ": its GPS times are " +
+         (more.adjusted_gps_time ? "adjusted standard" : "seconds of the week") +
+         " time, those of " + quoted_name(first_file) + " are not");
+  }
+}
+
+std::string detail::format_text(const OpenedModel& out) {
+  const std::string files = out.files > 1 ? "; " + std::to_string(out.files) + " files" : "";
+  if (out.format != "LAS") return out.format + files;
+  const LasInfo& l = out.las.info;
+  std::string text = "LAS " + std::to_string(l.version_major) + "." +
+                     std::to_string(l.version_minor) + ", point format " +
+                     std::to_string(l.point_format) + " (" + std::to_string(l.record_length) +
+                     " bytes a point)";
+  if (!l.system_identifier.empty()) text += ", from " + one_line(l.system_identifier);
+  return text + files;
+}
+
 PointSet detail::read_point_files(
     std::span<const std::filesystem::path> files, OpenedModel& out, const WarningSink& warn,
     const std::vector<std::string>& columns,
@@ -130,17 +160,8 @@ PointSet detail::read_point_files(
       out.format = one.format;
       out.ply = one.ply;
       out.las = one.las;
-    } else if (points.frame.crs != all.frame.crs) {
-      const auto words = [](const std::string& crs) {
-        return crs.empty() ? std::string("none") : "\"" + crs + "\"";
-      };
-      throw InputError(quoted_name(files[i]) + ": its coordinate system (" +
-                       words(points.frame.crs) + ") is not that of " + quoted_name(files[0]) +
-                       " (" + words(all.frame.crs) + "); the files of one model share one");
-    } else if (points.adjusted_gps_time != all.adjusted_gps_time && warn) {
-      warn(quoted_name(files[i]) + ": its GPS times are " +
-           (points.adjusted_gps_time ? "adjusted standard" : "seconds of the week") +
-           " time, those of " + quoted_name(files[0]) + " are not");
+    } else {
+      check_same_system(files[0], all, files[i], points, warn);
     }
     out.las.dropped_nonfinite += i == 0 ? 0 : one.las.dropped_nonfinite;
     all.append(std::move(points));

@@ -21,6 +21,17 @@ std::string read_head(const std::filesystem::path& path, std::size_t n);
 PointSet read_point_file(const std::filesystem::path& model, OpenedModel& out,
                          const WarningSink& warn, const std::vector<std::string>& columns);
 
+/// Checks that MORE (of FILE) is in the coordinate system of FIRST (of
+/// FIRST_FILE): an InputError naming both when it is not; a warning when
+/// their GPS time types differ.
+void check_same_system(const std::filesystem::path& first_file, const PointSet& first,
+                       const std::filesystem::path& file, const PointSet& more,
+                       const WarningSink& warn);
+
+/// The file's format as `info` words it (SourceNotes::format): "LAS 1.4,
+/// point format 6 (30 bytes a point), from ...; 12 files".
+std::string format_text(const OpenedModel& out);
+
 /// The points of FILES in order as one cloud (PointSet::append), each read
 /// as read_point_file does; OUT gets the first file's format and report.
 /// A file whose coordinate system differs from the first's is an InputError

@@ -500,6 +500,50 @@ void AtomicFile::write(const void* data, std::size_t size) {
   }
 }
 
+void AtomicFile::flush() {
+  if (fd_ < 0) throw std::logic_error("AtomicFile::flush after commit or failure");
+  buffer_flush();
+}
+
+// -- ScratchFile --------------------------------------------------------------
+
+ScratchFile::ScratchFile(const std::filesystem::path& target) : file_(target) {
+  fd_ = ::open(file_.temporary().c_str(), O_RDWR | O_CLOEXEC | O_NOFOLLOW);
+  if (fd_ < 0) throw std::runtime_error(system_error_text(target, errno));
+}
+
+ScratchFile::~ScratchFile() {
+  if (fd_ >= 0) ::close(fd_);
+}  // file_ removes the temporary
+
+std::uint64_t ScratchFile::append(const void* data, std::size_t size) {
+  const std::uint64_t at = file_.bytes_written();
+  file_.write(data, size);
+  dirty_ = true;
+  return at;
+}
+
+void ScratchFile::read(std::uint64_t offset, void* data, std::size_t size) {
+  if (offset + size > file_.bytes_written())
+    throw std::logic_error("ScratchFile::read past what was written");
+  if (dirty_) file_.flush(), dirty_ = false;
+  auto* p = static_cast<char*>(data);
+  while (size > 0) {
+    const ssize_t n = ::pread(fd_, p, size, static_cast<off_t>(offset));
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0)
+      throw std::runtime_error(n < 0 ? system_error_text(file_.target(), errno)
+                                     : quoted_name(file_.temporary()) + ": shorter than written");
+    p += n, offset += static_cast<std::uint64_t>(n), size -= static_cast<std::size_t>(n);
+  }
+}
+
+void ScratchFile::release(std::uint64_t offset, std::uint64_t size) noexcept {
+  if (size == 0) return;
+  (void)::fallocate(fd_, FALLOC_FL_PUNCH_HOLE | FALLOC_FL_KEEP_SIZE, static_cast<off_t>(offset),
+                    static_cast<off_t>(size));
+}
+
 void AtomicFile::close_checked() {
   if (fd_ < 0) {
     if (temporary_.empty()) throw std::logic_error("AtomicFile::commit twice or after a failure");

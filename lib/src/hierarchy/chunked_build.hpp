@@ -1,0 +1,45 @@
+// A build in bounded memory (issue 44, item 2), after PotreeConverter 2
+// (Schütz, Ohrhallinger and Wimmer 2020, "Fast Out-of-Core Octree
+// Generation for Massive Point Clouds"): a counting pass over the files, the
+// points distributed into chunks on disk (each with a halo of its
+// neighbours' points near its border), each chunk's normals, radii and
+// curvature from its points and halo, then each chunk built by
+// build_hierarchy and written as pages, and the levels over the chunks'
+// roots on top (subtree_roots.hpp). Where the halo holds a point's
+// neighbours, its normal, radius and curvature are those of a build held
+// whole: what only the whole decides (the centroid normals face away
+// from, the median that fills and caps the radii) is taken over the whole.
+// Private to the library (open_model chooses it for a model past its
+// memory budget).
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <span>
+
+#include "treecut/model_io.hpp"
+
+namespace treecut::detail {
+
+struct ChunkedBuildReport {
+  std::uint64_t points = 0;
+  std::size_t chunks = 0;
+  std::uint64_t largest_chunk = 0;     ///< points, halo included
+  std::uint64_t halo_points = 0;       ///< copies of points in other chunks' halos
+  std::uint64_t short_neighbours = 0;  ///< points whose neighbours may reach past the halo
+  float halo = 0.0f;                   ///< its width, model units
+  std::uint64_t scratch_bytes = 0;     ///< the most temporary disk held at once
+};
+
+/// Builds the model of FILES under BUDGET bytes into the cache file CACHE
+/// (atomically, keyed on KEY), its notes' warnings into NOTES; OUT gets the
+/// format, the reader's report, the input points and the stages' seconds.
+/// Temporary files lie beside CACHE, and go on any exit. Throws InputError
+/// for a file that cannot be read (named), std::runtime_error for one that
+/// cannot be written.
+ChunkedBuildReport build_chunked(std::span<const std::filesystem::path> files,
+                                 const OpenOptions& options, const CacheKey& key,
+                                 const std::filesystem::path& cache, std::uint64_t budget,
+                                 SourceNotes& notes, OpenedModel& out);
+
+}  // namespace treecut::detail
