@@ -1,5 +1,7 @@
 // treecut build | info (gen: gen_command.cpp)
 
+#include <sys/resource.h>
+
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
@@ -107,7 +109,55 @@ void print_attributes(const Hierarchy& h) {
   }
 }
 
+double mib(std::size_t bytes) {
+  return static_cast<double>(bytes) / (1024.0 * 1024.0);
+}
+
+// How a build in chunks went (issue 44): the chunks, their halo, the
+// memory and temporary disk it took.
+void print_chunks(const OpenedModel& m) {
+  const ChunkedBuildFigures& c = m.chunked;
+  struct rusage usage {};
+  ::getrusage(RUSAGE_SELF, &usage);
+  std::printf(
+      "chunks      %zu, the largest %llu points with its halo (halo %.3g units, %.1f %% of "
+      "the points copied into it)\n",
+      c.chunks, static_cast<unsigned long long>(c.largest_chunk), double(c.halo),
+      100.0 * double(c.halo_points) / double(std::max<std::size_t>(m.input_points, 1)));
+  std::printf(
+      "memory      peak %.1f MiB of a budget of %.1f MiB; temporary disk at most %.1f MiB\n",
+      double(usage.ru_maxrss) / 1024.0, mib(c.budget), mib(c.scratch_bytes));
+  if (c.short_neighbours)
+    std::printf(
+        "            %llu points near chunk borders may have had neighbours past the halo\n",
+        static_cast<unsigned long long>(c.short_neighbours));
+}
+
+// A model built in chunks whose hierarchy is larger than the memory budget
+// is not loaded: its cache is what there is to say.
+void print_unloaded(const std::filesystem::path& model, const OpenedModel& m) {
+  std::printf("model       %s\n", quoted_name(model).c_str());
+  std::printf("points      %zu\n", m.input_points);
+  print_chunks(m);
+  std::printf("cache       %s\n", quoted_name(m.cache).c_str());
+  std::string why;
+  if (const auto pages = read_cache_pages(m.cache, &why)) {
+    std::uint64_t bytes = 0, nodes = 0;
+    for (const CachePage& p : *pages) bytes += p.bytes, nodes += p.nodes;
+    std::printf("pages       %zu, %llu nodes, %.1f MiB (%.1f bytes/point)\n", pages->size(),
+                static_cast<unsigned long long>(nodes), mib(bytes),
+                double(bytes) / double(std::max<std::size_t>(m.input_points, 1)));
+  }
+  std::printf("not loaded  the hierarchy is larger than the memory budget (info loads it)\n");
+  std::printf(
+      "build time  %.3f s (content hash %.3f, read %.3f, attributes %.3f, hierarchy %.3f, cache "
+      "write %.3f)\n",
+      m.total_seconds(), m.hash_seconds, m.read_seconds, m.attribute_seconds, m.build_seconds,
+      m.cache_seconds);
+}
+
 void print_summary(const std::filesystem::path& model, const OpenedModel& m) {
+  if (m.hierarchy.empty()) return print_unloaded(model, m);
   const Hierarchy& h = m.hierarchy;
   const glm::vec3 lo = h.bounds_min(), hi = h.bounds_max();
   std::printf("model       %s\n", quoted_name(model).c_str());
@@ -139,6 +189,7 @@ void print_summary(const std::filesystem::path& model, const OpenedModel& m) {
   std::printf("memory      %.1f MiB (%.1f bytes/point)\n",
               static_cast<double>(h.memory_bytes()) / (1024.0 * 1024.0),
               static_cast<double>(h.memory_bytes()) / std::max(1u, h.leaf_count()));
+  if (m.chunked.chunks) print_chunks(m);
   // Only a cache that exists is printed as the cache (build fails otherwise).
   if (m.from_cache || m.cache_written) {
     std::printf("cache       %s\n", quoted_name(m.cache).c_str());
@@ -176,10 +227,6 @@ void check_cache_output(const std::filesystem::path& out, const std::filesystem:
     throw InputError(quoted_name(out) +
                      ": is the model itself; refusing to overwrite it with a cache");
   check_replaceable_output(out, is_own_cache, "a cache", "a treecut cache");
-}
-
-double mib(std::size_t bytes) {
-  return static_cast<double>(bytes) / (1024.0 * 1024.0);
 }
 
 void print_scene_summary(const std::filesystem::path& file, const Scene& scene) {

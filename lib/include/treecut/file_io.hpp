@@ -164,12 +164,15 @@ class ScratchFile {
   /// system cannot).
   void release(std::uint64_t offset, std::uint64_t size) noexcept;
   [[nodiscard]] std::uint64_t size() const { return file_.bytes_written(); }
+  /// The bytes appended and not released.
+  [[nodiscard]] std::uint64_t held() const { return file_.bytes_written() - released_; }
   [[nodiscard]] const std::filesystem::path& path() const { return file_.temporary(); }
 
  private:
   AtomicFile file_;
   int fd_ = -1;  // read and punch: the writer's descriptor is write-only
   bool dirty_ = false;
+  std::uint64_t released_ = 0;
 };
 
 /// Writes `bytes` to `target` through an AtomicFile.

@@ -120,13 +120,17 @@ std::uint32_t options_bits(const AttributeOptions& attributes, const BuildOption
 /// for terrain with one attribute or none, 118 for a survey with RGB and
 /// seven varying fields; more below a few million; docs/files.md, "Memory").
 inline constexpr std::uint64_t kBuildBytesPerPoint = 110;
+/// The same for a LAS file, whose records carry a dozen fields (2 M
+/// points of `gen survey`, eleven fields with RGB: 161 with the program).
+inline constexpr std::uint64_t kLasBuildBytesPerPoint = 170;
 /// The most points one hierarchy holds: its node ids (NodeId) are 32-bit
 /// and a model has about 1.5 nodes a point.
 inline constexpr std::uint64_t kMaxBuildPoints = 2'000'000'000;
 
 /// What a build of FILES held in memory needs, from their headers alone:
 /// the points they declare (LAS, PLY, PCD; a text cloud's by its size over
-/// the length of its first lines) times kBuildBytesPerPoint. A file whose
+/// the length of its first lines) times kBuildBytesPerPoint
+/// (kLasBuildBytesPerPoint for LAS). A file whose
 /// header says nothing usable counts 0 (its reader says what is wrong).
 struct BuildMemory {
   std::uint64_t points = 0;

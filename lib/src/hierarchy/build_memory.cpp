@@ -4,6 +4,7 @@
 // says nothing (users' complaint about other converters: "silent exits at
 // 1.1 B points"; issue 44).
 #include <sys/sysinfo.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
@@ -12,6 +13,7 @@
 #include <fstream>
 #include <string>
 
+#include "chunked_build.hpp"
 #include "import/pcd_header.hpp"
 #include "import/ply_format.hpp"
 #include "model_read.hpp"
@@ -61,8 +63,12 @@ std::uint64_t declared_points(const std::filesystem::path& path) {
 
 BuildMemory build_memory_estimate(std::span<const std::filesystem::path> files) {
   BuildMemory m;
-  for (const std::filesystem::path& f : files) m.points += declared_points(f);
-  m.bytes = m.points * kBuildBytesPerPoint;
+  for (const std::filesystem::path& f : files) {
+    const std::uint64_t points = declared_points(f);
+    m.points += points;
+    m.bytes += points * (looks_like_las(detail::read_head(f, 4)) ? kLasBuildBytesPerPoint
+                                                                 : kBuildBytesPerPoint);
+  }
   return m;
 }
 
@@ -87,6 +93,13 @@ std::uint64_t available_memory() {
   return available;
 }
 
+std::uint64_t detail::resident_bytes() {
+  std::ifstream statm("/proc/self/statm");
+  std::uint64_t size = 0, resident = 0;
+  if (!(statm >> size >> resident)) return 0;
+  return resident * static_cast<std::uint64_t>(::sysconf(_SC_PAGESIZE));
+}
+
 std::uint64_t default_build_budget() {
   struct sysinfo info {};
   const std::uint64_t total =
@@ -108,13 +121,14 @@ std::string build_memory_problem(const std::string& name, const BuildMemory& nee
   if (budget == 0 || need.bytes <= budget) return {};
   // In GiB, as --memory reads "8G".
   constexpr double kGiB = 1024.0 * 1024.0 * 1024.0;
-  std::snprintf(line, sizeof line,
-                "%s: %llu points need about %.2f GiB to build in memory (%llu bytes a point); "
-                "%s %.2f GiB%s",
-                name.c_str(), static_cast<unsigned long long>(need.points),
-                double(need.bytes) / kGiB, static_cast<unsigned long long>(kBuildBytesPerPoint),
-                budget_given ? "--memory allows" : "the build may use", double(budget) / kGiB,
-                budget_given ? "" : " (a quarter of the memory; --memory SIZE for another budget)");
+  std::snprintf(
+      line, sizeof line,
+      "%s: %llu points need about %.2f GiB to build in memory (%llu bytes a point); "
+      "%s %.2f GiB%s",
+      name.c_str(), static_cast<unsigned long long>(need.points), double(need.bytes) / kGiB,
+      static_cast<unsigned long long>(need.bytes / std::max<std::uint64_t>(need.points, 1)),
+      budget_given ? "--memory allows" : "the build may use", double(budget) / kGiB,
+      budget_given ? "" : " (a quarter of the memory; --memory SIZE for another budget)");
   return line;
 }
 

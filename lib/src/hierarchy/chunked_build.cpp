@@ -143,8 +143,25 @@ struct Block {
 
 struct ChunkBlocks {
   std::vector<Block> core, halo;  // the parts, in reading order
-  Block done{0, 0};               // the chunk's points with their attributes
+  std::vector<Block> done;        // the chunk's points with their attributes
 };
+
+// Points packed a slice at a time: the packing's buffers stay small beside
+// the chunk.
+constexpr std::size_t kSlicePoints = 16384;
+
+std::vector<Block> append_slices(ScratchFile& file, const PointSet& ps) {
+  std::vector<Block> blocks;
+  std::vector<std::uint32_t> ids;
+  for (std::size_t at = 0; at < ps.size(); at += kSlicePoints) {
+    ids.clear();
+    for (std::size_t i = at; i < std::min(ps.size(), at + kSlicePoints); ++i)
+      ids.push_back(static_cast<std::uint32_t>(i));
+    const std::vector<unsigned char> bytes = pack_points(ps, ids);
+    blocks.push_back({file.append(bytes.data(), bytes.size()), bytes.size()});
+  }
+  return blocks;
+}
 
 PointSet read_blocks(ScratchFile& file, const std::vector<Block>& blocks, PointSet into = {}) {
   std::vector<unsigned char> bytes;
@@ -328,12 +345,6 @@ void refuse_reprojection(const PointSet& first, const std::filesystem::path& fil
                      "model needs more than its memory budget (--memory SIZE)");
 }
 
-std::vector<std::uint32_t> all_of(std::size_t n) {
-  std::vector<std::uint32_t> v(n);
-  for (std::size_t i = 0; i < n; ++i) v[i] = static_cast<std::uint32_t>(i);
-  return v;
-}
-
 // A chunk built: its pages on disk and its root for the levels above.
 struct ChunkPages {
   std::vector<PageRecord> table;  // offsets into the pages' scratch file
@@ -341,24 +352,30 @@ struct ChunkPages {
   std::uint64_t nodes = 0;
 };
 
-// The sizes the budget allows: a chunk's points (with its halo, through
-// the build's peak of kBuildBytesPerPoint), a batch's, the grid's.
+// What a point of a chunk (its halo's too) costs at the peak of its two
+// stages: its arrays, the neighbour grid and the values found (attributes),
+// or build_hierarchy and its pages (hierarchy); about 125 bytes measured
+// with a survey's eleven fields (docs/files.md, "Memory").
+constexpr std::uint64_t kChunkBytesPerPoint = 180;
+
+// The sizes ROOM (the budget less what the program holds) allows: a
+// chunk's points, a batch's, the grid's.
 struct Sizes {
   std::uint64_t chunk_points;
   std::size_t batch_points;
   int grid_levels;
 };
 
-Sizes sizes_for(std::uint64_t budget) {
+Sizes sizes_for(std::uint64_t room) {
   Sizes s{};
-  s.grid_levels = budget >= (std::uint64_t{512} << 20) ? 7 : 6;
+  s.grid_levels = room >= (std::uint64_t{512} << 20) ? 7 : 6;
   const std::uint64_t grid = std::uint64_t{4} << (3 * s.grid_levels);
-  const std::uint64_t room = budget > 2 * grid ? budget - 2 * grid : budget / 2;
-  // A halo adds a few percent; the batch being distributed and the
-  // process's own pages take the rest of a quarter.
-  s.chunk_points = std::max<std::uint64_t>(1024, room * 3 / 4 / (kBuildBytesPerPoint * 5 / 4));
+  const std::uint64_t left = room > 4 * grid ? room - 2 * grid : room / 2;
+  // A batch on its way to the chunks (~120 bytes a point with its
+  // blocks) takes a tenth, at most a million points.
   s.batch_points = static_cast<std::size_t>(
-      std::clamp<std::uint64_t>(room / 4 / 160, 4096, std::uint64_t{1} << 20));
+      std::clamp<std::uint64_t>(left / 10 / 120, 4096, std::uint64_t{1} << 20));
+  s.chunk_points = std::max<std::uint64_t>(4096, left * 6 / 10 / kChunkBytesPerPoint);
   return s;
 }
 
@@ -366,10 +383,10 @@ Sizes sizes_for(std::uint64_t budget) {
 
 ChunkedBuildReport build_chunked(std::span<const std::filesystem::path> files,
                                  const OpenOptions& options, const CacheKey& key,
-                                 const std::filesystem::path& cache, std::uint64_t budget,
+                                 const std::filesystem::path& cache, std::uint64_t room,
                                  SourceNotes& notes, OpenedModel& out) {
   ChunkedBuildReport report;
-  const Sizes sizes = sizes_for(budget);
+  const Sizes sizes = sizes_for(room);
   const auto progress = [&](std::string_view stage, std::uint64_t done, std::uint64_t total) {
     if (options.progress) options.progress(stage, done, total);
   };
@@ -398,7 +415,10 @@ ChunkedBuildReport build_chunked(std::span<const std::filesystem::path> files,
   report.halo = plan.halo();
 
   // 2. Distribute: each batch's points to their chunks and halos.
-  ScratchFile parts(cache.string() + ".parts");
+  // Each scratch file goes as soon as it is read for the last time (its
+  // write buffer with it).
+  std::optional<ScratchFile> parts_file(std::in_place, cache.string() + ".parts");
+  ScratchFile& parts = *parts_file;
   std::vector<ChunkBlocks> blocks(chunks);
   Whole whole;
   {
@@ -437,13 +457,16 @@ ChunkedBuildReport build_chunked(std::span<const std::filesystem::path> files,
   if (whole.points == 0) throw InputError(quoted_name(files.front()) + ": no points");
   out.files = files.size();
   out.read_seconds = seconds_since(t0);
-  report.scratch_bytes = parts.size();
+  std::uint64_t& held = report.scratch_bytes;
+  held = parts.held();
 
   // 3. Each chunk's attributes from its points and halo.
   t0 = Clock::now();
   CoordinateFrame frame = whole.first.frame;
   const CloudPart part_of_whole{glm::vec3(whole.sum / double(whole.points)), 0};
-  ScratchFile done(cache.string() + ".points"), radii(cache.string() + ".radii");
+  std::optional<ScratchFile> done_file(std::in_place, cache.string() + ".points");
+  std::optional<ScratchFile> radii_file(std::in_place, cache.string() + ".radii");
+  ScratchFile &done = *done_file, &radii = *radii_file;
   std::uint64_t positive = 0;
   bool from_neighbours = false;
   for (std::size_t c = 0; c < chunks; ++c) {
@@ -469,14 +492,15 @@ ChunkedBuildReport build_chunked(std::span<const std::filesystem::path> files,
       if (r > 0.0f && std::isfinite(r)) kept.push_back(r);
     radii.append(kept.data(), kept.size() * sizeof(float));
     positive += kept.size();
-    const std::vector<unsigned char> bytes = pack_points(ps, all_of(ps.size()));
-    blocks[c].done = {done.append(bytes.data(), bytes.size()), bytes.size()};
-    report.scratch_bytes =
-        std::max(report.scratch_bytes, parts.size() + done.size() + radii.size());
+    std::vector<float>().swap(reach);
+    blocks[c].done = append_slices(done, ps);
+    held = std::max(held, parts.held() + done.held() + radii.held());
     release(parts, blocks[c].core), release(parts, blocks[c].halo);
     progress("attributes", c + 1, chunks);
   }
+  parts_file.reset();
   const float median = median_of(radii, positive);
+  radii_file.reset();
   out.attribute_seconds = seconds_since(t0);
 
   // 4. Each chunk built and written as pages.
@@ -488,8 +512,9 @@ ChunkedBuildReport build_chunked(std::span<const std::filesystem::path> files,
   BuildOptions build = options.build;
   build.progress = nullptr;
   for (std::size_t c = 0; c < chunks; ++c) {
-    PointSet ps = read_blocks(done, {blocks[c].done});
-    done.release(blocks[c].done.offset, blocks[c].done.bytes);
+    PointSet ps = read_blocks(done, blocks[c].done);
+    release(done, blocks[c].done);
+    if (c + 1 == chunks) done_file.reset();
     ps.frame = frame;
     finish_part_radii(ps.radii, median, from_neighbours);
     double cover2 = 0.0;
@@ -514,8 +539,7 @@ ChunkedBuildReport build_chunked(std::span<const std::filesystem::path> files,
     root.priority = h.arrays().priority[0];
     root.point_count = h.leaf_count();
     for (const NodeAttribute& a : h.attributes()) root.values.push_back(a.value(0));
-    report.scratch_bytes =
-        std::max(report.scratch_bytes, parts.size() + done.size() + radii.size() + pages.size());
+    held = std::max(held, done.held() + pages.held());
     progress("hierarchy", c + 1, chunks);
   }
 
@@ -578,6 +602,8 @@ ChunkedBuildReport build_chunked(std::span<const std::filesystem::path> files,
     levels = std::max(levels, depth[c] + built[c].levels);
     nodes += built[c].nodes;
   }
+  report.nodes = nodes;
+  for (const NodeAttribute& a : model) report.value_streams += !a.is_constant();
   if (levels > 256)
     throw std::runtime_error(quoted_name(cache) + ": the model's hierarchy is " +
                              std::to_string(levels) + " levels deep; a cache holds 256");

@@ -29,9 +29,16 @@ struct ChunkedBuildReport {
   std::uint64_t short_neighbours = 0;  ///< points whose neighbours may reach past the halo
   float halo = 0.0f;                   ///< its width, model units
   std::uint64_t scratch_bytes = 0;     ///< the most temporary disk held at once
+  std::uint64_t nodes = 0;             ///< of the hierarchy written
+  std::uint32_t value_streams = 0;     ///< attributes stored per node
 };
 
-/// Builds the model of FILES under BUDGET bytes into the cache file CACHE
+/// The bytes this process holds in memory now (/proc/self/statm's resident
+/// pages).
+std::uint64_t resident_bytes();
+
+/// Builds the model of FILES in ROOM bytes (beside what the program holds
+/// already) into the cache file CACHE
 /// (atomically, keyed on KEY), its notes' warnings into NOTES; OUT gets the
 /// format, the reader's report, the input points and the stages' seconds.
 /// Temporary files lie beside CACHE, and go on any exit. Throws InputError
@@ -39,7 +46,7 @@ struct ChunkedBuildReport {
 /// cannot be written.
 ChunkedBuildReport build_chunked(std::span<const std::filesystem::path> files,
                                  const OpenOptions& options, const CacheKey& key,
-                                 const std::filesystem::path& cache, std::uint64_t budget,
+                                 const std::filesystem::path& cache, std::uint64_t room,
                                  SourceNotes& notes, OpenedModel& out);
 
 }  // namespace treecut::detail

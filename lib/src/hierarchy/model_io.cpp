@@ -312,9 +312,9 @@ void write_model_cache(const CacheImage& image, const OpenOptions& options, Open
   out.cache_seconds += seconds_since(t0);
 }
 
-// The least memory a chunked build runs in: its grid, a batch of points
-// and a chunk of a few thousand.
-constexpr std::uint64_t kLeastChunkedBudget = std::uint64_t{16} << 20;
+// The least memory a chunked build runs in beside the program: its grid,
+// a batch of points and a chunk of some thousands.
+constexpr std::uint64_t kLeastChunkedRoom = std::uint64_t{8} << 20;
 
 // A model past BUDGET built in chunks straight into its cache, then
 // loaded from it when its hierarchy fits the budget (the nodes' arrays).
@@ -322,11 +322,16 @@ void build_in_chunks(std::span<const std::filesystem::path> files, const CacheKe
                      std::uint64_t budget, const OpenOptions& given, OpenedModel& out) {
   const std::string name =
       quoted_name(files.size() == 1 ? files.front() : files.front().parent_path());
-  if (budget < kLeastChunkedBudget) {
-    char line[200];
-    std::snprintf(
-        line, sizeof line, ": --memory allows %.2f GiB; a build in chunks needs at least %.0f MiB",
-        double(budget) / double(1u << 30), double(kLeastChunkedBudget) / double(1u << 20));
+  // The budget bounds the process: what it holds already is not the build's.
+  const std::uint64_t resident = detail::resident_bytes();
+  const std::uint64_t room = budget > resident ? budget - resident : 0;
+  if (room < kLeastChunkedRoom) {
+    char line[240];
+    std::snprintf(line, sizeof line,
+                  ": --memory allows %.1f MiB, of which the program holds %.1f MiB; a build in "
+                  "chunks needs %.0f MiB beside it",
+                  double(budget) / double(1u << 20), double(resident) / double(1u << 20),
+                  double(kLeastChunkedRoom) / double(1u << 20));
     throw std::runtime_error(name + line);
   }
   SourceNotes notes;
@@ -341,7 +346,7 @@ void build_in_chunks(std::span<const std::filesystem::path> files, const CacheKe
                      "than --memory allows");
   detail::ChunkedBuildReport r;
   try {
-    r = detail::build_chunked(files, options, key, out.cache, budget, notes, out);
+    r = detail::build_chunked(files, options, key, out.cache, room, notes, out);
   } catch (const InputError&) {
     if (!same_identity(cache_identity_of(files, key.options_bits), key))
       throw FileChangedError(name + ": a file of the model changed while being read");
@@ -356,8 +361,10 @@ void build_in_chunks(std::span<const std::filesystem::path> files, const CacheKe
   out.chunked = {r.chunks, r.largest_chunk, r.halo_points, r.short_neighbours,
                  r.halo,   r.scratch_bytes, budget};
   const auto t0 = std::chrono::steady_clock::now();
-  // About 45 bytes a node held whole (Hierarchy::memory_bytes), 1.4 nodes a point.
-  if (r.points * 64 <= budget && r.points < kMaxBuildPoints) {
+  // Loaded when its arrays fit the budget (Hierarchy::memory_bytes: 45
+  // bytes a node and 4 an attribute's value; with the decoder's own, half
+  // as much again).
+  if (r.nodes * (45 + 4 * r.value_streams) * 3 / 2 <= room && r.nodes < kNoNode) {
     std::string why;
     if (auto h = load_cache(out.cache, std::nullopt, &why))
       out.hierarchy = std::move(*h);

@@ -540,6 +540,7 @@ void ScratchFile::read(std::uint64_t offset, void* data, std::size_t size) {
 
 void ScratchFile::release(std::uint64_t offset, std::uint64_t size) noexcept {
   if (size == 0) return;
+  released_ += size;
   (void)::fallocate(fd_, FALLOC_FL_PUNCH_HOLE | FALLOC_FL_KEEP_SIZE, static_cast<off_t>(offset),
                     static_cast<off_t>(size));
 }
