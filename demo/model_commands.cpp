@@ -127,10 +127,6 @@ void print_chunks(const OpenedModel& m) {
   std::printf(
       "memory      peak %.1f MiB of a budget of %.1f MiB; temporary disk at most %.1f MiB\n",
       double(usage.ru_maxrss) / 1024.0, mib(c.budget), mib(c.scratch_bytes));
-  if (c.short_neighbours)
-    std::printf(
-        "            %llu points near chunk borders may have had neighbours past the halo\n",
-        static_cast<unsigned long long>(c.short_neighbours));
 }
 
 // A model built in chunks whose hierarchy is larger than the memory budget

@@ -1,8 +1,6 @@
 // Plugins: loading errors are InputErrors; the example plugin (built out of
 // tree against an installed treecut by the example_plugin_roundtrip test, which
 // passes its path in TREECUT_EXAMPLE_PLUGIN) registers and runs its strategy.
-#include "treecut/plugin.hpp"
-
 #include <gtest/gtest.h>
 
 #include <cstdlib>
@@ -17,6 +15,7 @@
 #include "treecut/error.hpp"
 #include "treecut/feedback_stage.hpp"
 #include "treecut/model.hpp"
+#include "treecut/plugin.hpp"
 #include "treecut/registry.hpp"
 #include "treecut/strategies/builtin.hpp"
 

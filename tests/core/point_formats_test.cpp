@@ -556,7 +556,8 @@ TEST(TextCloud, XyzPtsAndCsvAreRecognizedAndRead) {
   EXPECT_FALSE(looks_like_text_cloud(std::string("LASF\0\0", 6)));
   EXPECT_FALSE(looks_like_text_cloud("\x89PNG\r\n\x1a\n"));
   EXPECT_FALSE(looks_like_text_cloud("h\xF6h\xE9\n")) << "Latin-1 is not UTF-8";
-  EXPECT_TRUE(looks_like_text_cloud("1 2 3\n4 5\x00\x36\n")) << "one stray byte: the reader names it";
+  EXPECT_TRUE(looks_like_text_cloud("1 2 3\n4 5\x00\x36\n"))
+      << "one stray byte: the reader names it";
   EXPECT_FALSE(looks_like_text_cloud(" \n\n"));
 
   // XYZ RGB at map coordinates: millimetres kept.

@@ -163,29 +163,29 @@ void from_faces(PointSet& ps, bool want_normals, bool want_radii, bool want_curv
 // spread across under 1 % of the spread along, which the sum of the
 // covariance's principal 2x2 minors tells without an eigen solve) the
 // points span L = sqrt(12 var) (a uniform segment's variance is L^2 / 12),
-// their density is found / L, and the same 0.1 % is r = 3.45 / (2 rho) =
-// 1.725 L / found: the surface's rule there drew discs several spacings
-// wide, ten collinear points covering half a frame (issue 43, item 12).
+// their density is (found + 1) / L (the point itself is one of them), and
+// the same 0.1 % is r = 3.45 / (2 rho) = 1.725 L / (found + 1): the
+// surface's rule there drew discs several spacings wide, ten collinear
+// points covering half a frame (issue 43, item 12).
 float neighbourhood_radius(const detail::Sym3& cov, float d2k, int found) {
   const double trace = double(cov.xx) + cov.yy + cov.zz;
   const double minors = double(cov.xx) * cov.yy - double(cov.xy) * cov.xy +
                         double(cov.xx) * cov.zz - double(cov.xz) * cov.xz +
                         double(cov.yy) * cov.zz - double(cov.yz) * cov.yz;
   if (trace > 0.0 && minors <= 0.01 * trace * trace)
-    return static_cast<float>(1.725 * std::sqrt(12.0 * trace) / found);
+    return static_cast<float>(1.725 * std::sqrt(12.0 * trace) / (found + 1));
   return std::sqrt(d2k * 7.0f / static_cast<float>(found));
 }
 
 // What a point cloud's neighbours give: normals, radii, curvature of the
-// points below QUERIED (the rest are neighbours only), normals oriented
-// with CENTROID; each queried point's reach (the distance to its farthest
-// neighbour, infinite with fewer than k) into REACH when given.
+// points below QUERIED (the rest are neighbours only), from their k
+// nearest within REACH, normals oriented with CENTROID.
 struct NeighbourJob {
   int k;
   bool want_normals, want_radii, want_curvature;
   glm::vec3 centroid;
   std::size_t queried;
-  std::vector<float>* reach = nullptr;
+  float reach;  // the search's (NeighbourReach)
 };
 
 void from_neighbours(PointSet& ps, const NeighbourJob& job) {
@@ -197,13 +197,14 @@ void from_neighbours(PointSet& ps, const NeighbourJob& job) {
   if (want_normals) ps.normals.assign(n, glm::vec3(0.0f));
   if (want_radii) ps.radii.assign(n, 0.0f);
   if (want_curvature) ps.curvature.assign(n, 0.0f);
-  if (job.reach) job.reach->assign(job.queried, INFINITY);
   const glm::vec3 c = job.centroid;
   const bool z_up = ps.frame.z_up;
   const auto visit = [&](std::uint32_t i, int found, const std::uint32_t* idx, const float* d2) {
     const glm::vec3 p = ps.positions[i];
-    if (job.reach && found == k) (*job.reach)[i] = std::sqrt(d2[found - 1]);
     if (want_radii && found == 1) ps.radii[i] = std::sqrt(d2[0] * 7.0f);
+    // No neighbour within the reach: at least that sparse (the cap then
+    // holds it to the model's typical disc).
+    if (want_radii && found == 0) ps.radii[i] = job.reach;
     if (found < 2) return;
     Moments m;
     for (int j = 0; j < found; ++j) m.add(ps.positions[idx[j]] - p);
@@ -229,7 +230,8 @@ void from_neighbours(PointSet& ps, const NeighbourJob& job) {
       ps.normals[i] = nrm;
     }
   };
-  grid.for_each_knn(k, visit, static_cast<std::uint32_t>(std::min<std::size_t>(job.queried, n)));
+  grid.for_each_knn(k, visit, static_cast<std::uint32_t>(std::min<std::size_t>(job.queried, n)),
+                    job.reach);
 }
 
 glm::vec3 centroid_of(const std::vector<glm::vec3>& positions) {
@@ -260,29 +262,90 @@ Wanted prepare(PointSet& ps, const AttributeOptions& options, bool fill_file_rad
 
 }  // namespace
 
-void complete_attributes(PointSet& ps, const AttributeOptions& options) {
+NeighbourReach::NeighbourReach(glm::vec3 lo, glm::vec3 hi) : lo_(lo) {
+  constexpr int kCells = 64;
+  const glm::vec3 extent = glm::max(hi - lo, glm::vec3(0.0f));
+  // A little wider than the box, so that its far faces fall inside the grid.
+  const float side = std::max({extent.x, extent.y, extent.z, 1e-30f}) * (1.0f + 1e-5f);
+  cell_ = side / float(kCells);
+  counts_.assign(std::size_t{kCells} * kCells * kCells, 0);
+}
+
+void NeighbourReach::count(std::span<const glm::vec3> points) {
+  constexpr int kCells = 64;
+  for (const glm::vec3& p : points) {
+    const glm::ivec3 c = glm::clamp(glm::ivec3(glm::floor((p - lo_) / cell_)), glm::ivec3(0),
+                                    glm::ivec3(kCells - 1));
+    ++counts_[(std::size_t(c.z) * kCells + std::size_t(c.y)) * kCells + std::size_t(c.x)];
+  }
+}
+
+float NeighbourReach::reach(int k) const {
+  // The median occupied cell (by points); where it holds too few to tell a
+  // spacing (a line, a sparse scatter), the grid is halved until it holds
+  // 16 or the grid is one cell.
+  std::vector<std::uint32_t> counts = counts_;
+  float cell = cell_;
+  for (int cells = 64;; cells /= 2, cell *= 2.0f) {
+    std::vector<std::uint32_t> occupied;
+    std::uint64_t total = 0;
+    for (const std::uint32_t c : counts)
+      if (c) occupied.push_back(c), total += c;
+    if (occupied.empty()) return INFINITY;
+    std::sort(occupied.begin(), occupied.end());
+    std::uint64_t seen = 0;
+    std::uint32_t median = occupied.back();
+    for (const std::uint32_t c : occupied)
+      if (2 * (seen += c) >= total) {
+        median = c;
+        break;
+      }
+    if (median >= 16 || cells == 1) {
+      // k neighbours on a surface lie within about sqrt(k / pi) spacings;
+      // four times that holds them in places 16 times sparser.
+      const float spacing = cell / std::sqrt(float(median));
+      return 4.0f * std::sqrt(float(std::max(k, 1)) / 3.14159265f) * spacing;
+    }
+    const int half = cells / 2;
+    std::vector<std::uint32_t> coarser(std::size_t(half) * half * half, 0);
+    for (int z = 0; z < cells; ++z)
+      for (int y = 0; y < cells; ++y)
+        for (int x = 0; x < cells; ++x)
+          coarser[(std::size_t(z / 2) * half + std::size_t(y / 2)) * half + std::size_t(x / 2)] +=
+              counts[(std::size_t(z) * cells + std::size_t(y)) * cells + std::size_t(x)];
+    counts = std::move(coarser);
+  }
+}
+
+void complete_attributes(PointSet& ps, const AttributeOptions& options, float reach) {
   const Wanted w = prepare(ps, options, true);
   if (!w.normals && !w.radii && !w.curvature) return;
   if (!ps.triangles.empty()) {
     from_faces(ps, w.normals, w.radii, w.curvature);
     return;
   }
-  from_neighbours(ps, {std::max(3, options.k), w.normals, w.radii, w.curvature,
-                       w.normals ? centroid_of(ps.positions) : glm::vec3(0.0f), ps.size()});
+  const int k = std::max(3, options.k);
+  if (!(reach > 0.0f)) {
+    glm::vec3 lo(INFINITY), hi(-INFINITY);
+    for (const glm::vec3& p : ps.positions) lo = glm::min(lo, p), hi = glm::max(hi, p);
+    NeighbourReach grid(lo, hi);
+    grid.count(ps.positions);
+    reach = grid.reach(k);
+  }
+  from_neighbours(ps, {k, w.normals, w.radii, w.curvature,
+                       w.normals ? centroid_of(ps.positions) : glm::vec3(0.0f), ps.size(), reach});
   if (w.radii) {
     fill_missing_radii(ps.radii);
     cap_sparse_radii(ps.radii);
   }
 }
 
-bool complete_part_attributes(PointSet& ps, const AttributeOptions& options, const CloudPart& part,
-                              std::vector<float>* reach) {
+bool complete_part_attributes(PointSet& ps, const AttributeOptions& options,
+                              const CloudPart& part) {
   const Wanted w = prepare(ps, options, false);
   if (w.normals || w.radii || w.curvature)
     from_neighbours(ps, {std::max(3, options.k), w.normals, w.radii, w.curvature, part.centroid,
-                         part.queried, reach});
-  else if (reach)
-    reach->assign(part.queried, 0.0f);
+                         part.queried, part.reach});
   return w.radii;
 }
 

@@ -44,27 +44,8 @@ void ChunkPlan::split(glm::ivec3 lo, int size, std::uint64_t max_points) {
   chunks_.push_back({lo, lo + size, sum});
 }
 
-void ChunkPlan::plan(std::uint64_t max_points, int neighbours) {
-  // The typical spacing: in the median occupied cell (by points), a surface
-  // through it holds its points at about cell / sqrt(count) apart.
-  std::vector<std::uint32_t> occupied;
-  for (const std::uint32_t c : counts_)
-    if (c) occupied.push_back(c);
-  float spacing = cell_;
-  if (!occupied.empty()) {
-    std::sort(occupied.begin(), occupied.end());
-    std::uint64_t seen = 0;
-    for (const std::uint32_t c : occupied) {
-      seen += c;
-      if (2 * seen >= total_) {
-        spacing = cell_ / std::sqrt(float(c));
-        break;
-      }
-    }
-  }
-  // k neighbours on a surface lie within about sqrt(k / pi) spacings; four
-  // times that covers the points of places 16 times sparser than the median.
-  halo_ = std::min(cell_, 4.0f * std::sqrt(float(std::max(neighbours, 1)) / 3.14159265f) * spacing);
+void ChunkPlan::plan(std::uint64_t max_points, float halo) {
+  halo_ = halo;
   chunks_.clear();
   split(glm::ivec3(0), dims_, std::max<std::uint64_t>(max_points, 1));
   // From counts to chunk ids (empty cells too: a chunk's box is whole).
@@ -81,47 +62,37 @@ std::uint32_t ChunkPlan::chunk_of(glm::vec3 p) const {
   return counts_[index(cell_of(p))];
 }
 
-int ChunkPlan::halo_chunks(glm::vec3 p, std::uint32_t own, std::uint32_t out[26]) const {
+void ChunkPlan::halo_chunks(glm::vec3 p, std::uint32_t own, std::vector<std::uint32_t>& out) const {
+  out.clear();
   const glm::ivec3 c = cell_of(p);
   const glm::vec3 in = p - (lo_ + glm::vec3(c) * cell_);  // within the cell
-  int step[3][3], steps[3];
+  // The cells within the halo: the neighbours on the sides it reaches
+  // (usually one; more where the halo is wider than a cell).
+  const int r = static_cast<int>(std::ceil(halo_ / cell_));
+  glm::ivec3 lo, hi;
   for (int a = 0; a < 3; ++a) {
-    steps[a] = 0;
-    step[a][steps[a]++] = 0;
-    if (in[a] < halo_ && c[a] > 0) step[a][steps[a]++] = -1;
-    if (cell_ - in[a] < halo_ && c[a] + 1 < dims_) step[a][steps[a]++] = 1;
+    lo[a] = std::max(0, c[a] - (in[a] < halo_ ? r : 0));
+    hi[a] = std::min(dims_ - 1, c[a] + (cell_ - in[a] < halo_ ? r : 0));
   }
-  int found = 0;
-  for (int i = 0; i < steps[0]; ++i)
-    for (int j = 0; j < steps[1]; ++j)
-      for (int k = 0; k < steps[2]; ++k) {
-        if (i == 0 && j == 0 && k == 0) continue;
-        const glm::ivec3 d(step[0][i], step[1][j], step[2][k]);
-        // The neighbour cell's nearest point must be within the halo.
+  for (int z = lo.z; z <= hi.z; ++z)
+    for (int y = lo.y; y <= hi.y; ++y)
+      for (int x = lo.x; x <= hi.x; ++x) {
+        const glm::ivec3 n(x, y, z);
+        if (n == c) continue;
+        // The cell's nearest point must lie within the halo.
         float d2 = 0.0f;
         for (int a = 0; a < 3; ++a) {
-          const float gap = d[a] < 0 ? in[a] : d[a] > 0 ? cell_ - in[a] : 0.0f;
+          const float cell_lo = lo_[a] + float(n[a]) * cell_, cell_hi = cell_lo + cell_;
+          const float gap = p[a] < cell_lo   ? cell_lo - p[a]
+                            : p[a] > cell_hi ? p[a] - cell_hi
+                                             : 0.0f;
           d2 += gap * gap;
         }
         if (d2 > halo_ * halo_) continue;
-        const std::uint32_t chunk = counts_[index(c + d)];
+        const std::uint32_t chunk = counts_[index(n)];
         if (chunk == kNoChunk || chunk == own) continue;
-        if (std::find(out, out + found, chunk) == out + found) out[found++] = chunk;
+        if (std::find(out.begin(), out.end(), chunk) == out.end()) out.push_back(chunk);
       }
-  return found;
-}
-
-bool ChunkPlan::covers(std::uint32_t c, glm::vec3 p, float r) const {
-  const Chunk& k = chunks_[c];
-  const glm::vec3 lo = lo_ + glm::vec3(k.lo) * cell_ - halo_;
-  const glm::vec3 hi = lo_ + glm::vec3(k.hi) * cell_ + halo_;
-  // The grid's outer faces hold nothing beyond them (a point outside the
-  // box counts in the nearest cell): no neighbour can lie past them.
-  for (int a = 0; a < 3; ++a) {
-    if (k.lo[a] > 0 && p[a] - r < lo[a]) return false;
-    if (k.hi[a] < dims_ && p[a] + r > hi[a]) return false;
-  }
-  return true;
 }
 
 }  // namespace treecut::detail

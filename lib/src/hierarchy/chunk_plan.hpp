@@ -4,8 +4,9 @@
 // counted on a grid of cubic cells over the model's box, then an octree
 // over the grid whose nodes of at most a chunk's points (or single cells)
 // are the chunks. A point belongs to the chunk of its cell, and lies in
-// the halo of every other chunk whose box is within `halo` of it: the
-// neighbours a chunk's border points need for their normals and radii.
+// the halo of every other chunk whose box is within `halo` of it: with the
+// neighbour search's reach as the halo (NeighbourReach, attributes.hpp), a
+// chunk holds every neighbour its points have in the whole model.
 // Private to the library.
 #pragma once
 
@@ -26,9 +27,8 @@ class ChunkPlan {
   void count(std::span<const glm::vec3> points);
 
   /// Cuts the grid into chunks of at most MAX_POINTS (a single cell may hold
-  /// more: it is one chunk), and fixes the halo's width: a few times the
-  /// typical spacing of the points, at most a cell.
-  void plan(std::uint64_t max_points, int neighbours);
+  /// more: it is one chunk), with halos HALO wide.
+  void plan(std::uint64_t max_points, float halo);
 
   struct Chunk {
     glm::ivec3 lo, hi;  ///< its cells, [lo, hi)
@@ -40,12 +40,9 @@ class ChunkPlan {
 
   /// P's chunk.
   [[nodiscard]] std::uint32_t chunk_of(glm::vec3 p) const;
-  /// The chunks other than OWN whose boxes lie within the halo of P: up to
-  /// 26, into OUT; returns how many.
-  int halo_chunks(glm::vec3 p, std::uint32_t own, std::uint32_t out[26]) const;
-  /// Whether the ball around P of radius R lies inside chunk C's box grown
-  /// by the halo (its neighbours are then all in the chunk or its halo).
-  [[nodiscard]] bool covers(std::uint32_t c, glm::vec3 p, float r) const;
+  /// The chunks other than OWN whose boxes lie within the halo of P, into
+  /// OUT (cleared first).
+  void halo_chunks(glm::vec3 p, std::uint32_t own, std::vector<std::uint32_t>& out) const;
 
  private:
   [[nodiscard]] glm::ivec3 cell_of(glm::vec3 p) const;

@@ -24,13 +24,12 @@ namespace treecut::detail {
 struct ChunkedBuildReport {
   std::uint64_t points = 0;
   std::size_t chunks = 0;
-  std::uint64_t largest_chunk = 0;     ///< points, halo included
-  std::uint64_t halo_points = 0;       ///< copies of points in other chunks' halos
-  std::uint64_t short_neighbours = 0;  ///< points whose neighbours may reach past the halo
-  float halo = 0.0f;                   ///< its width, model units
-  std::uint64_t scratch_bytes = 0;     ///< the most temporary disk held at once
-  std::uint64_t nodes = 0;             ///< of the hierarchy written
-  std::uint32_t value_streams = 0;     ///< attributes stored per node
+  std::uint64_t largest_chunk = 0;  ///< points, halo included
+  std::uint64_t halo_points = 0;    ///< copies of points in other chunks' halos
+  float halo = 0.0f;                ///< its width, model units
+  std::uint64_t scratch_bytes = 0;  ///< the most temporary disk held at once
+  std::uint64_t nodes = 0;          ///< of the hierarchy written
+  std::uint32_t value_streams = 0;  ///< attributes stored per node
 };
 
 /// The bytes this process holds in memory now (/proc/self/statm's resident

@@ -17,8 +17,9 @@ constexpr int kAxisBits = 21;
 constexpr int kMaxDim = (1 << kAxisBits) - 2;
 constexpr std::uint32_t kMaxScanPerCell = 512;
 // Shells searched at most: with a few points per occupied cell the k nearest
-// are found within 2-3 shells; an isolated outlier stops here with fewer.
-constexpr int kMaxShell = 8;
+// are found within 2-3 shells, and a reach of a few spacings is a few cells;
+// only a reach past 64 cells (a dense spot in a sparse model) stops here.
+constexpr int kMaxShell = 64;
 
 template <class T>
 void release_keys(std::vector<T>& v) {
@@ -161,8 +162,8 @@ float KnnGrid::reach(glm::vec3 p, glm::ivec3 c, int r) const {
   return std::min({m.x, m.y, m.z});
 }
 
-int KnnGrid::top_k(glm::vec3 q, std::uint32_t self, int k, Candidates& c, std::uint32_t* index,
-                   float* dist2) {
+int KnnGrid::top_k(glm::vec3 q, std::uint32_t self, int k, float reach2, Candidates& c,
+                   std::uint32_t* index, float* dist2) {
   const std::size_t n = c.x.size();
   const float* __restrict x = c.x.data();
   const float* __restrict y = c.y.data();
@@ -175,35 +176,48 @@ int KnnGrid::top_k(glm::vec3 q, std::uint32_t self, int k, Candidates& c, std::u
   // Candidates come nearest cells first (see gather), so the bound tightens
   // early and most later candidates are rejected by one comparison.
   int found = 0;
-  float worst = INFINITY;  // dist2[k - 1] once k are found
+  float worst = reach2;  // dist2[k - 1] once k are found
+  // The candidate each found one is (its position, for ties).
+  std::vector<std::uint32_t>& slot = c.found;
+  slot.resize(static_cast<std::size_t>(k));
+  const auto at = [&](std::uint32_t j) { return glm::vec3(x[j], y[j], z[j]); };
   for (std::size_t j = 0; j < n; ++j) {
     const float d = d2[j];
-    if (d >= worst || c.index[j] == self) continue;
+    if (d > worst || c.index[j] == self) continue;
+    const auto jj = static_cast<std::uint32_t>(j);
+    if (found == k && d == worst && !before(d, at(jj), worst, at(slot[k - 1]))) continue;
     int pos = found < k ? found++ : k - 1;
-    while (pos > 0 && dist2[pos - 1] > d) {
+    while (pos > 0 && (dist2[pos - 1] > d ||
+                       (dist2[pos - 1] == d && before(d, at(jj), d, at(slot[pos - 1]))))) {
       dist2[pos] = dist2[pos - 1];
       index[pos] = index[pos - 1];
+      slot[pos] = slot[pos - 1];
       --pos;
     }
     dist2[pos] = d;
     index[pos] = c.index[j];
+    slot[pos] = jj;
     if (found == k) worst = dist2[k - 1];
   }
   return found;
 }
 
-int KnnGrid::query(std::uint32_t self, int k, std::uint32_t* index, float* dist2) const {
+int KnnGrid::query(std::uint32_t self, int k, std::uint32_t* index, float* dist2,
+                   float reach_limit) const {
   if (k <= 0) return 0;
   const glm::vec3 q = points_[self];
   const glm::ivec3 c = cell_of(q);
+  const float limit2 = reach_limit * reach_limit;
   int found = 0;
   auto consider = [&](std::uint32_t i) {
     if (i == self) return;
-    const glm::vec3 d = points_[i] - q;
+    const glm::vec3 p = points_[i];
+    const glm::vec3 d = p - q;
     const float d2 = d.x * d.x + d.y * d.y + d.z * d.z;
-    if (found == k && d2 >= dist2[k - 1]) return;
+    if (d2 > limit2) return;
+    if (found == k && !before(d2, p, dist2[k - 1], points_[index[k - 1]])) return;
     int pos = found < k ? found++ : k - 1;
-    while (pos > 0 && dist2[pos - 1] > d2) {
+    while (pos > 0 && before(d2, p, dist2[pos - 1], points_[index[pos - 1]])) {
       dist2[pos] = dist2[pos - 1];
       index[pos] = index[pos - 1];
       --pos;
@@ -233,7 +247,7 @@ int KnnGrid::query(std::uint32_t self, int k, std::uint32_t* index, float* dist2
       }
     // Every point outside shells 0..r is at least r cells away.
     const float reach = static_cast<float>(r) * cell_;
-    if (found == k && dist2[k - 1] <= reach * reach) break;
+    if ((found == k && dist2[k - 1] <= reach * reach) || reach >= reach_limit) break;
   }
   return found;
 }

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <glm/common.hpp>
 #include <glm/vec3.hpp>
@@ -18,20 +19,25 @@ class KnnGrid {
  public:
   explicit KnnGrid(std::span<const glm::vec3> points, float points_per_cell = 5.0f);
 
-  /// The (up to) k nearest points to points[self], self excluded, nearest
-  /// first. Writes indices and squared distances; returns how many were found.
-  /// Cells holding hundreds of coincident points are scanned partially, which
-  /// bounds the cost on degenerate input (all points at one place).
-  int query(std::uint32_t self, int k, std::uint32_t* index, float* dist2) const;
+  /// The (up to) k nearest points to points[self] within REACH, self
+  /// excluded, nearest first (as near: by position, `before`). Writes
+  /// indices and squared distances; returns how many were found. Exact
+  /// within the reach, whatever the grid (so the same in any set holding
+  /// the point's surroundings within it), but for two guards against
+  /// degenerate input: cells holding hundreds of coincident points are
+  /// scanned partially, and no search goes past 64 cells.
+  int query(std::uint32_t self, int k, std::uint32_t* index, float* dist2,
+            float reach = INFINITY) const;
 
   /// Calls fn(i, found, index, dist2) once for every point i with its (up to)
   /// k nearest neighbours, nearest first, from several threads. Points of one
   /// cell share one gathered candidate list (the 27 surrounding cells), which
   /// answers most queries from contiguous memory; the rest fall back to query().
   /// Only points below QUERIED are asked for (the others are neighbours
-  /// only: a chunk's halo).
+  /// only: a chunk's halo); neighbours within REACH, as query() finds them.
   template <class Fn>
-  void for_each_knn(int k, Fn&& fn, std::uint32_t queried = 0xffffffffu) const;
+  void for_each_knn(int k, Fn&& fn, std::uint32_t queried = 0xffffffffu,
+                    float reach = INFINITY) const;
 
  private:
   struct Cell {
@@ -48,10 +54,22 @@ class KnnGrid {
   struct Candidates {
     std::vector<float> x, y, z, d2;
     std::vector<std::uint32_t> index;
+    std::vector<std::uint32_t> found;  // the candidates found so far (top_k)
   };
+  // Whether a neighbour at squared distance D and position P comes before
+  // one at E and Q: nearer, or as near and lower in x, then y, then z. Ties
+  // go by position, not by index, so that a point's neighbours and their
+  // order are the same in any set that holds them (a chunk and its halo,
+  // or the whole model: chunked_build.hpp).
+  static bool before(float d, glm::vec3 p, float e, glm::vec3 q) {
+    if (d != e) return d < e;
+    if (p.x != q.x) return p.x < q.x;
+    if (p.y != q.y) return p.y < q.y;
+    return p.z < q.z;
+  }
   // Exact top-k over gathered candidates; returns how many were found.
-  static int top_k(glm::vec3 q, std::uint32_t self, int k, Candidates& c, std::uint32_t* index,
-                   float* dist2);
+  static int top_k(glm::vec3 q, std::uint32_t self, int k, float reach2, Candidates& c,
+                   std::uint32_t* index, float* dist2);
   // Distance from p to the outside of the cube of cells within `r` of its cell.
   float reach(glm::vec3 p, glm::ivec3 cell, int r) const;
   void gather(glm::ivec3 cell, Candidates& c) const;
@@ -69,7 +87,7 @@ class KnnGrid {
 };
 
 template <class Fn>
-void KnnGrid::for_each_knn(int k, Fn&& fn, std::uint32_t queried) const {
+void KnnGrid::for_each_knn(int k, Fn&& fn, std::uint32_t queried, float reach) const {
   const auto kk = static_cast<std::size_t>(std::max(k, 1));
   parallel_for(
       runs_.size(),
@@ -84,9 +102,12 @@ void KnnGrid::for_each_knn(int k, Fn&& fn, std::uint32_t queried) const {
           for (std::uint32_t j = run.begin; j < run.end; ++j) {
             const std::uint32_t i = order_[j];
             if (i >= queried) continue;
-            int found = top_k(points_[i], i, k, cand, index.data(), dist2.data());
-            const float r = reach(points_[i], cell, 1);
-            if (found < k || dist2[kk - 1] > r * r) found = query(i, k, index.data(), dist2.data());
+            int found = top_k(points_[i], i, k, reach * reach, cand, index.data(), dist2.data());
+            // Exact when the k-th lies within the gathered cells, or when
+            // they hold everything within the reach.
+            const float r = this->reach(points_[i], cell, 1);
+            if (found < k ? r < reach : dist2[kk - 1] > r * r)
+              found = query(i, k, index.data(), dist2.data(), reach);
             fn(i, found, static_cast<const std::uint32_t*>(index.data()),
                static_cast<const float*>(dist2.data()));
           }

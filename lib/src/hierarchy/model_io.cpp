@@ -11,6 +11,7 @@
 #include <stdexcept>
 
 #include "cache_format.hpp"
+#include "chunk_sources.hpp"
 #include "chunked_build.hpp"
 #include "model_read.hpp"
 #include "reproject.hpp"
@@ -78,7 +79,9 @@ std::filesystem::path default_cache_path(const std::vector<std::filesystem::path
 // 4: radii from the neighbours are capped at 4 times the median (issue 30).
 // 5: radii along lines from the density along them, interior covers summed
 //    in double (issue 43).
-constexpr std::uint32_t kPipelineRevision = 5;
+// 6: a point's neighbours are its k nearest within a reach of the model's
+//    spacing (NeighbourReach; issue 44), ties by position.
+constexpr std::uint32_t kPipelineRevision = 6;
 
 std::uint32_t options_bits(const AttributeOptions& attributes, const BuildOptions& build,
                            const std::vector<std::string>& columns, const std::string& crs) {
@@ -191,6 +194,19 @@ std::string float_precision_warning(const PointSet& points) {
   return line;
 }
 
+// The neighbour search's reach over the box the files declare, as a build
+// in chunks takes it (chunked_build.hpp): a point has the same neighbours
+// either way. 0 (over the points' own box) for files that declare none or
+// points reprojected since (IN_FILE_FRAME false).
+float neighbour_reach(std::span<const std::filesystem::path> files, const PointSet& points,
+                      bool in_file_frame, int k) {
+  const auto box = in_file_frame ? detail::declared_box(files) : std::nullopt;
+  if (!box) return 0.0f;
+  NeighbourReach reach(box->first, box->second);
+  reach.count(points.positions);
+  return reach.reach(std::max(3, k));
+}
+
 // Read, attributes, hierarchy: the model built into `out`, each stage timed,
 // in pages as its cache holds it (the image returned, to be saved): a model
 // is the same opened cold or warm. The read's warnings go out as they come
@@ -232,17 +248,17 @@ CacheImage read_and_build(std::span<const std::filesystem::path> files, std::uin
   out.read_seconds = seconds_since(t0);
   if (changed()) throw changed_error();
   out.input_points = points.size();
-  if (const std::string moved = detail::reproject(points, options.crs, quoted_name(model));
-      !moved.empty() && options.warn) {
+  const std::string moved = detail::reproject(points, options.crs, quoted_name(model));
+  if (!moved.empty() && options.warn)
     options.warn(quoted_name(model) + ": reprojected to " + moved);
-  }
   std::vector<glm::dvec3>().swap(points.exact_positions);  // an export's; the hierarchy is floats
   if (options.warn) {
     if (const std::string w = float_precision_warning(points); !w.empty()) options.warn(w);
   }
   report_stage(options, "attributes");
   t0 = std::chrono::steady_clock::now();
-  complete_attributes(points, options.attributes);
+  complete_attributes(points, options.attributes,
+                      neighbour_reach(files, points, moved.empty(), options.attributes.k));
   out.attribute_seconds = seconds_since(t0);
   report_stage(options, "hierarchy");
   BuildOptions build = options.build;
@@ -358,8 +374,12 @@ void build_in_chunks(std::span<const std::filesystem::path> files, const CacheKe
     throw FileChangedError(name + ": a file of the model changed while being read");
   }
   out.cache_written = true;
-  out.chunked = {r.chunks, r.largest_chunk, r.halo_points, r.short_neighbours,
-                 r.halo,   r.scratch_bytes, budget};
+  out.chunked.chunks = r.chunks;
+  out.chunked.largest_chunk = r.largest_chunk;
+  out.chunked.halo_points = r.halo_points;
+  out.chunked.halo = r.halo;
+  out.chunked.scratch_bytes = r.scratch_bytes;
+  out.chunked.budget = budget;
   const auto t0 = std::chrono::steady_clock::now();
   // Loaded when its arrays fit the budget (Hierarchy::memory_bytes: 45
   // bytes a node and 4 an attribute's value; with the decoder's own, half
@@ -437,7 +457,8 @@ OpenedModel open_sources(std::span<const std::filesystem::path> files,
   const BuildMemory need = build_memory_estimate(files);
   const std::string name =
       quoted_name(files.size() == 1 ? files.front() : files.front().parent_path());
-  if (need.bytes > budget && write_cache) {
+  // The budget bounds the process: what it holds already counts.
+  if (need.bytes + detail::resident_bytes() > budget && write_cache) {
     build_in_chunks(files, *key, budget, options, out);
     return out;
   }

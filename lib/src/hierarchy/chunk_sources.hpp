@@ -1,0 +1,127 @@
+// What the chunked build (chunked_build.cpp) reads and learns of the
+// whole model on its way: each file in batches, moved to the model's frame
+// as a build held whole moves it (PointSet::append), the figures only the
+// whole has (bounds, centroid, each field's range and whether it varies),
+// and each chunk's fields in the model's forms. Private to the library.
+#pragma once
+
+#include <filesystem>
+#include <optional>
+#include <span>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "model_read.hpp"
+#include "treecut/las.hpp"
+#include "treecut/model_io.hpp"
+
+namespace treecut::detail {
+
+// A file's points in batches: a LAS file's from its reader, any other's
+// whole, as one batch (their readers do not stream yet).
+class Batches {
+ public:
+  Batches(const std::filesystem::path& file, const WarningSink& warn,
+          const std::vector<std::string>& columns)
+      : file_(file), warn_(warn), columns_(columns) {
+    if (read_head(file, 4).starts_with("LASF")) las_.emplace(file, warn);
+  }
+  /// The next batch of at most MAX points; none at the end.
+  PointSet next(std::size_t max, OpenedModel& out);
+
+ private:
+  std::filesystem::path file_;
+  WarningSink warn_;
+  const std::vector<std::string>& columns_;
+  std::optional<LasReader> las_;
+  bool done_ = false;
+};
+
+// What the whole model is, gathered as the batches go by, in the order a
+// build held whole reads them.
+struct Whole {
+  PointSet first;  // the first batch's frame, records (no points)
+  bool started = false;
+  std::uint64_t points = 0;
+  glm::vec3 lo{INFINITY}, hi{-INFINITY};
+  glm::dvec3 sum{0.0};  // of the float positions, for the centroid
+  // Arrays every file has (one without them: computed for all, as append does).
+  bool normals = true, radii = true, curvature = true;
+  struct Field {
+    std::string name;
+    AttributeKind kind = AttributeKind::measure;
+    double lo = INFINITY, hi = -INFINITY;
+    bool seen = false, varies = false;
+    double first = 0.0;
+    void add(double v) {
+      if (!std::isnan(v)) lo = std::min(lo, v), hi = std::max(hi, v);
+      if (!seen) {
+        seen = true, first = v;
+      } else if (!varies) {
+        varies = !(v == first || (std::isnan(v) && std::isnan(first)));
+      }
+    }
+  };
+  std::vector<Field> fields;
+};
+
+/// Moves a batch of FILE to the model's frame (the first file's origin, as
+/// PointSet::append moves it) and checks it belongs to the model (its
+/// coordinate system: InputError naming both files).
+void join_frame(PointSet& batch, const std::filesystem::path& file,
+                const std::filesystem::path& first_file, Whole& whole, const WarningSink& warn);
+
+/// The running figures of WHOLE from one batch (in the model's frame).
+void gather(const PointSet& batch, Whole& whole);
+
+/// Calls FN(batch, file index) for every batch of every file, in order;
+/// OUT gets the first file's format and report.
+template <class Fn>
+void for_each_batch(std::span<const std::filesystem::path> files, std::size_t batch_points,
+                    const WarningSink& warn, const std::vector<std::string>& columns,
+                    OpenedModel& out, Fn&& fn) {
+  for (std::size_t f = 0; f < files.size(); ++f) {
+    Batches batches(files[f], warn, columns);
+    OpenedModel one;
+    for (;;) {
+      PointSet batch = batches.next(batch_points, f == 0 ? out : one);
+      if (batch.size() == 0) break;
+      fn(batch, f);
+    }
+    if (f > 0) out.las.dropped_nonfinite += one.las.dropped_nonfinite;
+  }
+}
+
+/// The box the files of a model declare, in the first file's frame: LAS
+/// files' headers'; nullopt when one is not a LAS file.
+std::optional<std::pair<glm::vec3, glm::vec3>> declared_box(
+    std::span<const std::filesystem::path> files);
+
+/// The box around the model, in the first file's frame: declared_box, or
+/// the points' own (every file read) when a file declares none. The grids
+/// of a build go over it (a point outside counts in the nearest cell), the
+/// same in a build held whole (NeighbourReach) as in one in chunks.
+std::pair<glm::vec3, glm::vec3> model_box(std::span<const std::filesystem::path> files,
+                                          const std::vector<std::string>& columns);
+
+/// Geographic input is reprojected around its centre, which a chunk does
+/// not know: an InputError naming FILE when FIRST (its first batch) is.
+void refuse_reprojection(const PointSet& first, const std::filesystem::path& file);
+
+/// The model's attributes as the cache records them: a field's offset as
+/// the builder picks it for its whole range (node_attributes.cpp), one
+/// that never varies stored once; the values span of one that varies is a
+/// marker (not empty), no values.
+std::vector<NodeAttribute> model_attributes(const Whole& whole);
+
+/// A chunk's attributes in the model's order and forms: a field the chunk
+/// lacks is NaN, one that varies in the model is stored per point here too
+/// (so every page has the same value streams).
+void match_fields(PointSet& ps, const std::vector<NodeAttribute>& model);
+
+/// The chunk's node values moved to the model's offsets (the builder chose
+/// the chunk's own; H is this build's alone, rewritten in place).
+void to_model_offsets(const Hierarchy& h, const std::vector<NodeAttribute>& model);
+
+}  // namespace treecut::detail
