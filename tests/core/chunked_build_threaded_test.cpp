@@ -5,12 +5,17 @@
 // model's; temporary files go on every exit. Threaded: the chunks' stages
 // run on the worker pool (run under TSan in CI).
 #include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <filesystem>
 #include <glm/geometric.hpp>
 #include <map>
+#include <regex>
 #include <string>
+#include <thread>
 #include <tuple>
 #include <vector>
 
@@ -126,6 +131,124 @@ TEST(ChunkedBuild, WhereChunksMeetNormalsAndRadiiAreThoseOfABuildHeldWhole) {
   EXPECT_EQ(matched, w.leaf_count());
   EXPECT_EQ(same_normal, w.leaf_count());
   EXPECT_EQ(same_radius, w.leaf_count());
+}
+
+// The command: a survey past its budget builds in chunks within it (2 M
+// points under 32 MiB; a smaller one under the sanitizers, whose shadow
+// memory no budget counts), prints how, and leaves only its cache.
+TEST(ChunkedBuildCli, ASurveyPastItsBudgetBuildsInChunksWithinIt) {
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+  const char* points = "300000";
+  const bool measured = false;
+#else
+  const char* points = "2000000";
+  const bool measured = true;
+#endif
+  const fs::path dir = test::scratch_dir("chunked_cli");
+  const test::CommandResult gen = test::run_treecut("gen survey -n " + std::string(points) +
+                                                    " --tile 250 -o " + test::quote(dir / "tiles"));
+  ASSERT_EQ(gen.code, 0) << gen.out;
+  const test::CommandResult r = test::run_treecut("build " + test::quote(dir / "tiles") +
+                                                  " --memory 32M -o " + test::quote(dir / "m.tch"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(r.out, m, std::regex("chunks +([0-9]+), the largest ([0-9]+)")))
+      << r.out;
+  EXPECT_GT(std::stoul(m[1]), 1u);
+  ASSERT_TRUE(std::regex_search(
+      r.out, m, std::regex("memory +peak ([0-9.]+) MiB of a budget of 32.0 MiB; temporary disk")))
+      << r.out;
+  if (measured) {
+    EXPECT_LE(std::stod(m[1]), 32.0) << r.out;
+  }
+  EXPECT_EQ(entries(dir), (std::vector<std::string>{"m.tch", "tiles"}));
+  const test::CommandResult info = test::run_treecut("info " + test::quote(dir / "m.tch"));
+  ASSERT_EQ(info.code, 0) << info.out;
+  EXPECT_NE(info.out.find("points      " + std::string(points) + "\n"), std::string::npos)
+      << info.out;
+}
+
+// A disk that fills during a chunked build: one line naming where and why,
+// exit 1, and nothing left on the disk.
+TEST(ChunkedBuildCli, AFullDiskEndsTheBuildWithOneLineAndLeavesNothing) {
+  auto disk = test::SmallDisk::mount("chunked_full", 2u << 20);
+  if (!disk) GTEST_SKIP() << "cannot mount a tmpfs here (needs root)";
+  const fs::path dir = test::scratch_dir("chunked_full_tiles");
+  write_survey(dir, 200000);
+  const test::CommandResult r = test::run_treecut(
+      "build " + test::quote(dir) + " --memory 32M -o " + test::quote(disk->path() / "m.tch"));
+  test::expect_failure(r, 1, "No space left on device");
+  EXPECT_NE(r.out.find("m.tch"), std::string::npos) << r.out;
+  EXPECT_TRUE(entries(disk->path()).empty()) << "temporary files left";
+}
+
+// The build killed (SIGKILL: no chance to clean up) leaves its temporary
+// files; the next build of the same cache removes them. SIGTERM removes
+// them itself.
+TEST(ChunkedBuildCli, TemporaryFilesGoOnSignalsAndAfterAKill) {
+  const fs::path dir = test::scratch_dir("chunked_kill");
+  fs::create_directories(dir / "tiles");
+  write_survey(dir / "tiles", 300000);
+  const fs::path bin = fs::path(TREECUT_BINARY_DIR) / "demo" / "treecut";
+  const auto start = [&] {
+    const pid_t pid = ::fork();
+    if (pid == 0) {
+      const std::string tiles = (dir / "tiles").string(), out = (dir / "m.tch").string();
+      ::freopen("/dev/null", "w", stdout);
+      ::freopen("/dev/null", "w", stderr);
+      ::execl(bin.c_str(), bin.c_str(), "build", tiles.c_str(), "--memory", "32M", "-o",
+              out.c_str(), static_cast<char*>(nullptr));
+      ::_exit(127);
+    }
+    return pid;
+  };
+  // Until the build has temporary files (its scratch beside the cache).
+  const auto scratch_appears = [&] {
+    for (int i = 0; i < 6000; ++i) {
+      for (const std::string& name : entries(dir))
+        if (name.find(".tmp-") != std::string::npos) return true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    return false;
+  };
+  for (const int sig : {SIGKILL, SIGTERM}) {
+    const pid_t pid = start();
+    ASSERT_GT(pid, 0);
+    ASSERT_TRUE(scratch_appears()) << "no temporary file within a minute";
+    ::kill(pid, sig);
+    int status = 0;
+    ::waitpid(pid, &status, 0);
+    ASSERT_TRUE(WIFSIGNALED(status)) << "the build ended before the signal";
+    const std::vector<std::string> left = entries(dir);
+    if (sig == SIGTERM) {
+      EXPECT_EQ(left, (std::vector<std::string>{"tiles"})) << "SIGTERM removes them";
+      continue;
+    }
+    EXPECT_GT(left.size(), 1u) << "a kill -9 leaves them";
+    const test::CommandResult again = test::run_treecut(
+        "build " + test::quote(dir / "tiles") + " --memory 32M -o " + test::quote(dir / "m.tch"));
+    ASSERT_EQ(again.code, 0) << again.out;
+    EXPECT_EQ(entries(dir), (std::vector<std::string>{"m.tch", "tiles"}))
+        << "the next build removed what the killed one left";
+    fs::remove(dir / "m.tch");
+  }
+}
+
+// A tile that cannot be read halfway through a folder: named, exit 2, no
+// cache and no temporary file.
+TEST(ChunkedBuildCli, ATileCutShortIsNamedAndNothingIsWritten) {
+  const fs::path dir = test::scratch_dir("chunked_cut");
+  fs::create_directories(dir / "tiles");
+  write_survey(dir / "tiles", 200000);
+  std::vector<fs::path> tiles;
+  for (const auto& e : fs::directory_iterator(dir / "tiles")) tiles.push_back(e.path());
+  std::sort(tiles.begin(), tiles.end());
+  ASSERT_EQ(tiles.size(), 4u);
+  fs::resize_file(tiles[2], fs::file_size(tiles[2]) / 2);
+  const test::CommandResult r = test::run_treecut("build " + test::quote(dir / "tiles") +
+                                                  " --memory 32M -o " + test::quote(dir / "m.tch"));
+  test::expect_failure(r, 2, tiles[2].filename().string());
+  EXPECT_EQ(entries(dir), (std::vector<std::string>{"tiles"}));
 }
 
 }  // namespace

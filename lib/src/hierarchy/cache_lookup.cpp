@@ -9,10 +9,12 @@
 #include <unistd.h>
 #include <xxhash.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <ctime>
 #include <future>
+#include <memory>
 #include <optional>
 #include <span>
 #include <stdexcept>
@@ -63,10 +65,25 @@ std::uint64_t detail::hash_descriptor(const std::filesystem::path& source, int f
                                       std::uint64_t size) {
   if (size == 0) return XXH3_64bits(nullptr, 0);
   const MappedFile map(fd, size, source);
-  ::madvise(const_cast<unsigned char*>(map.data()), map.size(), MADV_SEQUENTIAL);
-  std::uint64_t hash = 0;
-  map.read_guarded([&] { hash = XXH3_64bits(map.data(), map.size()); });
-  return hash;
+  auto* bytes = const_cast<unsigned char*>(map.data());
+  ::madvise(bytes, map.size(), MADV_SEQUENTIAL);
+  // A window at a time, each let go once hashed: the file's pages stay in
+  // the page cache but not in this process's memory, which a build's
+  // budget bounds (a survey's tiles of tens of GB; issue 44).
+  constexpr std::size_t kWindow = std::size_t{1} << 20;
+  const std::unique_ptr<XXH3_state_t, XXH_errorcode (*)(XXH3_state_t*)> owned(XXH3_createState(),
+                                                                              XXH3_freeState);
+  XXH3_state_t* state = owned.get();
+  if (!state) throw std::bad_alloc();
+  XXH3_64bits_reset(state);
+  map.read_guarded([&] {
+    for (std::size_t at = 0; at < map.size(); at += kWindow) {
+      const std::size_t n = std::min(kWindow, map.size() - at);
+      XXH3_64bits_update(state, bytes + at, n);
+      ::madvise(bytes + at, n, MADV_DONTNEED);
+    }
+  });
+  return XXH3_64bits_digest(state);
 }
 
 namespace {

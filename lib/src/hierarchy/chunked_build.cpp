@@ -3,6 +3,8 @@
 // them and the file.
 #include "chunked_build.hpp"
 
+#include <malloc.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -31,6 +33,13 @@ using Clock = std::chrono::steady_clock;
 
 double seconds_since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+// What a chunk freed goes back to the system before the next: the
+// allocator would keep it (each worker thread's arena its own), and the
+// budget bounds what the process holds, not what it uses.
+void give_back_memory() {
+  ::malloc_trim(0);
 }
 
 // ---- Chunks on disk ---------------------------------------------------------
@@ -121,7 +130,7 @@ struct ChunkPages {
 // stages: its arrays, the neighbour grid and the values found (attributes),
 // or build_hierarchy and its pages (hierarchy); about 125 bytes measured
 // with a survey's eleven fields (docs/files.md, "Memory").
-constexpr std::uint64_t kChunkBytesPerPoint = 180;
+constexpr std::uint64_t kChunkBytesPerPoint = 210;
 
 // The sizes ROOM (the budget less what the program holds) allows: a
 // chunk's points, a batch's, the grid's.
@@ -135,7 +144,8 @@ Sizes sizes_for(std::uint64_t room) {
   Sizes s{};
   s.grid_levels = room >= (std::uint64_t{512} << 20) ? 7 : 6;
   const std::uint64_t grid = std::uint64_t{4} << (3 * s.grid_levels);
-  const std::uint64_t left = room > 4 * grid ? room - 2 * grid : room / 2;
+  // The grid, and an eighth for what the allocator keeps between chunks.
+  const std::uint64_t left = room > 4 * grid ? room - 2 * grid - room / 8 : room / 2;
   // A batch on its way to the chunks (~120 bytes a point with its
   // blocks) takes a tenth, at most a million points.
   s.batch_points = static_cast<std::size_t>(
@@ -301,6 +311,7 @@ void ChunkedBuild::complete_chunks() {
     held = std::max(held, parts_->held() + done_->held() + radii_->held());
     release(*parts_, blocks_[c].core), release(*parts_, blocks_[c].halo);
     progress("attributes", c + 1, report_.chunks);
+    give_back_memory();
   }
   parts_.reset();
   median_radius_ = median_of(*radii_, positive_radii_);
@@ -354,6 +365,7 @@ void ChunkedBuild::build_chunks() {
     for (const NodeAttribute& a : h.attributes()) root.values.push_back(a.value(0));
     report_.scratch_bytes = std::max(report_.scratch_bytes, done_->held() + pages_->held());
     progress("hierarchy", c + 1, report_.chunks);
+    give_back_memory();
   }
   done_.reset();
 }

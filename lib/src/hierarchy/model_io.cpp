@@ -331,6 +331,8 @@ void write_model_cache(const CacheImage& image, const OpenOptions& options, Open
 // The least memory a chunked build runs in beside the program: its grid,
 // a batch of points and a chunk of some thousands.
 constexpr std::uint64_t kLeastChunkedRoom = std::uint64_t{8} << 20;
+// What the program holds before a build (the command-line tool: 16-17 MiB).
+constexpr std::uint64_t kProgramBytes = std::uint64_t{17} << 20;
 
 // A model past BUDGET built in chunks straight into its cache, then
 // loaded from it when its hierarchy fits the budget (the nodes' arrays).
@@ -339,8 +341,12 @@ void build_in_chunks(std::span<const std::filesystem::path> files, const CacheKe
   const std::string name =
       quoted_name(files.size() == 1 ? files.front() : files.front().parent_path());
   // The budget bounds the process: what it holds already is not the build's.
+  // Sized by the program's usual size when it holds less (and in steps of
+  // 1 MiB), so that the chunks, and the cache, are the same from one run to
+  // the next.
   const std::uint64_t resident = detail::resident_bytes();
-  const std::uint64_t room = budget > resident ? budget - resident : 0;
+  const std::uint64_t held = std::max(resident, kProgramBytes);
+  const std::uint64_t room = budget > held ? (budget - held) / (1u << 20) * (1u << 20) : 0;
   if (room < kLeastChunkedRoom) {
     char line[240];
     std::snprintf(line, sizeof line,
