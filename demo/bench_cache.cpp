@@ -37,20 +37,9 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-// The scratch cache: treecut's own file in the temporary folder, removed
-// whatever happens.
-struct Scratch {
-  std::filesystem::path path = std::filesystem::temp_directory_path() /
-                               ("treecut-bench-cache-" + std::to_string(::getpid()) + ".tch");
-  ~Scratch() {
-    std::error_code ec;
-    std::filesystem::remove(path, ec);
-  }
-};
-
 void run_bench_cache(const CacheArgs& args) {
   for (const std::string& model : args.models) require_regular_file(model);
-  const Scratch scratch;
+  const ScratchCache scratch("cache");
   bool header = false;
   for (const std::string& model : args.models) {
     OpenOptions options;

@@ -1,6 +1,8 @@
 // What the `treecut bench` commands share (bench_common.hpp).
 #include "bench_common.hpp"
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
@@ -62,6 +64,15 @@ double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
   const std::size_t n = v.size();
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+ScratchCache::ScratchCache(const std::string& stem)
+    : path(std::filesystem::temp_directory_path() /
+           ("treecut-bench-" + stem + "-" + std::to_string(::getpid()) + ".tch")) {}
+
+ScratchCache::~ScratchCache() {
+  std::error_code ec;
+  std::filesystem::remove(path, ec);
 }
 
 }  // namespace treecut::cli

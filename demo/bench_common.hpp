@@ -29,6 +29,16 @@ void check_bench_csv(const std::filesystem::path& csv, std::string_view header,
 /// "csv       FILE" line printed.
 void write_bench_csv(const std::filesystem::path& csv, const std::string& text);
 
+/// A cache of the bench's own in the temporary folder
+/// (`treecut-bench-STEM-PID.tch`), removed whatever happens.
+struct ScratchCache {
+  explicit ScratchCache(const std::string& stem);
+  ScratchCache(const ScratchCache&) = delete;
+  ScratchCache& operator=(const ScratchCache&) = delete;
+  ~ScratchCache();
+  std::filesystem::path path;
+};
+
 /// The median; NaN for no values.
 [[nodiscard]] double median(std::vector<double> v);
 

@@ -116,8 +116,8 @@ void add_memory_option(CLI::App& cmd, std::uint64_t& bytes) {
                                         "'" + text + "' is not a size (bytes, or K, M, G, T)");
            bytes = *v;
          },
-         "The memory a build may use (bytes, or K, M, G, T; default: what the machine has "
-         "available): a model that would need more is refused before it is read")
+         "The memory a build may use (bytes, or K, M, G, T; default: a quarter of the "
+         "machine's): a model that would need more is built in chunks into its cache")
       ->type_name("SIZE");
 }
 

@@ -41,6 +41,7 @@ class ProgressBar {
   /// Any thread: the current stage and its progress (total 0 or 1: unknown).
   void update(std::string_view label, std::size_t done, std::size_t total) {
     std::lock_guard lock(mutex_);
+    if (label_ != label) stage_start_ = std::chrono::steady_clock::now();
     label_ = label;
     done_ = done;
     total_ = total;
@@ -64,12 +65,35 @@ class ProgressBar {
           known
               ? static_cast<int>(kWidth * static_cast<double>(done_) / static_cast<double>(total_))
               : 0;
-      std::fprintf(stderr, "\r%-10s [%.*s%*s] %s %6.1fs", label_.c_str(), filled,
+      // Within a stage that counts, its pace and what is left at it (a
+      // chunked build's points and chunks: issue 44).
+      char pace[64] = "";
+      const double in_stage =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - stage_start_).count();
+      if (known && done_ > 0 && done_ < total_ && in_stage > 1.0) {
+        const double rate = double(done_) / in_stage;
+        std::snprintf(pace, sizeof pace, " %zu/%zu, %s/s, %.0fs left", done_, total_,
+                      human(rate).c_str(), double(total_ - done_) / rate);
+      }
+      std::fprintf(stderr, "\r%-10s [%.*s%*s] %s %6.1fs%s\033[K", label_.c_str(), filled,
                    "########################################", kWidth - filled, "",
-                   known ? (std::to_string(100 * done_ / total_) + "%").c_str() : "...", elapsed);
+                   known ? (std::to_string(100 * done_ / total_) + "%").c_str() : "...", elapsed,
+                   pace);
       std::fflush(stderr);
       drawn_ = true;
     }
+  }
+
+  // 1234567 as "1.2M".
+  static std::string human(double v) {
+    char text[32];
+    if (v >= 1e6)
+      std::snprintf(text, sizeof text, "%.1fM", v / 1e6);
+    else if (v >= 1e4)
+      std::snprintf(text, sizeof text, "%.0fk", v / 1e3);
+    else
+      std::snprintf(text, sizeof text, "%.1f", v);
+    return text;
   }
 
   std::mutex mutex_;
@@ -77,6 +101,7 @@ class ProgressBar {
   std::string label_;
   std::size_t done_ = 0, total_ = 0;
   std::chrono::steady_clock::time_point start_;
+  std::chrono::steady_clock::time_point stage_start_ = std::chrono::steady_clock::now();
   bool drawn_ = false;
   std::jthread ticker_;  // last: started after the members it reads
 };

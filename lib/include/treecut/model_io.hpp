@@ -59,10 +59,11 @@ struct ChunkedBuildFigures {
   std::uint64_t largest_chunk = 0;  ///< points, halo included
   std::uint64_t halo_points = 0;    ///< copies of points in other chunks' halos
   /// The halo's width, model units: the reach of the neighbour search
-  /// (neighbour_reach), so that every point has all its neighbours.
+  /// (NeighbourReach), so that every point has all its neighbours.
   float halo = 0.0f;
   std::uint64_t scratch_bytes = 0;  ///< the most temporary disk held at once
   std::uint64_t budget = 0;         ///< the memory it was built within
+  std::uint64_t nodes = 0;          ///< of the hierarchy written
 };
 
 struct OpenedModel {

@@ -128,9 +128,14 @@ struct ChunkPages {
 
 // What a point of a chunk (its halo's too) costs at the peak of its two
 // stages: its arrays, the neighbour grid and the values found (attributes),
-// or build_hierarchy and its pages (hierarchy); about 125 bytes measured
-// with a survey's eleven fields (docs/files.md, "Memory").
-constexpr std::uint64_t kChunkBytesPerPoint = 210;
+// or build_hierarchy and its pages (hierarchy), with what the allocator
+// keeps; measured with a survey's eleven fields: 2 M points within 32 MiB
+// (the program 16-17 of them), 20 M in 1 GiB and 256 MiB (docs/benchmarks.md,
+// "Chunked build").
+constexpr std::uint64_t kChunkBytesPerPoint = 170;
+// What the stages hold beside the chunk: the scratch files' write buffers,
+// the compressor's and a batch's blocks.
+constexpr std::uint64_t kStageBytes = std::uint64_t{4} << 20;
 
 // The sizes ROOM (the budget less what the program holds) allows: a
 // chunk's points, a batch's, the grid's.
@@ -144,13 +149,15 @@ Sizes sizes_for(std::uint64_t room) {
   Sizes s{};
   s.grid_levels = room >= (std::uint64_t{512} << 20) ? 7 : 6;
   const std::uint64_t grid = std::uint64_t{4} << (3 * s.grid_levels);
-  // The grid, and an eighth for what the allocator keeps between chunks.
-  const std::uint64_t left = room > 4 * grid ? room - 2 * grid - room / 8 : room / 2;
+  // The grid, the stages' own, and an eighth for what the allocator keeps
+  // between chunks.
+  const std::uint64_t fixed = 2 * grid + kStageBytes + room / 8;
+  const std::uint64_t left = room > 2 * fixed ? room - fixed : room / 2;
   // A batch on its way to the chunks (~120 bytes a point with its
   // blocks) takes a tenth, at most a million points.
   s.batch_points = static_cast<std::size_t>(
       std::clamp<std::uint64_t>(left / 10 / 120, 4096, std::uint64_t{1} << 20));
-  s.chunk_points = std::max<std::uint64_t>(4096, left * 6 / 10 / kChunkBytesPerPoint);
+  s.chunk_points = std::max<std::uint64_t>(4096, left * 7 / 10 / kChunkBytesPerPoint);
   return s;
 }
 
@@ -230,7 +237,7 @@ void ChunkedBuild::count() {
                    join_frame(b, files_[f], files_.front(), frame_only, {});
                    plan_->count(b.positions);
                    reach.count(b.positions);
-                   progress("count", done += b.size(), declared_);
+                   progress("count points", done += b.size(), declared_);
                  });
   plan_->plan(sizes_.chunk_points, reach.reach(std::max(3, options_.attributes.k)));
   report_.chunks = plan_->chunks().size();
@@ -247,7 +254,7 @@ void ChunkedBuild::distribute() {
                    join_frame(b, files_[f], files_.front(), whole_, options_.warn);
                    gather(b, whole_);
                    send_to_chunks(b);
-                   progress("distribute", whole_.points, declared_);
+                   progress("distribute points", whole_.points, declared_);
                  });
   report_.points = out_.input_points = whole_.points;
   if (whole_.points == 0) throw InputError(quoted_name(files_.front()) + ": no points");
@@ -310,7 +317,7 @@ void ChunkedBuild::complete_chunks() {
     blocks_[c].done = append_slices(*done_, ps);
     held = std::max(held, parts_->held() + done_->held() + radii_->held());
     release(*parts_, blocks_[c].core), release(*parts_, blocks_[c].halo);
-    progress("attributes", c + 1, report_.chunks);
+    progress("chunks: attributes", c + 1, report_.chunks);
     give_back_memory();
   }
   parts_.reset();
@@ -364,7 +371,7 @@ void ChunkedBuild::build_chunks() {
     root.point_count = h.leaf_count();
     for (const NodeAttribute& a : h.attributes()) root.values.push_back(a.value(0));
     report_.scratch_bytes = std::max(report_.scratch_bytes, done_->held() + pages_->held());
-    progress("hierarchy", c + 1, report_.chunks);
+    progress("chunks: hierarchy", c + 1, report_.chunks);
     give_back_memory();
   }
   done_.reset();

@@ -386,6 +386,7 @@ void build_in_chunks(std::span<const std::filesystem::path> files, const CacheKe
   out.chunked.halo = r.halo;
   out.chunked.scratch_bytes = r.scratch_bytes;
   out.chunked.budget = budget;
+  out.chunked.nodes = r.nodes;
   const auto t0 = std::chrono::steady_clock::now();
   // Loaded when its arrays fit the budget (Hierarchy::memory_bytes: 45
   // bytes a node and 4 an attribute's value; with the decoder's own, half
