@@ -96,6 +96,7 @@ Sample run_once(const std::string& spec, unsigned threads, std::uint64_t memory)
     o.use_cache = memory != 0;
     o.require_cache = o.rebuild = memory != 0;
     o.memory = memory;
+    o.need_hierarchy = memory == 0;
     o.build.threads = threads;
     std::optional<ScratchCache> cache;
     if (memory) {

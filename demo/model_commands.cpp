@@ -297,6 +297,7 @@ void add_build_command(CLI::App& app) {
     o.use_cache = true;
     // build exists to write the cache: failing to is an error, not a warning.
     o.require_cache = true;
+    o.need_hierarchy = false;  // a model built in chunks past the budget stays in its cache
     // -f removes nothing up front: the old cache stays until the new one replaces it.
     o.rebuild = build_args->force;
     const std::vector<std::filesystem::path> files = build_inputs(build_args->models);

@@ -46,6 +46,10 @@ struct OpenOptions {
   /// its cache (a point cloud with a cache to write), else refused before
   /// it reads.
   std::uint64_t memory = 0;
+  /// Whether the caller draws or inspects the hierarchy (true): a model
+  /// built in chunks is then loaded from its cache whatever its size;
+  /// `build` (false) loads it only when it fits the budget.
+  bool need_hierarchy = true;
   WarningSink warn;  ///< PLY warnings and cache notes (may be empty)
   /// Called on the calling thread with the stage ("read", "attributes",
   /// "hierarchy", "cache") and (done, total) work units within it; may be empty.

@@ -203,6 +203,7 @@ class ChunkedBuild {
   std::uint64_t declared_ = 0;  // points the headers declare
   std::optional<ChunkPlan> plan_;
   std::vector<ChunkBlocks> blocks_;
+  std::vector<std::vector<std::uint32_t>> core_ids_, halo_ids_;  // send_to_chunks
   Whole whole_;
   CoordinateFrame frame_;
   // Each scratch file goes when it is read for the last time (and its
@@ -260,12 +261,17 @@ void ChunkedBuild::distribute() {
   if (whole_.points == 0) throw InputError(quoted_name(files_.front()) + ": no points");
   out_.files = files_.size();
   report_.scratch_bytes = parts_->held();
+  std::vector<std::vector<std::uint32_t>>().swap(core_ids_);
+  std::vector<std::vector<std::uint32_t>>().swap(halo_ids_);
   frame_ = whole_.first.frame;
 }
 
 void ChunkedBuild::send_to_chunks(const PointSet& b) {
   const std::size_t chunks = report_.chunks;
-  thread_local std::vector<std::vector<std::uint32_t>> core, halo;
+  // Each chunk's points of the batch, its own and its halo's (kept between
+  // batches for their capacity).
+  std::vector<std::vector<std::uint32_t>>& core = core_ids_;
+  std::vector<std::vector<std::uint32_t>>& halo = halo_ids_;
   core.resize(chunks), halo.resize(chunks);
   std::vector<std::uint32_t> touched;
   const auto touch = [&](std::uint32_t c) {

@@ -5,10 +5,12 @@
 // neighbours' points near its border), each chunk's normals, radii and
 // curvature from its points and halo, then each chunk built by
 // build_hierarchy and written as pages, and the levels over the chunks'
-// roots on top (subtree_roots.hpp). Where the halo holds a point's
-// neighbours, its normal, radius and curvature are those of a build held
-// whole: what only the whole decides (the centroid normals face away
-// from, the median that fills and caps the radii) is taken over the whole.
+// roots on top (subtree_roots.hpp). Every point's normal, radius and
+// curvature are those of a build held whole: its neighbours are its k
+// nearest within the model's NeighbourReach (attributes.hpp), which is the
+// halo's width, and what only the whole decides (the centroid normals face
+// away from, the median that fills and caps the radii) is taken over the
+// whole.
 // Private to the library (open_model chooses it for a model past its
 // memory budget).
 #pragma once

@@ -388,10 +388,11 @@ void build_in_chunks(std::span<const std::filesystem::path> files, const CacheKe
   out.chunked.budget = budget;
   out.chunked.nodes = r.nodes;
   const auto t0 = std::chrono::steady_clock::now();
-  // Loaded when its arrays fit the budget (Hierarchy::memory_bytes: 45
-  // bytes a node and 4 an attribute's value; with the decoder's own, half
-  // as much again).
-  if (r.nodes * (45 + 4 * r.value_streams) * 3 / 2 <= room && r.nodes < kNoNode) {
+  // Loaded for a caller that draws it, and otherwise when its arrays fit
+  // the budget (Hierarchy::memory_bytes: 45 bytes a node and 4 an
+  // attribute's value; with the decoder's own, half as much again).
+  if (given.need_hierarchy ||
+      (r.nodes * (45 + 4 * r.value_streams) * 3 / 2 <= room && r.nodes < kNoNode)) {
     std::string why;
     if (auto h = load_cache(out.cache, std::nullopt, &why))
       out.hierarchy = std::move(*h);
