@@ -64,6 +64,10 @@ struct CacheMeta {
 /// (which writes its pages from disk) write first.
 std::vector<unsigned char> cache_meta(const CacheMeta& meta,
                                       std::vector<cache_layout::PageRecord>& table);
+/// Creates the folder CACHE is to be written in, if missing; throws
+/// std::runtime_error "FOLDER: REASON".
+void create_cache_folder(const std::filesystem::path& cache);
+
 /// The checksum a cache file ends with: of its meta part.
 std::array<unsigned char, 8> meta_checksum(std::span<const unsigned char> meta);
 

@@ -175,12 +175,15 @@ std::size_t CacheImage::size() const {
 // Through an AtomicFile (temporary + rename), so readers see the old file or
 // the complete new one, and a failed write (full disk, read-only folder)
 // leaves no file.
+void detail::create_cache_folder(const std::filesystem::path& cache) {
+  if (!cache.has_parent_path()) return;
+  std::error_code ec;
+  std::filesystem::create_directories(cache.parent_path(), ec);
+  if (ec) throw std::runtime_error(system_error_text(cache.parent_path(), ec.value()));
+}
+
 void CacheImage::save(const std::filesystem::path& cache) const {
-  if (cache.has_parent_path()) {
-    std::error_code ec;
-    std::filesystem::create_directories(cache.parent_path(), ec);
-    if (ec) throw std::runtime_error(system_error_text(cache.parent_path(), ec.value()));
-  }
+  detail::create_cache_folder(cache);
   AtomicFile out(cache);
   out.write(meta_.data(), meta_.size());
   for (const std::vector<unsigned char>& page : pages_) out.write(page.data(), page.size());

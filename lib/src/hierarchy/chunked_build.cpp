@@ -445,11 +445,7 @@ void ChunkedBuild::write(const CacheKey& key, SourceNotes& notes) {
   const CacheMeta meta{key,           frame_,  whole_.lo, whole_.hi, nodes_,
                        whole_.points, levels_, model_,    notes};
   const std::vector<unsigned char> bytes = cache_meta(meta, table_);
-  if (cache_.has_parent_path()) {
-    std::error_code ec;
-    std::filesystem::create_directories(cache_.parent_path(), ec);
-    if (ec) throw std::runtime_error(system_error_text(cache_.parent_path(), ec.value()));
-  }
+  create_cache_folder(cache_);
   AtomicFile file(cache_);
   file.write(bytes.data(), bytes.size());
   std::vector<unsigned char> page;

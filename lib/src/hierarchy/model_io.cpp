@@ -113,11 +113,7 @@ namespace {
 // folder is created and a temporary made and removed in it (a read-only
 // folder, XDG_CACHE_HOME naming a file, a directory or FIFO at the path).
 void probe_cache_destination(const std::filesystem::path& cache) {
-  if (cache.has_parent_path()) {
-    std::error_code ec;
-    std::filesystem::create_directories(cache.parent_path(), ec);
-    if (ec) throw std::runtime_error(system_error_text(cache.parent_path(), ec.value()));
-  }
+  detail::create_cache_folder(cache);
   AtomicFile probe(cache);  // never committed: the destructor removes it
 }
 
