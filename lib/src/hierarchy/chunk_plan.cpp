@@ -26,7 +26,6 @@ glm::ivec3 ChunkPlan::cell_of(glm::vec3 p) const {
 
 void ChunkPlan::count(std::span<const glm::vec3> points) {
   for (const glm::vec3& p : points) ++counts_[index(cell_of(p))];
-  total_ += points.size();
 }
 
 void ChunkPlan::split(glm::ivec3 lo, int size, std::uint64_t max_points) {

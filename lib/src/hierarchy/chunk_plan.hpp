@@ -36,7 +36,6 @@ class ChunkPlan {
   };
   [[nodiscard]] const std::vector<Chunk>& chunks() const { return chunks_; }
   [[nodiscard]] float halo() const { return halo_; }
-  [[nodiscard]] std::uint64_t points() const { return total_; }
 
   /// P's chunk.
   [[nodiscard]] std::uint32_t chunk_of(glm::vec3 p) const;
@@ -57,7 +56,6 @@ class ChunkPlan {
   int dims_;
   std::vector<std::uint32_t> counts_;  // per cell; then, planned, each cell's chunk
   std::vector<Chunk> chunks_;
-  std::uint64_t total_ = 0;
   float halo_ = 0.0f;
 };
 

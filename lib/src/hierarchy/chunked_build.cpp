@@ -18,11 +18,9 @@
 #include "chunk_sources.hpp"
 #include "model_read.hpp"
 #include "point_blocks.hpp"
-#include "reproject.hpp"
 #include "subtree_roots.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
-#include "treecut/las.hpp"
 
 namespace treecut::detail {
 
@@ -189,7 +187,7 @@ class ChunkedBuild {
     const std::vector<unsigned char>* memory;
     std::uint64_t offset;
   };
-  void add_page(const cache_layout::PageRecord& r, Source from) {
+  void add_page(const PageRecord& r, Source from) {
     table_.push_back(r);
     sources_.push_back(from);
   }
@@ -216,7 +214,7 @@ class ChunkedBuild {
   std::vector<ChunkPages> built_;
   std::vector<SubtreeRoot> roots_;
   // The file: its pages, their sources, the levels and nodes.
-  std::vector<cache_layout::PageRecord> table_;
+  std::vector<PageRecord> table_;
   std::vector<Source> sources_;
   cache_pages::Encoded top_pages_;
   std::uint32_t levels_ = 0;
@@ -362,7 +360,7 @@ void ChunkedBuild::build_chunks() {
     cache_pages::Encoded e = cache_pages::encode(h);
     ChunkPages& cp = built_[c];
     for (std::size_t q = 0; q < e.table.size(); ++q) {
-      cache_layout::PageRecord r = e.table[q];
+      PageRecord r = e.table[q];
       r.offset = pages_->append(e.pages[q].data(), e.pages[q].size());
       cp.table.push_back(r);
     }
@@ -409,7 +407,7 @@ void ChunkedBuild::levels_over_chunks() {
         add_page(top_pages_.table[q], {&top_pages_.pages[q], 0});
         continue;
       }
-      cache_layout::PageRecord r = built_[c].table[0];
+      PageRecord r = built_[c].table[0];
       r.parent_page = top_pages_.table[q].parent_page;
       r.parent_local = top_pages_.table[q].parent_local;
       r.root_depth = depth[c];
@@ -422,7 +420,7 @@ void ChunkedBuild::levels_over_chunks() {
   for (std::size_t c = 0; c < chunks; ++c) {
     const auto base = static_cast<std::uint32_t>(table_.size());
     for (std::size_t q = 1; q < built_[c].table.size(); ++q) {
-      cache_layout::PageRecord r = built_[c].table[q];
+      PageRecord r = built_[c].table[q];
       const std::uint64_t at = r.offset;
       r.parent_page = r.parent_page == 0 ? first_page[c] : base + r.parent_page - 1;
       r.root_depth += depth[c];
@@ -469,11 +467,13 @@ void ChunkedBuild::write(const CacheKey& key, SourceNotes& notes) {
 ChunkedBuildReport build_chunked(std::span<const std::filesystem::path> files,
                                  const OpenOptions& options, const CacheKey& key,
                                  const std::filesystem::path& cache, std::uint64_t room,
-                                 SourceNotes& notes, OpenedModel& out) {
+                                 const std::function<void()>& after_read, SourceNotes& notes,
+                                 OpenedModel& out) {
   ChunkedBuild b(files, options, cache, room, out);
   auto t0 = Clock::now();
   b.count();
   b.distribute();
+  after_read();
   out.read_seconds = seconds_since(t0);
   t0 = Clock::now();
   b.complete_chunks();

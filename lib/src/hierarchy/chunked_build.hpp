@@ -17,6 +17,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <span>
 
 #include "treecut/model_io.hpp"
@@ -42,12 +43,15 @@ std::uint64_t resident_bytes();
 /// already) into the cache file CACHE
 /// (atomically, keyed on KEY), its notes' warnings into NOTES; OUT gets the
 /// format, the reader's report, the input points and the stages' seconds.
+/// AFTER_READ is called once the files are read for the last time (before
+/// anything is written under CACHE's name): it throws to stop the build.
 /// Temporary files lie beside CACHE, and go on any exit. Throws InputError
 /// for a file that cannot be read (named), std::runtime_error for one that
 /// cannot be written.
 ChunkedBuildReport build_chunked(std::span<const std::filesystem::path> files,
                                  const OpenOptions& options, const CacheKey& key,
                                  const std::filesystem::path& cache, std::uint64_t room,
-                                 SourceNotes& notes, OpenedModel& out);
+                                 const std::function<void()>& after_read, SourceNotes& notes,
+                                 OpenedModel& out);
 
 }  // namespace treecut::detail

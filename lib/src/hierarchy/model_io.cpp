@@ -362,18 +362,20 @@ void build_in_chunks(std::span<const std::filesystem::path> files, const CacheKe
     throw InputError(name +
                      ": --crs reprojects a model built held in memory; this one needs more "
                      "than --memory allows");
+  // The model read meanwhile changed: its cache would be of other bytes
+  // than its key says (checked before anything is at the cache's name).
+  const auto changed = [&] {
+    return !same_identity(cache_identity_of(files, key.options_bits), key);
+  };
+  const auto after_read = [&] {
+    if (changed()) throw FileChangedError(name + ": a file of the model changed while being read");
+  };
   detail::ChunkedBuildReport r;
   try {
-    r = detail::build_chunked(files, options, key, out.cache, room, notes, out);
+    r = detail::build_chunked(files, options, key, out.cache, room, after_read, notes, out);
   } catch (const InputError&) {
-    if (!same_identity(cache_identity_of(files, key.options_bits), key))
-      throw FileChangedError(name + ": a file of the model changed while being read");
+    if (changed()) throw FileChangedError(name + ": a file of the model changed while being read");
     throw;
-  }
-  if (!same_identity(cache_identity_of(files, key.options_bits), key)) {
-    std::error_code ec;
-    std::filesystem::remove(out.cache, ec);  // written by this build, of another content
-    throw FileChangedError(name + ": a file of the model changed while being read");
   }
   out.cache_written = true;
   out.chunked.chunks = r.chunks;
