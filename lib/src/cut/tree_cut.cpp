@@ -3,10 +3,11 @@
 #include "treecut/tree_cut.hpp"
 
 #include <algorithm>
-#include <array>
 #include <bit>
 #include <stdexcept>
 #include <utility>
+
+#include "support/radix_sort.hpp"
 
 namespace treecut {
 
@@ -113,23 +114,8 @@ void TreeCut::moved(std::uint32_t position) {
 }
 
 void sort_node_ids(std::vector<NodeId>& ids, NodeId id_end, std::vector<NodeId>& scratch) {
-  constexpr unsigned kBits = 11;
-  constexpr std::size_t kBuckets = std::size_t{1} << kBits;
-  const unsigned bits =
-      std::max(1u, static_cast<unsigned>(std::bit_width(std::max<NodeId>(id_end, 1) - 1)));
-  const unsigned passes = (bits + kBits - 1) / kBits;
-  scratch.reserve(ids.capacity());  // the buffers trade places: keep room to grow
-  scratch.resize(ids.size());
-  std::array<std::uint32_t, kBuckets> offset{};
-  for (unsigned pass = 0; pass < passes; ++pass) {
-    const unsigned shift = pass * kBits;
-    offset.fill(0);
-    for (const NodeId n : ids) ++offset[(n >> shift) & (kBuckets - 1)];
-    std::uint32_t sum = 0;
-    for (std::uint32_t& o : offset) sum += std::exchange(o, sum);
-    for (const NodeId n : ids) scratch[offset[(n >> shift) & (kBuckets - 1)]++] = n;
-    ids.swap(scratch);  // O(1): the sorted digits are now in `ids`
-  }
+  detail::radix_sort(ids, 0, static_cast<unsigned>(std::bit_width(std::max<NodeId>(id_end, 1) - 1)),
+                     scratch);
 }
 
 void TreeCut::insert(NodeId n) {

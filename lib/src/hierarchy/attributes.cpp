@@ -199,15 +199,15 @@ void from_neighbours(PointSet& ps, const NeighbourJob& job) {
   if (want_curvature) ps.curvature.assign(n, 0.0f);
   const glm::vec3 c = job.centroid;
   const bool z_up = ps.frame.z_up;
-  const auto visit = [&](std::uint32_t i, int found, const std::uint32_t* idx, const float* d2) {
-    const glm::vec3 p = ps.positions[i];
+  const auto visit = [&](std::uint32_t i, glm::vec3 p, int found, const glm::vec3* near,
+                         const float* d2) {
     if (want_radii && found == 1) ps.radii[i] = std::sqrt(d2[0] * 7.0f);
     // No neighbour within the reach: at least that sparse (the cap then
     // holds it to the model's typical disc).
     if (want_radii && found == 0) ps.radii[i] = job.reach;
     if (found < 2) return;
     Moments m;
-    for (int j = 0; j < found; ++j) m.add(ps.positions[idx[j]] - p);
+    for (int j = 0; j < found; ++j) m.add(near[j] - p);
     const Sym3 cov = m.covariance();
     if (want_radii) ps.radii[i] = neighbourhood_radius(cov, d2[found - 1], found);
     if (!want_normals && !want_curvature) return;

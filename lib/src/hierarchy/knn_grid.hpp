@@ -17,7 +17,11 @@ namespace treecut::detail {
 
 class KnnGrid {
  public:
-  explicit KnnGrid(std::span<const glm::vec3> points, float points_per_cell = 5.0f);
+  /// About POINTS_PER_CELL in an occupied cell: as many as the neighbours
+  /// asked for by default (12), so that the k-th nearest usually lies within
+  /// the 27 cells gathered (with 5, one query in 22 of a survey tile was
+  /// searched again cell by cell).
+  explicit KnnGrid(std::span<const glm::vec3> points, float points_per_cell = 12.0f);
 
   /// The (up to) k nearest points to points[self] within REACH, self
   /// excluded, nearest first (as near: by position, `before`). Writes
@@ -29,12 +33,13 @@ class KnnGrid {
   int query(std::uint32_t self, int k, std::uint32_t* index, float* dist2,
             float reach = INFINITY) const;
 
-  /// Calls fn(i, found, index, dist2) once for every point i with its (up to)
-  /// k nearest neighbours, nearest first, from several threads. Points of one
-  /// cell share one gathered candidate list (the 27 surrounding cells), which
-  /// answers most queries from contiguous memory; the rest fall back to query().
-  /// Only points below QUERIED are asked for (the others are neighbours
-  /// only: a chunk's halo); neighbours within REACH, as query() finds them.
+  /// Calls fn(i, p, found, near, dist2) once for every point i (at p) with
+  /// the positions of its (up to) k nearest neighbours, nearest first, from
+  /// several threads. Points of one cell share one gathered candidate list
+  /// (the 27 surrounding cells), which answers most queries from contiguous
+  /// memory; the rest fall back to query(). Only points below QUERIED are
+  /// asked for (the others are neighbours only: a chunk's halo); neighbours
+  /// within REACH, as query() finds them.
   template <class Fn>
   void for_each_knn(int k, Fn&& fn, std::uint32_t queried = 0xffffffffu,
                     float reach = INFINITY) const;
@@ -54,7 +59,7 @@ class KnnGrid {
   struct Candidates {
     std::vector<float> x, y, z, d2;
     std::vector<std::uint32_t> index;
-    std::vector<std::uint32_t> found;  // the candidates found so far (top_k)
+    std::vector<std::uint64_t> keys;  // top_k's (distance, candidate) pairs
   };
   // Whether a neighbour at squared distance D and position P comes before
   // one at E and Q: nearer, or as near and lower in x, then y, then z. Ties
@@ -67,9 +72,11 @@ class KnnGrid {
     if (p.y != q.y) return p.y < q.y;
     return p.z < q.z;
   }
-  // Exact top-k over gathered candidates; returns how many were found.
-  static int top_k(glm::vec3 q, std::uint32_t self, int k, float reach2, Candidates& c,
-                   std::uint32_t* index, float* dist2);
+  // Exact top-k over gathered candidates within the reach: their squared
+  // distances and positions; returns how many were found. GUESS2 (0: none) is where the k-th is
+  // expected; it is set for the next query.
+  static int top_k(glm::vec3 q, std::uint32_t self, int k, float reach2, float& guess2,
+                   Candidates& c, float* dist2, glm::vec3* near);
   // Distance from p to the outside of the cube of cells within `r` of its cell.
   float reach(glm::vec3 p, glm::ivec3 cell, int r) const;
   void gather(glm::ivec3 cell, Candidates& c) const;
@@ -95,20 +102,25 @@ void KnnGrid::for_each_knn(int k, Fn&& fn, std::uint32_t queried, float reach) c
         Candidates cand;
         std::vector<std::uint32_t> index(kk);
         std::vector<float> dist2(kk);
+        std::vector<glm::vec3> near(kk);
+        float guess2 = 0.0f;
         for (std::size_t c = b; c < e; ++c) {
           const Cell& run = runs_[c];
-          const glm::ivec3 cell = cell_of(points_[order_[run.begin]]);
+          const glm::ivec3 cell = cell_of(sorted_[run.begin]);
           gather(cell, cand);
           for (std::uint32_t j = run.begin; j < run.end; ++j) {
             const std::uint32_t i = order_[j];
             if (i >= queried) continue;
-            int found = top_k(points_[i], i, k, reach * reach, cand, index.data(), dist2.data());
+            const glm::vec3 p = sorted_[j];
+            int found = top_k(p, i, k, reach * reach, guess2, cand, dist2.data(), near.data());
             // Exact when the k-th lies within the gathered cells, or when
             // they hold everything within the reach.
-            const float r = this->reach(points_[i], cell, 1);
-            if (found < k ? r < reach : dist2[kk - 1] > r * r)
+            const float r = this->reach(p, cell, 1);
+            if (found < k ? r < reach : dist2[kk - 1] > r * r) {
               found = query(i, k, index.data(), dist2.data(), reach);
-            fn(i, found, static_cast<const std::uint32_t*>(index.data()),
+              for (int f = 0; f < found; ++f) near[std::size_t(f)] = points_[index[std::size_t(f)]];
+            }
+            fn(i, p, found, static_cast<const glm::vec3*>(near.data()),
                static_cast<const float*>(dist2.data()));
           }
         }
