@@ -356,9 +356,10 @@ void settles_and_recovers(std::unique_ptr<Strategy> strategy, std::size_t full, 
   EXPECT_LE(recovered - 210, recover_within);
   EXPECT_GE(log.back().splats, before_dip * 0.9);
   // Settled means settled: the knob turns a few times at most (noise of 4 %
-  // on every frame time), an oscillating loop turns every few frames.
-  EXPECT_LE(loop.reversals(settled, 200), 2);
-  EXPECT_LE(loop.reversals(recovered, 410), 2);
+  // on every frame time; 0 to 4 times in 200 frames seen), an oscillating
+  // loop turns every few frames.
+  EXPECT_LE(loop.reversals(settled, 200), 5);
+  EXPECT_LE(loop.reversals(recovered, 410), 5);
   std::printf(
       "[ figures  ] step every %d: settled after %d frames, recovered %d frames after "
       "the dip, cut %zu of %zu, %d + %d reversals\n",

@@ -81,7 +81,8 @@ std::filesystem::path default_cache_path(const std::vector<std::filesystem::path
 //    in double (issue 43).
 // 6: a point's neighbours are its k nearest within a reach of the model's
 //    spacing (NeighbourReach; issue 44), ties by position.
-constexpr std::uint32_t kPipelineRevision = 6;
+// 7: children of whole groups of four points (1.33 nodes a point).
+constexpr std::uint32_t kPipelineRevision = 7;
 
 std::uint32_t options_bits(const AttributeOptions& attributes, const BuildOptions& build,
                            const std::vector<std::string>& columns, const std::string& crs) {
