@@ -348,12 +348,13 @@ bool is_own_cache(const std::filesystem::path& path) {
   std::memcpy(&header_size, b + 16, 4);
   if (std::memcmp(b, kMagic, sizeof kMagic) != 0 || endian != kEndianTag) return false;
   // Where the header says the payload ends, and its own size, in the two
-  // layouts whose headers can be verified: this one, and version 7's (328
-  // bytes, the payload's end at byte 240) that the builds before the paged
-  // cache (issue 44) wrote. Older caches are not told apart from a user's
-  // file.
+  // layouts whose headers can be verified: this one (paged caches, from
+  // version 8), and version 7's (328 bytes, the payload's end at byte 240)
+  // that the builds before the paged cache (issue 44) wrote. Older caches
+  // are not told apart from a user's file.
   std::uint64_t payload_end = 0;
-  if (version == kVersion && header_size == sizeof(Header) && head.bytes.size() >= sizeof(Header)) {
+  if (version >= kFirstPagedVersion && version <= kVersion && header_size == sizeof(Header) &&
+      head.bytes.size() >= sizeof(Header)) {
     Header h;
     std::memcpy(&h, b, sizeof h);
     payload_end = h.payload_end;

@@ -35,7 +35,11 @@ inline constexpr char kMagic[8] = {'T', 'C', 'U', 'T', 'H', 'I', 'E', 'R'};
 // 8: paged (issue 44): nodes in pages of whole subtrees, each compressed
 //    and checksummed on its own, positions and radii quantized per page
 //    (cache_pages.hpp); 64-bit node and point counts.
-inline constexpr std::uint32_t kVersion = 8;
+// 9: pages of up to 8,192 nodes (4,096), priorities in 12 bits (16): the
+//    survey's cache 10 % smaller.
+inline constexpr std::uint32_t kVersion = 9;
+/// The first version with this header (what is_own_cache recognises).
+inline constexpr std::uint32_t kFirstPagedVersion = 8;
 inline constexpr std::uint32_t kEndianTag = 0x01020304u;
 inline constexpr std::size_t kAlign = 8;
 inline constexpr std::uint32_t kMaxCrsBytes = 4096;

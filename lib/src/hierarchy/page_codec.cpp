@@ -197,7 +197,7 @@ std::uint8_t encode_splat(float splat, float radius) {
 }
 
 std::uint16_t encode_priority(float p) {
-  return static_cast<std::uint16_t>(std::lround(std::clamp(p, 0.0f, 1.0f) * 65535.0f));
+  return static_cast<std::uint16_t>(std::lround(std::clamp(p, 0.0f, 1.0f) * 4095.0f));
 }
 
 // The z a unit normal with X and Y has, in snorm16, without its sign: the

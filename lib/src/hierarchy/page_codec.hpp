@@ -103,7 +103,7 @@ inline float decode_splat(std::uint8_t k, float radius) {
 }
 std::uint16_t encode_priority(float p);
 inline float decode_priority(std::uint16_t q) {
-  return float(q) / 65535.0f;
+  return float(q) / 4095.0f;
 }
 
 // ---- A page's values and its planes ----------------------------------------
