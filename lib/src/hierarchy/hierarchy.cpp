@@ -63,16 +63,18 @@ int longest_axis(const Item* first, const Item* last) {
   return ex >= ey && ex >= ez ? 0 : (ey >= ez ? 1 : 2);
 }
 
-// The children of a range: up to four, from binary median splits (QSplat's
-// branching factor), of whole groups of four points but the last: a range
-// of two to four points gets one leaf per point, so every leaf is one point
-// and nearly every leaf's parent holds four. Halving counts instead (four
-// children of n / 4) left ranges of two points at the bottom wherever n /
-// 4^levels is near 2: 1.65 nodes a point for a survey of 2 M points, 1.33
-// now whatever the count (a full 4-ary tree's), with the depth of the
-// halving. The split positions depend on the counts only, so the topology
-// is known before any point moves; partition() then moves the points to
-// match.
+// The children of a range: up to four, from two levels of binary median
+// splits (QSplat's branching factor). Ranges of two to four points get one
+// leaf per point, so every leaf is one point and the depth is at most
+// ceil(log2(n) / 2) + 1, even for duplicate or colinear points. A range of
+// seven or eight points takes one split, two children of three or four:
+// four children of about two would be four parents of two leaves each
+// (13 nodes for 8 points, 11 this way). Where the levels leave such ranges
+// at the bottom (n / 4^levels near 2) that is most of the tree: a survey of
+// 2 M points had 1.65 nodes a point, 1.44 this way. Five or six points
+// split four ways still: two children would hold more than one point each.
+// The split positions depend on the counts only, so the topology is known
+// before any point moves; partition() then moves the points to match.
 int child_ranges(Range r, Range out[4]) {
   const std::uint32_t n = r.end - r.begin;
   if (n <= 1) return 0;
@@ -81,7 +83,7 @@ int child_ranges(Range r, Range out[4]) {
     return static_cast<int>(n);
   }
   const std::uint32_t m = r.begin + n / 2;
-  if (n <= 8) {
+  if (n >= 7 && n <= 8) {
     out[0] = {r.begin, m};
     out[1] = {m, r.end};
     return 2;
@@ -92,8 +94,7 @@ int child_ranges(Range r, Range out[4]) {
   out[1] = {m0, m};
   out[2] = {m, m1};
   out[3] = {m1, r.end};
-  const std::uint32_t c = 4;
-  return static_cast<int>(c);
+  return 4;
 }
 
 // Moves the points of [b, e) so that [b, m) lies below m along the longest
@@ -123,10 +124,6 @@ void partition(Item* items, Range r) {
   const int cc = child_ranges(r, c);
   if (r.end - r.begin <= 4) return;  // single points need no order
   if (cc == 2) return split_at(items, r.begin, c[1].begin, r.end);
-  if (cc == 3) {
-    split_at(items, r.begin, c[1].begin, r.end);
-    return split_at(items, c[1].begin, c[2].begin, r.end);
-  }
   split_at(items, r.begin, c[2].begin, r.end);
   // The halves are disjoint: at the top of the tree, where a level has fewer
   // nodes than threads, split them at the same time.
