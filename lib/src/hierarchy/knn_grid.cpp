@@ -243,7 +243,8 @@ int KnnGrid::top_k(glm::vec3 q, std::uint32_t self, int k, float reach2, float& 
     near[i] = glm::vec3(x[j], y[j], z[j]);
   }
   // The next query (a point of the same cell, or the next cell's) expects
-  // about this point's spacing: its k-th distance, a fifth wider.
+  // about this point's spacing: its k-th squared distance and a fifth (the
+  // bound doubles where that holds fewer than k; 1.44 sorted more keys).
   guess2 = found == uk ? dist2[uk - 1] * 1.2f : 0.0f;
   return static_cast<int>(found);
 }
