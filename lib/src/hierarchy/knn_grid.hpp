@@ -73,8 +73,8 @@ class KnnGrid {
     return p.z < q.z;
   }
   // Exact top-k over gathered candidates within the reach: their squared
-  // distances and positions; returns how many were found. GUESS2 (0: none) is where the k-th is
-  // expected; it is set for the next query.
+  // distances and positions; returns how many were found. GUESS2 (0: none)
+  // is where the k-th is expected; it is set for the next query.
   static int top_k(glm::vec3 q, std::uint32_t self, int k, float reach2, float& guess2,
                    Candidates& c, float* dist2, glm::vec3* near);
   // Distance from p to the outside of the cube of cells within `r` of its cell.
