@@ -35,8 +35,8 @@ inline constexpr char kMagic[8] = {'T', 'C', 'U', 'T', 'H', 'I', 'E', 'R'};
 // 8: paged (issue 44): nodes in pages of whole subtrees, each compressed
 //    and checksummed on its own, positions and radii quantized per page
 //    (cache_pages.hpp); 64-bit node and point counts.
-// 9: pages of up to 8,192 nodes (4,096), priorities in 12 bits (16): the
-//    survey's cache 10 % smaller.
+// 9: pages of up to 8,192 nodes (4,096), priorities in 12 bits (16): a
+//    survey tile's cache 7 % smaller (25.4 -> 23.6 bytes a point).
 inline constexpr std::uint32_t kVersion = 9;
 /// The first version with this header (what is_own_cache recognises).
 inline constexpr std::uint32_t kFirstPagedVersion = 8;
