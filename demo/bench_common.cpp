@@ -11,6 +11,7 @@
 #include <string>
 #include <system_error>
 
+#include "treecut/cache.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
 
@@ -71,6 +72,9 @@ ScratchCache::ScratchCache(const std::string& stem)
            ("treecut-bench-" + stem + "-" + std::to_string(::getpid()) + ".tch")) {}
 
 ScratchCache::~ScratchCache() {
+  // Only a cache treecut wrote: a file of anyone else's that happened to
+  // have the name (the bench then failed to write over it) stays.
+  if (!is_own_cache(path)) return;
   std::error_code ec;
   std::filesystem::remove(path, ec);
 }

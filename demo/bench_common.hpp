@@ -30,7 +30,8 @@ void check_bench_csv(const std::filesystem::path& csv, std::string_view header,
 void write_bench_csv(const std::filesystem::path& csv, const std::string& text);
 
 /// A cache of the bench's own in the temporary folder
-/// (`treecut-bench-STEM-PID.tch`), removed whatever happens.
+/// (`treecut-bench-STEM-PID.tch`), removed whatever happens if it is a
+/// cache treecut wrote (a user's file of that name is left alone).
 struct ScratchCache {
   explicit ScratchCache(const std::string& stem);
   ScratchCache(const ScratchCache&) = delete;
