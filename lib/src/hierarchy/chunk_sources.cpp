@@ -27,6 +27,81 @@ PointSet Batches::next(std::size_t max, OpenedModel& out) {
   return all;
 }
 
+BatchesAhead::BatchesAhead(std::span<const std::filesystem::path> files, std::size_t batch_points,
+                           const WarningSink& warn, const std::vector<std::string>& columns)
+    : warn_(warn) {
+  reader_ = std::thread([this, files, batch_points, &columns] {
+    try {
+      read(files, batch_points, columns);
+    } catch (...) {
+      std::lock_guard lock(mutex_);
+      slot_.error = std::current_exception();
+      slot_.full = true;
+      changed_.notify_all();
+    }
+  });
+}
+
+BatchesAhead::~BatchesAhead() {
+  {
+    std::lock_guard lock(mutex_);
+    slot_.stop = true;
+  }
+  changed_.notify_all();
+  reader_.join();
+}
+
+void BatchesAhead::read(std::span<const std::filesystem::path> files, std::size_t batch_points,
+                        const std::vector<std::string>& columns) {
+  std::vector<std::string> warnings;  // the reader's since the last batch
+  const WarningSink keep = [&](const std::string& w) { warnings.push_back(w); };
+  // Hands a batch (or the end) over once the caller took the one before;
+  // false when the caller stopped.
+  const auto hand_over = [&](PointSet batch, std::size_t file, bool end) {
+    std::unique_lock lock(mutex_);
+    changed_.wait(lock, [&] { return !slot_.full || slot_.stop; });
+    if (slot_.stop) return false;
+    slot_.batch = std::move(batch), slot_.file = file, slot_.end = end;
+    slot_.warnings = std::exchange(warnings, {});
+    slot_.full = true;
+    changed_.notify_all();
+    return true;
+  };
+  // Waits for the slot to empty before reading on, so that two batches at
+  // most are held.
+  const auto wanted = [&] {
+    std::unique_lock lock(mutex_);
+    changed_.wait(lock, [&] { return !slot_.full || slot_.stop; });
+    return !slot_.stop;
+  };
+  for (std::size_t f = 0; f < files.size(); ++f) {
+    Batches batches(files[f], warn_ ? keep : WarningSink{}, columns);
+    OpenedModel one;
+    for (;;) {
+      if (!wanted()) return;
+      PointSet batch = batches.next(batch_points, f == 0 ? model_ : one);
+      if (batch.size() == 0) break;
+      if (!hand_over(std::move(batch), f, false)) return;
+    }
+    if (f > 0) model_.las.dropped_nonfinite += one.las.dropped_nonfinite;
+  }
+  hand_over({}, files.size(), true);
+}
+
+std::pair<PointSet, std::size_t> BatchesAhead::next() {
+  std::unique_lock lock(mutex_);
+  changed_.wait(lock, [&] { return slot_.full; });
+  if (slot_.error) std::rethrow_exception(slot_.error);
+  std::vector<std::string> warnings = std::move(slot_.warnings);
+  std::pair<PointSet, std::size_t> out{std::move(slot_.batch), slot_.file};
+  slot_.batch = {};
+  if (!slot_.end) slot_.full = false;  // the end stays for a later call
+  changed_.notify_all();
+  lock.unlock();
+  for (const std::string& w : warnings) warn_(w);
+  return out;
+}
+
 void join_frame(PointSet& batch, const std::filesystem::path& file,
                 const std::filesystem::path& first_file, Whole& whole, const WarningSink& warn) {
   if (!whole.started) {

@@ -5,10 +5,14 @@
 // and each chunk's fields in the model's forms. Private to the library.
 #pragma once
 
+#include <condition_variable>
+#include <exception>
 #include <filesystem>
+#include <mutex>
 #include <optional>
 #include <span>
 #include <string>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -75,22 +79,60 @@ void join_frame(PointSet& batch, const std::filesystem::path& file,
 /// The running figures of WHOLE from one batch (in the model's frame).
 void gather(const PointSet& batch, Whole& whole);
 
-/// Calls FN(batch, file index) for every batch of every file, in order;
-/// OUT gets the first file's format and report.
+/// The batches of FILES in order, read one ahead on a thread of its own:
+/// decoding a file (a third of the chunked build's read stage on a survey)
+/// goes on while the caller sends the batch before to its chunks. At most
+/// two batches are held, the caller's and the one being read. The reader's
+/// warnings reach WARN on the caller's thread, before the batch they came
+/// with; its error is rethrown by next().
+class BatchesAhead {
+ public:
+  BatchesAhead(std::span<const std::filesystem::path> files, std::size_t batch_points,
+               const WarningSink& warn, const std::vector<std::string>& columns);
+  ~BatchesAhead();  // stops the reader after its batch
+  BatchesAhead(const BatchesAhead&) = delete;
+  BatchesAhead& operator=(const BatchesAhead&) = delete;
+
+  /// The next batch (empty at the end) and the index of its file.
+  std::pair<PointSet, std::size_t> next();
+  /// After the end: the first file's format and report (as Batches gives
+  /// it), with the points every file dropped.
+  [[nodiscard]] const OpenedModel& model() const { return model_; }
+
+ private:
+  void read(std::span<const std::filesystem::path> files, std::size_t batch_points,
+            const std::vector<std::string>& columns);
+
+  WarningSink warn_;
+  OpenedModel model_;  // the reader's until the end
+  std::mutex mutex_;
+  std::condition_variable changed_;
+  // The slot between the threads, guarded by mutex_: a batch, its file,
+  // the warnings before it; `end` after the last, `error` instead of one.
+  struct Slot {
+    bool full = false, end = false, stop = false;
+    PointSet batch;
+    std::size_t file = 0;
+    std::vector<std::string> warnings;
+    std::exception_ptr error;
+  } slot_;
+  std::thread reader_;
+};
+
+/// Calls FN(batch, file index) for every batch of every file, in order
+/// (read ahead: BatchesAhead); OUT gets the first file's format and report.
 template <class Fn>
 void for_each_batch(std::span<const std::filesystem::path> files, std::size_t batch_points,
                     const WarningSink& warn, const std::vector<std::string>& columns,
                     OpenedModel& out, Fn&& fn) {
-  for (std::size_t f = 0; f < files.size(); ++f) {
-    Batches batches(files[f], warn, columns);
-    OpenedModel one;
-    for (;;) {
-      PointSet batch = batches.next(batch_points, f == 0 ? out : one);
-      if (batch.size() == 0) break;
-      fn(batch, f);
-    }
-    if (f > 0) out.las.dropped_nonfinite += one.las.dropped_nonfinite;
+  BatchesAhead batches(files, batch_points, warn, columns);
+  for (;;) {
+    auto [batch, file] = batches.next();
+    if (batch.size() == 0) break;
+    fn(batch, file);
   }
+  out.format = batches.model().format;
+  out.las = batches.model().las;
 }
 
 /// The box the files of a model declare, in the first file's frame: LAS
