@@ -120,9 +120,9 @@ void print_chunks(const OpenedModel& m) {
   struct rusage usage {};
   ::getrusage(RUSAGE_SELF, &usage);
   std::printf(
-      "chunks      %zu, the largest %llu points with its halo (halo %.3g units, %.1f %% of "
-      "the points copied into it)\n",
-      c.chunks, static_cast<unsigned long long>(c.largest_chunk), double(c.halo),
+      "chunks      %zu, %u at a time, the largest %llu points with its halo (halo %.3g units, "
+      "%.1f %% of the points copied into it)\n",
+      c.chunks, c.lanes, static_cast<unsigned long long>(c.largest_chunk), double(c.halo),
       100.0 * double(c.halo_points) / double(std::max<std::size_t>(m.input_points, 1)));
   std::printf(
       "memory      peak %.1f MiB of a budget of %.1f MiB; temporary disk at most %.1f MiB\n",

@@ -26,6 +26,7 @@
 #include "treecut/tools/generate.hpp"
 
 namespace fs = std::filesystem;
+using treecut::test::cache_but_identity_time;
 using treecut::test::CommandResult;
 using treecut::test::quote;
 using treecut::test::read_all;
@@ -165,13 +166,7 @@ TEST(OutputSafety, BuildForceReplacesTheCacheOnlyWhenTheNewOneIsComplete) {
   // The same input gives the same cache, but for when the build read the
   // model (the header's identity_ns, bytes 80-87, and so the checksum).
   const std::string rebuilt = read_all(cache);
-  auto but_identity_time = [](std::string bytes) {
-    if (bytes.size() < 96) return bytes;
-    bytes.replace(80, 8, 8, '\0');
-    bytes.replace(bytes.size() - 8, 8, 8, '\0');
-    return bytes;
-  };
-  EXPECT_EQ(but_identity_time(rebuilt), but_identity_time(old_cache))
+  EXPECT_EQ(cache_but_identity_time(rebuilt), cache_but_identity_time(old_cache))
       << "the same input gives the same cache";
   // The model turns malformed: -f fails and the earlier cache stays.
   write_text(model, "ply\nformat ascii 1.0\nelement vertex 9\nproperty float x\nend_header\n1\n");

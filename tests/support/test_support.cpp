@@ -101,6 +101,13 @@ std::string read_all(const std::filesystem::path& p) {
   return {std::istreambuf_iterator<char>(in), {}};
 }
 
+std::string cache_but_identity_time(std::string bytes) {
+  if (bytes.size() < 96) return bytes;
+  bytes.replace(80, 8, 8, '\0');
+  bytes.replace(bytes.size() - 8, 8, 8, '\0');
+  return bytes;
+}
+
 void write_text(const std::filesystem::path& p, const std::string& text) {
   std::ofstream out(p, std::ios::binary | std::ios::trunc);
   out << text;

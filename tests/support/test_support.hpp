@@ -42,6 +42,10 @@ std::string quote(const std::filesystem::path& p);
 
 /// The bytes of a file (empty when it cannot be read).
 std::string read_all(const std::filesystem::path& p);
+/// A cache file's bytes but for when the build read its model (the
+/// header's identity_ns, bytes 80-87, and so the checksum, the last 8):
+/// what two builds of the same input share.
+std::string cache_but_identity_time(std::string bytes);
 /// Writes TEXT as the whole file P; a failed write fails the test.
 void write_text(const std::filesystem::path& p, const std::string& text);
 

@@ -60,6 +60,7 @@ struct OpenOptions {
 /// held in memory).
 struct ChunkedBuildFigures {
   std::size_t chunks = 0;
+  unsigned lanes = 0;               ///< chunks built at once (each with half the budget where 2)
   std::uint64_t largest_chunk = 0;  ///< points, halo included
   std::uint64_t halo_points = 0;    ///< copies of points in other chunks' halos
   /// The halo's width, model units: the reach of the neighbour search

@@ -6,10 +6,12 @@
 #include <malloc.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <mutex>
 #include <optional>
 
 #include "cache_format.hpp"
@@ -21,6 +23,7 @@
 #include "subtree_roots.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
+#include "treecut/parallel.hpp"
 
 namespace treecut::detail {
 
@@ -55,7 +58,9 @@ struct ChunkBlocks {
 // the chunk.
 constexpr std::size_t kSlicePoints = 16384;
 
-std::vector<Block> append_slices(ScratchFile& file, const PointSet& ps) {
+// The file is shared by the chunks in flight: LOCK is held for its reads
+// and appends alone, the packing and unpacking go on beside.
+std::vector<Block> append_slices(ScratchFile& file, std::mutex& lock, const PointSet& ps) {
   std::vector<Block> blocks;
   std::vector<std::uint32_t> ids;
   for (std::size_t at = 0; at < ps.size(); at += kSlicePoints) {
@@ -63,16 +68,21 @@ std::vector<Block> append_slices(ScratchFile& file, const PointSet& ps) {
     for (std::size_t i = at; i < std::min(ps.size(), at + kSlicePoints); ++i)
       ids.push_back(static_cast<std::uint32_t>(i));
     const std::vector<unsigned char> bytes = pack_points(ps, ids);
+    std::lock_guard held(lock);
     blocks.push_back({file.append(bytes.data(), bytes.size()), bytes.size()});
   }
   return blocks;
 }
 
-PointSet read_blocks(ScratchFile& file, const std::vector<Block>& blocks, PointSet into = {}) {
+PointSet read_blocks(ScratchFile& file, std::mutex& lock, const std::vector<Block>& blocks,
+                     PointSet into = {}) {
   std::vector<unsigned char> bytes;
   for (const Block& b : blocks) {
     bytes.resize(b.bytes);
-    file.read(b.offset, bytes.data(), bytes.size());
+    {
+      std::lock_guard held(lock);
+      file.read(b.offset, bytes.data(), bytes.size());
+    }
     into.append(unpack_points(bytes));
   }
   return into;
@@ -135,15 +145,26 @@ constexpr std::uint64_t kChunkBytesPerPoint = 170;
 // the compressor's and a batch's blocks.
 constexpr std::uint64_t kStageBytes = std::uint64_t{4} << 20;
 
+// Chunks worked on at once. Each stage of a chunk has parts that one
+// thread does (reading and packing its points, the hierarchy's top splits,
+// the page encoder) and leave the other cores idle: a 2 M survey's chunks
+// kept 1.42 of 2 cores busy one at a time. Two chunks in flight fill them,
+// each with half the budget, where a chunk keeps at least kLanePoints:
+// below it the halo's copies grow past a tenth of the points, and each
+// lane's allocator arena past what the budget allows (32 MiB).
+constexpr unsigned kMaxLanes = 2;
+constexpr std::uint64_t kLanePoints = std::uint64_t{1} << 16;
+
 // The sizes ROOM (the budget less what the program holds) allows: a
 // chunk's points, a batch's, the grid's.
 struct Sizes {
   std::uint64_t chunk_points;
   std::size_t batch_points;
   int grid_levels;
+  unsigned lanes;
 };
 
-Sizes sizes_for(std::uint64_t room) {
+Sizes sizes_for(std::uint64_t room, unsigned threads) {
   Sizes s{};
   s.grid_levels = room >= (std::uint64_t{512} << 20) ? 7 : 6;
   const std::uint64_t grid = std::uint64_t{4} << (3 * s.grid_levels);
@@ -156,6 +177,11 @@ Sizes sizes_for(std::uint64_t room) {
   s.batch_points = static_cast<std::size_t>(
       std::clamp<std::uint64_t>(left / 10 / 120, 4096, std::uint64_t{1} << 20));
   s.chunk_points = std::max<std::uint64_t>(4096, left * 7 / 10 / kChunkBytesPerPoint);
+  s.lanes = 1;
+  while (s.lanes < std::min(kMaxLanes, worker_count(threads)) &&
+         s.chunk_points / (s.lanes + 1) >= kLanePoints)
+    ++s.lanes;
+  s.chunk_points /= s.lanes;
   return s;
 }
 
@@ -165,7 +191,11 @@ class ChunkedBuild {
  public:
   ChunkedBuild(std::span<const std::filesystem::path> files, const OpenOptions& options,
                const std::filesystem::path& cache, std::uint64_t room, OpenedModel& out)
-      : files_(files), options_(options), cache_(cache), sizes_(sizes_for(room)), out_(out) {}
+      : files_(files),
+        options_(options),
+        cache_(cache),
+        sizes_(sizes_for(room, options.build.threads)),
+        out_(out) {}
 
   void count();
   void distribute();
@@ -179,6 +209,12 @@ class ChunkedBuild {
   void progress(std::string_view stage, std::uint64_t done, std::uint64_t total) const {
     if (options_.progress) options_.progress(stage, done, total);
   }
+  // FN(c) for every chunk, sizes_.lanes of them at once (the calling
+  // thread one lane), each lane taking the next chunk; after a failure no
+  // lane starts another, and the first is rethrown. What a chunk freed is
+  // given back before its lane takes the next.
+  template <class Fn>
+  void for_each_chunk(Fn&& fn);
   void send_to_chunks(const PointSet& batch);
   void like_chunks(PointSet& ps) const;
   // The pages' table in file order, each page's bytes from memory (the top
@@ -198,6 +234,9 @@ class ChunkedBuild {
   Sizes sizes_;
   OpenedModel& out_;
   ChunkedBuildReport report_;
+  // Held by a chunk's lane for the scratch files, the report and the
+  // progress (whatever the lanes share); the rest of a chunk is its own.
+  std::mutex mutex_;
   std::uint64_t declared_ = 0;  // points the headers declare
   std::optional<ChunkPlan> plan_;
   std::vector<ChunkBlocks> blocks_;
@@ -221,6 +260,22 @@ class ChunkedBuild {
   std::uint64_t nodes_ = 0;
 };
 
+template <class Fn>
+void ChunkedBuild::for_each_chunk(Fn&& fn) {
+  std::atomic<bool> failed = false;
+  WorkerPool lanes(report_.lanes);
+  lanes.run(report_.chunks, 1, [&](std::size_t c, std::size_t, std::size_t) {
+    if (failed.load(std::memory_order_relaxed)) return;
+    try {
+      fn(c);
+    } catch (...) {
+      failed.store(true, std::memory_order_relaxed);
+      throw;
+    }
+    give_back_memory();
+  });
+}
+
 // 1. The points counted on the plan's grid, the chunks cut.
 void ChunkedBuild::count() {
   declared_ = build_memory_estimate(files_).points;
@@ -240,6 +295,7 @@ void ChunkedBuild::count() {
                  });
   plan_->plan(sizes_.chunk_points, reach.reach(std::max(3, options_.attributes.k)));
   report_.chunks = plan_->chunks().size();
+  report_.lanes = std::min<std::size_t>(sizes_.lanes, report_.chunks);
   report_.halo = plan_->halo();
 }
 
@@ -302,28 +358,35 @@ void ChunkedBuild::send_to_chunks(const PointSet& b) {
 void ChunkedBuild::complete_chunks() {
   done_.emplace(cache_.string() + ".points");
   radii_.emplace(cache_.string() + ".radii");
-  CloudPart part{glm::vec3(whole_.sum / double(whole_.points)), 0, plan_->halo()};
-  std::uint64_t& held = report_.scratch_bytes;
-  for (std::size_t c = 0; c < report_.chunks; ++c) {
-    PointSet ps = read_blocks(*parts_, blocks_[c].core);
+  const glm::vec3 centroid(whole_.sum / double(whole_.points));
+  std::size_t finished = 0;
+  bool normals_estimated = false;
+  for_each_chunk([&](std::size_t c) {
+    CloudPart part{centroid, 0, plan_->halo()};
+    PointSet ps = read_blocks(*parts_, mutex_, blocks_[c].core);
     part.queried = ps.size();
-    ps = read_blocks(*parts_, blocks_[c].halo, std::move(ps));
-    report_.largest_chunk = std::max<std::uint64_t>(report_.largest_chunk, ps.size());
+    ps = read_blocks(*parts_, mutex_, blocks_[c].halo, std::move(ps));
+    const std::uint64_t with_halo = ps.size();
     like_chunks(ps);
-    radii_from_neighbours_ = complete_part_attributes(ps, options_.attributes, part);
-    frame_.normals_estimated = frame_.normals_estimated || ps.frame.normals_estimated;
+    const bool from_neighbours = complete_part_attributes(ps, options_.attributes, part);
     keep_first(ps, part.queried);
     std::vector<float> kept;  // for the whole's median
     for (const float r : ps.radii)
       if (r > 0.0f && std::isfinite(r)) kept.push_back(r);
+    std::vector<Block> done = append_slices(*done_, mutex_, ps);
+    std::lock_guard lock(mutex_);
+    report_.largest_chunk = std::max(report_.largest_chunk, with_halo);
+    radii_from_neighbours_ = from_neighbours;
+    normals_estimated = normals_estimated || ps.frame.normals_estimated;
     radii_->append(kept.data(), kept.size() * sizeof(float));
     positive_radii_ += kept.size();
-    blocks_[c].done = append_slices(*done_, ps);
-    held = std::max(held, parts_->held() + done_->held() + radii_->held());
+    blocks_[c].done = std::move(done);
+    report_.scratch_bytes =
+        std::max(report_.scratch_bytes, parts_->held() + done_->held() + radii_->held());
     release(*parts_, blocks_[c].core), release(*parts_, blocks_[c].halo);
-    progress("chunks: attributes", c + 1, report_.chunks);
-    give_back_memory();
-  }
+    progress("chunks: attributes", ++finished, report_.chunks);
+  });
+  frame_.normals_estimated = frame_.normals_estimated || normals_estimated;
   parts_.reset();
   median_radius_ = median_of(*radii_, positive_radii_);
   radii_.reset();
@@ -347,9 +410,9 @@ void ChunkedBuild::build_chunks() {
   roots_.resize(report_.chunks);
   BuildOptions build = options_.build;
   build.progress = nullptr;
-  for (std::size_t c = 0; c < report_.chunks; ++c) {
-    PointSet ps = read_blocks(*done_, blocks_[c].done);
-    release(*done_, blocks_[c].done);
+  std::size_t finished = 0;
+  for_each_chunk([&](std::size_t c) {
+    PointSet ps = read_blocks(*done_, mutex_, blocks_[c].done);
     ps.frame = frame_;
     finish_part_radii(ps.radii, median_radius_, radii_from_neighbours_);
     double cover2 = 0.0;
@@ -357,15 +420,7 @@ void ChunkedBuild::build_chunks() {
     match_fields(ps, model_);
     const Hierarchy h = build_hierarchy(std::move(ps), build);
     to_model_offsets(h, model_);
-    cache_pages::Encoded e = cache_pages::encode(h);
-    ChunkPages& cp = built_[c];
-    for (std::size_t q = 0; q < e.table.size(); ++q) {
-      PageRecord r = e.table[q];
-      r.offset = pages_->append(e.pages[q].data(), e.pages[q].size());
-      cp.table.push_back(r);
-    }
-    cp.levels = static_cast<std::uint32_t>(h.level_count());
-    cp.nodes = h.node_count();
+    const cache_pages::Encoded e = cache_pages::encode(h);
     SubtreeRoot& root = roots_[c];
     root.center_radius = glm::vec4(e.root.center, e.root.radius);
     root.cover = static_cast<float>(std::sqrt(cover2));
@@ -374,10 +429,19 @@ void ChunkedBuild::build_chunks() {
     root.priority = h.arrays().priority[0];
     root.point_count = h.leaf_count();
     for (const NodeAttribute& a : h.attributes()) root.values.push_back(a.value(0));
+    ChunkPages& cp = built_[c];
+    cp.levels = static_cast<std::uint32_t>(h.level_count());
+    cp.nodes = h.node_count();
+    std::lock_guard lock(mutex_);
+    release(*done_, blocks_[c].done);
+    for (std::size_t q = 0; q < e.table.size(); ++q) {
+      PageRecord r = e.table[q];
+      r.offset = pages_->append(e.pages[q].data(), e.pages[q].size());
+      cp.table.push_back(r);
+    }
     report_.scratch_bytes = std::max(report_.scratch_bytes, done_->held() + pages_->held());
-    progress("chunks: hierarchy", c + 1, report_.chunks);
-    give_back_memory();
-  }
+    progress("chunks: hierarchy", ++finished, report_.chunks);
+  });
   done_.reset();
 }
 

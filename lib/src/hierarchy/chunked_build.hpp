@@ -27,6 +27,7 @@ namespace treecut::detail {
 struct ChunkedBuildReport {
   std::uint64_t points = 0;
   std::size_t chunks = 0;
+  unsigned lanes = 1;               ///< chunks built at once
   std::uint64_t largest_chunk = 0;  ///< points, halo included
   std::uint64_t halo_points = 0;    ///< copies of points in other chunks' halos
   float halo = 0.0f;                ///< its width, model units

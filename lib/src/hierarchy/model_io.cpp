@@ -380,6 +380,7 @@ void build_in_chunks(std::span<const std::filesystem::path> files, const CacheKe
   }
   out.cache_written = true;
   out.chunked.chunks = r.chunks;
+  out.chunked.lanes = r.lanes;
   out.chunked.largest_chunk = r.largest_chunk;
   out.chunked.halo_points = r.halo_points;
   out.chunked.halo = r.halo;
