@@ -147,9 +147,22 @@ std::int32_t radius_index(float need) {
   }
   // NEED = f 2^octave with f in [1, 2): the first mantissa not below f.
   const float f = std::bit_cast<float>((bits & 0x007fffffu) | 0x3f800000u);
+  // The first mantissa of F's bucket (its top 9 mantissa bits), then at
+  // most two steps on: a bucket of [1, 2) holds at most two of the grid's
+  // mantissas (512 log2 f grows by at most 1.44 across one). A binary
+  // search of the 512 took 3 % of a chunked build's samples.
   const std::array<float, 512>& m = radius_mantissas();
-  const auto at = static_cast<std::int32_t>(std::lower_bound(m.begin(), m.end(), f) - m.begin());
-  return 512 * (biased - 127) + at;  // at == 512: the next octave's first
+  static const std::array<std::uint16_t, 512> first = [&m] {
+    std::array<std::uint16_t, 512> t{};
+    for (std::uint32_t k = 0; k < 512; ++k)
+      t[k] = static_cast<std::uint16_t>(
+          std::lower_bound(m.begin(), m.end(), std::bit_cast<float>(0x3f800000u | (k << 14))) -
+          m.begin());
+    return t;
+  }();
+  std::uint32_t at = first[(bits & 0x007fffffu) >> 14];
+  while (at < 512 && m[at] < f) ++at;
+  return 512 * (biased - 127) + static_cast<std::int32_t>(at);  // 512: the next octave's first
 }
 
 // The coarsest grid on which every one of VALUES lies exactly, if 65536
