@@ -134,6 +134,46 @@ TEST(ChunkedBuild, WhereChunksMeetNormalsAndRadiiAreThoseOfABuildHeldWhole) {
   EXPECT_EQ(same_radius, w.leaf_count());
 }
 
+// Text clouds stream too (TextCloudReader): a folder of CSV tiles past the
+// budget is built in chunks, batch by batch, into the model one read
+// whole gives.
+TEST(ChunkedBuild, TextTilesAreReadInBatchesIntoTheModelHeldWhole) {
+  const fs::path dir = test::scratch_dir("chunked_text");
+  fs::create_directories(dir / "las");
+  fs::create_directories(dir / "csv");
+  write_survey(dir / "las", 200000);
+  for (const auto& e : fs::directory_iterator(dir / "las")) {
+    const PointSet ps = load_las(e.path());
+    std::string text = "x,y,z,intensity\n";
+    char line[128];
+    for (std::size_t i = 0; i < ps.size(); ++i) {
+      const glm::dvec3 p = ps.frame.origin + glm::dvec3(ps.positions[i]);
+      std::snprintf(line, sizeof line, "%.3f,%.3f,%.3f,%g\n", p.x, p.y, p.z,
+                    ps.attributes[0].value(i));
+      text += line;
+    }
+    test::write_text(dir / "csv" / e.path().filename().replace_extension(".csv"), text);
+  }
+  OpenOptions whole_options;
+  whole_options.cache_path = dir / "whole.tch";
+  whole_options.memory = std::uint64_t{4} << 30;
+  const OpenedModel whole = open_model(dir / "csv", whole_options);
+  OpenOptions chunked_options;
+  chunked_options.cache_path = dir / "chunked.tch";
+  chunked_options.memory = resident() + (std::uint64_t{12} << 20);
+  const OpenedModel chunked = open_model(dir / "csv", chunked_options);
+  ASSERT_GT(chunked.chunked.chunks, 3u) << "the budget cuts the model";
+  EXPECT_EQ(chunked.format, "text");
+  EXPECT_EQ(chunked.input_points, whole.input_points);
+  const Hierarchy w = load(dir / "whole.tch");
+  const Hierarchy c = load(dir / "chunked.tch");
+  EXPECT_EQ(check_invariants(c), "");
+  EXPECT_EQ(c.leaf_count(), w.leaf_count());
+  EXPECT_EQ(c.bounds_min(), w.bounds_min());
+  EXPECT_EQ(c.bounds_max(), w.bounds_max());
+  EXPECT_EQ(c.frame().origin, w.frame().origin);
+}
+
 // Two chunks in flight (each lane on a chunk of its own, sharing the
 // scratch files; what TSan checks) write the cache that one at a time
 // writes, byte for byte: each chunk's result is its own whatever the

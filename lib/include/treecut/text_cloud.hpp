@@ -24,6 +24,7 @@
 #pragma once
 
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -46,6 +47,33 @@ namespace treecut {
 /// line if it has one (`--columns`). Throws InputError "NAME:LINE: problem".
 PointSet load_text_cloud(const std::filesystem::path& path, const WarningSink& warn = {},
                          const std::vector<std::string>& columns = {});
+
+/// A text cloud's points in batches, the file read a few MiB at a time
+/// (the chunked build's reader, issue 44): positions relative to the origin
+/// the first batch with a point chose (PointSet::frame); the batch that
+/// reaches the last line makes the file's checks (the PTS count, no point
+/// at all) and says its warnings. load_text_cloud() is one batch of every
+/// point. Throws InputError as load_text_cloud() does, from the
+/// constructor (the header, the columns) or from next() (a line).
+class TextCloudReader {
+ public:
+  TextCloudReader(const std::filesystem::path& path, const WarningSink& warn = {},
+                  const std::vector<std::string>& columns = {});
+  /// Reads BYTES (which must outlive the reader); NAME stands for the path.
+  TextCloudReader(std::string_view bytes, const std::string& name, const WarningSink& warn = {},
+                  const std::vector<std::string>& columns = {});
+  ~TextCloudReader();
+  TextCloudReader(TextCloudReader&&) noexcept;
+  TextCloudReader& operator=(TextCloudReader&&) noexcept;
+
+  /// The next batch of at most MAX_POINTS points read (fewer where some
+  /// are dropped, never none before the end); none at the end.
+  PointSet next(std::size_t max_points);
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
 
 /// load_text_cloud() on bytes in memory; NAME stands for the path.
 PointSet load_text_cloud_from_memory(std::string_view bytes, const std::string& name,

@@ -17,6 +17,10 @@ PointSet Batches::next(std::size_t max, OpenedModel& out) {
     out.las.info = las_->info();
     return las_->next(max);
   }
+  if (text_) {
+    out.format = "text";
+    return text_->next(max);
+  }
   if (done_) return {};
   done_ = true;
   PointSet all = read_point_file(file_, out, warn_, columns_);
@@ -170,17 +174,16 @@ std::optional<std::pair<glm::vec3, glm::vec3>> declared_box(
 }
 
 std::pair<glm::vec3, glm::vec3> model_box(std::span<const std::filesystem::path> files,
-                                          const std::vector<std::string>& columns) {
+                                          const std::vector<std::string>& columns,
+                                          std::size_t batch_points) {
   if (const auto box = declared_box(files)) return *box;
   glm::vec3 lo(INFINITY), hi(-INFINITY);
   Whole frame_only;
   OpenedModel ignored;
-  for_each_batch(files, std::size_t{1} << 20, {}, columns, ignored,
-                 [&](PointSet& b, std::size_t f) {
-                   join_frame(b, files[f], files.front(), frame_only, {});
-                   for (const glm::vec3& p : b.positions)
-                     lo = glm::min(lo, p), hi = glm::max(hi, p);
-                 });
+  for_each_batch(files, batch_points, {}, columns, ignored, [&](PointSet& b, std::size_t f) {
+    join_frame(b, files[f], files.front(), frame_only, {});
+    for (const glm::vec3& p : b.positions) lo = glm::min(lo, p), hi = glm::max(hi, p);
+  });
   if (!(lo.x <= hi.x)) lo = hi = glm::vec3(0.0f);
   return {lo, hi};
 }

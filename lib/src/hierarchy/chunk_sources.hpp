@@ -19,17 +19,21 @@
 #include "model_read.hpp"
 #include "treecut/las.hpp"
 #include "treecut/model_io.hpp"
+#include "treecut/text_cloud.hpp"
 
 namespace treecut::detail {
 
-// A file's points in batches: a LAS file's from its reader, any other's
-// whole, as one batch (their readers do not stream yet).
+// A file's points in batches: a LAS file's and a text cloud's from their
+// readers, a PLY's or PCD's whole, as one batch (their readers do not
+// stream yet).
 class Batches {
  public:
   Batches(const std::filesystem::path& file, const WarningSink& warn,
           const std::vector<std::string>& columns)
       : file_(file), warn_(warn), columns_(columns) {
-    if (read_head(file, 4).starts_with("LASF")) las_.emplace(file, warn);
+    const PointFormat format = point_format(file, columns);
+    if (format == PointFormat::las) las_.emplace(file, warn);
+    if (format == PointFormat::text) text_.emplace(file, warn, columns);
   }
   /// The next batch of at most MAX points; none at the end.
   PointSet next(std::size_t max, OpenedModel& out);
@@ -39,6 +43,7 @@ class Batches {
   WarningSink warn_;
   const std::vector<std::string>& columns_;
   std::optional<LasReader> las_;
+  std::optional<TextCloudReader> text_;
   bool done_ = false;
 };
 
@@ -143,9 +148,12 @@ std::optional<std::pair<glm::vec3, glm::vec3>> declared_box(
 /// The box around the model, in the first file's frame: declared_box, or
 /// the points' own (every file read) when a file declares none. The grids
 /// of a build go over it (a point outside counts in the nearest cell), the
-/// same in a build held whole (NeighbourReach) as in one in chunks.
+/// same in a build held whole (NeighbourReach) as in one in chunks. Read in
+/// batches of BATCH_POINTS, as the passes after it read: a text cloud's
+/// origin is its first batch's (TextCloudReader).
 std::pair<glm::vec3, glm::vec3> model_box(std::span<const std::filesystem::path> files,
-                                          const std::vector<std::string>& columns);
+                                          const std::vector<std::string>& columns,
+                                          std::size_t batch_points);
 
 /// Geographic input is reprojected around its centre, which a chunk does
 /// not know: an InputError naming FILE when FIRST (its first batch) is.

@@ -279,7 +279,7 @@ void ChunkedBuild::for_each_chunk(Fn&& fn) {
 // 1. The points counted on the plan's grid, the chunks cut.
 void ChunkedBuild::count() {
   declared_ = build_memory_estimate(files_).points;
-  const auto [lo, hi] = model_box(files_, options_.columns);
+  const auto [lo, hi] = model_box(files_, options_.columns, sizes_.batch_points);
   plan_.emplace(lo, hi, sizes_.grid_levels);
   NeighbourReach reach(lo, hi);
   Whole frame_only;

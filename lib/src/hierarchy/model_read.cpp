@@ -37,14 +37,8 @@ std::string detail::read_head(const std::filesystem::path& path, std::size_t n) 
   return head;
 }
 
-// The points of a model file, by its first bytes: LAS ("LASF"), PLY, PCD
-// (pcd.hpp) or, for any other text, a text cloud (text_cloud.hpp), whose
-// reader comes closest to what such a file is (which column is named twice,
-// which line). A binary file that is neither gets the PLY reader's message
-// (it names the format it recognizes: E57, an image...) and what treecut
-// reads.
-PointSet detail::read_point_file(const std::filesystem::path& model, OpenedModel& out,
-                                 const WarningSink& warn, const std::vector<std::string>& columns) {
+detail::PointFormat detail::point_format(const std::filesystem::path& model,
+                                         const std::vector<std::string>& columns) {
   // The format from the first bytes: 4 KiB, or up to 1 MiB while they are
   // only comment lines (a PCD may open with a long one).
   std::string head = detail::read_head(model, 4096);
@@ -62,6 +56,24 @@ PointSet detail::read_point_file(const std::filesystem::path& model, OpenedModel
                      ": --columns names the columns of a text cloud (XYZ, PTS, CSV); this file "
                      "names its own fields");
   }
+  return las    ? PointFormat::las
+         : pcd  ? PointFormat::pcd
+         : text ? PointFormat::text
+         : ply  ? PointFormat::ply
+                : PointFormat::other;
+}
+
+// The points of a model file, by its first bytes: LAS ("LASF"), PLY, PCD
+// (pcd.hpp) or, for any other text, a text cloud (text_cloud.hpp), whose
+// reader comes closest to what such a file is (which column is named twice,
+// which line). A binary file that is neither gets the PLY reader's message
+// (it names the format it recognizes: E57, an image...) and what treecut
+// reads.
+PointSet detail::read_point_file(const std::filesystem::path& model, OpenedModel& out,
+                                 const WarningSink& warn, const std::vector<std::string>& columns) {
+  const PointFormat format = point_format(model, columns);
+  const bool las = format == PointFormat::las, pcd = format == PointFormat::pcd,
+             text = format == PointFormat::text, ply = format == PointFormat::ply;
   if (las) {
     out.format = "LAS";
     return load_las(model, &out.las, warn);

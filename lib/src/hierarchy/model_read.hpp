@@ -18,6 +18,13 @@ std::string read_head(const std::filesystem::path& path, std::size_t n);
 
 /// The points of MODEL by its first bytes (LAS, PLY, PCD or a text cloud);
 /// OUT gets the format and the reader's report.
+/// What a model file is, by its first bytes (LAS: "LASF"; PLY; PCD; any
+/// other text a text cloud; other: the PLY reader names what it is).
+/// COLUMNS (`--columns`) for a file that is no text cloud: InputError.
+enum class PointFormat { las, ply, pcd, text, other };
+PointFormat point_format(const std::filesystem::path& model,
+                         const std::vector<std::string>& columns);
+
 PointSet read_point_file(const std::filesystem::path& model, OpenedModel& out,
                          const WarningSink& warn, const std::vector<std::string>& columns);
 

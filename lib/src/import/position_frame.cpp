@@ -61,15 +61,18 @@ std::string Dropped::far_message(std::size_t first_number) const {
          std::to_string(first_number) + " at " + at + ")";
 }
 
-Dropped place_points(std::vector<glm::dvec3>&& doubles, PointSet& points) {
+Dropped place_points(std::vector<glm::dvec3>&& doubles, PointSet& points,
+                     const std::optional<glm::dvec3>& given) {
   auto finite = [](const glm::dvec3& p) {
     return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z);
   };
-  std::vector<glm::dvec3> usable;
-  const bool all_finite = std::all_of(doubles.begin(), doubles.end(), finite);
-  if (!all_finite) std::copy_if(doubles.begin(), doubles.end(), std::back_inserter(usable), finite);
-  const glm::dvec3 origin = choose_origin(all_finite ? doubles : usable);
-  std::vector<glm::dvec3>().swap(usable);
+  const glm::dvec3 origin = given ? *given : [&] {
+    std::vector<glm::dvec3> usable;
+    const bool all_finite = std::all_of(doubles.begin(), doubles.end(), finite);
+    if (!all_finite)
+      std::copy_if(doubles.begin(), doubles.end(), std::back_inserter(usable), finite);
+    return choose_origin(all_finite ? doubles : usable);
+  }();
   points.frame.origin = origin;
   points.positions.resize(doubles.size());
   Dropped out;

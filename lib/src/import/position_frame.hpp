@@ -16,6 +16,7 @@
 
 #include <cstddef>
 #include <glm/ext/vector_double3.hpp>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -50,8 +51,10 @@ struct Dropped {
 /// POINTS.exact_positions where the floats do not give every one back;
 /// drops (PointSet::keep_if) the points without a finite position or beyond
 /// kMaxCoordinate of it. The other per-point arrays of POINTS must be in
-/// step with DOUBLES.
-Dropped place_points(std::vector<glm::dvec3>&& doubles, PointSet& points);
+/// step with DOUBLES. With ORIGIN, that origin instead (a file's later
+/// batches keep the one its first chose).
+Dropped place_points(std::vector<glm::dvec3>&& doubles, PointSet& points,
+                     const std::optional<glm::dvec3>& origin = std::nullopt);
 
 /// Whether the float P, relative to ORIGIN, gives the file's coordinates
 /// EXACT back.

@@ -5,8 +5,13 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cerrno>
 #include <charconv>
 #include <cmath>
+#include <cstring>
+#include <fstream>
+#include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -15,7 +20,6 @@
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
 #include "unit_normal.hpp"
-#include "whole_file.hpp"
 
 namespace treecut {
 
@@ -213,22 +217,79 @@ Columns from_count(const std::vector<std::string_view>& first, bool pts, bool co
   return c;
 }
 
-struct Reader {
-  std::string_view text;
-  std::size_t at = 0;
-  std::size_t line_number = 0;
+// The lines of a text: from memory, or read from its file a block at a
+// time, so that a text cloud of any size is parsed in a few MiB (the
+// chunked build's batches, issue 44). Comment lines are skipped. A line's
+// view lasts until the next call.
+class Lines {
+ public:
+  explicit Lines(std::string_view text) : text_(text) {}
+  explicit Lines(const std::filesystem::path& path)
+      : file_(std::make_shared<std::ifstream>(path, std::ios::binary)), end_(false) {
+    require_regular_file(path);
+    if (!*file_) throw InputError(system_error_text(path, errno));
+  }
+
   bool next(std::string_view& line) {
-    while (at < text.size()) {
-      // A line ends at LF, CR LF or a lone CR (old Mac exports).
-      const std::size_t end = std::min(text.find_first_of("\r\n", at), text.size());
-      line = text.substr(at, end - at);
-      const bool crlf = end + 1 < text.size() && text[end] == '\r' && text[end + 1] == '\n';
-      at = end + (crlf ? 2 : 1);
-      ++line_number;
+    for (;;) {
+      // A line ends at LF, CR LF or a lone CR (old Mac exports); one that
+      // may go on in the next block (a CR last: CR LF?) waits for it.
+      std::size_t end = text_.find_first_of("\r\n", at_);
+      if (!end_ && (end == std::string_view::npos || end + 1 == text_.size())) {
+        read_block();
+        continue;
+      }
+      if (at_ >= text_.size()) return false;
+      end = std::min(end, text_.size());
+      line = text_.substr(at_, end - at_);
+      const bool crlf = end + 1 < text_.size() && text_[end] == '\r' && text_[end + 1] == '\n';
+      at_ = end + (crlf ? 2 : 1);
+      ++number_;
       if (!comment(line)) return true;
     }
-    return false;
   }
+  [[nodiscard]] std::size_t line_number() const { return number_; }
+  // The complete lines read so far and not yet handed out, as lines of
+  // their own that read no further (the layout's look ahead).
+  [[nodiscard]] Lines ahead() const {
+    std::string_view rest = text_.substr(at_);
+    if (!end_) rest = rest.substr(0, rest.find_last_of("\r\n") + 1);  // npos + 1: none
+    Lines out(rest);
+    out.number_ = number_;
+    return out;
+  }
+  void skip(std::string_view prefix) {
+    if (!end_ && text_.size() < prefix.size()) read_block();
+    if (text_.substr(at_).starts_with(prefix)) at_ += prefix.size();
+  }
+
+ private:
+  static constexpr std::size_t kBlock = std::size_t{4} << 20;
+  // No line is longer: past it a file is no text cloud, and no buffer grows
+  // without bound.
+  static constexpr std::size_t kLongestLine = std::size_t{64} << 20;
+
+  void read_block() {
+    buffer_.erase(0, at_);
+    at_ = 0;
+    if (buffer_.size() >= kLongestLine)
+      throw TextError(std::to_string(number_ + 1) + ": a line longer than 64 MiB");
+    const std::size_t had = buffer_.size();
+    buffer_.resize(had + kBlock);
+    file_->read(buffer_.data() + had, static_cast<std::streamsize>(kBlock));
+    buffer_.resize(had + static_cast<std::size_t>(file_->gcount()));
+    if (file_->bad())
+      throw TextError("cannot be read on (" + std::string(std::strerror(errno)) + ")");
+    end_ = file_->eof();
+    text_ = buffer_;
+  }
+
+  std::string_view text_;  // the lines from at_ on (the buffer's, from a file)
+  std::size_t at_ = 0;
+  std::size_t number_ = 0;
+  std::string buffer_;
+  std::shared_ptr<std::ifstream> file_;
+  bool end_ = true;  // nothing more to read
 };
 
 // The first lines: a PTS count line or a header (or neither), and what the
@@ -242,7 +303,7 @@ struct Layout {
   double pts_count = 0;
 };
 
-Layout read_layout(Reader& r, std::string_view& line, std::vector<std::string_view>& tokens,
+Layout read_layout(Lines& r, std::string_view& line, std::vector<std::string_view>& tokens,
                    const std::vector<std::string>& mapping) {
   Layout out;
   if (!r.next(line)) throw TextError("no points (an empty text cloud)");
@@ -273,7 +334,7 @@ Layout read_layout(Reader& r, std::string_view& line, std::vector<std::string_vi
     // Six columns: colours when the last three are bytes on the first 256
     // lines (x y z r g b), else normals (x y z nx ny nz).
     bool colours6 = tokens.size() == 6;
-    Reader ahead = r;
+    Lines ahead = r.ahead();
     std::vector<std::string_view> t = tokens;
     std::string_view l;
     for (int i = 0; colours6 && i < 256; ++i) {
@@ -332,40 +393,17 @@ void read_point(const Columns& columns, const std::vector<std::string_view>& tok
 
 constexpr std::string_view kByteOrderMark = "\xEF\xBB\xBF";
 
-PointSet parse(std::string_view text, const WarningSink& warn,
-               const std::vector<std::string>& mapping) {
-  if (text.starts_with(kByteOrderMark)) text.remove_prefix(kByteOrderMark.size());
-  Reader r{text};
-  std::vector<std::string_view> tokens;
-  std::string_view line;
-  const Layout layout = read_layout(r, line, tokens, mapping);
-  const Columns& columns = layout.columns;
-  if (warn && columns.not_kept_count > 0) warn("not kept: " + columns.not_kept_text());
-  PointSet points;
-  std::vector<detail::AttributeColumn> attributes;
-  for (const auto& [column, name] : columns.attributes) attributes.emplace_back(name, 0);
-  std::vector<double> values;
-  std::vector<glm::dvec3> doubles;
-  do {
-    split(line, tokens);
-    read_point(columns, tokens, r.line_number, values, doubles, points, attributes);
-  } while (r.next(line));
-  if (layout.pts && static_cast<double>(doubles.size()) != layout.pts_count) {
-    throw TextError("1: the PTS count line says " + layout.pts_text + " points, the file has " +
-                    std::to_string(doubles.size()));
+// TextError as the InputError the user reads: "NAME:LINE: ..." where it
+// has a line number, "NAME: ..." where not.
+template <class F>
+auto named(const std::string& name, F&& f) {
+  try {
+    return f();
+  } catch (const TextError& e) {
+    const std::string what = e.what();
+    const bool numbered = !what.empty() && std::isdigit(static_cast<unsigned char>(what[0]));
+    throw InputError(name + (numbered ? ":" : ": ") + what);
   }
-  detail::take_columns(attributes, points.attributes);
-  const detail::Dropped dropped = detail::place_points(std::move(doubles), points);
-  if (points.size() == 0) {
-    throw TextError(dropped.far > 0
-                        ? "no usable points (" + dropped.far_message(dropped.first_far + 1) + ")"
-                        : "no points with a finite position (every one is nan)");
-  }
-  if (dropped.nonfinite > 0 && warn) {
-    warn("dropped " + std::to_string(dropped.nonfinite) + " points without a finite position");
-  }
-  if (dropped.far > 0 && warn) warn(dropped.far_message(dropped.first_far + 1));
-  return points;
 }
 
 }  // namespace
@@ -401,26 +439,109 @@ bool looks_like_text_cloud(std::string_view bytes) {
   return stray <= std::max<std::size_t>(1, head.size() / 100);
 }
 
+// A text cloud being read: its lines, its layout, and what the batches so
+// far found (the origin the first chose, the points dropped).
+struct TextCloudReader::State {
+  State(Lines from, const std::string& file_name, const WarningSink& sink,
+        const std::vector<std::string>& mapping)
+      : lines(std::move(from)), name(file_name) {
+    if (sink) warn = [this, sink](const std::string& w) { sink(name + ": " + w); };
+    named(name, [&] {
+      lines.skip(kByteOrderMark);
+      layout = read_layout(lines, line, tokens, mapping);
+      return 0;
+    });
+    if (warn && layout.columns.not_kept_count > 0)
+      warn("not kept: " + layout.columns.not_kept_text());
+  }
+
+  PointSet next(std::size_t max_points);
+  void finish();
+
+  Lines lines;
+  std::string name;
+  WarningSink warn;
+  Layout layout;
+  std::string_view line;  // the next point's, read ahead
+  bool more = true;       // LINE holds one
+  std::vector<std::string_view> tokens;
+  std::vector<double> values;
+  std::optional<glm::dvec3> origin;
+  std::size_t read = 0, kept = 0;
+  detail::Dropped dropped;  // over the batches so far
+};
+
+PointSet TextCloudReader::State::next(std::size_t max_points) {
+  for (;;) {
+    if (!more) return {};
+    const Columns& columns = layout.columns;
+    PointSet points;
+    std::vector<detail::AttributeColumn> attributes;
+    for (const auto& [column, field] : columns.attributes) attributes.emplace_back(field, 0);
+    std::vector<glm::dvec3> doubles;
+    while (more && doubles.size() < max_points) {
+      split(line, tokens);
+      read_point(columns, tokens, lines.line_number(), values, doubles, points, attributes);
+      more = lines.next(line);
+    }
+    const std::size_t before = read;
+    read += doubles.size();
+    detail::take_columns(attributes, points.attributes);
+    const detail::Dropped d = detail::place_points(std::move(doubles), points, origin);
+    if (d.far > 0 && dropped.far == 0)
+      dropped.first_far = before + d.first_far, dropped.first_far_at = d.first_far_at;
+    dropped.far += d.far, dropped.nonfinite += d.nonfinite;
+    // The origin is the first batch's with a point in it: every later
+    // batch's positions are relative to it.
+    if (!origin && points.size() > 0) origin = points.frame.origin;
+    kept += points.size();
+    if (!more) finish();
+    if (points.size() > 0 || !more) return points;
+  }
+}
+
+// The file's checks once its last line is read.
+void TextCloudReader::State::finish() {
+  if (layout.pts && static_cast<double>(read) != layout.pts_count) {
+    throw TextError("1: the PTS count line says " + layout.pts_text + " points, the file has " +
+                    std::to_string(read));
+  }
+  if (kept == 0) {
+    throw TextError(dropped.far > 0
+                        ? "no usable points (" + dropped.far_message(dropped.first_far + 1) + ")"
+                        : "no points with a finite position (every one is nan)");
+  }
+  if (dropped.nonfinite > 0 && warn) {
+    warn("dropped " + std::to_string(dropped.nonfinite) + " points without a finite position");
+  }
+  if (dropped.far > 0 && warn) warn(dropped.far_message(dropped.first_far + 1));
+}
+
+TextCloudReader::TextCloudReader(const std::filesystem::path& path, const WarningSink& warn,
+                                 const std::vector<std::string>& columns)
+    : state_(std::make_unique<State>(Lines(path), quoted_name(path), warn, columns)) {}
+
+TextCloudReader::TextCloudReader(std::string_view bytes, const std::string& name,
+                                 const WarningSink& warn, const std::vector<std::string>& columns)
+    : state_(std::make_unique<State>(Lines(bytes), name, warn, columns)) {}
+
+TextCloudReader::~TextCloudReader() = default;
+TextCloudReader::TextCloudReader(TextCloudReader&&) noexcept = default;
+TextCloudReader& TextCloudReader::operator=(TextCloudReader&&) noexcept = default;
+
+PointSet TextCloudReader::next(std::size_t max_points) {
+  return named(state_->name, [&] { return state_->next(std::max<std::size_t>(max_points, 1)); });
+}
+
 PointSet load_text_cloud_from_memory(std::string_view bytes, const std::string& name,
                                      const WarningSink& warn,
                                      const std::vector<std::string>& columns) {
-  try {
-    const WarningSink named = [&](const std::string& w) {
-      if (warn) warn(name + ": " + w);
-    };
-    return parse(bytes, warn ? named : WarningSink{}, columns);
-  } catch (const TextError& e) {
-    const std::string what = e.what();
-    // Line numbers read "NAME:LINE: ...", the rest "NAME: ...".
-    const bool numbered = !what.empty() && std::isdigit(static_cast<unsigned char>(what[0]));
-    throw InputError(name + (numbered ? ":" : ": ") + what);
-  }
+  return TextCloudReader(bytes, name, warn, columns).next(SIZE_MAX);
 }
 
 PointSet load_text_cloud(const std::filesystem::path& path, const WarningSink& warn,
                          const std::vector<std::string>& columns) {
-  const detail::WholeFile file = detail::read_whole_file(path);
-  return load_text_cloud_from_memory(file.bytes(), quoted_name(path), warn, columns);
+  return TextCloudReader(path, warn, columns).next(SIZE_MAX);
 }
 
 }  // namespace treecut
