@@ -184,6 +184,18 @@ TEST(LasReader, BatchesJoinedAreTheWholeFile) {
     EXPECT_EQ(a.type, b.type) << a.name;
     for (std::size_t i = 0; i < whole.size(); ++i) ASSERT_EQ(a.value(i), b.value(i)) << a.name << i;
   }
+  // Positions alone (the chunked build's counting pass): the same floats
+  // in the same frame, and nothing else.
+  LasReader positions(dir / "t.las");
+  const PointSet p = positions.next(5000, true);
+  ASSERT_EQ(p.size(), 5000u);
+  EXPECT_EQ(p.frame.origin, whole.frame.origin);
+  EXPECT_EQ(p.frame.crs, whole.frame.crs);
+  EXPECT_TRUE(std::equal(p.positions.begin(), p.positions.end(), whole.positions.begin()));
+  EXPECT_TRUE(p.attributes.empty());
+  EXPECT_FALSE(p.has_colors());
+  EXPECT_TRUE(p.exact_positions.empty());
+  EXPECT_EQ(positions.next(made.size(), true).size(), made.size() - 5000);
 }
 
 TEST(ManyFiles, AModelOfSeveralFilesIsKeyedOnAllOfThemInOrder) {

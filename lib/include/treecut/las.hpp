@@ -106,7 +106,10 @@ class LasReader {
   /// records spread over the file (the last one included, looked at by the
   /// first batch) or in any batch so far; else 8-bit values in the 16-bit
   /// fields.
-  PointSet next(std::size_t max_points);
+  /// POSITIONS_ONLY: their positions alone, in the same frame (no
+  /// colours, fields or exact positions: what a counting pass needs, the
+  /// records parsed for three of their fields).
+  PointSet next(std::size_t max_points, bool positions_only = false);
 
  private:
   struct State;

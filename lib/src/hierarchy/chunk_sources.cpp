@@ -11,11 +11,11 @@
 
 namespace treecut::detail {
 
-PointSet Batches::next(std::size_t max, OpenedModel& out) {
+PointSet Batches::next(std::size_t max, OpenedModel& out, bool positions_only) {
   if (las_) {
     out.format = "LAS";
     out.las.info = las_->info();
-    return las_->next(max);
+    return las_->next(max, positions_only);
   }
   if (text_) {
     out.format = "text";
@@ -32,11 +32,12 @@ PointSet Batches::next(std::size_t max, OpenedModel& out) {
 }
 
 BatchesAhead::BatchesAhead(std::span<const std::filesystem::path> files, std::size_t batch_points,
-                           const WarningSink& warn, const std::vector<std::string>& columns)
+                           const WarningSink& warn, const std::vector<std::string>& columns,
+                           bool positions_only)
     : warn_(warn) {
-  reader_ = std::thread([this, files, batch_points, &columns] {
+  reader_ = std::thread([this, files, batch_points, &columns, positions_only] {
     try {
-      read(files, batch_points, columns);
+      read(files, batch_points, columns, positions_only);
     } catch (...) {
       std::lock_guard lock(mutex_);
       slot_.error = std::current_exception();
@@ -56,7 +57,7 @@ BatchesAhead::~BatchesAhead() {
 }
 
 void BatchesAhead::read(std::span<const std::filesystem::path> files, std::size_t batch_points,
-                        const std::vector<std::string>& columns) {
+                        const std::vector<std::string>& columns, bool positions_only) {
   std::vector<std::string> warnings;  // the reader's since the last batch
   const WarningSink keep = [&](const std::string& w) { warnings.push_back(w); };
   // Hands a batch (or the end) over once the caller took the one before;
@@ -83,7 +84,7 @@ void BatchesAhead::read(std::span<const std::filesystem::path> files, std::size_
     OpenedModel one;
     for (;;) {
       if (!wanted()) return;
-      PointSet batch = batches.next(batch_points, f == 0 ? model_ : one);
+      PointSet batch = batches.next(batch_points, f == 0 ? model_ : one, positions_only);
       if (batch.size() == 0) break;
       if (!hand_over(std::move(batch), f, false)) return;
     }
@@ -180,10 +181,13 @@ std::pair<glm::vec3, glm::vec3> model_box(std::span<const std::filesystem::path>
   glm::vec3 lo(INFINITY), hi(-INFINITY);
   Whole frame_only;
   OpenedModel ignored;
-  for_each_batch(files, batch_points, {}, columns, ignored, [&](PointSet& b, std::size_t f) {
-    join_frame(b, files[f], files.front(), frame_only, {});
-    for (const glm::vec3& p : b.positions) lo = glm::min(lo, p), hi = glm::max(hi, p);
-  });
+  for_each_batch(
+      files, batch_points, {}, columns, ignored,
+      [&](PointSet& b, std::size_t f) {
+        join_frame(b, files[f], files.front(), frame_only, {});
+        for (const glm::vec3& p : b.positions) lo = glm::min(lo, p), hi = glm::max(hi, p);
+      },
+      true);
   if (!(lo.x <= hi.x)) lo = hi = glm::vec3(0.0f);
   return {lo, hi};
 }

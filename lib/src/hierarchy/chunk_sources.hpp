@@ -35,8 +35,9 @@ class Batches {
     if (format == PointFormat::las) las_.emplace(file, warn);
     if (format == PointFormat::text) text_.emplace(file, warn, columns);
   }
-  /// The next batch of at most MAX points; none at the end.
-  PointSet next(std::size_t max, OpenedModel& out);
+  /// The next batch of at most MAX points; none at the end. POSITIONS_ONLY:
+  /// a LAS file's positions alone (other formats give all they have).
+  PointSet next(std::size_t max, OpenedModel& out, bool positions_only = false);
 
  private:
   std::filesystem::path file_;
@@ -93,7 +94,8 @@ void gather(const PointSet& batch, Whole& whole);
 class BatchesAhead {
  public:
   BatchesAhead(std::span<const std::filesystem::path> files, std::size_t batch_points,
-               const WarningSink& warn, const std::vector<std::string>& columns);
+               const WarningSink& warn, const std::vector<std::string>& columns,
+               bool positions_only = false);
   ~BatchesAhead();  // stops the reader after its batch
   BatchesAhead(const BatchesAhead&) = delete;
   BatchesAhead& operator=(const BatchesAhead&) = delete;
@@ -106,7 +108,7 @@ class BatchesAhead {
 
  private:
   void read(std::span<const std::filesystem::path> files, std::size_t batch_points,
-            const std::vector<std::string>& columns);
+            const std::vector<std::string>& columns, bool positions_only);
 
   WarningSink warn_;
   OpenedModel model_;  // the reader's until the end
@@ -126,11 +128,12 @@ class BatchesAhead {
 
 /// Calls FN(batch, file index) for every batch of every file, in order
 /// (read ahead: BatchesAhead); OUT gets the first file's format and report.
+/// POSITIONS_ONLY: as Batches::next.
 template <class Fn>
 void for_each_batch(std::span<const std::filesystem::path> files, std::size_t batch_points,
                     const WarningSink& warn, const std::vector<std::string>& columns,
-                    OpenedModel& out, Fn&& fn) {
-  BatchesAhead batches(files, batch_points, warn, columns);
+                    OpenedModel& out, Fn&& fn, bool positions_only = false) {
+  BatchesAhead batches(files, batch_points, warn, columns, positions_only);
   for (;;) {
     auto [batch, file] = batches.next();
     if (batch.size() == 0) break;

@@ -285,14 +285,16 @@ void ChunkedBuild::count() {
   Whole frame_only;
   OpenedModel ignored;
   std::uint64_t done = 0;
-  for_each_batch(files_, sizes_.batch_points, {}, options_.columns, ignored,
-                 [&](PointSet& b, std::size_t f) {
-                   if (!frame_only.started) refuse_reprojection(b, files_.front());
-                   join_frame(b, files_[f], files_.front(), frame_only, {});
-                   plan_->count(b.positions);
-                   reach.count(b.positions);
-                   progress("count points", done += b.size(), declared_);
-                 });
+  for_each_batch(
+      files_, sizes_.batch_points, {}, options_.columns, ignored,
+      [&](PointSet& b, std::size_t f) {
+        if (!frame_only.started) refuse_reprojection(b, files_.front());
+        join_frame(b, files_[f], files_.front(), frame_only, {});
+        plan_->count(b.positions);
+        reach.count(b.positions);
+        progress("count points", done += b.size(), declared_);
+      },
+      true);  // the positions alone: the fields cost twice their parsing
   plan_->plan(sizes_.chunk_points, reach.reach(std::max(3, options_.attributes.k)));
   report_.chunks = plan_->chunks().size();
   report_.lanes = std::min<std::size_t>(sizes_.lanes, report_.chunks);

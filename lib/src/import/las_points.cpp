@@ -151,13 +151,28 @@ struct LasReader::State {
     points.adjusted_gps_time = (info.global_encoding & 1u) != 0;
   }
 
-  void read(PointSet& points, std::size_t n);
+  // The next N points into POINTS; their positions alone where
+  // POSITIONS_ONLY (no colours, fields or exact positions).
+  void read(PointSet& points, std::size_t n, bool positions_only);
 };
 
 // N records from `next`, in chunks of about 1 MiB.
-void LasReader::State::read(PointSet& points, std::size_t n) {
+void LasReader::State::read(PointSet& points, std::size_t n, bool positions_only) {
   const LasInfo& info = parsed.info;
   points.positions.resize(n);
+  if (positions_only) {
+    const std::uint32_t length = info.record_length;
+    const std::size_t chunk_points = std::max<std::size_t>(1, (std::size_t{1} << 20) / length);
+    chunk.resize(chunk_points * length);
+    for (std::size_t begin = 0; begin < n; begin += chunk_points) {
+      const std::size_t count = std::min(chunk_points, n - begin);
+      source->read(parsed.point_offset + (next + begin) * length, chunk.data(), count * length);
+      for (std::size_t i = 0; i < count; ++i)
+        points.positions[begin + i] =
+            glm::vec3(record_position(chunk.data() + i * length, info) - origin);
+    }
+    return;
+  }
   const std::uint32_t rgb_at = detail::kLasRgbAt[info.point_format];
   std::vector<glm::u16vec3> rgb16;
   if (rgb_at != 0) rgb16.resize(n);
@@ -239,14 +254,14 @@ std::uint64_t LasReader::remaining() const {
   return state_->parsed.info.point_count - state_->next;
 }
 
-PointSet LasReader::next(std::size_t max_points) {
+PointSet LasReader::next(std::size_t max_points, bool positions_only) {
   State& s = *state_;
   const auto n = static_cast<std::size_t>(std::min<std::uint64_t>(max_points, remaining()));
   PointSet points;
   s.frame(points);
   if (n == 0) return points;
   try {
-    s.read(points, n);
+    s.read(points, n, positions_only);
   } catch (const LasError& e) {
     throw InputError(s.name + ": " + e.what());
   }
