@@ -49,7 +49,7 @@ namespace {
 
 struct Sample {
   double read = 0, attributes = 0, build = 0, total = 0;
-  std::uint64_t points = 0, nodes = 0, chunks = 0;
+  std::uint64_t points = 0, nodes = 0, chunks = 0, lanes = 0;
   std::uint64_t peak_bytes = 0;
   int status = 0;
 };
@@ -108,6 +108,7 @@ Sample run_once(const std::string& spec, unsigned threads, std::uint64_t memory)
     s.points = m.input_points;
     s.nodes = m.hierarchy.empty() ? m.chunked.nodes : m.hierarchy.node_count();
     s.chunks = m.chunked.chunks;
+    s.lanes = m.chunked.lanes;
   }
   s.total = s.read + s.attributes + s.build;
   return s;
@@ -548,9 +549,9 @@ void run_bench_build(const BuildArgs& args) {
       std::printf(
           "| model | points | nodes | read s | attributes s | hierarchy s | total s (median of "
           "%d) | peak MiB | peak B/point |%s\n",
-          args.repeat, args.memory ? " chunks | M points/s a core |" : "");
+          args.repeat, args.memory ? " chunks | at once | M points/s a core |" : "");
       std::printf("|---|---:|---:|---:|---:|---:|---:|---:|---:|%s\n",
-                  args.memory ? "---:|---:|" : "");
+                  args.memory ? "---:|---:|---:|" : "");
       header = true;
     }
     // A folder given as "tiles/" by its own name.
@@ -564,7 +565,8 @@ void run_bench_build(const BuildArgs& args) {
     // The rate over the cores the build had, as issue 44 states its figure.
     const unsigned cores = worker_count(args.threads);
     if (args.memory)
-      std::printf(" %llu | %.2f |", static_cast<unsigned long long>(last.chunks),
+      std::printf(" %llu | %llu | %.2f |", static_cast<unsigned long long>(last.chunks),
+                  static_cast<unsigned long long>(last.lanes),
                   double(last.points) / median(total) / 1e6 / cores);
     std::printf("\n");
     std::fflush(stdout);
