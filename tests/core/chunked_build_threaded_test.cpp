@@ -73,34 +73,48 @@ Key key_of(glm::vec3 p) {
   return {std::llround(p.x * 1000.0), std::llround(p.y * 1000.0), std::llround(p.z * 1000.0)};
 }
 
+// MODEL (in DIR) built held whole into DIR/whole.tch and in chunks of a
+// 12 MiB room into DIR/chunked.tch; the outline both share checked.
+struct TwoBuilds {
+  OpenedModel whole, chunked;
+  Hierarchy w, c;
+};
+TwoBuilds build_both_ways(const fs::path& dir, const fs::path& model) {
+  TwoBuilds b;
+  OpenOptions whole_options;
+  whole_options.cache_path = dir / "whole.tch";
+  whole_options.memory = std::uint64_t{4} << 30;
+  b.whole = open_model(model, whole_options);
+  EXPECT_EQ(b.whole.chunked.chunks, 0u);
+  OpenOptions chunked_options;
+  chunked_options.cache_path = dir / "chunked.tch";
+  chunked_options.memory = resident() + (std::uint64_t{12} << 20);
+  b.chunked = open_model(model, chunked_options);
+  EXPECT_GT(b.chunked.chunked.chunks, 3u) << "the budget cuts the model";
+  EXPECT_TRUE(b.chunked.cache_written);
+  EXPECT_EQ(b.chunked.input_points, b.whole.input_points);
+  b.w = load(dir / "whole.tch");
+  b.c = load(dir / "chunked.tch");
+  EXPECT_EQ(check_invariants(b.c), "");
+  EXPECT_EQ(b.c.leaf_count(), b.w.leaf_count());
+  EXPECT_EQ(b.c.bounds_min(), b.w.bounds_min());
+  EXPECT_EQ(b.c.bounds_max(), b.w.bounds_max());
+  EXPECT_EQ(b.c.frame().origin, b.w.frame().origin);
+  return b;
+}
+
 TEST(ChunkedBuild, WhereChunksMeetNormalsAndRadiiAreThoseOfABuildHeldWhole) {
   const fs::path dir = test::scratch_dir("chunked_seams");
   fs::create_directories(dir / "tiles");
   write_survey(dir / "tiles", 200000);
-  OpenOptions whole_options;
-  whole_options.cache_path = dir / "whole.tch";
-  whole_options.memory = std::uint64_t{4} << 30;
-  const OpenedModel whole = open_model(dir / "tiles", whole_options);
-  EXPECT_EQ(whole.chunked.chunks, 0u);
-
-  OpenOptions chunked_options;
-  chunked_options.cache_path = dir / "chunked.tch";
-  chunked_options.memory = resident() + (std::uint64_t{12} << 20);
-  const OpenedModel chunked = open_model(dir / "tiles", chunked_options);
-  ASSERT_GT(chunked.chunked.chunks, 3u) << "the budget cuts the model";
-  EXPECT_GT(chunked.chunked.halo_points, 0u);
-  EXPECT_TRUE(chunked.cache_written);
-  EXPECT_EQ(chunked.input_points, whole.input_points);
+  const TwoBuilds both = build_both_ways(dir, dir / "tiles");
+  ASSERT_GT(both.chunked.chunked.chunks, 3u) << "the budget cuts the model";
+  EXPECT_GT(both.chunked.chunked.halo_points, 0u);
   EXPECT_EQ(entries(dir), (std::vector<std::string>{"chunked.tch", "tiles", "whole.tch"}))
       << "the build's temporary files are gone";
 
-  const Hierarchy w = load(dir / "whole.tch");
-  const Hierarchy c = load(dir / "chunked.tch");
-  EXPECT_EQ(check_invariants(c), "");
-  EXPECT_EQ(c.leaf_count(), w.leaf_count());
-  EXPECT_EQ(c.bounds_min(), w.bounds_min());
-  EXPECT_EQ(c.bounds_max(), w.bounds_max());
-  EXPECT_EQ(c.frame().origin, w.frame().origin);
+  const Hierarchy& w = both.w;
+  const Hierarchy& c = both.c;
   EXPECT_EQ(c.frame().crs, w.frame().crs);
   EXPECT_TRUE(c.frame().normals_estimated);
   EXPECT_EQ(c.notes().format, w.notes().format);
@@ -154,24 +168,9 @@ TEST(ChunkedBuild, TextTilesAreReadInBatchesIntoTheModelHeldWhole) {
     }
     test::write_text(dir / "csv" / e.path().filename().replace_extension(".csv"), text);
   }
-  OpenOptions whole_options;
-  whole_options.cache_path = dir / "whole.tch";
-  whole_options.memory = std::uint64_t{4} << 30;
-  const OpenedModel whole = open_model(dir / "csv", whole_options);
-  OpenOptions chunked_options;
-  chunked_options.cache_path = dir / "chunked.tch";
-  chunked_options.memory = resident() + (std::uint64_t{12} << 20);
-  const OpenedModel chunked = open_model(dir / "csv", chunked_options);
-  ASSERT_GT(chunked.chunked.chunks, 3u) << "the budget cuts the model";
-  EXPECT_EQ(chunked.format, "text");
-  EXPECT_EQ(chunked.input_points, whole.input_points);
-  const Hierarchy w = load(dir / "whole.tch");
-  const Hierarchy c = load(dir / "chunked.tch");
-  EXPECT_EQ(check_invariants(c), "");
-  EXPECT_EQ(c.leaf_count(), w.leaf_count());
-  EXPECT_EQ(c.bounds_min(), w.bounds_min());
-  EXPECT_EQ(c.bounds_max(), w.bounds_max());
-  EXPECT_EQ(c.frame().origin, w.frame().origin);
+  const TwoBuilds b = build_both_ways(dir, dir / "csv");
+  ASSERT_GT(b.chunked.chunked.chunks, 3u) << "the budget cuts the model";
+  EXPECT_EQ(b.chunked.format, "text");
 }
 
 // Two chunks in flight (each lane on a chunk of its own, sharing the
