@@ -111,6 +111,17 @@ TEST(TextStream, ACrLfOnABlocksBorderIsOneLineEnd) {
   EXPECT_EQ(p.at[2], glm::dvec3(7, 8, 9));
 }
 
+TEST(TextStream, AFileOfOneLineWithoutALineEndIsOnePoint) {
+  // The layout's look ahead starts past the end there (found by points_fuzz).
+  for (const std::string text : {"1 2 3", "1 2 3 4 5 6", "0 0 0 0  0 1 0 "}) {
+    const PointSet p = load_text_cloud_from_memory(text, "one.xyz");
+    EXPECT_EQ(p.size(), 1u) << text;
+  }
+  const fs::path dir = test::scratch_dir("text_stream_one");
+  test::write_text(dir / "one.xyz", "4 5 6");
+  EXPECT_EQ(load_text_cloud(dir / "one.xyz").size(), 1u);
+}
+
 TEST(TextStream, TheLastBatchMakesTheFilesChecks) {
   const fs::path dir = test::scratch_dir("text_stream_checks");
   // A PTS count that says more than the lines: the batch that reads the

@@ -252,7 +252,8 @@ class Lines {
   // The complete lines read so far and not yet handed out, as lines of
   // their own that read no further (the layout's look ahead).
   [[nodiscard]] Lines ahead() const {
-    std::string_view rest = text_.substr(at_);
+    // AT_ is one past the end after a last line without a line end.
+    std::string_view rest = text_.substr(std::min(at_, text_.size()));
     if (!end_) rest = rest.substr(0, rest.find_last_of("\r\n") + 1);  // npos + 1: none
     Lines out(rest);
     out.number_ = number_;
