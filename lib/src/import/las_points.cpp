@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <glm/gtc/type_precision.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -156,44 +157,34 @@ struct LasReader::State {
   void read(PointSet& points, std::size_t n, bool positions_only);
 };
 
-// N records from `next`, in chunks of about 1 MiB.
+// N records from `next`, in chunks of about 1 MiB. POSITIONS_ONLY (the
+// chunked build's counting pass) takes the same loop and skips the rest.
 void LasReader::State::read(PointSet& points, std::size_t n, bool positions_only) {
   const LasInfo& info = parsed.info;
   points.positions.resize(n);
-  if (positions_only) {
-    const std::uint32_t length = info.record_length;
-    const std::size_t chunk_points = std::max<std::size_t>(1, (std::size_t{1} << 20) / length);
-    chunk.resize(chunk_points * length);
-    for (std::size_t begin = 0; begin < n; begin += chunk_points) {
-      const std::size_t count = std::min(chunk_points, n - begin);
-      source->read(parsed.point_offset + (next + begin) * length, chunk.data(), count * length);
-      for (std::size_t i = 0; i < count; ++i)
-        points.positions[begin + i] =
-            glm::vec3(record_position(chunk.data() + i * length, info) - origin);
-    }
-    return;
-  }
-  const std::uint32_t rgb_at = detail::kLasRgbAt[info.point_format];
+  const std::uint32_t rgb_at = positions_only ? 0 : detail::kLasRgbAt[info.point_format];
   std::vector<glm::u16vec3> rgb16;
   if (rgb_at != 0) rgb16.resize(n);
   if (rgb_at != 0 && !sampled) deep_colours = deep_colours || sampled_colours_are_deep();
-  sampled = true;
+  if (!positions_only) sampled = true;
   const std::uint32_t length = info.record_length;
   const std::size_t chunk_points = std::max<std::size_t>(1, (std::size_t{1} << 20) / length);
   chunk.resize(chunk_points * length);
   std::vector<glm::dvec3>& exact = points.exact_positions;
   bool keep_exact = false;
   std::vector<std::string> not_kept;
-  detail::LasFields fields(info, n, not_kept);
+  std::optional<detail::LasFields> fields;
+  if (!positions_only) fields.emplace(info, n, not_kept);
   for (std::size_t begin = 0; begin < n; begin += chunk_points) {
     const std::size_t count = std::min(chunk_points, n - begin);
     source->read(parsed.point_offset + (next + begin) * length, chunk.data(), count * length);
-    fields.read(chunk.data(), count, length);
+    if (fields) fields->read(chunk.data(), count, length);
     for (std::size_t i = 0; i < count; ++i) {
       const unsigned char* r = chunk.data() + i * length;
       const glm::dvec3 p = record_position(r, info);
       const std::size_t k = begin + i;
       points.positions[k] = glm::vec3(p - origin);
+      if (positions_only) continue;
       if (!keep_exact && !detail::float_exact(points.positions[k], origin, p)) {
         // The floats do not give the file's coordinates back here: they are
         // kept for an export (a build drops them).
@@ -211,8 +202,9 @@ void LasReader::State::read(PointSet& points, std::size_t n, bool positions_only
       }
     }
   }
+  if (!fields) return;
   if (rgb_at != 0) keep_colours(rgb16, deep_colours, points);
-  for (std::string& r : fields.take(points.attributes)) {
+  for (std::string& r : fields->take(points.attributes)) {
     if (std::find(rounded.begin(), rounded.end(), r) == rounded.end())
       rounded.push_back(std::move(r));
   }
