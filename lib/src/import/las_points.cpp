@@ -1,9 +1,6 @@
 // The point records of a LAS file, in batches (LasReader, treecut/las.hpp):
 // positions relative to an origin fixed when the file opens, RGB and every
 // field as an attribute (las_fields.hpp). The header is las_read.cpp's.
-#include <fcntl.h>
-#include <sys/stat.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -17,6 +14,8 @@
 #include "las_source.hpp"
 #include "little_endian.hpp"
 #include "position_frame.hpp"
+#include "treecut/error.hpp"
+#include "treecut/file_io.hpp"
 
 namespace treecut {
 
@@ -78,8 +77,7 @@ void keep_colours(std::vector<glm::u16vec3>& rgb16, bool deep_file, PointSet& po
 }  // namespace
 
 struct LasReader::State {
-  int fd = -1;  // owned; -1 for bytes in memory
-  std::unique_ptr<detail::LasSource> source;
+  std::unique_ptr<detail::ByteSource> source;
   std::string name;
   WarningSink warn;  // the reader's, each line after the file's name
   detail::LasParsed parsed;
@@ -96,9 +94,6 @@ struct LasReader::State {
   State() = default;
   State(const State&) = delete;
   State& operator=(const State&) = delete;
-  ~State() {
-    if (fd >= 0) ::close(fd);
-  }
 
   // The header and the origin; what will not be kept, said once.
   void open() {
@@ -215,13 +210,7 @@ LasReader::LasReader(const std::filesystem::path& path, const WarningSink& warn)
   State& s = *state_;
   s.name = quoted_name(path);
   if (warn) s.warn = [warn, name = s.name](const std::string& w) { warn(name + ": " + w); };
-  s.fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
-  if (s.fd < 0) throw InputError(system_error_text(path, errno));
-  struct stat st {};
-  if (::fstat(s.fd, &st) != 0) throw InputError(system_error_text(path, errno));
-  if (!S_ISREG(st.st_mode)) throw InputError(s.name + ": not a regular file");
-  s.source =
-      std::make_unique<detail::LasFileSource>(s.fd, static_cast<std::uint64_t>(st.st_size), path);
+  s.source = std::make_unique<detail::FileSource>(path);
   s.open();
 }
 
@@ -230,7 +219,7 @@ LasReader::LasReader(std::string_view bytes, const std::string& name, const Warn
   State& s = *state_;
   s.name = name;
   if (warn) s.warn = [warn, name](const std::string& w) { warn(name + ": " + w); };
-  s.source = std::make_unique<detail::LasMemorySource>(bytes);
+  s.source = std::make_unique<detail::MemorySource>(bytes);
   s.open();
 }
 

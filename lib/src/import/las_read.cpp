@@ -3,13 +3,10 @@
 // EVLRs (for the coordinate system and the extra bytes' descriptors) and the point
 // records of formats 0 to 10 (las_points.cpp). See treecut/las.hpp.
 #include <fcntl.h>
-#include <sys/stat.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <array>
 #include <bit>
-#include <cerrno>
 #include <cmath>
 #include <cstring>
 #include <glm/gtc/type_precision.hpp>
@@ -32,7 +29,7 @@ namespace treecut {
 namespace {
 
 using detail::LasError;
-using detail::LasSource;
+using detail::ByteSource;
 
 template <class T>
 T get(const unsigned char* p) {
@@ -71,7 +68,7 @@ bool encoding_record(const std::string& user, std::uint16_t id) {
 // Records kept for an export, at most this many bytes in all.
 constexpr std::uint64_t kMaxKeptRecordBytes = std::uint64_t{16} << 20;
 
-void read_record(const LasSource& f, const std::string& user, std::uint16_t id,
+void read_record(const ByteSource& f, const std::string& user, std::uint16_t id,
                  const std::string& description, std::uint64_t at, std::uint64_t length,
                  LasInfo& info) {
   // An empty coordinate-system record says nothing: kept as any other
@@ -133,7 +130,7 @@ void read_record(const LasSource& f, const std::string& user, std::uint16_t id,
   }
 }
 
-void read_vlrs(const LasSource& f, std::uint64_t header_size, std::uint32_t count,
+void read_vlrs(const ByteSource& f, std::uint64_t header_size, std::uint32_t count,
                std::uint64_t end, LasInfo& info) {
   std::uint64_t at = header_size;
   for (std::uint32_t i = 0; i < count; ++i) {
@@ -157,7 +154,7 @@ void read_vlrs(const LasSource& f, std::uint64_t header_size, std::uint32_t coun
 }
 
 // Returns where the last record ends.
-std::uint64_t read_evlrs(const LasSource& f, std::uint64_t start, std::uint32_t count,
+std::uint64_t read_evlrs(const ByteSource& f, std::uint64_t start, std::uint32_t count,
                          std::uint64_t points_end, LasInfo& info) {
   if (count == 0) return points_end;
   if (start < points_end || start > f.size()) {
@@ -208,7 +205,7 @@ void check_scale_offset(const LasInfo& info) {
 
 }  // namespace
 
-detail::LasParsed detail::parse_las_header(const LasSource& f) {
+detail::LasParsed detail::parse_las_header(const ByteSource& f) {
   LasParsed out;
   LasInfo& info = out.info;
   const std::uint64_t size = f.size();
@@ -304,19 +301,10 @@ detail::LasParsed detail::parse_las_header(const LasSource& f) {
 }
 
 bool is_own_las(const std::filesystem::path& path) {
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK | O_NOFOLLOW);
-  if (fd < 0) return false;
-  struct Close {
-    int fd;
-    ~Close() { ::close(fd); }
-  } closer{fd};
-  struct stat st {};
-  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) return false;
   try {
-    const detail::LasFileSource source(fd, static_cast<std::uint64_t>(st.st_size), path);
+    const detail::FileSource source(path, O_NOFOLLOW);
     const detail::LasParsed parsed = detail::parse_las_header(source);
-    return parsed.info.generating_software.starts_with("treecut") &&
-           parsed.end == static_cast<std::uint64_t>(st.st_size);
+    return parsed.info.generating_software.starts_with("treecut") && parsed.end == source.size();
   } catch (const std::exception&) {
     return false;
   }
