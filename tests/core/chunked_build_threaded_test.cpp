@@ -25,6 +25,8 @@
 #include "treecut/las.hpp"
 #include "treecut/model_io.hpp"
 #include "treecut/parallel.hpp"
+#include "treecut/pcd.hpp"
+#include "treecut/ply.hpp"
 #include "treecut/tools/survey.hpp"
 
 namespace treecut {
@@ -171,6 +173,33 @@ TEST(ChunkedBuild, TextTilesAreReadInBatchesIntoTheModelHeldWhole) {
   const TwoBuilds b = build_both_ways(dir, dir / "csv");
   ASSERT_GT(b.chunked.chunked.chunks, 3u) << "the budget cuts the model";
   EXPECT_EQ(b.chunked.format, "text");
+}
+
+// So do binary PLY and PCD clouds (PlyReader, PcdReader): tiles saved in
+// either (map coordinates in doubles, an intensity) build in batches into
+// the model held whole.
+TEST(ChunkedBuild, PlyAndPcdTilesAreReadInBatchesIntoTheModelHeldWhole) {
+  tools::SurveyOptions o;
+  o.width = o.height = 160.0;
+  o.tile = 80.0;
+  o.density = 200000 / (o.width * o.height);
+  for (const std::string format : {"PLY", "PCD"}) {
+    SCOPED_TRACE(format);
+    const fs::path dir = test::scratch_dir("chunked_" + format);
+    fs::create_directories(dir / "tiles");
+    for (const tools::SurveyTile& t : tools::survey_tiles(o)) {
+      const PointSet tile = tools::generate_survey_tile(o, t);
+      const fs::path name = dir / "tiles" / t.file_name;
+      if (format == "PLY") save_ply(fs::path(name).replace_extension(".ply"), tile);
+      if (format == "PCD")
+        save_pcd(fs::path(name).replace_extension(".pcd"), tile, PcdData::binary);
+    }
+    const fs::path first = fs::directory_iterator(dir / "tiles")->path();
+    EXPECT_TRUE(format == "PLY" ? PlyReader(first).streams() : PcdReader(first).streams());
+    const TwoBuilds b = build_both_ways(dir, dir / "tiles");
+    EXPECT_EQ(b.chunked.format, format);
+    EXPECT_EQ(b.c.attributes().size(), b.w.attributes().size());
+  }
 }
 
 // Two chunks in flight (each lane on a chunk of its own, sharing the

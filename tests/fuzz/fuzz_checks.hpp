@@ -11,9 +11,11 @@
 #include <vector>
 
 #include "treecut/attributes.hpp"
+#include "treecut/error.hpp"
 #include "treecut/hierarchy.hpp"
 #include "treecut/las.hpp"
 #include "treecut/pcd.hpp"
+#include "treecut/ply.hpp"
 #include "treecut/point_set.hpp"
 #include "treecut/text_cloud.hpp"
 #include "treecut/tree_cut.hpp"
@@ -145,6 +147,30 @@ inline std::string check_builds(PointSet points) {
   const Hierarchy h = build_hierarchy(std::move(points));
   if (std::string why = check_invariants(h); !why.empty()) return "built hierarchy: " + why;
   return check_loaded_hierarchy(h);
+}
+
+/// A reader's batches (PlyReader, PcdReader: READER over the bytes) against
+/// the whole read: the same points in all (WHOLE: the count the whole read
+/// kept, or -1 where it refused the file, which the batches must refuse
+/// too); every batch within the contract and, where the reader streams
+/// the file (else it is one batch of the whole read), at most BATCH points.
+template <class Reader>
+std::string check_batches(Reader reader, long long whole, std::size_t batch) {
+  std::size_t points = 0;
+  try {
+    for (;;) {
+      const PointSet b = reader.next(batch);
+      if (b.size() == 0) break;
+      if (reader.streams() && b.size() > batch) return "a batch past the batch size";
+      if (std::string why = check_point_set(b); !why.empty()) return "a batch: " + why;
+      points += b.size();
+    }
+  } catch (const InputError&) {
+    return whole < 0 ? "" : "the batches refused a file the whole read took";
+  }
+  if (whole < 0) return "the batches took a file the whole read refused";
+  if (points != static_cast<std::size_t>(whole)) return "the batches hold another count";
+  return {};
 }
 
 }  // namespace treecut::fuzz

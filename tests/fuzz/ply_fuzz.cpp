@@ -1,5 +1,6 @@
 // libFuzzer target: PLY import through our header/body guard and OpenMesh
-// (load_ply_from_memory, the same path as load_ply). Anything malformed must
+// (load_ply_from_memory, the same path as load_ply), whole and in batches
+// (PlyReader, which must give what the whole read gives). Anything malformed must
 // be an InputError; any other exception, a sanitizer report or an accepted
 // point set that breaks the PointSet contract is a crash. Small accepted
 // inputs also go through attributes and the hierarchy build.
@@ -30,11 +31,22 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const std::string_view bytes(reinterpret_cast<const char*>(data), size);
   treecut::PlyLoadReport report;
   treecut::PointSet points;
+  long long whole = -1;
   try {
     points = treecut::load_ply_from_memory(bytes, "fuzz.ply", &report, [](const std::string&) {});
+    whole = static_cast<long long>(points.size());
   } catch (const treecut::InputError&) {
-    return 0;  // rejected with a message: what malformed input must get
+    // Rejected with a message: what malformed input must get.
   }
+  // In batches of 3 rows (PlyReader): what the whole read gives.
+  try {
+    treecut::PlyReader reader(bytes, "fuzz.ply");
+    if (std::string why = treecut::fuzz::check_batches(std::move(reader), whole, 3); !why.empty())
+      fail(why);
+  } catch (const treecut::InputError&) {
+    if (whole >= 0) fail("the batched reader refused at open a file the whole read took");
+  }
+  if (whole < 0) return 0;
   if (std::string why = treecut::fuzz::check_point_set(points); !why.empty()) fail(why);
   if (points.size() + report.dropped_nonfinite != report.vertices_in_file) {
     fail("loaded + dropped points differ from the header's count");

@@ -1,6 +1,7 @@
 // libFuzzer target: the point file readers besides PLY, as open_model
 // chooses them by the first bytes: LAS (load_las_from_memory, the reader
-// load_las uses on a file) for "LASF", PCD when it looks like one, else the
+// load_las uses on a file) for "LASF", PCD when it looks like one (whole and
+// in batches: PcdReader must give what the whole read gives), else the
 // text cloud reader (XYZ, PTS, CSV). Anything malformed must be an InputError; any other exception,
 // a sanitizer report or an accepted point set that breaks the PointSet contract (a LAS with another
 // count than its header declares) is a crash. Small accepted inputs also go through attributes and
@@ -30,11 +31,23 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   treecut::LasLoadReport report;
   treecut::PointSet points;
   bool las = false;
+  long long whole = -1;
   try {
     points = treecut::fuzz::load_point_bytes(bytes, report, las);
+    whole = static_cast<long long>(points.size());
   } catch (const treecut::InputError&) {
-    return 0;
   }
+  // A PCD in batches of 3 records (PcdReader): what the whole read gives.
+  if (!las && treecut::looks_like_pcd(bytes)) {
+    try {
+      treecut::PcdReader reader(bytes, "fuzz.pcd");
+      if (std::string why = treecut::fuzz::check_batches(std::move(reader), whole, 3); !why.empty())
+        fail(why);
+    } catch (const treecut::InputError&) {
+      if (whole >= 0) fail("the batched reader refused at open a file the whole read took");
+    }
+  }
+  if (whole < 0) return 0;
   if (std::string why = treecut::fuzz::check_point_set(points); !why.empty()) fail(why);
   if (las && points.size() != report.info.point_count) fail("loaded another count than declared");
   if (points.size() <= kMaxBuildPoints) {

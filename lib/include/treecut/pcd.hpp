@@ -27,6 +27,7 @@
 #pragma once
 
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <string_view>
 
@@ -45,6 +46,35 @@ PointSet load_pcd(const std::filesystem::path& path, const WarningSink& warn = {
 /// load_pcd() on bytes in memory; NAME stands for the path.
 PointSet load_pcd_from_memory(std::string_view bytes, const std::string& name,
                               const WarningSink& warn = {});
+
+/// A PCD file's points in batches (issue 44: a build that holds a batch,
+/// not the file). A binary body is read a batch of records at a time,
+/// positions relative to the first batch's origin; an ascii or
+/// binary_compressed one (LZF over each field of every point), or one with
+/// float colour channels (scaled by the file's brightest), is one batch of
+/// the whole read, load_pcd() itself. Warnings as load_pcd() gives them,
+/// with the last batch. Throws as load_pcd() does (a file of no usable
+/// point: from the call that reads its end).
+class PcdReader {
+ public:
+  /// Opens PATH (held open until destruction).
+  explicit PcdReader(const std::filesystem::path& path, const WarningSink& warn = {});
+  /// Reads BYTES (which must outlive the reader); NAME stands for the path.
+  PcdReader(std::string_view bytes, const std::string& name, const WarningSink& warn = {});
+  ~PcdReader();
+  PcdReader(PcdReader&&) noexcept;
+  PcdReader& operator=(PcdReader&&) noexcept;
+
+  /// The next batch of at most MAX_POINTS points (fewer where some are
+  /// dropped, never none before the end); none at the end.
+  PointSet next(std::size_t max_points);
+  /// Whether the file is read in batches (else next() gives it whole).
+  [[nodiscard]] bool streams() const;
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
 
 enum class PcdData { ascii, binary, binary_compressed };
 

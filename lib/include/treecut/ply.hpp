@@ -7,6 +7,7 @@
 
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <string>
 #include <string_view>
 
@@ -53,6 +54,39 @@ PointSet load_ply(const std::filesystem::path& path, PlyLoadReport* report = nul
 /// malformed is an InputError, allocations stay proportional to BYTES.size().
 PointSet load_ply_from_memory(std::string_view bytes, const std::string& name,
                               PlyLoadReport* report = nullptr, const WarningSink& warn = {});
+
+/// A PLY file's points in batches (issue 44: a build that holds a batch,
+/// not the file). A binary file whose only rows are vertices of fixed size
+/// (what scanners and converters write for a cloud) is read a batch of rows
+/// at a time: each goes through load_ply()'s guard and reader as a file of
+/// those rows alone, positions relative to the first batch's origin. Any
+/// other file (ascii, faces, lists, a body not the header's size) is one
+/// batch of every point, load_ply() itself. Warnings as load_ply() gives
+/// them: about the header once, with the first batch; the totals of what
+/// was dropped or cleared once, with the last. Throws as load_ply() does
+/// (a file of no usable point: from the call that reads its end).
+class PlyReader {
+ public:
+  /// Opens PATH (held open until destruction).
+  explicit PlyReader(const std::filesystem::path& path, const WarningSink& warn = {});
+  /// Reads BYTES (which must outlive the reader); NAME stands for the path.
+  PlyReader(std::string_view bytes, const std::string& name, const WarningSink& warn = {});
+  ~PlyReader();
+  PlyReader(PlyReader&&) noexcept;
+  PlyReader& operator=(PlyReader&&) noexcept;
+
+  /// The next batch of at most MAX_POINTS points (fewer where some are
+  /// dropped, never none before the end); none at the end.
+  PointSet next(std::size_t max_points);
+  /// Whether the file is read in batches (else next() gives it whole).
+  [[nodiscard]] bool streams() const;
+  /// What load_ply() reports, of the batches so far.
+  [[nodiscard]] const PlyLoadReport& report() const;
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
 
 /// How save_ply and save_pcd write positions.
 struct SaveOptions {

@@ -21,6 +21,16 @@ PointSet Batches::next(std::size_t max, OpenedModel& out, bool positions_only) {
     out.format = "text";
     return text_->next(max);
   }
+  if (ply_ && ply_->streams()) {
+    out.format = "PLY";
+    PointSet batch = ply_->next(max);
+    out.ply = ply_->report();
+    return batch;
+  }
+  if (pcd_ && pcd_->streams()) {
+    out.format = "PCD";
+    return pcd_->next(max);
+  }
   if (done_) return {};
   done_ = true;
   PointSet all = read_point_file(file_, out, warn_, columns_);

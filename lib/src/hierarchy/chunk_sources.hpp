@@ -19,13 +19,15 @@
 #include "model_read.hpp"
 #include "treecut/las.hpp"
 #include "treecut/model_io.hpp"
+#include "treecut/pcd.hpp"
+#include "treecut/ply.hpp"
 #include "treecut/text_cloud.hpp"
 
 namespace treecut::detail {
 
-// A file's points in batches: a LAS file's and a text cloud's from their
-// readers, a PLY's or PCD's whole, as one batch (their readers do not
-// stream yet).
+// A file's points in batches, from its format's reader (a PLY or PCD
+// file's records a batch at a time where it is binary and can be cut:
+// PlyReader, PcdReader; else the whole file as one batch).
 class Batches {
  public:
   Batches(const std::filesystem::path& file, const WarningSink& warn,
@@ -34,6 +36,8 @@ class Batches {
     const PointFormat format = point_format(file, columns);
     if (format == PointFormat::las) las_.emplace(file, warn);
     if (format == PointFormat::text) text_.emplace(file, warn, columns);
+    if (format == PointFormat::ply) ply_.emplace(file, warn);
+    if (format == PointFormat::pcd) pcd_.emplace(file, warn);
   }
   /// The next batch of at most MAX points; none at the end. POSITIONS_ONLY:
   /// a LAS file's positions alone (other formats give all they have).
@@ -45,6 +49,8 @@ class Batches {
   const std::vector<std::string>& columns_;
   std::optional<LasReader> las_;
   std::optional<TextCloudReader> text_;
+  std::optional<PlyReader> ply_;
+  std::optional<PcdReader> pcd_;
   bool done_ = false;
 };
 

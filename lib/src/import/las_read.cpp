@@ -28,8 +28,8 @@ namespace treecut {
 
 namespace {
 
-using detail::LasError;
 using detail::ByteSource;
+using detail::LasError;
 
 template <class T>
 T get(const unsigned char* p) {

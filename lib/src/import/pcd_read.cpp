@@ -1,27 +1,21 @@
 // PCD import (treecut/pcd.hpp): after the header (pcd_header.cpp), the
-// points of an ascii, binary or binary_compressed body.
-#include <lzf.h>
-
+// points of an ascii, binary or binary_compressed body (pcd_records.cpp),
+// whole or, binary, in batches (PcdReader).
 #include <algorithm>
-#include <cctype>
-#include <charconv>
-#include <cmath>
-#include <cstring>
-#include <limits>
+#include <memory>
 #include <optional>
-#include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "attribute_column.hpp"
+#include "byte_source.hpp"
 #include "file_metadata.hpp"
-#include "little_endian.hpp"
 #include "pcd_header.hpp"
+#include "pcd_records.hpp"
 #include "position_frame.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
 #include "treecut/pcd.hpp"
-#include "unit_normal.hpp"
 #include "whole_file.hpp"
 
 namespace treecut {
@@ -30,370 +24,12 @@ using namespace pcd;
 
 namespace {
 
-double element(const unsigned char* p, const Field& f) {
-  switch (f.type) {
-    case 'F':
-      return f.size == 4 ? double(detail::get_le<float>(p)) : detail::get_le<double>(p);
-    case 'I':
-      switch (f.size) {
-        case 1:
-          return static_cast<std::int8_t>(*p);
-        case 2:
-          return detail::get_le<std::int16_t>(p);
-        case 4:
-          return detail::get_le<std::int32_t>(p);
-        default:
-          return static_cast<double>(detail::get_le<std::int64_t>(p));
-      }
-    default:
-      switch (f.size) {
-        case 1:
-          return *p;
-        case 2:
-          return detail::get_le<std::uint16_t>(p);
-        case 4:
-          return detail::get_le<std::uint32_t>(p);
-        default:
-          return static_cast<double>(detail::get_le<std::uint64_t>(p));
-      }
-  }
-}
+// A header longer than this (comments by the thousand) is read whole.
+constexpr std::uint64_t kMaxHeader = 16u << 20;
 
-// Where each meaning is: field indices, -1 when absent.
-struct Roles {
-  int xyz[3] = {-1, -1, -1};
-  int normal[3] = {-1, -1, -1};
-  int rgb = -1;                   // a packed colour (rgb, rgba)
-  int channel[3] = {-1, -1, -1};  // separate red, green, blue fields
-  std::vector<int> attributes;
-  std::vector<std::string> not_kept;
-};
-
-std::string lower(std::string_view name) {
-  std::string s(name);
-  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return s;
-}
-
-// Field names are matched without regard to case (PDAL and others write
-// X Y Z, Red Green Blue); attributes keep the file's spelling.
-Roles roles_of(const Header& h) {
-  Roles r;
-  static const std::vector<std::vector<std::string_view>> kNames = {{"x"},
-                                                                    {"y"},
-                                                                    {"z"},
-                                                                    {"normal_x", "nx"},
-                                                                    {"normal_y", "ny"},
-                                                                    {"normal_z", "nz"},
-                                                                    {"red", "r"},
-                                                                    {"green", "g"},
-                                                                    {"blue", "b"}};
-  for (int i = 0; i < static_cast<int>(h.fields.size()); ++i) {
-    const Field& f = h.fields[static_cast<std::size_t>(i)];
-    const std::string name = lower(f.name);
-    int role = -1;
-    for (std::size_t k = 0; k < kNames.size() && role < 0 && f.count == 1; ++k) {
-      if (std::find(kNames[k].begin(), kNames[k].end(), name) != kNames[k].end()) role = int(k);
-    }
-    int* slot = role < 0   ? nullptr
-                : role < 3 ? &r.xyz[role]
-                : role < 6 ? &r.normal[role - 3]
-                           : &r.channel[role - 6];
-    bool placed = false;
-    if (slot != nullptr && *slot < 0) *slot = i, placed = true;
-    if ((name == "rgb" || name == "rgba") && f.count == 1 && f.size == 4 && r.rgb < 0) {
-      r.rgb = i, placed = true;
-    }
-    if (placed || f.name == "_") continue;
-    if (f.count == 1 && r.attributes.size() < kMaxAttributes) {
-      r.attributes.push_back(i);
-    } else {
-      r.not_kept.push_back(shown(f.name) +
-                           (f.count > 1 ? " (" + std::to_string(f.count) + " values)" : ""));
-    }
-  }
-  if (r.xyz[0] < 0 || r.xyz[1] < 0 || r.xyz[2] < 0) throw PcdError("no x, y and z fields");
-  // A normal or a colour counts only whole; a packed colour wins over channels.
-  for (int* triple : {r.normal, r.channel}) {
-    const bool whole = triple[0] >= 0 && triple[1] >= 0 && triple[2] >= 0;
-    if (whole && !(triple == r.channel && r.rgb >= 0)) continue;
-    for (int k = 0; k < 3; ++k) {
-      if (triple[k] >= 0) r.attributes.push_back(triple[k]);
-      triple[k] = -1;
-    }
-  }
-  std::sort(r.attributes.begin(), r.attributes.end());
-  return r;
-}
-
-ValueType value_type(const Field& f) {
-  if (f.type == 'F') return f.size == 4 ? ValueType::f32 : ValueType::f64;
-  const bool s = f.type == 'I';
-  switch (f.size) {
-    case 1:
-      return s ? ValueType::i8 : ValueType::u8;
-    case 2:
-      return s ? ValueType::i16 : ValueType::u16;
-    case 4:
-      return s ? ValueType::i32 : ValueType::u32;
-    default:
-      return s ? ValueType::i64 : ValueType::u64;
-  }
-}
-
-// One colour channel field's value: 8 bits (integers up to 255, floats in
-// [0, 1]) or 16 (integers past 255, 2-byte fields).
-struct ChannelDepth {
-  bool sixteen = false;
-  bool unit_float = false;
-};
-
-// The points, from values the body gives as value(point, field, element 0).
-struct Builder {
-  const Header& h;
-  const Roles& r;
-  PointSet points;
-  std::vector<glm::dvec3> doubles;
-  std::vector<glm::dvec3> channels;  // separate colour fields, as read
-  std::vector<detail::AttributeColumn> attributes;
-
-  Builder(const Header& header, const Roles& roles) : h(header), r(roles) {
-    // Reserved only for what the body was checked to hold (parse()).
-    const auto n = static_cast<std::size_t>(h.points);
-    doubles.reserve(n);
-    if (r.normal[0] >= 0) points.normals.reserve(n);
-    if (r.rgb >= 0) points.colors.reserve(n);
-    if (r.channel[0] >= 0) channels.reserve(n);
-    for (const int a : r.attributes) {
-      const Field& f = h.fields[static_cast<std::size_t>(a)];
-      attributes.emplace_back(f.name, n, value_type(f));
-    }
-  }
-
-  // VALUE(field) gives the field's first element as a double; RAW(field)
-  // its 4 bytes (the packed colour), RAW64(field) an 8-byte integer's bits
-  // (exactly, past 2^53 too).
-  template <class Value, class Raw, class Raw64>
-  void add(Value&& value, Raw&& raw, Raw64&& raw64) {
-    doubles.emplace_back(value(r.xyz[0]), value(r.xyz[1]), value(r.xyz[2]));
-    if (r.normal[0] >= 0) {
-      points.normals.push_back(
-          detail::unit_or_zero(value(r.normal[0]), value(r.normal[1]), value(r.normal[2])));
-    }
-    if (r.rgb >= 0) {
-      const std::uint32_t c = raw(r.rgb);  // 0xAARRGGBB, as PCL packs it
-      points.colors.emplace_back((c >> 16) & 255u, (c >> 8) & 255u, c & 255u, 255);
-    }
-    if (r.channel[0] >= 0)
-      channels.emplace_back(value(r.channel[0]), value(r.channel[1]), value(r.channel[2]));
-    for (std::size_t k = 0; k < attributes.size(); ++k) {
-      const int f = r.attributes[k];
-      const Field& x = h.fields[static_cast<std::size_t>(f)];
-      const std::optional<std::uint64_t> bits =
-          x.type != 'F' && x.size == 8 ? raw64(f) : std::nullopt;
-      if (bits) {
-        attributes[k].push_back_raw64(*bits);
-      } else {
-        attributes[k].push_back(value(f));
-      }
-    }
-  }
-
-  // Separate red, green and blue fields as the colour: floats in [0, 1],
-  // integers in 0-255, or 16 bits (2-byte fields, or values past 255).
-  void colours_from_channels() {
-    if (channels.empty()) return;
-    const Field& f = h.fields[static_cast<std::size_t>(r.channel[0])];
-    double top = 0.0;
-    for (const glm::dvec3& c : channels) {
-      for (int k = 0; k < 3; ++k) {
-        if (std::isfinite(c[k])) top = std::max(top, c[k]);
-      }
-    }
-    const bool unit = f.type == 'F' && top <= 1.0;
-    const bool sixteen = !unit && (f.size >= 2 && f.type != 'F' ? true : top > 255.0);
-    auto clamp = [](double v, double hi) {
-      return std::isfinite(v) ? std::clamp(v, 0.0, hi) : 0.0;
-    };
-    points.colors.resize(channels.size());
-    if (sixteen) points.colors16.resize(channels.size());
-    for (std::size_t i = 0; i < channels.size(); ++i) {
-      const glm::dvec3 c = channels[i];
-      if (sixteen) {
-        const glm::u16vec3 deep(
-            glm::round(glm::dvec3(clamp(c.x, 65535), clamp(c.y, 65535), clamp(c.z, 65535))));
-        points.colors16[i] = deep;
-        points.colors[i] = glm::u8vec4(glm::u16vec3(deep >> std::uint16_t(8)), 255);
-      } else {
-        const double s = unit ? 255.0 : 1.0;
-        points.colors[i] =
-            glm::u8vec4(glm::u8vec3(glm::round(glm::dvec3(clamp(c.x * s, 255), clamp(c.y * s, 255),
-                                                          clamp(c.z * s, 255)))),
-                        255);
-      }
-    }
-    std::vector<glm::dvec3>().swap(channels);
-  }
-};
-
-void read_packed(const unsigned char* body, const Header& h, Builder& b) {
-  for (std::uint64_t i = 0; i < h.points; ++i) {
-    const unsigned char* rec = body + i * h.record;
-    b.add(
-        [&](int f) {
-          const Field& x = h.fields[static_cast<std::size_t>(f)];
-          return element(rec + x.offset, x);
-        },
-        [&](int f) {
-          return detail::get_le<std::uint32_t>(rec + h.fields[static_cast<std::size_t>(f)].offset);
-        },
-        [&](int f) -> std::optional<std::uint64_t> {
-          return detail::get_le<std::uint64_t>(rec + h.fields[static_cast<std::size_t>(f)].offset);
-        });
-  }
-}
-
-// binary_compressed: the fields one after the other, each for every point.
-void read_columns(const unsigned char* body, const Header& h, Builder& b) {
-  std::vector<std::uint64_t> start(h.fields.size());
-  std::uint64_t at = 0;
-  for (std::size_t f = 0; f < h.fields.size(); ++f) {
-    start[f] = at;
-    at += std::uint64_t{h.fields[f].size} * h.fields[f].count * h.points;
-  }
-  for (std::uint64_t i = 0; i < h.points; ++i) {
-    auto where = [&](int f) {
-      const Field& x = h.fields[static_cast<std::size_t>(f)];
-      return body + start[static_cast<std::size_t>(f)] + i * x.size * x.count;
-    };
-    b.add([&](int f) { return element(where(f), h.fields[static_cast<std::size_t>(f)]); },
-          [&](int f) { return detail::get_le<std::uint32_t>(where(f)); },
-          [&](int f) -> std::optional<std::uint64_t> {
-            return detail::get_le<std::uint64_t>(where(f));
-          });
-  }
-}
-
-void read_ascii(std::string_view file, const Header& h, Builder& b) {
-  std::size_t at = h.body, line = h.body_line - 1;
-  std::uint64_t per_line = 0;
-  for (const Field& f : h.fields) per_line += f.count;
-  std::vector<std::size_t> first(h.fields.size());  // token of each field
-  std::size_t k = 0;
-  for (std::size_t f = 0; f < h.fields.size(); ++f) first[f] = k, k += h.fields[f].count;
-  std::vector<double> values;
-  std::uint64_t read = 0;
-  while (read < h.points) {
-    if (at >= file.size()) {
-      throw PcdError(std::to_string(h.points) + " points declared, the file has " +
-                     std::to_string(read));
-    }
-    const std::size_t end = std::min(file.find('\n', at), file.size());
-    const std::string_view text = trim(file.substr(at, end - at));
-    at = end + 1;
-    ++line;
-    if (text.empty()) continue;
-    const std::vector<std::string_view> t = tokens_of(text);
-    if (t.size() != per_line) {
-      throw PcdError(std::to_string(line) + ": " + std::to_string(t.size()) +
-                     " values, the fields have " + std::to_string(per_line));
-    }
-    values.resize(t.size());
-    for (std::size_t i = 0; i < t.size(); ++i) {
-      std::string_view s = t[i];
-      if (s == "nan" || s == "NaN" || s == "-nan") {
-        values[i] = std::numeric_limits<double>::quiet_NaN();
-        continue;
-      }
-      if (!s.empty() && s.front() == '+') s.remove_prefix(1);
-      const auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), values[i]);
-      if (ec != std::errc() || p != s.data() + s.size()) {
-        throw PcdError(std::to_string(line) + ": '" + shown(t[i]) + "' is not a number");
-      }
-    }
-    b.add([&](int f) { return values[first[static_cast<std::size_t>(f)]]; },
-          [&](int f) {
-            // A packed colour is written as the float with its bits (or an integer).
-            const Field& x = h.fields[static_cast<std::size_t>(f)];
-            const double v = values[first[static_cast<std::size_t>(f)]];
-            if (x.type == 'F') {
-              const float fv = static_cast<float>(v);
-              std::uint32_t bits;
-              std::memcpy(&bits, &fv, 4);
-              return bits;
-            }
-            return static_cast<std::uint32_t>(std::clamp(v, 0.0, 4294967295.0));
-          },
-          [&](int f) -> std::optional<std::uint64_t> {
-            // An 8-byte integer from its digits (a double rounds past 2^53);
-            // anything else (nan) goes as a value.
-            const Field& x = h.fields[static_cast<std::size_t>(f)];
-            std::string_view token = t[first[static_cast<std::size_t>(f)]];
-            if (!token.empty() && token.front() == '+') token.remove_prefix(1);
-            const char* last = token.data() + token.size();
-            std::uint64_t u = 0;
-            std::int64_t i = 0;
-            if (x.type == 'U') {
-              const auto [p, ec] = std::from_chars(token.data(), last, u);
-              if (ec == std::errc() && p == last) return u;
-            } else {
-              const auto [p, ec] = std::from_chars(token.data(), last, i);
-              if (ec == std::errc() && p == last) return static_cast<std::uint64_t>(i);
-            }
-            return std::nullopt;
-          });
-    ++read;
-  }
-}
-
-// binary_compressed: the LZF block's sizes checked against the file, the
-// header and LZF's bound before anything is allocated, then unpacked.
-std::vector<unsigned char> unpack(const unsigned char* body, std::uint64_t left, const Header& h,
-                                  std::uint64_t need) {
-  if (left < 8) throw PcdError("the compressed data's sizes are cut off");
-  const std::uint32_t packed = detail::get_le<std::uint32_t>(body);
-  const std::uint32_t unpacked = detail::get_le<std::uint32_t>(body + 4);
-  if (packed > left - 8) {
-    throw PcdError("the compressed data (" + std::to_string(packed) +
-                   " bytes) runs past the end of the file");
-  }
-  if (unpacked != need) {
-    throw PcdError("the compressed data unpacks to " + std::to_string(unpacked) + " bytes, " +
-                   std::to_string(h.points) + " points of " + std::to_string(h.record) +
-                   " bytes need " + std::to_string(need));
-  }
-  // LZF turns 3 bytes into at most 264: a larger claim is not LZF.
-  if (need > std::uint64_t{packed} * 88 + 1024) {
-    throw PcdError("the compressed data's " + std::to_string(packed) + " bytes cannot unpack to " +
-                   std::to_string(need));
-  }
-  std::vector<unsigned char> columns(static_cast<std::size_t>(need));
-  const unsigned got = need == 0 ? 0 : lzf_decompress(body + 8, packed, columns.data(), unpacked);
-  if (got != unpacked) throw PcdError("the compressed data is damaged (LZF)");
-  return columns;
-}
-
-// The sensor's pose (VIEWPOINT) of an organized cloud, or of any cloud
-// whose pose is not the identity: the first view opens from it.
-void set_viewpoint(const Header& h, PointSet& points) {
-  const double* v = h.viewpoint;
-  const glm::dquat q(v[3], v[4], v[5], v[6]);
-  const bool identity = v[0] == 0 && v[1] == 0 && v[2] == 0 && q == glm::dquat(1, 0, 0, 0);
-  if (identity && h.height <= 1) return;
-  const double norm = glm::length(q);
-  if (!(norm > 1e-9)) return;  // no rotation at all: not a pose
-  points.frame.viewpoint = Viewpoint{glm::dvec3(v[0], v[1], v[2]), q / norm};
-}
-
-PointSet parse(std::string_view file, const WarningSink& warn) {
-  const Header h = parse_header(file);
-  const Roles r = roles_of(h);
-  const std::uint64_t left = file.size() - h.body;
-  const std::uint64_t need = h.points * h.record;
-  const auto* body = reinterpret_cast<const unsigned char*>(file.data()) + h.body;
-  // The body's size is checked against the header before anything is
-  // sized from POINTS (the Builder reserves for every point).
-  std::vector<unsigned char> columns;
+// The body's size checked against the header before anything is sized
+// from POINTS (the Builder reserves for every point).
+void check_size(const Header& h, std::uint64_t left) {
   if (h.data == Data::ascii) {
     // Each value needs a character and a separator.
     std::uint64_t per_line = 0;
@@ -403,14 +39,52 @@ PointSet parse(std::string_view file, const WarningSink& warn) {
                      " values cannot fit in the " + std::to_string(left) +
                      " bytes after the header");
     }
-  } else if (h.data == Data::binary) {
-    if (need > left) {
-      throw PcdError(std::to_string(h.points) + " points of " + std::to_string(h.record) +
-                     " bytes declared, the data holds " + std::to_string(left / h.record));
-    }
-  } else {
-    columns = unpack(body, left, h, need);
+  } else if (h.data == Data::binary && h.points * h.record > left) {
+    throw PcdError(std::to_string(h.points) + " points of " + std::to_string(h.record) +
+                   " bytes declared, the data holds " + std::to_string(left / h.record));
   }
+}
+
+// The points B took from the body of a file with header H: colours,
+// attributes, positions relative to ORIGIN (chosen from them when none;
+// what place_points drops added to DROPPED), the pose, treecut's metadata.
+PointSet points_of(const Header& h, Builder& b, const std::optional<glm::dvec3>& origin,
+                   detail::Dropped& dropped) {
+  b.colours_from_channels();
+  PointSet points = std::move(b.points);
+  detail::take_columns(b.attributes, points.attributes);
+  dropped = detail::place_points(std::move(b.doubles), points, origin);
+  std::vector<glm::dvec3>().swap(b.doubles);
+  set_viewpoint(h, points);
+  for (const std::string& comment : h.comments) detail::read_metadata_line(comment, points);
+  return points;
+}
+
+// The checks and warnings of a file once its last point is read: none
+// usable, the points dropped, the fields not kept.
+void finish(std::size_t kept, const detail::Dropped& dropped, const Roles& r,
+            const WarningSink& warn) {
+  if (kept == 0) {
+    throw PcdError(dropped.far > 0
+                       ? "no usable points (" + dropped.far_message(dropped.first_far + 1) + ")"
+                       : "no points with a finite position");
+  }
+  if (!warn) return;
+  if (dropped.nonfinite > 0) {
+    warn("dropped " + std::to_string(dropped.nonfinite) + " points without a finite position");
+  }
+  if (dropped.far > 0) warn(dropped.far_message(dropped.first_far + 1));
+  if (!r.not_kept.empty()) warn("fields not kept: " + detail::join_some(r.not_kept));
+}
+
+PointSet parse(std::string_view file, const WarningSink& warn) {
+  const Header h = parse_header(file);
+  const Roles r = roles_of(h);
+  const std::uint64_t left = file.size() - h.body;
+  const auto* body = reinterpret_cast<const unsigned char*>(file.data()) + h.body;
+  check_size(h, left);
+  std::vector<unsigned char> columns;
+  if (h.data == Data::compressed) columns = unpack(body, left, h, h.points * h.record);
   Builder b(h, r);
   if (h.data == Data::ascii) {
     read_ascii(file, h, b);
@@ -420,25 +94,9 @@ PointSet parse(std::string_view file, const WarningSink& warn) {
     read_columns(columns.data(), h, b);
     std::vector<unsigned char>().swap(columns);
   }
-  b.colours_from_channels();
-  PointSet points = std::move(b.points);
-  detail::take_columns(b.attributes, points.attributes);
-  const detail::Dropped dropped = detail::place_points(std::move(b.doubles), points);
-  if (points.positions.empty()) {
-    throw PcdError(dropped.far > 0
-                       ? "no usable points (" + dropped.far_message(dropped.first_far + 1) + ")"
-                       : "no points with a finite position");
-  }
-  std::vector<glm::dvec3>().swap(b.doubles);
-  set_viewpoint(h, points);
-  for (const std::string& comment : h.comments) detail::read_metadata_line(comment, points);
-  if (warn) {
-    if (dropped.nonfinite > 0) {
-      warn("dropped " + std::to_string(dropped.nonfinite) + " points without a finite position");
-    }
-    if (dropped.far > 0) warn(dropped.far_message(dropped.first_far + 1));
-    if (!r.not_kept.empty()) warn("fields not kept: " + detail::join_some(r.not_kept));
-  }
+  detail::Dropped dropped;
+  PointSet points = points_of(h, b, std::nullopt, dropped);
+  finish(points.size(), dropped, r, warn);
   return points;
 }
 
@@ -459,6 +117,121 @@ PointSet load_pcd_from_memory(std::string_view bytes, const std::string& name,
 PointSet load_pcd(const std::filesystem::path& path, const WarningSink& warn) {
   const detail::WholeFile file = detail::read_whole_file(path);
   return load_pcd_from_memory(file.bytes(), quoted_name(path), warn);
+}
+
+// A PCD file being read in batches: its header, and what the batches so
+// far found (the origin the first chose, the points dropped).
+struct PcdReader::State {
+  std::filesystem::path path;  // empty for bytes in memory
+  std::string_view bytes;
+  std::unique_ptr<detail::ByteSource> source;
+  std::string name;
+  WarningSink warn;
+  bool streams = false, done = false;
+  Header h;
+  Roles r;
+  std::uint64_t next = 0, read = 0, kept = 0;
+  std::vector<unsigned char> rows;  // a batch's records, reused
+  std::optional<glm::dvec3> origin;
+  detail::Dropped dropped;
+
+  // Whether the file streams: binary records, as many as the header says,
+  // and no colour scaled by the file's brightest value (float channels).
+  void open() {
+    const std::uint64_t size = source->size();
+    std::string prefix;
+    for (std::uint64_t want = 1u << 16;; want *= 4) {
+      prefix.resize(static_cast<std::size_t>(std::min({want, size, kMaxHeader})));
+      source->read(0, prefix.data(), prefix.size());
+      try {
+        h = parse_header(prefix);
+        r = roles_of(h);
+        const bool float_channels =
+            r.channel[0] >= 0 && h.fields[static_cast<std::size_t>(r.channel[0])].type == 'F';
+        streams = h.data == Data::binary && h.record > 0 && h.points > 0 && !float_channels &&
+                  h.points <= (size - h.body) / h.record;
+        return;
+      } catch (const PcdError&) {
+        // The header goes on past the prefix, or is malformed: read more,
+        // or leave the naming to the whole read.
+        if (prefix.size() == size || prefix.size() == kMaxHeader) return;
+      }
+    }
+  }
+
+  PointSet whole() {
+    done = true;
+    if (!path.empty()) return load_pcd(path, warn);
+    return load_pcd_from_memory(bytes, name, warn);
+  }
+
+  // The next N records.
+  PointSet batch(std::size_t n) {
+    rows.resize(n * h.record);
+    source->read(h.body + next * h.record, rows.data(), rows.size());
+    Header part = h;
+    part.points = n;
+    Builder b(part, r);
+    read_packed(rows.data(), part, b);
+    detail::Dropped d;
+    PointSet points = points_of(h, b, origin, d);
+    dropped.add(d, read);
+    read += n, next += n;
+    // The origin is the first batch's with a point in it.
+    if (!origin && points.size() > 0) origin = points.frame.origin;
+    kept += points.size();
+    return points;
+  }
+};
+
+PcdReader::PcdReader(const std::filesystem::path& path, const WarningSink& warn)
+    : state_(std::make_unique<State>()) {
+  State& s = *state_;
+  s.path = path;
+  s.name = quoted_name(path);
+  s.warn = warn;
+  s.source = std::make_unique<detail::FileSource>(path);
+  s.open();
+}
+
+PcdReader::PcdReader(std::string_view bytes, const std::string& name, const WarningSink& warn)
+    : state_(std::make_unique<State>()) {
+  State& s = *state_;
+  s.bytes = bytes;
+  s.name = name;
+  s.warn = warn;
+  s.source = std::make_unique<detail::MemorySource>(bytes);
+  s.open();
+}
+
+PcdReader::~PcdReader() = default;
+PcdReader::PcdReader(PcdReader&&) noexcept = default;
+PcdReader& PcdReader::operator=(PcdReader&&) noexcept = default;
+
+bool PcdReader::streams() const {
+  return state_->streams;
+}
+
+PointSet PcdReader::next(std::size_t max_points) {
+  State& s = *state_;
+  if (s.done) return {};
+  if (!s.streams) return s.whole();
+  try {
+    while (s.next < s.h.points) {
+      const auto n = static_cast<std::size_t>(
+          std::min<std::uint64_t>(std::max<std::size_t>(max_points, 1), s.h.points - s.next));
+      PointSet points = s.batch(n);
+      if (s.next == s.h.points) {
+        s.done = true;
+        const WarningSink named = [&](const std::string& w) { s.warn(s.name + ": " + w); };
+        finish(s.kept, s.dropped, s.r, s.warn ? named : WarningSink{});
+      }
+      if (points.size() > 0) return points;
+    }
+  } catch (const PcdError& e) {
+    throw InputError(s.name + ": " + e.what());
+  }
+  return {};
 }
 
 }  // namespace treecut

@@ -43,6 +43,9 @@ struct Property {
 struct Element {
   std::string name;
   std::uint64_t count = 0;
+  /// Where COUNT is written in the header (its first byte and length): a
+  /// streamed read writes a header for part of the rows (PlyReader).
+  std::size_t count_at = 0, count_size = 0;
   std::vector<Property> properties;
 
   /// Index of the property called NAME, or -1.

@@ -338,6 +338,8 @@ Header parse_header(std::string_view file) {
       Element element;
       element.name = std::string(t.items[1]);
       element.count = parse_count(t.items[2], element.name);
+      element.count_at = static_cast<std::size_t>(t.items[2].data() - file.data());
+      element.count_size = t.items[2].size();
       if (!seen.elements.insert(element.name).second) {
         throw Error("element '" + printable(element.name) + "' declared twice");
       }

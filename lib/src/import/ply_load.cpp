@@ -43,7 +43,10 @@ ply::BinaryLayout validate_body(const Header& header, std::string_view file) {
   return ply::binary_layout(header, file);
 }
 
-PointSet load(std::string_view file, const Warnings& warn, PlyLoadReport& report) {
+// BATCH: one batch of a streamed file (load_batch), or null.
+PointSet load(std::string_view file, const Warnings& warn, PlyLoadReport& report,
+              const std::optional<glm::dvec3>& origin = std::nullopt,
+              ply_load::Tidied* batch = nullptr) {
   const Header header = ply::parse_header(file);
   const ply::BinaryLayout layout = validate_body(header, file);
   const std::size_t lost_from =
@@ -56,6 +59,7 @@ PointSet load(std::string_view file, const Warnings& warn, PlyLoadReport& report
   report.had_radius = roles.radius >= 0;
 
   Plan plan;
+  plan.origin = origin;
   plan.strips.vertices = report.vertices_in_file;
   ply_load::plan_openmesh_read(header, layout, file, elements, plan);
   ply_load::warn_ignored(header, elements, plan.broken, warn);
@@ -83,7 +87,7 @@ PointSet load(std::string_view file, const Warnings& warn, PlyLoadReport& report
   }
   PointSet points = ply_load::read_plan(plan, warn, report);
   for (const std::string& comment : header.comments) detail::read_metadata_line(comment, points);
-  ply_load::tidy(points, warn, report, plan.finite_beyond_float);
+  ply_load::tidy(points, warn, report, plan.finite_beyond_float, batch);
   return points;
 }
 
@@ -96,6 +100,16 @@ PointSet load_ply_from_memory(std::string_view bytes, const std::string& name,
     PointSet points = load(bytes, Warnings(name, warn), local);
     if (report) *report = local;
     return points;
+  } catch (const ply::Error& e) {
+    throw InputError(name + ": " + e.what());
+  }
+}
+
+PointSet ply_load::load_batch(std::string_view bytes, const std::string& name,
+                              PlyLoadReport& report, const WarningSink& warn,
+                              const std::optional<glm::dvec3>& origin, Tidied& batch) {
+  try {
+    return load(bytes, Warnings(name, warn), report, origin, &batch);
   } catch (const ply::Error& e) {
     throw InputError(name + ": " + e.what());
   }

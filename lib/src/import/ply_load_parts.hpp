@@ -15,6 +15,7 @@
 #include <cstddef>
 #include <glm/ext/vector_double3.hpp>
 #include <glm/vec3.hpp>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <utility>
@@ -157,6 +158,9 @@ struct Plan {
   /// range (a double 1e300): they reach the PointSet as infinities, and the
   /// messages must not call them that.
   std::size_t finite_beyond_float = 0;
+  /// The origin of double positions; chosen from them when not given (a
+  /// streamed file's batches after the first take the first's).
+  std::optional<glm::dvec3> origin;
 };
 
 // ---- ply_elements.cpp: what the file holds
@@ -195,11 +199,37 @@ PointSet read_plan(Plan& plan, const Warnings& warn, PlyLoadReport& report);
 
 // ---- ply_tidy.cpp: the PointSet contract
 
+// What tidy() dropped or cleared.
+struct Tidied {
+  std::size_t read = 0;                 // points it was given
+  std::size_t nonfinite = 0, huge = 0;  // dropped: NaN or infinite, past 1e18
+  std::size_t dropped_faces = 0;
+  std::size_t undefined_normals = 0;     // set to zero
+  std::size_t bad_radii = 0, radii = 0;  // of the kept points' radii (all cleared)
+  Tidied& operator+=(const Tidied& o);
+};
+
 // Makes the PointSet contract hold: finite positions, unit (or zero)
 // normals, radii all positive or none.
 // FINITE_BEYOND_FLOAT: Plan::finite_beyond_float, named as too large, not
-// as infinite.
+// as infinite. With BATCH (one batch of a streamed file, PlyReader) what is
+// dropped or cleared is added there, not said, and a batch of no usable
+// point is empty rather than an error: the reader says the file's totals.
 void tidy(PointSet& points, const Warnings& warn, PlyLoadReport& report,
-          std::size_t finite_beyond_float);
+          std::size_t finite_beyond_float, Tidied* batch = nullptr);
+
+// The warnings for what T counts, said as one read of the whole file says them.
+void say(const Tidied& t, const Warnings& warn);
+
+// The error for a file none of whose T.read points is usable.
+std::string no_usable_points(const Tidied& t);
+
+// ---- ply_load.cpp: the pipeline
+
+// One batch of a streamed file (PlyReader): BYTES a PLY holding the batch's
+// rows alone; ORIGIN as Plan::origin; what tidy() drops added to BATCH.
+PointSet load_batch(std::string_view bytes, const std::string& name, PlyLoadReport& report,
+                    const WarningSink& warn, const std::optional<glm::dvec3>& origin,
+                    Tidied& batch);
 
 }  // namespace treecut::ply_load

@@ -450,9 +450,10 @@ PointSet read_plan(Plan& plan, const Warnings& warn, PlyLoadReport& report) {
     // what is not finite or too far stays so for tidy() to drop and name.
     std::vector<glm::dvec3> finite;
     for (const glm::dvec3& d : plan.doubles) {
-      if (std::isfinite(d.x) && std::isfinite(d.y) && std::isfinite(d.z)) finite.push_back(d);
+      if (!plan.origin && std::isfinite(d.x) && std::isfinite(d.y) && std::isfinite(d.z))
+        finite.push_back(d);
     }
-    const glm::dvec3 origin = detail::choose_origin(finite);
+    const glm::dvec3 origin = plan.origin ? *plan.origin : detail::choose_origin(finite);
     points.frame.origin = origin;
     bool exact = true;
     for (std::size_t i = 0; i < plan.doubles.size(); ++i) {

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <limits>
 #include <string>
+#include <tuple>
 
 #include "ply_load_parts.hpp"
 #include "unit_normal.hpp"
@@ -40,60 +41,77 @@ std::pair<std::size_t, std::size_t> drop_nonfinite(PointSet& points) {
 
 }  // namespace
 
+Tidied& Tidied::operator+=(const Tidied& o) {
+  read += o.read, nonfinite += o.nonfinite, huge += o.huge, dropped_faces += o.dropped_faces;
+  undefined_normals += o.undefined_normals, bad_radii += o.bad_radii, radii += o.radii;
+  return *this;
+}
+
+std::string no_usable_points(const Tidied& t) {
+  // One line that names the real problem, not a warning about dropping
+  // every point followed by an error about having none.
+  const std::string which = t.read == 1 ? std::string("the only vertex is")
+                                        : "all " + std::to_string(t.read) + " vertices are";
+  if (t.nonfinite == 0)
+    return "no usable points (" + which +
+           " finite but beyond the coordinate limit, 1e18 in magnitude)";
+  if (t.huge == 0) return "no finite points (" + which + " NaN or infinite)";
+  return "no usable points (" + which +
+         " NaN, infinite or beyond 1e18: " + std::to_string(t.nonfinite) + " not finite, " +
+         std::to_string(t.huge) + " too large)";
+}
+
+void say(const Tidied& t, const Warnings& warn) {
+  if (const std::size_t dropped = t.nonfinite + t.huge; dropped > 0) {
+    warn("dropped " + plural(dropped, "point") + " with non-finite" +
+         (t.huge > 0 ? " or out-of-range (beyond 1e18)" : "") + " coordinates" +
+         (t.dropped_faces > 0 ? " and " + plural(t.dropped_faces, "face") + " using them" : ""));
+  }
+  if (t.undefined_normals > 0)
+    warn(plural(t.undefined_normals, "normal") + " not finite, set to zero");
+  if (t.bad_radii > 0) {
+    warn("ignoring the radius property: " + std::to_string(t.bad_radii) + " of " +
+         std::to_string(t.radii) + " radii are not positive finite numbers");
+  }
+}
+
 void tidy(PointSet& points, const Warnings& warn, PlyLoadReport& report,
-          std::size_t finite_beyond_float) {
-  std::size_t huge_count = 0, nonfinite_count = 0;
+          std::size_t finite_beyond_float, Tidied* batch) {
+  Tidied t;
+  t.read = points.size();
   for (const glm::vec3& p : points.positions) {
     if (!out_of_range(p)) continue;
     if (std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z))
-      ++huge_count;
+      ++t.huge;
     else
-      ++nonfinite_count;
+      ++t.nonfinite;
   }
   // Those were finite in the file: too large, not infinite.
-  const std::size_t beyond = std::min(finite_beyond_float, nonfinite_count);
-  nonfinite_count -= beyond;
-  huge_count += beyond;
-  const bool huge = huge_count > 0;
-  const std::size_t read = points.size();
-  if (huge_count + nonfinite_count == read) {
-    // One line that names the real problem, not a warning about dropping
-    // every point followed by an error about having none.
-    const std::string which = read == 1 ? std::string("the only vertex is")
-                                        : "all " + std::to_string(read) + " vertices are";
-    if (nonfinite_count == 0)
-      throw ply::Error("no usable points (" + which +
-                       " finite but beyond the coordinate limit, 1e18 in magnitude)");
-    if (huge_count == 0) throw ply::Error("no finite points (" + which + " NaN or infinite)");
-    throw ply::Error("no usable points (" + which +
-                     " NaN, infinite or beyond 1e18: " + std::to_string(nonfinite_count) +
-                     " not finite, " + std::to_string(huge_count) + " too large)");
-  }
-  const auto [dropped_points, dropped_faces] = drop_nonfinite(points);
+  const std::size_t beyond = std::min(finite_beyond_float, t.nonfinite);
+  t.nonfinite -= beyond;
+  t.huge += beyond;
+  if (!batch && t.huge + t.nonfinite == t.read) throw ply::Error(no_usable_points(t));
+  std::size_t dropped_points = 0;
+  std::tie(dropped_points, t.dropped_faces) = drop_nonfinite(points);
   report.dropped_nonfinite = dropped_points;
-  if (dropped_points > 0) {
-    warn("dropped " + plural(dropped_points, "point") + " with non-finite" +
-         (huge ? " or out-of-range (beyond 1e18)" : "") + " coordinates" +
-         (dropped_faces > 0 ? " and " + plural(dropped_faces, "face") + " using them" : ""));
-  }
 
   if (points.has_normals()) {
-    std::size_t undefined = 0;
     for (glm::vec3& n : points.normals) {
-      if (!(std::isfinite(n.x) && std::isfinite(n.y) && std::isfinite(n.z))) ++undefined;
+      if (!(std::isfinite(n.x) && std::isfinite(n.y) && std::isfinite(n.z))) ++t.undefined_normals;
       n = detail::unit_or_zero(n.x, n.y, n.z);
     }
-    if (undefined > 0) warn(plural(undefined, "normal") + " not finite, set to zero");
   }
   if (points.has_radii()) {
-    const auto bad = static_cast<std::size_t>(
+    t.radii = points.radii.size();
+    t.bad_radii = static_cast<std::size_t>(
         std::count_if(points.radii.begin(), points.radii.end(),
                       [](float r) { return !(std::isfinite(r) && r > 0.0f); }));
-    if (bad > 0) {
-      warn("ignoring the radius property: " + std::to_string(bad) + " of " +
-           std::to_string(points.radii.size()) + " radii are not positive finite numbers");
-      points.radii.clear();
-    }
+    if (t.bad_radii > 0) points.radii.clear();
+  }
+  if (batch) {
+    *batch += t;
+  } else {
+    say(t, warn);
   }
 }
 

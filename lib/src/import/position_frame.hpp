@@ -44,6 +44,13 @@ struct Dropped {
   /// from zero (the first: point 1 at 1e+20 0 0)", FIRST_NUMBER the first
   /// far point's number.
   [[nodiscard]] std::string far_message(std::size_t first_number) const;
+  /// Adds what a later batch dropped, BEFORE points after the first batch's
+  /// first (its first_far counts from there).
+  void add(const Dropped& batch, std::size_t before) {
+    if (batch.far > 0 && far == 0)
+      first_far = before + batch.first_far, first_far_at = batch.first_far_at;
+    far += batch.far, nonfinite += batch.nonfinite;
+  }
 };
 
 /// Sets POINTS.frame.origin by choose_origin (over the finite DOUBLES) and

@@ -489,9 +489,7 @@ PointSet TextCloudReader::State::next(std::size_t max_points) {
     read += doubles.size();
     detail::take_columns(attributes, points.attributes);
     const detail::Dropped d = detail::place_points(std::move(doubles), points, origin);
-    if (d.far > 0 && dropped.far == 0)
-      dropped.first_far = before + d.first_far, dropped.first_far_at = d.first_far_at;
-    dropped.far += d.far, dropped.nonfinite += d.nonfinite;
+    dropped.add(d, before);
     // The origin is the first batch's with a point in it: every later
     // batch's positions are relative to it.
     if (!origin && points.size() > 0) origin = points.frame.origin;
