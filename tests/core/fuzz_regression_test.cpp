@@ -64,18 +64,23 @@ std::string test_name(const testing::TestParamInfo<Regression>& info) {
 // As the fuzz targets: a PLY's or PCD's batches (3 rows each) give what
 // the whole read gives.
 template <class Reader, class Load>
-void replay_batches(const std::string& bytes, const std::string& name, Load&& load) {
+void replay_batches(const std::string& bytes, Load&& load) {
   long long whole = -1;
+  bool far = false;
+  const treecut::WarningSink note = [&](const std::string& w) {
+    far = far || treecut::fuzz::about_far_points(w);
+  };
   try {
-    whole = static_cast<long long>(load().size());
-  } catch (const treecut::InputError&) {
+    whole = static_cast<long long>(load(note).size());
+  } catch (const treecut::InputError& e) {
+    note(e.what());
   }
-  EXPECT_EQ(treecut::fuzz::check_batches(Reader(bytes, name), whole, 3), "");
+  EXPECT_EQ(treecut::fuzz::check_batches<Reader>(bytes, whole, far, 3), "");
 }
 
 void replay_ply(const Regression& r, const std::string& bytes) {
-  replay_batches<treecut::PlyReader>(bytes, "regression.ply", [&] {
-    return treecut::load_ply_from_memory(bytes, "regression.ply");
+  replay_batches<treecut::PlyReader>(bytes, [&](const treecut::WarningSink& note) {
+    return treecut::load_ply_from_memory(bytes, "regression.ply", nullptr, note);
   });
   std::vector<std::string> warnings;
   treecut::PlyLoadReport report;
@@ -103,8 +108,8 @@ void replay_ply(const Regression& r, const std::string& bytes) {
 // As points_fuzz: the reader open_model would choose.
 void replay_points(const Regression& r, const std::string& bytes) {
   if (!treecut::looks_like_las(bytes) && treecut::looks_like_pcd(bytes)) {
-    replay_batches<treecut::PcdReader>(bytes, "regression.pcd", [&] {
-      return treecut::load_pcd_from_memory(bytes, "regression.pcd");
+    replay_batches<treecut::PcdReader>(bytes, [&](const treecut::WarningSink& note) {
+      return treecut::load_pcd_from_memory(bytes, "regression.pcd", note);
     });
   }
   treecut::LasLoadReport report;

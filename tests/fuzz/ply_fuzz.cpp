@@ -32,20 +32,19 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   treecut::PlyLoadReport report;
   treecut::PointSet points;
   long long whole = -1;
+  bool far = false;
+  const auto note = [&](const std::string& w) { far = far || treecut::fuzz::about_far_points(w); };
   try {
-    points = treecut::load_ply_from_memory(bytes, "fuzz.ply", &report, [](const std::string&) {});
+    points = treecut::load_ply_from_memory(bytes, "fuzz.ply", &report, note);
     whole = static_cast<long long>(points.size());
-  } catch (const treecut::InputError&) {
+  } catch (const treecut::InputError& e) {
     // Rejected with a message: what malformed input must get.
+    note(e.what());
   }
   // In batches of 3 rows (PlyReader): what the whole read gives.
-  try {
-    treecut::PlyReader reader(bytes, "fuzz.ply");
-    if (std::string why = treecut::fuzz::check_batches(std::move(reader), whole, 3); !why.empty())
-      fail(why);
-  } catch (const treecut::InputError&) {
-    if (whole >= 0) fail("the batched reader refused at open a file the whole read took");
-  }
+  if (std::string why = treecut::fuzz::check_batches<treecut::PlyReader>(bytes, whole, far, 3);
+      !why.empty())
+    fail(why);
   if (whole < 0) return 0;
   if (std::string why = treecut::fuzz::check_point_set(points); !why.empty()) fail(why);
   if (points.size() + report.dropped_nonfinite != report.vertices_in_file) {
