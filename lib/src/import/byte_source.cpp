@@ -46,4 +46,12 @@ void FileSource::read(std::uint64_t at, void* out, std::size_t n) const {
   }
 }
 
+StreamedFile::StreamedFile(const std::filesystem::path& file)
+    : path(file), source(std::make_unique<FileSource>(file)), name(quoted_name(file)) {}
+
+StreamedFile::StreamedFile(std::string_view in_memory, std::string file_name)
+    : bytes(in_memory),
+      source(std::make_unique<MemorySource>(in_memory)),
+      name(std::move(file_name)) {}
+
 }  // namespace treecut::detail

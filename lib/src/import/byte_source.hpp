@@ -4,9 +4,12 @@
 // batch of it).
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
+#include <memory>
+#include <string>
 #include <string_view>
 
 namespace treecut::detail {
@@ -49,6 +52,49 @@ class FileSource final : public ByteSource {
   int fd_ = -1;
   std::uint64_t size_ = 0;
   std::filesystem::path path_;
+};
+
+// A file a batch reader (PlyReader, PcdReader) streams: its bytes, and the
+// name its messages give it.
+struct StreamedFile {
+  std::filesystem::path path;  // empty for bytes in memory
+  std::string_view bytes;      // the bytes in memory, else empty
+  std::unique_ptr<ByteSource> source;
+  std::string name;
+
+  /// PATH opened (FileSource; InputError where it cannot be).
+  explicit StreamedFile(const std::filesystem::path& file);
+  /// BYTES (which must outlive it); NAME stands for the path.
+  StreamedFile(std::string_view in_memory, std::string file_name);
+
+  /// The whole file through the format's whole read: FROM_FILE(path) or
+  /// FROM_MEMORY(bytes, name).
+  template <class FromFile, class FromMemory>
+  auto whole(FromFile&& from_file, FromMemory&& from_memory) const {
+    return path.empty() ? from_memory(bytes, name) : from_file(path);
+  }
+
+  /// Calls PARSE(prefix) on the file's first 64 KiB, then on four times as
+  /// many bytes each time it throws ERROR (a header that goes on past the
+  /// prefix), up to the file's end or 16 MiB (comments by the thousand);
+  /// false where it never returned (a malformed header: the whole read
+  /// names it).
+  template <class Error, class Parse>
+  bool parse_head(Parse&& parse) const {
+    constexpr std::uint64_t kMaxHeader = std::uint64_t{16} << 20;
+    const std::uint64_t size = source->size();
+    std::string prefix;
+    for (std::uint64_t want = std::uint64_t{1} << 16;; want *= 4) {
+      prefix.resize(static_cast<std::size_t>(std::min({want, size, kMaxHeader})));
+      source->read(0, prefix.data(), prefix.size());
+      try {
+        parse(std::string_view(prefix));
+        return true;
+      } catch (const Error&) {
+        if (prefix.size() == size || prefix.size() == kMaxHeader) return false;
+      }
+    }
+  }
 };
 
 }  // namespace treecut::detail

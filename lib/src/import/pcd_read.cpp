@@ -24,9 +24,6 @@ using namespace pcd;
 
 namespace {
 
-// A header longer than this (comments by the thousand) is read whole.
-constexpr std::uint64_t kMaxHeader = 16u << 20;
-
 // The body's size checked against the header before anything is sized
 // from POINTS (the Builder reserves for every point).
 void check_size(const Header& h, std::uint64_t left) {
@@ -122,10 +119,10 @@ PointSet load_pcd(const std::filesystem::path& path, const WarningSink& warn) {
 // A PCD file being read in batches: its header, and what the batches so
 // far found (the origin the first chose, the points dropped).
 struct PcdReader::State {
-  std::filesystem::path path;  // empty for bytes in memory
-  std::string_view bytes;
-  std::unique_ptr<detail::ByteSource> source;
-  std::string name;
+  State(detail::StreamedFile f, const WarningSink& sink) : file(std::move(f)), warn(sink) {
+    open();
+  }
+  detail::StreamedFile file;
   WarningSink warn;
   bool streams = false, done = false;
   Header h;
@@ -138,37 +135,29 @@ struct PcdReader::State {
   // Whether the file streams: binary records, as many as the header says,
   // and no colour scaled by the file's brightest value (float channels).
   void open() {
-    const std::uint64_t size = source->size();
-    std::string prefix;
-    for (std::uint64_t want = 1u << 16;; want *= 4) {
-      prefix.resize(static_cast<std::size_t>(std::min({want, size, kMaxHeader})));
-      source->read(0, prefix.data(), prefix.size());
-      try {
-        h = parse_header(prefix);
-        r = roles_of(h);
-        const bool float_channels =
-            r.channel[0] >= 0 && h.fields[static_cast<std::size_t>(r.channel[0])].type == 'F';
-        streams = h.data == Data::binary && h.record > 0 && h.points > 0 && !float_channels &&
-                  h.points <= (size - h.body) / h.record;
-        return;
-      } catch (const PcdError&) {
-        // The header goes on past the prefix, or is malformed: read more,
-        // or leave the naming to the whole read.
-        if (prefix.size() == size || prefix.size() == kMaxHeader) return;
-      }
-    }
+    const std::uint64_t size = file.source->size();
+    file.parse_head<PcdError>([&](std::string_view prefix) {
+      h = parse_header(prefix);
+      r = roles_of(h);
+      const bool float_channels =
+          r.channel[0] >= 0 && h.fields[static_cast<std::size_t>(r.channel[0])].type == 'F';
+      streams = h.data == Data::binary && h.record > 0 && h.points > 0 && !float_channels &&
+                h.points <= (size - h.body) / h.record;
+    });
   }
 
   PointSet whole() {
     done = true;
-    if (!path.empty()) return load_pcd(path, warn);
-    return load_pcd_from_memory(bytes, name, warn);
+    return file.whole([&](const std::filesystem::path& p) { return load_pcd(p, warn); },
+                      [&](std::string_view bytes, const std::string& name) {
+                        return load_pcd_from_memory(bytes, name, warn);
+                      });
   }
 
   // The next N records.
   PointSet batch(std::size_t n) {
     rows.resize(n * h.record);
-    source->read(h.body + next * h.record, rows.data(), rows.size());
+    file.source->read(h.body + next * h.record, rows.data(), rows.size());
     Header part = h;
     part.points = n;
     Builder b(part, r);
@@ -185,24 +174,10 @@ struct PcdReader::State {
 };
 
 PcdReader::PcdReader(const std::filesystem::path& path, const WarningSink& warn)
-    : state_(std::make_unique<State>()) {
-  State& s = *state_;
-  s.path = path;
-  s.name = quoted_name(path);
-  s.warn = warn;
-  s.source = std::make_unique<detail::FileSource>(path);
-  s.open();
-}
+    : state_(std::make_unique<State>(detail::StreamedFile(path), warn)) {}
 
 PcdReader::PcdReader(std::string_view bytes, const std::string& name, const WarningSink& warn)
-    : state_(std::make_unique<State>()) {
-  State& s = *state_;
-  s.bytes = bytes;
-  s.name = name;
-  s.warn = warn;
-  s.source = std::make_unique<detail::MemorySource>(bytes);
-  s.open();
-}
+    : state_(std::make_unique<State>(detail::StreamedFile(bytes, name), warn)) {}
 
 PcdReader::~PcdReader() = default;
 PcdReader::PcdReader(PcdReader&&) noexcept = default;
@@ -223,13 +198,13 @@ PointSet PcdReader::next(std::size_t max_points) {
       PointSet points = s.batch(n);
       if (s.next == s.h.points) {
         s.done = true;
-        const WarningSink named = [&](const std::string& w) { s.warn(s.name + ": " + w); };
+        const WarningSink named = [&](const std::string& w) { s.warn(s.file.name + ": " + w); };
         finish(s.kept, s.dropped, s.r, s.warn ? named : WarningSink{});
       }
       if (points.size() > 0) return points;
     }
   } catch (const PcdError& e) {
-    throw InputError(s.name + ": " + e.what());
+    throw InputError(s.file.name + ": " + e.what());
   }
   return {};
 }

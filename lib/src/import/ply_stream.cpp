@@ -18,18 +18,11 @@
 
 namespace treecut {
 
-namespace {
-
-// A header longer than this (comments by the thousand) is read whole.
-constexpr std::uint64_t kMaxHeader = 16u << 20;
-
-}  // namespace
-
 struct PlyReader::State {
-  std::filesystem::path path;  // empty for bytes in memory
-  std::string_view bytes;
-  std::unique_ptr<detail::ByteSource> source;
-  std::string name;
+  State(detail::StreamedFile f, const WarningSink& sink) : file(std::move(f)), warn(sink) {
+    open();
+  }
+  detail::StreamedFile file;
   WarningSink warn;
   PlyLoadReport report;
   // Streamed: the header before and after the vertex count, the rows.
@@ -52,43 +45,35 @@ struct PlyReader::State {
 
 // Whether the file streams, and its header around the vertex count.
 void PlyReader::State::open() {
-  const std::uint64_t size = source->size();
-  std::string prefix;
-  for (std::uint64_t want = 1u << 16;; want *= 4) {
-    prefix.resize(static_cast<std::size_t>(std::min({want, size, kMaxHeader})));
-    source->read(0, prefix.data(), prefix.size());
-    try {
-      const ply::Header h = ply::parse_header(prefix);
-      const int v = h.find("vertex");
-      if (h.format == ply::Format::ascii || v < 0) return;
-      const ply::Element& vertex = h.elements[static_cast<std::size_t>(v)];
-      const bool vertices_alone =
-          std::all_of(h.elements.begin(), h.elements.end(),
-                      [&](const ply::Element& e) { return &e == &vertex || e.count == 0; });
-      if (!vertices_alone || vertex.has_lists()) return;
-      stride = vertex.fixed_stride();
-      // A body that is not the header's size is load_ply()'s to name.
-      if (stride == 0 || vertex.count > (size - h.body_offset) / stride ||
-          h.body_offset + vertex.count * stride != size)
-        return;
-      head = prefix.substr(0, vertex.count_at);
-      tail = prefix.substr(vertex.count_at + vertex.count_size,
-                           h.body_offset - vertex.count_at - vertex.count_size);
-      body = h.body_offset, rows = vertex.count;
-      streams = true;
+  const std::uint64_t size = file.source->size();
+  file.parse_head<ply::Error>([&](std::string_view prefix) {
+    const ply::Header h = ply::parse_header(prefix);
+    const int v = h.find("vertex");
+    if (h.format == ply::Format::ascii || v < 0) return;
+    const ply::Element& vertex = h.elements[static_cast<std::size_t>(v)];
+    const bool vertices_alone =
+        std::all_of(h.elements.begin(), h.elements.end(),
+                    [&](const ply::Element& e) { return &e == &vertex || e.count == 0; });
+    if (!vertices_alone || vertex.has_lists()) return;
+    stride = vertex.fixed_stride();
+    // A body that is not the header's size is load_ply()'s to name.
+    if (stride == 0 || vertex.count > (size - h.body_offset) / stride ||
+        h.body_offset + vertex.count * stride != size)
       return;
-    } catch (const ply::Error&) {
-      // The header goes on past the prefix, or is malformed: read more, or
-      // leave the naming to load_ply().
-      if (prefix.size() == size || prefix.size() == kMaxHeader) return;
-    }
-  }
+    head = prefix.substr(0, vertex.count_at);
+    tail = prefix.substr(vertex.count_at + vertex.count_size,
+                         h.body_offset - vertex.count_at - vertex.count_size);
+    body = h.body_offset, rows = vertex.count;
+    streams = true;
+  });
 }
 
 PointSet PlyReader::State::whole() {
   done = true;
-  if (!path.empty()) return load_ply(path, &report, warn);
-  return load_ply_from_memory(bytes, name, &report, warn);
+  return file.whole([&](const std::filesystem::path& p) { return load_ply(p, &report, warn); },
+                    [&](std::string_view bytes, const std::string& name) {
+                      return load_ply_from_memory(bytes, name, &report, warn);
+                    });
 }
 
 // The next N rows through the pipeline.
@@ -99,12 +84,12 @@ PointSet PlyReader::State::read(std::size_t n) {
   out = std::copy(head.begin(), head.end(), out);
   out = std::copy(count.begin(), count.end(), out);
   out = std::copy(tail.begin(), tail.end(), out);
-  source->read(body + next * stride, out, n * stride);
+  file.source->read(body + next * stride, out, n * stride);
   std::vector<std::string> warnings;
   const WarningSink keep = [&](const std::string& w) { warnings.push_back(w); };
   PlyLoadReport one;
   PointSet points =
-      ply_load::load_batch(batch, name, one, warn ? keep : WarningSink{}, origin, tidied);
+      ply_load::load_batch(batch, file.name, one, warn ? keep : WarningSink{}, origin, tidied);
   if (next == 0) {
     report = one;
     origin = points.frame.origin;
@@ -121,29 +106,15 @@ PointSet PlyReader::State::read(std::size_t n) {
 // After the last rows: the file's totals, or its error.
 void PlyReader::State::finish() {
   done = true;
-  if (delivered == 0) throw InputError(name + ": " + ply_load::no_usable_points(tidied));
-  if (warn) ply_load::say(tidied, ply_load::Warnings(name, warn));
+  if (delivered == 0) throw InputError(file.name + ": " + ply_load::no_usable_points(tidied));
+  if (warn) ply_load::say(tidied, ply_load::Warnings(file.name, warn));
 }
 
 PlyReader::PlyReader(const std::filesystem::path& path, const WarningSink& warn)
-    : state_(std::make_unique<State>()) {
-  State& s = *state_;
-  s.path = path;
-  s.name = quoted_name(path);
-  s.warn = warn;
-  s.source = std::make_unique<detail::FileSource>(path);
-  s.open();
-}
+    : state_(std::make_unique<State>(detail::StreamedFile(path), warn)) {}
 
 PlyReader::PlyReader(std::string_view bytes, const std::string& name, const WarningSink& warn)
-    : state_(std::make_unique<State>()) {
-  State& s = *state_;
-  s.bytes = bytes;
-  s.name = name;
-  s.warn = warn;
-  s.source = std::make_unique<detail::MemorySource>(bytes);
-  s.open();
-}
+    : state_(std::make_unique<State>(detail::StreamedFile(bytes, name), warn)) {}
 
 PlyReader::~PlyReader() = default;
 PlyReader::PlyReader(PlyReader&&) noexcept = default;
