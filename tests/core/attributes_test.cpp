@@ -1,11 +1,18 @@
-// Attributes: normals, radii and curvature from faces and from neighbours.
+// Attributes: normals, radii and curvature from faces and from neighbours,
+// and the neighbour search they come from.
 #include "treecut/attributes.hpp"
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <glm/geometric.hpp>
+#include <mutex>
+#include <random>
+#include <tuple>
+#include <vector>
 
+#include "hierarchy/knn_grid.hpp"
 #include "treecut/tools/generate.hpp"
 
 using namespace treecut;
@@ -139,4 +146,49 @@ TEST(Attributes, FileNormalsAndRadiiAreKeptUnlessRecomputeIsAsked) {
   o.recompute_radii = true;
   complete_attributes(ps, o);
   EXPECT_LT(ps.radii[10], 0.5f);
+}
+
+// The neighbour search gives, for every point, the k nearest others within
+// the reach, nearest first, ties by position (x, then y, then z): what a
+// brute-force search gives, on a lattice (many equal distances), with
+// coincident points, and on a scatter around it.
+TEST(KnnGrid, NeighboursAreTheBruteForceNearestTiesByPosition) {
+  std::vector<glm::vec3> points;
+  for (int i = 0; i < 12; ++i)
+    for (int j = 0; j < 12; ++j)
+      for (int k = 0; k < 3; ++k) points.emplace_back(float(i), float(j), 0.5f * float(k));
+  points.emplace_back(3.0f, 3.0f, 0.5f);  // twice where a lattice point is
+  std::mt19937 random(7);
+  std::uniform_real_distribution<float> u(-1.0f, 13.0f);
+  for (int i = 0; i < 1500; ++i) points.emplace_back(u(random), u(random), 0.1f * u(random));
+  const detail::KnnGrid grid(points);
+  for (const int k : {1, 5, 12, 24}) {
+    for (const float reach : {INFINITY, 1.1f}) {
+      SCOPED_TRACE(testing::Message() << "k " << k << ", reach " << reach);
+      std::mutex mutex;
+      std::size_t visited = 0, wrong = 0;
+      grid.for_each_knn(
+          k,
+          [&](std::uint32_t i, glm::vec3 p, int found, const glm::vec3* near, const float* d2) {
+            std::vector<std::tuple<float, float, float, float>> all;  // d2, x, y, z
+            for (std::uint32_t j = 0; j < points.size(); ++j) {
+              if (j == i) continue;
+              const glm::vec3 d = points[j] - p;
+              const float e = d.x * d.x + d.y * d.y + d.z * d.z;
+              if (e <= reach * reach) all.emplace_back(e, points[j].x, points[j].y, points[j].z);
+            }
+            std::sort(all.begin(), all.end());
+            all.resize(std::min(all.size(), std::size_t(k)));
+            bool same = std::size_t(found) == all.size();
+            for (int f = 0; same && f < found; ++f)
+              same = std::tuple(d2[f], near[f].x, near[f].y, near[f].z) == all[std::size_t(f)];
+            std::lock_guard lock(mutex);
+            ++visited;
+            wrong += !same;
+          },
+          0xffffffffu, reach);
+      EXPECT_EQ(visited, points.size());
+      EXPECT_EQ(wrong, 0u);
+    }
+  }
 }
