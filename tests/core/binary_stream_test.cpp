@@ -78,6 +78,17 @@ void spoil(std::string& ply, std::size_t stride) {
   std::memcpy(ply.data() + body + 9 * stride + 24, &fnan, 4);
 }
 
+// The InputError message READ throws, or empty.
+template <class Fn>
+std::string error_of(Fn&& read) {
+  try {
+    (void)read();
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return {};
+}
+
 struct Read {
   Points points;
   std::vector<std::string> warnings;
@@ -152,20 +163,9 @@ TEST(PlyStream, ABatchOfNoUsablePointIsSkippedAFileOfNoneRefused) {
 
   for (glm::vec3& p : ps.positions) p.y = std::nanf("");
   const std::string none = ply_bytes(ps, dir);
-  std::string whole_error, batch_error;
-  try {
-    (void)load_ply_from_memory(none, "scan.ply");
-  } catch (const InputError& e) {
-    whole_error = e.what();
-  }
-  PlyReader reader(none, "scan.ply");
-  try {
-    (void)reader.next(8);
-  } catch (const InputError& e) {
-    batch_error = e.what();
-  }
+  const std::string whole_error = error_of([&] { return load_ply_from_memory(none, "scan.ply"); });
   EXPECT_EQ(whole_error, "scan.ply: no finite points (all 30 vertices are NaN or infinite)");
-  EXPECT_EQ(batch_error, whole_error);
+  EXPECT_EQ(error_of([&] { return PlyReader(none, "scan.ply").next(8); }), whole_error);
 }
 
 // What the reader cannot cut is read whole: an ascii file, a mesh, a body
@@ -190,19 +190,9 @@ TEST(PlyStream, WhatCannotBeCutIsOneBatchOfTheWholeRead) {
     EXPECT_EQ(reader.next(1).size(), 0u);
   }
   EXPECT_FALSE(PlyReader(cut, "cut.ply").streams());
-  std::string whole_error, batch_error;
-  try {
-    (void)load_ply_from_memory(cut, "cut.ply");
-  } catch (const InputError& e) {
-    whole_error = e.what();
-  }
-  try {
-    (void)PlyReader(cut, "cut.ply").next(10);
-  } catch (const InputError& e) {
-    batch_error = e.what();
-  }
+  const std::string whole_error = error_of([&] { return load_ply_from_memory(cut, "cut.ply"); });
   EXPECT_FALSE(whole_error.empty());
-  EXPECT_EQ(batch_error, whole_error);
+  EXPECT_EQ(error_of([&] { return PlyReader(cut, "cut.ply").next(10); }), whole_error);
 }
 
 // PCD: a binary body is read a batch of records at a time, into the
@@ -247,21 +237,10 @@ TEST(PcdStream, CompressedAndAsciiAreReadWholeAFileOfNoPointRefused) {
   for (glm::vec3& p : ps.positions) p.y = std::nanf("");
   save_pcd(dir / "none.pcd", ps, PcdData::binary);
   const std::string none = test::read_all(dir / "none.pcd");
-  std::string whole_error, batch_error;
-  try {
-    (void)load_pcd_from_memory(none, "none.pcd");
-  } catch (const InputError& e) {
-    whole_error = e.what();
-  }
-  PcdReader reader(none, "none.pcd");
-  ASSERT_TRUE(reader.streams());
-  try {
-    (void)reader.next(8);
-  } catch (const InputError& e) {
-    batch_error = e.what();
-  }
+  ASSERT_TRUE(PcdReader(none, "none.pcd").streams());
+  const std::string whole_error = error_of([&] { return load_pcd_from_memory(none, "none.pcd"); });
   EXPECT_EQ(whole_error, "none.pcd: no points with a finite position");
-  EXPECT_EQ(batch_error, whole_error);
+  EXPECT_EQ(error_of([&] { return PcdReader(none, "none.pcd").next(8); }), whole_error);
 }
 
 }  // namespace
