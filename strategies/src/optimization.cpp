@@ -89,7 +89,7 @@ struct Pass {
   float threshold;
   float weight;
   float min_size;
-  std::vector<std::uint32_t>& last_op;
+  SparseNodeArray<std::uint32_t>& last_op;
   std::uint32_t view_start;  // first iteration of the current view
   std::uint32_t iteration;
 
@@ -196,7 +196,7 @@ struct Pass {
       pop(low, lower);
       --low_left;
       cut.coarsen(h, parent);
-      pass.last_op[parent] = coarsened_mark;
+      pass.last_op.set(parent, coarsened_mark);
       ++r.coarsened;
       return true;
     }
@@ -222,7 +222,7 @@ struct Pass {
     if (!room) break;  // every later candidate has a lower priority
     if (!cut.contains(n)) continue;
     cut.refine(h, n);
-    pass.last_op[n] = refined_mark;
+    pass.last_op.set(n, refined_mark);
     ++r.refined;
   }
 }
@@ -243,6 +243,7 @@ OptimizationStrategy::OptimizationStrategy()
 
 void OptimizationStrategy::reset(const Hierarchy& hierarchy) {
   last_op_.assign(hierarchy.node_count(), 0);
+  view_forgotten_ = 0;
   iteration_ = 0;
   view_start_ = 0;
   last_version_ = ~std::uint64_t{0};
@@ -270,7 +271,8 @@ void OptimizationStrategy::iterate(const IterationInput& input, IterationOutput&
   const auto weight = static_cast<float>(param_at(kCurvatureWeight));
   const auto min_size = static_cast<float>(param_at(kMinSize));
   if (iteration_ == kMaxIteration) {  // after 2^31 iterations: forget every mark
-    std::fill(last_op_.begin(), last_op_.end(), 0u);
+    last_op_.assign(h.node_count(), 0u);
+    view_forgotten_ = 0;
     iteration_ = 0;
     last_version_ = ~std::uint64_t{0};
     last_params_ = ~std::uint64_t{0};
@@ -292,6 +294,22 @@ void OptimizationStrategy::iterate(const IterationInput& input, IterationOutput&
   apply_candidates(h, cut, pass, high_, low_, r);
   r.cut_size = cut.size();
   r.converged = !r.cancelled && r.refined == 0 && r.coarsened == 0;
+  forget_old_marks(cut.size());
+}
+
+void OptimizationStrategy::forget_old_marks(std::size_t cut_size) {
+  // Marks gather wherever the cut has been. Scanning them costs about what
+  // an evaluation pass over a cut of their size does, so they are scanned
+  // once they hold four times the cut's ids (a floor for small cuts), and
+  // once a view: under the view of the last scan, a scan forgets nothing.
+  constexpr std::size_t kBlock = SparseNodeArray<std::uint32_t>::kBlock;
+  if (last_op_.blocks_held() <= 4 * cut_size / kBlock + 16 || view_start_ == view_forgotten_)
+    return;
+  // The next iteration reads the coarsen marks of the current view (from
+  // view_start_ on) and the refine marks of this iteration (later still).
+  const std::uint32_t oldest = view_start_;
+  last_op_.rewrite_held([oldest](std::uint32_t op) { return (op >> 1) >= oldest ? op : 0u; });
+  view_forgotten_ = view_start_;
 }
 
 }  // namespace treecut::strategies

@@ -205,3 +205,83 @@ TEST(TreeCut, ValidateRejectsBrokenLists) {
   EXPECT_THROW(TreeCut::from_nodes(h, missing), std::invalid_argument);
   EXPECT_EQ(TreeCut::from_nodes(h, children).size(), children.size());
 }
+
+TEST(SparseNodeArray, HoldsOnlyTheBlocksWrittenTo) {
+  SparseNodeArray<std::uint32_t> a(10'000'000, 7u);
+  EXPECT_EQ(a.blocks_held(), 0u);
+  EXPECT_EQ(a[0], 7u);
+  EXPECT_EQ(a[9'999'999], 7u);
+  a.set(5, 7u);  // the fill value: nothing to hold
+  EXPECT_EQ(a.blocks_held(), 0u);
+  a.set(5'000'000, 1u);
+  a.set(5'000'001, 2u);
+  EXPECT_EQ(a.blocks_held(), 1u);
+  EXPECT_EQ(a[5'000'000], 1u);
+  EXPECT_EQ(a[5'000'001], 2u);
+  EXPECT_EQ(a[4'999'999], 7u);
+  EXPECT_LT(a.memory_bytes(), 10'000'000u * 4 / 100) << "a directory and two blocks";
+
+  SparseNodeArray<std::uint32_t> copy = a;  // deep: the Feedback Stage's copy of a cut
+  copy.set(5'000'000, 3u);
+  EXPECT_EQ(a[5'000'000], 1u);
+  EXPECT_EQ(copy[5'000'000], 3u);
+  EXPECT_EQ(copy[5'000'001], 2u);
+  EXPECT_EQ(copy[17], 7u);
+
+  a.set(5'000'000, 7u);
+  a.release_unused();
+  EXPECT_EQ(a.blocks_held(), 1u) << "one value still differs from the fill";
+  a.set(5'000'001, 7u);
+  a.release_unused();
+  EXPECT_EQ(a.blocks_held(), 0u);
+  EXPECT_EQ(a[5'000'001], 7u);
+  a.set(5'000'001, 4u);  // a released block comes back on a write
+  EXPECT_EQ(a[5'000'001], 4u);
+  EXPECT_EQ(a[5'000'002], 7u);
+}
+
+// A cut's memory follows the cut, not the hierarchy (issue 45): the root
+// cut of a large hierarchy holds a directory and one block; a view-sized cut
+// a few bytes a node beyond its list; and a cut coarsened back gives its
+// blocks back at the next full sort.
+TEST(TreeCut, MemoryFollowsTheCutNotTheHierarchy) {
+  static const Hierarchy h = build_from_points(generate_model(ModelKind::Sphere, 400'000, 3));
+  const std::size_t per_node_map = std::size_t{h.node_count()} * sizeof(std::uint32_t);
+  TreeCut cut = TreeCut::root_cut(h);
+  EXPECT_LT(cut.memory_bytes(), per_node_map / 50) << h.node_count() << " nodes";
+
+  // Refine the part of the model on one side of a plane down to its leaves'
+  // parents: a cut over a spatially coherent part, as a view gives.
+  std::vector<NodeId> scratch;
+  const float plane = h.bounds_min().x + 0.8f * (h.bounds_max().x - h.bounds_min().x);
+  for (bool again = true; again;) {
+    again = false;
+    const std::vector<NodeId> nodes(cut.nodes().begin(), cut.nodes().end());
+    for (const NodeId n : nodes) {
+      if (h.center(n).x + h.radius(n) > plane && !h.is_leaf(n) && !h.is_leaf(h.first_child(n)) &&
+          cut.refine(h, n))
+        again = true;
+    }
+  }
+  cut.sort(scratch);
+  ASSERT_EQ(cut.validate(h), "");
+  ASSERT_GT(cut.size(), 5'000u);
+  ASSERT_LT(cut.size() * 10, h.node_count());
+  EXPECT_LT(cut.memory_bytes(), per_node_map / 3)
+      << cut.size() << " nodes in the cut, " << h.node_count() << " in the hierarchy";
+  EXPECT_LT(cut.memory_bytes(), 40 * cut.size()) << "bytes a cut node";
+  const std::size_t refined = cut.memory_bytes();
+
+  for (bool again = true; again;) {
+    again = false;
+    const std::vector<NodeId> nodes(cut.nodes().begin(), cut.nodes().end());
+    for (const NodeId n : nodes)
+      if (h.parent(n) != kNoNode && cut.coarsen(h, h.parent(n))) again = true;
+  }
+  ASSERT_EQ(cut.size(), 1u);
+  cut.sort(scratch);
+  EXPECT_EQ(cut.validate(h), "");
+  EXPECT_LT(cut.memory_bytes(), refined / 4);
+  EXPECT_TRUE(cut.refine(h, h.root())) << "the map still drives the edits";
+  EXPECT_EQ(cut.validate(h), "");
+}

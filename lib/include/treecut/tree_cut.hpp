@@ -2,8 +2,10 @@
 // nodes such that every leaf of the hierarchy lies under exactly one of them.
 //
 // refine() and coarsen() are O(children) thanks to a node -> slot map; the
-// index list itself (nodes()) is what the renderer draws. Not thread-safe: the
-// Feedback Stage works on its own copy and the exchange swaps whole cuts.
+// index list itself (nodes()) is what the renderer draws. The map is sparse
+// (SparseNodeArray): its memory follows the cut, not the hierarchy (issue
+// 45). Not thread-safe: the Feedback Stage works on its own copy and the
+// exchange swaps whole cuts.
 #pragma once
 
 #include <cstdint>
@@ -12,6 +14,7 @@
 #include <vector>
 
 #include "treecut/hierarchy.hpp"
+#include "treecut/sparse_node_array.hpp"
 
 namespace treecut {
 
@@ -28,11 +31,14 @@ class TreeCut {
   [[nodiscard]] std::span<const NodeId> nodes() const { return nodes_; }
   [[nodiscard]] std::size_t size() const { return nodes_.size(); }
   [[nodiscard]] bool contains(NodeId n) const { return n < slot_.size() && slot_[n] != kNotInCut; }
+  /// Bytes the cut holds: the list, the moves tracked and the slot map's
+  /// blocks (about the cut's size, not the hierarchy's).
+  [[nodiscard]] std::size_t memory_bytes() const;
   /// A hint that refine/coarsen/contains will soon read n's entry of the
   /// node -> slot map: the event queue edits the cut at nodes in random order,
   /// and that map's cache miss was half of refine()'s time.
   void prefetch(NodeId n) const {
-    if (n < slot_.size()) __builtin_prefetch(slot_.data() + n);
+    if (n < slot_.size()) slot_.prefetch(n);
   }
   /// The next step for a cut node whose slot entry is in cache (after
   /// prefetch(n)): its position in the list, which refine and coarsen write.
@@ -101,9 +107,9 @@ class TreeCut {
   void forget_moves(bool sorted);
 
   std::vector<NodeId> nodes_;
-  std::vector<std::uint32_t> slot_;   // node id -> index in nodes_, or kNotInCut
-  std::vector<std::uint32_t> moved_;  // positions written since the last sort
-  bool scattered_ = false;            // moved_ overflowed: order unknown
+  SparseNodeArray<std::uint32_t> slot_;  // node id -> index in nodes_, or kNotInCut
+  std::vector<std::uint32_t> moved_;     // positions written since the last sort
+  bool scattered_ = false;               // moved_ overflowed: order unknown
   std::uint64_t refinements_ = 0;
   std::uint64_t coarsenings_ = 0;
 };

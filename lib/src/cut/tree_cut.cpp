@@ -44,8 +44,11 @@ void TreeCut::sort(std::vector<NodeId>& scratch) {
   const auto id_end = static_cast<NodeId>(slot_.size());
   if (scattered_ || moved_.size() * 4 > size) {
     sort_node_ids(nodes_, id_end, scratch);
-    // Ascending ids: the slot map is written with ascending addresses.
-    for (std::uint32_t s = 0; s < size; ++s) slot_[nodes_[s]] = s;
+    // Ascending ids: the slot map is written with ascending addresses. A
+    // full sort follows many edits (a quarter of the cut moved), so it is
+    // also when the map gives back the blocks the cut has left.
+    for (std::uint32_t s = 0; s < size; ++s) slot_.set(nodes_[s], s);
+    slot_.release_unused();
   } else {
     // Positions not written since the last sort still hold their nodes in
     // ascending order: pull the written ones out (kNotInCut marks them, and
@@ -70,7 +73,7 @@ void TreeCut::sort(std::vector<NodeId>& scratch) {
     merged.clear();
     merged.reserve(nodes_.capacity());
     const auto put = [&](NodeId n) {
-      slot_[n] = static_cast<std::uint32_t>(merged.size());
+      slot_.set(n, static_cast<std::uint32_t>(merged.size()));
       merged.push_back(n);
     };
     std::size_t j = 0;
@@ -102,6 +105,10 @@ bool TreeCut::keep_sorted(std::vector<NodeId>& scratch) {
   return true;
 }
 
+std::size_t TreeCut::memory_bytes() const {
+  return (nodes_.capacity() + moved_.capacity()) * sizeof(NodeId) + slot_.memory_bytes();
+}
+
 void TreeCut::moved(std::uint32_t position) {
   if (scattered_) return;
   // Beyond a quarter of the list a full sort is as cheap: stop tracking.
@@ -120,7 +127,7 @@ void sort_node_ids(std::vector<NodeId>& ids, NodeId id_end, std::vector<NodeId>&
 
 void TreeCut::insert(NodeId n) {
   const auto s = static_cast<std::uint32_t>(nodes_.size());
-  slot_[n] = s;
+  slot_.set(n, s);
   nodes_.push_back(n);
   moved(s);
 }
@@ -129,9 +136,9 @@ void TreeCut::erase(NodeId n) {
   const std::uint32_t s = slot_[n];
   const NodeId last = nodes_.back();
   nodes_[s] = last;
-  slot_[last] = s;
+  slot_.set(last, s);
   nodes_.pop_back();
-  slot_[n] = kNotInCut;
+  slot_.set(n, kNotInCut);
   if (s < nodes_.size()) moved(s);
 }
 
@@ -150,9 +157,9 @@ bool TreeCut::coarsen(const Hierarchy& h, NodeId parent) {
 void TreeCut::refine_known(NodeId node, NodeId first, unsigned count) {
   // The first child takes the parent's slot; the others are appended.
   const std::uint32_t s = slot_[node];
-  slot_[node] = kNotInCut;
+  slot_.set(node, kNotInCut);
   nodes_[s] = first;
-  slot_[first] = s;
+  slot_.set(first, s);
   moved(s);
   for (NodeId c = first + 1; c < first + count; ++c) insert(c);
   ++refinements_;
@@ -161,9 +168,9 @@ void TreeCut::refine_known(NodeId node, NodeId first, unsigned count) {
 void TreeCut::coarsen_known(NodeId parent, NodeId first, unsigned count) {
   // The parent takes the first child's slot; the other children are erased.
   const std::uint32_t s = slot_[first];
-  slot_[first] = kNotInCut;
+  slot_.set(first, kNotInCut);
   nodes_[s] = parent;
-  slot_[parent] = s;
+  slot_.set(parent, s);
   moved(s);
   for (NodeId c = first + 1; c < first + count; ++c) erase(c);
   ++coarsenings_;

@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "treecut/sparse_node_array.hpp"
 #include "treecut/strategy.hpp"
 
 namespace treecut::strategies {
@@ -31,6 +32,9 @@ class OptimizationStrategy final : public Strategy {
   [[nodiscard]] Mode mode() const override { return Mode::Evolve; }
   void reset(const Hierarchy& hierarchy) override;
   void iterate(const IterationInput& input, IterationOutput& output) override;
+  /// Bytes of per-node state held (the hysteresis marks): about the cut's
+  /// size, not the hierarchy's.
+  [[nodiscard]] std::size_t state_bytes() const { return last_op_.memory_bytes(); }
 
   /// The view-dependent priority of a node: projected radius in pixels times
   /// ((1 - w) + w * curvature), 0 outside the frustum. Monotone: a parent's
@@ -44,15 +48,23 @@ class OptimizationStrategy final : public Strategy {
   // order like the values, and one integer compare ranks by priority, then id.
   using Candidate = std::uint64_t;
 
+  // Clears the marks no later iteration reads (refine_blocked reads those
+  // of the current view, coarsen_blocked the last iteration's) once they
+  // hold many more blocks than the cut needs.
+  void forget_old_marks(std::size_t cut_size);
+
   // Per-node hysteresis against "a node refined in an iteration while it is
   // coarsened in the next" (the paper's threshold discussion): the iteration
   // and kind of each node's last operation. A node coarsened under the current
   // view is not refined again under it; a node refined in the previous
   // iteration is not coarsened. Each node changes at most twice per view (and
-  // parameter set), so a static view converges.
-  std::vector<std::uint32_t> last_op_;  // iteration << 1 | refined
-  std::uint32_t iteration_ = 0;         // iterations since reset(), from 1
-  std::uint32_t view_start_ = 0;        // first iteration of the current view
+  // parameter set), so a static view converges. Sparse, and marks no
+  // iteration reads again are forgotten now and then (forget_old_marks), so
+  // the marks follow the cut, not the hierarchy (issue 45).
+  SparseNodeArray<std::uint32_t> last_op_;  // iteration << 1 | refined
+  std::uint32_t view_forgotten_ = 0;        // view_start_ at the last forget_old_marks
+  std::uint32_t iteration_ = 0;             // iterations since reset(), from 1
+  std::uint32_t view_start_ = 0;            // first iteration of the current view
   std::uint64_t last_version_ = ~std::uint64_t{0};
   // A parameter change opens a new hysteresis period like a new view: a raised
   // max_nodes may refine what a lower one coarsened under the same view.
