@@ -104,10 +104,8 @@ void EventQueueStrategy::reset(const Hierarchy& hierarchy) {
     st.first_child = st.child_count != 0 ? a.first_child[n] : 0;
   }
   spheres_ = a.center_radius.data();
-  // A pass's frontier, at most a level of the tree: its memory touched now,
-  // not page by page in the first pass after a jump.
-  level_.assign(hierarchy.node_count() / 2 + 1, 0);
-  next_level_.assign(hierarchy.node_count() / 2 + 1, 0);
+  // A pass's frontier (the active nodes of a level) grows as passes need
+  // it and keeps its room: about the cut's size, not half the model's.
   level_.clear();
   next_level_.clear();
   slots_.assign(kMSlots, {});
