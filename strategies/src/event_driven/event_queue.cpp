@@ -672,6 +672,54 @@ void EventQueueStrategy::follow_pace(double moved, bool far, bool known, double 
   if (valid_ && (want > 2.0 * unit_ || want < 0.5 * unit_)) rescale(want);
 }
 
+// The iteration's method (issue 31: the cheaper of the due events and a
+// pass), from what the camera did since the queue's camera.
+EventQueueStrategy::Method EventQueueStrategy::pick(bool known, bool far, double dm, double dw,
+                                                    bool adaptive) {
+  if (!camera_.perspective) return Method::kTopDown;  // no distance, no event times
+  if (!known)
+    return Method::kRebuild;  // the first iteration, new parameters, a cut changed, a cancel
+  if (far) return adaptive ? Method::kTopDown : Method::kRebuild;
+  if (dm == 0.0 && dw == 0.0) return Method::kNone;  // the same camera: the same cut
+  return adaptive ? choose(dm, dw) : Method::kEvents;
+}
+
+// Carries the method out; false when cancelled.
+bool EventQueueStrategy::carry_out(Method method, const IterationInput& input, TreeCut& cut,
+                                   IterationResult& r, double dm, double dw) {
+  switch (method) {
+    case Method::kNone:
+      return true;
+    case Method::kRebuild:
+      rebuild(input, cut, r);
+      stats_.frames_advanced = 1;
+      return valid_;
+    case Method::kTopDown: {
+      const bool done = camera_.perspective
+                            ? pass(input, cut, r)
+                            : detail::topdown_pass(input.hierarchy, cut, r, input, camera_);
+      valid_ = false;
+      pass_tests_ = double(r.visited);
+      return done;
+    }
+    case Method::kEvents: {
+      const bool done = advance(input, cut, r, dm, dw);
+      // The cancelled cut is valid (every change was one refine or coarsen);
+      // the events are not complete any more: the next iteration rebuilds.
+      valid_ = done;
+      const double due = double(stats_.predicted);
+      if (done && due > 0.0) {
+        tests_per_event_ += (std::max(1.0, double(r.visited) / due) - tests_per_event_) * 0.25;
+      }
+      stats_.frames_advanced = static_cast<std::uint64_t>(std::ceil(std::max(dm, dw)));
+      stats_.moved = dm;
+      stats_.turned = dw;
+      return done;
+    }
+  }
+  return true;
+}
+
 void EventQueueStrategy::iterate(const IterationInput& input, IterationOutput& output) {
   const Hierarchy& h = input.hierarchy;
   TreeCut& cut = *output.cut;
@@ -682,7 +730,6 @@ void EventQueueStrategy::iterate(const IterationInput& input, IterationOutput& o
   const double diameter = 2.0 * double(h.radius(h.root()));
   const double rho = param_at(kRho) * diameter;
   omega_ = param_at(kOmega);
-  const bool adaptive = param_at(kAdaptive) != 0.0;
 
   // The cut is topdown's for the last camera, under the same parameters and
   // projection kind: what the camera did since decides what is needed.
@@ -705,20 +752,7 @@ void EventQueueStrategy::iterate(const IterationInput& input, IterationOutput& o
   follow_pace(moved, beyond(unit_), known, rho);
   const double dm = moved / unit_;
   const bool far = beyond(unit_);
-  Method method = Method::kRebuild;
-  if (!camera_.perspective) {
-    method = Method::kTopDown;  // no distance, no event times
-  } else if (!known) {
-    method = Method::kRebuild;  // the first iteration, new parameters, a cut changed, a cancel
-  } else if (far) {
-    method = adaptive ? Method::kTopDown : Method::kRebuild;
-  } else if (dm == 0.0 && dw == 0.0) {
-    method = Method::kNone;  // the same camera: the same cut
-  } else if (adaptive) {
-    method = choose(dm, dw);
-  } else {
-    method = Method::kEvents;
-  }
+  const Method method = pick(known, far, dm, dw, param_at(kAdaptive) != 0.0);
   if (method == Method::kEvents && (dm > 0.0 || dw > 0.0)) {
     pace_m_ += (dm - pace_m_) * 0.125;
     pace_w_ += (dw - pace_w_) * 0.125;
@@ -734,36 +768,7 @@ void EventQueueStrategy::iterate(const IterationInput& input, IterationOutput& o
       EventRates(camera_, unit_, omega_, kMCap, kWCap, pace_w_ / std::max(pace_m_, 1e-9), diameter);
   stats_.unit = unit_ / diameter;
   stats_.method = method;
-  bool done = true;
-  switch (method) {
-    case Method::kNone:
-      break;
-    case Method::kRebuild:
-      rebuild(input, cut, r);
-      done = valid_;
-      stats_.frames_advanced = 1;
-      break;
-    case Method::kTopDown:
-      done = camera_.perspective ? pass(input, cut, r)
-                                 : detail::topdown_pass(h, cut, r, input, camera_);
-      valid_ = false;
-      pass_tests_ = double(r.visited);
-      break;
-    case Method::kEvents: {
-      done = advance(input, cut, r, dm, dw);
-      // The cancelled cut is valid (every change was one refine or coarsen);
-      // the events are not complete any more: the next iteration rebuilds.
-      valid_ = done;
-      const double due = double(stats_.predicted);
-      if (done && due > 0.0) {
-        tests_per_event_ += (std::max(1.0, double(r.visited) / due) - tests_per_event_) * 0.25;
-      }
-      stats_.frames_advanced = static_cast<std::uint64_t>(std::ceil(std::max(dm, dw)));
-      stats_.moved = dm;
-      stats_.turned = dw;
-      break;
-    }
-  }
+  const bool done = carry_out(method, input, cut, r, dm, dw);
   current_ = done && camera_.perspective;
   r.cancelled = !done;
   if (valid_ && wentries_ > 3 * wlive_ + 65536) compact_rotation_lists();

@@ -218,6 +218,12 @@ class EventQueueStrategy final : public Strategy {
   [[nodiscard]] double due_events(double dm, double dw) const;
   // Which method this iteration takes, from the motion (units of the clocks).
   [[nodiscard]] Method choose(double dm, double dw);
+  // The method from the camera's motion since the queue's camera (KNOWN:
+  // the cut is topdown's for it; FAR: a jump), and carrying it out (false
+  // when cancelled).
+  [[nodiscard]] Method pick(bool known, bool far, double dm, double dw, bool adaptive);
+  bool carry_out(Method method, const IterationInput& input, TreeCut& cut, IterationResult& r,
+                 double dm, double dw);
   // While passes run: the events a valid queue would have made due for a
   // motion (dm, dw), from the event times sampled in the last pass, scaled
   // to its tests.
