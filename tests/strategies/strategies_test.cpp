@@ -192,18 +192,12 @@ TEST(Optimization, MarksFollowTheCutNotTheHierarchy) {
   s.set_param("max_nodes", 2000);
   s.reset(*h);
   TreeCut cut = TreeCut::root_cut(*h);
-  std::vector<NodeId> unused;
-  std::vector<QueryRequest> q;
   std::size_t most = 0;
   for (int i = 0; i < 600; ++i) {
     ViewSnapshot view =
         orbit_view(*h, 0.1f * static_cast<float>(i), 0.05f + 0.001f * static_cast<float>(i));
     view.version = static_cast<std::uint64_t>(i) + 1;
-    IterationOutput out;
-    out.cut = &cut;
-    out.nodes = &unused;
-    out.queries = &q;
-    s.iterate(IterationInput{*h, view}, out);
+    test::iterate_once(s, *h, cut, view);
     ASSERT_LE(cut.size(), 2000u);
     most = std::max(most, s.state_bytes());
   }
