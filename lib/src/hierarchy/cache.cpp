@@ -178,12 +178,42 @@ bool meta_in_place(const Header& h, std::uint64_t size, std::string* why) {
   return true;
 }
 
+// The pages' links (PageLinksAt), after the page table (whose place the
+// caller checked), each part inside the meta part.
+std::optional<cache_pages::PageLinks> read_links(const Header& h, const unsigned char* bytes,
+                                                 std::string* why) {
+  const PageLinksAt at = PageLinksAt::after(h.page_table, h.page_count, h.level_count);
+  if (at.runs > h.meta_end) return fail(why, "page links out of bounds"), std::nullopt;
+  cache_pages::PageLinks links;
+  auto read = [&](auto& v, std::uint64_t from, std::uint64_t count) {
+    v.resize(static_cast<std::size_t>(count));
+    std::memcpy(v.data(), bytes + from, v.size() * sizeof v[0]);
+  };
+  read(links.points, at.points, h.page_count);
+  read(links.run_index, at.run_index, h.page_count + 1);
+  read(links.level_begin, at.level_begin, std::uint64_t{h.level_count} + 1);
+  const std::uint64_t runs = links.run_index.back();
+  if (runs > (h.meta_end - at.runs) / sizeof(PageRun))
+    return fail(why, "page links out of bounds"), std::nullopt;
+  read(links.runs, at.runs, runs);
+  return links;
+}
+
+// What a cache's meta part says, verified (read_meta).
+struct Meta {
+  Header header;
+  CoordinateFrame frame;
+  SourceNotes notes;
+  std::vector<NodeAttribute> attributes;  // the varying ones' values are the pages'
+  std::vector<bool> varying;
+  std::optional<cache_pages::PageIndex> index;
+};
+
 // The meta part (at least H.meta_end bytes at META), verified by its
-// checksum STORED, and the pages read through SOURCE.
-std::optional<Hierarchy> decode_cache(const unsigned char* meta, std::uint64_t stored,
-                                      const cache_pages::PageSource& source, CacheKey* key,
-                                      std::string* why) {
-  Header h;
+// checksum STORED, and everything in it checked before it is used.
+std::optional<Meta> read_meta(const unsigned char* meta, std::uint64_t stored, std::string* why) {
+  Meta m;
+  Header& h = m.header;
   std::memcpy(&h, meta, sizeof h);
   const unsigned char* bytes = meta;
   if (detail::cache_checksum(bytes, h.meta_end) != stored)
@@ -197,18 +227,23 @@ std::optional<Hierarchy> decode_cache(const unsigned char* meta, std::uint64_t s
   auto in_meta = [&](std::uint64_t off, std::uint64_t bytes_needed) {
     return off >= sizeof(Header) && off <= h.meta_end && bytes_needed <= h.meta_end - off;
   };
-  if (!in_meta(h.page_table, h.page_count * sizeof(PageRecord)))
+  if (h.page_count > h.meta_end / sizeof(PageRecord) ||
+      !in_meta(h.page_table, h.page_count * sizeof(PageRecord)))
     return fail(why, "page table out of bounds"), std::nullopt;
   std::optional<CoordinateFrame> frame = read_frame(h, bytes, why);
   if (!frame) return std::nullopt;
+  m.frame = std::move(*frame);
   std::optional<SourceNotes> notes = read_notes(h, bytes, why);
   if (!notes) return std::nullopt;
-  std::vector<bool> varying;
+  m.notes = std::move(*notes);
   std::optional<std::vector<NodeAttribute>> attributes =
-      read_attributes(h, bytes, in_meta, varying, why);
+      read_attributes(h, bytes, in_meta, m.varying, why);
   if (!attributes) return std::nullopt;
+  m.attributes = std::move(*attributes);
   std::vector<PageRecord> table(static_cast<std::size_t>(h.page_count));
   std::memcpy(table.data(), bytes + h.page_table, table.size() * sizeof(PageRecord));
+  std::optional<cache_pages::PageLinks> links = read_links(h, bytes, why);
+  if (!links) return std::nullopt;
   // The pages tile the rest of the file, in order, with no byte outside one.
   std::uint64_t at = h.meta_end;
   for (std::size_t p = 0; p < table.size(); ++p) {
@@ -219,20 +254,33 @@ std::optional<Hierarchy> decode_cache(const unsigned char* meta, std::uint64_t s
     at += table[p].bytes;
   }
   if (at != h.payload_end) return fail(why, "bytes after the last page"), std::nullopt;
-  const auto streams = static_cast<std::uint32_t>(std::count(varying.begin(), varying.end(), true));
-  std::optional<cache_pages::Decoded> nodes =
-      cache_pages::decode(table, source, h.node_count, streams, h.level_count, why);
+  const auto streams =
+      static_cast<std::uint32_t>(std::count(m.varying.begin(), m.varying.end(), true));
+  m.index = cache_pages::PageIndex::make(std::move(table), std::move(*links), h.node_count,
+                                         h.level_count, streams, why);
+  if (!m.index) return std::nullopt;
+  return m;
+}
+
+// The meta part verified (read_meta), and the pages read through SOURCE.
+std::optional<Hierarchy> decode_cache(const unsigned char* meta, std::uint64_t stored,
+                                      const cache_pages::PageSource& source, CacheKey* key,
+                                      std::string* why) {
+  std::optional<Meta> m = read_meta(meta, stored, why);
+  if (!m) return std::nullopt;
+  const Header& h = m->header;
+  std::optional<cache_pages::Decoded> nodes = cache_pages::decode(*m->index, source, why);
   if (!nodes) return std::nullopt;
   if (nodes->arrays.point_count[0] != h.point_count)
     return fail(why, "point count disagrees with the pages"), std::nullopt;
-  for (std::size_t k = 0, s = 0; k < attributes->size(); ++k)
-    if (varying[k]) (*attributes)[k].values = nodes->attribute_values[s++];
+  for (std::size_t k = 0, s = 0; k < m->attributes.size(); ++k)
+    if (m->varying[k]) m->attributes[k].values = nodes->attribute_values[s++];
   if (key) *key = key_of(h);
   return Hierarchy::from_arrays(
              std::move(nodes->storage), nodes->arrays, std::move(nodes->level_begin),
              {h.bounds[0], h.bounds[1], h.bounds[2]}, {h.bounds[3], h.bounds[4], h.bounds[5]},
-             std::move(*frame), std::move(*attributes))
-      .with_notes(std::move(*notes));
+             std::move(m->frame), std::move(m->attributes))
+      .with_notes(std::move(m->notes));
 }
 
 // Reads COUNT bytes at AT of the file open as FD into OUT; a file that got
@@ -405,6 +453,15 @@ std::optional<std::vector<CachePage>> read_cache_pages(const std::filesystem::pa
                 {r.bounds[3], r.bounds[4], r.bounds[5]}};
   }
   return pages;
+}
+
+std::optional<cache_pages::PageIndex> detail::read_page_index(const std::filesystem::path& cache,
+                                                              std::string* why) {
+  OpenCache c;
+  if (!open_cache(cache, c, why)) return std::nullopt;
+  std::optional<Meta> m = read_meta(c.meta.data(), c.stored, why);
+  if (!m) return std::nullopt;
+  return std::move(m->index);
 }
 
 std::optional<CacheKey> read_cache_key(const std::filesystem::path& cache, std::string* why) {

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "cache_layout.hpp"
+#include "cache_pages.hpp"
 #include "treecut/cache.hpp"
 
 namespace treecut {
@@ -58,12 +59,13 @@ struct CacheMeta {
   const SourceNotes& notes;
 };
 
-/// The meta part of a cache file (header, page table, crs, attribute
-/// records, notes) for pages of TABLE's sizes written in its order right
-/// after it: TABLE's offsets are set. What CacheImage and the chunked build
-/// (which writes its pages from disk) write first.
+/// The meta part of a cache file (header, page table and LINKS, crs,
+/// attribute records, notes) for pages of TABLE's sizes written in its
+/// order right after it: TABLE's offsets are set. What CacheImage and the
+/// chunked build (which writes its pages from disk) write first.
 std::vector<unsigned char> cache_meta(const CacheMeta& meta,
-                                      std::vector<cache_layout::PageRecord>& table);
+                                      std::vector<cache_layout::PageRecord>& table,
+                                      const cache_pages::PageLinks& links);
 /// Creates the folder CACHE is to be written in, if missing; throws
 /// std::runtime_error "FOLDER: REASON".
 void create_cache_folder(const std::filesystem::path& cache);
@@ -76,6 +78,12 @@ std::array<unsigned char, 8> meta_checksum(std::span<const unsigned char> meta);
 /// to decide whether the content hash can be skipped. nullopt when CACHE is
 /// not a readable cache of this format version. Never blocks.
 std::optional<CacheKey> peek_cache_key(const std::filesystem::path& cache);
+
+/// The page table and links of CACHE, its meta part verified, without
+/// reading a page (what decodes any page alone). nullopt and *WHY when it
+/// is no cache of this format or its meta part does not check out.
+std::optional<cache_pages::PageIndex> read_page_index(const std::filesystem::path& cache,
+                                                      std::string* why);
 
 /// XXH3-64 of the first SIZE bytes (what an fstat saw) of the file open as
 /// FD, named SOURCE in messages. Throws FileChangedError when the file is

@@ -37,7 +37,10 @@ inline constexpr char kMagic[8] = {'T', 'C', 'U', 'T', 'H', 'I', 'E', 'R'};
 //    (cache_pages.hpp); 64-bit node and point counts.
 // 9: pages of up to 8,192 nodes (4,096), priorities in 12 bits (16): a
 //    survey tile's cache 7 % smaller (25.4 -> 23.6 bytes a point).
-inline constexpr std::uint32_t kVersion = 9;
+// 10: each page's place in the whole (PageLinks: the ids of its nodes as
+//    runs, the points under its root) and the levels' first ids after the
+//    page table, so a page decodes alone (issue 45: drawing from pages).
+inline constexpr std::uint32_t kVersion = 10;
 /// The first version with this header (what is_own_cache recognises).
 inline constexpr std::uint32_t kFirstPagedVersion = 8;
 inline constexpr std::uint32_t kEndianTag = 0x01020304u;
@@ -100,6 +103,35 @@ struct PageRecord {
 };
 static_assert(std::is_trivially_copyable_v<PageRecord> && sizeof(PageRecord) == 64);
 inline constexpr std::uint32_t kNoPage = 0xffffffffu;
+
+// A run of a page's nodes whose ids follow one another, all of depth
+// DEPTH. A page's nodes in its own order (breadth-first from its root, as
+// its bytes hold them) have increasing ids, so its runs, in order, give
+// each of them its id: its node k is the k-th id of its runs.
+struct PageRun {
+  std::uint64_t first;
+  std::uint32_t count;
+  std::uint32_t depth;
+};
+static_assert(std::is_trivially_copyable_v<PageRun> && sizeof(PageRun) == 16);
+
+// Where each page sits in the whole, after the page table in this order,
+// each part 8-byte aligned: the points under each page's root (u64 a page:
+// its nodes' point counts are made of them), where each page's runs begin
+// (u64 a page and one more: the runs' count), the first id of each level
+// (u64, level_count + 1), then the runs, page after page. What lets a
+// reader decode one page without the others (cache_pages::decode_page).
+struct PageLinksAt {
+  std::uint64_t points, run_index, level_begin, runs;
+  static PageLinksAt after(std::uint64_t page_table, std::uint64_t pages, std::uint64_t levels) {
+    PageLinksAt at{};
+    at.points = page_table + pages * sizeof(PageRecord);
+    at.run_index = at.points + pages * 8;
+    at.level_begin = at.run_index + (pages + 1) * 8;
+    at.runs = at.level_begin + (levels + 1) * 8;
+    return at;
+  }
+};
 
 // One attribute: its name (NUL-padded), kind, offset and range; the values
 // of one that is not constant are in the pages, in the records' order.

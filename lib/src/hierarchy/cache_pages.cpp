@@ -18,6 +18,7 @@ namespace treecut::cache_pages {
 using cache_layout::Checksum;
 using cache_layout::kNoPage;
 using cache_layout::PageRecord;
+using cache_layout::PageRun;
 
 namespace {
 
@@ -94,6 +95,19 @@ PageNodes page_nodes(const Hierarchy& h, const Partition& p, std::uint32_t page)
     for (NodeId c = a.first_child[i]; c < a.first_child[i] + cc; ++c) out.nodes.push_back(c);
   }
   return out;
+}
+
+// NODES (increasing ids, a page's) as runs of consecutive ids of one depth.
+std::vector<PageRun> runs_of(const Hierarchy& h, const std::vector<NodeId>& nodes) {
+  std::vector<PageRun> runs;
+  for (const NodeId i : nodes) {
+    const std::uint32_t depth = h.arrays().depth[i];
+    if (!runs.empty() && runs.back().first + runs.back().count == i && runs.back().depth == depth)
+      ++runs.back().count;
+    else
+      runs.push_back({i, 1, depth});
+  }
+  return runs;
 }
 
 // ---- Encoding ---------------------------------------------------------------
@@ -235,6 +249,8 @@ void encode_page(const Hierarchy& h, const Partition& p, std::uint32_t page,
   for (int a = 0; a < 3; ++a) r.bounds[a] = lo[a], r.bounds[a + 3] = hi[a];
   roots[page] = {g.centers[0], radius[0]};
   if (page == 0) result.root = roots[0];
+  result.runs[page] = runs_of(h, nodes);
+  result.points[page] = h.arrays().point_count[nodes[0]];
   // The child pages' records learn where they hang (they were encoded first).
   const HierarchyArrays& a = h.arrays();
   for (std::size_t k = 0; k < nodes.size(); ++k)
@@ -275,6 +291,8 @@ Encoded encode_pages(const Hierarchy& h, const Outputs* out, std::span<const Roo
   result.roots = p.roots;
   result.table.assign(pages, PageRecord{});
   result.pages.resize(pages);
+  result.runs.resize(pages);
+  result.points.assign(pages, 0);
   std::vector<Root> roots(pages);
   for (std::uint32_t l = levels; l-- > 0;) {
     const std::vector<std::uint32_t>& these = by_level[l];
@@ -314,6 +332,18 @@ Encoded encode_in_place(const Hierarchy& h) {
                     const_cast<float*>(a.splat_radius.data()),
                     const_cast<float*>(a.priority.data())};
   return encode_pages(h, &out, {});
+}
+
+PageLinks links_of(const Encoded& e, const Hierarchy& h) {
+  PageLinks links;
+  links.points = e.points;
+  links.run_index.push_back(0);
+  for (const std::vector<PageRun>& runs : e.runs) {
+    links.runs.insert(links.runs.end(), runs.begin(), runs.end());
+    links.run_index.push_back(links.runs.size());
+  }
+  for (int d = 0; d <= h.level_count(); ++d) links.level_begin.push_back(h.level_begin(d));
+  return links;
 }
 
 }  // namespace treecut::cache_pages

@@ -64,7 +64,26 @@ struct Encoded {
   std::vector<std::vector<unsigned char>> pages;
   Root root;                  ///< the hierarchy's root as page 0 decodes it
   std::vector<NodeId> roots;  ///< each page's root node
+  /// Each page's nodes as runs of the encoded hierarchy's ids, and the
+  /// points under its root (empty and 0 for encode_over's leaves).
+  std::vector<std::vector<cache_layout::PageRun>> runs;
+  std::vector<std::uint64_t> points;
 };
+
+/// Where the pages of a cache sit in the whole (cache_layout::PageLinksAt
+/// has them on disk): what decode_page needs beside the page table.
+struct PageLinks {
+  std::vector<std::uint64_t> points;     ///< under each page's root
+  std::vector<std::uint64_t> run_index;  ///< page p's runs: [run_index[p], run_index[p + 1])
+  std::vector<cache_layout::PageRun> runs;
+  std::vector<std::uint64_t> level_begin;  ///< the levels' first ids, and the node count
+  [[nodiscard]] std::span<const cache_layout::PageRun> runs_of(std::size_t page) const {
+    return std::span(runs).subspan(run_index[page], run_index[page + 1] - run_index[page]);
+  }
+};
+
+/// The links of E, the pages of the whole of H (encode, encode_in_place).
+PageLinks links_of(const Encoded& e, const Hierarchy& h);
 
 /// Cuts H into pages, quantizes and compresses them (in parallel).
 Encoded encode(const Hierarchy& h);
@@ -93,22 +112,83 @@ struct Decoded {
   std::vector<std::span<const float>> attribute_values;
 };
 
-/// Where a page's compressed bytes are read from: R.bytes of them, at
-/// R.offset in the file, returned in place or read into BUFFER. Called from
-/// the worker pool's threads; throws FileChangedError when the file no
-/// longer has them.
+/// Where the pages are read from: R.bytes of them, at R.offset in the
+/// file, returned in place or read into BUFFER. Called from any thread;
+/// throws FileChangedError when the file no longer has them.
 using PageSource = std::function<const unsigned char*(const cache_layout::PageRecord& r,
                                                       std::vector<unsigned char>& buffer)>;
 
-/// Verifies and decodes every page of TABLE (each read twice from SOURCE:
-/// once for the links, once for the values, so the decompressed pages are
-/// never all in memory) into NODE_COUNT nodes with VALUE_STREAMS non-constant
-/// attributes. Never trusts a byte: a page whose checksum, size, counts or
-/// links do not hold is named in *WHY ("page 3 of 12: checksum mismatch
-/// (corrupted)") and nothing is returned.
-std::optional<Decoded> decode(std::span<const cache_layout::PageRecord> table,
-                              const PageSource& source, std::uint64_t node_count,
-                              std::uint32_t value_streams, std::uint32_t level_count,
-                              std::string* why);
+/// A cache's page table and links, checked as a whole once (make): every
+/// id held by exactly one page, each page's ids in increasing runs inside
+/// its depths' levels, sibling pages one after the other. What decode_page
+/// needs to decode any page alone. Immutable: any thread may use it.
+class PageIndex {
+ public:
+  /// nullopt and *WHY ("page 3 of 12: bad node runs") when the table and
+  /// the links do not hold together.
+  static std::optional<PageIndex> make(std::vector<cache_layout::PageRecord> table, PageLinks links,
+                                       std::uint64_t node_count, std::uint32_t level_count,
+                                       std::uint32_t value_streams, std::string* why);
+
+  [[nodiscard]] std::size_t pages() const { return table_.size(); }
+  [[nodiscard]] const cache_layout::PageRecord& record(std::size_t p) const { return table_[p]; }
+  [[nodiscard]] std::span<const cache_layout::PageRecord> table() const { return table_; }
+  [[nodiscard]] const PageLinks& links() const { return links_; }
+  [[nodiscard]] std::uint64_t node_count() const { return node_count_; }
+  [[nodiscard]] std::uint32_t value_streams() const { return value_streams_; }
+  /// The id of page P's root.
+  [[nodiscard]] NodeId root_id(std::size_t p) const {
+    return static_cast<NodeId>(links_.runs[links_.run_index[p]].first);
+  }
+  /// The id and depth of node LOCAL of page PAGE (its runs walked).
+  [[nodiscard]] std::pair<NodeId, std::uint32_t> locate(std::uint32_t page,
+                                                        std::uint32_t local) const;
+  [[nodiscard]] std::uint32_t depth_of(std::uint32_t page, std::uint32_t local) const {
+    return locate(page, local).second;
+  }
+  /// A page hanging from node LOCAL of another.
+  struct Child {
+    std::uint32_t local, page;
+  };
+  /// The pages hanging from page P's nodes, by node, then page.
+  [[nodiscard]] std::span<const Child> child_pages(std::uint32_t p) const;
+
+ private:
+  PageIndex() = default;
+  std::vector<cache_layout::PageRecord> table_;
+  PageLinks links_;
+  std::uint64_t node_count_ = 0;
+  std::uint32_t value_streams_ = 0;
+  std::vector<Child> children_;             // by parent page, node, page
+  std::vector<std::uint64_t> group_begin_;  // page p's: [group_begin_[p], group_begin_[p + 1])
+};
+
+/// Where a decoded page's nodes go: arrays of the whole, indexed by id,
+/// and one for each attribute that is not constant.
+struct NodeSink {
+  glm::vec4* center_radius;
+  float* splat_radius;
+  glm::i16vec4* normal_cone;
+  glm::u8vec4* color;
+  float* priority;
+  std::uint32_t* point_count;
+  NodeId* parent;
+  NodeId* first_child;
+  std::uint8_t* child_count;
+  std::uint8_t* depth;
+  std::vector<float*> values;
+};
+
+/// Reads, verifies and decodes page P of INDEX through SOURCE, writing its
+/// nodes (links, point counts, values) into OUT at their ids and nothing
+/// else (RAW: scratch). Empty, or what is wrong with the page ("checksum
+/// mismatch (corrupted)"), without its name; never trusts a byte.
+std::string decode_page(const PageIndex& index, std::uint32_t p, const PageSource& source,
+                        const NodeSink& out, std::vector<unsigned char>& raw);
+
+/// Every page of INDEX, in parallel, into arrays of its own. A page whose
+/// checksum, size, counts or links do not hold is named in *WHY ("page 3
+/// of 12: checksum mismatch (corrupted)") and nothing is returned.
+std::optional<Decoded> decode(const PageIndex& index, const PageSource& source, std::string* why);
 
 }  // namespace treecut::cache_pages

@@ -102,16 +102,19 @@ CacheImage::CacheImage(Hierarchy&& hier, const CacheKey& key) : hierarchy_(std::
   make(hierarchy_, key, true);
 }
 
-std::vector<unsigned char> detail::cache_meta(const CacheMeta& m, std::vector<PageRecord>& table) {
+std::vector<unsigned char> detail::cache_meta(const CacheMeta& m, std::vector<PageRecord>& table,
+                                              const cache_pages::PageLinks& links) {
   Header h = header_of(m);
   const std::string crs = m.frame.crs.substr(0, kMaxCrsBytes);
   const std::vector<AttributeRecord> records = attribute_records(m.attributes);
   const std::string notes = notes_text(m.notes);
-  // The meta part: header, page table, crs text, attribute records, notes.
+  // The meta part: header, page table and links, crs text, attribute
+  // records, notes.
   std::uint64_t off = align_up(sizeof(Header));
   h.page_count = table.size();
   h.page_table = off;
-  off = align_up(off + table.size() * sizeof(PageRecord));
+  const PageLinksAt links_at = PageLinksAt::after(h.page_table, table.size(), m.level_count);
+  off = align_up(links_at.runs + links.runs.size() * sizeof(PageRun));
   h.crs_size = static_cast<std::uint32_t>(crs.size());
   h.crs_offset = crs.empty() ? 0 : off;
   off = align_up(off + crs.size());
@@ -131,6 +134,13 @@ std::vector<unsigned char> detail::cache_meta(const CacheMeta& m, std::vector<Pa
   unsigned char* b = meta.data();
   std::memcpy(b, &h, sizeof h);
   std::memcpy(b + h.page_table, table.data(), table.size() * sizeof(PageRecord));
+  if (links.points.size() != table.size() || links.run_index.size() != table.size() + 1 ||
+      links.level_begin.size() != std::size_t{m.level_count} + 1)
+    throw std::logic_error("cache_meta: the links do not match the page table");
+  std::memcpy(b + links_at.points, links.points.data(), links.points.size() * 8);
+  std::memcpy(b + links_at.run_index, links.run_index.data(), links.run_index.size() * 8);
+  std::memcpy(b + links_at.level_begin, links.level_begin.data(), links.level_begin.size() * 8);
+  std::memcpy(b + links_at.runs, links.runs.data(), links.runs.size() * sizeof(PageRun));
   if (!crs.empty()) std::memcpy(b + h.crs_offset, crs.data(), crs.size());
   if (!records.empty())
     std::memcpy(b + h.attribute_table, records.data(), records.size() * sizeof(AttributeRecord));
@@ -161,7 +171,7 @@ void CacheImage::make(const Hierarchy& hier, const CacheKey& key, bool in_place)
                             hier.notes()};
   // The pages stay as they were compressed (written after the meta part
   // one by one: never a second copy of them).
-  meta_ = detail::cache_meta(m, pages.table);
+  meta_ = detail::cache_meta(m, pages.table, cache_pages::links_of(pages, hier));
   pages_ = std::move(pages.pages);
   checksum_ = detail::meta_checksum(meta_);
 }

@@ -30,6 +30,7 @@ namespace treecut::detail {
 namespace {
 
 using cache_layout::PageRecord;
+using cache_layout::PageRun;
 using Clock = std::chrono::steady_clock;
 
 double seconds_since(Clock::time_point t0) {
@@ -129,7 +130,10 @@ float median_of(ScratchFile& file, std::uint64_t count) {
 
 // A chunk built: its pages on disk and its root for the levels above.
 struct ChunkPages {
-  std::vector<PageRecord> table;  // offsets into the pages' scratch file
+  std::vector<PageRecord> table;           // offsets into the pages' scratch file
+  std::vector<std::vector<PageRun>> runs;  // each page's, in the chunk's own ids and depths
+  std::vector<std::uint64_t> points;       // under each page's root
+  std::vector<std::uint64_t> level_begin;  // the chunk's own
   std::uint32_t levels = 0;
   std::uint64_t nodes = 0;
 };
@@ -223,10 +227,17 @@ class ChunkedBuild {
     const std::vector<unsigned char>* memory;
     std::uint64_t offset;
   };
-  void add_page(const PageRecord& r, Source from) {
+  void add_page(const PageRecord& r, Source from, std::span<const PageRun> runs,
+                std::uint64_t points) {
     table_.push_back(r);
     sources_.push_back(from);
+    links_.runs.insert(links_.runs.end(), runs.begin(), runs.end());
+    links_.run_index.push_back(links_.runs.size());
+    links_.points.push_back(points);
   }
+  void number_nodes(const detail::TopLevels* top);
+  std::vector<PageRun> chunk_runs(std::size_t c, std::size_t page) const;
+  std::vector<PageRun> top_runs(std::size_t page) const;
 
   std::span<const std::filesystem::path> files_;
   const OpenOptions& options_;
@@ -255,6 +266,12 @@ class ChunkedBuild {
   // The file: its pages, their sources, the levels and nodes.
   std::vector<PageRecord> table_;
   std::vector<Source> sources_;
+  cache_pages::PageLinks links_{{}, {0}, {}, {}};
+  // The ids of the whole (breadth-first over the top and the chunks): of
+  // each top node, and where each chunk's level starts.
+  std::vector<NodeId> top_id_;
+  std::vector<std::vector<std::uint64_t>> chunk_base_;
+  std::vector<std::uint32_t> depth_;  // of each chunk's root
   cache_pages::Encoded top_pages_;
   std::uint32_t levels_ = 0;
   std::uint64_t nodes_ = 0;
@@ -434,6 +451,9 @@ void ChunkedBuild::build_chunks() {
     ChunkPages& cp = built_[c];
     cp.levels = static_cast<std::uint32_t>(h.level_count());
     cp.nodes = h.node_count();
+    cp.runs = e.runs;
+    cp.points = e.points;
+    for (int d = 0; d <= h.level_count(); ++d) cp.level_begin.push_back(h.level_begin(d));
     std::lock_guard lock(mutex_);
     release(*done_, blocks_[c].done);
     for (std::size_t q = 0; q < e.table.size(); ++q) {
@@ -447,41 +467,108 @@ void ChunkedBuild::build_chunks() {
   done_.reset();
 }
 
+// The whole's ids, breadth-first as a hierarchy built at once has them: a
+// level's nodes are the top's there and each chunk's at that depth, in the
+// order their parents have (a chunk's nodes of one depth are consecutive,
+// in its own order). Sets the levels' first ids and the nodes' count.
+void ChunkedBuild::number_nodes(const detail::TopLevels* top) {
+  struct Item {
+    NodeId top;  // a node of the top, or kNoNode: LEVEL of CHUNK
+    std::uint32_t chunk, level;
+  };
+  chunk_base_.assign(report_.chunks, {});
+  std::vector<Item> level{top ? Item{0, 0, 0} : Item{kNoNode, 0, 0}}, next;
+  if (top) top_id_.assign(top->hierarchy.node_count(), kNoNode);
+  std::uint64_t id = 0;
+  links_.level_begin.clear();
+  while (!level.empty()) {
+    links_.level_begin.push_back(id);
+    next.clear();
+    for (const Item& it : level) {
+      if (it.top == kNoNode) {
+        const ChunkPages& cp = built_[it.chunk];
+        chunk_base_[it.chunk].push_back(id);
+        id += cp.level_begin[it.level + 1] - cp.level_begin[it.level];
+        if (it.level + 1 < cp.levels) next.push_back({kNoNode, it.chunk, it.level + 1});
+        continue;
+      }
+      const Hierarchy& t = top->hierarchy;
+      top_id_[it.top] = static_cast<NodeId>(id++);
+      for (NodeId c = t.first_child(it.top); c < t.first_child(it.top) + t.child_count(it.top); ++c)
+        next.push_back(t.is_leaf(c) ? Item{kNoNode, top->root_of[c], 0} : Item{c, 0, 0});
+    }
+    std::swap(level, next);
+  }
+  links_.level_begin.push_back(id);
+  nodes_ = id;
+  levels_ = static_cast<std::uint32_t>(links_.level_begin.size() - 1);
+}
+
+// Chunk C's page PAGE's runs in the whole's ids (a level of a chunk is one
+// run of the whole's ids).
+std::vector<PageRun> ChunkedBuild::chunk_runs(std::size_t c, std::size_t page) const {
+  const ChunkPages& cp = built_[c];
+  std::vector<PageRun> runs = cp.runs[page];
+  for (PageRun& r : runs) {
+    r.first = chunk_base_[c][r.depth] + (r.first - cp.level_begin[r.depth]);
+    r.depth += depth_[c];
+  }
+  return runs;
+}
+
+// The top's page PAGE's runs in the whole's ids (the top's nodes of a level
+// are not consecutive there: the chunks' lie between them).
+std::vector<PageRun> ChunkedBuild::top_runs(std::size_t page) const {
+  std::vector<PageRun> runs;
+  for (const PageRun& r : top_pages_.runs[page])
+    for (std::uint64_t i = r.first; i < r.first + r.count; ++i) {
+      const NodeId id = top_id_[i];
+      if (!runs.empty() && runs.back().first + runs.back().count == id &&
+          runs.back().depth == r.depth)
+        ++runs.back().count;
+      else
+        runs.push_back({id, 1, r.depth});
+    }
+  return runs;
+}
+
 // 5. The levels over the chunks' roots, and the page table in file order:
 // the top's pages (a chunk's first page where the top has its root), then
 // the chunks' other pages, chunk after chunk.
 void ChunkedBuild::levels_over_chunks() {
   const std::size_t chunks = report_.chunks;
-  std::vector<std::uint32_t> first_page(chunks, 0), depth(chunks, 0);
+  std::vector<std::uint32_t> first_page(chunks, 0);
+  depth_.assign(chunks, 0);
+  std::optional<TopLevels> top;
   if (chunks == 1) {
-    add_page(built_[0].table[0], {nullptr, built_[0].table[0].offset});
+    number_nodes(nullptr);
+    add_page(built_[0].table[0], {nullptr, built_[0].table[0].offset}, chunk_runs(0, 0),
+             built_[0].points[0]);
   } else {
-    const TopLevels top =
-        build_over_roots(roots_, model_, frame_, options_.build.parent_at_real_point);
-    const Hierarchy& t = top.hierarchy;
+    top = build_over_roots(roots_, model_, frame_, options_.build.parent_at_real_point);
+    const Hierarchy& t = top->hierarchy;
     std::vector<cache_pages::Root> leaf_roots(t.node_count());
     for (NodeId i = 0; i < t.node_count(); ++i) {
-      if (top.root_of[i] == kNoNode) continue;
-      const glm::vec4 s = roots_[top.root_of[i]].center_radius;
+      if (top->root_of[i] == kNoNode) continue;
+      const glm::vec4 s = roots_[top->root_of[i]].center_radius;
       leaf_roots[i] = {glm::vec3(s), s.w};
-      depth[top.root_of[i]] = t.arrays().depth[i];
+      depth_[top->root_of[i]] = t.arrays().depth[i];
     }
     top_pages_ = cache_pages::encode_over(t, leaf_roots);
+    number_nodes(&*top);
     for (std::size_t q = 0; q < top_pages_.table.size(); ++q) {
-      const NodeId c = top.root_of[top_pages_.roots[q]];
+      const NodeId c = top->root_of[top_pages_.roots[q]];
       if (c == kNoNode) {
-        add_page(top_pages_.table[q], {&top_pages_.pages[q], 0});
+        add_page(top_pages_.table[q], {&top_pages_.pages[q], 0}, top_runs(q), top_pages_.points[q]);
         continue;
       }
       PageRecord r = built_[c].table[0];
       r.parent_page = top_pages_.table[q].parent_page;
       r.parent_local = top_pages_.table[q].parent_local;
-      r.root_depth = depth[c];
+      r.root_depth = depth_[c];
       first_page[c] = static_cast<std::uint32_t>(table_.size());
-      add_page(r, {nullptr, built_[c].table[0].offset});
+      add_page(r, {nullptr, built_[c].table[0].offset}, chunk_runs(c, 0), built_[c].points[0]);
     }
-    levels_ = static_cast<std::uint32_t>(t.level_count());
-    nodes_ = t.node_count() - chunks;
   }
   for (std::size_t c = 0; c < chunks; ++c) {
     const auto base = static_cast<std::uint32_t>(table_.size());
@@ -489,11 +576,9 @@ void ChunkedBuild::levels_over_chunks() {
       PageRecord r = built_[c].table[q];
       const std::uint64_t at = r.offset;
       r.parent_page = r.parent_page == 0 ? first_page[c] : base + r.parent_page - 1;
-      r.root_depth += depth[c];
-      add_page(r, {nullptr, at});
+      r.root_depth += depth_[c];
+      add_page(r, {nullptr, at}, chunk_runs(c, q), built_[c].points[q]);
     }
-    levels_ = std::max(levels_, depth[c] + built_[c].levels);
-    nodes_ += built_[c].nodes;
   }
   report_.nodes = nodes_;
   for (const NodeAttribute& a : model_) report_.value_streams += !a.is_constant();
@@ -508,7 +593,7 @@ void ChunkedBuild::write(const CacheKey& key, SourceNotes& notes) {
   notes.format = format_text(out_);
   const CacheMeta meta{key,           frame_,  whole_.lo, whole_.hi, nodes_,
                        whole_.points, levels_, model_,    notes};
-  const std::vector<unsigned char> bytes = cache_meta(meta, table_);
+  const std::vector<unsigned char> bytes = cache_meta(meta, table_, links_);
   create_cache_folder(cache_);
   AtomicFile file(cache_);
   file.write(bytes.data(), bytes.size());
