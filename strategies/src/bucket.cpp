@@ -74,6 +74,7 @@ void BucketStrategy::iterate(const IterationInput& input, IterationOutput& outpu
   IterationResult& r = output.result;
   const HierarchyArrays& a = h.arrays();
   const int threshold = static_cast<int>(param_at(kThreshold));
+  std::vector<NodeId>* const wanted = output.wanted;
 
   // Evaluate every cut node against its bucket; collect the operations first
   // so the whole pass sees one consistent cut. The pass is instantiated for
@@ -102,6 +103,8 @@ void BucketStrategy::iterate(const IterationInput& input, IterationOutput& outpu
       const int depth = a.depth[n];
       const int delta = bucket(n) - depth;
       if (delta > 0 && a.child_count[n] != 0) refine_.push_back(n);  // '+' in figure 4
+      // A paged model's hidden node asking for '+': refined once its pages are read.
+      if (delta > 0 && wanted && h.is_hidden(n)) wanted->push_back(n);
 
       // A sibling group is judged once, at its first child: every sibling
       // must ask for a coarse ('-'), and the parent's own delta must not be

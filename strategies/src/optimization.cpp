@@ -92,6 +92,9 @@ struct Pass {
   SparseNodeArray<std::uint32_t>& last_op;
   std::uint32_t view_start;  // first iteration of the current view
   std::uint32_t iteration;
+  // A paged model's: the hidden nodes a refine chose (IterationOutput::
+  // wanted), null for a model held whole.
+  std::vector<NodeId>* wanted;
 
   // A node coarsened under the current view is not refined again under it.
   [[nodiscard]] bool refine_blocked(NodeId n) const {
@@ -135,7 +138,8 @@ struct Pass {
     float size = 0.0f;
     const float p = view_priority(a, view, n, pass.weight, size);
     const Candidate self = candidate(p, n);
-    if (a.child_count[n] != 0 && size >= pass.min_size && highs.admits(self)) {
+    const bool refinable = a.child_count[n] != 0 || (pass.wanted && a.point_count[n] > 1);
+    if (refinable && size >= pass.min_size && highs.admits(self)) {
       if (pass.refine_blocked(n)) {
         ++r.blocked;
       } else {
@@ -211,6 +215,10 @@ struct Pass {
     pop(high, higher);
     --high_left;
     if (!cut.contains(n)) continue;  // its parent was coarsened above
+    if (a.child_count[n] == 0) {     // hidden: refined once its pages are read
+      pass.wanted->push_back(n);
+      continue;
+    }
     const std::size_t grow = a.child_count[n] - 1u;
     bool room = true;
     while (cut.size() + grow > pass.max_nodes) {
@@ -285,7 +293,8 @@ void OptimizationStrategy::iterate(const IterationInput& input, IterationOutput&
     last_params_ = input.params_version;
     view_start_ = iteration_;
   }
-  const Pass pass{max_nodes, k, threshold, weight, min_size, last_op_, view_start_, iteration_};
+  const Pass pass{max_nodes, k,           threshold,  weight,       min_size,
+                  last_op_,  view_start_, iteration_, output.wanted};
 
   // The pass reads the node arrays at every cut node: in id order they are
   // read with ascending addresses instead of at random.

@@ -116,7 +116,7 @@ void RecursiveStrategy::iterate(const IterationInput& input, IterationOutput& ou
         continue;
       }
       const unsigned children = a.child_count[n];
-      if (children == 0) {
+      if (children == 0 && a.point_count[n] <= 1) {  // a leaf (not a hidden one)
         emit(n);
         continue;
       }
@@ -135,6 +135,11 @@ void RecursiveStrategy::iterate(const IterationInput& input, IterationOutput& ou
       if (backface && view.derived.perspective &&
           backfacing(a.normal_cone[n], to_eye, dist, cr.w)) {
         ++r.backfacing;
+        emit(n);
+        continue;
+      }
+      if (children == 0) {  // hidden: refined once its pages are read
+        if (output.wanted) output.wanted->push_back(n);
         emit(n);
         continue;
       }

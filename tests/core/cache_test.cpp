@@ -265,8 +265,10 @@ TEST(Cache, EachPageDecodesAloneAsTheWholeLoadsIt) {
   std::string why;
   const std::optional<Hierarchy> whole = load_cache(dir / "a.tch", std::nullopt, &why);
   ASSERT_TRUE(whole) << why;
-  const std::optional<cache_pages::PageIndex> index = detail::read_page_index(dir / "a.tch", &why);
-  ASSERT_TRUE(index) << why;
+  const std::optional<detail::CacheOutline> outline =
+      detail::read_cache_outline(dir / "a.tch", &why);
+  ASSERT_TRUE(outline) << why;
+  const cache_pages::PageIndex* index = &outline->index;
   ASSERT_GT(index->pages(), 2u);
   const std::vector<char> file = read_all(dir / "a.tch");
   const cache_pages::PageSource source = [&](const cache_layout::PageRecord& r,

@@ -131,6 +131,12 @@ class Hierarchy {
   [[nodiscard]] std::size_t memory_bytes() const;
 
   [[nodiscard]] bool is_leaf(NodeId n) const { return a_.child_count[n] == 0; }
+  /// A leaf only because its children are not resident (a paged hierarchy,
+  /// paged_hierarchy.hpp: a leaf of more than one point); never true of a
+  /// hierarchy held whole. What an iteration reports as wanted.
+  [[nodiscard]] bool is_hidden(NodeId n) const {
+    return a_.child_count[n] == 0 && a_.point_count[n] > 1;
+  }
   [[nodiscard]] glm::vec3 center(NodeId n) const { return glm::vec3(a_.center_radius[n]); }
   [[nodiscard]] float radius(NodeId n) const { return a_.center_radius[n].w; }
   [[nodiscard]] float splat_radius(NodeId n) const { return a_.splat_radius[n]; }

@@ -5,6 +5,7 @@
 #include <memory>
 
 #include "treecut/hierarchy.hpp"
+#include "treecut/paged_hierarchy.hpp"
 #include "treecut/tree_cut.hpp"
 
 namespace treecut {
@@ -13,7 +14,15 @@ struct Model {
   /// Shared and immutable: lists handed to the renderer keep it alive.
   std::shared_ptr<const Hierarchy> hierarchy;
   TreeCut cut;  ///< valid for *hierarchy
+  /// A model drawn from its cache's pages (paged_hierarchy.hpp): HIERARCHY
+  /// is its hierarchy(), and the stage reads its pages as the strategy asks
+  /// for them and gives back what no list holds, between iterations. Null
+  /// for a model held whole.
+  std::shared_ptr<PagedHierarchy> paged{};
 };
+
+/// A model of PAGED (its root cut), HIERARCHY sharing its ownership.
+Model make_paged_model(std::shared_ptr<PagedHierarchy> paged);
 
 /// A model whose cut is the root only (where every strategy can start).
 Model make_model(Hierarchy hierarchy);

@@ -115,6 +115,16 @@ struct IterationInput {
   /// Strategy::params_version() when the iteration started: compare it with the
   /// value seen last to notice a parameter change (see "Events" above).
   std::uint64_t params_version = 0;
+  /// A paged model (treecut/paged_hierarchy.hpp): the nodes that gained
+  /// their children since the previous iteration (their pages arrived),
+  /// and those that lost them (their pages were given back; never a node
+  /// the cut holds, nor one above a cut node). Residency is an input like
+  /// the view: a strategy that keeps copies of the hierarchy's links or
+  /// values (the event queue's records) refreshes them at these nodes and
+  /// below; one that reads the hierarchy as it goes needs nothing. Empty
+  /// for a model held whole.
+  std::span<const NodeId> revealed{};
+  std::span<const NodeId> concealed{};
 
   [[nodiscard]] bool cancelled() const {
     return cancel != nullptr && cancel->load(std::memory_order_relaxed);
@@ -126,6 +136,11 @@ struct IterationOutput {
   TreeCut* cut = nullptr;                        ///< Evolve: modify in place
   std::vector<NodeId>* nodes = nullptr;          ///< Rebuild: fill (empty on entry)
   std::vector<QueryRequest>* queries = nullptr;  ///< append GPU query requests (empty on entry)
+  /// A paged model: the hidden nodes (Hierarchy::is_hidden) this iteration
+  /// would have refined by its own criterion had their children been
+  /// resident; their pages are read next (PagedHierarchy::request). May be
+  /// null (a model held whole has none); empty on entry otherwise.
+  std::vector<NodeId>* wanted = nullptr;
   IterationResult result;
 };
 

@@ -5,7 +5,13 @@ namespace treecut {
 Model make_model(Hierarchy hierarchy) {
   auto h = std::make_shared<const Hierarchy>(std::move(hierarchy));
   TreeCut cut = TreeCut::root_cut(*h);
-  return Model{std::move(h), std::move(cut)};
+  return Model{std::move(h), std::move(cut), nullptr};
+}
+
+Model make_paged_model(std::shared_ptr<PagedHierarchy> paged) {
+  std::shared_ptr<const Hierarchy> h(paged, &paged->hierarchy());
+  TreeCut cut = TreeCut::root_cut(*h);
+  return Model{std::move(h), std::move(cut), std::move(paged)};
 }
 
 TreeCut breadth_first_cut(const Hierarchy& hierarchy, std::size_t nodes) {

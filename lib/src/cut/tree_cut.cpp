@@ -23,8 +23,19 @@ TreeCut TreeCut::leaf_cut(const Hierarchy& h) {
   TreeCut cut;
   cut.slot_.assign(h.node_count(), kNotInCut);
   cut.nodes_.reserve(h.leaf_count());
-  for (NodeId n = 0; n < h.node_count(); ++n)
-    if (h.is_leaf(n)) cut.insert(n);
+  // Level by level from the root, not every id: a paged hierarchy's nodes
+  // past its resident pages are not in the tree (paged_hierarchy.hpp). The
+  // ids are breadth-first, so the leaves come in id order.
+  std::vector<NodeId> level{h.root()}, next;
+  while (!level.empty()) {
+    next.clear();
+    for (const NodeId n : level) {
+      if (h.is_leaf(n)) cut.insert(n);
+      for (NodeId c = h.first_child(n); c < h.first_child(n) + h.child_count(n); ++c)
+        next.push_back(c);
+    }
+    std::swap(level, next);
+  }
   cut.forget_moves(true);  // inserted in id order
   return cut;
 }

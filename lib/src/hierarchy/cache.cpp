@@ -455,13 +455,21 @@ std::optional<std::vector<CachePage>> read_cache_pages(const std::filesystem::pa
   return pages;
 }
 
-std::optional<cache_pages::PageIndex> detail::read_page_index(const std::filesystem::path& cache,
-                                                              std::string* why) {
+std::optional<detail::CacheOutline> detail::read_cache_outline(const std::filesystem::path& cache,
+                                                               std::string* why) {
   OpenCache c;
   if (!open_cache(cache, c, why)) return std::nullopt;
   std::optional<Meta> m = read_meta(c.meta.data(), c.stored, why);
   if (!m) return std::nullopt;
-  return std::move(m->index);
+  const Header& h = m->header;
+  return CacheOutline{std::move(*m->index),
+                      std::move(m->frame),
+                      std::move(m->notes),
+                      std::move(m->attributes),
+                      std::move(m->varying),
+                      {h.bounds[0], h.bounds[1], h.bounds[2]},
+                      {h.bounds[3], h.bounds[4], h.bounds[5]},
+                      h.point_count};
 }
 
 std::optional<CacheKey> read_cache_key(const std::filesystem::path& cache, std::string* why) {

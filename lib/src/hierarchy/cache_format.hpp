@@ -79,11 +79,22 @@ std::array<unsigned char, 8> meta_checksum(std::span<const unsigned char> meta);
 /// not a readable cache of this format version. Never blocks.
 std::optional<CacheKey> peek_cache_key(const std::filesystem::path& cache);
 
-/// The page table and links of CACHE, its meta part verified, without
-/// reading a page (what decodes any page alone). nullopt and *WHY when it
-/// is no cache of this format or its meta part does not check out.
-std::optional<cache_pages::PageIndex> read_page_index(const std::filesystem::path& cache,
-                                                      std::string* why);
+/// What a cache's meta part says of its model, verified, without a page.
+struct CacheOutline {
+  cache_pages::PageIndex index;  ///< what decodes any page alone
+  CoordinateFrame frame;
+  SourceNotes notes;
+  std::vector<NodeAttribute> attributes;  ///< without values: the pages hold the varying ones'
+  std::vector<bool> varying;              ///< each attribute's: its values in the pages
+  glm::vec3 bounds_min, bounds_max;
+  std::uint64_t point_count;
+};
+
+/// The outline of CACHE, its meta part read and verified, no page read
+/// (what paged drawing opens with). nullopt and *WHY when it is no cache
+/// of this format or its meta part does not check out.
+std::optional<CacheOutline> read_cache_outline(const std::filesystem::path& cache,
+                                               std::string* why);
 
 /// XXH3-64 of the first SIZE bytes (what an fstat saw) of the file open as
 /// FD, named SOURCE in messages. Throws FileChangedError when the file is

@@ -64,6 +64,7 @@ FeedbackStage::Impl::Impl(Model model, std::unique_ptr<Strategy> strategy, Stage
   strategy_name_ = std::string(strategy->name());
   pending_.specs = strategy->param_specs();
   hierarchy_ = std::move(model.hierarchy);
+  paged_ = std::move(model.paged);
   cut_ = std::move(model.cut);
   strategy_ = std::move(strategy);
   running_ = strategy_.get();

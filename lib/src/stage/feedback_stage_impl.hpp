@@ -165,6 +165,12 @@ class FeedbackStage::Impl {
 
   // Stage thread only (in Process).
   std::shared_ptr<const Hierarchy> hierarchy_;
+  // A paged model's pages (Model::paged), and what they did between
+  // iterations: the nodes that gained or lost their children (the next
+  // iteration's inputs) and the hidden nodes the last one wanted.
+  std::shared_ptr<PagedHierarchy> paged_;
+  std::vector<NodeId> revealed_, concealed_, wanted_;
+  void follow_pages(std::span<const NodeId> list, Outbox& out);
   TreeCut cut_;
   bool cut_stale_ = false;
   std::vector<NodeId> sort_scratch_;

@@ -55,6 +55,8 @@ void FeedbackStage::Impl::process() {
     }
     if (inbox_.model) {
       hierarchy_ = std::move(inbox_.model->hierarchy);
+      paged_ = std::move(inbox_.model->paged);
+      revealed_.clear(), concealed_.clear();
       cut_ = std::move(inbox_.model->cut);
       cut_stale_ = false;
       inbox_.model.reset();
@@ -78,12 +80,19 @@ void FeedbackStage::Impl::process() {
     ListBuffer& back = buffers_[inbox_.back];
     back.nodes.clear();
     back.queries.clear();
-    const IterationInput input{*hierarchy_, view_, 0, &cancel_, strategy_->params_version()};
+    // A paged model: the pages read since the last iteration join the
+    // hierarchy now, between iterations (paged_hierarchy.hpp).
+    if (paged_) paged_->publish(&revealed_);
+    const IterationInput input{*hierarchy_, view_,     0, &cancel_, strategy_->params_version(),
+                               revealed_,   concealed_};
     IterationOutput output;
     output.cut = &cut_;
     output.nodes = &back.nodes;
     output.queries = &back.queries;
+    wanted_.clear();
+    if (paged_) output.wanted = &wanted_;
     strategy_->iterate(input, output);
+    revealed_.clear(), concealed_.clear();
     const Clock::time_point t2 = Clock::now();
 
     // The host checks what the strategy hands back before anybody draws it.
@@ -109,10 +118,11 @@ void FeedbackStage::Impl::process() {
     }
     if (back.hierarchy != hierarchy_) back.hierarchy = hierarchy_;
     back.generation = inbox_.generation;
+    out.result = output.result;
+    if (paged_) follow_pages(back.nodes, out);
     const Clock::time_point t3 = Clock::now();
 
     out.ready = true;
-    out.result = output.result;
     out.result.cut_size = back.nodes.size();
     out.extract_ns = ns_between(t0, t1);
     out.iteration_ns = ns_between(t1, t2);
@@ -125,6 +135,36 @@ void FeedbackStage::Impl::process() {
   // back list and the outbox complete.
   state_.store(State::Wait, std::memory_order_release);
   state_.notify_all();
+}
+
+// Stage thread, after an iteration on a paged model whose list is LIST
+// (sorted): asks for the pages the strategy wanted, most wanted first, and
+// gives back what neither LIST nor the front list (the render thread's)
+// holds, so that no list anyone reads loses a node. The pages' counters
+// join the iteration's.
+void FeedbackStage::Impl::follow_pages(std::span<const NodeId> list, Outbox& out) {
+  paged_->request(paged_->rank(wanted_, view_));
+  const ListBuffer& front = buffers_[inbox_.front];
+  const bool front_here = front.hierarchy == hierarchy_;
+  paged_->evict(
+      [&](NodeId n) {
+        return std::binary_search(list.begin(), list.end(), n) ||
+               (front_here && std::binary_search(front.nodes.begin(), front.nodes.end(), n));
+      },
+      &concealed_);
+  const PagingStats s = paged_->stats();
+  // Not converged while pages it wants are on their way: the iterations
+  // that follow take them in.
+  if (!wanted_.empty() || s.in_flight > 0) out.result.converged = false;
+  Counters& c = out.result.counters;
+  c.set("pages_resident", double(s.resident_pages), "pages");
+  c.set("pages_resident_mib", double(s.resident_bytes) / double(1 << 20), "MiB");
+  c.set("pages_requested", double(s.requested), "pages");
+  c.set("pages_in_flight", double(s.in_flight), "groups");
+  c.set("pages_wanted", double(wanted_.size()), "nodes");
+  c.set("pages_loaded", double(s.loaded), "groups");
+  c.set("pages_evicted", double(s.evicted), "groups");
+  c.set("pages_failed", double(s.failed), "groups");
 }
 
 // Stage thread. Always: ids in range and the cut's points add up to the

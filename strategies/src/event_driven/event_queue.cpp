@@ -94,15 +94,16 @@ EventQueueStrategy::EventQueueStrategy()
            2.0, 0.0, 100.0, false},
       }) {}
 
+void EventQueueStrategy::copy_record(const HierarchyArrays& a, NodeId n, NodeState& st) {
+  st.sphere = a.center_radius[n];
+  st.child_count = a.child_count[n];
+  st.first_child = st.child_count != 0 ? a.first_child[n] : 0;
+}
+
 void EventQueueStrategy::reset(const Hierarchy& hierarchy) {
   state_.assign(hierarchy.node_count(), NodeState{});
   const HierarchyArrays& a = hierarchy.arrays();
-  for (NodeId n = 0; n < hierarchy.node_count(); ++n) {
-    NodeState& st = state_[n];
-    st.sphere = a.center_radius[n];
-    st.child_count = a.child_count[n];
-    st.first_child = st.child_count != 0 ? a.first_child[n] : 0;
-  }
+  for (NodeId n = 0; n < hierarchy.node_count(); ++n) copy_record(a, n, state_[n]);
   spheres_ = a.center_radius.data();
   // A pass's frontier (the active nodes of a level) grows as passes need
   // it and keeps its room: about the cut's size, not half the model's.
@@ -255,8 +256,9 @@ bool EventQueueStrategy::pass(const IterationInput& input, TreeCut& cut, Iterati
   };
   auto decided = [](NodeId, bool) {};
   auto drop = [](NodeId) {};
+  hidden_.clear();
   return detail::level_pass(input.hierarchy, cut, r, input, test, decided, drop, level_,
-                            next_level_);
+                            next_level_, wanted_, &hidden_);
 }
 
 // A jump: one top-down pass (figure 3, the code `topdown` runs) decides every
@@ -286,8 +288,9 @@ void EventQueueStrategy::rebuild(const IterationInput& input, TreeCut& cut, Iter
   };
   // A folded subtree is below the nodes this pass has queued: nothing to erase.
   auto drop = [](NodeId) {};
-  valid_ =
-      detail::level_pass(input.hierarchy, cut, r, input, test, decided, drop, level_, next_level_);
+  hidden_.clear();
+  valid_ = detail::level_pass(input.hierarchy, cut, r, input, test, decided, drop, level_,
+                              next_level_, wanted_, &hidden_);
   stats_.rebuilt = true;
 }
 
@@ -695,9 +698,9 @@ bool EventQueueStrategy::carry_out(Method method, const IterationInput& input, T
       stats_.frames_advanced = 1;
       return valid_;
     case Method::kTopDown: {
-      const bool done = camera_.perspective
-                            ? pass(input, cut, r)
-                            : detail::topdown_pass(input.hierarchy, cut, r, input, camera_);
+      const bool done = camera_.perspective ? pass(input, cut, r)
+                                            : detail::topdown_pass(input.hierarchy, cut, r, input,
+                                                                   camera_, wanted_);
       valid_ = false;
       pass_tests_ = double(r.visited);
       return done;
@@ -720,11 +723,38 @@ bool EventQueueStrategy::carry_out(Method method, const IterationInput& input, T
   return true;
 }
 
+void EventQueueStrategy::follow_residency(const Hierarchy& h, std::span<const NodeId> revealed,
+                                          std::span<const NodeId> concealed) {
+  const HierarchyArrays& a = h.arrays();
+  for (const NodeId n : concealed) copy_record(a, n, state_[n]);
+  std::vector<NodeId> below(revealed.begin(), revealed.end());
+  while (!below.empty()) {
+    const NodeId n = below.back();
+    below.pop_back();
+    copy_record(a, n, state_[n]);
+    for (NodeId c = a.first_child[n]; c < a.first_child[n] + a.child_count[n]; ++c)
+      below.push_back(c);
+  }
+  current_ = false;
+}
+
+// Events only visit nodes with children: a paged model's hidden cut leaves
+// the last pass met are tested again here for what the iteration wants.
+void EventQueueStrategy::want_hidden(const Hierarchy& h, const TreeCut& cut) {
+  if (!wanted_) return;
+  const auto& cr = h.arrays().center_radius;
+  for (const NodeId n : hidden_)
+    if (cut.contains(n) && h.is_hidden(n) && unfold_test(camera_, cr[n])) wanted_->push_back(n);
+}
+
 void EventQueueStrategy::iterate(const IterationInput& input, IterationOutput& output) {
   const Hierarchy& h = input.hierarchy;
   TreeCut& cut = *output.cut;
   IterationResult& r = output.result;
+  wanted_ = output.wanted;
   if (state_.size() != h.node_count() || spheres_ != h.arrays().center_radius.data()) reset(h);
+  if (!input.revealed.empty() || !input.concealed.empty())
+    follow_residency(h, input.revealed, input.concealed);
   stats_ = {};
   camera_ = CriterionConstants::from_view(input.view, param_at(kTheta));
   const double diameter = 2.0 * double(h.radius(h.root()));
@@ -769,6 +799,7 @@ void EventQueueStrategy::iterate(const IterationInput& input, IterationOutput& o
   stats_.unit = unit_ / diameter;
   stats_.method = method;
   const bool done = carry_out(method, input, cut, r, dm, dw);
+  if (method == Method::kEvents) want_hidden(h, cut);
   current_ = done && camera_.perspective;
   r.cancelled = !done;
   if (valid_ && wentries_ > 3 * wlive_ + 65536) compact_rotation_lists();

@@ -77,9 +77,15 @@ class TopDown {
   TopDown(const Hierarchy& h, TreeCut& cut, IterationResult& r, const IterationInput& input,
           Test& test, Decided& decided, Drop& drop)
       : h_(h), cut_(cut), r_(r), input_(input), test_(test), decided_(decided), drop_(drop) {}
+  /// A paged model's hidden leaves whose test passes go to WANTED
+  /// (IterationOutput::wanted).
+  void want_into(std::vector<NodeId>* wanted) { wanted_ = wanted; }
 
   bool run(NodeId n) {
-    if (h_.is_leaf(n)) return true;
+    if (h_.is_leaf(n)) {
+      if (wanted_ && h_.is_hidden(n) && test_(n)) wanted_->push_back(n);
+      return true;
+    }
     if ((++r_.visited & 4095) == 0 && input_.cancelled()) {
       r_.cancelled = true;
       return false;
@@ -101,6 +107,7 @@ class TopDown {
   Test& test_;
   Decided& decided_;
   Drop& drop_;
+  std::vector<NodeId>* wanted_ = nullptr;
 };
 
 /// Figure 3 level by level: the same tests, edits and decided() calls as
@@ -109,14 +116,24 @@ class TopDown {
 /// the 48th ahead is prefetched (16 ahead left a pass at a teleport 1.0 to
 /// 1.1 times topdown's, 48 0.8 to 1.0 in the same runs), and a pass over
 /// cold memory (after event iterations) waits for it far less. `a` and `b`
-/// are scratch.
+/// are scratch. A paged model's hidden leaves met go to HIDDEN, those whose
+/// test passes to WANTED (IterationOutput::wanted), each when given.
 template <class Test, class Decided, class Drop>
 bool level_pass(const Hierarchy& h, TreeCut& cut, IterationResult& r, const IterationInput& input,
                 Test& test, Decided& decided, Drop& drop, std::vector<NodeId>& a,
-                std::vector<NodeId>& b) {
+                std::vector<NodeId>& b, std::vector<NodeId>* wanted,
+                std::vector<NodeId>* hidden = nullptr) {
   constexpr std::size_t kAhead = 48;
+  auto leaf = [&](NodeId c) {
+    if (!h.is_hidden(c)) return;
+    if (hidden) hidden->push_back(c);
+    if (wanted && test(c)) wanted->push_back(c);
+  };
   a.clear();
-  if (!h.is_leaf(h.root())) a.push_back(h.root());
+  if (!h.is_leaf(h.root()))
+    a.push_back(h.root());
+  else
+    leaf(h.root());
   while (!a.empty()) {
     b.clear();
     const std::size_t count = a.size();
@@ -134,7 +151,10 @@ bool level_pass(const Hierarchy& h, TreeCut& cut, IterationResult& r, const Iter
       const NodeId first = h.first_child(n);
       const unsigned children = h.child_count(n);
       for (NodeId c = first; c < first + children; ++c) {
-        if (!h.is_leaf(c)) b.push_back(c);
+        if (!h.is_leaf(c))
+          b.push_back(c);
+        else
+          leaf(c);
       }
     }
     a.swap(b);
@@ -145,16 +165,22 @@ bool level_pass(const Hierarchy& h, TreeCut& cut, IterationResult& r, const Iter
 /// The `topdown` strategy's pass: figure 3 from the root under `cam`.
 /// Returns false when cancelled.
 inline bool topdown_pass(const Hierarchy& h, TreeCut& cut, IterationResult& r,
-                         const IterationInput& input, const CriterionConstants& cam) {
+                         const IterationInput& input, const CriterionConstants& cam,
+                         std::vector<NodeId>* wanted) {
   const auto& cr = h.arrays().center_radius;
   auto decided = [](NodeId, bool) {};
   auto drop = [](NodeId) {};
+  auto run = [&](auto& test) {
+    TopDown walk(h, cut, r, input, test, decided, drop);
+    walk.want_into(wanted);
+    return walk.run(h.root());
+  };
   if (cam.perspective) {
     auto test = [&](NodeId n) { return unfold_test(cam, cr[n]); };
-    return TopDown(h, cut, r, input, test, decided, drop).run(h.root());
+    return run(test);
   }
   auto test = [&](NodeId n) { return unfold_test(cam, input.view, cr[n]); };
-  return TopDown(h, cut, r, input, test, decided, drop).run(h.root());
+  return run(test);
 }
 
 }  // namespace treecut::strategies::detail

@@ -16,7 +16,7 @@ void TopDownStrategy::reset(const Hierarchy& /*hierarchy*/) {}
 
 void TopDownStrategy::iterate(const IterationInput& input, IterationOutput& output) {
   const CriterionConstants cam = CriterionConstants::from_view(input.view, param_at(kTheta));
-  detail::topdown_pass(input.hierarchy, *output.cut, output.result, input, cam);
+  detail::topdown_pass(input.hierarchy, *output.cut, output.result, input, cam, output.wanted);
   // The cut is a function of the view alone: a second pass would change nothing.
   output.result.converged = !output.result.cancelled;
 }

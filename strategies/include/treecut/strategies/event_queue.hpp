@@ -145,6 +145,12 @@ class EventQueueStrategy final : public Strategy {
   [[nodiscard]] std::string_view name() const override { return "event_queue"; }
   [[nodiscard]] Mode mode() const override { return Mode::Evolve; }
   void reset(const Hierarchy& hierarchy) override;
+  /// A paged model's residency changed (IterationInput::revealed and
+  /// concealed): the records of the nodes that gained their children and
+  /// of those below them made again, and of those that lost them; the cut
+  /// is then no longer topdown's for the last camera.
+  void follow_residency(const Hierarchy& h, std::span<const NodeId> revealed,
+                        std::span<const NodeId> concealed);
   void iterate(const IterationInput& input, IterationOutput& output) override;
 
   /// Statistics of the last iteration, for tests and benchmarks.
@@ -195,6 +201,8 @@ class EventQueueStrategy final : public Strategy {
     std::uint16_t wslot = kNoneW;
   };
   static_assert(sizeof(NodeState) == 32);
+  // NODE's record from the hierarchy: its sphere and children.
+  static void copy_record(const HierarchyArrays& a, NodeId n, NodeState& st);
   static constexpr std::uint16_t kNone = 0xffff;   // not queued
   static constexpr std::uint16_t kNoneW = 0x7fff;  // no rotation entry (slots are 13 bits)
   static constexpr std::uint16_t kWBoundary = 0x8000;
@@ -262,6 +270,11 @@ class EventQueueStrategy final : public Strategy {
   double pace_m_ = 1.0, pace_w_ = 1.0;
   bool valid_ = false;    // the queue describes the cut and last_camera_
   bool current_ = false;  // the cut is topdown's for last_camera_
+  // A paged model: where this iteration reports the hidden nodes it wants
+  // (IterationOutput::wanted), and the hidden cut leaves the last pass met.
+  std::vector<NodeId>* wanted_ = nullptr;
+  std::vector<NodeId> hidden_;
+  void want_hidden(const Hierarchy& h, const TreeCut& cut);
   // The choice of method (choose()): iterations in a row in which the
   // events were predicted dearer than a pass (over_), or, while passes run,
   // much cheaper (calm_); the tests an event brings (itself and the

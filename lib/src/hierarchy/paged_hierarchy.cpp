@@ -1,0 +1,495 @@
+// Paged drawing's hierarchy (paged_hierarchy.hpp has the promises): arrays
+// of reserved address space, groups of sibling pages read by I/O threads in
+// the order asked, published and given back by the thread that iterates.
+//
+// The unit is a group: the pages hanging from one node (all of a node's
+// children are pages' roots when one is, cache_pages.hpp), read, published
+// and given back together, since the node's child count shows them all or
+// none. A group is known once the page of its node is resident; page 0 is
+// always resident.
+#include "treecut/paged_hierarchy.hpp"
+
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <condition_variable>
+#include <cstring>
+#include <mutex>
+#include <new>
+#include <thread>
+#include <unordered_map>
+#include <utility>
+
+#include "cache_format.hpp"
+#include "cache_pages.hpp"
+#include "treecut/error.hpp"
+#include "treecut/file_io.hpp"
+
+namespace treecut {
+
+using cache_layout::PageRecord;
+using cache_layout::PageRun;
+
+namespace {
+
+// Address space for N values of T: reserved, not committed. Memory pages
+// are given on first write, read as zeros before, and given back by
+// release().
+template <class T>
+class Reserved {
+ public:
+  explicit Reserved(std::size_t n) : bytes_(std::max<std::size_t>(n * sizeof(T), 1)) {
+    void* p = ::mmap(nullptr, bytes_, PROT_READ | PROT_WRITE,
+                     MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE, -1, 0);
+    if (p == MAP_FAILED) throw std::bad_alloc();
+    data_ = static_cast<T*>(p);
+  }
+  ~Reserved() { ::munmap(data_, bytes_); }
+  Reserved(const Reserved&) = delete;
+  Reserved& operator=(const Reserved&) = delete;
+  [[nodiscard]] T* data() const { return data_; }
+  [[nodiscard]] std::span<const T> span(std::size_t n) const { return {data_, n}; }
+
+  // Values [FIRST, FIRST + COUNT) back to zeros, the memory pages wholly
+  // inside given back to the system.
+  void release(std::uint64_t first, std::uint64_t count) const {
+    auto* begin = reinterpret_cast<unsigned char*>(data_ + first);
+    auto* end = reinterpret_cast<unsigned char*>(data_ + first + count);
+    static const auto page = static_cast<std::uintptr_t>(::sysconf(_SC_PAGESIZE));
+    const auto lo = (reinterpret_cast<std::uintptr_t>(begin) + page - 1) / page * page;
+    const auto hi = reinterpret_cast<std::uintptr_t>(end) / page * page;
+    if (hi <= lo) {
+      std::memset(begin, 0, static_cast<std::size_t>(end - begin));
+      return;
+    }
+    std::memset(begin, 0, lo - reinterpret_cast<std::uintptr_t>(begin));
+    std::memset(reinterpret_cast<void*>(hi), 0, reinterpret_cast<std::uintptr_t>(end) - hi);
+    (void)::madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_DONTNEED);
+  }
+
+ private:
+  std::size_t bytes_;
+  T* data_ = nullptr;
+};
+
+// The arrays of the whole, each reserved.
+struct Arrays {
+  explicit Arrays(std::size_t n, std::size_t streams)
+      : center_radius(n),
+        splat_radius(n),
+        normal_cone(n),
+        color(n),
+        priority(n),
+        point_count(n),
+        parent(n),
+        first_child(n),
+        child_count(n),
+        depth(n) {
+    for (std::size_t s = 0; s < streams; ++s)
+      values.push_back(std::make_unique<Reserved<float>>(n));
+  }
+  Reserved<glm::vec4> center_radius;
+  Reserved<float> splat_radius;
+  Reserved<glm::i16vec4> normal_cone;
+  Reserved<glm::u8vec4> color;
+  Reserved<float> priority;
+  Reserved<std::uint32_t> point_count;
+  Reserved<NodeId> parent, first_child;
+  Reserved<std::uint8_t> child_count, depth;
+  std::vector<std::unique_ptr<Reserved<float>>> values;
+
+  [[nodiscard]] cache_pages::NodeSink sink() const {
+    cache_pages::NodeSink s{center_radius.data(),
+                            splat_radius.data(),
+                            normal_cone.data(),
+                            color.data(),
+                            priority.data(),
+                            point_count.data(),
+                            parent.data(),
+                            first_child.data(),
+                            child_count.data(),
+                            depth.data(),
+                            {}};
+    for (const auto& v : values) s.values.push_back(v->data());
+    return s;
+  }
+  void release(std::uint64_t first, std::uint64_t count) const {
+    center_radius.release(first, count), splat_radius.release(first, count);
+    normal_cone.release(first, count), color.release(first, count);
+    priority.release(first, count), point_count.release(first, count);
+    parent.release(first, count), first_child.release(first, count);
+    child_count.release(first, count), depth.release(first, count);
+    for (const auto& v : values) v->release(first, count);
+  }
+};
+
+enum class State : std::uint8_t { hidden, in_flight, loaded, resident, failed };
+
+// The pages hanging from one node.
+struct Group {
+  NodeId owner = kNoNode;  // the node whose group holds this node's page (kNoNode: page 0)
+  std::uint32_t first_page = 0, pages = 0;
+  State state = State::hidden;
+  std::uint32_t busy_below = 0;  // groups of its pages' nodes not hidden
+  std::uint64_t nodes = 0, file_bytes = 0;
+  std::uint64_t last_used = 0;
+};
+
+}  // namespace
+
+struct PagedHierarchy::Impl {
+  std::filesystem::path path;
+  PagingOptions options;
+  int fd = -1;
+  std::optional<detail::CacheOutline> outline;
+  std::shared_ptr<Arrays> arrays;
+  Hierarchy hierarchy;
+  std::uint64_t node_bytes = 0;
+
+  mutable std::mutex mutex;      // everything below
+  std::condition_variable wake;  // the I/O threads: a request, room, or the end
+  std::condition_variable idle;  // wait_idle(): a group read
+  bool stop = false;
+  std::unordered_map<NodeId, Group> groups;
+  std::vector<NodeId> requests;  // hidden groups, most wanted first
+  std::vector<NodeId> loaded;    // read, to publish
+  std::uint64_t resident_bytes = 0, pending_bytes = 0, resident_nodes = 0, resident_pages = 0;
+  std::uint64_t in_flight = 0, loaded_count = 0, evicted = 0, failed = 0, bytes_read = 0;
+  std::uint64_t now = 0;  // evict() calls
+  std::vector<std::string> problems;
+  std::vector<std::thread> threads;
+
+  ~Impl() {
+    {
+      std::lock_guard lock(mutex);
+      stop = true;
+    }
+    wake.notify_all();
+    for (std::thread& t : threads) t.join();
+    if (fd >= 0) ::close(fd);
+  }
+
+  [[nodiscard]] const cache_pages::PageIndex& index() const { return outline->index; }
+
+  // Reads page P's bytes at their place in the file.
+  const unsigned char* read(const PageRecord& r, std::vector<unsigned char>& buffer) {
+    buffer.resize(r.bytes);
+    std::size_t done = 0;
+    while (done < r.bytes) {
+      const ssize_t got =
+          ::pread(fd, buffer.data() + done, r.bytes - done, static_cast<off_t>(r.offset + done));
+      if (got < 0 && errno == EINTR) continue;
+      if (got < 0) throw std::runtime_error(std::strerror(errno));
+      if (got == 0) throw FileChangedError("changed while being read (it got shorter)");
+      done += static_cast<std::size_t>(got);
+    }
+    return buffer.data();
+  }
+
+  // Decodes page P into the arrays, its nodes with child pages left
+  // without children (nobody may reach them before publish()). Empty, or
+  // what is wrong.
+  std::string load_page(std::uint32_t p, std::vector<unsigned char>& raw) {
+    std::string problem;
+    try {
+      problem = cache_pages::decode_page(
+          index(), p,
+          [this](const PageRecord& r, std::vector<unsigned char>& b) { return read(r, b); },
+          arrays->sink(), raw);
+    } catch (const std::exception& e) {
+      problem = e.what();
+    }
+    if (!problem.empty()) return problem;
+    for (const cache_pages::PageIndex::Child& c : index().child_pages(p))
+      arrays->child_count.data()[index().locate(p, c.local).first] = 0;
+    return {};
+  }
+
+  // The groups hanging from the nodes of the pages of OWNER's group (from
+  // page 0's for kNoNode), now that they are resident.
+  void add_groups(NodeId owner, std::uint32_t first_page, std::uint32_t pages) {
+    for (std::uint32_t p = first_page; p < first_page + pages; ++p) {
+      const std::span<const cache_pages::PageIndex::Child> children = index().child_pages(p);
+      for (std::size_t g = 0; g < children.size();) {
+        std::size_t k = g;
+        Group group;
+        group.owner = owner;
+        group.first_page = children[g].page;
+        for (; k < children.size() && children[k].local == children[g].local; ++k) {
+          const PageRecord& r = index().record(children[k].page);
+          ++group.pages, group.nodes += r.node_count, group.file_bytes += r.bytes;
+        }
+        groups[index().locate(p, children[g].local).first] = group;
+        g = k;
+      }
+    }
+  }
+
+  void forget_groups(std::uint32_t first_page, std::uint32_t pages) {
+    for (std::uint32_t p = first_page; p < first_page + pages; ++p)
+      for (const cache_pages::PageIndex::Child& c : index().child_pages(p))
+        groups.erase(index().locate(p, c.local).first);
+  }
+
+  [[nodiscard]] bool fits(const Group& g) const {
+    return options.memory_bytes == 0 ||
+           resident_bytes + pending_bytes + g.nodes * node_bytes <= options.memory_bytes;
+  }
+
+  // The I/O threads: the most wanted hidden group, when it fits.
+  void serve() {
+    std::vector<unsigned char> raw;
+    std::unique_lock lock(mutex);
+    while (!stop) {
+      auto wanted = groups.end();
+      std::size_t at = 0;
+      for (; at < requests.size(); ++at) {
+        wanted = groups.find(requests[at]);
+        if (wanted != groups.end() && wanted->second.state == State::hidden) break;
+        wanted = groups.end();
+      }
+      if (wanted == groups.end() || !fits(wanted->second)) {
+        wake.wait(lock);
+        continue;
+      }
+      const NodeId node = wanted->first;
+      Group& g = wanted->second;
+      requests.erase(requests.begin() + static_cast<std::ptrdiff_t>(at));
+      g.state = State::in_flight;
+      pending_bytes += g.nodes * node_bytes;
+      ++in_flight;
+      if (g.owner != kNoNode) ++groups.at(g.owner).busy_below;
+      const std::uint32_t first = g.first_page, pages = g.pages;
+      lock.unlock();
+      std::string problem;
+      std::uint32_t p = first;
+      for (; p < first + pages && problem.empty(); ++p) problem = load_page(p, raw);
+      lock.lock();
+      // The group is still there: its owner's page is not given back while
+      // a group below it is busy.
+      Group& done = groups.at(node);
+      if (problem.empty()) {
+        done.state = State::loaded;
+        loaded.push_back(node);
+      } else {
+        for (std::uint32_t q = first; q < p; ++q) release_page(q);
+        done.state = State::failed;
+        pending_bytes -= done.nodes * node_bytes;
+        --in_flight, ++failed;
+        if (done.owner != kNoNode) --groups.at(done.owner).busy_below;
+        problems.push_back(quoted_name(path) + ": page " + std::to_string(p - 1) + " of " +
+                           std::to_string(index().pages()) + ": " + problem);
+      }
+      bytes_read += done.file_bytes;
+      idle.notify_all();
+    }
+  }
+
+  void release_page(std::uint32_t p) const {
+    for (const PageRun& run : index().links().runs_of(p)) arrays->release(run.first, run.count);
+  }
+
+  // Whether a list holds node N or an ancestor of it (then no node below
+  // N is in one).
+  [[nodiscard]] bool above(NodeId n, const std::function<bool(NodeId)>& in_cut) const {
+    const HierarchyArrays& a = hierarchy.arrays();
+    for (; n != kNoNode; n = a.parent[n])
+      if (in_cut(n)) return true;
+    return false;
+  }
+
+  void give_back(NodeId node, Group& g) {
+    arrays->child_count.data()[node] = 0;
+    forget_groups(g.first_page, g.pages);
+    for (std::uint32_t p = g.first_page; p < g.first_page + g.pages; ++p) release_page(p);
+    g.state = State::hidden;
+    resident_bytes -= g.nodes * node_bytes;
+    resident_nodes -= g.nodes, resident_pages -= g.pages;
+    if (g.owner != kNoNode) --groups.at(g.owner).busy_below;
+    ++evicted;
+  }
+};
+
+PagedHierarchy::PagedHierarchy(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+PagedHierarchy::~PagedHierarchy() = default;
+
+std::unique_ptr<PagedHierarchy> PagedHierarchy::open(const std::filesystem::path& cache,
+                                                     const PagingOptions& options) {
+  auto impl = std::make_unique<Impl>();
+  Impl& m = *impl;
+  m.path = cache;
+  m.options = options;
+  std::string why;
+  m.outline = detail::read_cache_outline(cache, &why);
+  if (!m.outline) throw InputError(quoted_name(cache) + ": " + why);
+  m.fd = open_regular_file(cache);
+  const cache_pages::PageIndex& index = m.index();
+  const auto n = static_cast<std::size_t>(index.node_count());
+  const std::uint32_t streams = index.value_streams();
+  m.arrays = std::make_shared<Arrays>(n, streams);
+  m.node_bytes = sizeof(glm::vec4) + sizeof(float) + sizeof(glm::i16vec4) + sizeof(glm::u8vec4) +
+                 sizeof(float) + sizeof(std::uint32_t) + 2 * sizeof(NodeId) + 2 + 4 * streams;
+  std::vector<unsigned char> raw;
+  if (std::string problem = m.load_page(0, raw); !problem.empty())
+    throw InputError(quoted_name(cache) + ": page 0 of " + std::to_string(index.pages()) + ": " +
+                     problem);
+  const PageRecord& root = index.record(0);
+  m.resident_bytes = root.node_count * m.node_bytes;
+  m.resident_nodes = root.node_count, m.resident_pages = 1, m.bytes_read = root.bytes;
+  m.add_groups(kNoNode, 0, 1);
+
+  const Arrays& a = *m.arrays;
+  HierarchyArrays spans{a.center_radius.span(n), a.splat_radius.span(n), a.normal_cone.span(n),
+                        a.color.span(n),         a.priority.span(n),     a.point_count.span(n),
+                        a.parent.span(n),        a.first_child.span(n),  a.child_count.span(n),
+                        a.depth.span(n)};
+  std::vector<NodeAttribute> attributes = m.outline->attributes;
+  for (std::size_t k = 0, s = 0; k < attributes.size(); ++k)
+    if (m.outline->varying[k]) attributes[k].values = a.values[s++]->span(n);
+  const std::vector<std::uint64_t>& lb = index.links().level_begin;
+  m.hierarchy = Hierarchy::from_arrays(m.arrays, spans, std::vector<NodeId>(lb.begin(), lb.end()),
+                                       m.outline->bounds_min, m.outline->bounds_max,
+                                       m.outline->frame, std::move(attributes))
+                    .with_notes(m.outline->notes);
+  for (unsigned t = 0; t < std::max(1u, options.io_threads); ++t)
+    m.threads.emplace_back([&m] { m.serve(); });
+  return std::unique_ptr<PagedHierarchy>(new PagedHierarchy(std::move(impl)));
+}
+
+const Hierarchy& PagedHierarchy::hierarchy() const {
+  return impl_->hierarchy;
+}
+
+bool PagedHierarchy::hidden(NodeId n) const {
+  return impl_->hierarchy.is_hidden(n);
+}
+
+std::vector<NodeId> PagedHierarchy::rank(std::span<const NodeId> wanted, const ViewSnapshot& view,
+                                         std::size_t at_most) const {
+  const Hierarchy& h = impl_->hierarchy;
+  std::vector<std::pair<float, NodeId>> ranked;
+  for (const NodeId n : wanted)
+    if (h.is_hidden(n)) ranked.emplace_back(-view.projected_radius_px(h.center(n), h.radius(n)), n);
+  const std::size_t k = std::min(at_most, ranked.size());
+  std::partial_sort(ranked.begin(), ranked.begin() + static_cast<std::ptrdiff_t>(k), ranked.end());
+  std::vector<NodeId> out;
+  for (std::size_t i = 0; i < k; ++i) out.push_back(ranked[i].second);
+  return out;
+}
+
+void PagedHierarchy::request(std::span<const NodeId> nodes) {
+  Impl& m = *impl_;
+  {
+    std::lock_guard lock(m.mutex);
+    m.requests.clear();
+    for (const NodeId n : nodes)
+      if (const auto it = m.groups.find(n);
+          it != m.groups.end() && it->second.state == State::hidden)
+        m.requests.push_back(n);
+  }
+  m.wake.notify_all();
+}
+
+std::size_t PagedHierarchy::publish(std::vector<NodeId>* revealed) {
+  Impl& m = *impl_;
+  std::lock_guard lock(m.mutex);
+  if (revealed) revealed->insert(revealed->end(), m.loaded.begin(), m.loaded.end());
+  for (const NodeId node : m.loaded) {
+    Group& g = m.groups.at(node);
+    g.state = State::resident;
+    g.last_used = m.now;
+    m.add_groups(node, g.first_page, g.pages);
+    // Its pages' nodes were written by the I/O thread before it took the
+    // lock; the node's children appear now, on the thread that iterates.
+    m.arrays->child_count.data()[node] = static_cast<std::uint8_t>(g.pages);
+    m.pending_bytes -= g.nodes * m.node_bytes;
+    m.resident_bytes += g.nodes * m.node_bytes;
+    m.resident_nodes += g.nodes, m.resident_pages += g.pages;
+    --m.in_flight, ++m.loaded_count;
+  }
+  const std::size_t published = m.loaded.size();
+  m.loaded.clear();
+  return published;
+}
+
+std::size_t PagedHierarchy::evict(const std::function<bool(NodeId)>& in_cut,
+                                  std::vector<NodeId>* concealed) {
+  Impl& m = *impl_;
+  std::unique_lock lock(m.mutex);
+  ++m.now;
+  std::vector<std::pair<std::uint64_t, NodeId>> candidates;  // (last used, node)
+  for (auto& [node, g] : m.groups) {
+    if (g.state != State::resident) continue;
+    if (!m.above(node, in_cut))
+      g.last_used = m.now;
+    else if (g.busy_below == 0)
+      candidates.emplace_back(g.last_used, node);
+  }
+  if (m.options.memory_bytes == 0) return 0;
+  // What is asked next, and what it needs.
+  std::uint64_t need = 0;
+  for (const NodeId n : m.requests)
+    if (const auto it = m.groups.find(n);
+        it != m.groups.end() && it->second.state == State::hidden) {
+      need = it->second.nodes * m.node_bytes;
+      break;
+    }
+  std::sort(candidates.begin(), candidates.end());
+  std::size_t given = 0;
+  for (const auto& [used, node] : candidates) {
+    if (m.resident_bytes + m.pending_bytes + need <= m.options.memory_bytes) break;
+    Group& g = m.groups.at(node);
+    if (g.busy_below != 0) continue;  // (a group given back just now was below it)
+    m.give_back(node, g);
+    if (concealed) concealed->push_back(node);
+    ++given;
+  }
+  lock.unlock();
+  if (given) m.wake.notify_all();
+  return given;
+}
+
+bool PagedHierarchy::wait_idle(int timeout_ms) {
+  Impl& m = *impl_;
+  std::unique_lock lock(m.mutex);
+  return m.idle.wait_for(lock, std::chrono::milliseconds(timeout_ms), [&] {
+    if (m.in_flight > m.loaded.size()) return false;  // a group is being read
+    for (const NodeId n : m.requests) {
+      const auto it = m.groups.find(n);
+      if (it != m.groups.end() && it->second.state == State::hidden && m.fits(it->second))
+        return false;
+    }
+    return true;
+  });
+}
+
+PagingStats PagedHierarchy::stats() const {
+  const Impl& m = *impl_;
+  std::lock_guard lock(m.mutex);
+  PagingStats s;
+  s.pages = m.index().pages();
+  s.resident_pages = m.resident_pages, s.resident_nodes = m.resident_nodes;
+  s.resident_bytes = m.resident_bytes;
+  for (const NodeId n : m.requests)
+    if (const auto it = m.groups.find(n); it != m.groups.end() && it->second.state == State::hidden)
+      s.requested += it->second.pages;
+  s.in_flight = m.in_flight;
+  s.loaded = m.loaded_count, s.evicted = m.evicted, s.failed = m.failed;
+  s.bytes_read = m.bytes_read;
+  return s;
+}
+
+std::vector<std::string> PagedHierarchy::take_problems() {
+  std::lock_guard lock(impl_->mutex);
+  return std::exchange(impl_->problems, {});
+}
+
+std::uint64_t PagedHierarchy::bytes_per_node() const {
+  return impl_->node_bytes;
+}
+
+}  // namespace treecut

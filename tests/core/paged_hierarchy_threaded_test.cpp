@@ -1,0 +1,332 @@
+// Paged drawing's hierarchy (treecut/paged_hierarchy.hpp, issue 45): a cache
+// drawn from the pages that are wanted, read by an I/O thread, within a
+// memory budget. What a whole load gives once every page is resident; the
+// cut a strategy reaches standing still; the budget kept while the camera
+// moves; a bad page named and the rest drawn.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "strategy_fixtures.hpp"
+#include "test_support.hpp"
+#include "treecut/cache.hpp"
+#include "treecut/feedback_stage.hpp"
+#include "treecut/model.hpp"
+#include "treecut/paged_hierarchy.hpp"
+#include "treecut/strategies/builtin.hpp"
+
+using namespace treecut;
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr int kWaitMs = 20000;
+
+// A cache of several pages: a terrain of 100,000 points (about 150,000 nodes,
+// pages of at most 8,192).
+fs::path terrain_cache(const std::string& name) {
+  const fs::path dir = test::scratch_dir(name);
+  save_cache(*test::small_hierarchy(tools::ModelKind::Terrain, 100000), {1, 2, 3}, dir / "t.tch");
+  return dir / "t.tch";
+}
+
+// The nodes reachable from the root as the hierarchy shows them now.
+std::vector<NodeId> reachable(const Hierarchy& h) {
+  std::vector<NodeId> order{h.root()};
+  for (std::size_t i = 0; i < order.size(); ++i)
+    for (NodeId c = h.first_child(order[i]); c < h.first_child(order[i]) + h.child_count(order[i]);
+         ++c)
+      order.push_back(c);
+  return order;
+}
+
+// Every page that reads: what is hidden asked for, read and published,
+// until nothing more arrives.
+void load_everything(PagedHierarchy& paged) {
+  for (int round = 0; round < 100; ++round) {
+    std::vector<NodeId> hidden;
+    for (const NodeId n : reachable(paged.hierarchy()))
+      if (paged.hidden(n)) hidden.push_back(n);
+    paged.request(hidden);
+    ASSERT_TRUE(paged.wait_idle(kWaitMs));
+    if (paged.publish() == 0) return;
+  }
+  FAIL() << "pages still arriving after 100 rounds";
+}
+
+// A camera above point (X, Y) of the terrain (in [-1, 1]^2, heights within
+// +-0.4), looking down and ahead: it sees a patch of a few tenths.
+ViewSnapshot patch_view(float x, float y) {
+  return ViewSnapshot::look_at({x, y - 0.25f, 0.7f}, {x, y + 0.05f, 0.0f}, {640, 480}, 0.8f, 0.01f,
+                               10.0f);
+}
+
+// One iteration of S on CUT as the stage runs it, with what the pages did
+// since the last one. Returns the hidden nodes it wants.
+std::vector<NodeId> step(Strategy& s, const Hierarchy& h, TreeCut& cut, const ViewSnapshot& view,
+                         std::span<const NodeId> revealed, std::span<const NodeId> concealed) {
+  std::vector<NodeId> nodes, wanted;
+  std::vector<QueryRequest> queries;
+  IterationInput in{h, view, 0, nullptr, s.params_version(), revealed, concealed};
+  IterationOutput out{&cut, &nodes, &queries, &wanted, {}};
+  s.iterate(in, out);
+  if (s.mode() == Strategy::Mode::Rebuild) cut = TreeCut::from_nodes(h, nodes);
+  return wanted;
+}
+
+std::vector<NodeId> sorted(const TreeCut& cut) {
+  std::vector<NodeId> v(cut.nodes().begin(), cut.nodes().end());
+  std::sort(v.begin(), v.end());
+  return v;
+}
+
+// Iterations of S under VIEW on a paged hierarchy, asking after each for
+// what the cut wants, until an iteration changes nothing and nothing
+// wanted is left to read. Returns the cut.
+TreeCut settle(Strategy& s, PagedHierarchy& paged, const ViewSnapshot& view) {
+  const Hierarchy& h = paged.hierarchy();
+  s.reset(h);
+  TreeCut cut = TreeCut::root_cut(h);
+  std::vector<NodeId> revealed;
+  for (int i = 0; i < 400; ++i) {
+    const std::vector<NodeId> before = sorted(cut);
+    const std::vector<NodeId> wanted = paged.rank(step(s, h, cut, view, revealed, {}), view);
+    EXPECT_EQ(cut.validate(h), "") << "iteration " << i;
+    paged.request(wanted);
+    EXPECT_TRUE(paged.wait_idle(kWaitMs));
+    revealed.clear();
+    paged.publish(&revealed);
+    if (wanted.empty() && revealed.empty() && before == sorted(cut)) return cut;
+  }
+  ADD_FAILURE() << s.name() << " did not settle";
+  return cut;
+}
+
+// The same iterations on the model held whole, until one changes nothing.
+TreeCut settle(Strategy& s, const Hierarchy& h, const ViewSnapshot& view) {
+  s.reset(h);
+  TreeCut cut = TreeCut::root_cut(h);
+  for (int i = 0; i < 400; ++i) {
+    const std::vector<NodeId> before = sorted(cut);
+    step(s, h, cut, view, {}, {});
+    if (before == sorted(cut)) return cut;
+  }
+  ADD_FAILURE() << s.name() << " did not settle";
+  return cut;
+}
+
+}  // namespace
+
+TEST(PagedHierarchy, OpensWithItsFirstPageAndHidesTheRest) {
+  const fs::path cache = terrain_cache("paged_open");
+  const auto paged = PagedHierarchy::open(cache);
+  const Hierarchy& h = paged->hierarchy();
+  const Hierarchy& whole = *test::small_hierarchy(tools::ModelKind::Terrain, 100000);
+  EXPECT_EQ(h.node_count(), whole.node_count());
+  EXPECT_EQ(h.leaf_count(), whole.leaf_count());
+  const PagingStats s = paged->stats();
+  EXPECT_GT(s.pages, 2u);
+  EXPECT_EQ(s.resident_pages, 1u);
+  EXPECT_LT(s.resident_nodes, h.node_count());
+  // The first page's nodes are a tree whose hidden leaves hold their
+  // subtrees' points: a cut of them covers every point.
+  const std::vector<NodeId> shown = reachable(h);
+  EXPECT_EQ(shown.size(), s.resident_nodes);
+  std::size_t hidden = 0;
+  for (const NodeId n : shown) hidden += paged->hidden(n);
+  EXPECT_GT(hidden, 0u);
+  const TreeCut leaves = TreeCut::leaf_cut(h);
+  EXPECT_EQ(leaves.validate(h), "");
+}
+
+TEST(PagedHierarchy, AllPagesResidentIsTheWholeLoadIdForId) {
+  const fs::path cache = terrain_cache("paged_whole");
+  std::string why;
+  const std::optional<Hierarchy> whole = load_cache(cache, std::nullopt, &why);
+  ASSERT_TRUE(whole) << why;
+  const auto paged = PagedHierarchy::open(cache);
+  load_everything(*paged);
+  const PagingStats s = paged->stats();
+  EXPECT_EQ(s.resident_pages, s.pages);
+  EXPECT_EQ(s.resident_nodes, whole->node_count());
+  EXPECT_EQ(s.resident_bytes, whole->node_count() * paged->bytes_per_node());
+  const HierarchyArrays &a = whole->arrays(), &b = paged->hierarchy().arrays();
+  for (NodeId n = 0; n < whole->node_count(); ++n) {
+    ASSERT_EQ(a.center_radius[n], b.center_radius[n]) << n;
+    ASSERT_EQ(a.splat_radius[n], b.splat_radius[n]) << n;
+    ASSERT_EQ(a.normal_cone[n], b.normal_cone[n]) << n;
+    ASSERT_EQ(a.color[n], b.color[n]) << n;
+    ASSERT_EQ(a.priority[n], b.priority[n]) << n;
+    ASSERT_EQ(a.point_count[n], b.point_count[n]) << n;
+    ASSERT_EQ(a.parent[n], b.parent[n]) << n;
+    ASSERT_EQ(a.child_count[n], b.child_count[n]) << n;
+    if (a.child_count[n] != 0) {
+      ASSERT_EQ(a.first_child[n], b.first_child[n]) << n;
+    }
+    ASSERT_EQ(a.depth[n], b.depth[n]) << n;
+  }
+}
+
+// Standing still, the cut a strategy reaches on the paged model, its pages
+// read as its cut asks for them, is the cut it reaches on the model held
+// whole.
+TEST(PagedHierarchy, StandingStillTheCutReachesTheCutOfTheWholeModel) {
+  const fs::path cache = terrain_cache("paged_still");
+  std::string why;
+  const std::optional<Hierarchy> whole = load_cache(cache, std::nullopt, &why);
+  ASSERT_TRUE(whole) << why;
+  const StrategyRegistry registry = strategies::builtin_registry();
+  const ViewSnapshot view = patch_view(0.4f, 0.3f);
+  for (const char* name : {"recursive", "topdown", "optimization", "bucket", "event_queue"}) {
+    SCOPED_TRACE(name);
+    const auto paged = PagedHierarchy::open(cache);
+    const std::vector<NodeId> expect = sorted(settle(*registry.create(name), *whole, view));
+    const std::vector<NodeId> got = sorted(settle(*registry.create(name), *paged, view));
+    EXPECT_GT(expect.size(), 1000u);
+    EXPECT_EQ(expect, got);
+    // (bucket's buckets are the light's: the lit half of the model, not
+    // the view's part of it.)
+    if (std::string(name) != "bucket") {
+      EXPECT_LT(paged->stats().resident_pages, paged->stats().pages * 3 / 4)
+          << "the view wants a part of the model";
+    }
+  }
+}
+
+// Flying over the terrain with a budget of a quarter of the model: what is
+// resident stays within it, pages no cut holds are given back, and every
+// cut holds only resident nodes.
+TEST(PagedHierarchy, AMovingCameraStaysWithinTheBudget) {
+  const fs::path cache = terrain_cache("paged_budget");
+  const Hierarchy& whole = *test::small_hierarchy(tools::ModelKind::Terrain, 100000);
+  PagingOptions options;
+  const std::uint64_t first_page = PagedHierarchy::open(cache)->stats().resident_bytes;
+  const std::uint64_t per_node = PagedHierarchy::open(cache)->bytes_per_node();
+  options.memory_bytes = first_page + whole.node_count() * per_node / 4;
+  const auto paged = PagedHierarchy::open(cache, options);
+  const Hierarchy& h = paged->hierarchy();
+  for (const char* name : {"recursive", "event_queue"}) {
+    SCOPED_TRACE(name);
+    const std::unique_ptr<Strategy> s = strategies::builtin_registry().create(name);
+    s->reset(h);
+    TreeCut cut = TreeCut::root_cut(h);
+    std::vector<NodeId> revealed, concealed;
+    std::uint64_t most = 0;
+    for (int k = 0; k <= 60; ++k) {
+      const float t =
+          -0.7f + 1.4f * float(k % 31) / 30.0f * (k < 31 ? 1.0f : -1.0f) + (k < 31 ? 0.0f : 0.0f);
+      const ViewSnapshot view = patch_view(t, k < 31 ? t : -t);
+      for (int i = 0; i < 4; ++i) {
+        const std::vector<NodeId> wanted = step(*s, h, cut, view, revealed, concealed);
+        ASSERT_EQ(cut.validate(h), "");
+        for (const NodeId n : cut.nodes()) ASSERT_GT(h.arrays().point_count[n], 0u) << n;
+        revealed.clear(), concealed.clear();
+        paged->evict([&](NodeId n) { return cut.contains(n); }, &concealed);
+        paged->request(paged->rank(wanted, view));
+        ASSERT_TRUE(paged->wait_idle(kWaitMs));
+        paged->publish(&revealed);
+        most = std::max(most, paged->stats().resident_bytes);
+      }
+    }
+    const PagingStats st = paged->stats();
+    EXPECT_LE(most, options.memory_bytes);
+    EXPECT_GT(st.evicted, 0u);
+    EXPECT_GT(st.loaded, st.evicted);
+    EXPECT_EQ(st.failed, 0u);
+    // Every resident node is reachable: nothing of a page given back is
+    // left in the tree.
+    EXPECT_EQ(reachable(h).size(), st.resident_nodes);
+  }
+}
+
+// A page corrupted on disk: one line naming the file and the page, its
+// parent stays a leaf, everything else is read and drawn.
+TEST(PagedHierarchy, ACorruptedPageIsNamedAndTheRestIsDrawn) {
+  const fs::path cache = terrain_cache("paged_corrupt");
+  {
+    std::fstream f(cache, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekg(0, std::ios::end);
+    const auto size = static_cast<std::streamoff>(f.tellg());
+    f.seekp(size - 9);  // the last page's last byte (the checksum follows)
+    char byte = 0;
+    f.seekg(size - 9), f.read(&byte, 1);
+    byte = static_cast<char>(byte ^ 0x20);
+    f.seekp(size - 9), f.write(&byte, 1);
+  }
+  const auto paged = PagedHierarchy::open(cache);
+  load_everything(*paged);
+  const std::vector<std::string> problems = paged->take_problems();
+  ASSERT_EQ(problems.size(), 1u);
+  const PagingStats s = paged->stats();
+  EXPECT_NE(problems[0].find("t.tch"), std::string::npos) << problems[0];
+  EXPECT_NE(problems[0].find("page " + std::to_string(s.pages - 1) + " of " +
+                             std::to_string(s.pages) + ": checksum mismatch (corrupted)"),
+            std::string::npos)
+      << problems[0];
+  EXPECT_EQ(s.failed, 1u);
+  EXPECT_LT(s.resident_pages, s.pages);
+  EXPECT_GE(s.resident_pages + 4, s.pages) << "only the bad page's group is missing";
+  EXPECT_EQ(TreeCut::leaf_cut(paged->hierarchy()).validate(paged->hierarchy()), "");
+}
+
+// The file cut short after it was opened: the pages past its end are named
+// (changed while being read), never a crash.
+TEST(PagedHierarchy, AFileThatShrinksIsNamedNotACrash) {
+  const fs::path cache = terrain_cache("paged_shrink");
+  const auto paged = PagedHierarchy::open(cache);
+  fs::resize_file(cache, fs::file_size(cache) / 2);
+  load_everything(*paged);
+  const std::vector<std::string> problems = paged->take_problems();
+  ASSERT_FALSE(problems.empty());
+  for (const std::string& p : problems) EXPECT_NE(p.find("got shorter"), std::string::npos) << p;
+  EXPECT_EQ(TreeCut::leaf_cut(paged->hierarchy()).validate(paged->hierarchy()), "");
+}
+
+// The Feedback Stage drives a paged model as the viewer will: pages
+// published and asked for between iterations, what no list holds given
+// back, the pages' counters in the iteration's; standing still its lists
+// reach the cut of the model held whole.
+TEST(PagedHierarchy, TheFeedbackStageDrawsAPagedModelToTheWholeModelsCut) {
+  const fs::path cache = terrain_cache("paged_stage");
+  std::string why;
+  const std::optional<Hierarchy> whole = load_cache(cache, std::nullopt, &why);
+  ASSERT_TRUE(whole) << why;
+  const ViewSnapshot view = patch_view(-0.3f, 0.2f);
+  const StrategyRegistry registry = strategies::builtin_registry();
+  for (const char* name : {"recursive", "event_queue"}) {
+    SCOPED_TRACE(name);
+    const std::vector<NodeId> expect = sorted(settle(*registry.create(name), *whole, view));
+    PagingOptions options;
+    options.memory_bytes = 64u << 20;
+    std::shared_ptr<PagedHierarchy> paged = PagedHierarchy::open(cache, options);
+    StageOptions manual;
+    manual.launch = Launch::Manual;
+    manual.validate = true;
+    FeedbackStage stage(make_paged_model(paged), registry.create(name), manual);
+    stage.set_view(view);
+    bool reached = false;
+    for (int frame = 0; frame < 400 && !reached; ++frame) {
+      const FrameLists f = stage.poll();
+      if (f.exchanged) {
+        std::vector<NodeId> got(f.current.nodes.begin(), f.current.nodes.end());
+        reached = got == expect;
+      }
+      stage.step();
+      // (A frame never waits for the disk; this test waits so that its
+      // frames are not over before one page is read.)
+      ASSERT_TRUE(paged->wait_idle(kWaitMs));
+    }
+    EXPECT_TRUE(reached) << "the lists never reached the whole model's cut";
+    EXPECT_EQ(stage.counters().errors, 0u) << stage.counters().last_error;
+    const Counters& c = stage.counters().last.counters;
+    ASSERT_TRUE(c.find("pages_resident"));
+    EXPECT_EQ(*c.find("pages_resident"), double(paged->stats().resident_pages));
+    EXPECT_GT(*c.find("pages_loaded"), 0.0);
+    EXPECT_EQ(*c.find("pages_failed"), 0.0);
+  }
+}
