@@ -92,16 +92,18 @@ class PagedHierarchy {
   /// of sibling pages.
   std::size_t publish(std::vector<NodeId>* revealed = nullptr);
 
+  /// Whether a list anyone reads (a cut, a list being drawn) holds node n.
+  using ListHolds = std::function<bool(NodeId)>;
+
   /// Gives back pages until what is asked next fits the budget: the least
-  /// recently used whose nodes no list holds (IN_CUT(n): whether a list
-  /// that anyone reads holds node n; a page's nodes are in no list when
-  /// one holds its parent node or an ancestor of it), deepest first (a
-  /// page only when none below it is resident). Also marks the pages the
-  /// lists use as used now. The nodes that lost their children are
-  /// appended to CONCEALED (IterationInput::concealed). Returns how many
-  /// groups were given back.
-  std::size_t evict(const std::function<bool(NodeId)>& in_cut,
-                    std::vector<NodeId>* concealed = nullptr);
+  /// recently used that no list reaches into (LISTS, one predicate a list:
+  /// a page's nodes are in no list when every list holds the node its
+  /// group hangs from or an ancestor of it), deepest first (a page only
+  /// when none below it is resident). Also marks the pages the lists use
+  /// as used now. The nodes that lost their children are appended to
+  /// CONCEALED (IterationInput::concealed). Returns how many groups were
+  /// given back.
+  std::size_t evict(std::span<const ListHolds> lists, std::vector<NodeId>* concealed = nullptr);
 
   /// Waits until nothing asked for is waiting or being read (what a test
   /// or an offline render may do; a frame never does). False after

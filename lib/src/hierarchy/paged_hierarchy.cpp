@@ -33,6 +33,7 @@ namespace treecut {
 
 using cache_layout::PageRecord;
 using cache_layout::PageRun;
+using ListHolds = PagedHierarchy::ListHolds;
 
 namespace {
 
@@ -293,13 +294,17 @@ struct PagedHierarchy::Impl {
     for (const PageRun& run : index().links().runs_of(p)) arrays->release(run.first, run.count);
   }
 
-  // Whether a list holds node N or an ancestor of it (then no node below
-  // N is in one).
-  [[nodiscard]] bool above(NodeId n, const std::function<bool(NodeId)>& in_cut) const {
+  // Whether every list holds node N or an ancestor of it: then no list
+  // holds a node below N. (One list above N is not enough: another, an
+  // older cut still drawn, may reach below it.)
+  [[nodiscard]] bool above(NodeId n, std::span<const ListHolds> lists) const {
     const HierarchyArrays& a = hierarchy.arrays();
-    for (; n != kNoNode; n = a.parent[n])
-      if (in_cut(n)) return true;
-    return false;
+    for (const ListHolds& holds : lists) {
+      NodeId up = n;
+      while (up != kNoNode && !holds(up)) up = a.parent[up];
+      if (up == kNoNode) return false;
+    }
+    return true;
   }
 
   void give_back(NodeId node, Group& g) {
@@ -416,7 +421,7 @@ std::size_t PagedHierarchy::publish(std::vector<NodeId>* revealed) {
   return published;
 }
 
-std::size_t PagedHierarchy::evict(const std::function<bool(NodeId)>& in_cut,
+std::size_t PagedHierarchy::evict(std::span<const ListHolds> lists,
                                   std::vector<NodeId>* concealed) {
   Impl& m = *impl_;
   std::unique_lock lock(m.mutex);
@@ -424,7 +429,7 @@ std::size_t PagedHierarchy::evict(const std::function<bool(NodeId)>& in_cut,
   std::vector<std::pair<std::uint64_t, NodeId>> candidates;  // (last used, node)
   for (auto& [node, g] : m.groups) {
     if (g.state != State::resident) continue;
-    if (!m.above(node, in_cut))
+    if (!m.above(node, lists))
       g.last_used = m.now;
     else if (g.busy_below == 0)
       candidates.emplace_back(g.last_used, node);

@@ -144,14 +144,15 @@ void FeedbackStage::Impl::process() {
 // join the iteration's.
 void FeedbackStage::Impl::follow_pages(std::span<const NodeId> list, Outbox& out) {
   paged_->request(paged_->rank(wanted_, view_));
+  // The back list and the front list (the one drawn while this runs; the
+  // render thread exchanges lists only in Wait), each on its own.
   const ListBuffer& front = buffers_[inbox_.front];
-  const bool front_here = front.hierarchy == hierarchy_;
-  paged_->evict(
-      [&](NodeId n) {
-        return std::binary_search(list.begin(), list.end(), n) ||
-               (front_here && std::binary_search(front.nodes.begin(), front.nodes.end(), n));
-      },
-      &concealed_);
+  auto holds = [](std::span<const NodeId> nodes) {
+    return [nodes](NodeId n) { return std::binary_search(nodes.begin(), nodes.end(), n); };
+  };
+  std::vector<PagedHierarchy::ListHolds> lists{holds(list)};
+  if (front.hierarchy == hierarchy_) lists.push_back(holds(front.nodes));
+  paged_->evict(lists, &concealed_);
   const PagingStats s = paged_->stats();
   // Not converged while pages it wants are on their way: the iterations
   // that follow take them in.
