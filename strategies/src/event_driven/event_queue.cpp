@@ -726,12 +726,22 @@ bool EventQueueStrategy::carry_out(Method method, const IterationInput& input, T
 void EventQueueStrategy::follow_residency(const Hierarchy& h, std::span<const NodeId> revealed,
                                           std::span<const NodeId> concealed) {
   const HierarchyArrays& a = h.arrays();
-  for (const NodeId n : concealed) copy_record(a, n, state_[n]);
+  // The records made again are out of the queue too: the rebuild that
+  // follows (current_ is false) clears the queue but resets only the
+  // positions of the nodes it visits, and a node that became a leaf (or was
+  // one in pages given back) is not visited; a position left from before
+  // would make a later fold erase another node's entry.
+  auto refresh = [&](NodeId n) {
+    copy_record(a, n, state_[n]);
+    state_[n].slot = kNone;
+    state_[n].wslot = kNoneW;
+  };
+  for (const NodeId n : concealed) refresh(n);
   std::vector<NodeId> below(revealed.begin(), revealed.end());
   while (!below.empty()) {
     const NodeId n = below.back();
     below.pop_back();
-    copy_record(a, n, state_[n]);
+    refresh(n);
     for (NodeId c = a.first_child[n]; c < a.first_child[n] + a.child_count[n]; ++c)
       below.push_back(c);
   }
