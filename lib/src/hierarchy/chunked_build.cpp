@@ -24,6 +24,7 @@
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
 #include "treecut/parallel.hpp"
+#include "whole_ids.hpp"
 
 namespace treecut::detail {
 
@@ -235,9 +236,7 @@ class ChunkedBuild {
     links_.run_index.push_back(links_.runs.size());
     links_.points.push_back(points);
   }
-  void number_nodes(const detail::TopLevels* top);
-  std::vector<PageRun> chunk_runs(std::size_t c, std::size_t page) const;
-  std::vector<PageRun> top_runs(std::size_t page) const;
+  void number_nodes(const TopLevels* top);
 
   std::span<const std::filesystem::path> files_;
   const OpenOptions& options_;
@@ -267,11 +266,11 @@ class ChunkedBuild {
   std::vector<PageRecord> table_;
   std::vector<Source> sources_;
   cache_pages::PageLinks links_{{}, {0}, {}, {}};
-  // The ids of the whole (breadth-first over the top and the chunks): of
-  // each top node, and where each chunk's level starts.
-  std::vector<NodeId> top_id_;
-  std::vector<std::vector<std::uint64_t>> chunk_base_;
-  std::vector<std::uint32_t> depth_;  // of each chunk's root
+  // The ids of the whole (whole_ids.hpp), and each chunk's levels and the
+  // depth of its root they are made of.
+  std::optional<WholeIds> ids_;
+  std::vector<std::vector<std::uint64_t>> chunk_levels_;
+  std::vector<std::uint32_t> depth_;
   cache_pages::Encoded top_pages_;
   std::uint32_t levels_ = 0;
   std::uint64_t nodes_ = 0;
@@ -467,69 +466,15 @@ void ChunkedBuild::build_chunks() {
   done_.reset();
 }
 
-// The whole's ids, breadth-first as a hierarchy built at once has them: a
-// level's nodes are the top's there and each chunk's at that depth, in the
-// order their parents have (a chunk's nodes of one depth are consecutive,
-// in its own order). Sets the levels' first ids and the nodes' count.
-void ChunkedBuild::number_nodes(const detail::TopLevels* top) {
-  struct Item {
-    NodeId top;  // a node of the top, or kNoNode: LEVEL of CHUNK
-    std::uint32_t chunk, level;
-  };
-  chunk_base_.assign(report_.chunks, {});
-  std::vector<Item> level{top ? Item{0, 0, 0} : Item{kNoNode, 0, 0}}, next;
-  if (top) top_id_.assign(top->hierarchy.node_count(), kNoNode);
-  std::uint64_t id = 0;
-  links_.level_begin.clear();
-  while (!level.empty()) {
-    links_.level_begin.push_back(id);
-    next.clear();
-    for (const Item& it : level) {
-      if (it.top == kNoNode) {
-        const ChunkPages& cp = built_[it.chunk];
-        chunk_base_[it.chunk].push_back(id);
-        id += cp.level_begin[it.level + 1] - cp.level_begin[it.level];
-        if (it.level + 1 < cp.levels) next.push_back({kNoNode, it.chunk, it.level + 1});
-        continue;
-      }
-      const Hierarchy& t = top->hierarchy;
-      top_id_[it.top] = static_cast<NodeId>(id++);
-      for (NodeId c = t.first_child(it.top); c < t.first_child(it.top) + t.child_count(it.top); ++c)
-        next.push_back(t.is_leaf(c) ? Item{kNoNode, top->root_of[c], 0} : Item{c, 0, 0});
-    }
-    std::swap(level, next);
-  }
-  links_.level_begin.push_back(id);
-  nodes_ = id;
+// The whole's ids (whole_ids.hpp) over TOP (null: a single chunk); its
+// levels and nodes.
+void ChunkedBuild::number_nodes(const TopLevels* top) {
+  chunk_levels_.clear();
+  for (const ChunkPages& cp : built_) chunk_levels_.push_back(cp.level_begin);
+  ids_.emplace(top, chunk_levels_, depth_);
+  links_.level_begin = ids_->level_begin();
+  nodes_ = links_.level_begin.back();
   levels_ = static_cast<std::uint32_t>(links_.level_begin.size() - 1);
-}
-
-// Chunk C's page PAGE's runs in the whole's ids (a level of a chunk is one
-// run of the whole's ids).
-std::vector<PageRun> ChunkedBuild::chunk_runs(std::size_t c, std::size_t page) const {
-  const ChunkPages& cp = built_[c];
-  std::vector<PageRun> runs = cp.runs[page];
-  for (PageRun& r : runs) {
-    r.first = chunk_base_[c][r.depth] + (r.first - cp.level_begin[r.depth]);
-    r.depth += depth_[c];
-  }
-  return runs;
-}
-
-// The top's page PAGE's runs in the whole's ids (the top's nodes of a level
-// are not consecutive there: the chunks' lie between them).
-std::vector<PageRun> ChunkedBuild::top_runs(std::size_t page) const {
-  std::vector<PageRun> runs;
-  for (const PageRun& r : top_pages_.runs[page])
-    for (std::uint64_t i = r.first; i < r.first + r.count; ++i) {
-      const NodeId id = top_id_[i];
-      if (!runs.empty() && runs.back().first + runs.back().count == id &&
-          runs.back().depth == r.depth)
-        ++runs.back().count;
-      else
-        runs.push_back({id, 1, r.depth});
-    }
-  return runs;
 }
 
 // 5. The levels over the chunks' roots, and the page table in file order:
@@ -542,8 +487,8 @@ void ChunkedBuild::levels_over_chunks() {
   std::optional<TopLevels> top;
   if (chunks == 1) {
     number_nodes(nullptr);
-    add_page(built_[0].table[0], {nullptr, built_[0].table[0].offset}, chunk_runs(0, 0),
-             built_[0].points[0]);
+    add_page(built_[0].table[0], {nullptr, built_[0].table[0].offset},
+             ids_->chunk_runs(0, built_[0].runs[0]), built_[0].points[0]);
   } else {
     top = build_over_roots(roots_, model_, frame_, options_.build.parent_at_real_point);
     const Hierarchy& t = top->hierarchy;
@@ -559,7 +504,8 @@ void ChunkedBuild::levels_over_chunks() {
     for (std::size_t q = 0; q < top_pages_.table.size(); ++q) {
       const NodeId c = top->root_of[top_pages_.roots[q]];
       if (c == kNoNode) {
-        add_page(top_pages_.table[q], {&top_pages_.pages[q], 0}, top_runs(q), top_pages_.points[q]);
+        add_page(top_pages_.table[q], {&top_pages_.pages[q], 0}, ids_->top_runs(top_pages_.runs[q]),
+                 top_pages_.points[q]);
         continue;
       }
       PageRecord r = built_[c].table[0];
@@ -567,7 +513,8 @@ void ChunkedBuild::levels_over_chunks() {
       r.parent_local = top_pages_.table[q].parent_local;
       r.root_depth = depth_[c];
       first_page[c] = static_cast<std::uint32_t>(table_.size());
-      add_page(r, {nullptr, built_[c].table[0].offset}, chunk_runs(c, 0), built_[c].points[0]);
+      add_page(r, {nullptr, built_[c].table[0].offset}, ids_->chunk_runs(c, built_[c].runs[0]),
+               built_[c].points[0]);
     }
   }
   for (std::size_t c = 0; c < chunks; ++c) {
@@ -577,7 +524,7 @@ void ChunkedBuild::levels_over_chunks() {
       const std::uint64_t at = r.offset;
       r.parent_page = r.parent_page == 0 ? first_page[c] : base + r.parent_page - 1;
       r.root_depth += depth_[c];
-      add_page(r, {nullptr, at}, chunk_runs(c, q), built_[c].points[q]);
+      add_page(r, {nullptr, at}, ids_->chunk_runs(c, built_[c].runs[q]), built_[c].points[q]);
     }
   }
   report_.nodes = nodes_;
