@@ -106,7 +106,7 @@ void add_crs_option(CLI::App& cmd, std::string& crs) {
           "CRS"));
 }
 
-void add_memory_option(CLI::App& cmd, std::uint64_t& bytes) {
+void add_memory_option(CLI::App& cmd, std::uint64_t& bytes, bool draws) {
   cmd.add_option_function<std::string>(
          "--memory",
          [&bytes](const std::string& text) {
@@ -116,8 +116,10 @@ void add_memory_option(CLI::App& cmd, std::uint64_t& bytes) {
                                         "'" + text + "' is not a size (bytes, or K, M, G, T)");
            bytes = *v;
          },
-         "The memory a build may use (bytes, or K, M, G, T; default: a quarter of the "
-         "machine's): a model that would need more is built in chunks into its cache")
+         std::string("The memory a build may use (bytes, or K, M, G, T; default: a quarter of "
+                     "the machine's): a model that would need more is built in chunks into its "
+                     "cache") +
+             (draws ? "; a cache (.tch) given with it is drawn from its pages within it" : ""))
       ->type_name("SIZE");
 }
 

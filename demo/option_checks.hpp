@@ -30,7 +30,9 @@ void add_columns_option(CLI::App& cmd, std::vector<std::string>& names);
 /// `--crs EPSG:32633`: the coordinate system to draw in (OpenOptions::crs).
 void add_crs_option(CLI::App& cmd, std::string& crs);
 
-/// `--memory 8G`: the bytes a build may use (OpenOptions::memory).
-void add_memory_option(CLI::App& cmd, std::uint64_t& bytes);
+/// `--memory 8G`: the bytes a build may use (OpenOptions::memory); with
+/// DRAWS (view, render), also what a cache given with it is drawn from its
+/// pages within (PagingOptions::memory_bytes).
+void add_memory_option(CLI::App& cmd, std::uint64_t& bytes, bool draws = false);
 
 }  // namespace treecut::cli

@@ -72,9 +72,33 @@ void check_render_inputs(const RenderArgs& a, const StrategyRegistry& registry) 
   check_output_folder(a.out, a.scene.strategies, {a.scene.model, a.path});
 }
 
+// A model drawn from its pages (a .tch with --memory): what does not work
+// on one yet is refused before any output.
+void check_paged(const RenderArgs& a, const StrategyRegistry& registry) {
+  const std::string model = a.scene.model;
+  for (const std::string& name : a.scene.strategies)
+    if (make_strategy(registry, name, {})->asks_queries())
+      throw InputError(model + ": " + name +
+                       " asks GPU queries of every node's sphere, which a model drawn from its "
+                       "pages (--memory) does not hold yet; without --memory it opens whole");
+  if (a.psnr || a.stability > 0)
+    throw InputError(model +
+                     ": --psnr and --stability compare with the model at full detail, which a "
+                     "model drawn from its pages (--memory) does not hold");
+}
+
+// A model drawn from its pages: its pages' line.
+void describe_pages(const RenderArgs& a, const PagedHierarchy& paged) {
+  const PagingStats s = paged.stats();
+  std::printf("pages     %llu in the file, drawn within %.1f MiB (%llu bytes a node)\n",
+              static_cast<unsigned long long>(s.pages), double(a.scene.memory) / (1 << 20),
+              static_cast<unsigned long long>(paged.bytes_per_node()));
+}
+
 // The scene or model line; a scene past a strategy's per-object limit is
 // refused first, before any output, naming the file.
 void describe_scene(const RenderArgs& a, const StrategyRegistry& registry, const Scene& scene) {
+  if (scene.paged) check_paged(a, registry);
   if (const std::shared_ptr<const StageScene>& world = scene.world) {
     for (const std::string& name : a.scene.strategies) {
       if (const std::string why =
@@ -91,6 +115,7 @@ void describe_scene(const RenderArgs& a, const StrategyRegistry& registry, const
     std::printf("model     %s: %u points, %u nodes\n", scene.label.c_str(), h.leaf_count(),
                 h.node_count());
   }
+  if (scene.paged) describe_pages(a, *scene.paged);
 }
 
 // The full-detail reference of --psnr and --stability: a model's leaves, or
@@ -361,12 +386,13 @@ RunSummary run_strategy(const RenderRig& rig, const StrategyRegistry& registry,
   if (world) {
     controller_storage.emplace(world, factory, first_view, stage_options);
   } else {
-    controller_storage.emplace(Model{rig.scene.hierarchy, TreeCut::root_cut(h)},
+    controller_storage.emplace(Model{rig.scene.hierarchy, TreeCut::root_cut(h), rig.scene.paged},
                                std::move(strategy), first_view, stage_options);
   }
   Controller& controller = *controller_storage;
   splat::QueryExecutor queries;
   splat::RenderThreadFrame frame_loop(controller, rig.renderer, &queries);
+  frame_loop.follow_pages(rig.scene.paged.get());
   LastFrame last;
   auto frame = [&](const splat::Camera& c) {
     last.before = queries.stats();
@@ -410,6 +436,9 @@ RunSummary run_strategy(const RenderRig& rig, const StrategyRegistry& registry,
   write_stats_csv(dir / "stats.csv", run.rows);
   write_file_atomically(dir / "summary.json", summary_json(run));
   print_run(a, name, run, world != nullptr, queries.stats(), controller, stage_options, governor);
+  // Pages that could not be read: a line each (their parents stayed leaves).
+  if (rig.scene.paged)
+    for (const std::string& problem : rig.scene.paged->take_problems()) print_warning(problem);
   return run;
 }
 

@@ -77,13 +77,14 @@ Viewer::Viewer(const ViewArgs& args)
     controller_ = std::make_unique<Controller>(scene_.world, strategy_factory(strategy_, true),
                                                initial, stage_options);
   } else {
-    controller_ =
-        std::make_unique<Controller>(Model{scene_.hierarchy, opening_cut(*scene_.hierarchy)},
-                                     std::move(strategy), initial, stage_options);
+    controller_ = std::make_unique<Controller>(
+        Model{scene_.hierarchy, opening_cut(*scene_.hierarchy), scene_.paged}, std::move(strategy),
+        initial, stage_options);
   }
   queries_ = std::make_unique<splat::QueryExecutor>();
   frame_loop_ =
       std::make_unique<splat::RenderThreadFrame>(*controller_, *renderer_, queries_.get());
+  frame_loop_->follow_pages(scene_.paged.get());
 
   glfwSetWindowUserPointer(window_.handle(), &input_);
   // Before ImGui, which chains them.
@@ -267,7 +268,9 @@ void Viewer::poll_loader() {
   const std::shared_ptr<const Hierarchy> h = done->scene->hierarchy;
   // The stage switches at its next request; the window draws the old model
   // until the exchange (RenderThreadFrame uploads the new vertices then).
-  controller_->stage().set_model(Model{h, opening_cut(*h)});
+  controller_->stage().set_model(Model{h, opening_cut(*h), done->scene->paged});
+  // (Its pages go up once its lists are drawn: RenderThreadFrame checks.)
+  frame_loop_->follow_pages(done->scene->paged.get());
   incoming_ = std::move(done->scene);
 }
 
@@ -324,13 +327,14 @@ void Viewer::replace_stage(Scene loaded) {
                                                initial, stage_options);
   } else {
     controller_ = std::make_unique<Controller>(
-        Model{scene_.hierarchy, opening_cut(*scene_.hierarchy)},
+        Model{scene_.hierarchy, opening_cut(*scene_.hierarchy), scene_.paged},
         make_strategy(registry_, strategy_, {}), initial, stage_options);
   }
   controller_->stage().set_blend_frames(blend);
   queries_ = std::make_unique<splat::QueryExecutor>();
   frame_loop_ =
       std::make_unique<splat::RenderThreadFrame>(*controller_, *renderer_, queries_.get());
+  frame_loop_->follow_pages(scene_.paged.get());
   read_params(*make_strategy(registry_, strategy_, {}));
   glfwSetWindowTitle(window_.handle(), ("treecut - " + scene_.label).c_str());
   say("opened " + scene_.label);

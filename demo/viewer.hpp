@@ -81,6 +81,9 @@ struct Scene {
   /// is then its first model's. Null for a model.
   std::shared_ptr<const StageScene> world;
   std::uint64_t instanced_points = 0;  ///< a scene: points of all objects at full detail
+  /// A cache drawn from its pages (a .tch with --memory: issue 45);
+  /// `hierarchy` is then its hierarchy(). Null for a model held whole.
+  std::shared_ptr<PagedHierarchy> paged;
 };
 
 /// Opens the model (through its cache) or generates the default one, or

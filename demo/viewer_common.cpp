@@ -13,9 +13,11 @@
 
 #include "messages.hpp"
 #include "option_checks.hpp"
+#include "treecut/cache.hpp"
 #include "treecut/error.hpp"
 #include "treecut/model.hpp"
 #include "treecut/model_io.hpp"
+#include "treecut/paged_hierarchy.hpp"
 #include "treecut/scene.hpp"
 #include "treecut/splat/frame_rate.hpp"
 #include "treecut/strategies/builtin.hpp"
@@ -116,7 +118,7 @@ void add_scene_options(CLI::App& cmd, SceneArgs& args) {
                  "noise) of the classification attribute");
   add_columns_option(cmd, args.columns);
   add_crs_option(cmd, args.crs);
-  add_memory_option(cmd, args.memory);
+  add_memory_option(cmd, args.memory, true);
   cmd.add_option("--stage-wait-bound", args.stage_wait_bound_ms,
                  "Milliseconds an update may wait for the low-priority Feedback Stage before it "
                  "runs at normal priority until done (0 = never; docs/threading.md)")
@@ -241,6 +243,13 @@ Scene load_scene(const SceneArgs& args, const LoadProgressFn& progress) {
         build_from_points(tools::generate_model(kind, args.default_points, 1)));
     s.label =
         "generated " + args.default_kind + " (" + std::to_string(args.default_points) + " points)";
+  } else if (args.memory != 0 && looks_like_cache(args.model)) {
+    // A cache with a memory budget: drawn from its pages (issue 45).
+    PagingOptions paging;
+    paging.memory_bytes = args.memory;
+    s.paged = PagedHierarchy::open(args.model, paging);
+    s.hierarchy = std::shared_ptr<const Hierarchy>(s.paged, &s.paged->hierarchy());
+    s.label = std::filesystem::path(args.model).filename().string() + " (paged)";
   } else {
     OpenOptions o;
     o.attributes.k = args.k;
@@ -308,15 +317,27 @@ std::vector<const Hierarchy*> scene_models(const Scene& scene) {
 }  // namespace
 
 splat::ColorBy resolve_color(const Scene& scene, const SceneArgs& args, std::string* note) {
+  if (scene.paged && args.color == "auto") {
+    // A model drawn from its pages: the colours in them (a colouring by
+    // value is made for every node at once).
+    splat::ColorBy by = color_by(args);
+    by.source = "rgb";
+    return by;
+  }
   return splat::resolve_auto_color(*scene.hierarchy, color_by(args), note);
 }
 
 void check_coloring(const Scene& scene, const splat::ColorBy& by) {
+  if (scene.paged && (by.source != "rgb" || !by.show_classes.empty() || !by.hide_classes.empty()))
+    throw InputError("--color " + by.source +
+                     ": a model drawn from its pages (a .tch with --memory) is drawn in its "
+                     "file's colours; without --memory it opens whole and takes any colouring");
   for (const Hierarchy* h : scene_models(scene)) splat::check_color_by(*h, by);
 }
 
 splat::Legend apply_coloring(const Scene& scene, const splat::ColorBy& by,
                              splat::Renderer& renderer) {
+  if (scene.paged) check_coloring(scene, by);  // (the viewer falls back to rgb)
   const std::vector<const Hierarchy*> models = scene_models(scene);
   const bool own = by.source == "rgb" && by.show_classes.empty() && by.hide_classes.empty();
   splat::Legend first;

@@ -37,6 +37,12 @@
 
 namespace treecut {
 
+/// Consecutive node ids [first, first + count).
+struct NodeRange {
+  NodeId first = 0;
+  std::uint32_t count = 0;
+};
+
 struct PagingOptions {
   /// The resident pages' node arrays at most, in bytes (0: no limit). The
   /// first page is always resident, whatever its size.
@@ -109,6 +115,11 @@ class PagedHierarchy {
   /// or an offline render may do; a frame never does). False after
   /// TIMEOUT_MS.
   bool wait_idle(int timeout_ms);
+
+  /// Render thread: the nodes of the pages published since the last call
+  /// and still resident, given to UPLOAD (a renderer copying them to its
+  /// vertex buffer) while no page can be given back, once each.
+  void upload_published(const std::function<void(std::span<const NodeRange>)>& upload);
 
   [[nodiscard]] PagingStats stats() const;
   /// Pages that could not be read since the last call, a line each:

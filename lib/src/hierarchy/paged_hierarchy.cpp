@@ -162,6 +162,9 @@ struct PagedHierarchy::Impl {
   std::uint64_t in_flight = 0, loaded_count = 0, evicted = 0, failed = 0, bytes_read = 0;
   std::uint64_t now = 0;  // evict() calls
   std::vector<std::string> problems;
+  std::vector<std::uint32_t> published;  // pages published since upload_published() last ran
+  std::vector<std::uint8_t> resident;    // a byte a page (not a node): resident now
+  std::vector<NodeRange> ranges;         // upload_published()'s (reused)
   std::vector<std::thread> threads;
 
   ~Impl() {
@@ -312,6 +315,7 @@ struct PagedHierarchy::Impl {
     forget_groups(g.first_page, g.pages);
     for (std::uint32_t p = g.first_page; p < g.first_page + g.pages; ++p) release_page(p);
     g.state = State::hidden;
+    for (std::uint32_t p = g.first_page; p < g.first_page + g.pages; ++p) resident[p] = 0;
     resident_bytes -= g.nodes * node_bytes;
     resident_nodes -= g.nodes, resident_pages -= g.pages;
     if (g.owner != kNoNode) --groups.at(g.owner).busy_below;
@@ -346,6 +350,9 @@ std::unique_ptr<PagedHierarchy> PagedHierarchy::open(const std::filesystem::path
   m.resident_bytes = root.node_count * m.node_bytes;
   m.resident_nodes = root.node_count, m.resident_pages = 1, m.bytes_read = root.bytes;
   m.add_groups(kNoNode, 0, 1);
+  m.resident.assign(index.pages(), 0);
+  m.resident[0] = 1;
+  m.published.push_back(0);
 
   const Arrays& a = *m.arrays;
   HierarchyArrays spans{a.center_radius.span(n), a.splat_radius.span(n), a.normal_cone.span(n),
@@ -411,6 +418,10 @@ std::size_t PagedHierarchy::publish(std::vector<NodeId>* revealed) {
     // Its pages' nodes were written by the I/O thread before it took the
     // lock; the node's children appear now, on the thread that iterates.
     m.arrays->child_count.data()[node] = static_cast<std::uint8_t>(g.pages);
+    for (std::uint32_t p = g.first_page; p < g.first_page + g.pages; ++p) {
+      m.resident[p] = 1;
+      m.published.push_back(p);
+    }
     m.pending_bytes -= g.nodes * m.node_bytes;
     m.resident_bytes += g.nodes * m.node_bytes;
     m.resident_nodes += g.nodes, m.resident_pages += g.pages;
@@ -470,6 +481,20 @@ bool PagedHierarchy::wait_idle(int timeout_ms) {
     }
     return true;
   });
+}
+
+void PagedHierarchy::upload_published(
+    const std::function<void(std::span<const NodeRange>)>& upload) {
+  Impl& m = *impl_;
+  std::lock_guard lock(m.mutex);
+  m.ranges.clear();
+  for (const std::uint32_t p : m.published) {
+    if (!m.resident[p]) continue;  // given back before it was drawn
+    for (const PageRun& run : m.index().links().runs_of(p))
+      m.ranges.push_back({static_cast<NodeId>(run.first), run.count});
+  }
+  m.published.clear();
+  if (!m.ranges.empty()) upload(m.ranges);
 }
 
 PagingStats PagedHierarchy::stats() const {

@@ -69,6 +69,14 @@ FrameResult RenderThreadFrame::begin_render_thread(const Camera& camera, const L
     renderer_->set_hierarchy(*lists.current.hierarchy);
     switched = true;
   }
+  // A paged model: the pages published since the last frame go up before
+  // any list that holds their nodes is drawn (a list is made after the
+  // pages it reaches into were published, and taken by this frame's poll).
+  if (paged_ && lists.current.hierarchy == &paged_->hierarchy()) {
+    paged_->upload_published([&](std::span<const NodeRange> ranges) {
+      renderer_->update_nodes(paged_->hierarchy(), ranges);
+    });
+  }
   // A new generation is copied into the GPU index buffer now (so the stage
   // may reuse the list after the next exchange), fading from the previous
   // list while the stage blends.

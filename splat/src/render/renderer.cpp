@@ -251,6 +251,29 @@ void Renderer::set_models(std::span<const Hierarchy* const> models) {
   gl::check("Renderer vertex buffer");
 }
 
+void Renderer::update_nodes(const Hierarchy& h, std::span<const NodeRange> ranges) {
+  const std::size_t n = model_base_.empty() ? 0 : model_base_.back() + model_nodes_.back();
+  const std::size_t cr_bytes = n * sizeof(glm::vec4), nc_bytes = n * sizeof(glm::i16vec4),
+                    co_bytes = n * sizeof(glm::u8vec4);
+  const HierarchyArrays& a = h.arrays();
+  for (std::size_t m = 0; m < model_ids_.size(); ++m) {
+    if (model_ids_[m] != &h) continue;
+    const std::size_t base = model_base_[m];
+    for (const NodeRange& r : ranges) {
+      const std::size_t at = base + r.first;
+      nodes_.sub_data(at * sizeof(glm::vec4),
+                      std::as_bytes(a.center_radius.subspan(r.first, r.count)));
+      nodes_.sub_data(cr_bytes + at * sizeof(glm::i16vec4),
+                      std::as_bytes(a.normal_cone.subspan(r.first, r.count)));
+      nodes_.sub_data(cr_bytes + nc_bytes + at * sizeof(glm::u8vec4),
+                      std::as_bytes(a.color.subspan(r.first, r.count)));
+      nodes_.sub_data(cr_bytes + nc_bytes + co_bytes + at * sizeof(float),
+                      std::as_bytes(a.splat_radius.subspan(r.first, r.count)));
+    }
+  }
+  gl::check("Renderer node update");
+}
+
 std::span<const glm::u8vec4> Renderer::colors_of(const Hierarchy& h) const {
   for (const NodeColors& c : node_colors_) {
     if (c.model == &h && c.nodes == h.node_count()) return c.colors;

@@ -92,6 +92,10 @@ class RenderThreadFrame {
   FrameResult run_render_thread(const Camera& camera, const RenderSettings& settings,
                                 bool finish = false);
 
+  /// A paged model's pages (Model::paged) to copy into the renderer as
+  /// they arrive, each frame before its list is drawn; null: none.
+  void follow_pages(PagedHierarchy* paged) { paged_ = paged; }
+
   [[nodiscard]] const CutBuffer& cut() const { return cut_; }
   /// A scene's lists on the GPU (empty before a scene's first frame).
   [[nodiscard]] const SceneCutBuffer& scene_cut() const { return scene_cut_; }
@@ -119,6 +123,7 @@ class RenderThreadFrame {
   std::uint64_t model_frame_ = 0;  // the frame that first drew the current model (0: the first)
   std::uint64_t stale_results_ = 0;
   std::vector<VisibilityResult> kept_;  // reused by the filter of stale answers
+  PagedHierarchy* paged_ = nullptr;
 };
 
 }  // namespace treecut::splat

@@ -35,6 +35,7 @@
 
 #include "treecut/feedback_stage.hpp"
 #include "treecut/hierarchy.hpp"
+#include "treecut/paged_hierarchy.hpp"
 #include "treecut/splat/camera.hpp"
 #include "treecut/splat/gl_objects.hpp"
 
@@ -234,6 +235,11 @@ class Renderer {
   /// is set_models({&h}). Throws std::invalid_argument for no model, an
   /// empty one, or more than 2^31 - 1 nodes in all.
   void set_models(std::span<const Hierarchy* const> models);
+  /// H's nodes RANGES copied again from its arrays into the vertex buffer
+  /// (a paged hierarchy's pages that arrived: PagedHierarchy::
+  /// upload_published); nothing when H is not held. Its own colours (a
+  /// paged model is drawn in the file's colours).
+  void update_nodes(const Hierarchy& h, std::span<const NodeRange> ranges);
   [[nodiscard]] std::size_t model_count() const { return model_base_.size(); }
   [[nodiscard]] std::uint32_t model_base(std::size_t model) const { return model_base_[model]; }
   [[nodiscard]] std::uint32_t model_nodes(std::size_t model) const { return model_nodes_[model]; }
