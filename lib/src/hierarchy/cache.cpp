@@ -187,7 +187,7 @@ std::optional<cache_pages::PageLinks> read_links(const Header& h, const unsigned
   cache_pages::PageLinks links;
   auto read = [&](auto& v, std::uint64_t from, std::uint64_t count) {
     v.resize(static_cast<std::size_t>(count));
-    std::memcpy(v.data(), bytes + from, v.size() * sizeof v[0]);
+    if (count != 0) std::memcpy(v.data(), bytes + from, v.size() * sizeof v[0]);  // (no runs: null)
   };
   read(links.points, at.points, h.page_count);
   read(links.run_index, at.run_index, h.page_count + 1);

@@ -179,7 +179,8 @@ std::optional<PageIndex> PageIndex::make(std::vector<PageRecord> table, PageLink
     std::uint32_t depth = r.root_depth;
     for (const PageRun& run : runs) {
       if (run.count == 0 || run.depth >= level_count || run.depth < depth ||
-          run.first < std::max(next, lb[run.depth]) || run.count > lb[run.depth + 1] - run.first)
+          run.first < std::max(next, lb[run.depth]) || run.first > lb[run.depth + 1] ||
+          run.count > lb[run.depth + 1] - run.first)
         return page_fail(p, "bad node runs");
       held += run.count, next = run.first + run.count, depth = run.depth;
     }

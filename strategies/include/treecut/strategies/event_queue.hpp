@@ -147,10 +147,10 @@ class EventQueueStrategy final : public Strategy {
   void reset(const Hierarchy& hierarchy) override;
   /// A paged model's residency changed (IterationInput::revealed and
   /// concealed): the records of the nodes that gained their children and
-  /// of those below them made again, and of those that lost them; the cut
-  /// is then no longer topdown's for the last camera.
-  void follow_residency(const Hierarchy& h, std::span<const NodeId> revealed,
-                        std::span<const NodeId> concealed);
+  /// of those below them made again, and of those that lost them; with a
+  /// valid queue, revealed cut nodes handled as boundary nodes under the
+  /// last camera, else the next iteration rebuilds.
+  void follow_residency(const IterationInput& input, TreeCut& cut, IterationResult& r);
   void iterate(const IterationInput& input, IterationOutput& output) override;
 
   /// Statistics of the last iteration, for tests and benchmarks.
