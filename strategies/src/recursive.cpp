@@ -50,6 +50,25 @@ void RecursiveStrategy::reset(const Hierarchy& hierarchy) {
   last_size_ = 0;
 }
 
+namespace {
+
+// Whether the sphere CR lies outside one of the frustum planes still in
+// PLANES (a bit a plane); the planes it lies wholly inside are taken out
+// of PLANES (its descendants lie inside them too).
+[[gnu::always_inline]] inline bool outside_planes(const ViewSnapshot& view, const glm::vec4& cr,
+                                                  std::uint32_t& planes) {
+  for (std::uint32_t p = 0; p < 6 && planes != 0; ++p) {
+    if ((planes & (1u << p)) == 0) continue;
+    const Plane& pl = view.derived.frustum[p];
+    const float d = pl.x * cr.x + pl.y * cr.y + pl.z * cr.z + pl.w;
+    if (d < -cr.w) return true;
+    if (d > cr.w) planes &= ~(1u << p);
+  }
+  return false;
+}
+
+}  // namespace
+
 void RecursiveStrategy::iterate(const IterationInput& input, IterationOutput& output) {
   const Hierarchy& h = input.hierarchy;
   const ViewSnapshot& view = input.view;
@@ -99,18 +118,7 @@ void RecursiveStrategy::iterate(const IterationInput& input, IterationOutput& ou
       const glm::vec4 cr = a.center_radius[n];
       const glm::vec3 c(cr);
       std::uint32_t planes = planes_in;
-      bool outside = false;
-      for (std::uint32_t p = 0; p < 6 && planes != 0; ++p) {
-        if ((planes & (1u << p)) == 0) continue;
-        const Plane& pl = view.derived.frustum[p];
-        const float d = pl.x * c.x + pl.y * c.y + pl.z * c.z + pl.w;
-        if (d < -cr.w) {
-          outside = true;
-          break;
-        }
-        if (d > cr.w) planes &= ~(1u << p);
-      }
-      if (outside) {
+      if (outside_planes(view, cr, planes)) {
         ++r.culled;
         emit(n);
         continue;

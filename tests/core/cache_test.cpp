@@ -309,18 +309,7 @@ TEST(Cache, EachPageDecodesAloneAsTheWholeLoadsIt) {
         continue;
       }
       ++written_total;
-      ASSERT_EQ(o.center_radius[i], a.center_radius[i]) << i;
-      ASSERT_EQ(o.splat_radius[i], a.splat_radius[i]) << i;
-      ASSERT_EQ(o.normal_cone[i], a.normal_cone[i]) << i;
-      ASSERT_EQ(o.color[i], a.color[i]) << i;
-      ASSERT_EQ(o.priority[i], a.priority[i]) << i;
-      ASSERT_EQ(o.point_count[i], a.point_count[i]) << i;
-      ASSERT_EQ(o.parent[i], a.parent[i]) << i;
-      ASSERT_EQ(o.child_count[i], a.child_count[i]) << i;
-      if (a.child_count[i] != 0) {
-        ASSERT_EQ(o.first_child[i], a.first_child[i]) << i;
-      }
-      ASSERT_EQ(o.depth[i], a.depth[i]) << i;
+      ASSERT_EQ(test::node_difference(a, o.spans(), i), "") << "page " << p << ", node " << i;
     }
   }
   EXPECT_EQ(written_total, n) << "the pages hold every node once";

@@ -156,20 +156,8 @@ TEST(PagedHierarchy, AllPagesResidentIsTheWholeLoadIdForId) {
   EXPECT_EQ(s.resident_nodes, whole->node_count());
   EXPECT_EQ(s.resident_bytes, whole->node_count() * paged->bytes_per_node());
   const HierarchyArrays &a = whole->arrays(), &b = paged->hierarchy().arrays();
-  for (NodeId n = 0; n < whole->node_count(); ++n) {
-    ASSERT_EQ(a.center_radius[n], b.center_radius[n]) << n;
-    ASSERT_EQ(a.splat_radius[n], b.splat_radius[n]) << n;
-    ASSERT_EQ(a.normal_cone[n], b.normal_cone[n]) << n;
-    ASSERT_EQ(a.color[n], b.color[n]) << n;
-    ASSERT_EQ(a.priority[n], b.priority[n]) << n;
-    ASSERT_EQ(a.point_count[n], b.point_count[n]) << n;
-    ASSERT_EQ(a.parent[n], b.parent[n]) << n;
-    ASSERT_EQ(a.child_count[n], b.child_count[n]) << n;
-    if (a.child_count[n] != 0) {
-      ASSERT_EQ(a.first_child[n], b.first_child[n]) << n;
-    }
-    ASSERT_EQ(a.depth[n], b.depth[n]) << n;
-  }
+  for (NodeId n = 0; n < whole->node_count(); ++n)
+    ASSERT_EQ(test::node_difference(a, b, n), "") << n;
 }
 
 // Standing still, the cut a strategy reaches on the paged model, its pages

@@ -130,4 +130,18 @@ SmallDisk::~SmallDisk() {
   if (!path_.empty()) ::umount2(path_.c_str(), MNT_DETACH);
 }
 
+std::string node_difference(const HierarchyArrays& a, const HierarchyArrays& b, NodeId n) {
+  if (a.center_radius[n] != b.center_radius[n]) return "center_radius";
+  if (a.splat_radius[n] != b.splat_radius[n]) return "splat_radius";
+  if (a.normal_cone[n] != b.normal_cone[n]) return "normal_cone";
+  if (a.color[n] != b.color[n]) return "color";
+  if (a.priority[n] != b.priority[n]) return "priority";
+  if (a.point_count[n] != b.point_count[n]) return "point_count";
+  if (a.parent[n] != b.parent[n]) return "parent";
+  if (a.child_count[n] != b.child_count[n]) return "child_count";
+  if (a.child_count[n] != 0 && a.first_child[n] != b.first_child[n]) return "first_child";
+  if (a.depth[n] != b.depth[n]) return "depth";
+  return {};
+}
+
 }  // namespace treecut::test

@@ -5,6 +5,8 @@
 #include <optional>
 #include <string>
 
+#include "treecut/hierarchy.hpp"
+
 namespace treecut::test {
 
 /// ../shared (papers, assets, ply-corpus), or nullopt when it is absent.
@@ -67,6 +69,11 @@ class SmallDisk {
   explicit SmallDisk(std::filesystem::path p) : path_(std::move(p)) {}
   std::filesystem::path path_;
 };
+
+/// The first of node N's values that differs between A and B (its name:
+/// "center_radius", "parent", ...; first_child only where the node has
+/// children), or empty: two loads of one hierarchy, node by node.
+std::string node_difference(const HierarchyArrays& a, const HierarchyArrays& b, NodeId n);
 
 }  // namespace treecut::test
 

@@ -109,6 +109,7 @@ class FeedbackStage::Impl {
   void run();
   [[nodiscard]] State await_request();
   void process();
+  void extract();
   void process_scene(Outbox& out);
   [[nodiscard]] bool extract_scene();
   void iterate_scene_strategy(Outbox& out, SceneTotals& totals);

@@ -28,6 +28,39 @@ namespace treecut {
 
 using detail::ns_between;
 
+// Extract (figure 2), stage thread in Process: take the inputs the render
+// thread handed over (a strategy, a model, parameters, the view) and, for
+// an Evolve strategy after a Rebuild or a failure, the cut to evolve.
+void FeedbackStage::Impl::extract() {
+  bool reset = false;
+  if (inbox_.strategy) {
+    strategy_ = std::move(inbox_.strategy);  // the old one dies on this thread
+    reset = true;
+  }
+  if (inbox_.model) {
+    hierarchy_ = std::move(inbox_.model->hierarchy);
+    paged_ = std::move(inbox_.model->paged);
+    revealed_.clear(), concealed_.clear();
+    cut_ = std::move(inbox_.model->cut);
+    cut_stale_ = false;
+    inbox_.model.reset();
+    reset = true;
+  }
+  if (reset) strategy_->reset(*hierarchy_);
+  for (const auto& [name, value] : inbox_.params) strategy_->set_param(name, value);
+  inbox_.params.clear();
+  std::swap(view_, inbox_.view);
+  if (strategy_->mode() == Strategy::Mode::Evolve && cut_stale_) {
+    // The last iteration rebuilt the cut as a plain list, or failed: the
+    // front list (the render thread only reads it) is the cut to evolve,
+    // unless it belongs to the hierarchy a failed model switch replaced.
+    const ListBuffer& front = buffers_[inbox_.front];
+    cut_ = front.hierarchy == hierarchy_ ? TreeCut::from_nodes(*hierarchy_, front.nodes)
+                                         : TreeCut::root_cut(*hierarchy_);
+    cut_stale_ = false;
+  }
+}
+
 // Feedback Stage side, state == Process: everything in the inbox, the back
 // buffer and the stage-only members is ours; the front list is read-only.
 void FeedbackStage::Impl::process() {
@@ -47,34 +80,7 @@ void FeedbackStage::Impl::process() {
   }
   try {
     const Clock::time_point t0 = out.started;
-    // Extract (figure 2): take the inputs the render thread handed over.
-    bool reset = false;
-    if (inbox_.strategy) {
-      strategy_ = std::move(inbox_.strategy);  // the old one dies on this thread
-      reset = true;
-    }
-    if (inbox_.model) {
-      hierarchy_ = std::move(inbox_.model->hierarchy);
-      paged_ = std::move(inbox_.model->paged);
-      revealed_.clear(), concealed_.clear();
-      cut_ = std::move(inbox_.model->cut);
-      cut_stale_ = false;
-      inbox_.model.reset();
-      reset = true;
-    }
-    if (reset) strategy_->reset(*hierarchy_);
-    for (const auto& [name, value] : inbox_.params) strategy_->set_param(name, value);
-    inbox_.params.clear();
-    std::swap(view_, inbox_.view);
-    if (strategy_->mode() == Strategy::Mode::Evolve && cut_stale_) {
-      // The last iteration rebuilt the cut as a plain list, or failed: the
-      // front list (the render thread only reads it) is the cut to evolve,
-      // unless it belongs to the hierarchy a failed model switch replaced.
-      const ListBuffer& front = buffers_[inbox_.front];
-      cut_ = front.hierarchy == hierarchy_ ? TreeCut::from_nodes(*hierarchy_, front.nodes)
-                                           : TreeCut::root_cut(*hierarchy_);
-      cut_stale_ = false;
-    }
+    extract();
     const Clock::time_point t1 = Clock::now();
 
     ListBuffer& back = buffers_[inbox_.back];
