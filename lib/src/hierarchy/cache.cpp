@@ -283,21 +283,6 @@ std::optional<Hierarchy> decode_cache(const unsigned char* meta, std::uint64_t s
       .with_notes(std::move(m->notes));
 }
 
-// Reads COUNT bytes at AT of the file open as FD into OUT; a file that got
-// shorter meanwhile is a FileChangedError, as for a model.
-void read_exactly(int fd, std::uint64_t at, std::size_t count, unsigned char* out,
-                  const std::filesystem::path& path) {
-  std::size_t done = 0;
-  while (done < count) {
-    const ssize_t got = ::pread(fd, out + done, count - done, static_cast<off_t>(at + done));
-    if (got < 0 && errno == EINTR) continue;
-    if (got < 0) throw std::runtime_error(system_error_text(path, errno));
-    if (got == 0)
-      throw FileChangedError(quoted_name(path) + ": changed while being read (it got shorter)");
-    done += static_cast<std::size_t>(got);
-  }
-}
-
 // A cache file open, its header and meta part read and in place (not yet
 // checksummed).
 struct OpenCache {
@@ -328,8 +313,8 @@ bool open_cache(const std::filesystem::path& path, OpenCache& c, std::string* wh
   } catch (const std::bad_alloc&) {
     return fail(why, "not enough memory to read it (" + std::to_string(h.meta_end >> 20) + " MiB)");
   }
-  read_exactly(c.fd, 0, c.meta.size(), c.meta.data(), path);
-  read_exactly(c.fd, h.payload_end, 8, reinterpret_cast<unsigned char*>(&c.stored), path);
+  detail::read_exactly(c.fd, 0, c.meta.size(), c.meta.data(), path);
+  detail::read_exactly(c.fd, h.payload_end, 8, reinterpret_cast<unsigned char*>(&c.stored), path);
   return true;
 }
 
@@ -345,7 +330,7 @@ std::optional<Hierarchy> read_and_verify(const std::filesystem::path& path, Cach
         c.meta.data(), c.stored,
         [&](const PageRecord& r, std::vector<unsigned char>& buffer) {
           buffer.resize(r.bytes);
-          read_exactly(c.fd, r.offset, r.bytes, buffer.data(), path);
+          detail::read_exactly(c.fd, r.offset, r.bytes, buffer.data(), path);
           return static_cast<const unsigned char*>(buffer.data());
         },
         key, why);
@@ -476,6 +461,19 @@ std::optional<CacheKey> read_cache_key(const std::filesystem::path& cache, std::
   CacheKey key{};
   if (!read_and_verify(cache, &key, why)) return std::nullopt;
   return key;
+}
+
+void detail::read_exactly(int fd, std::uint64_t at, std::size_t count, unsigned char* out,
+                          const std::filesystem::path& path) {
+  std::size_t done = 0;
+  while (done < count) {
+    const ssize_t got = ::pread(fd, out + done, count - done, static_cast<off_t>(at + done));
+    if (got < 0 && errno == EINTR) continue;
+    if (got < 0) throw std::runtime_error(system_error_text(path, errno));
+    if (got == 0)
+      throw FileChangedError(quoted_name(path) + ": changed while being read (it got shorter)");
+    done += static_cast<std::size_t>(got);
+  }
 }
 
 std::uint64_t detail::cache_checksum(const unsigned char* data, std::size_t size) {

@@ -79,6 +79,13 @@ std::array<unsigned char, 8> meta_checksum(std::span<const unsigned char> meta);
 /// not a readable cache of this format version. Never blocks.
 std::optional<CacheKey> peek_cache_key(const std::filesystem::path& cache);
 
+/// Reads COUNT bytes at AT of the file open as FD (named PATH) into OUT.
+/// Throws FileChangedError "PATH: changed while being read (it got
+/// shorter)" when the file no longer has them, std::runtime_error
+/// "PATH: REASON" on a read error.
+void read_exactly(int fd, std::uint64_t at, std::size_t count, unsigned char* out,
+                  const std::filesystem::path& path);
+
 /// What a cache's meta part says of its model, verified, without a page.
 struct CacheOutline {
   cache_pages::PageIndex index;  ///< what decodes any page alone

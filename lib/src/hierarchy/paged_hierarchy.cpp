@@ -14,7 +14,6 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <cerrno>
 #include <chrono>
 #include <condition_variable>
 #include <cstring>
@@ -179,18 +178,10 @@ struct PagedHierarchy::Impl {
 
   [[nodiscard]] const cache_pages::PageIndex& index() const { return outline->index; }
 
-  // Reads page P's bytes at their place in the file.
+  // Reads page R's bytes at their place in the file.
   const unsigned char* read(const PageRecord& r, std::vector<unsigned char>& buffer) {
     buffer.resize(r.bytes);
-    std::size_t done = 0;
-    while (done < r.bytes) {
-      const ssize_t got =
-          ::pread(fd, buffer.data() + done, r.bytes - done, static_cast<off_t>(r.offset + done));
-      if (got < 0 && errno == EINTR) continue;
-      if (got < 0) throw std::runtime_error(std::strerror(errno));
-      if (got == 0) throw FileChangedError("changed while being read (it got shorter)");
-      done += static_cast<std::size_t>(got);
-    }
+    detail::read_exactly(fd, r.offset, r.bytes, buffer.data(), path);
     return buffer.data();
   }
 
@@ -204,8 +195,9 @@ struct PagedHierarchy::Impl {
           index(), p,
           [this](const PageRecord& r, std::vector<unsigned char>& b) { return read(r, b); },
           arrays->sink(), raw);
-    } catch (const std::exception& e) {
-      problem = e.what();
+    } catch (const std::exception& e) {  // "CACHE: reason": the line names CACHE once
+      const std::string text = e.what(), prefix = quoted_name(path) + ": ";
+      problem = text.rfind(prefix, 0) == 0 ? text.substr(prefix.size()) : text;
     }
     if (!problem.empty()) return problem;
     for (const cache_pages::PageIndex::Child& c : index().child_pages(p))
