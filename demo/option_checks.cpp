@@ -106,21 +106,43 @@ void add_crs_option(CLI::App& cmd, std::string& crs) {
           "CRS"));
 }
 
-void add_memory_option(CLI::App& cmd, std::uint64_t& bytes, bool draws) {
-  cmd.add_option_function<std::string>(
-         "--memory",
-         [&bytes](const std::string& text) {
-           const std::optional<std::uint64_t> v = parse_byte_size(text);
-           if (!v || *v == 0)
-             throw CLI::ValidationError("--memory",
-                                        "'" + text + "' is not a size (bytes, or K, M, G, T)");
-           bytes = *v;
-         },
-         std::string("The memory a build may use (bytes, or K, M, G, T; default: a quarter of "
-                     "the machine's): a model that would need more is built in chunks into its "
-                     "cache") +
-             (draws ? "; a cache (.tch) given with it is drawn from its pages within it" : ""))
+namespace {
+
+// A size option (bytes, or K, M, G, T), above zero.
+CLI::Option* add_size_option(CLI::App& cmd, const std::string& name, std::uint64_t& bytes,
+                             const std::string& help) {
+  return cmd
+      .add_option_function<std::string>(
+          name,
+          [&bytes, name](const std::string& text) {
+            const std::optional<std::uint64_t> v = parse_byte_size(text);
+            if (!v || *v == 0)
+              throw CLI::ValidationError(name,
+                                         "'" + text + "' is not a size (bytes, or K, M, G, T)");
+            bytes = *v;
+          },
+          help)
       ->type_name("SIZE");
+}
+
+}  // namespace
+
+void add_memory_option(CLI::App& cmd, std::uint64_t& bytes, bool draws) {
+  add_size_option(
+      cmd, "--memory", bytes,
+      std::string("The memory a build may use (bytes, or K, M, G, T; default: a quarter of "
+                  "the machine's): a model that would need more is built in chunks into its "
+                  "cache") +
+          (draws ? "; a cache (.tch) given with it is drawn from its pages within it" : ""));
+}
+
+void add_gpu_memory_options(CLI::App& cmd, std::uint64_t& gpu, std::uint64_t& upload) {
+  add_size_option(cmd, "--gpu-memory", gpu,
+                  "A cache drawn from its pages (--memory): the GPU memory of its nodes (32 "
+                  "bytes a node; default: room for every node --memory holds)");
+  add_size_option(cmd, "--gpu-upload", upload,
+                  "A cache drawn from its pages: the bytes copied to the GPU in a frame at most "
+                  "(default 8M)");
 }
 
 }  // namespace treecut::cli

@@ -34,5 +34,8 @@ void add_crs_option(CLI::App& cmd, std::string& crs);
 /// DRAWS (view, render), also what a cache given with it is drawn from its
 /// pages within (PagingOptions::memory_bytes).
 void add_memory_option(CLI::App& cmd, std::uint64_t& bytes, bool draws = false);
+/// `--gpu-memory 1G --gpu-upload 8M`: a paged model's GPU pool and the
+/// bytes it copies up a frame (splat::GpuPoolOptions).
+void add_gpu_memory_options(CLI::App& cmd, std::uint64_t& gpu, std::uint64_t& upload);
 
 }  // namespace treecut::cli

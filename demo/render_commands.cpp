@@ -3,6 +3,7 @@
 // plot.svg, the output folder guard) is in render_reports.cpp.
 #include <sys/resource.h>
 #include <time.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
@@ -74,13 +75,13 @@ void check_render_inputs(const RenderArgs& a, const StrategyRegistry& registry) 
 
 // A model drawn from its pages (a .tch with --memory): what does not work
 // on one yet is refused before any output.
-void check_paged(const RenderArgs& a, const StrategyRegistry& registry) {
+void check_paged(const RenderArgs& a, const StrategyRegistry& registry, const Scene& scene) {
   const std::string model = a.scene.model;
   for (const std::string& name : a.scene.strategies)
-    if (make_strategy(registry, name, {})->asks_queries())
-      throw InputError(model + ": " + name +
-                       " asks GPU queries of every node's sphere, which a model drawn from its "
-                       "pages (--memory) does not hold yet; without --memory it opens whole");
+    if (const std::string why =
+            paged_strategy_problem(scene, *make_strategy(registry, name, {}), name);
+        !why.empty())
+      throw InputError(model + ": " + why);
   if (a.psnr || a.stability > 0)
     throw InputError(model +
                      ": --psnr and --stability compare with the model at full detail, which a "
@@ -90,15 +91,21 @@ void check_paged(const RenderArgs& a, const StrategyRegistry& registry) {
 // A model drawn from its pages: its pages' line.
 void describe_pages(const RenderArgs& a, const PagedHierarchy& paged) {
   const PagingStats s = paged.stats();
-  std::printf("pages     %llu in the file, drawn within %.1f MiB (%llu bytes a node)\n",
-              static_cast<unsigned long long>(s.pages), double(a.scene.memory) / (1 << 20),
-              static_cast<unsigned long long>(paged.bytes_per_node()));
+  const double gpu = double(splat::GpuNodePool::budget(paged, gpu_pool_options(a.scene)));
+  std::printf(
+      "pages     %llu in the file, drawn within %.1f MiB of memory (%llu bytes a node) and %.1f "
+      "MiB of GPU memory (%llu), %.1f MiB copied up a frame at most; the finest detail at one "
+      "place needs %.1f MiB of memory\n",
+      static_cast<unsigned long long>(s.pages), double(paged.memory_budget()) / (1 << 20),
+      static_cast<unsigned long long>(paged.bytes_per_node()), gpu / (1 << 20),
+      static_cast<unsigned long long>(splat::GpuNodePool::kVertexBytes),
+      double(a.scene.gpu_upload) / (1 << 20), double(paged.full_detail_memory()) / (1 << 20));
 }
 
 // The scene or model line; a scene past a strategy's per-object limit is
 // refused first, before any output, naming the file.
 void describe_scene(const RenderArgs& a, const StrategyRegistry& registry, const Scene& scene) {
-  if (scene.paged) check_paged(a, registry);
+  if (scene.paged) check_paged(a, registry, scene);
   if (const std::shared_ptr<const StageScene>& world = scene.world) {
     for (const std::string& name : a.scene.strategies) {
       if (const std::string why =
@@ -193,6 +200,29 @@ std::size_t cut_size(const splat::RenderThreadFrame& frame_loop, bool scene) {
   return scene ? frame_loop.scene_cut().size() : frame_loop.cut().size();
 }
 
+// The process's resident memory now (/proc/self/statm's second field, in
+// pages); 0 where it cannot be read.
+std::uint64_t resident_set_bytes() {
+  std::FILE* f = std::fopen("/proc/self/statm", "r");
+  if (f == nullptr) return 0;
+  unsigned long long size = 0, resident = 0;
+  const int read = std::fscanf(f, "%llu %llu", &size, &resident);
+  std::fclose(f);
+  return read == 2 ? resident * static_cast<std::uint64_t>(::sysconf(_SC_PAGESIZE)) : 0;
+}
+
+// A paged model's GPU pool and the process's memory in this frame's row
+// (the budgets hold in every frame: tests read these columns).
+void add_pool_counters(const splat::GpuNodePool& pool, Counters& c) {
+  const splat::GpuPoolStats g = pool.stats();
+  c.set("gpu_resident_mib", double(g.resident_bytes) / double(1 << 20), "MiB");
+  c.set("gpu_pages", double(g.resident_pages), "pages");
+  c.set("gpu_uploaded_kib", double(g.uploaded_bytes) / 1024.0, "KiB");
+  c.set("gpu_stand_ins", double(g.stand_ins), "nodes");
+  c.set("gpu_waiting_pages", double(g.waiting_pages), "pages");
+  c.set("rss_mib", double(resident_set_bytes()) / double(1 << 20), "MiB");
+}
+
 // The row of frame f (time t, drawn in `ms`): the stage's counters and this
 // frame's queries (the difference of the executor's totals).
 FrameRow frame_row(int f, double t, double ms, const StageCounters& counters,
@@ -224,6 +254,8 @@ FrameRow frame_row(int f, double t, double ms, const StageCounters& counters,
   // The named counters of the last completed iteration (with --sync, the
   // one after this frame), whatever the strategy publishes.
   row.counters = counters.last.counters;
+  if (const splat::GpuNodePool* pool = frame_loop.gpu_pool())
+    add_pool_counters(*pool, row.counters);
   return row;
 }
 
@@ -392,7 +424,7 @@ RunSummary run_strategy(const RenderRig& rig, const StrategyRegistry& registry,
   Controller& controller = *controller_storage;
   splat::QueryExecutor queries;
   splat::RenderThreadFrame frame_loop(controller, rig.renderer, &queries);
-  frame_loop.follow_pages(rig.scene.paged.get());
+  frame_loop.follow_pages(rig.scene.paged.get(), gpu_pool_options(a.scene));
   LastFrame last;
   auto frame = [&](const splat::Camera& c) {
     last.before = queries.stats();
@@ -407,8 +439,13 @@ RunSummary run_strategy(const RenderRig& rig, const StrategyRegistry& registry,
         controller.set_param(governor->param(), *v);
       }
     }
-    // Synchronous mode: the stage's iteration runs here, outside the frame time.
-    if (a.sync) controller.stage().step();
+    // Synchronous mode: the stage's iteration runs here, outside the frame
+    // time, and the pages it asked for are read before the next frame (a
+    // run that replays the same, whatever the machine's load).
+    if (a.sync) {
+      controller.stage().step();
+      if (rig.scene.paged) (void)rig.scene.paged->wait_idle(60000);
+    }
     return ms;
   };
 
@@ -469,7 +506,7 @@ void run_render(const RenderArgs& a) {
   std::printf("renderer  %s, %dx%d, %s splats%s\n", renderer_line(*context).c_str(), a.width,
               a.height, std::string(splat::splat_mode_name(settings.mode)).c_str(),
               settings.eye_dome > 0.0f ? ", eye-dome lighting" : "");
-  splat::Renderer renderer(*scene.hierarchy, {a.width, a.height});
+  splat::Renderer renderer(*scene.hierarchy, {a.width, a.height}, pool_vertices(scene, a.scene));
   if (!color_note.empty()) std::printf("colour    %s\n", color_note.c_str());
   if (const splat::Legend legend = apply_coloring(scene, colors, renderer); legend.title != "rgb") {
     std::printf("colour    %s\n", legend_line(legend).c_str());
@@ -531,8 +568,10 @@ void add_render_commands(CLI::App& app) {
   render->add_option("--warmup", ra->warmup, "Frames rendered at the first camera before recording")
       ->check(whole_number(0, 100000))
       ->capture_default_str();
-  render->add_flag("--sync", ra->sync,
-                   "Run the Feedback Stage synchronously, one iteration per frame (deterministic)");
+  render->add_flag(
+      "--sync", ra->sync,
+      "Run the Feedback Stage synchronously, one iteration per frame (deterministic: a "
+      "paged model's pages it asks for are read before the next frame)");
   render->add_flag("--psnr", ra->psnr, "Also render full detail per frame and record the PSNR");
   render
       ->add_option("--stability", ra->stability,

@@ -46,7 +46,8 @@ Viewer::Viewer(const ViewArgs& args)
   strategy_names_ = registry_.names();
   strategy_ = args.scene.strategies.empty() ? "optimization" : args.scene.strategies.front();
   check_params(registry_, {strategy_}, args.scene.params);
-  renderer_ = std::make_unique<splat::Renderer>(*scene_.hierarchy, window_.framebuffer_size());
+  renderer_ = std::make_unique<splat::Renderer>(*scene_.hierarchy, window_.framebuffer_size(),
+                                                pool_vertices(scene_, args.scene));
   std::string color_note;
   color_auto_ = args.scene.color == "auto";
   color_by_ = resolve_color(scene_, args.scene, &color_note);
@@ -57,6 +58,8 @@ Viewer::Viewer(const ViewArgs& args)
   recolor(true);
   open_view();
   auto strategy = make_strategy(registry_, strategy_, args.scene.params);
+  if (const std::string why = paged_strategy_problem(scene_, *strategy, strategy_); !why.empty())
+    throw InputError(args.scene.model + ": " + why);
   read_params(*strategy);
   if (scene_.world) {
     if (const std::string why = per_object_limit_problem(*scene_.world, *strategy); !why.empty()) {
@@ -84,7 +87,7 @@ Viewer::Viewer(const ViewArgs& args)
   queries_ = std::make_unique<splat::QueryExecutor>();
   frame_loop_ =
       std::make_unique<splat::RenderThreadFrame>(*controller_, *renderer_, queries_.get());
-  frame_loop_->follow_pages(scene_.paged.get());
+  frame_loop_->follow_pages(scene_.paged.get(), gpu_pool_options(args_.scene));
 
   glfwSetWindowUserPointer(window_.handle(), &input_);
   // Before ImGui, which chains them.
@@ -202,6 +205,10 @@ void Viewer::set_param_value(const std::string& name, double v) {
 
 void Viewer::switch_strategy(const std::string& name) {
   auto s = make_strategy(registry_, name, {});
+  if (const std::string why = paged_strategy_problem(scene_, *s, name); !why.empty()) {
+    say(why);  // the strategy drawing stays
+    return;
+  }
   read_params(*s);
   strategy_ = name;
   if (scene_.world) {
@@ -231,6 +238,14 @@ void Viewer::poll_loader() {
     done->error = done->file + ": no points to show";
     done->input_error = true;
     done->scene.reset();
+  } else if (done->scene) {
+    if (const std::string why = paged_strategy_problem(
+            *done->scene, *make_strategy(registry_, strategy_, {}), strategy_);
+        !why.empty()) {
+      done->error = done->file + ": " + why;
+      done->input_error = true;
+      done->scene.reset();
+    }
   }
   if (!done->scene) {
     // The old model stays. One line, on the HUD and on stderr; in a script the
@@ -270,7 +285,7 @@ void Viewer::poll_loader() {
   // until the exchange (RenderThreadFrame uploads the new vertices then).
   controller_->stage().set_model(Model{h, opening_cut(*h), done->scene->paged});
   // (Its pages go up once its lists are drawn: RenderThreadFrame checks.)
-  frame_loop_->follow_pages(done->scene->paged.get());
+  frame_loop_->follow_pages(done->scene->paged.get(), gpu_pool_options(args_.scene));
   incoming_ = std::move(done->scene);
 }
 
@@ -334,7 +349,7 @@ void Viewer::replace_stage(Scene loaded) {
   queries_ = std::make_unique<splat::QueryExecutor>();
   frame_loop_ =
       std::make_unique<splat::RenderThreadFrame>(*controller_, *renderer_, queries_.get());
-  frame_loop_->follow_pages(scene_.paged.get());
+  frame_loop_->follow_pages(scene_.paged.get(), gpu_pool_options(args_.scene));
   read_params(*make_strategy(registry_, strategy_, {}));
   glfwSetWindowTitle(window_.handle(), ("treecut - " + scene_.label).c_str());
   say("opened " + scene_.label);

@@ -17,6 +17,7 @@
 #include "treecut/registry.hpp"
 #include "treecut/splat/camera.hpp"
 #include "treecut/splat/coloring.hpp"
+#include "treecut/splat/node_pool.hpp"
 #include "treecut/splat/renderer.hpp"
 #include "treecut/tree_cut.hpp"
 #include "treecut/up_axis.hpp"
@@ -54,9 +55,12 @@ struct SceneArgs {
   std::vector<std::string> columns;  ///< --columns: a text cloud's columns
   std::string crs;                   ///< --crs: the coordinate system to draw in
   std::uint64_t memory = 0;          ///< --memory: the bytes a build may use
-  std::string edl = "auto";          ///< --edl auto | on | off: eye-dome lighting
-  float edl_strength = 0.25f;        ///< --edl-strength
-  std::vector<double> clip;          ///< --clip X0 Y0 Z0 X1 Y1 Z1 (file coordinates)
+  std::uint64_t gpu_memory = 0;      ///< --gpu-memory: a paged model's pool (0: its default)
+  std::uint64_t gpu_upload = std::uint64_t{8} << 20;  ///< --gpu-upload: bytes a frame
+  double stall_timeout_s = 15.0;  ///< --stall-timeout: a URL's read receiving nothing fails
+  std::string edl = "auto";       ///< --edl auto | on | off: eye-dome lighting
+  float edl_strength = 0.25f;     ///< --edl-strength
+  std::vector<double> clip;       ///< --clip X0 Y0 Z0 X1 Y1 Z1 (file coordinates)
 };
 
 void add_scene_options(CLI::App& cmd, SceneArgs& args);
@@ -65,6 +69,7 @@ struct Scene {
   std::shared_ptr<const Hierarchy> hierarchy;
   std::string label;  ///< file name or "generated terrain (200000 points)"
   glm::vec3 center{0.0f};
+
   float radius = 1.0f;
   glm::vec3 up{0.0f, 1.0f, 0.0f};  ///< the model's up axis (orbits turn about it)
   UpAxis up_axis;                  ///< the same, named; reason set when --up auto chose it
@@ -85,6 +90,15 @@ struct Scene {
   /// `hierarchy` is then its hierarchy(). Null for a model held whole.
   std::shared_ptr<PagedHierarchy> paged;
 };
+
+/// Why strategy NAME cannot draw SCENE (a paged model: one that asks GPU
+/// queries of every node's sphere); empty when it can.
+std::string paged_strategy_problem(const Scene& scene, const Strategy& strategy,
+                                   const std::string& name);
+/// A paged model's GPU pool as --gpu-memory and --gpu-upload say.
+splat::GpuPoolOptions gpu_pool_options(const SceneArgs& args);
+/// The vertices of the renderer's pool for SCENE (0: a model held whole).
+std::uint32_t pool_vertices(const Scene& scene, const SceneArgs& args);
 
 /// Opens the model (through its cache) or generates the default one, or
 /// loads a scene file (treecut::load_scene: the camera fits Scene::bounds,

@@ -119,6 +119,12 @@ void add_scene_options(CLI::App& cmd, SceneArgs& args) {
   add_columns_option(cmd, args.columns);
   add_crs_option(cmd, args.crs);
   add_memory_option(cmd, args.memory, true);
+  add_gpu_memory_options(cmd, args.gpu_memory, args.gpu_upload);
+  cmd.add_option("--stall-timeout", args.stall_timeout_s,
+                 "A cache by URL (http:// or https://, read by range requests): seconds a read "
+                 "may receive nothing before it fails (its page is named, the rest drawn)")
+      ->check(CLI::Range(0.1, 3600.0))
+      ->capture_default_str();
   cmd.add_option("--stage-wait-bound", args.stage_wait_bound_ms,
                  "Milliseconds an update may wait for the low-priority Feedback Stage before it "
                  "runs at normal priority until done (0 = never; docs/threading.md)")
@@ -197,7 +203,36 @@ void set_view_box(Scene& s, float splat) {
 
 }  // namespace
 
+std::string paged_strategy_problem(const Scene& scene, const Strategy& strategy,
+                                   const std::string& name) {
+  if (!scene.paged || !strategy.asks_queries()) return {};
+  return name +
+         " asks GPU queries of every node's sphere, which a model drawn from its pages "
+         "(--memory) does not hold yet; without --memory it opens whole";
+}
+
+splat::GpuPoolOptions gpu_pool_options(const SceneArgs& args) {
+  splat::GpuPoolOptions o;
+  o.memory_bytes = args.gpu_memory;
+  o.upload_bytes = args.gpu_upload;
+  return o;
+}
+
+std::uint32_t pool_vertices(const Scene& scene, const SceneArgs& args) {
+  if (!scene.paged) return 0;
+  try {
+    return splat::GpuNodePool::vertices(*scene.paged, gpu_pool_options(args));
+  } catch (const InputError& e) {
+    throw InputError(args.model + ": " + e.what());
+  }
+}
+
 Scene load_scene(const SceneArgs& args, const LoadProgressFn& progress) {
+  if (args.gpu_memory != 0 && !is_cache_url(args.model) &&
+      !(args.memory != 0 && looks_like_cache(args.model)))
+    throw InputError(
+        "--gpu-memory: only a cache drawn from its pages (a .tch with --memory) is "
+        "drawn within a GPU budget; a model held whole is on the GPU whole");
   Scene s;
   if (!args.model.empty() && looks_like_scene(args.model)) {
     SceneLoadOptions so;
@@ -243,13 +278,16 @@ Scene load_scene(const SceneArgs& args, const LoadProgressFn& progress) {
         build_from_points(tools::generate_model(kind, args.default_points, 1)));
     s.label =
         "generated " + args.default_kind + " (" + std::to_string(args.default_points) + " points)";
-  } else if (args.memory != 0 && looks_like_cache(args.model)) {
-    // A cache with a memory budget: drawn from its pages (issue 45).
+  } else if (is_cache_url(args.model) || (args.memory != 0 && looks_like_cache(args.model))) {
+    // A cache with a memory budget, or by URL: drawn from its pages (issue
+    // 45), within --memory (a URL without it: a build's default budget).
     PagingOptions paging;
-    paging.memory_bytes = args.memory;
+    paging.memory_bytes = args.memory != 0 ? args.memory : default_build_budget();
+    paging.stall_ms = static_cast<int>(args.stall_timeout_s * 1000.0);
     s.paged = PagedHierarchy::open(args.model, paging);
     s.hierarchy = std::shared_ptr<const Hierarchy>(s.paged, &s.paged->hierarchy());
     s.label = std::filesystem::path(args.model).filename().string() + " (paged)";
+    (void)pool_vertices(s, args);  // a GPU budget too small: refused now, in one line
   } else {
     OpenOptions o;
     o.attributes.k = args.k;

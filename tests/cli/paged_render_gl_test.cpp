@@ -3,6 +3,7 @@
 // not work on a paged model yet refused before any output, in one line.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -20,11 +21,11 @@ using treecut::test::run_treecut;
 
 namespace {
 
-// A terrain of 100,000 points as a cache (some twenty pages).
-fs::path terrain_cache(const fs::path& dir) {
+// A terrain of POINTS points as a cache (100,000: some twenty pages).
+fs::path terrain_cache(const fs::path& dir, std::size_t points = 100000) {
   const fs::path cache = dir / "terrain.tch";
   treecut::save_cache(treecut::build_from_points(treecut::tools::generate_model(
-                          treecut::tools::ModelKind::Terrain, 100000, 1)),
+                          treecut::tools::ModelKind::Terrain, points, 1)),
                       {1, 2, 3}, cache);
   return cache;
 }
@@ -45,6 +46,19 @@ std::vector<std::vector<std::string>> read_csv(const fs::path& file) {
 }
 
 const std::string kRun = "--width 160 --height 96 --warmup 3 --sync --no-png ";
+
+// Column NAME of stats.csv's rows (the header first), as numbers.
+std::vector<double> column(const std::vector<std::vector<std::string>>& rows,
+                           const std::string& name) {
+  std::vector<double> values;
+  if (rows.empty()) return values;
+  const auto at = std::find(rows.front().begin(), rows.front().end(), name);
+  if (at == rows.front().end()) return values;
+  const auto i = static_cast<std::size_t>(at - rows.front().begin());
+  for (std::size_t r = 1; r < rows.size(); ++r)
+    if (i < rows[r].size() && !rows[r][i].empty()) values.push_back(std::stod(rows[r][i]));
+  return values;
+}
 
 }  // namespace
 
@@ -92,6 +106,49 @@ TEST(PagedRender, WhatAPagedModelCannotDoYetIsRefusedInOneLine) {
       run_treecut("render " + quote(cache) + " --memory 2M --frames 2 --psnr " + kRun + "-o " +
                   quote(dir / "c")),
       2, "full detail");
-  EXPECT_FALSE(fs::exists(dir / "a"));
-  EXPECT_FALSE(fs::exists(dir / "b"));
+  treecut::test::expect_failure(
+      run_treecut("render " + quote(cache) + " --memory 2M --gpu-memory 20K --frames 2 " + kRun +
+                  "-o " + quote(dir / "d")),
+      2, "--gpu-memory: 0.0 MiB is below");
+  treecut::test::expect_failure(
+      run_treecut("render " + quote(cache) + " --memory 100K --frames 2 " + kRun + "-o " +
+                  quote(dir / "e")),
+      2, "its first page and its largest group of pages");
+  treecut::test::expect_failure(
+      run_treecut("render " + quote(cache) + " --gpu-memory 8M --frames 2 " + kRun + "-o " +
+                  quote(dir / "f")),
+      2, "only a cache drawn from its pages");
+  for (const char* out : {"a", "b", "c", "d", "e", "f"}) EXPECT_FALSE(fs::exists(dir / out)) << out;
+}
+
+// The CI case: 2 M points drawn within 32 MiB of node memory and
+// 8 MiB of GPU memory, the budgets kept in every frame (stats.csv), pages
+// read and copied up as the orbit goes.
+TEST(PagedRender, TwoMillionPointsWithin32MiBAnd8MiBOfGpuMemory) {
+  const fs::path dir = treecut::test::scratch_dir("paged_render_2m");
+  const fs::path cache = terrain_cache(dir, 2000000);
+  const treecut::test::CommandResult r =
+      run_treecut("render " + quote(cache) + " --memory 32M --gpu-memory 8M --gpu-upload 1M " +
+                  "--frames 60 -s recursive " + kRun + "-o " + quote(dir / "out"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  const auto rows = read_csv(dir / "out" / "stats.csv");
+  const std::vector<double> ram = column(rows, "pages_resident_mib"),
+                            gpu = column(rows, "gpu_resident_mib"),
+                            up = column(rows, "gpu_uploaded_kib"),
+                            loaded = column(rows, "pages_loaded"),
+                            cut = column(rows, "splats_drawn");
+  ASSERT_EQ(ram.size(), 60u) << r.out;
+  ASSERT_EQ(gpu.size(), 60u) << r.out;
+  ASSERT_EQ(up.size(), 60u);
+  ASSERT_EQ(loaded.size(), 60u);
+  ASSERT_EQ(cut.size(), 60u);
+  for (std::size_t f = 0; f < 60; ++f) {
+    EXPECT_LE(ram[f], 32.0) << "frame " << f;
+    EXPECT_LE(gpu[f], 8.0) << "frame " << f;
+    // A page past the frame's 1 MiB only when it is the frame's first.
+    EXPECT_LE(up[f], 1024.0 + 8192 * 32 / 1024.0) << "frame " << f;
+  }
+  EXPECT_GT(loaded.back(), 10.0) << "hardly any page read";
+  EXPECT_GT(*std::max_element(gpu.begin(), gpu.end()), 1.0) << "hardly any page copied up";
+  EXPECT_GT(cut.back(), cut.front()) << "the cut never refined";
 }

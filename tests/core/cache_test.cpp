@@ -266,7 +266,7 @@ TEST(Cache, EachPageDecodesAloneAsTheWholeLoadsIt) {
   const std::optional<Hierarchy> whole = load_cache(dir / "a.tch", std::nullopt, &why);
   ASSERT_TRUE(whole) << why;
   const std::optional<detail::CacheOutline> outline =
-      detail::read_cache_outline(dir / "a.tch", &why);
+      detail::read_cache_outline(detail::FileSource(dir / "a.tch"), &why);
   ASSERT_TRUE(outline) << why;
   const cache_pages::PageIndex* index = &outline->index;
   ASSERT_GT(index->pages(), 2u);

@@ -35,29 +35,7 @@ fs::path terrain_cache(const std::string& name) {
   return dir / "t.tch";
 }
 
-// The nodes reachable from the root as the hierarchy shows them now.
-std::vector<NodeId> reachable(const Hierarchy& h) {
-  std::vector<NodeId> order{h.root()};
-  for (std::size_t i = 0; i < order.size(); ++i)
-    for (NodeId c = h.first_child(order[i]); c < h.first_child(order[i]) + h.child_count(order[i]);
-         ++c)
-      order.push_back(c);
-  return order;
-}
-
-// Every page that reads: what is hidden asked for, read and published,
-// until nothing more arrives.
-void load_everything(PagedHierarchy& paged) {
-  for (int round = 0; round < 100; ++round) {
-    std::vector<NodeId> hidden;
-    for (const NodeId n : reachable(paged.hierarchy()))
-      if (paged.hidden(n)) hidden.push_back(n);
-    paged.request(hidden);
-    ASSERT_TRUE(paged.wait_idle(kWaitMs));
-    if (paged.publish() == 0) return;
-  }
-  FAIL() << "pages still arriving after 100 rounds";
-}
+using test::reachable;
 
 // A camera above point (X, Y) of the terrain (in [-1, 1]^2, heights within
 // +-0.4), looking down and ahead: it sees a patch of a few tenths.
@@ -150,7 +128,7 @@ TEST(PagedHierarchy, AllPagesResidentIsTheWholeLoadIdForId) {
   const std::optional<Hierarchy> whole = load_cache(cache, std::nullopt, &why);
   ASSERT_TRUE(whole) << why;
   const auto paged = PagedHierarchy::open(cache);
-  load_everything(*paged);
+  test::load_every_page(*paged);
   const PagingStats s = paged->stats();
   EXPECT_EQ(s.resident_pages, s.pages);
   EXPECT_EQ(s.resident_nodes, whole->node_count());
@@ -248,7 +226,7 @@ TEST(PagedHierarchy, ACorruptedPageIsNamedAndTheRestIsDrawn) {
     f.seekp(size - 9), f.write(&byte, 1);
   }
   const auto paged = PagedHierarchy::open(cache);
-  load_everything(*paged);
+  test::load_every_page(*paged);
   const std::vector<std::string> problems = paged->take_problems();
   ASSERT_EQ(problems.size(), 1u);
   const PagingStats s = paged->stats();
@@ -269,7 +247,7 @@ TEST(PagedHierarchy, AFileThatShrinksIsNamedNotACrash) {
   const fs::path cache = terrain_cache("paged_shrink");
   const auto paged = PagedHierarchy::open(cache);
   fs::resize_file(cache, fs::file_size(cache) / 2);
-  load_everything(*paged);
+  test::load_every_page(*paged);
   const std::vector<std::string> problems = paged->take_problems();
   ASSERT_FALSE(problems.empty());
   for (const std::string& p : problems) EXPECT_NE(p.find("got shorter"), std::string::npos) << p;
@@ -325,11 +303,11 @@ TEST(PagedHierarchy, TheFeedbackStageDrawsAPagedModelToTheWholeModelsCut) {
 TEST(PagedHierarchy, APageOneListReachesIntoIsNotGivenBack) {
   const fs::path cache = terrain_cache("paged_two_lists");
   const auto probe = PagedHierarchy::open(cache);
-  load_everything(*probe);
+  test::load_every_page(*probe);
   PagingOptions options;
   options.memory_bytes = probe->stats().resident_bytes - 1;  // not all of it fits
   const auto paged = PagedHierarchy::open(cache, options);
-  load_everything(*paged);
+  test::load_every_page(*paged);
   const Hierarchy& h = paged->hierarchy();
   const std::uint64_t resident = paged->stats().resident_pages;
   ASSERT_GT(resident, 2u);

@@ -144,4 +144,25 @@ std::string node_difference(const HierarchyArrays& a, const HierarchyArrays& b, 
   return {};
 }
 
+std::vector<NodeId> reachable(const Hierarchy& h) {
+  std::vector<NodeId> order{h.root()};
+  for (std::size_t i = 0; i < order.size(); ++i)
+    for (NodeId c = h.first_child(order[i]); c < h.first_child(order[i]) + h.child_count(order[i]);
+         ++c)
+      order.push_back(c);
+  return order;
+}
+
+void load_every_page(PagedHierarchy& paged) {
+  for (int round = 0; round < 100; ++round) {
+    std::vector<NodeId> hidden;
+    for (const NodeId n : reachable(paged.hierarchy()))
+      if (paged.hidden(n)) hidden.push_back(n);
+    paged.request(hidden);
+    ASSERT_TRUE(paged.wait_idle(20000));
+    if (paged.publish() == 0) return;
+  }
+  FAIL() << "pages still arriving after 100 rounds";
+}
+
 }  // namespace treecut::test

@@ -4,8 +4,10 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "treecut/hierarchy.hpp"
+#include "treecut/paged_hierarchy.hpp"
 
 namespace treecut::test {
 
@@ -74,6 +76,12 @@ class SmallDisk {
 /// "center_radius", "parent", ...; first_child only where the node has
 /// children), or empty: two loads of one hierarchy, node by node.
 std::string node_difference(const HierarchyArrays& a, const HierarchyArrays& b, NodeId n);
+
+/// The nodes reachable from H's root as it shows them now, breadth first.
+std::vector<NodeId> reachable(const Hierarchy& h);
+/// Every page of PAGED that reads: the hidden nodes asked for, read and
+/// published, until nothing more arrives (a gtest failure otherwise).
+void load_every_page(PagedHierarchy& paged);
 
 }  // namespace treecut::test
 

@@ -21,7 +21,8 @@
 // write only the nodes of pages nobody can reach yet (their parent has no
 // children until publish()), and give them back only after evict() hid
 // them. Whoever reads a node outside that thread (a renderer drawing a
-// list) must hold it in a list evict() was told of (IN_CUT).
+// list, or copying a list's pages to the GPU) must hold it, or a node below
+// it, in a list evict() was told of: its page is resident while it does.
 #pragma once
 
 #include <cstdint>
@@ -30,6 +31,7 @@
 #include <memory>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "treecut/hierarchy.hpp"
@@ -49,6 +51,9 @@ struct PagingOptions {
   std::uint64_t memory_bytes = 0;
   /// Threads reading pages (each reads a group of sibling pages at a time).
   unsigned io_threads = 1;
+  /// A cache by URL: a read that receives nothing for this long fails
+  /// (the page's line says so; its parent stays a leaf).
+  int stall_ms = 15000;
 };
 
 /// What the pages are doing; counts of pages unless said otherwise.
@@ -62,11 +67,17 @@ struct PagingStats {
   std::uint64_t bytes_read = 0;                       ///< of the file, since opening
 };
 
+/// Whether WHERE is a URL PagedHierarchy::open reads (http:// or https://).
+bool is_cache_url(std::string_view where);
+
 class PagedHierarchy {
  public:
-  /// Opens CACHE: its meta part read and verified, its first page read.
+  /// Opens CACHE, a file or an http:// or https:// URL (read by HTTP range
+  /// requests: item 2 of issue 45): its meta part read and verified, its
+  /// first page read.
   /// Throws InputError "CACHE: REASON" when it is no cache of this format,
-  /// its meta part or its first page do not check out.
+  /// its meta part or its first page do not check out, or the budget is
+  /// below least_memory() (a group that could never be read).
   static std::unique_ptr<PagedHierarchy> open(const std::filesystem::path& cache,
                                               const PagingOptions& options = {});
   ~PagedHierarchy();
@@ -116,10 +127,22 @@ class PagedHierarchy {
   /// TIMEOUT_MS.
   bool wait_idle(int timeout_ms);
 
-  /// Render thread: the nodes of the pages published since the last call
-  /// and still resident, given to UPLOAD (a renderer copying them to its
-  /// vertex buffer) while no page can be given back, once each.
-  void upload_published(const std::function<void(std::span<const NodeRange>)>& upload);
+  /// Pages in the file; node ids live in exactly one each.
+  [[nodiscard]] std::uint32_t pages() const;
+  /// The page holding node N (any node of the file, resident or not):
+  /// a binary search of the pages' runs. Any thread.
+  [[nodiscard]] std::uint32_t page_of(NodeId n) const;
+  /// Page P's nodes as runs of ids (replaces OUT's content). Any thread.
+  void page_ranges(std::uint32_t p, std::vector<NodeRange>& out) const;
+  [[nodiscard]] std::uint32_t page_nodes(std::uint32_t p) const;
+  /// PagingOptions::memory_bytes, as opened.
+  [[nodiscard]] std::uint64_t memory_budget() const;
+  /// Bytes of the budget that page 0 and the largest group of sibling
+  /// pages take together (what open() refuses a budget below), and that
+  /// the heaviest chain of groups from the root takes: what the finest
+  /// detail at any one place needs (a view of more places needs more).
+  [[nodiscard]] std::uint64_t least_memory() const;
+  [[nodiscard]] std::uint64_t full_detail_memory() const;
 
   [[nodiscard]] PagingStats stats() const;
   /// Pages that could not be read since the last call, a line each:

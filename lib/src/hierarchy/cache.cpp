@@ -285,11 +285,48 @@ std::optional<Hierarchy> decode_cache(const unsigned char* meta, std::uint64_t s
 
 // A cache file open, its header and meta part read and in place (not yet
 // checksummed).
-struct OpenCache {
-  int fd = -1;
+// A cache's header, its meta part [0, meta_end) and the meta part's
+// checksum as stored, read from a file or a URL.
+struct MetaPart {
   Header header{};
-  std::vector<unsigned char> meta;  // [0, meta_end)
-  std::uint64_t stored = 0;         // the meta part's checksum, as stored
+  std::vector<unsigned char> meta;
+  std::uint64_t stored = 0;
+};
+
+bool read_meta_part(const detail::ByteSource& source, MetaPart& c, std::string* why) {
+  const std::uint64_t size = source.size();
+  Header& h = c.header;
+  if (size < sizeof(Header) + 8) return fail(why, "truncated (shorter than a header)");
+  source.read(0, &h, sizeof h);
+  if (!meta_in_place(h, size, why)) return false;
+  try {
+    c.meta.resize(static_cast<std::size_t>(h.meta_end));
+  } catch (const std::bad_alloc&) {
+    return fail(why, "not enough memory to read it (" + std::to_string(h.meta_end >> 20) + " MiB)");
+  }
+  source.read(0, c.meta.data(), c.meta.size());
+  source.read(h.payload_end, &c.stored, 8);
+  return true;
+}
+
+// A file open as FD as a source (read_exactly's messages name PATH).
+class DescriptorSource final : public detail::ByteSource {
+ public:
+  DescriptorSource(int fd, std::uint64_t size, const std::filesystem::path& path)
+      : fd_(fd), size_(size), path_(path) {}
+  [[nodiscard]] std::uint64_t size() const override { return size_; }
+  void read(std::uint64_t at, void* out, std::size_t n) const override {
+    detail::read_exactly(fd_, at, n, static_cast<unsigned char*>(out), path_);
+  }
+
+ private:
+  int fd_;
+  std::uint64_t size_;
+  const std::filesystem::path& path_;
+};
+
+struct OpenCache : MetaPart {
+  int fd = -1;
   OpenCache() = default;
   OpenCache(const OpenCache&) = delete;
   OpenCache& operator=(const OpenCache&) = delete;
@@ -303,19 +340,8 @@ bool open_cache(const std::filesystem::path& path, OpenCache& c, std::string* wh
   if (c.fd < 0) return false;
   struct stat st {};
   if (fstat(c.fd, &st) != 0) return fail(why, std::strerror(errno));
-  const auto size = static_cast<std::uint64_t>(st.st_size);
-  Header& h = c.header;
-  if (size < sizeof(Header) + 8 || ::pread(c.fd, &h, sizeof h, 0) != static_cast<ssize_t>(sizeof h))
-    return fail(why, "truncated (shorter than a header)");
-  if (!meta_in_place(h, size, why)) return false;
-  try {
-    c.meta.resize(static_cast<std::size_t>(h.meta_end));
-  } catch (const std::bad_alloc&) {
-    return fail(why, "not enough memory to read it (" + std::to_string(h.meta_end >> 20) + " MiB)");
-  }
-  detail::read_exactly(c.fd, 0, c.meta.size(), c.meta.data(), path);
-  detail::read_exactly(c.fd, h.payload_end, 8, reinterpret_cast<unsigned char*>(&c.stored), path);
-  return true;
+  return read_meta_part(DescriptorSource(c.fd, static_cast<std::uint64_t>(st.st_size), path), c,
+                        why);
 }
 
 // The header and the meta part are read whole; each page is read when it
@@ -440,10 +466,10 @@ std::optional<std::vector<CachePage>> read_cache_pages(const std::filesystem::pa
   return pages;
 }
 
-std::optional<detail::CacheOutline> detail::read_cache_outline(const std::filesystem::path& cache,
+std::optional<detail::CacheOutline> detail::read_cache_outline(const ByteSource& source,
                                                                std::string* why) {
-  OpenCache c;
-  if (!open_cache(cache, c, why)) return std::nullopt;
+  MetaPart c;
+  if (!read_meta_part(source, c, why)) return std::nullopt;
   std::optional<Meta> m = read_meta(c.meta.data(), c.stored, why);
   if (!m) return std::nullopt;
   const Header& h = m->header;

@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "../import/byte_source.hpp"
 #include "cache_layout.hpp"
 #include "cache_pages.hpp"
 #include "treecut/cache.hpp"
@@ -97,11 +98,11 @@ struct CacheOutline {
   std::uint64_t point_count;
 };
 
-/// The outline of CACHE, its meta part read and verified, no page read
-/// (what paged drawing opens with). nullopt and *WHY when it is no cache
-/// of this format or its meta part does not check out.
-std::optional<CacheOutline> read_cache_outline(const std::filesystem::path& cache,
-                                               std::string* why);
+/// The outline of the cache SOURCE holds, its meta part read and
+/// verified, no page read (what paged drawing opens with: a file, or a
+/// URL). nullopt and *WHY when it is no cache of this format or its meta
+/// part does not check out; what SOURCE throws when a read fails.
+std::optional<CacheOutline> read_cache_outline(const ByteSource& source, std::string* why);
 
 /// XXH3-64 of the first SIZE bytes (what an fstat saw) of the file open as
 /// FD, named SOURCE in messages. Throws FileChangedError when the file is

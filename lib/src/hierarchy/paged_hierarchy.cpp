@@ -9,24 +9,24 @@
 // always resident.
 #include "treecut/paged_hierarchy.hpp"
 
-#include <fcntl.h>
-#include <sys/mman.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
 #include <condition_variable>
+#include <cstdio>
 #include <cstring>
 #include <mutex>
-#include <new>
 #include <thread>
 #include <unordered_map>
 #include <utility>
 
 #include "cache_format.hpp"
 #include "cache_pages.hpp"
+#include "http_source.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
+#include "treecut/reserved_array.hpp"
 
 namespace treecut {
 
@@ -36,45 +36,15 @@ using ListHolds = PagedHierarchy::ListHolds;
 
 namespace {
 
-// Address space for N values of T: reserved, not committed. Memory pages
-// are given on first write, read as zeros before, and given back by
-// release().
 template <class T>
-class Reserved {
- public:
-  explicit Reserved(std::size_t n) : bytes_(std::max<std::size_t>(n * sizeof(T), 1)) {
-    void* p = ::mmap(nullptr, bytes_, PROT_READ | PROT_WRITE,
-                     MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE, -1, 0);
-    if (p == MAP_FAILED) throw std::bad_alloc();
-    data_ = static_cast<T*>(p);
-  }
-  ~Reserved() { ::munmap(data_, bytes_); }
-  Reserved(const Reserved&) = delete;
-  Reserved& operator=(const Reserved&) = delete;
-  [[nodiscard]] T* data() const { return data_; }
-  [[nodiscard]] std::span<const T> span(std::size_t n) const { return {data_, n}; }
+using Reserved = ReservedArray<T>;
 
-  // Values [FIRST, FIRST + COUNT) back to zeros, the memory pages wholly
-  // inside given back to the system.
-  void release(std::uint64_t first, std::uint64_t count) const {
-    auto* begin = reinterpret_cast<unsigned char*>(data_ + first);
-    auto* end = reinterpret_cast<unsigned char*>(data_ + first + count);
-    static const auto page = static_cast<std::uintptr_t>(::sysconf(_SC_PAGESIZE));
-    const auto lo = (reinterpret_cast<std::uintptr_t>(begin) + page - 1) / page * page;
-    const auto hi = reinterpret_cast<std::uintptr_t>(end) / page * page;
-    if (hi <= lo) {
-      std::memset(begin, 0, static_cast<std::size_t>(end - begin));
-      return;
-    }
-    std::memset(begin, 0, lo - reinterpret_cast<std::uintptr_t>(begin));
-    std::memset(reinterpret_cast<void*>(hi), 0, reinterpret_cast<std::uintptr_t>(end) - hi);
-    (void)::madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_DONTNEED);
-  }
-
- private:
-  std::size_t bytes_;
-  T* data_ = nullptr;
-};
+// "1.4 MiB": a budget in a message.
+std::string mib_text(std::uint64_t bytes) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.1f MiB", double(bytes) / double(1 << 20));
+  return text;
+}
 
 // The arrays of the whole, each reserved.
 struct Arrays {
@@ -144,7 +114,7 @@ struct Group {
 struct PagedHierarchy::Impl {
   std::filesystem::path path;
   PagingOptions options;
-  int fd = -1;
+  std::unique_ptr<detail::ByteSource> source;  // the file, or the URL
   std::optional<detail::CacheOutline> outline;
   std::shared_ptr<Arrays> arrays;
   Hierarchy hierarchy;
@@ -161,9 +131,9 @@ struct PagedHierarchy::Impl {
   std::uint64_t in_flight = 0, loaded_count = 0, evicted = 0, failed = 0, bytes_read = 0;
   std::uint64_t now = 0;  // evict() calls
   std::vector<std::string> problems;
-  std::vector<std::uint32_t> published;  // pages published since upload_published() last ran
-  std::vector<std::uint8_t> resident;    // a byte a page (not a node): resident now
-  std::vector<NodeRange> ranges;         // upload_published()'s (reused)
+  // Immutable after open(): every run's first id and page, by id (page_of).
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> run_starts;
+  std::uint64_t least_bytes = 0, full_detail_bytes = 0;
   std::vector<std::thread> threads;
 
   ~Impl() {
@@ -173,7 +143,6 @@ struct PagedHierarchy::Impl {
     }
     wake.notify_all();
     for (std::thread& t : threads) t.join();
-    if (fd >= 0) ::close(fd);
   }
 
   [[nodiscard]] const cache_pages::PageIndex& index() const { return outline->index; }
@@ -181,7 +150,7 @@ struct PagedHierarchy::Impl {
   // Reads page R's bytes at their place in the file.
   const unsigned char* read(const PageRecord& r, std::vector<unsigned char>& buffer) {
     buffer.resize(r.bytes);
-    detail::read_exactly(fd, r.offset, r.bytes, buffer.data(), path);
+    source->read(r.offset, buffer.data(), r.bytes);
     return buffer.data();
   }
 
@@ -285,6 +254,59 @@ struct PagedHierarchy::Impl {
     }
   }
 
+  void index_runs() {
+    const cache_pages::PageLinks& links = index().links();
+    for (std::uint32_t p = 0; p < index().pages(); ++p)
+      for (const PageRun& run : links.runs_of(p)) run_starts.emplace_back(run.first, p);
+    std::sort(run_starts.begin(), run_starts.end());
+  }
+
+  // The groups hanging from page P's nodes, each as its pages [first, end).
+  template <class Fn>
+  void for_each_group_below(std::uint32_t p, Fn&& fn) const {
+    const std::span<const cache_pages::PageIndex::Child> children = index().child_pages(p);
+    for (std::size_t g = 0; g < children.size();) {
+      std::size_t k = g;
+      while (k < children.size() && children[k].local == children[g].local) ++k;
+      fn(children[g].page, children[g].page + static_cast<std::uint32_t>(k - g));
+      g = k;
+    }
+  }
+
+  // least_bytes: page 0 and the largest group; full_detail_bytes: the
+  // heaviest chain of groups from the root (below[p]: the heaviest chain
+  // hanging from page p's nodes), pages visited children first.
+  void measure_budgets() {
+    const std::uint32_t n = static_cast<std::uint32_t>(index().pages());
+    std::vector<std::uint64_t> below(n, 0);
+    std::vector<std::uint8_t> done(n, 0);
+    std::vector<std::uint32_t> stack{0};
+    std::uint64_t largest = 0;
+    while (!stack.empty()) {
+      const std::uint32_t p = stack.back();
+      bool ready = true;
+      if (!done[p])
+        for_each_group_below(p, [&](std::uint32_t first, std::uint32_t end) {
+          for (std::uint32_t q = first; q < end; ++q)
+            if (!done[q]) stack.push_back(q), ready = false;
+        });
+      if (!ready) continue;
+      stack.pop_back();
+      if (done[p]) continue;
+      done[p] = 1;
+      for_each_group_below(p, [&](std::uint32_t first, std::uint32_t end) {
+        std::uint64_t nodes = 0, deepest = 0;
+        for (std::uint32_t q = first; q < end; ++q)
+          nodes += index().record(q).node_count, deepest = std::max(deepest, below[q]);
+        largest = std::max(largest, nodes);
+        below[p] = std::max(below[p], nodes + deepest);
+      });
+    }
+    const std::uint64_t root = index().record(0).node_count;
+    least_bytes = (root + largest) * node_bytes;
+    full_detail_bytes = (root + below[0]) * node_bytes;
+  }
+
   void release_page(std::uint32_t p) const {
     for (const PageRun& run : index().links().runs_of(p)) arrays->release(run.first, run.count);
   }
@@ -307,13 +329,16 @@ struct PagedHierarchy::Impl {
     forget_groups(g.first_page, g.pages);
     for (std::uint32_t p = g.first_page; p < g.first_page + g.pages; ++p) release_page(p);
     g.state = State::hidden;
-    for (std::uint32_t p = g.first_page; p < g.first_page + g.pages; ++p) resident[p] = 0;
     resident_bytes -= g.nodes * node_bytes;
     resident_nodes -= g.nodes, resident_pages -= g.pages;
     if (g.owner != kNoNode) --groups.at(g.owner).busy_below;
     ++evicted;
   }
 };
+
+bool is_cache_url(std::string_view where) {
+  return detail::is_http_url(where);
+}
 
 PagedHierarchy::PagedHierarchy(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 PagedHierarchy::~PagedHierarchy() = default;
@@ -324,10 +349,20 @@ std::unique_ptr<PagedHierarchy> PagedHierarchy::open(const std::filesystem::path
   Impl& m = *impl;
   m.path = cache;
   m.options = options;
+  if (detail::is_http_url(cache.native())) {
+    detail::HttpOptions http;
+    http.stall_ms = options.stall_ms;
+    m.source = std::make_unique<detail::HttpSource>(cache.native(), http);
+  } else {
+    m.source = std::make_unique<detail::FileSource>(cache);
+  }
   std::string why;
-  m.outline = detail::read_cache_outline(cache, &why);
+  try {
+    m.outline = detail::read_cache_outline(*m.source, &why);
+  } catch (const FileChangedError& e) {  // (the source's lines name the file)
+    throw InputError(e.what());
+  }
   if (!m.outline) throw InputError(quoted_name(cache) + ": " + why);
-  m.fd = open_regular_file(cache);
   const cache_pages::PageIndex& index = m.index();
   const auto n = static_cast<std::size_t>(index.node_count());
   const std::uint32_t streams = index.value_streams();
@@ -342,9 +377,14 @@ std::unique_ptr<PagedHierarchy> PagedHierarchy::open(const std::filesystem::path
   m.resident_bytes = root.node_count * m.node_bytes;
   m.resident_nodes = root.node_count, m.resident_pages = 1, m.bytes_read = root.bytes;
   m.add_groups(kNoNode, 0, 1);
-  m.resident.assign(index.pages(), 0);
-  m.resident[0] = 1;
-  m.published.push_back(0);
+  m.index_runs();
+  m.measure_budgets();
+  if (options.memory_bytes != 0 && options.memory_bytes < m.least_bytes)
+    throw InputError(quoted_name(cache) + ": a memory budget of " + mib_text(options.memory_bytes) +
+                     " is below the " + mib_text(m.least_bytes) +
+                     " its first page and its largest group of pages take together (the "
+                     "finest detail at one place needs " +
+                     mib_text(m.full_detail_bytes) + ")");
 
   const Arrays& a = *m.arrays;
   HierarchyArrays spans{a.center_radius.span(n), a.splat_radius.span(n), a.normal_cone.span(n),
@@ -411,8 +451,6 @@ std::size_t PagedHierarchy::publish(std::vector<NodeId>* revealed) {
     // lock; the node's children appear now, on the thread that iterates.
     m.arrays->child_count.data()[node] = static_cast<std::uint8_t>(g.pages);
     for (std::uint32_t p = g.first_page; p < g.first_page + g.pages; ++p) {
-      m.resident[p] = 1;
-      m.published.push_back(p);
     }
     m.pending_bytes -= g.nodes * m.node_bytes;
     m.resident_bytes += g.nodes * m.node_bytes;
@@ -475,18 +513,38 @@ bool PagedHierarchy::wait_idle(int timeout_ms) {
   });
 }
 
-void PagedHierarchy::upload_published(
-    const std::function<void(std::span<const NodeRange>)>& upload) {
-  Impl& m = *impl_;
-  std::lock_guard lock(m.mutex);
-  m.ranges.clear();
-  for (const std::uint32_t p : m.published) {
-    if (!m.resident[p]) continue;  // given back before it was drawn
-    for (const PageRun& run : m.index().links().runs_of(p))
-      m.ranges.push_back({static_cast<NodeId>(run.first), run.count});
-  }
-  m.published.clear();
-  if (!m.ranges.empty()) upload(m.ranges);
+std::uint32_t PagedHierarchy::pages() const {
+  return static_cast<std::uint32_t>(impl_->index().pages());
+}
+
+std::uint32_t PagedHierarchy::page_of(NodeId n) const {
+  const auto& starts = impl_->run_starts;
+  // The last run starting at or before N: the runs tile the ids (PageIndex).
+  const auto it = std::upper_bound(starts.begin(), starts.end(), std::uint64_t{n},
+                                   [](std::uint64_t id, const auto& s) { return id < s.first; });
+  return it == starts.begin() ? 0 : std::prev(it)->second;
+}
+
+void PagedHierarchy::page_ranges(std::uint32_t p, std::vector<NodeRange>& out) const {
+  out.clear();
+  for (const PageRun& run : impl_->index().links().runs_of(p))
+    out.push_back({static_cast<NodeId>(run.first), run.count});
+}
+
+std::uint32_t PagedHierarchy::page_nodes(std::uint32_t p) const {
+  return impl_->index().record(p).node_count;
+}
+
+std::uint64_t PagedHierarchy::memory_budget() const {
+  return impl_->options.memory_bytes;
+}
+
+std::uint64_t PagedHierarchy::least_memory() const {
+  return impl_->least_bytes;
+}
+
+std::uint64_t PagedHierarchy::full_detail_memory() const {
+  return impl_->full_detail_bytes;
 }
 
 PagingStats PagedHierarchy::stats() const {

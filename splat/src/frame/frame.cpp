@@ -60,27 +60,18 @@ FrameResult RenderThreadFrame::begin_render_thread(const Camera& camera, const L
   const FrameLists lists = controller_->begin_frame();
   if (lists.current.scene != nullptr) return begin_scene(lists);
   scene_ = nullptr;
-  // Another model (FeedbackStage::set_model): its vertices go up before its
-  // first list, so no id of one hierarchy is drawn against the other's
-  // vertices. follow() then uploads that list plainly: a fade never mixes two
-  // hierarchies (the old model's list is dropped at once).
-  bool switched = false;
-  if (lists.current.hierarchy != nullptr && lists.current.hierarchy != renderer_->hierarchy()) {
-    renderer_->set_hierarchy(*lists.current.hierarchy);
-    switched = true;
-  }
-  // A paged model: the pages published since the last frame go up before
-  // any list that holds their nodes is drawn (a list is made after the
-  // pages it reaches into were published, and taken by this frame's poll).
-  if (paged_ && lists.current.hierarchy == &paged_->hierarchy()) {
-    paged_->upload_published([&](std::span<const NodeRange> ranges) {
-      renderer_->update_nodes(paged_->hierarchy(), ranges);
-    });
-  }
+  // Another model: its vertices first (hold), the old model's list dropped.
+  const bool switched =
+      lists.current.hierarchy != nullptr && lists.current.hierarchy != renderer_->hierarchy();
+  if (switched) hold(*lists.current.hierarchy);
+  // A paged model: the pages the list needs go up (within the frame's
+  // budget) before it is drawn; the rest is drawn as ancestors meanwhile.
+  if (pool_) pool_->begin_frame();
   // A new generation is copied into the GPU index buffer now (so the stage
   // may reuse the list after the next exchange), fading from the previous
   // list while the stage blends.
   cut_.follow(lists);
+  if (pool_) pool_->prepare(cut_);
   current_ = FrameResult{};
   current_.model_switched = switched;
   if (switched) model_frame_ = controller_->frame();
@@ -91,6 +82,31 @@ FrameResult RenderThreadFrame::begin_render_thread(const Camera& camera, const L
   // Queued once per generation (the executor ignores a generation it has seen).
   if (executor_ != nullptr) executor_->begin_frame_render_thread(lists.current, current_.frame);
   return current_;
+}
+
+void RenderThreadFrame::follow_pages(PagedHierarchy* paged, const GpuPoolOptions& gpu) {
+  paged_ = paged;
+  gpu_ = gpu;
+  pool_.reset();
+  cut_.set_vertex_map(nullptr);
+  // The renderer made for this model (its pool): drawn through a pool now.
+  if (paged_ != nullptr && renderer_->hierarchy() == &paged_->hierarchy())
+    hold(*renderer_->hierarchy());
+}
+
+// Another model (FeedbackStage::set_model): its vertices go up before its
+// first list, so no id of one hierarchy is drawn against the other's
+// vertices (follow() then uploads that list plainly: a fade never mixes two
+// hierarchies). A paged model's are its pool's.
+void RenderThreadFrame::hold(const Hierarchy& h) {
+  cut_.set_vertex_map(nullptr);
+  pool_.reset();
+  if (paged_ != nullptr && &h == &paged_->hierarchy()) {
+    pool_ = std::make_unique<GpuNodePool>(*renderer_, *paged_, gpu_);
+    cut_.set_vertex_map(pool_.get());
+  } else {
+    renderer_->set_hierarchy(h);
+  }
 }
 
 FrameResult RenderThreadFrame::begin_scene(const FrameLists& lists) {

@@ -12,7 +12,15 @@
 
 namespace treecut::splat {
 
-void CutBuffer::write(std::span<const NodeId> ids) {
+void CutBuffer::write(std::size_t current) {
+  // Through the map (a paged model's pool) or the ids themselves.
+  std::span<const std::uint32_t> ids = sorted_;
+  if (map_ != nullptr) {
+    max_vertex_ = map_->map(sorted_, current, vertices_);
+    ids = vertices_;
+  } else {
+    max_vertex_ = max_id_;
+  }
   // Write the buffer the last draws did not read: a driver with frames in
   // flight need not wait for them (or copy the buffer) before the write.
   const std::size_t next = buffers_[current_] ? 1 - current_ : current_;
@@ -41,7 +49,6 @@ void CutBuffer::upload(const Hierarchy& h, std::span<const NodeId> nodes) {
   std::uint64_t points = 0;
   const auto counts = h.arrays().point_count;
   for (const NodeId n : sorted_) points += counts[n];
-  write(sorted_);
   count_ = nodes.size();
   entering_ = 0;
   leaving_ = 0;
@@ -49,6 +56,7 @@ void CutBuffer::upload(const Hierarchy& h, std::span<const NodeId> nodes) {
   points_ = points;
   hierarchy_ = &h;
   max_id_ = sorted_.empty() ? 0 : sorted_.back();
+  write(count_);
 }
 
 void CutBuffer::upload(const Hierarchy& h, std::span<const NodeId> nodes,
@@ -92,7 +100,6 @@ void CutBuffer::upload(const Hierarchy& h, std::span<const NodeId> nodes,
   std::uint64_t points = 0;
   const auto counts = h.arrays().point_count;
   for (const NodeId n : cur) points += counts[n];
-  write(sorted_);
   count_ = cur.size();
   entering_ = entering_ids_.size();
   leaving_ = leaving_ids_.size();
@@ -100,6 +107,11 @@ void CutBuffer::upload(const Hierarchy& h, std::span<const NodeId> nodes,
   points_ = points;
   hierarchy_ = &h;
   max_id_ = std::max(cur.empty() ? NodeId{0} : cur.back(), prev.back());
+  write(count_);
+}
+
+void CutBuffer::refresh() {
+  if (map_ != nullptr && hierarchy_ != nullptr) write(count_);
 }
 
 bool CutBuffer::follow(const FrameLists& lists) {

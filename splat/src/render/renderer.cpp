@@ -49,6 +49,24 @@ SplatMode parse_splat_mode(std::string_view name) {
 
 namespace {
 
+// The vertex buffer of N vertices: four regions back to back (centers and
+// bounds, normal cones, colours, drawn radii), each indexed by vertex.
+struct VertexRegions {
+  explicit VertexRegions(std::size_t vertices) : n(vertices) {}
+  std::size_t n;
+  [[nodiscard]] std::size_t center_radius(std::size_t v) const { return v * sizeof(glm::vec4); }
+  [[nodiscard]] std::size_t normal_cone(std::size_t v) const {
+    return n * sizeof(glm::vec4) + v * sizeof(glm::i16vec4);
+  }
+  [[nodiscard]] std::size_t color(std::size_t v) const {
+    return n * (sizeof(glm::vec4) + sizeof(glm::i16vec4)) + v * sizeof(glm::u8vec4);
+  }
+  [[nodiscard]] std::size_t splat_radius(std::size_t v) const {
+    return n * (sizeof(glm::vec4) + sizeof(glm::i16vec4) + sizeof(glm::u8vec4)) + v * sizeof(float);
+  }
+  [[nodiscard]] std::size_t bytes() const { return splat_radius(n); }
+};
+
 // `defines` ("#define NAME 1\n" lines) go between kCommon and each body.
 gl::Program make_program(std::initializer_list<std::pair<GLenum, const char*>> stages,
                          std::string_view label, std::string_view defines = {}) {
@@ -127,7 +145,7 @@ void Renderer::set_common_uniforms(const gl::Program& program, const Uniforms& u
   gl::ProgramUniform3f(p, u.clip_max, hi.x, hi.y, hi.z);
 }
 
-Renderer::Renderer(const Hierarchy& h, glm::ivec2 size) {
+Renderer::Renderer(const Hierarchy& h, glm::ivec2 size, std::uint32_t pool_vertices) {
   if (!gl::loaded()) throw gl::GlError("Renderer: no GL context is current");
   vao_ = gl::VertexArray::create();
   // The object attributes (kObjectVertex) of a single model: one identity
@@ -142,7 +160,11 @@ Renderer::Renderer(const Hierarchy& h, glm::ivec2 size) {
   }
   gl::VertexArrayBindingDivisor(vao_.id(), kObjectBinding, 1);
   bind_objects(identity_object_);
-  set_hierarchy(h);
+  if (pool_vertices > 0) {
+    set_pool(h, pool_vertices);
+  } else {
+    set_hierarchy(h);
+  }
   empty_vao_ = gl::VertexArray::create();
 
   fast_ = make_program({{GL_VERTEX_SHADER, shaders::kSplatVertex},
@@ -202,39 +224,74 @@ void Renderer::set_models(std::span<const Hierarchy* const> models) {
     throw std::invalid_argument("Renderer: the models hold " + std::to_string(n) +
                                 " nodes, more than one vertex buffer can address");
   }
-  const std::size_t cr_bytes = n * sizeof(glm::vec4);
-  const std::size_t nc_bytes = n * sizeof(glm::i16vec4);
-  const std::size_t co_bytes = n * sizeof(glm::u8vec4);
-  const std::size_t sr_bytes = n * sizeof(float);
   // One static buffer holding the four node arrays back to back, each the
   // models' arrays one after the other (a model's nodes start at its base).
-  nodes_ = gl::Buffer::create(cr_bytes + nc_bytes + co_bytes + sr_bytes, nullptr,
-                              GL_DYNAMIC_STORAGE_BIT);
+  create_vertex_buffer(n);
+  const VertexRegions at(n);
   model_base_.clear();
   model_nodes_.clear();
   model_ids_.clear();
   std::size_t base = 0;
   for (const Hierarchy* h : models) {
     const HierarchyArrays& a = h->arrays();
-    nodes_.sub_data(base * sizeof(glm::vec4), std::as_bytes(a.center_radius));
-    nodes_.sub_data(cr_bytes + base * sizeof(glm::i16vec4), std::as_bytes(a.normal_cone));
-    nodes_.sub_data(cr_bytes + nc_bytes + base * sizeof(glm::u8vec4), std::as_bytes(colors_of(*h)));
-    nodes_.sub_data(cr_bytes + nc_bytes + co_bytes + base * sizeof(float),
-                    std::as_bytes(a.splat_radius));
+    nodes_.sub_data(at.center_radius(base), std::as_bytes(a.center_radius));
+    nodes_.sub_data(at.normal_cone(base), std::as_bytes(a.normal_cone));
+    nodes_.sub_data(at.color(base), std::as_bytes(colors_of(*h)));
+    nodes_.sub_data(at.splat_radius(base), std::as_bytes(a.splat_radius));
     model_base_.push_back(static_cast<std::uint32_t>(base));
     model_nodes_.push_back(static_cast<std::uint32_t>(h->node_count()));
     model_ids_.push_back(h);
     base += h->node_count();
   }
+  node_count_ = model_nodes_.front();
+  hierarchy_ = models.front();
+  pooled_ = false;
+  ++hierarchy_uploads_;
+  gl::check("Renderer vertex buffer");
+}
 
+void Renderer::set_pool(const Hierarchy& h, std::uint32_t vertices) {
+  if (pooled_ && hierarchy_ == &h && node_count_ == vertices) return;
+  if (vertices == 0 || vertices > 0x7fffffffu)
+    throw std::invalid_argument("Renderer: a pool of " + std::to_string(vertices) + " vertices");
+  create_vertex_buffer(vertices);
+  // Zeros: alpha 0 everywhere, so a vertex nothing was written to draws
+  // nothing (the pool's null vertex stays so).
+  gl::ClearNamedBufferSubData(nodes_.id(), GL_R8UI, 0, static_cast<GLsizeiptr>(nodes_.size()),
+                              GL_RED_INTEGER, GL_UNSIGNED_BYTE, nullptr);
+  model_base_.assign(1, 0);
+  model_nodes_.assign(1, vertices);
+  model_ids_.assign(1, &h);
+  node_count_ = vertices;
+  hierarchy_ = &h;
+  pooled_ = true;
+  ++hierarchy_uploads_;
+  gl::check("Renderer vertex pool");
+}
+
+void Renderer::write_vertices(std::uint32_t first, const Hierarchy& h, NodeRange nodes) {
+  const VertexRegions at(node_count_);
+  const HierarchyArrays& a = h.arrays();
+  nodes_.sub_data(at.center_radius(first),
+                  std::as_bytes(a.center_radius.subspan(nodes.first, nodes.count)));
+  nodes_.sub_data(at.normal_cone(first),
+                  std::as_bytes(a.normal_cone.subspan(nodes.first, nodes.count)));
+  nodes_.sub_data(at.color(first), std::as_bytes(a.color.subspan(nodes.first, nodes.count)));
+  nodes_.sub_data(at.splat_radius(first),
+                  std::as_bytes(a.splat_radius.subspan(nodes.first, nodes.count)));
+}
+
+void Renderer::create_vertex_buffer(std::size_t n) {
+  const VertexRegions at(n);
+  nodes_ = gl::Buffer::create(at.bytes(), nullptr, GL_DYNAMIC_STORAGE_BIT);
   const GLuint vao = vao_.id();
   gl::VertexArrayVertexBuffer(vao, 0, nodes_.id(), 0, sizeof(glm::vec4));
-  gl::VertexArrayVertexBuffer(vao, 1, nodes_.id(), static_cast<GLintptr>(cr_bytes),
+  gl::VertexArrayVertexBuffer(vao, 1, nodes_.id(), static_cast<GLintptr>(at.normal_cone(0)),
                               sizeof(glm::i16vec4));
-  gl::VertexArrayVertexBuffer(vao, 2, nodes_.id(), static_cast<GLintptr>(cr_bytes + nc_bytes),
+  gl::VertexArrayVertexBuffer(vao, 2, nodes_.id(), static_cast<GLintptr>(at.color(0)),
                               sizeof(glm::u8vec4));
   gl::VertexArrayVertexBuffer(vao, kSplatRadiusBinding, nodes_.id(),
-                              static_cast<GLintptr>(cr_bytes + nc_bytes + co_bytes), sizeof(float));
+                              static_cast<GLintptr>(at.splat_radius(0)), sizeof(float));
   gl::VertexArrayAttribFormat(vao, 0, 3, GL_FLOAT, GL_FALSE, 0);  // the center; .w is the bound
   gl::VertexArrayAttribFormat(vao, 1, 4, GL_SHORT, GL_TRUE, 0);
   gl::VertexArrayAttribFormat(vao, 2, 4, GL_UNSIGNED_BYTE, GL_TRUE, 0);
@@ -245,33 +302,6 @@ void Renderer::set_models(std::span<const Hierarchy* const> models) {
   }
   gl::VertexArrayAttribBinding(vao, kSplatRadiusLocation, kSplatRadiusBinding);
   gl::EnableVertexArrayAttrib(vao, kSplatRadiusLocation);
-  node_count_ = model_nodes_.front();
-  hierarchy_ = models.front();
-  ++hierarchy_uploads_;
-  gl::check("Renderer vertex buffer");
-}
-
-void Renderer::update_nodes(const Hierarchy& h, std::span<const NodeRange> ranges) {
-  const std::size_t n = model_base_.empty() ? 0 : model_base_.back() + model_nodes_.back();
-  const std::size_t cr_bytes = n * sizeof(glm::vec4), nc_bytes = n * sizeof(glm::i16vec4),
-                    co_bytes = n * sizeof(glm::u8vec4);
-  const HierarchyArrays& a = h.arrays();
-  for (std::size_t m = 0; m < model_ids_.size(); ++m) {
-    if (model_ids_[m] != &h) continue;
-    const std::size_t base = model_base_[m];
-    for (const NodeRange& r : ranges) {
-      const std::size_t at = base + r.first;
-      nodes_.sub_data(at * sizeof(glm::vec4),
-                      std::as_bytes(a.center_radius.subspan(r.first, r.count)));
-      nodes_.sub_data(cr_bytes + at * sizeof(glm::i16vec4),
-                      std::as_bytes(a.normal_cone.subspan(r.first, r.count)));
-      nodes_.sub_data(cr_bytes + nc_bytes + at * sizeof(glm::u8vec4),
-                      std::as_bytes(a.color.subspan(r.first, r.count)));
-      nodes_.sub_data(cr_bytes + nc_bytes + co_bytes + at * sizeof(float),
-                      std::as_bytes(a.splat_radius.subspan(r.first, r.count)));
-    }
-  }
-  gl::check("Renderer node update");
 }
 
 std::span<const glm::u8vec4> Renderer::colors_of(const Hierarchy& h) const {
@@ -286,14 +316,16 @@ void Renderer::set_node_colors(const Hierarchy& h, std::vector<glm::u8vec4> colo
     throw std::invalid_argument("Renderer::set_node_colors: " + std::to_string(colors.size()) +
                                 " colours for " + std::to_string(h.node_count()) + " nodes");
   }
+  if (pooled_ && hierarchy_ == &h && !colors.empty())
+    throw std::invalid_argument("Renderer::set_node_colors: a pool's vertices are the file's");
   std::erase_if(node_colors_, [&](const NodeColors& c) { return c.model == &h; });
   if (!colors.empty()) node_colors_.push_back({&h, h.node_count(), std::move(colors)});
   // The model held now: its colour array in place (the others on upload).
-  const std::size_t n = model_base_.empty() ? 0 : model_base_.back() + model_nodes_.back();
-  const std::size_t colors_at = n * (sizeof(glm::vec4) + sizeof(glm::i16vec4));
+  if (pooled_) return;
+  const VertexRegions at(model_base_.empty() ? 0 : model_base_.back() + model_nodes_.back());
   for (std::size_t m = 0; m < model_ids_.size(); ++m) {
     if (model_ids_[m] != &h) continue;
-    nodes_.sub_data(colors_at + model_base_[m] * sizeof(glm::u8vec4), std::as_bytes(colors_of(h)));
+    nodes_.sub_data(at.color(model_base_[m]), std::as_bytes(colors_of(h)));
   }
   gl::check("Renderer node colours");
 }

@@ -35,8 +35,8 @@ void Renderer::check_cut(const CutBuffer& cut) {
         "Renderer: the cut belongs to another hierarchy than the vertex buffer "
         "(set_hierarchy first)");
   }
-  if (cut.max_id() >= node_count_) {
-    throw std::logic_error("Renderer: the cut names node " + std::to_string(cut.max_id()) +
+  if (cut.max_vertex() >= node_count_) {
+    throw std::logic_error("Renderer: the cut names vertex " + std::to_string(cut.max_vertex()) +
                            ", the vertex buffer holds " + std::to_string(node_count_));
   }
   last_max_id_ = cut.max_id();

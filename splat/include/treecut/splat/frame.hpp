@@ -16,12 +16,14 @@
 #include <glm/mat4x4.hpp>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
+#include <memory>
 #include <span>
 #include <vector>
 
 #include "treecut/controller.hpp"
 #include "treecut/splat/camera.hpp"
 #include "treecut/splat/gl.hpp"
+#include "treecut/splat/node_pool.hpp"
 #include "treecut/splat/query_executor.hpp"
 #include "treecut/splat/renderer.hpp"
 #include "treecut/splat/scene_draw.hpp"
@@ -92,9 +94,12 @@ class RenderThreadFrame {
   FrameResult run_render_thread(const Camera& camera, const RenderSettings& settings,
                                 bool finish = false);
 
-  /// A paged model's pages (Model::paged) to copy into the renderer as
-  /// they arrive, each frame before its list is drawn; null: none.
-  void follow_pages(PagedHierarchy* paged) { paged_ = paged; }
+  /// A paged model (Model::paged): its lists are drawn from a pool of
+  /// vertices within GPU's budget (GpuNodePool), the pages each list
+  /// needs copied up before it is drawn; null: none.
+  void follow_pages(PagedHierarchy* paged, const GpuPoolOptions& gpu = {});
+  /// The paged model's pool while its lists are drawn (null otherwise).
+  [[nodiscard]] const GpuNodePool* gpu_pool() const { return pool_.get(); }
 
   [[nodiscard]] const CutBuffer& cut() const { return cut_; }
   /// A scene's lists on the GPU (empty before a scene's first frame).
@@ -109,6 +114,7 @@ class RenderThreadFrame {
 
  private:
   FrameResult begin_scene(const FrameLists& lists);
+  void hold(const Hierarchy& h);
 
   Controller* controller_;
   Renderer* renderer_;
@@ -124,6 +130,8 @@ class RenderThreadFrame {
   std::uint64_t stale_results_ = 0;
   std::vector<VisibilityResult> kept_;  // reused by the filter of stale answers
   PagedHierarchy* paged_ = nullptr;
+  GpuPoolOptions gpu_;
+  std::unique_ptr<GpuNodePool> pool_;
 };
 
 }  // namespace treecut::splat

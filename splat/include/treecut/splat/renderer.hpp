@@ -99,6 +99,17 @@ struct FrameStats {
   bool finished = false;       ///< cpu_ms includes glFinish (the GPU work is done)
 };
 
+/// Where the node ids of a list point in a vertex buffer that does not hold
+/// every node at its id: a paged model's GPU pool (node_pool.hpp).
+class VertexMap {
+ public:
+  virtual ~VertexMap() = default;
+  /// The vertex of each of IDS into OUT (IDS[0, CURRENT) the list drawn,
+  /// the rest a fading exchange's leaving run); returns the largest.
+  virtual std::uint32_t map(std::span<const NodeId> ids, std::size_t current,
+                            std::vector<std::uint32_t>& out) = 0;
+};
+
 /// One index list on the GPU. upload() replaces the content, writing into the
 /// other of two GL buffers than the one drawn since the last upload (so the
 /// write never touches a buffer a frame in flight reads); each grows (to the
@@ -152,9 +163,22 @@ class CutBuffer {
   [[nodiscard]] const Hierarchy* hierarchy() const { return hierarchy_; }
   /// The largest id in the buffer, the leaving run included (0 when empty).
   [[nodiscard]] NodeId max_id() const { return max_id_; }
+  /// The largest vertex the buffer names: max_id() unless a map is set.
+  [[nodiscard]] std::uint32_t max_vertex() const { return max_vertex_; }
+
+  /// From the next upload on, the GPU buffer holds MAP's vertices of the
+  /// ids (ids() stays the ids); null: the ids themselves. Not owned.
+  void set_vertex_map(VertexMap* map) { map_ = map; }
+  /// Maps the uploaded ids again and writes them (the map changed: pages
+  /// that arrived on the GPU); nothing without a map.
+  void refresh();
 
  private:
-  void write(std::span<const NodeId> ids);
+  void write(std::size_t current);
+
+  VertexMap* map_ = nullptr;
+  std::vector<std::uint32_t> vertices_;  // map_'s of sorted_ (reused)
+  std::uint32_t max_vertex_ = 0;
 
   std::array<gl::Buffer, 2> buffers_;
   std::size_t current_ = 0;
@@ -210,8 +234,10 @@ class SceneCutBuffer;
 class Renderer {
  public:
   /// Uploads all nodes of `h` into the static vertex buffer and creates the
-  /// render targets for a `size` framebuffer. `h` need not outlive the renderer.
-  Renderer(const Hierarchy& h, glm::ivec2 size);
+  /// render targets for a `size` framebuffer. `h` need not outlive the
+  /// renderer. POOL_VERTICES > 0: a pool of that many vertices for `h`'s
+  /// nodes instead (set_pool: a paged model), none uploaded.
+  Renderer(const Hierarchy& h, glm::ivec2 size, std::uint32_t pool_vertices = 0);
   Renderer(const Renderer&) = delete;
   Renderer& operator=(const Renderer&) = delete;
   ~Renderer();
@@ -219,6 +245,7 @@ class Renderer {
   /// Re-creates the render targets; a no-op for the current size.
   void resize(glm::ivec2 size);
   [[nodiscard]] glm::ivec2 size() const { return size_; }
+  /// Vertices in the buffer: the models' nodes, or a pool's size.
   [[nodiscard]] std::uint32_t node_count() const { return node_count_; }
 
   /// Replaces the static vertex buffer with the nodes of `h` (another model:
@@ -235,11 +262,17 @@ class Renderer {
   /// is set_models({&h}). Throws std::invalid_argument for no model, an
   /// empty one, or more than 2^31 - 1 nodes in all.
   void set_models(std::span<const Hierarchy* const> models);
-  /// H's nodes RANGES copied again from its arrays into the vertex buffer
-  /// (a paged hierarchy's pages that arrived: PagedHierarchy::
-  /// upload_published); nothing when H is not held. Its own colours (a
-  /// paged model is drawn in the file's colours).
-  void update_nodes(const Hierarchy& h, std::span<const NodeRange> ranges);
+  /// A vertex buffer of VERTICES zeros (alpha 0: drawn as nothing) for
+  /// nodes of H placed where a VertexMap says (GpuNodePool: a paged model's
+  /// pages on the GPU); lists of H are drawn through that map. A no-op when
+  /// it holds such a pool for H already. Throws std::invalid_argument for
+  /// no vertex or more than 2^31 - 1.
+  void set_pool(const Hierarchy& h, std::uint32_t vertices);
+  /// Whether the vertex buffer is a pool (set_pool) rather than H's nodes.
+  [[nodiscard]] bool pooled() const { return pooled_; }
+  /// A pool's vertices [FIRST, FIRST + NODES.count) set to nodes NODES of
+  /// the pool's hierarchy H, in its own colours.
+  void write_vertices(std::uint32_t first, const Hierarchy& h, NodeRange nodes);
   [[nodiscard]] std::size_t model_count() const { return model_base_.size(); }
   [[nodiscard]] std::uint32_t model_base(std::size_t model) const { return model_base_[model]; }
   [[nodiscard]] std::uint32_t model_nodes(std::size_t model) const { return model_nodes_[model]; }
@@ -356,6 +389,8 @@ class Renderer {
                            const RenderSettings& settings, float fade) const;
 
   void create_targets();
+  // nodes_ for N vertices (uninitialized), bound to the vertex array.
+  void create_vertex_buffer(std::size_t n);
   void check_cut(const CutBuffer& cut);
   void check_scene(const SceneCutBuffer& scene) const;
   void bind_objects(const gl::Buffer& records);
@@ -391,6 +426,7 @@ class Renderer {
   std::vector<NodeColors> node_colors_;  // set_node_colors
   [[nodiscard]] std::span<const glm::u8vec4> colors_of(const Hierarchy& h) const;
   NodeId last_max_id_ = 0;
+  bool pooled_ = false;  // set_pool
   gl::Buffer nodes_;  // center_radius | normal_cone | color | splat_radius, one region each, models
                       // in order
   std::vector<std::uint32_t> model_base_;    // first vertex of each model

@@ -1,0 +1,113 @@
+// A paged model's nodes on the GPU (issue 45, item 1): a pool of vertices
+// within a memory budget that holds the pages the drawn list needs, copied
+// up within a per-frame byte budget and given back by least recent use.
+// The renderer's vertex buffer is the pool (Renderer::set_pool); the list's
+// ids reach it through this map (CutBuffer::set_vertex_map).
+//
+// The unit is a page of the cache (at most 8,192 nodes), placed in blocks
+// of kBlock vertices that need not be adjacent: a page's k-th node sits in
+// its block k / kBlock. A node of the list whose page is not on the GPU yet
+// is drawn as its nearest ancestor that is (the root's page never leaves),
+// as a strategy's node whose children are not resident stays a leaf: never
+// a hole, never a wait. What the pool keeps is proportional to the budget
+// (a slot a resident node, in reserved address space indexed by id; a byte
+// a page), not to the model. Potree's viewer streams nodes to the GPU the
+// same way, a few per frame, the rest drawn coarser meanwhile.
+//
+// Render thread only (every call makes GL calls through the renderer).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <unordered_map>
+#include <unordered_set>
+#include <vector>
+
+#include "treecut/paged_hierarchy.hpp"
+#include "treecut/reserved_array.hpp"
+#include "treecut/splat/renderer.hpp"
+
+namespace treecut::splat {
+
+struct GpuPoolOptions {
+  /// The pool's vertex memory in bytes (kVertexBytes a node); 0: room for
+  /// every node the RAM budget holds (PagingOptions::memory_bytes), and a
+  /// quarter more for the ends of blocks that pages leave empty.
+  std::uint64_t memory_bytes = 0;
+  /// Bytes copied to the GPU per frame at most (a page at least).
+  std::uint64_t upload_bytes = std::uint64_t{8} << 20;
+};
+
+/// What the pool holds and did (this frame: the last prepare()).
+struct GpuPoolStats {
+  std::uint64_t capacity_bytes = 0;  ///< the pool's vertices
+  std::uint64_t resident_bytes = 0;  ///< of the blocks pages use
+  std::uint64_t resident_pages = 0;
+  std::uint64_t uploaded_bytes = 0;          ///< this frame
+  std::uint64_t uploads = 0, evictions = 0;  ///< pages, since the pool was made
+  std::uint64_t stand_ins = 0;               ///< list nodes drawn as an ancestor this frame
+  std::uint64_t waiting_pages = 0;           ///< pages the list needs that are not up yet
+};
+
+class GpuNodePool final : public VertexMap {
+ public:
+  static constexpr std::uint32_t kBlock = 1024;
+  /// A vertex: center and bound, normal cone, colour, drawn radius.
+  static constexpr std::uint64_t kVertexBytes = 32;
+
+  /// The budget OPTIONS give for PAGED, in bytes (memory_bytes, or its default).
+  static std::uint64_t budget(const PagedHierarchy& paged, const GpuPoolOptions& options);
+  /// The vertices of a pool of that budget (the renderer's set_pool), the
+  /// null vertex included. Throws InputError "--gpu-memory: REASON" when it
+  /// cannot hold the first page and the largest one beside it.
+  static std::uint32_t vertices(const PagedHierarchy& paged, const GpuPoolOptions& options);
+
+  /// Makes RENDERER's vertex buffer the pool of PAGED's hierarchy and puts
+  /// the first page in it. Both must outlive the pool.
+  GpuNodePool(Renderer& renderer, const PagedHierarchy& paged, const GpuPoolOptions& options);
+  GpuNodePool(const GpuNodePool&) = delete;
+  GpuNodePool& operator=(const GpuNodePool&) = delete;
+  ~GpuNodePool() override;
+
+  /// Each frame, before the frame's list is uploaded (CutBuffer::follow).
+  void begin_frame();
+  /// Each frame, after it: copies up the pages the list of CUT needs
+  /// (coarsest first) within the frame's budget, giving back pages no
+  /// node of this frame's lists uses, and maps CUT again if any arrived.
+  /// CUT's nodes must be resident (a list the paged model's evict() knows).
+  void prepare(CutBuffer& cut);
+
+  std::uint32_t map(std::span<const NodeId> ids, std::size_t current,
+                    std::vector<std::uint32_t>& out) override;
+
+  [[nodiscard]] GpuPoolStats stats() const;
+  [[nodiscard]] const Hierarchy& hierarchy() const { return paged_->hierarchy(); }
+
+ private:
+  void upload(std::uint32_t page);
+  void give_back(std::uint32_t page);
+  // Frees blocks until BLOCKS are free, from pages no list of this frame
+  // uses, least recently used first; false when they cannot be.
+  bool make_room(std::size_t blocks);
+
+  Renderer* renderer_;
+  const PagedHierarchy* paged_;
+  GpuPoolOptions options_;
+  std::uint32_t blocks_ = 0;               // in the pool
+  std::uint32_t null_vertex_ = 0;          // after the blocks: zeros, drawn as nothing
+  ReservedArray<std::uint32_t> slot_;      // by node id: its vertex + 1, 0 when not up
+  std::vector<std::uint32_t> free_;        // blocks
+  std::vector<std::uint32_t> block_page_;  // by block: its page
+  std::vector<std::uint64_t> block_used_;  // by block: the frame a list last used it
+  std::unordered_map<std::uint32_t, std::vector<std::uint32_t>> up_;  // page -> its blocks
+  std::vector<std::uint8_t> wanted_mark_;                             // by page: in wanted_
+  std::vector<std::uint32_t> wanted_;            // pages the list needs, coarsest first
+  std::vector<NodeRange> ranges_;                // (reused)
+  std::unordered_set<std::uint32_t> stand_ins_;  // vertices standing in (map)
+  std::uint64_t frame_ = 0;
+  bool mapped_ = false;  // this frame
+  GpuPoolStats stats_;
+};
+
+}  // namespace treecut::splat

@@ -1,0 +1,213 @@
+// GpuNodePool: a paged model's pages on the GPU (node_pool.hpp has the
+// promises). Pages go up in blocks of vertices the list's nodes are mapped
+// to; a node whose page is not up yet is drawn as its nearest ancestor
+// that is, and pages no list of the frame uses are given back, least
+// recently used first.
+#include "treecut/splat/node_pool.hpp"
+
+#include <algorithm>
+#include <string>
+#include <utility>
+
+#include "treecut/error.hpp"
+
+namespace treecut::splat {
+
+namespace {
+
+std::string mib_text(std::uint64_t bytes) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.1f MiB", double(bytes) / double(1 << 20));
+  return text;
+}
+
+std::uint32_t blocks_for(std::uint64_t nodes) {
+  return static_cast<std::uint32_t>((nodes + GpuNodePool::kBlock - 1) / GpuNodePool::kBlock);
+}
+
+}  // namespace
+
+std::uint64_t GpuNodePool::budget(const PagedHierarchy& paged, const GpuPoolOptions& options) {
+  if (options.memory_bytes != 0) return options.memory_bytes;
+  // Room for every node the RAM budget holds, and a quarter more for the
+  // blocks' last vertices that pages leave unused.
+  return paged.memory_budget() / paged.bytes_per_node() * kVertexBytes / 4 * 5;
+}
+
+std::uint32_t GpuNodePool::vertices(const PagedHierarchy& paged, const GpuPoolOptions& options) {
+  const std::uint64_t bytes = budget(paged, options);
+  std::uint32_t largest = 0;
+  for (std::uint32_t p = 1; p < paged.pages(); ++p)
+    largest = std::max(largest, paged.page_nodes(p));
+  const std::uint64_t least =
+      std::uint64_t{blocks_for(paged.page_nodes(0)) + blocks_for(largest)} * kBlock * kVertexBytes;
+  if (bytes < least)
+    throw InputError("--gpu-memory: " + mib_text(bytes) + " is below the " + mib_text(least) +
+                     " the model's first page and its largest page take on the GPU");
+  // The null vertex after the blocks; a vertex buffer addresses 2^31 - 1.
+  const std::uint64_t blocks = std::min<std::uint64_t>(bytes / (kBlock * kVertexBytes),
+                                                       (std::uint64_t{0x7fffffff} - 1) / kBlock);
+  return static_cast<std::uint32_t>(blocks * kBlock + 1);
+}
+
+GpuNodePool::GpuNodePool(Renderer& renderer, const PagedHierarchy& paged,
+                         const GpuPoolOptions& options)
+    : renderer_(&renderer),
+      paged_(&paged),
+      options_(options),
+      slot_(paged.hierarchy().node_count()) {
+  const std::uint32_t n = vertices(paged, options);
+  renderer.set_pool(paged.hierarchy(), n);
+  blocks_ = (n - 1) / kBlock;
+  null_vertex_ = n - 1;
+  free_.reserve(blocks_);
+  for (std::uint32_t b = blocks_; b-- > 0;) free_.push_back(b);  // low blocks first
+  block_page_.assign(blocks_, 0);
+  block_used_.assign(blocks_, 0);
+  wanted_mark_.assign(paged.pages(), 0);
+  stats_.capacity_bytes = std::uint64_t{blocks_} * kBlock * kVertexBytes;
+  upload(0);  // the root's page: every stand-in's last resort, never given back
+}
+
+GpuNodePool::~GpuNodePool() = default;
+
+void GpuNodePool::begin_frame() {
+  ++frame_;
+  mapped_ = false;
+}
+
+std::uint32_t GpuNodePool::map(std::span<const NodeId> ids, std::size_t current,
+                               std::vector<std::uint32_t>& out) {
+  const std::span<const NodeId> parent = paged_->hierarchy().arrays().parent;
+  for (const std::uint32_t p : wanted_) wanted_mark_[p] = 0;
+  wanted_.clear();
+  stats_.stand_ins = 0;
+  out.resize(ids.size());
+  std::uint32_t most = 0;
+  NodeId last_parent = kNoNode;  // siblings share their stand-in
+  stand_ins_.clear();
+  for (std::size_t i = 0; i < ids.size(); ++i) {
+    const NodeId id = ids[i];
+    std::uint32_t v = slot_[id];
+    if (v == 0 && i >= current) {
+      // A fading exchange's leaving node whose page left the GPU: nothing
+      // (its ancestors are no longer known to be resident).
+      out[i] = null_vertex_;
+      most = std::max(most, null_vertex_);
+      continue;
+    }
+    if (v == 0) {
+      ++stats_.stand_ins;
+      if (const std::uint32_t p = paged_->page_of(id); !wanted_mark_[p]) {
+        wanted_mark_[p] = 1;
+        wanted_.push_back(p);
+      }
+      // The nearest ancestor that is up stands in, once: the other nodes
+      // below it draw nothing (an ancestor's disc covers them all; drawn
+      // once per descendant it was most of a frame's fill). The list's
+      // nodes and their ancestors are resident (the stage's evict() knows
+      // the list): their parents can be read.
+      if (parent[id] == last_parent) {
+        out[i] = null_vertex_;
+        most = std::max(most, null_vertex_);
+        continue;
+      }
+      NodeId up = last_parent = parent[id];
+      while (slot_[up] == 0) up = parent[up];  // page 0 is always up
+      v = slot_[up];
+      if (!stand_ins_.insert(v).second) {
+        out[i] = null_vertex_;
+        most = std::max(most, null_vertex_);
+        continue;
+      }
+    }
+    out[i] = v - 1;
+    block_used_[(v - 1) / kBlock] = frame_;
+    most = std::max(most, v - 1);
+  }
+  mapped_ = true;
+  stats_.waiting_pages = wanted_.size();
+  return most;
+}
+
+void GpuNodePool::prepare(CutBuffer& cut) {
+  stats_.uploaded_bytes = 0;
+  if (cut.hierarchy() != &paged_->hierarchy()) return;
+  // The same list as last frame, still waiting for pages: mapped again, so
+  // that its blocks count as used this frame.
+  if (!mapped_ && !wanted_.empty()) cut.refresh();
+  if (wanted_.empty()) return;
+  const std::vector<std::uint32_t> pages = wanted_;  // refresh() remakes wanted_
+  std::size_t uploaded = 0;
+  for (const std::uint32_t p : pages) {
+    const std::uint64_t bytes = std::uint64_t{paged_->page_nodes(p)} * kVertexBytes;
+    if (uploaded > 0 && stats_.uploaded_bytes + bytes > options_.upload_bytes) break;
+    if (!make_room(blocks_for(paged_->page_nodes(p)))) break;
+    upload(p);
+    ++uploaded;
+    stats_.uploaded_bytes += bytes;
+  }
+  if (uploaded > 0) cut.refresh();
+}
+
+void GpuNodePool::upload(std::uint32_t page) {
+  paged_->page_ranges(page, ranges_);
+  std::vector<std::uint32_t> blocks(blocks_for(paged_->page_nodes(page)));
+  for (std::uint32_t& b : blocks) {
+    b = free_.back();
+    free_.pop_back();
+    block_page_[b] = page;
+    block_used_[b] = frame_;
+  }
+  // The page's k-th node goes to vertex k % kBlock of its block k / kBlock:
+  // one copy a piece of a run within a block.
+  std::uint32_t k = 0;
+  for (const NodeRange& r : ranges_) {
+    for (std::uint32_t done = 0; done < r.count;) {
+      const std::uint32_t at = k % kBlock;
+      const std::uint32_t len = std::min(r.count - done, kBlock - at);
+      const std::uint32_t vertex = blocks[k / kBlock] * kBlock + at;
+      renderer_->write_vertices(vertex, paged_->hierarchy(), {r.first + done, len});
+      for (std::uint32_t j = 0; j < len; ++j) slot_[r.first + done + j] = vertex + j + 1;
+      done += len, k += len;
+    }
+  }
+  up_[page] = std::move(blocks);
+  ++stats_.uploads;
+}
+
+void GpuNodePool::give_back(std::uint32_t page) {
+  paged_->page_ranges(page, ranges_);
+  for (const NodeRange& r : ranges_) slot_.release(r.first, r.count);
+  const auto it = up_.find(page);
+  free_.insert(free_.end(), it->second.begin(), it->second.end());
+  up_.erase(it);
+  ++stats_.evictions;
+}
+
+bool GpuNodePool::make_room(std::size_t blocks) {
+  if (free_.size() >= blocks) return true;
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> unused;  // (last used, page)
+  for (const auto& [page, its] : up_) {
+    if (page == 0) continue;
+    std::uint64_t used = 0;
+    for (const std::uint32_t b : its) used = std::max(used, block_used_[b]);
+    if (used < frame_) unused.emplace_back(used, page);
+  }
+  std::sort(unused.begin(), unused.end());
+  for (const auto& [used, page] : unused) {
+    if (free_.size() >= blocks) break;
+    give_back(page);
+  }
+  return free_.size() >= blocks;
+}
+
+GpuPoolStats GpuNodePool::stats() const {
+  GpuPoolStats s = stats_;
+  s.resident_bytes =
+      std::uint64_t{blocks_ - static_cast<std::uint32_t>(free_.size())} * kBlock * kVertexBytes;
+  s.resident_pages = up_.size();
+  return s;
+}
+
+}  // namespace treecut::splat
