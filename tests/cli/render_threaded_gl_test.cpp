@@ -96,3 +96,28 @@ TEST_F(RenderThreaded, ASceneOfManyObjectsUnderTheBudgetStrategy) {
 }
 
 }  // namespace
+
+// A paged model as the viewer draws it: the stage thread reads pages (the
+// I/O thread) and gives them back within 2 MiB while the render thread maps
+// the lists and copies their pages up within 1 MiB of GPU memory, 64 KiB a
+// frame, reading the front list's pages without a lock (docs/threading.md).
+TEST_F(RenderThreaded, APagedModelsPagesTravelBetweenTheThreadsAndTheGpuPool) {
+  const fs::path ply = dir / "terrain.ply", cache = dir / "terrain.tch";
+  ASSERT_EQ(run_treecut("gen terrain -n 100000 --seed 1 -o " + quote(ply)).code, 0);
+  const auto built = run_treecut("build " + quote(ply) + " -o " + quote(cache));
+  ASSERT_EQ(built.code, 0) << built.out;
+  for (const char* strategy : {"recursive", "event_queue"}) {
+    const fs::path out = dir / strategy;
+    const auto r = run_treecut("render " + quote(cache) + " -s " + strategy +
+                               " --memory 2M --gpu-memory 1M --gpu-upload 64K --no-png --frames 90 "
+                               "--width 240 --height 160 -o " +
+                               quote(out));
+    ASSERT_EQ(r.code, 0) << r.out;
+    const nlohmann::json j = summary(out);
+    EXPECT_GT(j["exchanges"].get<int>(), 0) << r.out;
+    std::ifstream csv(out / "stats.csv");
+    std::string header;
+    std::getline(csv, header);
+    EXPECT_NE(header.find("gpu_resident_mib"), std::string::npos) << header;
+  }
+}

@@ -107,7 +107,11 @@ const std::string kRun = "--width 160 --height 96 --sync -s recursive ";
 class UrlCache : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = treecut::test::scratch_dir("url_cache");
+    // One folder a test: CTest runs them as parallel processes (one test
+    // shrinks its file).
+    dir_ =
+        treecut::test::scratch_dir(std::string("url_cache_") +
+                                   ::testing::UnitTest::GetInstance()->current_test_info()->name());
     cache_ = terrain_cache(dir_);
     server_ = std::make_unique<RangeServer>(dir_);
     ASSERT_TRUE(server_->up()) << "no range server (python3 " << TREECUT_SOURCE_DIR

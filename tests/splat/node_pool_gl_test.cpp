@@ -39,7 +39,10 @@ class NodePool : public ::testing::Test {
   }
   void SetUp() override {
     // A terrain of 100,000 points: some twenty pages.
-    const fs::path dir = test::scratch_dir("node_pool");
+    // One folder a test: CTest runs them as parallel processes.
+    const fs::path dir =
+        test::scratch_dir(std::string("node_pool_") +
+                          ::testing::UnitTest::GetInstance()->current_test_info()->name());
     cache_ = dir / "t.tch";
     save_cache(*test::small_hierarchy(tools::ModelKind::Terrain, 100000), {1, 2, 3}, cache_);
     std::string why;
@@ -129,9 +132,28 @@ TEST_F(NodePool, EveryPageUpDrawsTheImageOfTheModelHeldWhole) {
   const GpuPoolStats s = p.pool.stats();
   EXPECT_EQ(s.stand_ins, 0u);
   EXPECT_EQ(s.waiting_pages, 0u);
+  EXPECT_GT(s.uploaded_bytes, ids.size() * GpuNodePool::kVertexBytes);
   EXPECT_EQ(s.resident_pages, pages_of(*paged_, ids) + 1);  // and the root's page
   EXPECT_GT(drawn(got), std::size_t{kWidth * kHeight / 10});
   EXPECT_TRUE(got.rgba == expected.rgba) << "the pooled frame differs from the whole model's";
+}
+
+// A cut through the middle of pages needs their levels down to its own,
+// not the pages' deeper levels, which hold most of their nodes.
+TEST_F(NodePool, ACutThroughPagesTakesTheirLevelsDownToItsOwn) {
+  // The deepest level whose nodes all lie above the pages' last levels.
+  const std::vector<NodeId> ids = level(whole_->level_count() - 5);
+  ASSERT_GT(pages_of(*paged_, ids), 1u);
+  Pooled p(*paged_, {64u << 20, 64u << 20});
+  const Image got = p.frame(paged_->hierarchy(), camera_, &ids);
+  const GpuPoolStats s = p.pool.stats();
+  EXPECT_EQ(s.stand_ins, 0u);
+  std::vector<NodeId> with_root = ids;
+  with_root.push_back(0);
+  const std::uint64_t whole_pages =
+      blocks_of(*paged_, with_root) * GpuNodePool::kBlock * GpuNodePool::kVertexBytes;
+  EXPECT_LT(s.resident_bytes, whole_pages) << "whole pages up for a cut through them";
+  EXPECT_TRUE(got.rgba == whole_image(ids).rgba);
 }
 
 TEST_F(NodePool, PagesComeUpAFewAFrameWithinTheBudgetsAncestorsStandingIn) {

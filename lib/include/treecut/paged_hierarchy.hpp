@@ -45,6 +45,12 @@ struct NodeRange {
   std::uint32_t count = 0;
 };
 
+/// Where a node lies in a cache's pages (PagedHierarchy::place_of).
+struct NodePlace {
+  std::uint32_t page = 0;
+  std::uint32_t prefix = 0;  ///< the page's nodes up to the end of the node's run
+};
+
 struct PagingOptions {
   /// The resident pages' node arrays at most, in bytes (0: no limit). The
   /// first page is always resident, whatever its size.
@@ -129,10 +135,14 @@ class PagedHierarchy {
 
   /// Pages in the file; node ids live in exactly one each.
   [[nodiscard]] std::uint32_t pages() const;
-  /// The page holding node N (any node of the file, resident or not):
-  /// a binary search of the pages' runs. Any thread.
-  [[nodiscard]] std::uint32_t page_of(NodeId n) const;
-  /// Page P's nodes as runs of ids (replaces OUT's content). Any thread.
+  /// The page holding node N (any node of the file, resident or not) and
+  /// how many of its nodes, in the page's order, reach N's level: the end
+  /// of N's run (a page's runs go level by level). A binary search of the
+  /// pages' runs; any thread.
+  [[nodiscard]] NodePlace place_of(NodeId n) const;
+  [[nodiscard]] std::uint32_t page_of(NodeId n) const { return place_of(n).page; }
+  /// Page P's nodes as runs of ids, in the page's order (replaces OUT's
+  /// content). Any thread.
   void page_ranges(std::uint32_t p, std::vector<NodeRange>& out) const;
   [[nodiscard]] std::uint32_t page_nodes(std::uint32_t p) const;
   /// PagingOptions::memory_bytes, as opened.

@@ -131,8 +131,13 @@ struct PagedHierarchy::Impl {
   std::uint64_t in_flight = 0, loaded_count = 0, evicted = 0, failed = 0, bytes_read = 0;
   std::uint64_t now = 0;  // evict() calls
   std::vector<std::string> problems;
-  // Immutable after open(): every run's first id and page, by id (page_of).
-  std::vector<std::pair<std::uint64_t, std::uint32_t>> run_starts;
+  // Immutable after open(): every run by first id (place_of): its page,
+  // and where the run ends in the page's order of nodes.
+  struct RunStart {
+    std::uint64_t first;
+    std::uint32_t page, end;
+  };
+  std::vector<RunStart> run_starts;
   std::uint64_t least_bytes = 0, full_detail_bytes = 0;
   std::vector<std::thread> threads;
 
@@ -256,9 +261,13 @@ struct PagedHierarchy::Impl {
 
   void index_runs() {
     const cache_pages::PageLinks& links = index().links();
-    for (std::uint32_t p = 0; p < index().pages(); ++p)
-      for (const PageRun& run : links.runs_of(p)) run_starts.emplace_back(run.first, p);
-    std::sort(run_starts.begin(), run_starts.end());
+    for (std::uint32_t p = 0; p < index().pages(); ++p) {
+      std::uint32_t k = 0;
+      for (const PageRun& run : links.runs_of(p))
+        run_starts.push_back({run.first, p, k += run.count});
+    }
+    std::sort(run_starts.begin(), run_starts.end(),
+              [](const RunStart& a, const RunStart& b) { return a.first < b.first; });
   }
 
   // The groups hanging from page P's nodes, each as its pages [first, end).
@@ -517,12 +526,13 @@ std::uint32_t PagedHierarchy::pages() const {
   return static_cast<std::uint32_t>(impl_->index().pages());
 }
 
-std::uint32_t PagedHierarchy::page_of(NodeId n) const {
+NodePlace PagedHierarchy::place_of(NodeId n) const {
   const auto& starts = impl_->run_starts;
   // The last run starting at or before N: the runs tile the ids (PageIndex).
   const auto it = std::upper_bound(starts.begin(), starts.end(), std::uint64_t{n},
                                    [](std::uint64_t id, const auto& s) { return id < s.first; });
-  return it == starts.begin() ? 0 : std::prev(it)->second;
+  if (it == starts.begin()) return {};
+  return {std::prev(it)->page, std::prev(it)->end};
 }
 
 void PagedHierarchy::page_ranges(std::uint32_t p, std::vector<NodeRange>& out) const {

@@ -66,7 +66,8 @@ GpuNodePool::GpuNodePool(Renderer& renderer, const PagedHierarchy& paged,
   block_used_.assign(blocks_, 0);
   wanted_mark_.assign(paged.pages(), 0);
   stats_.capacity_bytes = std::uint64_t{blocks_} * kBlock * kVertexBytes;
-  upload(0);  // the root's page: every stand-in's last resort, never given back
+  // The root's page, whole: every stand-in's last resort, never given back.
+  upload(0, paged.page_nodes(0));
 }
 
 GpuNodePool::~GpuNodePool() = default;
@@ -79,7 +80,7 @@ void GpuNodePool::begin_frame() {
 std::uint32_t GpuNodePool::map(std::span<const NodeId> ids, std::size_t current,
                                std::vector<std::uint32_t>& out) {
   const std::span<const NodeId> parent = paged_->hierarchy().arrays().parent;
-  for (const std::uint32_t p : wanted_) wanted_mark_[p] = 0;
+  for (const NodePlace& w : wanted_) wanted_mark_[w.page] = 0;
   wanted_.clear();
   stats_.stand_ins = 0;
   out.resize(ids.size());
@@ -98,9 +99,15 @@ std::uint32_t GpuNodePool::map(std::span<const NodeId> ids, std::size_t current,
     }
     if (v == 0) {
       ++stats_.stand_ins;
-      if (const std::uint32_t p = paged_->page_of(id); !wanted_mark_[p]) {
-        wanted_mark_[p] = 1;
-        wanted_.push_back(p);
+      // Its page, up to its level: a cut through a page needs its levels
+      // down to the cut's, not the whole page (most of a page's nodes lie
+      // in its deepest level).
+      const NodePlace place = paged_->place_of(id);
+      if (std::uint32_t& mark = wanted_mark_[place.page]; mark == 0) {
+        wanted_.push_back(place);
+        mark = static_cast<std::uint32_t>(wanted_.size());
+      } else {
+        wanted_[mark - 1].prefix = std::max(wanted_[mark - 1].prefix, place.prefix);
       }
       // The nearest ancestor that is up stands in, once: the other nodes
       // below it draw nothing (an ancestor's disc covers them all; drawn
@@ -137,50 +144,66 @@ void GpuNodePool::prepare(CutBuffer& cut) {
   // that its blocks count as used this frame.
   if (!mapped_ && !wanted_.empty()) cut.refresh();
   if (wanted_.empty()) return;
-  const std::vector<std::uint32_t> pages = wanted_;  // refresh() remakes wanted_
+  const std::vector<NodePlace> pages = wanted_;  // refresh() remakes wanted_
   std::size_t uploaded = 0;
-  for (const std::uint32_t p : pages) {
-    const std::uint64_t bytes = std::uint64_t{paged_->page_nodes(p)} * kVertexBytes;
+  for (const NodePlace& w : pages) {
+    const auto it = up_.find(w.page);
+    const std::uint32_t have = it == up_.end() ? 0 : it->second.nodes;
+    const std::uint64_t bytes = std::uint64_t{w.prefix - have} * kVertexBytes;
     if (uploaded > 0 && stats_.uploaded_bytes + bytes > options_.upload_bytes) break;
-    if (!make_room(blocks_for(paged_->page_nodes(p)))) break;
-    upload(p);
+    // A page partly up that the list needs more of keeps what it has.
+    if (it != up_.end())
+      for (const std::uint32_t b : it->second.blocks) block_used_[b] = frame_;
+    const std::size_t blocks = it == up_.end() ? 0 : it->second.blocks.size();
+    if (!make_room(blocks_for(w.prefix) - blocks)) break;
+    upload(w.page, w.prefix);
     ++uploaded;
     stats_.uploaded_bytes += bytes;
   }
   if (uploaded > 0) cut.refresh();
 }
 
-void GpuNodePool::upload(std::uint32_t page) {
+template <class Fn>
+void GpuNodePool::for_each_run(std::uint32_t page, std::uint32_t from, std::uint32_t to, Fn&& fn) {
   paged_->page_ranges(page, ranges_);
-  std::vector<std::uint32_t> blocks(blocks_for(paged_->page_nodes(page)));
-  for (std::uint32_t& b : blocks) {
-    b = free_.back();
+  std::uint32_t k = 0;
+  for (const NodeRange& r : ranges_) {
+    const std::uint32_t lo = std::max(k, from), hi = std::min(k + r.count, to);
+    if (lo < hi) fn(NodeRange{r.first + (lo - k), hi - lo}, lo);
+    k += r.count;
+  }
+}
+
+void GpuNodePool::upload(std::uint32_t page, std::uint32_t prefix) {
+  Up& u = up_[page];
+  while (u.blocks.size() < blocks_for(prefix)) {
+    const std::uint32_t b = free_.back();
     free_.pop_back();
     block_page_[b] = page;
     block_used_[b] = frame_;
+    u.blocks.push_back(b);
   }
   // The page's k-th node goes to vertex k % kBlock of its block k / kBlock:
   // one copy a piece of a run within a block.
-  std::uint32_t k = 0;
-  for (const NodeRange& r : ranges_) {
+  for_each_run(page, u.nodes, prefix, [&](NodeRange r, std::uint32_t k) {
     for (std::uint32_t done = 0; done < r.count;) {
-      const std::uint32_t at = k % kBlock;
+      const std::uint32_t at = (k + done) % kBlock;
       const std::uint32_t len = std::min(r.count - done, kBlock - at);
-      const std::uint32_t vertex = blocks[k / kBlock] * kBlock + at;
+      const std::uint32_t vertex = u.blocks[(k + done) / kBlock] * kBlock + at;
       renderer_->write_vertices(vertex, paged_->hierarchy(), {r.first + done, len});
       for (std::uint32_t j = 0; j < len; ++j) slot_[r.first + done + j] = vertex + j + 1;
-      done += len, k += len;
+      done += len;
     }
-  }
-  up_[page] = std::move(blocks);
-  ++stats_.uploads;
+  });
+  if (u.nodes == 0) ++stats_.uploads;
+  u.nodes = std::max(u.nodes, prefix);
 }
 
 void GpuNodePool::give_back(std::uint32_t page) {
-  paged_->page_ranges(page, ranges_);
-  for (const NodeRange& r : ranges_) slot_.release(r.first, r.count);
   const auto it = up_.find(page);
-  free_.insert(free_.end(), it->second.begin(), it->second.end());
+  for_each_run(page, 0, it->second.nodes,
+               [&](NodeRange r, std::uint32_t) { slot_.release(r.first, r.count); });
+  free_.insert(free_.end(), it->second.blocks.begin(), it->second.blocks.end());
   up_.erase(it);
   ++stats_.evictions;
 }
@@ -188,10 +211,10 @@ void GpuNodePool::give_back(std::uint32_t page) {
 bool GpuNodePool::make_room(std::size_t blocks) {
   if (free_.size() >= blocks) return true;
   std::vector<std::pair<std::uint64_t, std::uint32_t>> unused;  // (last used, page)
-  for (const auto& [page, its] : up_) {
+  for (const auto& [page, u] : up_) {
     if (page == 0) continue;
     std::uint64_t used = 0;
-    for (const std::uint32_t b : its) used = std::max(used, block_used_[b]);
+    for (const std::uint32_t b : u.blocks) used = std::max(used, block_used_[b]);
     if (used < frame_) unused.emplace_back(used, page);
   }
   std::sort(unused.begin(), unused.end());

@@ -4,14 +4,15 @@
 // The renderer's vertex buffer is the pool (Renderer::set_pool); the list's
 // ids reach it through this map (CutBuffer::set_vertex_map).
 //
-// The unit is a page of the cache (at most 8,192 nodes), placed in blocks
-// of kBlock vertices that need not be adjacent: a page's k-th node sits in
-// its block k / kBlock. A node of the list whose page is not on the GPU yet
-// is drawn as its nearest ancestor that is (the root's page never leaves),
-// as a strategy's node whose children are not resident stays a leaf: never
-// a hole, never a wait. What the pool keeps is proportional to the budget
-// (a slot a resident node, in reserved address space indexed by id; a byte
-// a page), not to the model. Potree's viewer streams nodes to the GPU the
+// The unit is a page of the cache (at most 8,192 nodes), or its levels down
+// to the deepest one the list reaches (a cut through a page needs no more:
+// most of a page's nodes lie in its deepest level), placed in blocks of
+// kBlock vertices that need not be adjacent: a page's k-th node sits in its
+// block k / kBlock, and a page that the list needs more of grows. A node of the list whose page is
+// not on the GPU yet is drawn as its nearest ancestor that is (the root's page never leaves), as a
+// strategy's node whose children are not resident stays a leaf: never a hole, never a wait. What
+// the pool keeps is proportional to the budget (a slot a resident node, in reserved address space
+// indexed by id; a byte a page), not to the model. Potree's viewer streams nodes to the GPU the
 // same way, a few per frame, the rest drawn coarser meanwhile.
 //
 // Render thread only (every call makes GL calls through the renderer).
@@ -85,7 +86,17 @@ class GpuNodePool final : public VertexMap {
   [[nodiscard]] const Hierarchy& hierarchy() const { return paged_->hierarchy(); }
 
  private:
-  void upload(std::uint32_t page);
+  // A page on the GPU: its first NODES nodes (in the page's order: its
+  // levels from the top), in BLOCKS.
+  struct Up {
+    std::vector<std::uint32_t> blocks;
+    std::uint32_t nodes = 0;
+  };
+  // Page PAGE's nodes [FROM, TO) in its order, as pieces of runs: FN(ids, k).
+  template <class Fn>
+  void for_each_run(std::uint32_t page, std::uint32_t from, std::uint32_t to, Fn&& fn);
+  // Page PAGE's first PREFIX nodes up (the blocks they need are free).
+  void upload(std::uint32_t page, std::uint32_t prefix);
   void give_back(std::uint32_t page);
   // Frees blocks until BLOCKS are free, from pages no list of this frame
   // uses, least recently used first; false when they cannot be.
@@ -94,16 +105,16 @@ class GpuNodePool final : public VertexMap {
   Renderer* renderer_;
   const PagedHierarchy* paged_;
   GpuPoolOptions options_;
-  std::uint32_t blocks_ = 0;               // in the pool
-  std::uint32_t null_vertex_ = 0;          // after the blocks: zeros, drawn as nothing
-  ReservedArray<std::uint32_t> slot_;      // by node id: its vertex + 1, 0 when not up
-  std::vector<std::uint32_t> free_;        // blocks
-  std::vector<std::uint32_t> block_page_;  // by block: its page
-  std::vector<std::uint64_t> block_used_;  // by block: the frame a list last used it
-  std::unordered_map<std::uint32_t, std::vector<std::uint32_t>> up_;  // page -> its blocks
-  std::vector<std::uint8_t> wanted_mark_;                             // by page: in wanted_
-  std::vector<std::uint32_t> wanted_;            // pages the list needs, coarsest first
-  std::vector<NodeRange> ranges_;                // (reused)
+  std::uint32_t blocks_ = 0;                  // in the pool
+  std::uint32_t null_vertex_ = 0;             // after the blocks: zeros, drawn as nothing
+  ReservedArray<std::uint32_t> slot_;         // by node id: its vertex + 1, 0 when not up
+  std::vector<std::uint32_t> free_;           // blocks
+  std::vector<std::uint32_t> block_page_;     // by block: its page
+  std::vector<std::uint64_t> block_used_;     // by block: the frame a list last used it
+  std::unordered_map<std::uint32_t, Up> up_;  // the pages up
+  std::vector<std::uint32_t> wanted_mark_;    // by page: its place in wanted_ + 1 (0: none)
+  std::vector<NodePlace> wanted_;             // pages the list needs, and how far, coarsest first
+  std::vector<NodeRange> ranges_;             // (reused)
   std::unordered_set<std::uint32_t> stand_ins_;  // vertices standing in (map)
   std::uint64_t frame_ = 0;
   bool mapped_ = false;  // this frame

@@ -214,7 +214,7 @@ class QueryExecutor final : public QueryHook {
   std::uint64_t frame_ = 0;
   std::uint64_t generation_ = 0;
   const Hierarchy* hierarchy_ = nullptr;
-  std::vector<glm::vec4> spheres_;  // the hierarchy's center_radius
+  std::vector<glm::vec4> spheres_;  // the hierarchy's center_radius (once a query is asked)
   std::vector<Queued> queue_;       // the current generation's (and deferred older ones)
   std::size_t queue_next_ = 0;      // first not yet issued
   std::size_t due_end_ = 0;         // [queue_next_, due_end_): were due, did not fit
