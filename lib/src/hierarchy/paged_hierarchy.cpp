@@ -9,6 +9,7 @@
 // always resident.
 #include "treecut/paged_hierarchy.hpp"
 
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -409,7 +410,14 @@ std::unique_ptr<PagedHierarchy> PagedHierarchy::open(const std::filesystem::path
                                        m.outline->frame, std::move(attributes))
                     .with_notes(m.outline->notes);
   for (unsigned t = 0; t < std::max(1u, options.io_threads); ++t)
-    m.threads.emplace_back([&m] { m.serve(); });
+    m.threads.emplace_back([&m] {
+      // Pages are decoded with the cycles the render thread leaves (nice
+      // +10, as the stage's Low priority: never starved, as SCHED_IDLE
+      // would be under a busy renderer). On 2 cores, decoding at the
+      // render thread's priority took its frames' time.
+      (void)::setpriority(PRIO_PROCESS, 0, std::min(::getpriority(PRIO_PROCESS, 0) + 10, 19));
+      m.serve();
+    });
   return std::unique_ptr<PagedHierarchy>(new PagedHierarchy(std::move(impl)));
 }
 
