@@ -121,6 +121,15 @@ double median_frame_ms(const std::vector<FrameRow>& rows) {
   return v[v.size() / 2];
 }
 
+double p99_frame_ms(const std::vector<FrameRow>& rows) {
+  std::vector<double> v;
+  for (const FrameRow& r : rows) v.push_back(r.frame_ms);
+  if (v.empty()) return 0.0;
+  const auto k = static_cast<std::ptrdiff_t>((v.size() * 99 + 99) / 100 - 1);  // ceil(0.99 n) - 1
+  std::nth_element(v.begin(), v.begin() + k, v.end());
+  return v[static_cast<std::size_t>(k)];
+}
+
 // PSNR of identical images is +infinity: "inf" in stdout, stats.csv and
 // summary.json (a JSON string there; float("inf") reads all three back), an
 // empty field / null when it was not measured.
@@ -170,10 +179,11 @@ std::vector<CounterSeries> counter_series(const std::vector<FrameRow>& rows) {
       auto it = std::find_if(series.begin(), series.end(),
                              [&](const CounterSeries& x) { return x.name == c.name(); });
       if (it == series.end()) {
-        series.push_back({std::string(c.name()), std::string(c.unit()), 0.0, 0});
+        series.push_back({std::string(c.name()), std::string(c.unit()), 0.0, c.value, 0});
         it = series.end() - 1;
       }
       it->total += c.value;
+      it->max = std::max(it->max, c.value);
       ++it->frames;
     }
   }
@@ -234,6 +244,7 @@ std::string summary_json(const RunSummary& s) {
   j["frames"] = s.rows.size();
   j["mean_frame_ms"] = number_json(mean_of(s.rows, &FrameRow::frame_ms));
   j["median_frame_ms"] = number_json(median_frame_ms(s.rows));
+  j["p99_frame_ms"] = number_json(p99_frame_ms(s.rows));
   j["mean_splats_drawn"] = number_json(double(cut_sum) / n);
   j["mean_points_represented"] = number_json(double(points_sum) / n);
   j["mean_iteration_ms"] = number_json(mean_of(s.rows, &FrameRow::iteration_ms));
@@ -255,6 +266,7 @@ std::string summary_json(const RunSummary& s) {
       counters[c.name] = {{"unit", c.unit},
                           {"mean", c.total / double(std::max<std::size_t>(c.frames, 1))},
                           {"total", c.total},
+                          {"max", c.max},
                           {"frames", c.frames}};
     }
     j["counters"] = std::move(counters);

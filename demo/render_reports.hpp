@@ -80,6 +80,8 @@ struct RunSummary {
 /// The mean of a field over the rows where it is finite; NaN if none is.
 double mean_of(const std::vector<FrameRow>& rows, double FrameRow::*field);
 double median_frame_ms(const std::vector<FrameRow>& rows);
+/// The frame time that 99 % of the frames do not exceed (nearest rank).
+double p99_frame_ms(const std::vector<FrameRow>& rows);
 /// The mean over the frames that differ from full detail; +infinity when every
 /// measured frame was identical to it, NaN when none was measured.
 double mean_psnr(const std::vector<FrameRow>& rows);
@@ -93,6 +95,7 @@ void write_stats_csv(const std::filesystem::path& file, const std::vector<FrameR
 struct CounterSeries {
   std::string name, unit;
   double total = 0.0;
+  double max = 0.0;  ///< the largest value a frame had (a budget's peak)
   std::size_t frames = 0;
 };
 std::vector<CounterSeries> counter_series(const std::vector<FrameRow>& rows);

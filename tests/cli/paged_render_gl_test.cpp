@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -148,5 +149,13 @@ TEST(PagedRender, TwoMillionPointsWithin32MiBAnd8MiBOfGpuMemory) {
     EXPECT_LE(up[f], 1024.0 + 8192 * 32 / 1024.0) << "frame " << f;
   }
   EXPECT_GT(loaded.back(), 10.0) << "hardly any page read";
+  // summary.json says the same peaks, and the frame times' 99th percentile.
+  std::ifstream in(dir / "out" / "summary.json");
+  const nlohmann::json j = nlohmann::json::parse(in);
+  EXPECT_LE(j["counters"]["pages_resident_mib"]["max"].get<double>(), 32.0);
+  EXPECT_LE(j["counters"]["gpu_resident_mib"]["max"].get<double>(), 8.0);
+  EXPECT_DOUBLE_EQ(j["counters"]["gpu_resident_mib"]["max"].get<double>(),
+                   *std::max_element(gpu.begin(), gpu.end()));
+  EXPECT_GE(j["p99_frame_ms"].get<double>(), j["median_frame_ms"].get<double>());
   EXPECT_GT(*std::max_element(gpu.begin(), gpu.end()), 1.0) << "hardly any page copied up";
 }
