@@ -118,6 +118,18 @@ void Viewer::details_panel() {
     ImGui::Text("%.*s %.6g %.*s", static_cast<int>(counter.name().size()), counter.name().data(),
                 counter.value, static_cast<int>(counter.unit().size()), counter.unit().data());
   }
+  if (const splat::GpuNodePool* pool = frame_loop_->gpu_pool()) {
+    // A paged model's pages on the GPU (the RAM's are the stage's pages_*).
+    const splat::GpuPoolStats g = pool->stats();
+    ImGui::Text("GPU pages: %llu, %.1f of %.1f MiB; %.0f KiB up this frame",
+                static_cast<unsigned long long>(g.resident_pages),
+                double(g.resident_bytes) / (1 << 20), double(g.capacity_bytes) / (1 << 20),
+                double(g.uploaded_bytes) / 1024.0);
+    if (g.waiting_pages > 0)
+      ImGui::Text("GPU: %llu pages on their way, %llu nodes drawn as an ancestor",
+                  static_cast<unsigned long long>(g.waiting_pages),
+                  static_cast<unsigned long long>(g.stand_ins));
+  }
   if (const splat::QueryStats& q = queries_->stats(); q.issued > 0 || q.queued > 0) {
     // The strategy's GPU queries: what is waiting, and how late answers come.
     ImGui::Text("queries: %llu issued, %llu answered (%llu occluded), %zu pending, %zu queued",

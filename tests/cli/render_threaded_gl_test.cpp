@@ -101,6 +101,9 @@ TEST_F(RenderThreaded, ASceneOfManyObjectsUnderTheBudgetStrategy) {
 // I/O thread) and gives them back within 2 MiB while the render thread maps
 // the lists and copies their pages up within 1 MiB of GPU memory, 64 KiB a
 // frame, reading the front list's pages without a lock (docs/threading.md).
+// Its frames are quick (a cut of a few thousand splats): the stage, at idle
+// priority, is raised after a millisecond's wait (--stage-wait-bound 1), or
+// under a loaded machine no iteration would end within the run.
 TEST_F(RenderThreaded, APagedModelsPagesTravelBetweenTheThreadsAndTheGpuPool) {
   const fs::path ply = dir / "terrain.ply", cache = dir / "terrain.tch";
   ASSERT_EQ(run_treecut("gen terrain -n 100000 --seed 1 -o " + quote(ply)).code, 0);
@@ -108,10 +111,11 @@ TEST_F(RenderThreaded, APagedModelsPagesTravelBetweenTheThreadsAndTheGpuPool) {
   ASSERT_EQ(built.code, 0) << built.out;
   for (const char* strategy : {"recursive", "event_queue"}) {
     const fs::path out = dir / strategy;
-    const auto r = run_treecut("render " + quote(cache) + " -s " + strategy +
-                               " --memory 2M --gpu-memory 1M --gpu-upload 64K --no-png --frames 90 "
-                               "--width 240 --height 160 -o " +
-                               quote(out));
+    const auto r =
+        run_treecut("render " + quote(cache) + " -s " + strategy +
+                    " --memory 2M --gpu-memory 1M --gpu-upload 64K --no-png --frames 300 "
+                    "--width 240 --height 160 --stage-wait-bound 1 -o " +
+                    quote(out));
     ASSERT_EQ(r.code, 0) << r.out;
     const nlohmann::json j = summary(out);
     EXPECT_GT(j["exchanges"].get<int>(), 0) << r.out;
