@@ -28,6 +28,21 @@
 
 namespace treecut::cli {
 
+namespace {
+
+// The budgets of a model drawn from its pages, and a URL's stall timeout.
+void add_paging_options(CLI::App& cmd, SceneArgs& args) {
+  add_memory_option(cmd, args.memory, true);
+  add_gpu_memory_options(cmd, args.gpu_memory, args.gpu_upload);
+  cmd.add_option("--stall-timeout", args.stall_timeout_s,
+                 "A cache by URL (http:// or https://, read by range requests): seconds a read "
+                 "may receive nothing before it fails (its page is named, the rest drawn)")
+      ->check(CLI::Range(0.1, 3600.0))
+      ->capture_default_str();
+}
+
+}  // namespace
+
 void add_scene_options(CLI::App& cmd, SceneArgs& args) {
   cmd.add_option("MODEL", args.model,
                  "A point file (PLY, LAS, PCD, XYZ, PTS, CSV), a .tch cache or a .scene file "
@@ -118,13 +133,7 @@ void add_scene_options(CLI::App& cmd, SceneArgs& args) {
                  "noise) of the classification attribute");
   add_columns_option(cmd, args.columns);
   add_crs_option(cmd, args.crs);
-  add_memory_option(cmd, args.memory, true);
-  add_gpu_memory_options(cmd, args.gpu_memory, args.gpu_upload);
-  cmd.add_option("--stall-timeout", args.stall_timeout_s,
-                 "A cache by URL (http:// or https://, read by range requests): seconds a read "
-                 "may receive nothing before it fails (its page is named, the rest drawn)")
-      ->check(CLI::Range(0.1, 3600.0))
-      ->capture_default_str();
+  add_paging_options(cmd, args);
   cmd.add_option("--stage-wait-bound", args.stage_wait_bound_ms,
                  "Milliseconds an update may wait for the low-priority Feedback Stage before it "
                  "runs at normal priority until done (0 = never; docs/threading.md)")
