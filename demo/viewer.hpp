@@ -97,7 +97,8 @@ std::string paged_strategy_problem(const Scene& scene, const Strategy& strategy,
                                    const std::string& name);
 /// A paged model's GPU pool as --gpu-memory and --gpu-upload say.
 splat::GpuPoolOptions gpu_pool_options(const SceneArgs& args);
-/// The vertices of the renderer's pool for SCENE (0: a model held whole).
+/// The vertices the renderer's pool for SCENE starts with (0: a model held
+/// whole); InputError naming the model when --gpu-memory is too small.
 std::uint32_t pool_vertices(const Scene& scene, const SceneArgs& args);
 
 /// Opens the model (through its cache) or generates the default one, or

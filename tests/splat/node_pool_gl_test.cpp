@@ -80,7 +80,7 @@ class NodePool : public ::testing::Test {
   // A pooled renderer and its pool, and the frames drawn through them.
   struct Pooled {
     Pooled(const PagedHierarchy& paged, const GpuPoolOptions& o)
-        : renderer(paged.hierarchy(), {kWidth, kHeight}, GpuNodePool::vertices(paged, o)),
+        : renderer(paged.hierarchy(), {kWidth, kHeight}, GpuNodePool::first_vertices(paged, o)),
           pool(renderer, paged, o) {
       cut.set_vertex_map(&pool);
     }
@@ -154,6 +154,28 @@ TEST_F(NodePool, ACutThroughPagesTakesTheirLevelsDownToItsOwn) {
       blocks_of(*paged_, with_root) * GpuNodePool::kBlock * GpuNodePool::kVertexBytes;
   EXPECT_LT(s.resident_bytes, whole_pages) << "whole pages up for a cut through them";
   EXPECT_TRUE(got.rgba == whole_image(ids).rgba);
+}
+
+// The buffer starts small and doubles as the pages need, within the budget;
+// the vertices already up stay where they are (the lists' indices hold).
+TEST_F(NodePool, TheBufferGrowsAsThePagesNeedKeepingWhatIsUp) {
+  const std::vector<NodeId> coarse = level(whole_->level_count() - 5);
+  const std::vector<NodeId> fine = level(whole_->level_count() - 2);
+  GpuPoolOptions o{64u << 20, 64u << 20};
+  o.first_bytes = 1;  // the least: the root's page and a page more
+  Pooled p(*paged_, o);
+  const std::uint64_t first = p.pool.stats().allocated_bytes;
+  EXPECT_LT(first, std::uint64_t{1} << 20);
+  EXPECT_TRUE(p.frame(paged_->hierarchy(), camera_, &coarse).rgba == whole_image(coarse).rgba);
+  const Image got = p.frame(paged_->hierarchy(), camera_, &fine);
+  const GpuPoolStats s = p.pool.stats();
+  EXPECT_GT(s.growths, 0u);
+  EXPECT_GT(s.allocated_bytes, first);
+  EXPECT_LE(s.allocated_bytes, s.capacity_bytes);
+  EXPECT_LE(s.resident_bytes, s.allocated_bytes);
+  EXPECT_EQ(s.evictions, 0u) << "pages given back while the budget had room";
+  EXPECT_EQ(s.stand_ins, 0u);
+  EXPECT_TRUE(got.rgba == whole_image(fine).rgba);
 }
 
 TEST_F(NodePool, PagesComeUpAFewAFrameWithinTheBudgetsAncestorsStandingIn) {
@@ -234,7 +256,7 @@ TEST_F(NodePool, AListLargerThanTheBudgetIsDrawnCoarserNeverPastIt) {
 
 TEST_F(NodePool, ABudgetBelowTwoPagesIsRefusedInOneLine) {
   try {
-    (void)GpuNodePool::vertices(*paged_, {16 << 10, 1 << 20});
+    (void)GpuNodePool::vertices(*paged_, {16 << 10, 1 << 20, 16 << 10});
     FAIL() << "a pool of 16 KiB accepted";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("--gpu-memory: 0.0 MiB is below"), std::string::npos)

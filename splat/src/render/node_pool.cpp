@@ -25,6 +25,14 @@ std::uint32_t blocks_for(std::uint64_t nodes) {
   return static_cast<std::uint32_t>((nodes + GpuNodePool::kBlock - 1) / GpuNodePool::kBlock);
 }
 
+// The root's page and the largest page beside it: the least pool.
+std::uint64_t least_blocks(const PagedHierarchy& paged) {
+  std::uint32_t largest = 0;
+  for (std::uint32_t p = 1; p < paged.pages(); ++p)
+    largest = std::max(largest, paged.page_nodes(p));
+  return std::uint64_t{blocks_for(paged.page_nodes(0))} + blocks_for(largest);
+}
+
 }  // namespace
 
 std::uint64_t GpuNodePool::budget(const PagedHierarchy& paged, const GpuPoolOptions& options) {
@@ -36,18 +44,22 @@ std::uint64_t GpuNodePool::budget(const PagedHierarchy& paged, const GpuPoolOpti
 
 std::uint32_t GpuNodePool::vertices(const PagedHierarchy& paged, const GpuPoolOptions& options) {
   const std::uint64_t bytes = budget(paged, options);
-  std::uint32_t largest = 0;
-  for (std::uint32_t p = 1; p < paged.pages(); ++p)
-    largest = std::max(largest, paged.page_nodes(p));
-  const std::uint64_t least =
-      std::uint64_t{blocks_for(paged.page_nodes(0)) + blocks_for(largest)} * kBlock * kVertexBytes;
+  const std::uint64_t least = least_blocks(paged) * kBlock * kVertexBytes;
   if (bytes < least)
     throw InputError("--gpu-memory: " + mib_text(bytes) + " is below the " + mib_text(least) +
                      " the model's first page and its largest page take on the GPU");
-  // The null vertex after the blocks; a vertex buffer addresses 2^31 - 1.
+  // The null vertex and the blocks; a vertex buffer addresses 2^31 - 1.
   const std::uint64_t blocks = std::min<std::uint64_t>(bytes / (kBlock * kVertexBytes),
                                                        (std::uint64_t{0x7fffffff} - 1) / kBlock);
-  return static_cast<std::uint32_t>(blocks * kBlock + 1);
+  return static_cast<std::uint32_t>(1 + blocks * kBlock);
+}
+
+std::uint32_t GpuNodePool::first_vertices(const PagedHierarchy& paged,
+                                          const GpuPoolOptions& options) {
+  const std::uint32_t most = vertices(paged, options);
+  const std::uint64_t first =
+      std::max<std::uint64_t>(options.first_bytes / (kBlock * kVertexBytes), least_blocks(paged));
+  return static_cast<std::uint32_t>(std::min<std::uint64_t>(most, 1 + first * kBlock));
 }
 
 GpuNodePool::GpuNodePool(Renderer& renderer, const PagedHierarchy& paged,
@@ -56,18 +68,22 @@ GpuNodePool::GpuNodePool(Renderer& renderer, const PagedHierarchy& paged,
       paged_(&paged),
       options_(options),
       slot_(paged.hierarchy().node_count()) {
-  const std::uint32_t n = vertices(paged, options);
+  max_blocks_ = (vertices(paged, options) - 1) / kBlock;
+  const std::uint32_t n = first_vertices(paged, options);
   renderer.set_pool(paged.hierarchy(), n);
-  blocks_ = (n - 1) / kBlock;
-  null_vertex_ = n - 1;
-  free_.reserve(blocks_);
-  for (std::uint32_t b = blocks_; b-- > 0;) free_.push_back(b);  // low blocks first
-  block_page_.assign(blocks_, 0);
-  block_used_.assign(blocks_, 0);
+  add_blocks((n - 1) / kBlock);
   wanted_mark_.assign(paged.pages(), 0);
-  stats_.capacity_bytes = std::uint64_t{blocks_} * kBlock * kVertexBytes;
+  stats_.capacity_bytes = std::uint64_t{max_blocks_} * kBlock * kVertexBytes;
   // The root's page, whole: every stand-in's last resort, never given back.
   upload(0, paged.page_nodes(0));
+}
+
+void GpuNodePool::add_blocks(std::uint32_t blocks) {
+  const std::uint32_t old = blocks_;
+  blocks_ = blocks;
+  for (std::uint32_t b = blocks_; b-- > old;) free_.push_back(b);  // low blocks first
+  block_page_.resize(blocks_, 0);
+  block_used_.resize(blocks_, 0);
 }
 
 GpuNodePool::~GpuNodePool() = default;
@@ -93,8 +109,8 @@ std::uint32_t GpuNodePool::map(std::span<const NodeId> ids, std::size_t current,
     if (v == 0 && i >= current) {
       // A fading exchange's leaving node whose page left the GPU: nothing
       // (its ancestors are no longer known to be resident).
-      out[i] = null_vertex_;
-      most = std::max(most, null_vertex_);
+      out[i] = kNullVertex;
+      most = std::max(most, kNullVertex);
       continue;
     }
     if (v == 0) {
@@ -115,21 +131,21 @@ std::uint32_t GpuNodePool::map(std::span<const NodeId> ids, std::size_t current,
       // nodes and their ancestors are resident (the stage's evict() knows
       // the list): their parents can be read.
       if (parent[id] == last_parent) {
-        out[i] = null_vertex_;
-        most = std::max(most, null_vertex_);
+        out[i] = kNullVertex;
+        most = std::max(most, kNullVertex);
         continue;
       }
       NodeId up = last_parent = parent[id];
       while (slot_[up] == 0) up = parent[up];  // page 0 is always up
       v = slot_[up];
       if (!stand_ins_.insert(v).second) {
-        out[i] = null_vertex_;
-        most = std::max(most, null_vertex_);
+        out[i] = kNullVertex;
+        most = std::max(most, kNullVertex);
         continue;
       }
     }
     out[i] = v - 1;
-    block_used_[(v - 1) / kBlock] = frame_;
+    block_used_[(v - 2) / kBlock] = frame_;
     most = std::max(most, v - 1);
   }
   mapped_ = true;
@@ -189,7 +205,7 @@ void GpuNodePool::upload(std::uint32_t page, std::uint32_t prefix) {
     for (std::uint32_t done = 0; done < r.count;) {
       const std::uint32_t at = (k + done) % kBlock;
       const std::uint32_t len = std::min(r.count - done, kBlock - at);
-      const std::uint32_t vertex = u.blocks[(k + done) / kBlock] * kBlock + at;
+      const std::uint32_t vertex = 1 + u.blocks[(k + done) / kBlock] * kBlock + at;
       renderer_->write_vertices(vertex, paged_->hierarchy(), {r.first + done, len});
       for (std::uint32_t j = 0; j < len; ++j) slot_[r.first + done + j] = vertex + j + 1;
       done += len;
@@ -210,6 +226,16 @@ void GpuNodePool::give_back(std::uint32_t page) {
 
 bool GpuNodePool::make_room(std::size_t blocks) {
   if (free_.size() >= blocks) return true;
+  if (blocks_ < max_blocks_) {
+    // Room within the budget: the buffer doubles (a copy on the GPU), so its
+    // memory follows what the pages need, not the budget.
+    const auto want = static_cast<std::uint32_t>(blocks_ + blocks - free_.size());
+    const std::uint32_t grown = std::min(max_blocks_, std::max(2 * blocks_, want));
+    renderer_->grow_pool(1 + grown * kBlock);
+    add_blocks(grown);
+    ++stats_.growths;
+    if (free_.size() >= blocks) return true;
+  }
   std::vector<std::pair<std::uint64_t, std::uint32_t>> unused;  // (last used, page)
   for (const auto& [page, u] : up_) {
     if (page == 0) continue;
@@ -230,6 +256,7 @@ GpuPoolStats GpuNodePool::stats() const {
   s.resident_bytes =
       std::uint64_t{blocks_ - static_cast<std::uint32_t>(free_.size())} * kBlock * kVertexBytes;
   s.resident_pages = up_.size();
+  s.allocated_bytes = std::uint64_t{blocks_} * kBlock * kVertexBytes;
   return s;
 }
 

@@ -9,6 +9,7 @@
 // high-quality mode; QSplat's round splats for coarse nodes.
 #include "treecut/splat/renderer.hpp"
 
+#include <array>
 #include <cstdint>
 #include <glm/gtc/type_ptr.hpp>
 #include <initializer_list>
@@ -255,18 +256,48 @@ void Renderer::set_pool(const Hierarchy& h, std::uint32_t vertices) {
   if (vertices == 0 || vertices > 0x7fffffffu)
     throw std::invalid_argument("Renderer: a pool of " + std::to_string(vertices) + " vertices");
   create_vertex_buffer(vertices);
-  // Zeros: alpha 0 everywhere, so a vertex nothing was written to draws
-  // nothing (the pool's null vertex stays so).
-  gl::ClearNamedBufferSubData(nodes_.id(), GL_R8UI, 0, static_cast<GLsizeiptr>(nodes_.size()),
-                              GL_RED_INTEGER, GL_UNSIGNED_BYTE, nullptr);
+  node_count_ = vertices;
+  // Vertex 0 zeros (alpha 0: drawn as nothing), the rest undefined until
+  // written: the pool writes what it maps to.
+  write_null_vertex();
   model_base_.assign(1, 0);
   model_nodes_.assign(1, vertices);
   model_ids_.assign(1, &h);
-  node_count_ = vertices;
   hierarchy_ = &h;
   pooled_ = true;
   ++hierarchy_uploads_;
   gl::check("Renderer vertex pool");
+}
+
+void Renderer::write_null_vertex() {
+  const VertexRegions at(node_count_);
+  const std::array<std::byte, sizeof(glm::vec4)> zero{};
+  nodes_.sub_data(at.center_radius(0), zero);
+  nodes_.sub_data(at.normal_cone(0), std::span(zero).first(sizeof(glm::i16vec4)));
+  nodes_.sub_data(at.color(0), std::span(zero).first(sizeof(glm::u8vec4)));
+  nodes_.sub_data(at.splat_radius(0), std::span(zero).first(sizeof(float)));
+}
+
+void Renderer::grow_pool(std::uint32_t vertices) {
+  if (!pooled_ || vertices <= node_count_) return;
+  if (vertices > 0x7fffffffu)
+    throw std::invalid_argument("Renderer: a pool of " + std::to_string(vertices) + " vertices");
+  // Each region moves (they lie back to back): copied on the GPU into a
+  // buffer of the new size, region by region.
+  gl::Buffer old = std::move(nodes_);
+  const VertexRegions from(node_count_), to(vertices);
+  create_vertex_buffer(vertices);
+  const auto copy = [&](std::size_t src, std::size_t dst, std::size_t bytes) {
+    gl::CopyNamedBufferSubData(old.id(), nodes_.id(), static_cast<GLintptr>(src),
+                               static_cast<GLintptr>(dst), static_cast<GLsizeiptr>(bytes));
+  };
+  copy(from.center_radius(0), to.center_radius(0), from.normal_cone(0) - from.center_radius(0));
+  copy(from.normal_cone(0), to.normal_cone(0), from.color(0) - from.normal_cone(0));
+  copy(from.color(0), to.color(0), from.splat_radius(0) - from.color(0));
+  copy(from.splat_radius(0), to.splat_radius(0), from.bytes() - from.splat_radius(0));
+  node_count_ = vertices;
+  model_nodes_.assign(1, vertices);
+  gl::check("Renderer pool growth");
 }
 
 void Renderer::write_vertices(std::uint32_t first, const Hierarchy& h, NodeRange nodes) {

@@ -29,6 +29,7 @@ namespace treecut::gl {
 #define TREECUT_GL_SAMPLE_COUNTERS(X)                          \
   X(PFNGLBINDBUFFERBASEPROC, BindBufferBase)                   \
   X(PFNGLCLEARNAMEDBUFFERSUBDATAPROC, ClearNamedBufferSubData) \
+  X(PFNGLCOPYNAMEDBUFFERSUBDATAPROC, CopyNamedBufferSubData)   \
   X(PFNGLMAPNAMEDBUFFERRANGEPROC, MapNamedBufferRange)         \
   X(PFNGLMEMORYBARRIERPROC, MemoryBarrier)                     \
   X(PFNGLFENCESYNCPROC, FenceSync)                             \

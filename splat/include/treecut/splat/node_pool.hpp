@@ -38,12 +38,18 @@ struct GpuPoolOptions {
   std::uint64_t memory_bytes = 0;
   /// Bytes copied to the GPU per frame at most (a page at least).
   std::uint64_t upload_bytes = std::uint64_t{8} << 20;
+  /// The buffer's size at first; it doubles as pages need, up to
+  /// memory_bytes (a driver backs a buffer when it is made: llvmpipe took
+  /// 1 GiB of RAM and a second for a pool of 1 GiB before the first frame).
+  std::uint64_t first_bytes = std::uint64_t{16} << 20;
 };
 
 /// What the pool holds and did (this frame: the last prepare()).
 struct GpuPoolStats {
-  std::uint64_t capacity_bytes = 0;  ///< the pool's vertices
-  std::uint64_t resident_bytes = 0;  ///< of the blocks pages use
+  std::uint64_t capacity_bytes = 0;   ///< the budget's vertices
+  std::uint64_t allocated_bytes = 0;  ///< the buffer's now (it grows as pages need)
+  std::uint64_t growths = 0;          ///< times the buffer grew
+  std::uint64_t resident_bytes = 0;   ///< of the blocks pages use
   std::uint64_t resident_pages = 0;
   std::uint64_t uploaded_bytes = 0;          ///< this frame
   std::uint64_t uploads = 0, evictions = 0;  ///< pages, since the pool was made
@@ -54,15 +60,22 @@ struct GpuPoolStats {
 class GpuNodePool final : public VertexMap {
  public:
   static constexpr std::uint32_t kBlock = 1024;
+  /// Vertex 0: zeros, drawn as nothing (what the map gives a node it does
+  /// not draw); block b's vertices start at 1 + b * kBlock.
+  static constexpr std::uint32_t kNullVertex = 0;
   /// A vertex: center and bound, normal cone, colour, drawn radius.
   static constexpr std::uint64_t kVertexBytes = 32;
 
   /// The budget OPTIONS give for PAGED, in bytes (memory_bytes, or its default).
   static std::uint64_t budget(const PagedHierarchy& paged, const GpuPoolOptions& options);
-  /// The vertices of a pool of that budget (the renderer's set_pool), the
-  /// null vertex included. Throws InputError "--gpu-memory: REASON" when it
-  /// cannot hold the first page and the largest one beside it.
+  /// The vertices of a pool of that budget, the null vertex included.
+  /// Throws InputError "--gpu-memory: REASON" when it cannot hold the first
+  /// page and the largest one beside it.
   static std::uint32_t vertices(const PagedHierarchy& paged, const GpuPoolOptions& options);
+  /// The vertices the buffer starts with (Renderer::set_pool): first_bytes'
+  /// (at least the root's page and a page more) or the budget's, the
+  /// lesser. Throws as vertices() does.
+  static std::uint32_t first_vertices(const PagedHierarchy& paged, const GpuPoolOptions& options);
 
   /// Makes RENDERER's vertex buffer the pool of PAGED's hierarchy and puts
   /// the first page in it. Both must outlive the pool.
@@ -98,15 +111,18 @@ class GpuNodePool final : public VertexMap {
   // Page PAGE's first PREFIX nodes up (the blocks they need are free).
   void upload(std::uint32_t page, std::uint32_t prefix);
   void give_back(std::uint32_t page);
-  // Frees blocks until BLOCKS are free, from pages no list of this frame
-  // uses, least recently used first; false when they cannot be.
+  // Frees blocks until BLOCKS are free: the buffer grown within the
+  // budget, else pages no list of this frame uses given back, least
+  // recently used first; false when they cannot be.
   bool make_room(std::size_t blocks);
+  // The buffer holds BLOCKS blocks now: the new ones are free.
+  void add_blocks(std::uint32_t blocks);
 
   Renderer* renderer_;
   const PagedHierarchy* paged_;
   GpuPoolOptions options_;
-  std::uint32_t blocks_ = 0;                  // in the pool
-  std::uint32_t null_vertex_ = 0;             // after the blocks: zeros, drawn as nothing
+  std::uint32_t blocks_ = 0;                  // in the buffer now (it grows to max_blocks_)
+  std::uint32_t max_blocks_ = 0;              // within the budget
   ReservedArray<std::uint32_t> slot_;         // by node id: its vertex + 1, 0 when not up
   std::vector<std::uint32_t> free_;           // blocks
   std::vector<std::uint32_t> block_page_;     // by block: its page

@@ -262,12 +262,17 @@ class Renderer {
   /// is set_models({&h}). Throws std::invalid_argument for no model, an
   /// empty one, or more than 2^31 - 1 nodes in all.
   void set_models(std::span<const Hierarchy* const> models);
-  /// A vertex buffer of VERTICES zeros (alpha 0: drawn as nothing) for
-  /// nodes of H placed where a VertexMap says (GpuNodePool: a paged model's
-  /// pages on the GPU); lists of H are drawn through that map. A no-op when
+  /// A vertex buffer of VERTICES for nodes of H placed where a VertexMap
+  /// says (GpuNodePool: a paged model's pages on the GPU); lists of H are
+  /// drawn through that map. Each vertex is undefined until written
+  /// (write_vertices) but the first: zeros (alpha 0, drawn as nothing), the
+  /// null vertex a map points the nodes it does not draw at. A no-op when
   /// it holds such a pool for H already. Throws std::invalid_argument for
   /// no vertex or more than 2^31 - 1.
   void set_pool(const Hierarchy& h, std::uint32_t vertices);
+  /// A pool's buffer of VERTICES now, its vertices kept (copied on the
+  /// GPU); nothing when it holds as many already or is no pool.
+  void grow_pool(std::uint32_t vertices);
   /// Whether the vertex buffer is a pool (set_pool) rather than H's nodes.
   [[nodiscard]] bool pooled() const { return pooled_; }
   /// A pool's vertices [FIRST, FIRST + NODES.count) set to nodes NODES of
@@ -391,6 +396,8 @@ class Renderer {
   void create_targets();
   // nodes_ for N vertices (uninitialized), bound to the vertex array.
   void create_vertex_buffer(std::size_t n);
+  // A pool's vertex 0: zeros.
+  void write_null_vertex();
   void check_cut(const CutBuffer& cut);
   void check_scene(const SceneCutBuffer& scene) const;
   void bind_objects(const gl::Buffer& records);
