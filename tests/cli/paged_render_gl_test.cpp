@@ -95,31 +95,24 @@ TEST(PagedRender, ACacheWithABudgetIsDrawnFromItsPages) {
 TEST(PagedRender, WhatAPagedModelCannotDoYetIsRefusedInOneLine) {
   const fs::path dir = treecut::test::scratch_dir("paged_render_refusals");
   const fs::path cache = terrain_cache(dir);
-  treecut::test::expect_failure(
-      run_treecut("render " + quote(cache) + " --memory 2M --frames 2 -s hoq " + kRun + "-o " +
-                  quote(dir / "a")),
-      2, "GPU queries");
-  treecut::test::expect_failure(
-      run_treecut("render " + quote(cache) + " --memory 2M --frames 2 --color elevation " + kRun +
-                  "-o " + quote(dir / "b")),
-      2, "drawn from its pages");
-  treecut::test::expect_failure(
-      run_treecut("render " + quote(cache) + " --memory 2M --frames 2 --psnr " + kRun + "-o " +
-                  quote(dir / "c")),
-      2, "full detail");
-  treecut::test::expect_failure(
-      run_treecut("render " + quote(cache) + " --memory 2M --gpu-memory 20K --frames 2 " + kRun +
-                  "-o " + quote(dir / "d")),
-      2, "--gpu-memory: 0.0 MiB is below");
-  treecut::test::expect_failure(
-      run_treecut("render " + quote(cache) + " --memory 100K --frames 2 " + kRun + "-o " +
-                  quote(dir / "e")),
-      2, "its first page and its largest group of pages");
-  treecut::test::expect_failure(
-      run_treecut("render " + quote(cache) + " --gpu-memory 8M --frames 2 " + kRun + "-o " +
-                  quote(dir / "f")),
-      2, "only a cache drawn from its pages");
-  for (const char* out : {"a", "b", "c", "d", "e", "f"}) EXPECT_FALSE(fs::exists(dir / out)) << out;
+  const struct {
+    std::string options, says;
+  } cases[] = {
+      {"--memory 2M -s hoq", "GPU queries"},
+      {"--memory 2M --color elevation", "drawn from its pages"},
+      {"--memory 2M --psnr", "full detail"},
+      {"--memory 2M --gpu-memory 20K", "--gpu-memory: 0.0 MiB is below"},
+      {"--memory 100K", "its first page and its largest group of pages"},
+      {"--gpu-memory 8M", "only a cache drawn from its pages"},
+  };
+  int k = 0;
+  for (const auto& c : cases) {
+    const fs::path out = dir / ("out" + std::to_string(k++));
+    treecut::test::expect_failure(run_treecut("render " + quote(cache) + " " + c.options +
+                                              " --frames 2 " + kRun + "-o " + quote(out)),
+                                  2, c.says);
+    EXPECT_FALSE(fs::exists(out)) << c.options;
+  }
 }
 
 // The CI case: 2 M points drawn within 32 MiB of node memory and
