@@ -82,6 +82,9 @@ inline std::string quoted_name(const char* name) {
   return quoted_name(std::string_view(name));
 }
 
+/// BYTES as a one-line message shows a size or a budget: "1.4 MiB".
+std::string mib_text(std::uint64_t bytes);
+
 /// TEXT with every control character (C0, DEL, the C1 controls) and invalid
 /// UTF-8 escaped as in quoted_name(): the last guard of the one-line rule, applied
 /// by the program to every message it prints.

@@ -40,13 +40,6 @@ namespace {
 template <class T>
 using Reserved = ReservedArray<T>;
 
-// "1.4 MiB": a budget in a message.
-std::string mib_text(std::uint64_t bytes) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%.1f MiB", double(bytes) / double(1 << 20));
-  return text;
-}
-
 // The arrays of the whole, each reserved.
 struct Arrays {
   explicit Arrays(std::size_t n, std::size_t streams)

@@ -13,6 +13,7 @@
 #include <cctype>
 #include <cerrno>
 #include <charconv>
+#include <cstdio>
 #include <cstring>
 #include <map>
 #include <mutex>
@@ -177,6 +178,12 @@ std::string quoted_name(std::string_view name) {
 
 std::string quoted_name(const std::filesystem::path& path) {
   return quoted_name(std::string_view(path.native()));
+}
+
+std::string mib_text(std::uint64_t bytes) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.1f MiB", double(bytes) / double(1 << 20));
+  return text;
 }
 
 std::string one_line(std::string_view text) {

@@ -10,16 +10,11 @@
 #include <utility>
 
 #include "treecut/error.hpp"
+#include "treecut/file_io.hpp"
 
 namespace treecut::splat {
 
 namespace {
-
-std::string mib_text(std::uint64_t bytes) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%.1f MiB", double(bytes) / double(1 << 20));
-  return text;
-}
 
 std::uint32_t blocks_for(std::uint64_t nodes) {
   return static_cast<std::uint32_t>((nodes + GpuNodePool::kBlock - 1) / GpuNodePool::kBlock);
