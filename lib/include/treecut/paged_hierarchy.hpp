@@ -83,7 +83,8 @@ class PagedHierarchy {
   /// first page read.
   /// Throws InputError "CACHE: REASON" when it is no cache of this format,
   /// its meta part or its first page do not check out, or the budget is
-  /// below least_memory() (a group that could never be read).
+  /// below what page 0 and the largest group of sibling pages take
+  /// together (a group that could never be read).
   static std::unique_ptr<PagedHierarchy> open(const std::filesystem::path& cache,
                                               const PagingOptions& options = {});
   ~PagedHierarchy();
@@ -147,11 +148,9 @@ class PagedHierarchy {
   [[nodiscard]] std::uint32_t page_nodes(std::uint32_t p) const;
   /// PagingOptions::memory_bytes, as opened.
   [[nodiscard]] std::uint64_t memory_budget() const;
-  /// Bytes of the budget that page 0 and the largest group of sibling
-  /// pages take together (what open() refuses a budget below), and that
-  /// the heaviest chain of groups from the root takes: what the finest
-  /// detail at any one place needs (a view of more places needs more).
-  [[nodiscard]] std::uint64_t least_memory() const;
+  /// Bytes of the budget that the heaviest chain of groups from the root
+  /// takes: what the finest detail at any one place needs (a view of more
+  /// places needs more).
   [[nodiscard]] std::uint64_t full_detail_memory() const;
 
   [[nodiscard]] PagingStats stats() const;

@@ -550,10 +550,6 @@ std::uint64_t PagedHierarchy::memory_budget() const {
   return impl_->options.memory_bytes;
 }
 
-std::uint64_t PagedHierarchy::least_memory() const {
-  return impl_->least_bytes;
-}
-
 std::uint64_t PagedHierarchy::full_detail_memory() const {
   return impl_->full_detail_bytes;
 }

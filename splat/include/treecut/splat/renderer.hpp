@@ -273,8 +273,6 @@ class Renderer {
   /// A pool's buffer of VERTICES now, its vertices kept (copied on the
   /// GPU); nothing when it holds as many already or is no pool.
   void grow_pool(std::uint32_t vertices);
-  /// Whether the vertex buffer is a pool (set_pool) rather than H's nodes.
-  [[nodiscard]] bool pooled() const { return pooled_; }
   /// A pool's vertices [FIRST, FIRST + NODES.count) set to nodes NODES of
   /// the pool's hierarchy H, in its own colours.
   void write_vertices(std::uint32_t first, const Hierarchy& h, NodeRange nodes);
