@@ -219,6 +219,12 @@ void GpuNodePool::give_back(std::uint32_t page) {
   ++stats_.evictions;
 }
 
+std::uint64_t GpuNodePool::last_used(const Up& u) const {
+  std::uint64_t used = 0;
+  for (const std::uint32_t b : u.blocks) used = std::max(used, block_used_[b]);
+  return used;
+}
+
 bool GpuNodePool::make_room(std::size_t blocks) {
   if (free_.size() >= blocks) return true;
   if (blocks_ < max_blocks_) {
@@ -231,17 +237,23 @@ bool GpuNodePool::make_room(std::size_t blocks) {
     ++stats_.growths;
     if (free_.size() >= blocks) return true;
   }
-  std::vector<std::pair<std::uint64_t, std::uint32_t>> unused;  // (last used, page)
-  for (const auto& [page, u] : up_) {
-    if (page == 0) continue;
-    std::uint64_t used = 0;
-    for (const std::uint32_t b : u.blocks) used = std::max(used, block_used_[b]);
-    if (used < frame_) unused.emplace_back(used, page);
+  // The pages no list used this frame, least recently used first: gathered
+  // once a frame (a frame that makes room for many pages would otherwise
+  // scan every page up for each), and checked again when their turn comes,
+  // since prepare() marks a partly-up page it needs more of as used.
+  if (lru_frame_ != frame_) {
+    lru_frame_ = frame_;
+    lru_.clear();
+    lru_next_ = 0;
+    for (const auto& [page, u] : up_)
+      if (const std::uint64_t used = last_used(u); page != 0 && used < frame_)
+        lru_.emplace_back(used, page);
+    std::sort(lru_.begin(), lru_.end());
   }
-  std::sort(unused.begin(), unused.end());
-  for (const auto& [used, page] : unused) {
-    if (free_.size() >= blocks) break;
-    give_back(page);
+  while (free_.size() < blocks && lru_next_ < lru_.size()) {
+    const std::uint32_t page = lru_[lru_next_++].second;
+    const auto it = up_.find(page);
+    if (it != up_.end() && last_used(it->second) < frame_) give_back(page);
   }
   return free_.size() >= blocks;
 }

@@ -23,6 +23,7 @@
 #include <span>
 #include <unordered_map>
 #include <unordered_set>
+#include <utility>
 #include <vector>
 
 #include "treecut/paged_hierarchy.hpp"
@@ -115,6 +116,8 @@ class GpuNodePool final : public VertexMap {
   // budget, else pages no list of this frame uses given back, least
   // recently used first; false when they cannot be.
   bool make_room(std::size_t blocks);
+  // The last frame a list used any of U's blocks.
+  [[nodiscard]] std::uint64_t last_used(const Up& u) const;
   // The buffer holds BLOCKS blocks now: the new ones are free.
   void add_blocks(std::uint32_t blocks);
 
@@ -131,7 +134,10 @@ class GpuNodePool final : public VertexMap {
   std::vector<std::uint32_t> wanted_mark_;    // by page: its place in wanted_ + 1 (0: none)
   std::vector<NodePlace> wanted_;             // pages the list needs, and how far, coarsest first
   std::vector<NodeRange> ranges_;             // (reused)
-  std::unordered_set<std::uint32_t> stand_ins_;  // vertices standing in (map)
+  std::unordered_set<std::uint32_t> stand_ins_;               // vertices standing in (map)
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> lru_;  // (last used, page): make_room
+  std::size_t lru_next_ = 0;                                  // the next in lru_ to give back
+  std::uint64_t lru_frame_ = ~std::uint64_t{0};               // the frame lru_ was gathered in
   std::uint64_t frame_ = 0;
   bool mapped_ = false;  // this frame
   GpuPoolStats stats_;
