@@ -6,6 +6,28 @@
 
 namespace treecut::strategies {
 
+namespace detail {
+
+bool topdown_pass(const Hierarchy& h, TreeCut& cut, IterationResult& r, const IterationInput& input,
+                  const CriterionConstants& cam, std::vector<NodeId>* wanted) {
+  const auto& cr = h.arrays().center_radius;
+  auto decided = [](NodeId, bool) {};
+  auto drop = [](NodeId) {};
+  auto run = [&](auto& test) {
+    TopDown walk(h, cut, r, input, test, decided, drop);
+    walk.want_into(wanted);
+    return walk.run(h.root());
+  };
+  if (cam.perspective) {
+    auto test = [&](NodeId n) { return unfold_test(cam, cr[n]); };
+    return run(test);
+  }
+  auto test = [&](NodeId n) { return unfold_test(cam, input.view, cr[n]); };
+  return run(test);
+}
+
+}  // namespace detail
+
 TopDownStrategy::TopDownStrategy()
     : Strategy({
           {"theta", "pixels: a node unfolds when its projected radius reaches theta", 1.5, 0.05,
