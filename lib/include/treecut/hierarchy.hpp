@@ -32,6 +32,12 @@ namespace treecut {
 using NodeId = std::uint32_t;
 inline constexpr NodeId kNoNode = std::numeric_limits<NodeId>::max();
 
+/// Consecutive node ids [first, first + count).
+struct NodeRange {
+  NodeId first = 0;
+  std::uint32_t count = 0;
+};
+
 /// The colour of the points of a file without colours.
 inline const glm::u8vec4 kUncoloured{200, 200, 200, 255};
 

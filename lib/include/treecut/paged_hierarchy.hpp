@@ -39,12 +39,6 @@
 
 namespace treecut {
 
-/// Consecutive node ids [first, first + count).
-struct NodeRange {
-  NodeId first = 0;
-  std::uint32_t count = 0;
-};
-
 /// Where a node lies in a cache's pages (PagedHierarchy::place_of).
 struct NodePlace {
   std::uint32_t page = 0;
