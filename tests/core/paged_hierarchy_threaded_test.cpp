@@ -19,6 +19,7 @@
 #include "treecut/model.hpp"
 #include "treecut/paged_hierarchy.hpp"
 #include "treecut/strategies/builtin.hpp"
+#include "treecut/strategies/event_queue.hpp"
 
 using namespace treecut;
 namespace fs = std::filesystem;
@@ -332,7 +333,10 @@ TEST(PagedHierarchy, APageOneListReachesIntoIsNotGivenBack) {
 // it flies: nodes that gain or lose their children (revealed, concealed)
 // while they hold a place in its queue must leave it, or a later fold erases
 // another node's entry (a cut listing a node twice; a crash under TSan).
-// The flight and the budget of paging_bench, on the test's terrain.
+// The flight and the budget of paging_bench, on the test's terrain. Its
+// records follow the pages: one for each resident node after every
+// iteration, given back with the pages (a record for every node of the
+// hierarchy was 32 B a node of the file).
 TEST(PagedHierarchy, TheEventQueueFollowsPagesThatComeAndGo) {
   const fs::path cache = terrain_cache("paged_event_queue");
   const Hierarchy& whole = *test::small_hierarchy(tools::ModelKind::Terrain, 100000);
@@ -344,9 +348,11 @@ TEST(PagedHierarchy, TheEventQueueFollowsPagesThatComeAndGo) {
     const auto paged = PagedHierarchy::open(cache, options);
     const Hierarchy& h = paged->hierarchy();
     const std::unique_ptr<Strategy> s = strategies::builtin_registry().create("event_queue");
+    const auto& queue = dynamic_cast<const strategies::EventQueueStrategy&>(*s);
     s->reset(h);
     TreeCut cut = TreeCut::root_cut(h);
     std::vector<NodeId> revealed, concealed;
+    std::size_t most = 0;
     const glm::vec3 lo = h.bounds_min(), hi = h.bounds_max();
     const float ext = glm::length(hi - lo);
     for (int f = 0; f < 200; ++f) {
@@ -360,6 +366,8 @@ TEST(PagedHierarchy, TheEventQueueFollowsPagesThatComeAndGo) {
       view.version = static_cast<std::uint64_t>(f) + 1;
       const std::vector<NodeId> wanted = step(*s, h, cut, view, revealed, concealed);
       ASSERT_EQ(cut.validate(h), "") << "frame " << f;
+      ASSERT_EQ(queue.records(), reachable(h).size()) << "frame " << f;
+      most = std::max(most, queue.records());
       revealed.clear(), concealed.clear();
       const PagedHierarchy::ListHolds holds[] = {[&](NodeId n) { return cut.contains(n); }};
       paged->evict(holds, &concealed);
@@ -370,5 +378,6 @@ TEST(PagedHierarchy, TheEventQueueFollowsPagesThatComeAndGo) {
       paged->publish(&revealed);
     }
     EXPECT_GT(paged->stats().evicted, 0u);
+    EXPECT_LT(most, h.node_count() / 4) << "records for nodes the budget never held";
   }
 }

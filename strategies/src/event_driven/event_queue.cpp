@@ -3,14 +3,10 @@
 // times.
 #include "treecut/strategies/event_queue.hpp"
 
-#include <sys/mman.h>
-
 #include <algorithm>
 #include <bit>
 #include <cmath>
-#include <cstdlib>
 #include <memory>
-#include <new>
 
 #include "event_time.hpp"
 #include "top_down.hpp"
@@ -44,36 +40,6 @@ constexpr std::uint64_t kCancelEvery = 4096;
 
 }  // namespace
 
-namespace detail {
-
-template <class T>
-void HugeArray<T>::assign(std::size_t n, const T& value) {
-  release();
-  if (n == 0) return;
-  // Whole huge pages, aligned to one, so that madvise covers all of it; the
-  // pages are not touched before the advice (the first touch allocates).
-  constexpr std::size_t kHuge = std::size_t{2} << 20;
-  const std::size_t bytes = (n * sizeof(T) + kHuge - 1) / kHuge * kHuge;
-  void* p = std::aligned_alloc(kHuge, bytes);
-  if (p == nullptr) throw std::bad_alloc();
-  ::madvise(p, bytes, MADV_HUGEPAGE);  // a hint: without it the array still works
-  data_ = static_cast<T*>(p);
-  size_ = n;
-  bytes_ = bytes;
-  std::uninitialized_fill_n(data_, n, value);
-}
-
-template <class T>
-void HugeArray<T>::release() {
-  std::free(data_);
-  data_ = nullptr;
-  size_ = bytes_ = 0;
-}
-
-template class HugeArray<EventQueueStrategy::NodeState>;
-
-}  // namespace detail
-
 EventQueueStrategy::EventQueueStrategy()
     : Strategy({
           {"theta", "pixels: a node unfolds when its projected radius reaches theta", 1.5, 0.05,
@@ -94,16 +60,89 @@ EventQueueStrategy::EventQueueStrategy()
            2.0, 0.0, 100.0, false},
       }) {}
 
-void EventQueueStrategy::copy_record(const HierarchyArrays& a, NodeId n, NodeState& st) {
+void EventQueueStrategy::make_record(const HierarchyArrays& a, NodeId n) {
+  NodeState& st = state_[n];
+  made_ += st.made == 0;
+  st = NodeState{};
   st.sphere = a.center_radius[n];
   st.child_count = a.child_count[n];
   st.first_child = st.child_count != 0 ? a.first_child[n] : 0;
+  st.made = 1;
+}
+
+static NodeRange children_of(const HierarchyArrays& a, NodeId n) {
+  return NodeRange{a.first_child[n], a.child_count[n]};
+}
+
+// VISIT(run) for the runs in RUNS and every run of nodes below them, level
+// by level, CHILDREN(n) read before n's run is visited. A level's children
+// are runs of consecutive ids, and adjacent runs merge (breadth-first ids
+// put the children of consecutive nodes side by side), so a model held
+// whole is one run a level, written front to back, and a paged model's
+// levels a run per stretch of resident pages.
+template <class Children, class Visit>
+static void walk_levels(std::vector<NodeRange>& runs, std::vector<NodeRange>& next,
+                        Children&& children, Visit&& visit) {
+  while (!runs.empty()) {
+    next.clear();
+    for (const NodeRange r : runs) {
+      for (NodeId n = r.first; n < r.first + r.count; ++n) {
+        const NodeRange c = children(n);
+        if (c.count == 0) continue;
+        if (!next.empty() && next.back().first + next.back().count == c.first) {
+          next.back().count += c.count;
+        } else {
+          next.push_back(c);
+        }
+      }
+      visit(r);
+    }
+    runs.swap(next);
+  }
+}
+
+void EventQueueStrategy::make_records(const HierarchyArrays& a) {
+  walk_levels(
+      runs_, next_runs_, [&](NodeId n) { return children_of(a, n); },
+      [&](NodeRange r) {
+        records_->advise_huge(r.first, r.count);
+        for (NodeId n = r.first; n < r.first + r.count; ++n) make_record(a, n);
+      });
+}
+
+void EventQueueStrategy::give_back_records() {
+  walk_levels(
+      runs_, next_runs_,
+      [&](NodeId n) {
+        const NodeState& st = state_[n];
+        return NodeRange{st.first_child, st.made != 0 ? st.child_count : std::uint32_t{0}};
+      },
+      [&](NodeRange r) {
+        for (NodeId n = r.first; n < r.first + r.count; ++n) made_ -= state_[n].made;
+        records_->release(r.first, r.count);
+      });
 }
 
 void EventQueueStrategy::reset(const Hierarchy& hierarchy) {
-  state_.assign(hierarchy.node_count(), NodeState{});
+  node_count_ = hierarchy.node_count();
+  records_ = std::make_unique<ReservedArray<NodeState>>(node_count_);
+  state_ = records_->data();
+  made_ = 0;
   const HierarchyArrays& a = hierarchy.arrays();
-  for (NodeId n = 0; n < hierarchy.node_count(); ++n) copy_record(a, n, state_[n]);
+  // A model held whole gets huge pages under all its records, the levels'
+  // edges included (the events read them in random order: docs/
+  // event-driven.md, "Speed"); a paged model's runs of resident nodes under
+  // their insides only (make_records()), so that no huge page holds mostly
+  // records of nodes not resident. Whole: every node reachable through
+  // children.
+  std::size_t resident = 0;
+  runs_.assign(1, NodeRange{hierarchy.root(), 1});
+  walk_levels(
+      runs_, next_runs_, [&](NodeId n) { return children_of(a, n); },
+      [&](NodeRange r) { resident += r.count; });
+  if (resident == node_count_) records_->advise_huge(0, node_count_);
+  runs_.assign(1, NodeRange{hierarchy.root(), 1});
+  make_records(a);
   spheres_ = a.center_radius.data();
   // A pass's frontier (the active nodes of a level) grows as passes need
   // it and keeps its room: about the cut's size, not half the model's.
@@ -138,13 +177,13 @@ void EventQueueStrategy::reset(const Hierarchy& hierarchy) {
   const auto slot = static_cast<std::uint16_t>(ms & kMMask);
   std::vector<NodeId>& list = slots_[slot];
   st.index = static_cast<std::uint32_t>(list.size());
-  st.slot = slot;
+  st.set_slot(slot);
   list.push_back(boundary ? n | kBoundary : n);
   ++queued_;
   // Rotation: none when rotation alone cannot change the test.
   if (!(t.w <= kWCap)) {
-    if (st.wslot != kNoneW) {
-      st.wslot = kNoneW;
+    if (st.wslot() != kNoneW) {
+      st.set_wslot(kNoneW);
       --wlive_;
     }
     return;
@@ -155,11 +194,11 @@ void EventQueueStrategy::reset(const Hierarchy& hierarchy) {
   // turning) needs a new entry only every quarter of its time or so.
   const auto ahead = static_cast<std::uint64_t>(wfrac_ + t.w * kWPerUnit);
   const std::uint16_t flag = boundary ? kWBoundary : 0;
-  if (st.wslot != kNoneW) {
+  if (st.wslot() != kNoneW) {
     // The entry the node has is kept when it comes no later and is for the
     // same state: an earlier test is always correct.
-    if ((st.wslot & kWBoundary) == flag &&
-        ((std::uint64_t(st.wslot & kWMask) - wbase_) & kWMask) <= ahead) {
+    if ((st.wslot() & kWBoundary) == flag &&
+        ((std::uint64_t(st.wslot() & kWMask) - wbase_) & kWMask) <= ahead) {
       return;
     }
   } else {
@@ -167,34 +206,34 @@ void EventQueueStrategy::reset(const Hierarchy& hierarchy) {
   }
   const int drop = std::max(0, int(std::bit_width(ahead)) - 3);
   const std::uint64_t ws = wbase_ + ((ahead >> drop) << drop);
-  st.wslot = static_cast<std::uint16_t>((ws & kWMask) | flag);
+  st.set_wslot(static_cast<std::uint16_t>((ws & kWMask) | flag));
   wslots_[ws & kWMask].push_back(n);
   ++wentries_;
 }
 
 void EventQueueStrategy::erase(NodeId n) {
   NodeState& e = state_[n];
-  if (e.slot == kNone) return;
-  if (e.slot == processing_ && e.index < work_.size() && (work_[e.index] & ~kBoundary) == n) {
+  if (e.slot() == kNone) return;
+  if (e.slot() == processing_ && e.index < work_.size() && (work_[e.index] & ~kBoundary) == n) {
     // Still to come in the list being processed: marked, not moved, so the
     // reader's position stays right. (Entries already read are kErased, so
     // an equal id here is the node's current entry.)
     work_[e.index] = kErased;
   } else {
-    std::vector<NodeId>& list = slots_[e.slot];
+    std::vector<NodeId>& list = slots_[e.slot()];
     const NodeId last = list.back();
     list[e.index] = last;
     state_[last & ~kBoundary].index = e.index;
     list.pop_back();
   }
-  e.slot = kNone;
+  e.set_slot(kNone);
   --queued_;
 }
 
 void EventQueueStrategy::drop_rotation(NodeId n) {
   NodeState& e = state_[n];
-  if (e.wslot == kNoneW) return;
-  e.wslot = kNoneW;  // its entry is stale now
+  if (e.wslot() == kNoneW) return;
+  e.set_wslot(kNoneW);  // its entry is stale now
   --wlive_;
 }
 
@@ -223,7 +262,7 @@ void EventQueueStrategy::compact_rotation_lists() {
       // The records are read in random order: ahead of time.
       if (i + 16 < count) __builtin_prefetch(&state_[list[i + 16]]);
       const NodeId n = list[i];
-      const std::uint16_t w = state_[n].wslot;
+      const std::uint16_t w = state_[n].wslot();
       if (w != kNoneW && (w & kWMask) == s) list[out++] = n;
     }
     list.resize(out);
@@ -282,8 +321,8 @@ void EventQueueStrategy::rebuild(const IterationInput& input, TreeCut& cut, Iter
     return last.pass;
   };
   auto decided = [&](NodeId n, bool active) {
-    state_[n].slot = kNone;
-    state_[n].wslot = kNoneW;
+    state_[n].set_slot(kNone);
+    state_[n].set_wslot(kNoneW);
     schedule(n, last.t, !active);
   };
   // A folded subtree is below the nodes this pass has queued: nothing to erase.
@@ -353,8 +392,8 @@ void EventQueueStrategy::handle(NodeId n, bool boundary, const Decision& dec,
     for (NodeId ch = first; ch < end; ++ch) {
       if (state_[ch].child_count == 0) continue;
       // Not queued until now; its record may hold an old position (clear_queue()).
-      state_[ch].slot = kNone;
-      state_[ch].wslot = kNoneW;
+      state_[ch].set_slot(kNone);
+      state_[ch].set_wslot(kNoneW);
       ++r.visited;
       ++stats_.descended;
       handle(ch, true, decide(camera_, state_[ch].sphere, rates_), input, cut, r);
@@ -457,9 +496,9 @@ bool EventQueueStrategy::run(const IterationInput& input, TreeCut& cut, Iteratio
       --queued_;
       const NodeId n = entry & ~kBoundary;
       const bool boundary = (entry & kBoundary) != 0;
-      // No state_[n].slot = kNone here: n is queued again either way.
+      // No state_[n].set_slot(kNone) here: n is queued again either way.
       // The test changed (a boundary node passes, an active one fails): the
-      // cut changes; else the node waits for its next time.
+      // cut changes); else the node waits for its next time.
       if (d[i - b0].pass == boundary) {
         handle(n, boundary, d[i - b0], input, cut, r);
       } else {
@@ -483,7 +522,7 @@ bool EventQueueStrategy::run_rotation(std::uint32_t slot, const IterationInput& 
     const NodeId n = wwork_[i];
     NodeState& st = state_[n];
     // A stale entry: the node's live one is elsewhere, or it has none.
-    if (st.wslot == kNoneW || (st.wslot & kWMask) != slot) {
+    if (st.wslot() == kNoneW || (st.wslot() & kWMask) != slot) {
       wwork_[i] = kErased;
       --wentries_;
       continue;
@@ -491,8 +530,8 @@ bool EventQueueStrategy::run_rotation(std::uint32_t slot, const IterationInput& 
     if ((++r.visited % kCancelEvery) == 0 && input.cancelled()) return false;
     wwork_[i] = kErased;
     --wentries_;
-    const bool boundary = (st.wslot & kWBoundary) != 0;
-    st.wslot = kNoneW;
+    const bool boundary = (st.wslot() & kWBoundary) != 0;
+    st.set_wslot(kNoneW);
     --wlive_;
     erase(n);  // its translation entry: handle() queues n again
     ++stats_.rotation_events;
@@ -624,7 +663,7 @@ void EventQueueStrategy::rescale(double unit) {
     std::vector<NodeId>& list = slots_[to];
     for (const NodeId entry : old) {
       NodeState& st = state_[entry & ~kBoundary];
-      st.slot = to;
+      st.set_slot(to);
       st.index = static_cast<std::uint32_t>(list.size());
       list.push_back(entry);
     }
@@ -737,32 +776,29 @@ void EventQueueStrategy::follow_residency(const IterationInput& input, TreeCut& 
   // positions of the nodes it visits only): it is erased; any other's is
   // forgotten (a stale one would make a later fold erase another node's
   // entry).
-  auto refresh = [&](NodeId n, bool queued) {
-    if (queued) {
+  // A node that lost its children is a cut node (a boundary node no more:
+  // its unfold event goes; it is hidden now) or lies below the cut; the
+  // records below it are given back (none is queued: the cut lies above
+  // them). One below another given back in the same iteration is gone
+  // already.
+  for (const NodeId n : input.concealed) {
+    if (state_[n].made == 0) continue;
+    const bool in_cut = cut.contains(n);
+    if (keep && in_cut) {
       erase(n);
       drop_rotation(n);
     }
-    copy_record(a, n, state_[n]);
-    state_[n].slot = kNone;
-    state_[n].wslot = kNoneW;
-  };
-  // A node that lost its children is a cut node (a boundary node no more:
-  // its unfold event goes; it is hidden now) or lies above the cut.
-  for (const NodeId n : input.concealed) {
-    const bool in_cut = cut.contains(n);
-    refresh(n, keep && in_cut);
+    runs_.assign(1, NodeRange{state_[n].first_child, state_[n].child_count});
+    give_back_records();
+    make_record(a, n);
     if (in_cut) hidden_.push_back(n);
   }
-  // A node that gained its children, and those below it: none queued.
-  std::vector<NodeId>& below = level_;  // (scratch: no pass runs meanwhile)
-  below.assign(input.revealed.begin(), input.revealed.end());
-  while (!below.empty()) {
-    const NodeId n = below.back();
-    below.pop_back();
-    refresh(n, false);
-    for (NodeId c = a.first_child[n]; c < a.first_child[n] + a.child_count[n]; ++c)
-      below.push_back(c);
+  // A node that gained its children, and those below it, made: none queued.
+  for (const NodeId n : input.revealed) {
+    runs_.assign(1, NodeRange{n, 1});
+    make_records(a);
   }
+  std::vector<NodeId>& below = level_;  // (scratch: no pass runs meanwhile)
   if (!keep) {
     current_ = false;
     return;
@@ -805,7 +841,8 @@ void EventQueueStrategy::iterate(const IterationInput& input, IterationOutput& o
   TreeCut& cut = *output.cut;
   IterationResult& r = output.result;
   wanted_ = output.wanted;
-  if (state_.size() != h.node_count() || spheres_ != h.arrays().center_radius.data()) reset(h);
+  if (!records_ || node_count_ != h.node_count() || spheres_ != h.arrays().center_radius.data())
+    reset(h);
   if (!input.revealed.empty() || !input.concealed.empty()) follow_residency(input, cut, r);
   stats_ = {};
   camera_ = CriterionConstants::from_view(input.view, param_at(kTheta));

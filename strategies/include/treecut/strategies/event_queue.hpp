@@ -76,44 +76,25 @@
 // huge-page memory: one cache line and no TLB miss per event instead of four
 // arrays (docs/event-driven.md, "Speed").
 //
-// Memory: 32 bytes per hierarchy node plus 4 bytes per queued event, and 4
+// Memory: 32 bytes per resident node plus 4 bytes per queued event, and 4
 // per rotation entry (live or stale, at most 3 per live one plus 65,536).
+// The records lie in address space reserved for every node id, written
+// only for the nodes the hierarchy holds: every node of a model held
+// whole; of a paged model the resident ones, made as pages arrive
+// (IterationInput::revealed) and given back with them (concealed), so the
+// state follows the resident set, not the file (issue 45).
 #pragma once
 
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
+#include "treecut/reserved_array.hpp"
 #include "treecut/strategies/refinement_criterion.hpp"
 #include "treecut/strategy.hpp"
 
 namespace treecut::strategies {
-
-namespace detail {
-/// A fixed-size array of trivially copyable T in memory asked to be backed by
-/// transparent huge pages (madvise; a hint, ignored where unsupported): the
-/// event queue reads its per-node records in random order, and with 4 KiB
-/// pages nearly every event missed the TLB too.
-template <class T>
-class HugeArray {
- public:
-  HugeArray() = default;
-  HugeArray(const HugeArray&) = delete;
-  HugeArray& operator=(const HugeArray&) = delete;
-  ~HugeArray() { release(); }
-  /// n copies of `value` (the old contents are gone).
-  void assign(std::size_t n, const T& value);
-  [[nodiscard]] std::size_t size() const { return size_; }
-  T& operator[](std::size_t i) { return data_[i]; }
-  const T& operator[](std::size_t i) const { return data_[i]; }
-
- private:
-  void release();
-  T* data_ = nullptr;
-  std::size_t size_ = 0;
-  std::size_t bytes_ = 0;
-};
-}  // namespace detail
 
 class EventQueueStrategy final : public Strategy {
  public:
@@ -171,15 +152,18 @@ class EventQueueStrategy final : public Strategy {
     std::uint64_t unfolded = 0;         ///< of those, unfolds (the rest folded a subtree)
   };
   [[nodiscard]] const Stats& stats() const { return stats_; }
-  /// Bytes of the event state: per node, and the lists' storage.
+  /// Bytes of the event state: the records of the nodes made (every
+  /// resident node), and the lists' storage.
   [[nodiscard]] std::size_t state_bytes() const {
     std::size_t bytes =
-        state_.size() * sizeof(NodeState) + (work_.capacity() + wwork_.capacity()) * sizeof(NodeId);
+        made_ * sizeof(NodeState) + (work_.capacity() + wwork_.capacity()) * sizeof(NodeId);
     for (const auto& s : slots_) bytes += s.capacity() * sizeof(NodeId);
     for (const auto& s : wslots_) bytes += s.capacity() * sizeof(NodeId);
     return bytes;
   }
-  /// Bytes per node of the state array, and per queued event.
+  /// Records made: the resident nodes' (every node of a model held whole).
+  [[nodiscard]] std::size_t records() const { return made_; }
+  /// Bytes per resident node of the records, and per queued event.
   static constexpr std::size_t kBytesPerNode = 32;
   static constexpr std::size_t kBytesPerEvent = 4;
 
@@ -192,17 +176,32 @@ class EventQueueStrategy final : public Strategy {
   // random order (the sphere, the children, the child count, this state):
   // four cache lines and four pages. The sphere is a bit-for-bit copy, so the
   // test is still unfold_test on the very same floats as topdown's.
+  //
+  // A record of zero bytes (memory never written, or given back) is one not
+  // made and not queued: the slots are stored XOR their "none".
   struct alignas(32) NodeState {
     glm::vec4 sphere{0.0f};
     NodeId first_child = 0;
     std::uint8_t child_count = 0;
+    std::uint8_t made = 0;  // 1: copied from the hierarchy (a resident node)
     std::uint32_t index = 0;
-    std::uint16_t slot = kNone;
-    std::uint16_t wslot = kNoneW;
+    std::uint16_t slot_bits = 0;
+    std::uint16_t wslot_bits = 0;
+    [[nodiscard]] std::uint16_t slot() const { return slot_bits ^ kNone; }
+    [[nodiscard]] std::uint16_t wslot() const { return wslot_bits ^ kNoneW; }
+    void set_slot(std::uint16_t s) { slot_bits = s ^ kNone; }
+    void set_wslot(std::uint16_t s) { wslot_bits = s ^ kNoneW; }
   };
   static_assert(sizeof(NodeState) == 32);
-  // NODE's record from the hierarchy: its sphere and children.
-  static void copy_record(const HierarchyArrays& a, NodeId n, NodeState& st);
+  // NODE's record made from the hierarchy (its sphere and children; not
+  // queued).
+  void make_record(const HierarchyArrays& a, NodeId n);
+  // Makes the records of the nodes in runs_ and below them, down through
+  // the hierarchy's children (runs_ is left empty).
+  void make_records(const HierarchyArrays& a);
+  // Gives back the records of the nodes in runs_ and below them, down
+  // through their records' children: the hierarchy no longer has them.
+  void give_back_records();
   static constexpr std::uint16_t kNone = 0xffff;   // not queued
   static constexpr std::uint16_t kNoneW = 0x7fff;  // no rotation entry (slots are 13 bits)
   static constexpr std::uint16_t kWBoundary = 0x8000;
@@ -252,7 +251,13 @@ class EventQueueStrategy final : public Strategy {
   bool run_rotation(std::uint32_t slot, const IterationInput& input, TreeCut& cut,
                     IterationResult& r);
 
-  detail::HugeArray<NodeState> state_;       // per hierarchy node
+  // The records, by node id: address space for every node, written for
+  // the resident ones (state_ is records_->data()).
+  std::unique_ptr<ReservedArray<NodeState>> records_;
+  NodeState* state_ = nullptr;
+  std::size_t node_count_ = 0;               // the hierarchy's
+  std::size_t made_ = 0;                     // records made
+  std::vector<NodeRange> runs_, next_runs_;  // a level of a walk over records
   const glm::vec4* spheres_ = nullptr;       // the hierarchy state_ was copied from
   std::vector<std::vector<NodeId>> slots_;   // translation clock: kSlots lists
   std::vector<std::vector<NodeId>> wslots_;  // rotation clock: kSlots lists
