@@ -194,10 +194,10 @@ class EventQueueStrategy final : public Strategy {
   };
   static_assert(sizeof(NodeState) == 32);
   // NODE's record made from the hierarchy (its sphere and children; not
-  // queued).
+  // queued); made_ is the caller's to count.
   void make_record(const HierarchyArrays& a, NodeId n);
-  // Makes the records of the nodes in runs_ and below them, down through
-  // the hierarchy's children (runs_ is left empty).
+  // Makes the records of the nodes in runs_ and below them, none made
+  // before, down through the hierarchy's children (runs_ is left empty).
   void make_records(const HierarchyArrays& a);
   // Gives back the records of the nodes in runs_ and below them, down
   // through their records' children: the hierarchy no longer has them.
