@@ -502,7 +502,7 @@ bool EventQueueStrategy::run(const IterationInput& input, TreeCut& cut, Iteratio
       const bool boundary = (entry & kBoundary) != 0;
       // No state_[n].set_slot(kNone) here: n is queued again either way.
       // The test changed (a boundary node passes, an active one fails): the
-      // cut changes); else the node waits for its next time.
+      // cut changes; else the node waits for its next time.
       if (d[i - b0].pass == boundary) {
         handle(n, boundary, d[i - b0], input, cut, r);
       } else {
