@@ -77,7 +77,6 @@ void GpuNodePool::add_blocks(std::uint32_t blocks) {
   const std::uint32_t old = blocks_;
   blocks_ = blocks;
   for (std::uint32_t b = blocks_; b-- > old;) free_.push_back(b);  // low blocks first
-  block_page_.resize(blocks_, 0);
   block_used_.resize(blocks_, 0);
 }
 
@@ -105,7 +104,6 @@ std::uint32_t GpuNodePool::map(std::span<const NodeId> ids, std::size_t current,
       // A fading exchange's leaving node whose page left the GPU: nothing
       // (its ancestors are no longer known to be resident).
       out[i] = kNullVertex;
-      most = std::max(most, kNullVertex);
       continue;
     }
     if (v == 0) {
@@ -127,7 +125,6 @@ std::uint32_t GpuNodePool::map(std::span<const NodeId> ids, std::size_t current,
       // the list): their parents can be read.
       if (parent[id] == last_parent) {
         out[i] = kNullVertex;
-        most = std::max(most, kNullVertex);
         continue;
       }
       NodeId up = last_parent = parent[id];
@@ -135,7 +132,6 @@ std::uint32_t GpuNodePool::map(std::span<const NodeId> ids, std::size_t current,
       v = slot_[up];
       if (!stand_ins_.insert(v).second) {
         out[i] = kNullVertex;
-        most = std::max(most, kNullVertex);
         continue;
       }
     }
@@ -190,7 +186,6 @@ void GpuNodePool::upload(std::uint32_t page, std::uint32_t prefix) {
   while (u.blocks.size() < blocks_for(prefix)) {
     const std::uint32_t b = free_.back();
     free_.pop_back();
-    block_page_[b] = page;
     block_used_[b] = frame_;
     u.blocks.push_back(b);
   }

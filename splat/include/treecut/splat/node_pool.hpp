@@ -128,7 +128,6 @@ class GpuNodePool final : public VertexMap {
   std::uint32_t max_blocks_ = 0;              // within the budget
   ReservedArray<std::uint32_t> slot_;         // by node id: its vertex + 1, 0 when not up
   std::vector<std::uint32_t> free_;           // blocks
-  std::vector<std::uint32_t> block_page_;     // by block: its page
   std::vector<std::uint64_t> block_used_;     // by block: the frame a list last used it
   std::unordered_map<std::uint32_t, Up> up_;  // the pages up
   std::vector<std::uint32_t> wanted_mark_;    // by page: its place in wanted_ + 1 (0: none)
