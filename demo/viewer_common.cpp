@@ -230,7 +230,7 @@ splat::GpuPoolOptions gpu_pool_options(const SceneArgs& args) {
 std::uint32_t pool_vertices(const Scene& scene, const SceneArgs& args) {
   if (!scene.paged) return 0;
   try {
-    return splat::GpuNodePool::first_vertices(*scene.paged, gpu_pool_options(args));
+    return splat::GpuNodePool::segment_vertices(*scene.paged, gpu_pool_options(args));
   } catch (const InputError& e) {
     throw InputError(args.model + ": " + e.what());
   }

@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <memory>
 #include <set>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -80,7 +81,7 @@ class NodePool : public ::testing::Test {
   // A pooled renderer and its pool, and the frames drawn through them.
   struct Pooled {
     Pooled(const PagedHierarchy& paged, const GpuPoolOptions& o)
-        : renderer(paged.hierarchy(), {kWidth, kHeight}, GpuNodePool::first_vertices(paged, o)),
+        : renderer(paged.hierarchy(), {kWidth, kHeight}, GpuNodePool::segment_vertices(paged, o)),
           pool(renderer, paged, o) {
       cut.set_vertex_map(&pool);
     }
@@ -156,26 +157,63 @@ TEST_F(NodePool, ACutThroughPagesTakesTheirLevelsDownToItsOwn) {
   EXPECT_TRUE(got.rgba == whole_image(ids).rgba);
 }
 
-// The buffer starts small and doubles as the pages need, within the budget;
-// the vertices already up stay where they are (the lists' indices hold).
-TEST_F(NodePool, TheBufferGrowsAsThePagesNeedKeepingWhatIsUp) {
+// The pool starts as one segment and a segment more as the pages need,
+// within the budget; the vertices already up stay where they are (the
+// lists' indices hold), and a list over several segments draws as the
+// model held whole does, fading too.
+TEST_F(NodePool, ThePoolGrowsBySegmentsKeepingWhatIsUp) {
   const std::vector<NodeId> coarse = level(whole_->level_count() - 5);
   const std::vector<NodeId> fine = level(whole_->level_count() - 2);
   GpuPoolOptions o{64u << 20, 64u << 20};
-  o.first_bytes = 1;  // the least: the root's page and a page more
+  o.segment_bytes = 1;  // the least: a block
   Pooled p(*paged_, o);
-  const std::uint64_t first = p.pool.stats().allocated_bytes;
-  EXPECT_LT(first, std::uint64_t{1} << 20);
-  EXPECT_TRUE(p.frame(paged_->hierarchy(), camera_, &coarse).rgba == whole_image(coarse).rgba);
-  const Image got = p.frame(paged_->hierarchy(), camera_, &fine);
+  const GpuPoolStats first = p.pool.stats();
+  EXPECT_EQ(first.allocated_bytes,
+            first.segments * GpuNodePool::kBlock * GpuNodePool::kVertexBytes);
+  Image got = p.frame(paged_->hierarchy(), camera_, &coarse);
+  for (int f = 0; f < 200 && p.pool.stats().waiting_pages > 0; ++f)
+    got = p.frame(paged_->hierarchy(), camera_, nullptr);
+  EXPECT_TRUE(got.rgba == whole_image(coarse).rgba);
+  got = p.frame(paged_->hierarchy(), camera_, &fine);
+  for (int f = 0; f < 200 && p.pool.stats().waiting_pages > 0; ++f) {
+    const std::uint64_t segments = p.pool.stats().segments;
+    got = p.frame(paged_->hierarchy(), camera_, nullptr);
+    // One request a frame: a page's blocks (a page is 8 blocks at most).
+    EXPECT_LE(p.pool.stats().segments - segments, 8u) << "frame " << f;
+  }
   const GpuPoolStats s = p.pool.stats();
-  EXPECT_GT(s.growths, 0u);
-  EXPECT_GT(s.allocated_bytes, first);
+  EXPECT_EQ(s.waiting_pages, 0u);
+  EXPECT_GT(s.segments, first.segments);
+  EXPECT_EQ(p.renderer.segments(), s.segments);
+  EXPECT_GT(s.allocated_bytes, first.allocated_bytes);
   EXPECT_LE(s.allocated_bytes, s.capacity_bytes);
   EXPECT_LE(s.resident_bytes, s.allocated_bytes);
   EXPECT_EQ(s.evictions, 0u) << "pages given back while the budget had room";
   EXPECT_EQ(s.stand_ins, 0u);
+  ASSERT_GT(p.cut.segment_runs().size(), 1u);
   EXPECT_TRUE(got.rgba == whole_image(fine).rgba);
+  const FrameStats drawn_stats = p.renderer.draw(p.cut, camera_, RenderSettings{}, true);
+  EXPECT_EQ(drawn_stats.draw_calls, p.cut.segment_runs().size());
+  EXPECT_EQ(drawn_stats.splats, fine.size());
+
+  // A fade from the fine list back to the coarse one, halfway: the three
+  // runs, each over its segments, as the model held whole draws them.
+  Renderer whole(*whole_, {kWidth, kHeight});
+  CutBuffer whole_cut;
+  whole_cut.upload(*whole_, coarse, fine);
+  whole_cut.set_fade(0.5f);
+  whole.draw(whole_cut, camera_, RenderSettings{}, true);
+  p.pool.begin_frame();
+  p.cut.upload(paged_->hierarchy(), coarse, fine);
+  p.cut.set_fade(0.5f);
+  p.pool.prepare(p.cut);
+  EXPECT_EQ(p.pool.stats().waiting_pages, 0u);
+  p.renderer.draw(p.cut, camera_, RenderSettings{}, true);
+  EXPECT_TRUE(p.renderer.read_pixels() == whole.read_pixels()) << "the fade differs";
+  // Positions are the segments' now, not the ids': no ranges of them.
+  const CutRange all{0, static_cast<std::uint32_t>(p.cut.size())};
+  EXPECT_THROW(p.renderer.draw_ranges(p.cut, {&all, 1}, camera_, RenderSettings{}),
+               std::logic_error);
 }
 
 TEST_F(NodePool, PagesComeUpAFewAFrameWithinTheBudgetsAncestorsStandingIn) {
@@ -238,7 +276,7 @@ TEST_F(NodePool, AListLargerThanTheBudgetIsDrawnCoarserNeverPastIt) {
   GpuPoolOptions o{0, 64u << 20};
   for (o.memory_bytes = 64 << 10;; o.memory_bytes += 64 << 10) {
     try {
-      (void)GpuNodePool::vertices(*paged_, o);
+      (void)GpuNodePool::blocks(*paged_, o);
       break;
     } catch (const InputError&) {
     }
@@ -256,7 +294,7 @@ TEST_F(NodePool, AListLargerThanTheBudgetIsDrawnCoarserNeverPastIt) {
 
 TEST_F(NodePool, ABudgetBelowTwoPagesIsRefusedInOneLine) {
   try {
-    (void)GpuNodePool::vertices(*paged_, {16 << 10, 1 << 20, 16 << 10});
+    (void)GpuNodePool::blocks(*paged_, {16 << 10, 1 << 20, 16 << 10});
     FAIL() << "a pool of 16 KiB accepted";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("--gpu-memory: 0.0 MiB is below"), std::string::npos)

@@ -12,12 +12,42 @@
 
 namespace treecut::splat {
 
+void CutBuffer::group_by_segment(std::uint32_t stride) {
+  // A counting sort of each run by segment: stable, so each group keeps
+  // the ascending ids of the coherent submission order (upload()).
+  const std::size_t segments = max_vertex_ / stride + 1;
+  const std::size_t bounds[] = {0, count_ - entering_, count_, count_ + leaving_};
+  grouped_.resize(vertices_.size());
+  for (std::uint32_t part = 0; part < 3; ++part) {
+    group_at_.assign(segments, 0);
+    for (std::size_t i = bounds[part]; i < bounds[part + 1]; ++i)
+      ++group_at_[vertices_[i] / stride];
+    auto at = static_cast<std::uint32_t>(bounds[part]);
+    for (std::uint32_t s = 0; s < segments; ++s) {
+      const std::uint32_t n = group_at_[s];
+      if (n > 0) segment_runs_.push_back(SegmentRun{at, n, s, part});
+      group_at_[s] = at;
+      at += n;
+    }
+    for (std::size_t i = bounds[part]; i < bounds[part + 1]; ++i) {
+      const std::uint32_t v = vertices_[i];
+      grouped_[group_at_[v / stride]++] = v % stride;
+    }
+  }
+}
+
 void CutBuffer::write(std::size_t current) {
   // Through the map (a paged model's pool) or the ids themselves.
   std::span<const std::uint32_t> ids = sorted_;
+  segment_runs_.clear();
   if (map_ != nullptr) {
     max_vertex_ = map_->map(sorted_, current, vertices_);
     ids = vertices_;
+    // A pool of several segments is drawn a segment at a time.
+    if (const std::uint32_t stride = map_->stride(); max_vertex_ >= stride) {
+      group_by_segment(stride);
+      ids = grouped_;
+    }
   } else {
     max_vertex_ = max_id_;
   }

@@ -22,6 +22,8 @@ void Renderer::begin_frame_ranges(const gl::Buffer& elements, NodeId max_id, con
     throw std::invalid_argument(
         "Renderer: in-frame ranges need a one-pass mode (fast, fixed or id)");
   }
+  if (pooled_)
+    throw std::logic_error("Renderer: in-frame ranges name nodes, a pool's vertices not");
   if (max_id >= node_count_) {
     throw std::logic_error("Renderer: the ranges name node " + std::to_string(max_id) +
                            ", the vertex buffer holds " + std::to_string(node_count_));

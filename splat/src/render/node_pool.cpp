@@ -37,24 +37,23 @@ std::uint64_t GpuNodePool::budget(const PagedHierarchy& paged, const GpuPoolOpti
   return paged.memory_budget() / paged.bytes_per_node() * kVertexBytes / 4 * 5;
 }
 
-std::uint32_t GpuNodePool::vertices(const PagedHierarchy& paged, const GpuPoolOptions& options) {
+std::uint32_t GpuNodePool::blocks(const PagedHierarchy& paged, const GpuPoolOptions& options) {
   const std::uint64_t bytes = budget(paged, options);
   const std::uint64_t least = least_blocks(paged) * kBlock * kVertexBytes;
   if (bytes < least)
     throw InputError("--gpu-memory: " + mib_text(bytes) + " is below the " + mib_text(least) +
                      " the model's first page and its largest page take on the GPU");
-  // The null vertex and the blocks; a vertex buffer addresses 2^31 - 1.
-  const std::uint64_t blocks = std::min<std::uint64_t>(bytes / (kBlock * kVertexBytes),
-                                                       (std::uint64_t{0x7fffffff} - 1) / kBlock);
-  return static_cast<std::uint32_t>(1 + blocks * kBlock);
+  // The segments' vertices, a block's and one a segment (its vertex 0) at
+  // most, address 2^31 - 1 (a GLint).
+  return static_cast<std::uint32_t>(
+      std::min<std::uint64_t>(bytes / (kBlock * kVertexBytes), 0x7fffffff / (kBlock + 1)));
 }
 
-std::uint32_t GpuNodePool::first_vertices(const PagedHierarchy& paged,
-                                          const GpuPoolOptions& options) {
-  const std::uint32_t most = vertices(paged, options);
-  const std::uint64_t first =
-      std::max<std::uint64_t>(options.first_bytes / (kBlock * kVertexBytes), least_blocks(paged));
-  return static_cast<std::uint32_t>(std::min<std::uint64_t>(most, 1 + first * kBlock));
+std::uint32_t GpuNodePool::segment_vertices(const PagedHierarchy& paged,
+                                            const GpuPoolOptions& options) {
+  const std::uint64_t most = blocks(paged, options);
+  const std::uint64_t wanted = options.segment_bytes / (kBlock * kVertexBytes);
+  return static_cast<std::uint32_t>(1 + std::clamp<std::uint64_t>(wanted, 1, most) * kBlock);
 }
 
 GpuNodePool::GpuNodePool(Renderer& renderer, const PagedHierarchy& paged,
@@ -62,22 +61,30 @@ GpuNodePool::GpuNodePool(Renderer& renderer, const PagedHierarchy& paged,
     : renderer_(&renderer),
       paged_(&paged),
       options_(options),
+      max_blocks_(blocks(paged, options)),
+      stride_(segment_vertices(paged, options)),
       slot_(paged.hierarchy().node_count()) {
-  max_blocks_ = (vertices(paged, options) - 1) / kBlock;
-  const std::uint32_t n = first_vertices(paged, options);
-  renderer.set_pool(paged.hierarchy(), n);
-  add_blocks((n - 1) / kBlock);
+  segment_blocks_ = (stride_ - 1) / kBlock;
+  renderer.set_pool(paged.hierarchy(), stride_);
+  blocks_ = segment_blocks_;
+  for (std::uint32_t b = blocks_; b-- > 0;) free_.push_back(b);  // low blocks first
+  block_used_.resize(blocks_, 0);
   wanted_mark_.assign(paged.pages(), 0);
   stats_.capacity_bytes = std::uint64_t{max_blocks_} * kBlock * kVertexBytes;
   // The root's page, whole: every stand-in's last resort, never given back.
+  grow(blocks_for(paged.page_nodes(0)));
   upload(0, paged.page_nodes(0));
 }
 
-void GpuNodePool::add_blocks(std::uint32_t blocks) {
-  const std::uint32_t old = blocks_;
-  blocks_ = blocks;
-  for (std::uint32_t b = blocks_; b-- > old;) free_.push_back(b);  // low blocks first
-  block_used_.resize(blocks_, 0);
+void GpuNodePool::grow(std::size_t blocks) {
+  while (free_.size() < blocks && blocks_ < max_blocks_) {
+    // The last segment holds what the budget has left.
+    const std::uint32_t n = std::min(segment_blocks_, max_blocks_ - blocks_);
+    renderer_->add_pool_segment(1 + n * kBlock);
+    for (std::uint32_t b = blocks_ + n; b-- > blocks_;) free_.push_back(b);
+    blocks_ += n;
+    block_used_.resize(blocks_, 0);
+  }
 }
 
 GpuNodePool::~GpuNodePool() = default;
@@ -136,7 +143,7 @@ std::uint32_t GpuNodePool::map(std::span<const NodeId> ids, std::size_t current,
       }
     }
     out[i] = v - 1;
-    block_used_[(v - 2) / kBlock] = frame_;
+    block_used_[block_of(v - 1)] = frame_;
     most = std::max(most, v - 1);
   }
   mapped_ = true;
@@ -195,7 +202,7 @@ void GpuNodePool::upload(std::uint32_t page, std::uint32_t prefix) {
     for (std::uint32_t done = 0; done < r.count;) {
       const std::uint32_t at = (k + done) % kBlock;
       const std::uint32_t len = std::min(r.count - done, kBlock - at);
-      const std::uint32_t vertex = 1 + u.blocks[(k + done) / kBlock] * kBlock + at;
+      const std::uint32_t vertex = first_vertex(u.blocks[(k + done) / kBlock]) + at;
       renderer_->write_vertices(vertex, paged_->hierarchy(), {r.first + done, len});
       for (std::uint32_t j = 0; j < len; ++j) slot_[r.first + done + j] = vertex + j + 1;
       done += len;
@@ -223,13 +230,13 @@ std::uint64_t GpuNodePool::last_used(const Up& u) const {
 bool GpuNodePool::make_room(std::size_t blocks) {
   if (free_.size() >= blocks) return true;
   if (blocks_ < max_blocks_) {
-    // Room within the budget: the buffer doubles (a copy on the GPU), so its
-    // memory follows what the pages need, not the budget.
-    const auto want = static_cast<std::uint32_t>(blocks_ + blocks - free_.size());
-    const std::uint32_t grown = std::min(max_blocks_, std::max(2 * blocks_, want));
-    renderer_->grow_pool(1 + grown * kBlock);
-    add_blocks(grown);
-    ++stats_.growths;
+    // Room within the budget: segments added, for one request a frame (a
+    // new buffer costs its size on a driver that fills it when it is
+    // made, as llvmpipe does); the pages after it wait for the next frame,
+    // and nothing is given back while the budget has room.
+    if (grown_frame_ == frame_) return false;
+    grown_frame_ = frame_;
+    grow(blocks);
     if (free_.size() >= blocks) return true;
   }
   // The pages no list used this frame, least recently used first: gathered
@@ -259,6 +266,7 @@ GpuPoolStats GpuNodePool::stats() const {
       std::uint64_t{blocks_ - static_cast<std::uint32_t>(free_.size())} * kBlock * kVertexBytes;
   s.resident_pages = up_.size();
   s.allocated_bytes = std::uint64_t{blocks_} * kBlock * kVertexBytes;
+  s.segments = (blocks_ + segment_blocks_ - 1) / segment_blocks_;
   return s;
 }
 

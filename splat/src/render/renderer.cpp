@@ -161,6 +161,7 @@ Renderer::Renderer(const Hierarchy& h, glm::ivec2 size, std::uint32_t pool_verti
   }
   gl::VertexArrayBindingDivisor(vao_.id(), kObjectBinding, 1);
   bind_objects(identity_object_);
+  set_vertex_format();
   if (pool_vertices > 0) {
     set_pool(h, pool_vertices);
   } else {
@@ -227,7 +228,12 @@ void Renderer::set_models(std::span<const Hierarchy* const> models) {
   }
   // One static buffer holding the four node arrays back to back, each the
   // models' arrays one after the other (a model's nodes start at its base).
-  create_vertex_buffer(n);
+  segments_.clear();
+  segment_vertices_.clear();
+  add_segment(static_cast<std::uint32_t>(n));
+  bind_segment(0);
+  stride_ = static_cast<std::uint32_t>(n);
+  gl::Buffer& nodes = segments_.front();
   const VertexRegions at(n);
   model_base_.clear();
   model_nodes_.clear();
@@ -235,10 +241,10 @@ void Renderer::set_models(std::span<const Hierarchy* const> models) {
   std::size_t base = 0;
   for (const Hierarchy* h : models) {
     const HierarchyArrays& a = h->arrays();
-    nodes_.sub_data(at.center_radius(base), std::as_bytes(a.center_radius));
-    nodes_.sub_data(at.normal_cone(base), std::as_bytes(a.normal_cone));
-    nodes_.sub_data(at.color(base), std::as_bytes(colors_of(*h)));
-    nodes_.sub_data(at.splat_radius(base), std::as_bytes(a.splat_radius));
+    nodes.sub_data(at.center_radius(base), std::as_bytes(a.center_radius));
+    nodes.sub_data(at.normal_cone(base), std::as_bytes(a.normal_cone));
+    nodes.sub_data(at.color(base), std::as_bytes(colors_of(*h)));
+    nodes.sub_data(at.splat_radius(base), std::as_bytes(a.splat_radius));
     model_base_.push_back(static_cast<std::uint32_t>(base));
     model_nodes_.push_back(static_cast<std::uint32_t>(h->node_count()));
     model_ids_.push_back(h);
@@ -251,17 +257,30 @@ void Renderer::set_models(std::span<const Hierarchy* const> models) {
   gl::check("Renderer vertex buffer");
 }
 
-void Renderer::set_pool(const Hierarchy& h, std::uint32_t vertices) {
-  if (pooled_ && hierarchy_ == &h && node_count_ == vertices) return;
-  if (vertices == 0 || vertices > 0x7fffffffu)
-    throw std::invalid_argument("Renderer: a pool of " + std::to_string(vertices) + " vertices");
-  create_vertex_buffer(vertices);
-  node_count_ = vertices;
+void Renderer::set_pool(const Hierarchy& h, std::uint32_t stride) {
+  if (pooled_ && hierarchy_ == &h && stride_ == stride) {
+    // The first segment kept (made for this pool: Renderer's constructor),
+    // the others dropped: a new pool adds its own.
+    segments_.resize(1);
+    segment_vertices_.resize(1);
+    bind_segment(0);
+    node_count_ = stride;
+    model_nodes_.assign(1, stride);
+    return;
+  }
+  if (stride == 0 || stride > 0x7fffffffu)
+    throw std::invalid_argument("Renderer: a pool of " + std::to_string(stride) + " vertices");
+  segments_.clear();
+  segment_vertices_.clear();
+  add_segment(stride);
+  bind_segment(0);
+  stride_ = stride;
+  node_count_ = stride;
   // Vertex 0 zeros (alpha 0: drawn as nothing), the rest undefined until
   // written: the pool writes what it maps to.
   write_null_vertex();
   model_base_.assign(1, 0);
-  model_nodes_.assign(1, vertices);
+  model_nodes_.assign(1, stride);
   model_ids_.assign(1, &h);
   hierarchy_ = &h;
   pooled_ = true;
@@ -270,59 +289,46 @@ void Renderer::set_pool(const Hierarchy& h, std::uint32_t vertices) {
 }
 
 void Renderer::write_null_vertex() {
-  const VertexRegions at(node_count_);
+  const VertexRegions at(segment_vertices_.front());
   const std::array<std::byte, sizeof(glm::vec4)> zero{};
-  nodes_.sub_data(at.center_radius(0), zero);
-  nodes_.sub_data(at.normal_cone(0), std::span(zero).first(sizeof(glm::i16vec4)));
-  nodes_.sub_data(at.color(0), std::span(zero).first(sizeof(glm::u8vec4)));
-  nodes_.sub_data(at.splat_radius(0), std::span(zero).first(sizeof(float)));
+  gl::Buffer& nodes = segments_.front();
+  nodes.sub_data(at.center_radius(0), zero);
+  nodes.sub_data(at.normal_cone(0), std::span(zero).first(sizeof(glm::i16vec4)));
+  nodes.sub_data(at.color(0), std::span(zero).first(sizeof(glm::u8vec4)));
+  nodes.sub_data(at.splat_radius(0), std::span(zero).first(sizeof(float)));
 }
 
-void Renderer::grow_pool(std::uint32_t vertices) {
-  if (!pooled_ || vertices <= node_count_) return;
-  if (vertices > 0x7fffffffu)
-    throw std::invalid_argument("Renderer: a pool of " + std::to_string(vertices) + " vertices");
-  // Each region moves (they lie back to back): copied on the GPU into a
-  // buffer of the new size, region by region.
-  gl::Buffer old = std::move(nodes_);
-  const VertexRegions from(node_count_), to(vertices);
-  create_vertex_buffer(vertices);
-  const auto copy = [&](std::size_t src, std::size_t dst, std::size_t bytes) {
-    gl::CopyNamedBufferSubData(old.id(), nodes_.id(), static_cast<GLintptr>(src),
-                               static_cast<GLintptr>(dst), static_cast<GLsizeiptr>(bytes));
-  };
-  copy(from.center_radius(0), to.center_radius(0), from.normal_cone(0) - from.center_radius(0));
-  copy(from.normal_cone(0), to.normal_cone(0), from.color(0) - from.normal_cone(0));
-  copy(from.color(0), to.color(0), from.splat_radius(0) - from.color(0));
-  copy(from.splat_radius(0), to.splat_radius(0), from.bytes() - from.splat_radius(0));
-  node_count_ = vertices;
-  model_nodes_.assign(1, vertices);
-  gl::check("Renderer pool growth");
+void Renderer::add_pool_segment(std::uint32_t vertices) {
+  const std::uint64_t extent = std::uint64_t{stride_} * segments_.size() + vertices;
+  if (!pooled_ || vertices == 0 || vertices > stride_ || extent > 0x7fffffffu) {
+    throw std::invalid_argument("Renderer: a pool segment of " + std::to_string(vertices) +
+                                " vertices after " + std::to_string(segments_.size()) + " of " +
+                                std::to_string(stride_));
+  }
+  add_segment(vertices);
+  node_count_ = static_cast<std::uint32_t>(extent);
+  model_nodes_.assign(1, node_count_);
+  gl::check("Renderer pool segment");
 }
 
 void Renderer::write_vertices(std::uint32_t first, const Hierarchy& h, NodeRange nodes) {
-  const VertexRegions at(node_count_);
+  const std::uint32_t s = first / stride_;
+  const std::uint32_t v = first % stride_;
+  if (s >= segments_.size() || std::uint64_t{v} + nodes.count > segment_vertices_[s]) {
+    throw std::invalid_argument("Renderer::write_vertices: vertices " + std::to_string(first) +
+                                " + " + std::to_string(nodes.count) + " past a segment");
+  }
+  const VertexRegions at(segment_vertices_[s]);
   const HierarchyArrays& a = h.arrays();
-  nodes_.sub_data(at.center_radius(first),
-                  std::as_bytes(a.center_radius.subspan(nodes.first, nodes.count)));
-  nodes_.sub_data(at.normal_cone(first),
-                  std::as_bytes(a.normal_cone.subspan(nodes.first, nodes.count)));
-  nodes_.sub_data(at.color(first), std::as_bytes(a.color.subspan(nodes.first, nodes.count)));
-  nodes_.sub_data(at.splat_radius(first),
-                  std::as_bytes(a.splat_radius.subspan(nodes.first, nodes.count)));
+  gl::Buffer& b = segments_[s];
+  b.sub_data(at.center_radius(v), std::as_bytes(a.center_radius.subspan(nodes.first, nodes.count)));
+  b.sub_data(at.normal_cone(v), std::as_bytes(a.normal_cone.subspan(nodes.first, nodes.count)));
+  b.sub_data(at.color(v), std::as_bytes(a.color.subspan(nodes.first, nodes.count)));
+  b.sub_data(at.splat_radius(v), std::as_bytes(a.splat_radius.subspan(nodes.first, nodes.count)));
 }
 
-void Renderer::create_vertex_buffer(std::size_t n) {
-  const VertexRegions at(n);
-  nodes_ = gl::Buffer::create(at.bytes(), nullptr, GL_DYNAMIC_STORAGE_BIT);
+void Renderer::set_vertex_format() {
   const GLuint vao = vao_.id();
-  gl::VertexArrayVertexBuffer(vao, 0, nodes_.id(), 0, sizeof(glm::vec4));
-  gl::VertexArrayVertexBuffer(vao, 1, nodes_.id(), static_cast<GLintptr>(at.normal_cone(0)),
-                              sizeof(glm::i16vec4));
-  gl::VertexArrayVertexBuffer(vao, 2, nodes_.id(), static_cast<GLintptr>(at.color(0)),
-                              sizeof(glm::u8vec4));
-  gl::VertexArrayVertexBuffer(vao, kSplatRadiusBinding, nodes_.id(),
-                              static_cast<GLintptr>(at.splat_radius(0)), sizeof(float));
   gl::VertexArrayAttribFormat(vao, 0, 3, GL_FLOAT, GL_FALSE, 0);  // the center; .w is the bound
   gl::VertexArrayAttribFormat(vao, 1, 4, GL_SHORT, GL_TRUE, 0);
   gl::VertexArrayAttribFormat(vao, 2, 4, GL_UNSIGNED_BYTE, GL_TRUE, 0);
@@ -333,6 +339,25 @@ void Renderer::create_vertex_buffer(std::size_t n) {
   }
   gl::VertexArrayAttribBinding(vao, kSplatRadiusLocation, kSplatRadiusBinding);
   gl::EnableVertexArrayAttrib(vao, kSplatRadiusLocation);
+}
+
+void Renderer::add_segment(std::uint32_t n) {
+  segments_.push_back(
+      gl::Buffer::create(VertexRegions(n).bytes(), nullptr, GL_DYNAMIC_STORAGE_BIT));
+  segment_vertices_.push_back(n);
+}
+
+void Renderer::bind_segment(std::uint32_t s) {
+  const VertexRegions at(segment_vertices_[s]);
+  const GLuint vao = vao_.id();
+  const GLuint id = segments_[s].id();
+  gl::VertexArrayVertexBuffer(vao, 0, id, 0, sizeof(glm::vec4));
+  gl::VertexArrayVertexBuffer(vao, 1, id, static_cast<GLintptr>(at.normal_cone(0)),
+                              sizeof(glm::i16vec4));
+  gl::VertexArrayVertexBuffer(vao, 2, id, static_cast<GLintptr>(at.color(0)), sizeof(glm::u8vec4));
+  gl::VertexArrayVertexBuffer(vao, kSplatRadiusBinding, id,
+                              static_cast<GLintptr>(at.splat_radius(0)), sizeof(float));
+  bound_segment_ = s;
 }
 
 std::span<const glm::u8vec4> Renderer::colors_of(const Hierarchy& h) const {
@@ -356,7 +381,7 @@ void Renderer::set_node_colors(const Hierarchy& h, std::vector<glm::u8vec4> colo
   const VertexRegions at(model_base_.empty() ? 0 : model_base_.back() + model_nodes_.back());
   for (std::size_t m = 0; m < model_ids_.size(); ++m) {
     if (model_ids_[m] != &h) continue;
-    nodes_.sub_data(at.color(model_base_[m]), std::as_bytes(colors_of(h)));
+    segments_.front().sub_data(at.color(model_base_[m]), std::as_bytes(colors_of(h)));
   }
   gl::check("Renderer node colours");
 }

@@ -47,6 +47,17 @@ void Renderer::plan_runs(const CutBuffer& cut, std::span<const CutRange> ranges,
   run_hook_.clear();
   const auto count = static_cast<std::uint32_t>(cut.size());
   const bool fading = cut.fading();
+  if (!cut.segment_runs().empty()) {
+    // A pool's segments (only whole lists: draw_ranges refuses them): a
+    // draw call a group, each reading its segment.
+    for (const CutBuffer::SegmentRun& g : cut.segment_runs()) {
+      if (g.part == 2 && !fading) continue;
+      const int fade = g.part == 2 ? 2 : g.part == 1 && fading ? 1 : 0;
+      runs_.push_back(Run{g.first, g.count, fade, false, g.segment});
+      run_hook_.push_back(SIZE_MAX);
+    }
+    return;
+  }
   const auto stable = static_cast<std::uint32_t>(cut.stable());
   std::span<const CutRange> order = ranges;
   if (sorted) {
@@ -109,6 +120,7 @@ void Renderer::draw_runs(GLuint elements, const gl::Program& program, const Unif
         fade = run.fade;
         gl::ProgramUniform1i(program.id(), u.fade_mode, fade);
       }
+      if (run.segment != bound_segment_) bind_segment(run.segment);
       gl::DrawElements(GL_POINTS, static_cast<GLsizei>(run.count), GL_UNSIGNED_INT,
                        reinterpret_cast<const void*>(std::uintptr_t{run.first} * sizeof(NodeId)));
       ++draw_calls_;
@@ -141,6 +153,10 @@ FrameStats Renderer::draw_scene(const SceneCutBuffer& scene, const Camera& camer
 FrameStats Renderer::draw_ranges(const CutBuffer& cut, std::span<const CutRange> ranges,
                                  const Camera& camera, const RenderSettings& settings,
                                  RangeHook* hook, bool finish) {
+  if (!cut.segment_runs().empty()) {
+    throw std::logic_error(
+        "Renderer::draw_ranges: the list lies in several segments of a pool (draw it whole)");
+  }
   return render(&cut, nullptr, ranges, false, camera, settings, hook, finish);
 }
 

@@ -1,8 +1,11 @@
 // A paged model's nodes on the GPU (issue 45, item 1): a pool of vertices
 // within a memory budget that holds the pages the drawn list needs, copied
 // up within a per-frame byte budget and given back by least recent use.
-// The renderer's vertex buffer is the pool (Renderer::set_pool); the list's
-// ids reach it through this map (CutBuffer::set_vertex_map).
+// The renderer's vertex buffers are the pool (Renderer::set_pool): segments
+// of a fixed size added as pages need them, each its own buffer and draw
+// calls, so the pool grows without moving what is up and a new segment
+// costs its own size, not the pool's. The list's ids reach their vertices
+// through this map (CutBuffer::set_vertex_map).
 //
 // The unit is a page of the cache (at most 8,192 nodes), or its levels down
 // to the deepest one the list reaches (a cut through a page needs no more:
@@ -39,17 +42,20 @@ struct GpuPoolOptions {
   std::uint64_t memory_bytes = 0;
   /// Bytes copied to the GPU per frame at most (a page at least).
   std::uint64_t upload_bytes = std::uint64_t{8} << 20;
-  /// The buffer's size at first; it doubles as pages need, up to
-  /// memory_bytes (a driver backs a buffer when it is made: llvmpipe took
-  /// 1 GiB of RAM and a second for a pool of 1 GiB before the first frame).
-  std::uint64_t first_bytes = std::uint64_t{16} << 20;
+  /// A segment's bytes (a block at least; the budget at most): the pool is
+  /// one segment when the model opens and a segment more whenever pages
+  /// need room, up to memory_bytes. A driver backs a buffer when it is
+  /// made: llvmpipe took 1 GiB of RAM and a second for a pool of 1 GiB
+  /// before the first frame, 24-37 ms for 32 MiB, 217-240 for 256 (a GPU
+  /// does not touch it); a segment more is one draw call more a run.
+  std::uint64_t segment_bytes = std::uint64_t{16} << 20;
 };
 
 /// What the pool holds and did (this frame: the last prepare()).
 struct GpuPoolStats {
   std::uint64_t capacity_bytes = 0;   ///< the budget's vertices
-  std::uint64_t allocated_bytes = 0;  ///< the buffer's now (it grows as pages need)
-  std::uint64_t growths = 0;          ///< times the buffer grew
+  std::uint64_t allocated_bytes = 0;  ///< the segments' now (they are added as pages need)
+  std::uint64_t segments = 0;         ///< the pool's now
   std::uint64_t resident_bytes = 0;   ///< of the blocks pages use
   std::uint64_t resident_pages = 0;
   std::uint64_t uploaded_bytes = 0;          ///< this frame
@@ -62,21 +68,22 @@ class GpuNodePool final : public VertexMap {
  public:
   static constexpr std::uint32_t kBlock = 1024;
   /// Vertex 0: zeros, drawn as nothing (what the map gives a node it does
-  /// not draw); block b's vertices start at 1 + b * kBlock.
+  /// not draw). A segment holds vertex 0 (the null vertex in the first,
+  /// unused in the others) and blocks: block b's vertices start at vertex
+  /// 1 + (b % B) * kBlock of segment b / B, B blocks a segment.
   static constexpr std::uint32_t kNullVertex = 0;
   /// A vertex: center and bound, normal cone, colour, drawn radius.
   static constexpr std::uint64_t kVertexBytes = 32;
 
   /// The budget OPTIONS give for PAGED, in bytes (memory_bytes, or its default).
   static std::uint64_t budget(const PagedHierarchy& paged, const GpuPoolOptions& options);
-  /// The vertices of a pool of that budget, the null vertex included.
-  /// Throws InputError "--gpu-memory: REASON" when it cannot hold the first
-  /// page and the largest one beside it.
-  static std::uint32_t vertices(const PagedHierarchy& paged, const GpuPoolOptions& options);
-  /// The vertices the buffer starts with (Renderer::set_pool): first_bytes'
-  /// (at least the root's page and a page more) or the budget's, the
-  /// lesser. Throws as vertices() does.
-  static std::uint32_t first_vertices(const PagedHierarchy& paged, const GpuPoolOptions& options);
+  /// The blocks of a pool of that budget. Throws InputError "--gpu-memory:
+  /// REASON" when it cannot hold the first page and the largest one beside it.
+  static std::uint32_t blocks(const PagedHierarchy& paged, const GpuPoolOptions& options);
+  /// The vertices of a segment (Renderer::set_pool's stride): segment_bytes'
+  /// blocks (one at least, the budget's at most) and vertex 0. Throws as
+  /// blocks() does.
+  static std::uint32_t segment_vertices(const PagedHierarchy& paged, const GpuPoolOptions& options);
 
   /// Makes RENDERER's vertex buffer the pool of PAGED's hierarchy and puts
   /// the first page in it. Both must outlive the pool.
@@ -95,6 +102,7 @@ class GpuNodePool final : public VertexMap {
 
   std::uint32_t map(std::span<const NodeId> ids, std::size_t current,
                     std::vector<std::uint32_t>& out) override;
+  [[nodiscard]] std::uint32_t stride() const override { return stride_; }
 
   [[nodiscard]] GpuPoolStats stats() const;
   [[nodiscard]] const Hierarchy& hierarchy() const { return paged_->hierarchy(); }
@@ -112,27 +120,37 @@ class GpuNodePool final : public VertexMap {
   // Page PAGE's first PREFIX nodes up (the blocks they need are free).
   void upload(std::uint32_t page, std::uint32_t prefix);
   void give_back(std::uint32_t page);
-  // Frees blocks until BLOCKS are free: the buffer grown within the
-  // budget, else pages no list of this frame uses given back, least
-  // recently used first; false when they cannot be.
+  // Frees blocks until BLOCKS are free: segments added within the budget
+  // (in one request a frame), else pages no list of this frame uses given
+  // back, least recently used first; false when they cannot be (yet).
   bool make_room(std::size_t blocks);
+  // Segments added until BLOCKS blocks are free or the budget is reached.
+  void grow(std::size_t blocks);
   // The last frame a list used any of U's blocks.
   [[nodiscard]] std::uint64_t last_used(const Up& u) const;
-  // The buffer holds BLOCKS blocks now: the new ones are free.
-  void add_blocks(std::uint32_t blocks);
+  // Block B's first vertex, and the block of vertex V.
+  [[nodiscard]] std::uint32_t first_vertex(std::uint32_t b) const {
+    return b / segment_blocks_ * stride_ + 1 + b % segment_blocks_ * kBlock;
+  }
+  [[nodiscard]] std::uint32_t block_of(std::uint32_t v) const {
+    return v / stride_ * segment_blocks_ + (v % stride_ - 1) / kBlock;
+  }
 
   Renderer* renderer_;
   const PagedHierarchy* paged_;
   GpuPoolOptions options_;
-  std::uint32_t blocks_ = 0;                  // in the buffer now (it grows to max_blocks_)
-  std::uint32_t max_blocks_ = 0;              // within the budget
-  ReservedArray<std::uint32_t> slot_;         // by node id: its vertex + 1, 0 when not up
-  std::vector<std::uint32_t> free_;           // blocks
-  std::vector<std::uint64_t> block_used_;     // by block: the frame a list last used it
-  std::unordered_map<std::uint32_t, Up> up_;  // the pages up
-  std::vector<std::uint32_t> wanted_mark_;    // by page: its place in wanted_ + 1 (0: none)
-  std::vector<NodePlace> wanted_;             // pages the list needs, and how far, coarsest first
-  std::vector<NodeRange> ranges_;             // (reused)
+  std::uint32_t blocks_ = 0;                       // in the segments now (they grow to max_blocks_)
+  std::uint32_t max_blocks_ = 0;                   // within the budget
+  std::uint32_t segment_blocks_ = 0;               // in a segment (B)
+  std::uint32_t stride_ = 0;                       // a segment's vertices
+  std::uint64_t grown_frame_ = ~std::uint64_t{0};  // the frame segments were last added in
+  ReservedArray<std::uint32_t> slot_;              // by node id: its vertex + 1, 0 when not up
+  std::vector<std::uint32_t> free_;                // blocks
+  std::vector<std::uint64_t> block_used_;          // by block: the frame a list last used it
+  std::unordered_map<std::uint32_t, Up> up_;       // the pages up
+  std::vector<std::uint32_t> wanted_mark_;         // by page: its place in wanted_ + 1 (0: none)
+  std::vector<NodePlace> wanted_;  // pages the list needs, and how far, coarsest first
+  std::vector<NodeRange> ranges_;  // (reused)
   std::unordered_set<std::uint32_t> stand_ins_;               // vertices standing in (map)
   std::vector<std::pair<std::uint64_t, std::uint32_t>> lru_;  // (last used, page): make_room
   std::size_t lru_next_ = 0;                                  // the next in lru_ to give back

@@ -108,6 +108,9 @@ class VertexMap {
   /// the rest a fading exchange's leaving run); returns the largest.
   virtual std::uint32_t map(std::span<const NodeId> ids, std::size_t current,
                             std::vector<std::uint32_t>& out) = 0;
+  /// The vertices of a segment (Renderer::set_pool's stride): vertex v is
+  /// vertex v % stride() of segment v / stride().
+  [[nodiscard]] virtual std::uint32_t stride() const = 0;
 };
 
 /// One index list on the GPU. upload() replaces the content, writing into the
@@ -173,12 +176,34 @@ class CutBuffer {
   /// that arrived on the GPU); nothing without a map.
   void refresh();
 
+  /// Positions [first, first + count) of the buffer whose vertices lie in
+  /// one segment of a pool, and the run they belong to (0 stable, 1
+  /// entering, 2 leaving).
+  struct SegmentRun {
+    std::uint32_t first = 0;
+    std::uint32_t count = 0;
+    std::uint32_t segment = 0;
+    std::uint32_t part = 0;
+  };
+  /// A mapped list whose vertices lie in several segments: the buffer holds
+  /// each run grouped by segment (ascending ids within a group, each vertex
+  /// as its segment's), and these are the groups in buffer order; its
+  /// positions are no longer ids()' (Renderer::draw_ranges refuses it).
+  /// Empty when every vertex lies in segment 0.
+  [[nodiscard]] std::span<const SegmentRun> segment_runs() const { return segment_runs_; }
+
  private:
   void write(std::size_t current);
+  // vertices_ grouped by segment of STRIDE vertices into grouped_, the
+  // groups into segment_runs_.
+  void group_by_segment(std::uint32_t stride);
 
   VertexMap* map_ = nullptr;
   std::vector<std::uint32_t> vertices_;  // map_'s of sorted_ (reused)
   std::uint32_t max_vertex_ = 0;
+  std::vector<std::uint32_t> grouped_;   // vertices_ by segment (reused)
+  std::vector<std::uint32_t> group_at_;  // per segment: the next position (reused)
+  std::vector<SegmentRun> segment_runs_;
 
   std::array<gl::Buffer, 2> buffers_;
   std::size_t current_ = 0;
@@ -245,7 +270,8 @@ class Renderer {
   /// Re-creates the render targets; a no-op for the current size.
   void resize(glm::ivec2 size);
   [[nodiscard]] glm::ivec2 size() const { return size_; }
-  /// Vertices in the buffer: the models' nodes, or a pool's size.
+  /// Vertices in the buffer: the models' nodes, or the extent of a pool's
+  /// segments (the last vertex + 1).
   [[nodiscard]] std::uint32_t node_count() const { return node_count_; }
 
   /// Replaces the static vertex buffer with the nodes of `h` (another model:
@@ -262,19 +288,26 @@ class Renderer {
   /// is set_models({&h}). Throws std::invalid_argument for no model, an
   /// empty one, or more than 2^31 - 1 nodes in all.
   void set_models(std::span<const Hierarchy* const> models);
-  /// A vertex buffer of VERTICES for nodes of H placed where a VertexMap
-  /// says (GpuNodePool: a paged model's pages on the GPU); lists of H are
-  /// drawn through that map. Each vertex is undefined until written
-  /// (write_vertices) but the first: zeros (alpha 0, drawn as nothing), the
-  /// null vertex a map points the nodes it does not draw at. A no-op when
-  /// it holds such a pool for H already. Throws std::invalid_argument for
-  /// no vertex or more than 2^31 - 1.
-  void set_pool(const Hierarchy& h, std::uint32_t vertices);
-  /// A pool's buffer of VERTICES now, its vertices kept (copied on the
-  /// GPU); nothing when it holds as many already or is no pool.
-  void grow_pool(std::uint32_t vertices);
-  /// A pool's vertices [FIRST, FIRST + NODES.count) set to nodes NODES of
-  /// the pool's hierarchy H, in its own colours.
+  /// A pool for nodes of H placed where a VertexMap says (GpuNodePool: a
+  /// paged model's pages on the GPU): vertex buffers of STRIDE vertices
+  /// each, its segments, vertex v lying in segment v / STRIDE at v % STRIDE;
+  /// the first is made now, the others by add_pool_segment. Lists of H are
+  /// drawn through the map, a segment at a time (CutBuffer::segment_runs).
+  /// Each vertex is undefined until written (write_vertices) but the
+  /// first: zeros (alpha 0, drawn as nothing), the null vertex a map points
+  /// the nodes it does not draw at. When it holds such a pool for H
+  /// already, its first segment is kept and the others dropped. Throws std::invalid_argument for no
+  /// vertex or more than 2^31 - 1.
+  void set_pool(const Hierarchy& h, std::uint32_t stride);
+  /// One more segment of the pool, of VERTICES (at most the stride): a
+  /// buffer of its own, so nothing up moves or is copied, and the cost of
+  /// a new buffer is the segment's, not the pool's (llvmpipe fills a new
+  /// buffer with zeros when it is made: 100-240 ms for 256 MiB).
+  void add_pool_segment(std::uint32_t vertices);
+  /// The pool's segments (1 for models held whole: their buffer).
+  [[nodiscard]] std::size_t segments() const { return segments_.size(); }
+  /// A pool's vertices [FIRST, FIRST + NODES.count), all in one segment,
+  /// set to nodes NODES of the pool's hierarchy H, in its own colours.
   void write_vertices(std::uint32_t first, const Hierarchy& h, NodeRange nodes);
   [[nodiscard]] std::size_t model_count() const { return model_base_.size(); }
   [[nodiscard]] std::uint32_t model_base(std::size_t model) const { return model_base_[model]; }
@@ -326,7 +359,9 @@ class Renderer {
   /// a pixel (the first drawn wins; tests/splat/render_ranges_gl_test.cpp). A range
   /// past the list is clipped. A fading cut fades each range's entering part
   /// and draws the leaving run after the last range. FrameStats::splats
-  /// counts the splats of the ranges (FrameStats::points is 0).
+  /// counts the splats of the ranges (FrameStats::points is 0). Throws
+  /// std::logic_error, before any GL call, for a list in several segments
+  /// of a pool (CutBuffer::segment_runs), besides draw()'s checks.
   FrameStats draw_ranges(const CutBuffer& cut, std::span<const CutRange> ranges,
                          const Camera& camera, const RenderSettings& settings,
                          RangeHook* hook = nullptr, bool finish = false);
@@ -341,7 +376,8 @@ class Renderer {
   /// the caller may draw into it with its own program, vertex array and
   /// color/depth masks (draw_frame_range sets the renderer's again). One-pass
   /// modes (fast, fixed); hq, whose later passes need the whole list first,
-  /// throws std::invalid_argument.
+  /// throws std::invalid_argument; a pool (its vertices are not the node
+  /// ids) std::logic_error.
   void begin_frame_ranges(const gl::Buffer& elements, NodeId max_id, const Camera& camera,
                           const RenderSettings& settings);
   void draw_frame_range(std::uint32_t first, std::uint32_t count);
@@ -374,7 +410,8 @@ class Renderer {
     std::uint32_t first = 0;
     std::uint32_t count = 0;  // elements; commands when indirect
     int fade = 0;
-    bool indirect = false;  // a scene's commands (indirect_)
+    bool indirect = false;      // a scene's commands (indirect_)
+    std::uint32_t segment = 0;  // of a pool: the vertex buffer it reads
   };
   static constexpr GLuint kObjectBinding = 3;        // the per-object records (divisor 1)
   static constexpr GLuint kSplatRadiusBinding = 4;   // HierarchyArrays::splat_radius
@@ -392,8 +429,12 @@ class Renderer {
                            const RenderSettings& settings, float fade) const;
 
   void create_targets();
-  // nodes_ for N vertices (uninitialized), bound to the vertex array.
-  void create_vertex_buffer(std::size_t n);
+  // The vertex array's four attributes and their bindings (once).
+  void set_vertex_format();
+  // A vertex buffer of N vertices (uninitialized), appended to segments_.
+  void add_segment(std::uint32_t n);
+  // Segment S's buffer bound to the vertex array.
+  void bind_segment(std::uint32_t s);
   // A pool's vertex 0: zeros.
   void write_null_vertex();
   void check_cut(const CutBuffer& cut);
@@ -432,14 +473,19 @@ class Renderer {
   [[nodiscard]] std::span<const glm::u8vec4> colors_of(const Hierarchy& h) const;
   NodeId last_max_id_ = 0;
   bool pooled_ = false;  // set_pool
-  gl::Buffer nodes_;  // center_radius | normal_cone | color | splat_radius, one region each, models
-                      // in order
-  std::vector<std::uint32_t> model_base_;    // first vertex of each model
-  std::vector<std::uint32_t> model_nodes_;   // its node count
-  std::vector<const Hierarchy*> model_ids_;  // identity only
-  gl::Buffer identity_object_;               // the object record of a single model
-  GLuint indirect_ = 0;                      // the scene's commands while it is drawn
-  std::size_t draw_calls_ = 0;               // of the frame being drawn
+  // The vertex buffers: one holding the models' nodes in order, or a
+  // pool's segments; each center_radius | normal_cone | color |
+  // splat_radius, one region each.
+  std::vector<gl::Buffer> segments_;
+  std::vector<std::uint32_t> segment_vertices_;  // of each
+  std::uint32_t stride_ = 0;                     // vertices a segment at most
+  std::uint32_t bound_segment_ = 0;              // to vao_
+  std::vector<std::uint32_t> model_base_;        // first vertex of each model
+  std::vector<std::uint32_t> model_nodes_;       // its node count
+  std::vector<const Hierarchy*> model_ids_;      // identity only
+  gl::Buffer identity_object_;                   // the object record of a single model
+  GLuint indirect_ = 0;                          // the scene's commands while it is drawn
+  std::size_t draw_calls_ = 0;                   // of the frame being drawn
   gl::VertexArray vao_;
   gl::VertexArray empty_vao_;  // for the full-screen pass (core profile needs a VAO)
   gl::Program fast_;
