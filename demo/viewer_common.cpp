@@ -188,13 +188,14 @@ Scene load_scene(const SceneArgs& args) {
 
 namespace {
 
-// The median splat radius of at most ~64k leaves spread over H.
-float typical_splat(const Hierarchy& h) {
+// The median splat radius of at most ~64k leaves spread over what H knows.
+float typical_splat(const Hierarchy& h, std::span<const NodeRange> known) {
   std::vector<float> radii;
-  const std::size_t stride = std::max<std::size_t>(1, h.node_count() / 65536);
-  for (std::size_t n = 0; n < h.node_count(); n += stride) {
-    if (h.is_leaf(static_cast<NodeId>(n))) radii.push_back(h.splat_radius(static_cast<NodeId>(n)));
-  }
+  // Leaves only: the finest nodes a paged model knows when it opens are
+  // coarse, their discs far larger than a point's (none: the bounds alone,
+  // and a model of more than a page is far larger than its splats).
+  for (const NodeId n : sample_leaves(h, known, 65536))
+    if (h.is_leaf(n)) radii.push_back(h.splat_radius(n));
   if (radii.empty()) return 0.0f;
   const auto mid = radii.begin() + static_cast<std::ptrdiff_t>(radii.size() / 2);
   std::nth_element(radii.begin(), mid, radii.end());
@@ -311,15 +312,21 @@ Scene load_scene(const SceneArgs& args, const LoadProgressFn& progress) {
     s.label = (model.filename().empty() ? model.parent_path() : model).filename().string();
   }
   const Hierarchy& h = *s.hierarchy;
+  // What the model has read: a paged model its root's page (the rest comes
+  // as the view asks; reading it now would read nothing, and map the zero
+  // page where the pages are written later: a copy and an interrupt of
+  // every core for each 4 KiB when they are).
+  std::vector<NodeRange> known{{0, h.node_count()}};
+  if (s.paged) s.paged->page_ranges(0, known);
   // The same rule for files and generated models: the data decides.
   const std::optional<UpAxis> chosen = parse_up_axis(args.up);
-  s.up_axis = chosen ? *chosen : detect_up_axis(h);
+  s.up_axis = chosen ? *chosen : detect_up_axis(h, known);
   s.up = s.up_axis.vector();
   s.bounds_min = h.bounds_min();
   s.bounds_max = h.bounds_max();
   s.center = 0.5f * (h.bounds_min() + h.bounds_max());
   s.radius = std::max(0.5f * glm::length(h.bounds_max() - h.bounds_min()), 1e-6f);
-  set_view_box(s, typical_splat(h));
+  set_view_box(s, typical_splat(h, known));
   if (const std::optional<Viewpoint>& v = h.frame().viewpoint) {
     // The camera looks along its +z with +y down (PCL's convention).
     splat::Camera c;

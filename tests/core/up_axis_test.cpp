@@ -10,7 +10,9 @@
 
 #include "test_support.hpp"
 #include "treecut/attributes.hpp"
+#include "treecut/cache.hpp"
 #include "treecut/model_io.hpp"
+#include "treecut/paged_hierarchy.hpp"
 #include "treecut/ply.hpp"
 #include "treecut/tools/generate.hpp"
 
@@ -148,6 +150,31 @@ TEST(UpAxis, TheHierarchyGivesWhatItsPointsGive) {
       EXPECT_EQ(found, axis(to)) << found.name() << " (" << found.reason << ")";
       EXPECT_EQ(found, detect(completed(turned)));
     }
+  }
+}
+
+// A paged model when it opens knows its root's page only: the axis comes
+// from that page's finest nodes, and the sample names no other node (the
+// rest of its arrays is unread: zeros, which gave z whatever the model).
+TEST(UpAxis, APagedModelGivesItFromItsRootPage) {
+  const auto dir = treecut::test::scratch_dir("up_axis_paged");
+  const PointSet model =
+      treecut::tools::generate_model(treecut::tools::ModelKind::Terrain, 100000, 5);
+  for (int to = 0; to < 2; ++to) {
+    const auto cache = dir / ("t" + std::to_string(to) + ".tch");
+    treecut::save_cache(treecut::build_from_points(rotated(model, 2, to)), {1, 2, 3}, cache);
+    const auto paged = treecut::PagedHierarchy::open(cache);
+    ASSERT_GT(paged->pages(), 1u);
+    std::vector<treecut::NodeRange> known;
+    paged->page_ranges(0, known);
+    const std::vector<treecut::NodeId> sample =
+        treecut::sample_leaves(paged->hierarchy(), known, 1 << 20);
+    ASSERT_FALSE(sample.empty());
+    for (const treecut::NodeId n : sample) {
+      ASSERT_EQ(paged->page_of(n), 0u) << "node " << n;
+    }
+    const UpAxis found = detect_up_axis(paged->hierarchy(), known);
+    EXPECT_EQ(found, axis(to)) << found.name() << " (" << found.reason << ")";
   }
 }
 

@@ -201,6 +201,16 @@ struct BuildOptions {
 /// Deterministic: the same input gives byte-identical arrays for any thread count.
 Hierarchy build_hierarchy(PointSet&& points, const BuildOptions& options = {});
 
+/// About MOST of the leaves of the known part of H, evenly spaced by id: the
+/// nodes of KNOWN (ranges in increasing ids) whose children are not in
+/// KNOWN. Ids are breadth-first and a level's nodes spatially ordered, so a
+/// stride samples the model evenly. KNOWN is {0, node_count()} for a model
+/// held whole (its leaves) and a paged model's root page when it opens
+/// (PagedHierarchy::page_ranges(0): its other nodes are not read yet, so
+/// nothing may read them).
+std::vector<NodeId> sample_leaves(const Hierarchy& h, std::span<const NodeRange> known,
+                                  std::size_t most);
+
 /// Checks every structural invariant (children inside the parent's sphere,
 /// cone containing the children's normals, monotone priority, leaf count, depth
 /// bound, parent/child links). Returns an empty string or the first violation.

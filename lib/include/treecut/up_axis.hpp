@@ -69,6 +69,11 @@ UpAxis detect_up_axis(std::span<const glm::vec3> positions, std::span<const glm:
 /// The rule above on the leaves of a hierarchy (its points, with their
 /// normals), sampled evenly when there are more than about a million.
 UpAxis detect_up_axis(const Hierarchy& hierarchy);
+/// The same on the leaves of the part of it that is KNOWN (sample_leaves:
+/// a paged model's root page, its finest nodes there). Unless KNOWN is the
+/// whole hierarchy, rule 1 is left out: those nodes are coarse, their
+/// centres means of their points, which pile up nowhere.
+UpAxis detect_up_axis(const Hierarchy& hierarchy, std::span<const NodeRange> known);
 
 /// The next axis for a key that cycles through them: x -> y -> z -> x (a
 /// negative axis goes on to the next positive one).

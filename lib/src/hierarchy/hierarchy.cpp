@@ -23,6 +23,7 @@
 #include <cstring>
 #include <functional>
 #include <glm/geometric.hpp>
+#include <iterator>
 #include <numeric>
 #include <stdexcept>
 #include <thread>
@@ -679,6 +680,36 @@ std::string check_invariants(const Hierarchy& h) {
   if (h.level_count() - 1 > bound)
     return "depth " + std::to_string(h.level_count() - 1) + " exceeds the bound";
   return {};
+}
+
+std::vector<NodeId> sample_leaves(const Hierarchy& h, std::span<const NodeRange> known,
+                                  std::size_t most) {
+  const auto is_known = [&](NodeId id) {
+    const auto after = std::upper_bound(known.begin(), known.end(), id,
+                                        [](NodeId v, const NodeRange& r) { return v < r.first; });
+    return after != known.begin() && id - std::prev(after)->first < std::prev(after)->count;
+  };
+  // Children are consecutive and in one page: the first tells.
+  const auto known_leaf = [&](NodeId n) {
+    return h.child_count(n) == 0 || !is_known(h.first_child(n));
+  };
+  std::uint64_t total = 0;
+  for (const NodeRange& r : known) total += r.count;
+  const std::uint64_t stride = std::max<std::uint64_t>(1, total / std::max<std::size_t>(most, 1));
+  std::vector<NodeId> out;
+  std::uint64_t k = 0, base = 0;  // the next sample's place among KNOWN's nodes, a range's
+  for (const NodeRange& r : known) {
+    for (; k < base + r.count; k += stride)
+      if (const auto n = static_cast<NodeId>(r.first + (k - base)); known_leaf(n)) out.push_back(n);
+    base += r.count;
+  }
+  if (out.empty()) {
+    // Only possible with a stride that skipped every leaf: read them all.
+    for (const NodeRange& r : known)
+      for (NodeId n = r.first; n < r.first + r.count; ++n)
+        if (known_leaf(n)) out.push_back(n);
+  }
+  return out;
 }
 
 }  // namespace treecut

@@ -125,6 +125,11 @@ int ground_layer(const std::array<Layer, 6>& layers, const glm::vec3& lo, const 
   return best_layer;
 }
 
+// The rule on points and their normals; POINTS false: the centres are
+// coarse nodes' (means), and rule 1 does not apply.
+UpAxis detect(std::span<const glm::vec3> positions, std::span<const glm::vec3> normals,
+              bool points);
+
 }  // namespace
 
 glm::vec3 UpAxis::vector() const {
@@ -152,6 +157,13 @@ UpAxis next_up_axis(const UpAxis& current) {
 }
 
 UpAxis detect_up_axis(std::span<const glm::vec3> positions, std::span<const glm::vec3> normals) {
+  return detect(positions, normals, true);
+}
+
+namespace {
+
+UpAxis detect(std::span<const glm::vec3> positions, std::span<const glm::vec3> normals,
+              bool points) {
   const std::size_t n = positions.size();
   if (n == 0) return make(2, false, "no points; default z");
 
@@ -162,10 +174,11 @@ UpAxis detect_up_axis(std::span<const glm::vec3> positions, std::span<const glm:
     extent[k] = hi[k] - lo[k];
   }
 
-  // 1. A ground or a base.
+  // 1. A ground or a base (points only: the centres of coarse nodes are
+  // means, which pile up nowhere).
   const PointScan scan = scan_points(positions, normals, lo, hi, extent);
   double best_share = 0.0;
-  if (const int best_layer = ground_layer(scan.layers, lo, hi, extent, n, best_share);
+  if (const int best_layer = points ? ground_layer(scan.layers, lo, hi, extent, n, best_share) : -1;
       best_layer >= 0) {
     const int k = best_layer / 2;
     const bool negative = best_layer % 2 == 1;
@@ -212,7 +225,14 @@ UpAxis detect_up_axis(std::span<const glm::vec3> positions, std::span<const glm:
   return make(2, false, "no ground, base, flat extent or normal direction stands out; default z");
 }
 
+}  // namespace
+
 UpAxis detect_up_axis(const Hierarchy& hierarchy) {
+  const NodeRange all{0, hierarchy.node_count()};
+  return detect_up_axis(hierarchy, std::span<const NodeRange>(&all, 1));
+}
+
+UpAxis detect_up_axis(const Hierarchy& hierarchy, std::span<const NodeRange> known) {
   if (hierarchy.empty()) return make(2, false, "no points; default z");
   if (hierarchy.frame().z_up)
     return make(2, false, "the file format says so (LAS: z is the height)");
@@ -226,28 +246,16 @@ UpAxis detect_up_axis(const Hierarchy& hierarchy) {
     }
     return make(k, up[k] < 0.0, "the sensor's viewpoint (PCD VIEWPOINT): its -y");
   }
-  const std::uint32_t nodes = hierarchy.node_count();
-  // Leaves make up most nodes, so a stride over node ids samples them evenly
-  // (ids are breadth-first; the leaves of a level are spatially ordered).
-  const std::size_t stride = std::max<std::size_t>(1, nodes / kMaxSample);
   std::vector<glm::vec3> positions, normals;
-  positions.reserve(std::min<std::size_t>(hierarchy.leaf_count(), kMaxSample) + 1);
-  normals.reserve(positions.capacity());
-  for (std::size_t id = 0; id < nodes; id += stride) {
-    const auto node = static_cast<NodeId>(id);
-    if (!hierarchy.is_leaf(node)) continue;
+  for (const NodeId node : sample_leaves(hierarchy, known, kMaxSample)) {
     positions.push_back(hierarchy.center(node));
     normals.push_back(hierarchy.normal(node));
   }
-  if (positions.empty()) {
-    // Only possible with a stride that skipped every leaf: read them all.
-    for (NodeId node = 0; node < nodes; ++node) {
-      if (!hierarchy.is_leaf(node)) continue;
-      positions.push_back(hierarchy.center(node));
-      normals.push_back(hierarchy.normal(node));
-    }
-  }
-  return detect_up_axis(positions, normals);
+  if (positions.empty()) return make(2, false, "no node known; default z");
+  // A part of the model (a paged model's root page): its coarse nodes.
+  std::uint64_t held = 0;
+  for (const NodeRange& r : known) held += r.count;
+  return detect(positions, normals, held == hierarchy.node_count());
 }
 
 }  // namespace treecut
