@@ -188,14 +188,10 @@ Scene load_scene(const SceneArgs& args) {
 
 namespace {
 
-// The median splat radius of at most ~64k leaves spread over what H knows.
+// The median splat radius of at most ~64k leaves spread over H.
 float typical_splat(const Hierarchy& h, std::span<const NodeRange> known) {
   std::vector<float> radii;
-  // Leaves only: the finest nodes a paged model knows when it opens are
-  // coarse, their discs far larger than a point's (none: the bounds alone,
-  // and a model of more than a page is far larger than its splats).
-  for (const NodeId n : sample_leaves(h, known, 65536))
-    if (h.is_leaf(n)) radii.push_back(h.splat_radius(n));
+  for (const NodeId n : sample_leaves(h, known, 65536)) radii.push_back(h.splat_radius(n));
   if (radii.empty()) return 0.0f;
   const auto mid = radii.begin() + static_cast<std::ptrdiff_t>(radii.size() / 2);
   std::nth_element(radii.begin(), mid, radii.end());
@@ -326,7 +322,11 @@ Scene load_scene(const SceneArgs& args, const LoadProgressFn& progress) {
   s.bounds_max = h.bounds_max();
   s.center = 0.5f * (h.bounds_min() + h.bounds_max());
   s.radius = std::max(0.5f * glm::length(h.bounds_max() - h.bounds_min()), 1e-6f);
-  set_view_box(s, typical_splat(h, known));
+  // A paged model's leaves are not read yet (the finest nodes of its root
+  // page are coarse, and its leaves there outliers with wide discs, which
+  // moved the first view of a survey far back): the bounds alone. A model
+  // of more than a page is far larger than its splats.
+  set_view_box(s, s.paged && s.paged->pages() > 1 ? 0.0f : typical_splat(h, known));
   if (const std::optional<Viewpoint>& v = h.frame().viewpoint) {
     // The camera looks along its +z with +y down (PCL's convention).
     splat::Camera c;
