@@ -12,16 +12,17 @@
 
 namespace treecut::splat {
 
-void CutBuffer::group_by_segment(std::uint32_t stride) {
+void CutBuffer::group_by_segment(std::uint32_t shift) {
   // A counting sort of each run by segment: stable, so each group keeps
   // the ascending ids of the coherent submission order (upload()).
-  const std::size_t segments = max_vertex_ / stride + 1;
+  const std::size_t segments = (max_vertex_ >> shift) + 1;
+  const std::uint32_t place = (std::uint32_t{1} << shift) - 1;
   const std::size_t bounds[] = {0, count_ - entering_, count_, count_ + leaving_};
   grouped_.resize(vertices_.size());
   for (std::uint32_t part = 0; part < 3; ++part) {
     group_at_.assign(segments, 0);
     for (std::size_t i = bounds[part]; i < bounds[part + 1]; ++i)
-      ++group_at_[vertices_[i] / stride];
+      ++group_at_[vertices_[i] >> shift];
     auto at = static_cast<std::uint32_t>(bounds[part]);
     for (std::uint32_t s = 0; s < segments; ++s) {
       const std::uint32_t n = group_at_[s];
@@ -31,7 +32,7 @@ void CutBuffer::group_by_segment(std::uint32_t stride) {
     }
     for (std::size_t i = bounds[part]; i < bounds[part + 1]; ++i) {
       const std::uint32_t v = vertices_[i];
-      grouped_[group_at_[v / stride]++] = v % stride;
+      grouped_[group_at_[v >> shift]++] = v & place;
     }
   }
 }
@@ -44,8 +45,8 @@ void CutBuffer::write(std::size_t current) {
     max_vertex_ = map_->map(sorted_, current, vertices_);
     ids = vertices_;
     // A pool of several segments is drawn a segment at a time.
-    if (const std::uint32_t stride = map_->stride(); max_vertex_ >= stride) {
-      group_by_segment(stride);
+    if (const std::uint32_t shift = map_->segment_shift(); (max_vertex_ >> shift) > 0) {
+      group_by_segment(shift);
       ids = grouped_;
     }
   } else {

@@ -62,10 +62,15 @@ GpuNodePool::GpuNodePool(Renderer& renderer, const PagedHierarchy& paged,
       paged_(&paged),
       options_(options),
       max_blocks_(blocks(paged, options)),
-      stride_(segment_vertices(paged, options)),
       slot_(paged.hierarchy().node_count()) {
-  segment_blocks_ = (stride_ - 1) / kBlock;
-  renderer.set_pool(paged.hierarchy(), stride_);
+  const std::uint32_t vertices = segment_vertices(paged, options);
+  segment_blocks_ = (vertices - 1) / kBlock;
+  renderer.set_pool(paged.hierarchy(), vertices);
+  shift_ = renderer.pool_shift();
+  // The segments' vertices address 2^31 - 1, the last one's whatever it holds.
+  const std::uint64_t segments = ((std::uint64_t{0x7fffffff} - vertices) >> shift_) + 1;
+  max_blocks_ =
+      static_cast<std::uint32_t>(std::min<std::uint64_t>(max_blocks_, segments * segment_blocks_));
   blocks_ = segment_blocks_;
   for (std::uint32_t b = blocks_; b-- > 0;) free_.push_back(b);  // low blocks first
   block_used_.resize(blocks_, 0);

@@ -10,6 +10,7 @@
 #include "treecut/splat/renderer.hpp"
 
 #include <array>
+#include <bit>
 #include <cstdint>
 #include <glm/gtc/type_ptr.hpp>
 #include <initializer_list>
@@ -232,7 +233,6 @@ void Renderer::set_models(std::span<const Hierarchy* const> models) {
   segment_vertices_.clear();
   add_segment(static_cast<std::uint32_t>(n));
   bind_segment(0);
-  stride_ = static_cast<std::uint32_t>(n);
   gl::Buffer& nodes = segments_.front();
   const VertexRegions at(n);
   model_base_.clear();
@@ -257,30 +257,30 @@ void Renderer::set_models(std::span<const Hierarchy* const> models) {
   gl::check("Renderer vertex buffer");
 }
 
-void Renderer::set_pool(const Hierarchy& h, std::uint32_t stride) {
-  if (pooled_ && hierarchy_ == &h && stride_ == stride) {
+void Renderer::set_pool(const Hierarchy& h, std::uint32_t vertices) {
+  if (pooled_ && hierarchy_ == &h && segment_vertices_.front() == vertices) {
     // The first segment kept (made for this pool: Renderer's constructor),
     // the others dropped: a new pool adds its own.
     segments_.resize(1);
     segment_vertices_.resize(1);
     bind_segment(0);
-    node_count_ = stride;
-    model_nodes_.assign(1, stride);
+    node_count_ = vertices;
+    model_nodes_.assign(1, vertices);
     return;
   }
-  if (stride == 0 || stride > 0x7fffffffu)
-    throw std::invalid_argument("Renderer: a pool of " + std::to_string(stride) + " vertices");
+  if (vertices == 0 || vertices > 0x7fffffffu)
+    throw std::invalid_argument("Renderer: a pool of " + std::to_string(vertices) + " vertices");
   segments_.clear();
   segment_vertices_.clear();
-  add_segment(stride);
+  add_segment(vertices);
   bind_segment(0);
-  stride_ = stride;
-  node_count_ = stride;
+  pool_shift_ = static_cast<std::uint32_t>(std::countr_zero(std::bit_ceil(vertices)));
+  node_count_ = vertices;
   // Vertex 0 zeros (alpha 0: drawn as nothing), the rest undefined until
   // written: the pool writes what it maps to.
   write_null_vertex();
   model_base_.assign(1, 0);
-  model_nodes_.assign(1, stride);
+  model_nodes_.assign(1, vertices);
   model_ids_.assign(1, &h);
   hierarchy_ = &h;
   pooled_ = true;
@@ -299,11 +299,11 @@ void Renderer::write_null_vertex() {
 }
 
 void Renderer::add_pool_segment(std::uint32_t vertices) {
-  const std::uint64_t extent = std::uint64_t{stride_} * segments_.size() + vertices;
-  if (!pooled_ || vertices == 0 || vertices > stride_ || extent > 0x7fffffffu) {
+  const std::uint64_t extent = (std::uint64_t{segments_.size()} << pool_shift_) + vertices;
+  if (!pooled_ || vertices == 0 || vertices > segment_vertices_.front() || extent > 0x7fffffffu) {
     throw std::invalid_argument("Renderer: a pool segment of " + std::to_string(vertices) +
                                 " vertices after " + std::to_string(segments_.size()) + " of " +
-                                std::to_string(stride_));
+                                std::to_string(segment_vertices_.front()));
   }
   add_segment(vertices);
   node_count_ = static_cast<std::uint32_t>(extent);
@@ -312,8 +312,8 @@ void Renderer::add_pool_segment(std::uint32_t vertices) {
 }
 
 void Renderer::write_vertices(std::uint32_t first, const Hierarchy& h, NodeRange nodes) {
-  const std::uint32_t s = first / stride_;
-  const std::uint32_t v = first % stride_;
+  const std::uint32_t s = first >> pool_shift_;
+  const std::uint32_t v = first & ((std::uint32_t{1} << pool_shift_) - 1);
   if (s >= segments_.size() || std::uint64_t{v} + nodes.count > segment_vertices_[s]) {
     throw std::invalid_argument("Renderer::write_vertices: vertices " + std::to_string(first) +
                                 " + " + std::to_string(nodes.count) + " past a segment");

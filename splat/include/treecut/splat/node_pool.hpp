@@ -80,7 +80,7 @@ class GpuNodePool final : public VertexMap {
   /// The blocks of a pool of that budget. Throws InputError "--gpu-memory:
   /// REASON" when it cannot hold the first page and the largest one beside it.
   static std::uint32_t blocks(const PagedHierarchy& paged, const GpuPoolOptions& options);
-  /// The vertices of a segment (Renderer::set_pool's stride): segment_bytes'
+  /// The vertices of a segment (Renderer::set_pool): segment_bytes'
   /// blocks (one at least, the budget's at most) and vertex 0. Throws as
   /// blocks() does.
   static std::uint32_t segment_vertices(const PagedHierarchy& paged, const GpuPoolOptions& options);
@@ -102,7 +102,7 @@ class GpuNodePool final : public VertexMap {
 
   std::uint32_t map(std::span<const NodeId> ids, std::size_t current,
                     std::vector<std::uint32_t>& out) override;
-  [[nodiscard]] std::uint32_t stride() const override { return stride_; }
+  [[nodiscard]] std::uint32_t segment_shift() const override { return shift_; }
 
   [[nodiscard]] GpuPoolStats stats() const;
   [[nodiscard]] const Hierarchy& hierarchy() const { return paged_->hierarchy(); }
@@ -130,10 +130,10 @@ class GpuNodePool final : public VertexMap {
   [[nodiscard]] std::uint64_t last_used(const Up& u) const;
   // Block B's first vertex, and the block of vertex V.
   [[nodiscard]] std::uint32_t first_vertex(std::uint32_t b) const {
-    return b / segment_blocks_ * stride_ + 1 + b % segment_blocks_ * kBlock;
+    return (b / segment_blocks_ << shift_) + 1 + b % segment_blocks_ * kBlock;
   }
   [[nodiscard]] std::uint32_t block_of(std::uint32_t v) const {
-    return v / stride_ * segment_blocks_ + (v % stride_ - 1) / kBlock;
+    return (v >> shift_) * segment_blocks_ + ((v & ((1u << shift_) - 1)) - 1) / kBlock;
   }
 
   Renderer* renderer_;
@@ -142,7 +142,7 @@ class GpuNodePool final : public VertexMap {
   std::uint32_t blocks_ = 0;                       // in the segments now (they grow to max_blocks_)
   std::uint32_t max_blocks_ = 0;                   // within the budget
   std::uint32_t segment_blocks_ = 0;               // in a segment (B)
-  std::uint32_t stride_ = 0;                       // a segment's vertices
+  std::uint32_t shift_ = 0;                        // Renderer::pool_shift
   std::uint64_t grown_frame_ = ~std::uint64_t{0};  // the frame segments were last added in
   ReservedArray<std::uint32_t> slot_;              // by node id: its vertex + 1, 0 when not up
   std::vector<std::uint32_t> free_;                // blocks

@@ -108,9 +108,9 @@ class VertexMap {
   /// the rest a fading exchange's leaving run); returns the largest.
   virtual std::uint32_t map(std::span<const NodeId> ids, std::size_t current,
                             std::vector<std::uint32_t>& out) = 0;
-  /// The vertices of a segment (Renderer::set_pool's stride): vertex v is
-  /// vertex v % stride() of segment v / stride().
-  [[nodiscard]] virtual std::uint32_t stride() const = 0;
+  /// Vertex v lies in segment v >> segment_shift() of the pool
+  /// (Renderer::pool_shift), at v & ((1 << segment_shift()) - 1).
+  [[nodiscard]] virtual std::uint32_t segment_shift() const = 0;
 };
 
 /// One index list on the GPU. upload() replaces the content, writing into the
@@ -194,9 +194,9 @@ class CutBuffer {
 
  private:
   void write(std::size_t current);
-  // vertices_ grouped by segment of STRIDE vertices into grouped_, the
-  // groups into segment_runs_.
-  void group_by_segment(std::uint32_t stride);
+  // vertices_ grouped by segment (v >> SHIFT) into grouped_, the groups
+  // into segment_runs_.
+  void group_by_segment(std::uint32_t shift);
 
   VertexMap* map_ = nullptr;
   std::vector<std::uint32_t> vertices_;  // map_'s of sorted_ (reused)
@@ -289,17 +289,22 @@ class Renderer {
   /// empty one, or more than 2^31 - 1 nodes in all.
   void set_models(std::span<const Hierarchy* const> models);
   /// A pool for nodes of H placed where a VertexMap says (GpuNodePool: a
-  /// paged model's pages on the GPU): vertex buffers of STRIDE vertices
-  /// each, its segments, vertex v lying in segment v / STRIDE at v % STRIDE;
-  /// the first is made now, the others by add_pool_segment. Lists of H are
+  /// paged model's pages on the GPU): vertex buffers of VERTICES each at
+  /// most, its segments, vertex v lying in segment v >> pool_shift() at
+  /// v & ((1 << pool_shift()) - 1); the first is made now (VERTICES), the
+  /// others by add_pool_segment. Lists of H are
   /// drawn through the map, a segment at a time (CutBuffer::segment_runs).
   /// Each vertex is undefined until written (write_vertices) but the
   /// first: zeros (alpha 0, drawn as nothing), the null vertex a map points
   /// the nodes it does not draw at. When it holds such a pool for H
   /// already, its first segment is kept and the others dropped. Throws std::invalid_argument for no
   /// vertex or more than 2^31 - 1.
-  void set_pool(const Hierarchy& h, std::uint32_t stride);
-  /// One more segment of the pool, of VERTICES (at most the stride): a
+  void set_pool(const Hierarchy& h, std::uint32_t vertices);
+  /// A segment's vertices rounded up to a power of two, as a shift: the
+  /// segment of each vertex of each list drawn is a shift away, not a
+  /// division.
+  [[nodiscard]] std::uint32_t pool_shift() const { return pool_shift_; }
+  /// One more segment of the pool, of VERTICES (at most the first's): a
   /// buffer of its own, so nothing up moves or is copied, and the cost of
   /// a new buffer is the segment's, not the pool's (llvmpipe fills a new
   /// buffer with zeros when it is made: 100-240 ms for 256 MiB).
@@ -478,7 +483,7 @@ class Renderer {
   // splat_radius, one region each.
   std::vector<gl::Buffer> segments_;
   std::vector<std::uint32_t> segment_vertices_;  // of each
-  std::uint32_t stride_ = 0;                     // vertices a segment at most
+  std::uint32_t pool_shift_ = 0;                 // pool_shift()
   std::uint32_t bound_segment_ = 0;              // to vao_
   std::vector<std::uint32_t> model_base_;        // first vertex of each model
   std::vector<std::uint32_t> model_nodes_;       // its node count
