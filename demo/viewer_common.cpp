@@ -233,80 +233,52 @@ std::uint32_t pool_vertices(const Scene& scene, const SceneArgs& args) {
   }
 }
 
-Scene load_scene(const SceneArgs& args, const LoadProgressFn& progress) {
-  if (args.gpu_memory != 0 && !is_cache_url(args.model) &&
-      !(args.memory != 0 && looks_like_cache(args.model)))
-    throw InputError(
-        "--gpu-memory: only a cache drawn from its pages (a .tch with --memory) is "
-        "drawn within a GPU budget; a model held whole is on the GPU whole");
+namespace {
+
+// A scene file (looks_like_scene): its objects for the stage, the camera
+// fit to their points.
+Scene load_scene_file(const SceneArgs& args) {
   Scene s;
-  if (!args.model.empty() && looks_like_scene(args.model)) {
-    SceneLoadOptions so;
-    so.parse.generator = tools::scene_generator();
-    so.open.attributes.k = args.k;
-    so.open.crs = args.crs;
-    so.open.memory = args.memory;
-    so.open.warn = [](const std::string& w) { print_warning(w); };
-    const treecut::Scene scene = treecut::load_scene(std::filesystem::path(args.model), so);
-    s.world = stage_scene(scene);
-    s.hierarchy = scene.models.front().hierarchy;
-    s.instanced_points = scene.instanced_points();
-    s.label = std::filesystem::path(args.model).filename().string();
-    // The generated scenes are z up (docs/scene-files.md); --up may say otherwise.
-    const std::optional<UpAxis> chosen = parse_up_axis(args.up);
-    s.up_axis = chosen ? *chosen : UpAxis{2, false, "a scene (z up)"};
-    s.up = s.up_axis.vector();
-    // The camera fits the objects' points as it fits a model's (its points'
-    // bounds, not Scene::bounds, which adds the splats' reach): the world box
-    // of each model's point bounds, so one object with the identity frames
-    // exactly as its model does.
-    s.bounds_min = glm::vec3(std::numeric_limits<float>::max());
-    s.bounds_max = glm::vec3(std::numeric_limits<float>::lowest());
-    for (const SceneObject& o : scene.objects) {
-      const Hierarchy& m = *scene.models[o.model].hierarchy;
-      for (int c = 0; c < 8; ++c) {
-        const glm::vec3 corner((c & 1) ? m.bounds_max().x : m.bounds_min().x,
-                               (c & 2) ? m.bounds_max().y : m.bounds_min().y,
-                               (c & 4) ? m.bounds_max().z : m.bounds_min().z);
-        const glm::vec3 w(o.world * glm::vec4(corner, 1.0f));
-        s.bounds_min = glm::min(s.bounds_min, w);
-        s.bounds_max = glm::max(s.bounds_max, w);
-      }
+  SceneLoadOptions so;
+  so.parse.generator = tools::scene_generator();
+  so.open.attributes.k = args.k;
+  so.open.crs = args.crs;
+  so.open.memory = args.memory;
+  so.open.warn = [](const std::string& w) { print_warning(w); };
+  const treecut::Scene scene = treecut::load_scene(std::filesystem::path(args.model), so);
+  s.world = stage_scene(scene);
+  s.hierarchy = scene.models.front().hierarchy;
+  s.instanced_points = scene.instanced_points();
+  s.label = std::filesystem::path(args.model).filename().string();
+  // The generated scenes are z up (docs/scene-files.md); --up may say otherwise.
+  const std::optional<UpAxis> chosen = parse_up_axis(args.up);
+  s.up_axis = chosen ? *chosen : UpAxis{2, false, "a scene (z up)"};
+  s.up = s.up_axis.vector();
+  // The camera fits the objects' points as it fits a model's (its points'
+  // bounds, not Scene::bounds, which adds the splats' reach): the world box
+  // of each model's point bounds, so one object with the identity frames
+  // exactly as its model does.
+  s.bounds_min = glm::vec3(std::numeric_limits<float>::max());
+  s.bounds_max = glm::vec3(std::numeric_limits<float>::lowest());
+  for (const SceneObject& o : scene.objects) {
+    const Hierarchy& m = *scene.models[o.model].hierarchy;
+    for (int c = 0; c < 8; ++c) {
+      const glm::vec3 corner((c & 1) ? m.bounds_max().x : m.bounds_min().x,
+                             (c & 2) ? m.bounds_max().y : m.bounds_min().y,
+                             (c & 4) ? m.bounds_max().z : m.bounds_min().z);
+      const glm::vec3 w(o.world * glm::vec4(corner, 1.0f));
+      s.bounds_min = glm::min(s.bounds_min, w);
+      s.bounds_max = glm::max(s.bounds_max, w);
     }
-    s.center = 0.5f * (s.bounds_min + s.bounds_max);
-    s.radius = std::max(0.5f * glm::length(s.bounds_max - s.bounds_min), 1e-6f);
-    set_view_box(s, 0.0f);
-    return s;
   }
-  if (args.model.empty()) {
-    const tools::ModelKind kind = tools::parse_model_kind(args.default_kind);
-    s.hierarchy = std::make_shared<const Hierarchy>(
-        build_from_points(tools::generate_model(kind, args.default_points, 1)));
-    s.label =
-        "generated " + args.default_kind + " (" + std::to_string(args.default_points) + " points)";
-  } else if (is_cache_url(args.model) || (args.memory != 0 && looks_like_cache(args.model))) {
-    // A cache with a memory budget, or by URL: drawn from its pages (issue
-    // 45), within --memory (a URL without it: a build's default budget).
-    PagingOptions paging;
-    paging.memory_bytes = args.memory != 0 ? args.memory : default_build_budget();
-    paging.stall_ms = static_cast<int>(args.stall_timeout_s * 1000.0);
-    s.paged = PagedHierarchy::open(args.model, paging);
-    s.hierarchy = std::shared_ptr<const Hierarchy>(s.paged, &s.paged->hierarchy());
-    s.label = std::filesystem::path(args.model).filename().string() + " (paged)";
-    (void)pool_vertices(s, args);  // a GPU budget too small: refused now, in one line
-  } else {
-    OpenOptions o;
-    o.attributes.k = args.k;
-    o.columns = args.columns;
-    o.crs = args.crs;
-    o.memory = args.memory;
-    o.warn = [](const std::string& w) { print_warning(w); };
-    o.progress = progress;
-    s.hierarchy = std::make_shared<const Hierarchy>(open_model(args.model, o).hierarchy);
-    const std::filesystem::path model(args.model);
-    // A folder of tiles ("flight/") by its own name.
-    s.label = (model.filename().empty() ? model.parent_path() : model).filename().string();
-  }
+  s.center = 0.5f * (s.bounds_min + s.bounds_max);
+  s.radius = std::max(0.5f * glm::length(s.bounds_max - s.bounds_min), 1e-6f);
+  set_view_box(s, 0.0f);
+  return s;
+}
+
+// The up axis, bounds, first view box and sensor view of a model.
+void frame_model(Scene& s, const SceneArgs& args) {
   const Hierarchy& h = *s.hierarchy;
   // What the model has read: a paged model its root's page (the rest comes
   // as the view asks; reading it now would read nothing, and map the zero
@@ -337,6 +309,48 @@ Scene load_scene(const SceneArgs& args, const LoadProgressFn& progress) {
     splat::fit_clip_planes(c, s.center, s.radius + glm::distance(c.eye, s.center));
     s.sensor_view = c;
   }
+}
+
+}  // namespace
+
+Scene load_scene(const SceneArgs& args, const LoadProgressFn& progress) {
+  if (args.gpu_memory != 0 && !is_cache_url(args.model) &&
+      !(args.memory != 0 && looks_like_cache(args.model)))
+    throw InputError(
+        "--gpu-memory: only a cache drawn from its pages (a .tch with --memory) is "
+        "drawn within a GPU budget; a model held whole is on the GPU whole");
+  if (!args.model.empty() && looks_like_scene(args.model)) return load_scene_file(args);
+  Scene s;
+  if (args.model.empty()) {
+    const tools::ModelKind kind = tools::parse_model_kind(args.default_kind);
+    s.hierarchy = std::make_shared<const Hierarchy>(
+        build_from_points(tools::generate_model(kind, args.default_points, 1)));
+    s.label =
+        "generated " + args.default_kind + " (" + std::to_string(args.default_points) + " points)";
+  } else if (is_cache_url(args.model) || (args.memory != 0 && looks_like_cache(args.model))) {
+    // A cache with a memory budget, or by URL: drawn from its pages (issue
+    // 45), within --memory (a URL without it: a build's default budget).
+    PagingOptions paging;
+    paging.memory_bytes = args.memory != 0 ? args.memory : default_build_budget();
+    paging.stall_ms = static_cast<int>(args.stall_timeout_s * 1000.0);
+    s.paged = PagedHierarchy::open(args.model, paging);
+    s.hierarchy = std::shared_ptr<const Hierarchy>(s.paged, &s.paged->hierarchy());
+    s.label = std::filesystem::path(args.model).filename().string() + " (paged)";
+    (void)pool_vertices(s, args);  // a GPU budget too small: refused now, in one line
+  } else {
+    OpenOptions o;
+    o.attributes.k = args.k;
+    o.columns = args.columns;
+    o.crs = args.crs;
+    o.memory = args.memory;
+    o.warn = [](const std::string& w) { print_warning(w); };
+    o.progress = progress;
+    s.hierarchy = std::make_shared<const Hierarchy>(open_model(args.model, o).hierarchy);
+    const std::filesystem::path model(args.model);
+    // A folder of tiles ("flight/") by its own name.
+    s.label = (model.filename().empty() ? model.parent_path() : model).filename().string();
+  }
+  frame_model(s, args);
   return s;
 }
 
