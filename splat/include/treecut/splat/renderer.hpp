@@ -292,13 +292,13 @@ class Renderer {
   /// paged model's pages on the GPU): vertex buffers of VERTICES each at
   /// most, its segments, vertex v lying in segment v >> pool_shift() at
   /// v & ((1 << pool_shift()) - 1); the first is made now (VERTICES), the
-  /// others by add_pool_segment. Lists of H are
-  /// drawn through the map, a segment at a time (CutBuffer::segment_runs).
-  /// Each vertex is undefined until written (write_vertices) but the
-  /// first: zeros (alpha 0, drawn as nothing), the null vertex a map points
-  /// the nodes it does not draw at. When it holds such a pool for H
-  /// already, its first segment is kept and the others dropped. Throws std::invalid_argument for no
-  /// vertex or more than 2^31 - 1.
+  /// others by add_pool_segment. Lists of H are drawn through the map, a
+  /// segment at a time (CutBuffer::segment_runs). Each vertex is undefined
+  /// until written (write_vertices) but the first: zeros (alpha 0, drawn as
+  /// nothing), the null vertex a map points the nodes it does not draw at.
+  /// When it holds such a pool for H already, its first segment is kept
+  /// and the others dropped. Throws std::invalid_argument for no vertex or
+  /// more than 2^31 - 1.
   void set_pool(const Hierarchy& h, std::uint32_t vertices);
   /// A segment's vertices rounded up to a power of two, as a shift: the
   /// segment of each vertex of each list drawn is a shift away, not a
@@ -307,7 +307,7 @@ class Renderer {
   /// One more segment of the pool, of VERTICES (at most the first's): a
   /// buffer of its own, so nothing up moves or is copied, and the cost of
   /// a new buffer is the segment's, not the pool's (llvmpipe fills a new
-  /// buffer with zeros when it is made: 100-240 ms for 256 MiB).
+  /// buffer with zeros when it is made: 217-240 ms for 256 MiB).
   void add_pool_segment(std::uint32_t vertices);
   /// The pool's segments (1 for models held whole: their buffer).
   [[nodiscard]] std::size_t segments() const { return segments_.size(); }
