@@ -139,7 +139,8 @@ void add_memory_option(CLI::App& cmd, std::uint64_t& bytes, bool draws) {
 void add_gpu_memory_options(CLI::App& cmd, std::uint64_t& gpu, std::uint64_t& upload) {
   add_size_option(cmd, "--gpu-memory", gpu,
                   "A cache drawn from its pages (--memory): the GPU memory of its nodes (32 "
-                  "bytes a node; default: room for every node --memory holds)");
+                  "bytes a node; default: room for every node --memory holds; less: the memory "
+                  "holds no more nodes than it draws)");
   add_size_option(cmd, "--gpu-upload", upload,
                   "A cache drawn from its pages: the bytes copied to the GPU in a frame at most "
                   "(default 8M)");

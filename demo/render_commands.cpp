@@ -92,12 +92,16 @@ void check_paged(const RenderArgs& a, const StrategyRegistry& registry, const Sc
 void describe_pages(const RenderArgs& a, const PagedHierarchy& paged) {
   const PagingStats s = paged.stats();
   const double gpu = double(splat::GpuNodePool::budget(paged, gpu_pool_options(a.scene)));
+  char limited[96] = "";
+  if (a.scene.memory != 0 && paged.memory_budget() < a.scene.memory)
+    std::snprintf(limited, sizeof limited, ", what the GPU budget draws, not --memory's %.1f MiB",
+                  double(a.scene.memory) / (1 << 20));
   std::printf(
-      "pages     %llu in the file, drawn within %.1f MiB of memory (%llu bytes a node) and %.1f "
-      "MiB of GPU memory (%llu), %.1f MiB copied up a frame at most; the finest detail at one "
-      "place needs %.1f MiB of memory\n",
+      "pages     %llu in the file, drawn within %.1f MiB of memory (%llu bytes a node%s) and "
+      "%.1f MiB of GPU memory (%llu), %.1f MiB copied up a frame at most; the finest detail at "
+      "one place needs %.1f MiB of memory\n",
       static_cast<unsigned long long>(s.pages), double(paged.memory_budget()) / (1 << 20),
-      static_cast<unsigned long long>(paged.bytes_per_node()), gpu / (1 << 20),
+      static_cast<unsigned long long>(paged.bytes_per_node()), limited, gpu / (1 << 20),
       static_cast<unsigned long long>(splat::GpuNodePool::kVertexBytes),
       double(a.scene.gpu_upload) / (1 << 20), double(paged.full_detail_memory()) / (1 << 20));
 }

@@ -152,3 +152,37 @@ TEST(PagedRender, TwoMillionPointsWithin32MiBAnd8MiBOfGpuMemory) {
   EXPECT_GE(j["p99_frame_ms"].get<double>(), j["median_frame_ms"].get<double>());
   EXPECT_GT(*std::max_element(gpu.begin(), gpu.end()), 1.0) << "hardly any page copied up";
 }
+
+// A GPU budget below what the memory budget holds: the memory holds no more
+// than the GPU draws (its vertices less a fifth), so the strategy's cut is
+// the one drawn: no node stands in for pages that could never go up (with
+// the memory at 64 MiB the same flight had up to 16,000 stand-ins and 188
+// pages waiting a frame).
+TEST(PagedRender, TheMemoryHoldsNoMoreThanTheGpuBudgetDraws) {
+  const fs::path dir = treecut::test::scratch_dir("paged_render_gpu_limit");
+  const fs::path cache = terrain_cache(dir, 1000000);
+  const treecut::test::CommandResult r =
+      run_treecut("render " + quote(cache) + " --memory 64M --gpu-memory 8M " +
+                  "--frames 40 -s recursive " + kRun + "-o " + quote(dir / "out"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("what the GPU budget draws, not --memory's 64.0 MiB"), std::string::npos)
+      << r.out;
+  const std::size_t at = r.out.find(" bytes a node");
+  ASSERT_NE(at, std::string::npos) << r.out;
+  const double node_bytes = std::stod(r.out.substr(r.out.rfind('(', at) + 1));
+  const double limit_mib = (8 << 20) / 32 / 5 * 4 * node_bytes / (1 << 20);
+  const auto rows = read_csv(dir / "out" / "stats.csv");
+  const std::vector<double> ram = column(rows, "pages_resident_mib"),
+                            stand_ins = column(rows, "gpu_stand_ins"),
+                            waiting = column(rows, "gpu_waiting_pages"),
+                            loaded = column(rows, "pages_loaded");
+  ASSERT_EQ(ram.size(), 40u) << r.out;
+  ASSERT_EQ(stand_ins.size(), 40u);
+  for (std::size_t f = 0; f < 40; ++f) {
+    EXPECT_LE(ram[f], limit_mib) << "frame " << f;
+    EXPECT_EQ(stand_ins[f], 0.0) << "frame " << f;
+    EXPECT_EQ(waiting[f], 0.0) << "frame " << f;
+  }
+  EXPECT_GT(*std::max_element(ram.begin(), ram.end()), limit_mib / 2) << "the limit never reached";
+  EXPECT_GE(loaded.back(), 5.0) << "hardly any page read";
+}

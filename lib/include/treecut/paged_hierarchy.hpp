@@ -49,6 +49,13 @@ struct PagingOptions {
   /// The resident pages' node arrays at most, in bytes (0: no limit). The
   /// first page is always resident, whatever its size.
   std::uint64_t memory_bytes = 0;
+  /// The resident nodes at most (0: no limit): what the GPU pool that
+  /// draws them holds, so that the memory holds no page the GPU could not
+  /// draw (its nodes would be drawn as their ancestors while the strategy
+  /// takes them as shown). The budget is the lesser of memory_bytes and
+  /// these nodes' bytes, never below what page 0 and the largest group of
+  /// sibling pages take.
+  std::uint64_t node_limit = 0;
   /// Threads reading pages (each reads a group of sibling pages at a time).
   unsigned io_threads = 1;
   /// A cache by URL: a read that receives nothing for this long fails
@@ -140,7 +147,8 @@ class PagedHierarchy {
   /// content). Any thread.
   void page_ranges(std::uint32_t p, std::vector<NodeRange>& out) const;
   [[nodiscard]] std::uint32_t page_nodes(std::uint32_t p) const;
-  /// PagingOptions::memory_bytes, as opened.
+  /// The memory budget: PagingOptions::memory_bytes, or what its
+  /// node_limit's nodes take when that is less.
   [[nodiscard]] std::uint64_t memory_budget() const;
   /// Bytes of the budget that the heaviest chain of groups from the root
   /// takes: what the finest detail at any one place needs (a view of more

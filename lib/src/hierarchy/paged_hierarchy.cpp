@@ -388,6 +388,10 @@ std::unique_ptr<PagedHierarchy> PagedHierarchy::open(const std::filesystem::path
                      " its first page and its largest group of pages take together (the "
                      "finest detail at one place needs " +
                      mib_text(m.full_detail_bytes) + ")");
+  if (options.node_limit != 0) {
+    const std::uint64_t held = std::max(options.node_limit * m.node_bytes, m.least_bytes);
+    if (options.memory_bytes == 0 || held < options.memory_bytes) m.options.memory_bytes = held;
+  }
 
   const Arrays& a = *m.arrays;
   HierarchyArrays spans{a.center_radius.span(n), a.splat_radius.span(n), a.normal_cone.span(n),
