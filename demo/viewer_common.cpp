@@ -333,11 +333,8 @@ Scene load_scene(const SceneArgs& args, const LoadProgressFn& progress) {
     PagingOptions paging;
     paging.memory_bytes = args.memory != 0 ? args.memory : default_build_budget();
     paging.stall_ms = static_cast<int>(args.stall_timeout_s * 1000.0);
-    // No more in memory than the GPU budget draws: its vertices, less a
-    // fifth for the ends of blocks that pages leave empty (the rule of
-    // GpuNodePool::budget, which sizes a default pool from the memory).
-    if (args.gpu_memory != 0)
-      paging.node_limit = args.gpu_memory / splat::GpuNodePool::kVertexBytes / 5 * 4;
+    // No more in memory than the GPU budget draws.
+    if (args.gpu_memory != 0) paging.node_limit = splat::GpuNodePool::nodes_within(args.gpu_memory);
     s.paged = PagedHierarchy::open(args.model, paging);
     s.hierarchy = std::shared_ptr<const Hierarchy>(s.paged, &s.paged->hierarchy());
     s.label = std::filesystem::path(args.model).filename().string() + " (paged)";

@@ -61,14 +61,19 @@ std::vector<double> column(const std::vector<std::vector<std::string>>& rows,
   return values;
 }
 
+// `treecut render CACHE OPTIONS -s recursive`, headless, into DIR/out.
+treecut::test::CommandResult render_paged(const fs::path& dir, const fs::path& cache,
+                                          const std::string& options) {
+  return run_treecut("render " + quote(cache) + " " + options + " -s recursive " + kRun + "-o " +
+                     quote(dir / "out"));
+}
+
 }  // namespace
 
 TEST(PagedRender, ACacheWithABudgetIsDrawnFromItsPages) {
   const fs::path dir = treecut::test::scratch_dir("paged_render");
   const fs::path cache = terrain_cache(dir);
-  const treecut::test::CommandResult r =
-      run_treecut("render " + quote(cache) + " --memory 2M --frames 40 -s recursive " + kRun +
-                  "-o " + quote(dir / "out"));
+  const treecut::test::CommandResult r = render_paged(dir, cache, "--memory 2M --frames 40");
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("(paged)"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("pages     "), std::string::npos) << r.out;
@@ -122,8 +127,7 @@ TEST(PagedRender, TwoMillionPointsWithin32MiBAnd8MiBOfGpuMemory) {
   const fs::path dir = treecut::test::scratch_dir("paged_render_2m");
   const fs::path cache = terrain_cache(dir, 2000000);
   const treecut::test::CommandResult r =
-      run_treecut("render " + quote(cache) + " --memory 32M --gpu-memory 8M --gpu-upload 1M " +
-                  "--frames 60 -s recursive " + kRun + "-o " + quote(dir / "out"));
+      render_paged(dir, cache, "--memory 32M --gpu-memory 8M --gpu-upload 1M --frames 60");
   ASSERT_EQ(r.code, 0) << r.out;
   const auto rows = read_csv(dir / "out" / "stats.csv");
   const std::vector<double> ram = column(rows, "pages_resident_mib"),
@@ -162,8 +166,7 @@ TEST(PagedRender, TheMemoryHoldsNoMoreThanTheGpuBudgetDraws) {
   const fs::path dir = treecut::test::scratch_dir("paged_render_gpu_limit");
   const fs::path cache = terrain_cache(dir, 1000000);
   const treecut::test::CommandResult r =
-      run_treecut("render " + quote(cache) + " --memory 64M --gpu-memory 8M " +
-                  "--frames 40 -s recursive " + kRun + "-o " + quote(dir / "out"));
+      render_paged(dir, cache, "--memory 64M --gpu-memory 8M --frames 40");
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("what the GPU budget draws, not --memory's 64.0 MiB"), std::string::npos)
       << r.out;

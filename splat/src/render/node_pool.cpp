@@ -33,7 +33,7 @@ std::uint64_t least_blocks(const PagedHierarchy& paged) {
 std::uint64_t GpuNodePool::budget(const PagedHierarchy& paged, const GpuPoolOptions& options) {
   if (options.memory_bytes != 0) return options.memory_bytes;
   // Room for every node the RAM budget holds, and a quarter more for the
-  // blocks' last vertices that pages leave unused.
+  // blocks' last vertices that pages leave unused (nodes_within inverted).
   return paged.memory_budget() / paged.bytes_per_node() * kVertexBytes / 4 * 5;
 }
 

@@ -77,6 +77,10 @@ class GpuNodePool final : public VertexMap {
 
   /// The budget OPTIONS give for PAGED, in bytes (memory_bytes, or its default).
   static std::uint64_t budget(const PagedHierarchy& paged, const GpuPoolOptions& options);
+  /// The nodes a pool of BYTES holds whole pages of: its vertices less a
+  /// fifth for the ends of blocks that pages leave empty (the default
+  /// budget's rule, inverted; PagingOptions::node_limit).
+  static std::uint64_t nodes_within(std::uint64_t bytes) { return bytes / kVertexBytes / 5 * 4; }
   /// The blocks of a pool of that budget. Throws InputError "--gpu-memory:
   /// REASON" when it cannot hold the first page and the largest one beside it.
   static std::uint32_t blocks(const PagedHierarchy& paged, const GpuPoolOptions& options);
