@@ -302,6 +302,45 @@ TEST(AtomicFile, ASignalToAForkedChildLeavesTheParentsTemporary) {
   EXPECT_EQ(read_all(dir / "parent.ply"), "ply\n");
 }
 
+// A process-directed signal goes to any thread that does not block it: one
+// that lands on another thread while a temporary is being created (opened,
+// not yet in the handler's table) must still not leave it behind. Threads
+// create and remove temporaries without pause while SIGTERM comes at a
+// different moment each round.
+TEST(AtomicFile, ASignalOnAnotherThreadWhileATemporaryIsMadeLeavesNone) {
+  const fs::path dir = test::scratch_dir("changes_signal_race");
+  std::mt19937 random(7);
+  for (int round = 0; round < 60; ++round) {
+    int ready[2];
+    ASSERT_EQ(::pipe(ready), 0);
+    const pid_t child = ::fork();
+    ASSERT_GE(child, 0);
+    if (child == 0) {
+      const auto churn = [&](int thread) {
+        for (unsigned i = 0;; ++i) {
+          AtomicFile output(dir / ("out" + std::to_string(thread) + "-" + std::to_string(i % 4)));
+          if (i == 0 && thread == 0) (void)!::write(ready[1], "r", 1);
+        }
+      };
+      std::thread other(churn, 1);
+      std::thread idle([] {
+        for (;;) ::pause();
+      });
+      churn(0);
+    }
+    ::close(ready[1]);
+    char byte = 0;
+    ASSERT_EQ(::read(ready[0], &byte, 1), 1);
+    ::close(ready[0]);
+    std::this_thread::sleep_for(std::chrono::microseconds(random() % 3000));
+    ::kill(child, SIGTERM);
+    int status = 0;
+    ASSERT_EQ(::waitpid(child, &status, 0), child);
+    ASSERT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGTERM) << status;
+    ASSERT_EQ(temporaries_in(dir), 0u) << "round " << round;
+  }
+}
+
 // A PID that no longer runs: a child that has exited and been reaped.
 pid_t dead_pid() {
   const pid_t child = ::fork();

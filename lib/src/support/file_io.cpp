@@ -416,24 +416,6 @@ constexpr std::size_t kWriteChunk = std::size_t{1} << 20;
 std::atomic<unsigned> g_temporary_serial{0};
 }  // namespace
 
-// Termination signals wait while a temporary is created and registered, so
-// none can come between the two and leave it behind.
-class TerminationSignalsHeld {
- public:
-  TerminationSignalsHeld() {
-    sigset_t set;
-    sigemptyset(&set);
-    for (const int sig : {SIGINT, SIGTERM, SIGHUP, SIGQUIT}) sigaddset(&set, sig);
-    ::pthread_sigmask(SIG_BLOCK, &set, &previous_);
-  }
-  TerminationSignalsHeld(const TerminationSignalsHeld&) = delete;
-  TerminationSignalsHeld& operator=(const TerminationSignalsHeld&) = delete;
-  ~TerminationSignalsHeld() { ::pthread_sigmask(SIG_SETMASK, &previous_, nullptr); }
-
- private:
-  sigset_t previous_{};
-};
-
 AtomicFile::AtomicFile(std::filesystem::path target) : target_(std::move(target)) {
   const FileKind kind = file_kind(target_);
   if (kind != FileKind::Missing && kind != FileKind::Regular)
@@ -446,7 +428,7 @@ AtomicFile::AtomicFile(std::filesystem::path target) : target_(std::move(target)
     temporary_.replace_filename(
         temporary_owner(target_.filename().string()) + ".tmp-" + std::to_string(::getpid()) + "-" +
         std::to_string(g_temporary_serial.fetch_add(1, std::memory_order_relaxed)));
-    const TerminationSignalsHeld held;
+    const detail::TemporaryInTheMaking making;
     fd_ = ::open(temporary_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC | O_NOFOLLOW, 0644);
     if (fd_ >= 0) {
       std::error_code ec;

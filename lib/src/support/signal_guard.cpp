@@ -1,6 +1,7 @@
 #include "support/signal_guard.hpp"
 
 #include <pthread.h>
+#include <time.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -68,7 +69,22 @@ void write_all(int fd, const char* text, std::size_t size) noexcept {
   }
 }
 
+// Threads between a temporary's creation and its registration, and whether
+// a handler has begun to end the process (TemporaryInTheMaking).
+std::atomic<int> g_making{0};
+std::atomic<bool> g_ending{false};
+thread_local bool t_making = false;
+
+// Called by a handler that ends the process. Sequentially consistent on both
+// sides: either the maker sees g_ending and creates nothing, or this sees
+// its count and waits for the registration.
 void remove_temporaries() noexcept {
+  g_ending.store(true);
+  // A SIGBUS on a thread that is itself making one does not wait for itself.
+  while (g_making.load() > (t_making ? 1 : 0)) {
+    const timespec pause{0, 100'000};
+    ::nanosleep(&pause, nullptr);
+  }
   const pid_t self = ::getpid();
   for (TemporarySlot& s : g_temporaries) {
     int expected = kReady;
@@ -145,6 +161,9 @@ void on_terminate(int sig) noexcept {
 void install_handlers() {
   static std::once_flag once;
   std::call_once(once, [] {
+    // A child made by fork() has only the forking thread: the others'
+    // creations in progress are not its to wait for.
+    ::pthread_atfork(nullptr, nullptr, [] { g_making.store(0); });
     struct sigaction bus {};
     bus.sa_sigaction = on_bus;
     bus.sa_flags = SA_SIGINFO;
@@ -172,6 +191,30 @@ void copy_text(char* to, std::size_t capacity, std::string_view from) noexcept {
 }
 
 }  // namespace
+
+TemporaryInTheMaking::TemporaryInTheMaking() noexcept {
+  install_handlers();
+  sigset_t set;
+  sigemptyset(&set);
+  for (const int sig : {SIGINT, SIGTERM, SIGHUP, SIGQUIT}) sigaddset(&set, sig);
+  ::pthread_sigmask(SIG_BLOCK, &set, &previous_);
+  g_making.fetch_add(1);
+  t_making = true;
+  if (g_ending.load()) {
+    // A handler on another thread is ending the process; this thread's
+    // termination signals are blocked, so it waits here for the end,
+    // having created nothing.
+    t_making = false;
+    g_making.fetch_sub(1);
+    for (;;) ::pause();
+  }
+}
+
+TemporaryInTheMaking::~TemporaryInTheMaking() {
+  t_making = false;
+  g_making.fetch_sub(1);
+  ::pthread_sigmask(SIG_SETMASK, &previous_, nullptr);
+}
 
 int register_temporary(std::string_view absolute_path) noexcept {
   if (absolute_path.size() >= sizeof(TemporarySlot::path)) return -1;

@@ -17,13 +17,36 @@
 //   default action, or a sanitizer's).
 //
 // Everything the handlers touch is a fixed table of slots with atomic states
-// (no allocation, no lock): registering is async-signal-safe to read.
+// (no allocation, no lock): registering is async-signal-safe to read. The
+// one wait in a handler is for another thread's temporary between its
+// creation and its registration (a file open and a path made absolute).
 #pragma once
+
+#include <signal.h>
 
 #include <cstddef>
 #include <string_view>
 
 namespace treecut::detail {
+
+/// Held while a temporary is created and registered, so that no termination
+/// signal leaves it behind: the signals wait on this thread, and a handler
+/// running on another thread meanwhile (a process-directed signal goes to
+/// any thread that does not block it) waits until the creation is over
+/// before it removes the registered temporaries. Once a handler has begun,
+/// a thread that starts a creation stops here for good: the process is
+/// ending, and a file made now would be left behind. Installs the handlers,
+/// so even the process's first temporary is covered.
+class TemporaryInTheMaking {
+ public:
+  TemporaryInTheMaking() noexcept;
+  ~TemporaryInTheMaking();
+  TemporaryInTheMaking(const TemporaryInTheMaking&) = delete;
+  TemporaryInTheMaking& operator=(const TemporaryInTheMaking&) = delete;
+
+ private:
+  sigset_t previous_{};
+};
 
 /// Registers an absolute temporary path; returns its slot, or -1 when the
 /// table is full or the path too long (it is then only removed by unwinding).
