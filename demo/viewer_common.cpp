@@ -212,9 +212,12 @@ void set_view_box(Scene& s, float splat) {
 std::string paged_strategy_problem(const Scene& scene, const Strategy& strategy,
                                    const std::string& name) {
   if (!scene.paged || !strategy.asks_queries()) return {};
+  // The queries would run (each carries its sphere); hoq, the one built-in
+  // strategy that asks them, groups every node of the hierarchy into its
+  // blocks at reset, which a paged model does not hold.
   return name +
-         " asks GPU queries of every node's sphere, which a model drawn from its pages "
-         "(--memory) does not hold yet; without --memory it opens whole";
+         " asks GPU queries, which a model drawn from its pages (--memory) does not answer "
+         "yet; without --memory it opens whole";
 }
 
 splat::GpuPoolOptions gpu_pool_options(const SceneArgs& args) {

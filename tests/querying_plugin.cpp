@@ -27,9 +27,9 @@ class Querying final : public treecut::Strategy {
     const treecut::Hierarchy& h = in.hierarchy;
     for (treecut::NodeId c = h.first_child(0); c < h.first_child(0) + h.child_count(0); ++c) {
       out.nodes->push_back(c);
-      out.queries->push_back({0, c, tag_++, treecut::QueryKind::Samples});
+      out.queries->push_back(treecut::query_about(in, c, tag_++));
     }
-    out.queries->push_back({0, 0, tag_++, treecut::QueryKind::AnySamples});
+    out.queries->push_back(treecut::query_about(in, 0, tag_++, treecut::QueryKind::AnySamples));
     out.result.converged = false;
   }
 

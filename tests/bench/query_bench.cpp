@@ -61,7 +61,8 @@ constexpr int kWidth = 1280;
 constexpr int kHeight = 720;
 
 splat::GlContext& context() {
-  static const std::unique_ptr<splat::GlContext> ctx = splat::make_headless_context(kWidth, kHeight);
+  static const std::unique_ptr<splat::GlContext> ctx =
+      splat::make_headless_context(kWidth, kHeight);
   ctx->make_current();
   return *ctx;
 }
@@ -110,8 +111,9 @@ void Queries(benchmark::State& state) {
   // N requests about nodes spread over the cut.
   std::vector<QueryRequest> requests;
   for (std::size_t i = 0; i < n; ++i) {
-    requests.push_back({0, cut_nodes[(i * 7919) % cut_nodes.size()], static_cast<std::uint32_t>(i),
-                        QueryKind::Samples});
+    const NodeId node = cut_nodes[(i * 7919) % cut_nodes.size()];
+    requests.push_back({0, node, static_cast<std::uint32_t>(i), QueryKind::Samples,
+                        h->arrays().center_radius[node]});
   }
   FrontList list;
   list.hierarchy = h.get();

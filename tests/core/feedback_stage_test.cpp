@@ -62,7 +62,7 @@ class ProbeStrategy final : public Strategy {
       for (const NodeId n : refine) out.result.refined += out.cut->refine(in.hierarchy, n);
     } while (!refine.empty());
     out.queries->push_back(
-        QueryRequest{0, out.cut->nodes()[0], static_cast<std::uint32_t>(frames.size())});
+        query_about(in, out.cut->nodes()[0], static_cast<std::uint32_t>(frames.size())));
     out.result.converged = out.result.refined == 0;
     out.result.counters.set("probe_iterations", double(frames.size()), "iterations");
     if (throw_next) {

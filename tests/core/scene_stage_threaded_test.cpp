@@ -269,7 +269,7 @@ class QueryingStrategy final : public Strategy {
   [[nodiscard]] Mode mode() const override { return Mode::Evolve; }
   void reset(const Hierarchy&) override {}
   void iterate(const IterationInput& in, IterationOutput& out) override {
-    out.queries->push_back(QueryRequest{in.object, 0, 0, QueryKind::AnySamples});
+    out.queries->push_back(query_about(in, 0, 0, QueryKind::AnySamples));
   }
 };
 

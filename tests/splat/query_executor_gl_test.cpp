@@ -8,13 +8,12 @@
 // GL entry points interposed: a signaled fence is reported pending for a few
 // polls while the counters hold poison, with a check that this makes a read
 // that comes too early visible).
-#include "treecut/splat/query_executor.hpp"
-
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <map>
 #include <memory>
 #include <numeric>
@@ -31,6 +30,7 @@
 #include "treecut/splat/frame.hpp"
 #include "treecut/splat/gl.hpp"
 #include "treecut/splat/gl_objects.hpp"
+#include "treecut/splat/query_executor.hpp"
 #include "treecut/splat/renderer.hpp"
 #include "treecut/strategy.hpp"
 #include "treecut/tree_cut.hpp"
@@ -102,6 +102,12 @@ Camera wall_camera() {
   c.near_plane = 0.1f;
   c.far_plane = 20.0f;
   return c;
+}
+
+// A request about node N of H (its sphere with it, as query_about() gives).
+QueryRequest about(const Hierarchy& h, NodeId n, std::uint32_t tag,
+                   QueryKind kind = QueryKind::Samples) {
+  return {0, n, tag, kind, h.arrays().center_radius[n]};
 }
 
 // The leaf of the probe hierarchy at `center`.
@@ -241,7 +247,7 @@ std::uint32_t true_samples(glm::vec4 sphere, const DepthHook& d) {
 TEST_F(QueryExecutorTest, OccludedProxiesAnswerZeroAndVisibleOnesMoreLikeEachAlone) {
   const Hierarchy& h = probe_hierarchy();
   std::vector<QueryRequest> requests;
-  for (NodeId n = 0; n < h.node_count(); ++n) requests.push_back({0, n, n, QueryKind::Samples});
+  for (NodeId n = 0; n < h.node_count(); ++n) requests.push_back(about(h, n, n));
   std::uint64_t f = 0;
   const auto answers = run_to_completion(list_of(requests, 1), f);
   ASSERT_EQ(answers.size(), requests.size());
@@ -329,7 +335,7 @@ TEST_F(QueryExecutorTest, QuadPathAndClippedSpritesStayConservative) {
     renderer_->set_query_hook(executor_.get());
     std::vector<QueryRequest> requests;
     for (NodeId n = 0; n < big.node_count(); ++n) {
-      if (big.is_leaf(n)) requests.push_back({0, n, n, QueryKind::Samples});
+      if (big.is_leaf(n)) requests.push_back(about(big, n, n));
     }
     ASSERT_EQ(requests.size(), 4u);
     FrontList list;
@@ -363,10 +369,39 @@ TEST_F(QueryExecutorTest, QuadPathAndClippedSpritesStayConservative) {
   }
 }
 
+// The executor tests the request's sphere, never the hierarchy: the same
+// visible node asked with its sphere moved behind the wall is occluded, and
+// asked without one (radius 0, or not finite) is answered 0 on the host.
+TEST_F(QueryExecutorTest, TheSphereTestedIsTheRequests) {
+  const Hierarchy& h = probe_hierarchy();
+  NodeId visible = kNoNode;
+  glm::vec3 hidden_at(0.0f);
+  for (const Probe& p : probes()) {
+    if (p.occluded) hidden_at = p.center;
+    if (!p.occluded && visible == kNoNode) visible = leaf_at(p.center);
+  }
+  ASSERT_NE(visible, kNoNode);
+  std::vector<QueryRequest> requests{about(h, visible, 0), about(h, visible, 1),
+                                     about(h, visible, 2), about(h, visible, 3)};
+  requests[1].sphere = glm::vec4(hidden_at, requests[1].sphere.w);
+  requests[2].sphere.w = 0.0f;
+  requests[3].sphere.x = std::numeric_limits<float>::quiet_NaN();
+  std::uint64_t f = 0;
+  const auto answers = run_to_completion(list_of(requests, 1), f);
+  ASSERT_EQ(answers.size(), requests.size());
+  EXPECT_GT(answers.at(0).samples_passed, 0u);
+  for (std::uint32_t tag = 1; tag < 4; ++tag) {
+    EXPECT_EQ(answers.at(tag).samples_passed, 0u) << tag;
+    EXPECT_EQ(answers.at(tag).node, visible) << tag;
+  }
+  EXPECT_EQ(answers.at(2).frame_read, answers.at(2).frame_issued) << "answered on the host";
+}
+
 TEST_F(QueryExecutorTest, AnySamplesAnswersZeroOrOne) {
   std::vector<QueryRequest> requests;
   for (std::uint32_t i = 0; i < probes().size(); ++i) {
-    requests.push_back({0, leaf_at(probes()[i].center), i, QueryKind::AnySamples});
+    requests.push_back(
+        about(probe_hierarchy(), leaf_at(probes()[i].center), i, QueryKind::AnySamples));
   }
   std::uint64_t f = 0;
   const auto answers = run_to_completion(list_of(requests, 1), f);
@@ -380,7 +415,7 @@ TEST_F(QueryExecutorTest, AnySamplesAnswersZeroOrOne) {
 TEST_F(QueryExecutorTest, RequestsOfOneGenerationRunOnceWithTheCapCarryingTheRest) {
   const Hierarchy& h = probe_hierarchy();
   std::vector<QueryRequest> requests;
-  for (NodeId n = 0; n < h.node_count(); ++n) requests.push_back({0, n, n, QueryKind::Samples});
+  for (NodeId n = 0; n < h.node_count(); ++n) requests.push_back(about(h, n, n));
   ASSERT_GE(requests.size(), 5u);
   executor_->set_max_issue_per_frame(2);
   const FrontList list = list_of(requests, 7);
@@ -424,7 +459,7 @@ TEST_F(QueryExecutorTest, RequestsOfOneGenerationRunOnceWithTheCapCarryingTheRes
 std::vector<QueryRequest> probe_requests(std::uint32_t offset) {
   std::vector<QueryRequest> r;
   for (std::uint32_t i = 0; i < probes().size(); ++i) {
-    r.push_back({0, leaf_at(probes()[i].center), offset + i, QueryKind::Samples});
+    r.push_back(about(probe_hierarchy(), leaf_at(probes()[i].center), offset + i));
   }
   return r;
 }
@@ -647,7 +682,7 @@ TEST_F(QueryExecutorTest, FenceCheckMakesACounterReadBeforeTheSignalSeePoison) {
   const FenceCheck check;
   const Hierarchy& h = probe_hierarchy();
   std::vector<QueryRequest> requests;
-  for (NodeId n = 0; n < h.node_count(); ++n) requests.push_back({0, n, n, QueryKind::Samples});
+  for (NodeId n = 0; n < h.node_count(); ++n) requests.push_back(about(h, n, n));
   const FrontList list = list_of(requests, 1);
   use_executor(1);                                // no minimum batch: issued in frame 1
   frame(list, 1, true);                           // the batch: one draw
@@ -676,7 +711,7 @@ TEST_F(QueryExecutorTest, FenceCheckMakesACounterReadBeforeTheSignalSeePoison) {
 TEST_F(QueryExecutorTest, NeverReadsACounterBeforeItsFenceWasSeenSignaled) {
   const Hierarchy& h = probe_hierarchy();
   std::vector<QueryRequest> one_each;
-  for (NodeId n = 0; n < h.node_count(); ++n) one_each.push_back({0, n, n, QueryKind::Samples});
+  for (NodeId n = 0; n < h.node_count(); ++n) one_each.push_back(about(h, n, n));
   std::uint64_t f = 0;
   const auto expected = run_to_completion(list_of(one_each, 1), f);
   ASSERT_EQ(expected.size(), one_each.size());
@@ -685,7 +720,7 @@ TEST_F(QueryExecutorTest, NeverReadsACounterBeforeItsFenceWasSeenSignaled) {
   std::vector<QueryRequest> requests;
   for (int rep = 0; rep < 200; ++rep) {
     for (NodeId n = 0; n < h.node_count(); ++n) {
-      requests.push_back({0, n, static_cast<std::uint32_t>(requests.size()), QueryKind::Samples});
+      requests.push_back(about(h, n, static_cast<std::uint32_t>(requests.size())));
     }
   }
   executor_->set_max_issue_per_frame(500);  // several batches, several in flight
@@ -720,8 +755,7 @@ class AskingStrategy final : public Strategy {
   void iterate(const IterationInput& in, IterationOutput& out) override {
     request_frames.push_back(in.view.frame);
     for (const VisibilityResult& v : in.view.visibility) seen.push_back({v, in.view.frame});
-    out.queries->push_back(
-        {0, 0, static_cast<std::uint32_t>(request_frames.size()), QueryKind::Samples});
+    out.queries->push_back(query_about(in, 0, static_cast<std::uint32_t>(request_frames.size())));
     out.result.converged = false;
   }
   struct Seen {

@@ -78,7 +78,7 @@ class FixedCutStrategy final : public Strategy {
   void iterate(const IterationInput& in, IterationOutput& out) override {
     const std::vector<NodeId>& t = alternate_ && (++iterations_ % 2 == 0) ? finer_ : target_;
     out.nodes->assign(t.begin(), t.end());
-    out.queries->push_back({0, 0, 0, QueryKind::Samples});
+    out.queries->push_back(query_about(in, 0, 0));
     for (const VisibilityResult& v : in.view.visibility) seen.push_back({&in.hierarchy, v});
     out.result.converged = false;  // keep iterating: a list (and a query) per step
   }

@@ -30,7 +30,8 @@
 //   FeedbackStage::set_param. name(), mode() and param_specs() are immutable
 //   after construction and may be read from any thread.
 // - GPU queries: a strategy appends QueryRequests to `*output.queries`
-//   (QueryKind::AnySamples when "visible or not" is enough); the render
+//   (query_about(): the node's sphere travels with the request;
+//   QueryKind::AnySamples when "visible or not" is enough); the render
 //   thread executes them once, in the frames after it exchanges that list
 //   (a per-frame cap may spread them over several frames; a few requests
 //   wait up to max_defer_frames for a batch of min_batch; requests of a list
@@ -130,6 +131,14 @@ struct IterationInput {
     return cancel != nullptr && cancel->load(std::memory_order_relaxed);
   }
 };
+
+/// A query about NODE of the iteration's hierarchy, its sphere read now
+/// (the View tests the request's sphere, never the hierarchy).
+[[nodiscard]] inline QueryRequest query_about(const IterationInput& input, NodeId node,
+                                              std::uint32_t tag,
+                                              QueryKind kind = QueryKind::Samples) {
+  return {input.object, node, tag, kind, input.hierarchy.arrays().center_radius[node]};
+}
 
 /// Where an iteration writes. Pointers are never null when the stage calls.
 struct IterationOutput {

@@ -47,6 +47,12 @@ struct QueryRequest {
   NodeId node = kNoNode;     ///< the node whose bounding sphere is tested
   std::uint32_t tag = 0;     ///< opaque to the View, returned unchanged in the result
   QueryKind kind = QueryKind::Samples;
+  /// The node's bounding sphere (center, radius) as the strategy read it:
+  /// what the View tests (query_about() in treecut/strategy.hpp fills it).
+  /// The render thread reads no hierarchy for a query and keeps no copy of
+  /// one (a paged model's node may be given back before a deferred request
+  /// goes out). A radius that is not positive and finite is answered 0.
+  glm::vec4 sphere{0.0f};
 };
 
 /// The answer to a QueryRequest, delivered frames later in a ViewSnapshot.

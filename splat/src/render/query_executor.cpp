@@ -135,12 +135,6 @@ QueryExecutor::~QueryExecutor() {
   }
 }
 
-void QueryExecutor::upload_spheres(const Hierarchy& h) {
-  const auto cr = h.arrays().center_radius;
-  spheres_.assign(cr.begin(), cr.end());
-  hierarchy_ = &h;
-}
-
 void QueryExecutor::begin_frame_render_thread(const FrontList& list, std::uint64_t frame) {
   frame_ = frame;
   fence_last_batch_render_thread();
@@ -163,12 +157,7 @@ void QueryExecutor::begin_frame_render_thread(const FrontList& list, std::uint64
     // answers are still read (in order) but describe the old hierarchy; the
     // stage drops results of a model it replaced along with its state.
     hierarchy_ = list.hierarchy;
-    std::vector<glm::vec4>().swap(spheres_);
   }
-  // The spheres are copied with the first list that asks a query (its
-  // hierarchy is alive now): a model whose strategy asks none keeps no
-  // copy (16 B a node: 480 MB of a 20 M-point model's 30 M nodes).
-  if (spheres_.empty() && !list.queries.empty()) upload_spheres(*list.hierarchy);
   queue_.reserve(queue_.size() + list.queries.size());
   for (const QueryRequest& r : list.queries) queue_.push_back({r, frame});
   stats_.queued = queue_.size();
@@ -197,11 +186,12 @@ void QueryExecutor::answer(const Queued& q, std::uint32_t samples, std::uint64_t
 
 bool QueryExecutor::answer_on_host(const Queued& q, const ViewSnapshot& view) {
   const QueryRequest& r = q.request;
-  if (r.node >= static_cast<NodeId>(spheres_.size())) {  // not a node of this hierarchy
+  const glm::vec4 s = r.sphere;
+  if (!(s.w > 0.0f && std::isfinite(s.w) && std::isfinite(s.x) && std::isfinite(s.y) &&
+        std::isfinite(s.z))) {  // no sphere to test (QueryRequest::sphere)
     answer(q, 0, frame_);
     return true;
   }
-  const glm::vec4 s = spheres_[r.node];
   const glm::vec3 d = glm::vec3(s) - view.derived.eye;
   if (d.x * d.x + d.y * d.y + d.z * d.z <= s.w * s.w) {
     // The eye inside the sphere: it covers the whole view.
@@ -304,7 +294,7 @@ void QueryExecutor::collect_proxies_render_thread(Batch& b, const ViewSnapshot& 
     const Queued& q = queue_[i];
     stats_.deferral_frames_total += frame_ - q.frame_requested;
     if (answer_on_host(q, view)) continue;
-    const glm::vec4 s = spheres_[q.request.node];
+    const glm::vec4 s = q.request.sphere;
     glm::vec4 pt;
     if (points && point_proxy(s, view, pt)) {
       if (pt.w < 0.0f) {

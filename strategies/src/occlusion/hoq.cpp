@@ -136,7 +136,7 @@ void HoqStrategy::query(culling::BlockId b, const IterationInput& input, Iterati
   // The proxy: the bounding sphere of the block's root node, which contains
   // every node of the block's subtree, drawn by the executor at the sphere's
   // nearest depth (a point sprite over its window rectangle).
-  output.queries->push_back({input.object, blocks_.root(b), b, QueryKind::Samples});
+  output.queries->push_back(query_about(input, blocks_.root(b), b));
   ++last_.queries;
 }
 

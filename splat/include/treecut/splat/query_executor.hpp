@@ -35,6 +35,10 @@
 //   address; the host sums them): on a single-sampled target exactly what
 //   GL_SAMPLES_PASSED counts. QueryKind::AnySamples
 //   answers count > 0.
+// - The sphere tested is the request's (QueryRequest::sphere, read by the
+//   strategy on its own thread): the render thread reads no hierarchy for a
+//   query and keeps no copy of one (it copied every node's sphere, 16 B a
+//   node, before a paged model could ask queries).
 // - The proxy of a node, usually ONE point (a point costs llvmpipe a small
 //   fraction of a strip of two triangles): the host computes the window
 //   rectangle that bounds the projection of the node's bounding sphere
@@ -186,8 +190,7 @@ class QueryExecutor final : public QueryHook {
     std::vector<Queued> requests;  // instance i answers requests[i]
     std::uint64_t frame_issued = 0;
   };
-  void upload_spheres(const Hierarchy& h);
-  // Answers without the GPU (no such node, or the eye inside its sphere);
+  // Answers without the GPU (no sphere to test, or the eye inside it);
   // false if the request needs a proxy.
   bool answer_on_host(const Queued& q, const ViewSnapshot& view);
   // The point proxy of a sphere (ndc x, y, depth, side px); w < 0: it
@@ -214,10 +217,9 @@ class QueryExecutor final : public QueryHook {
   std::uint64_t frame_ = 0;
   std::uint64_t generation_ = 0;
   const Hierarchy* hierarchy_ = nullptr;
-  std::vector<glm::vec4> spheres_;  // the hierarchy's center_radius (once a query is asked)
-  std::vector<Queued> queue_;       // the current generation's (and deferred older ones)
-  std::size_t queue_next_ = 0;      // first not yet issued
-  std::size_t due_end_ = 0;         // [queue_next_, due_end_): were due, did not fit
+  std::vector<Queued> queue_;   // the current generation's (and deferred older ones)
+  std::size_t queue_next_ = 0;  // first not yet issued
+  std::size_t due_end_ = 0;     // [queue_next_, due_end_): were due, did not fit
   // Batched: a ring of slots, [ring_head_, ring_head_ + ring_count_) in flight.
   std::vector<Batch> ring_;
   std::size_t ring_head_ = 0, ring_count_ = 0;
