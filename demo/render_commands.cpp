@@ -75,13 +75,8 @@ void check_render_inputs(const RenderArgs& a, const StrategyRegistry& registry) 
 
 // A model drawn from its pages (a .tch with --memory): what does not work
 // on one yet is refused before any output.
-void check_paged(const RenderArgs& a, const StrategyRegistry& registry, const Scene& scene) {
+void check_paged(const RenderArgs& a) {
   const std::string model = a.scene.model;
-  for (const std::string& name : a.scene.strategies)
-    if (const std::string why =
-            paged_strategy_problem(scene, *make_strategy(registry, name, {}), name);
-        !why.empty())
-      throw InputError(model + ": " + why);
   if (a.psnr || a.stability > 0)
     throw InputError(model +
                      ": --psnr and --stability compare with the model at full detail, which a "
@@ -109,7 +104,7 @@ void describe_pages(const RenderArgs& a, const PagedHierarchy& paged) {
 // The scene or model line; a scene past a strategy's per-object limit is
 // refused first, before any output, naming the file.
 void describe_scene(const RenderArgs& a, const StrategyRegistry& registry, const Scene& scene) {
-  if (scene.paged) check_paged(a, registry, scene);
+  if (scene.paged) check_paged(a);
   if (const std::shared_ptr<const StageScene>& world = scene.world) {
     for (const std::string& name : a.scene.strategies) {
       if (const std::string why =

@@ -58,8 +58,6 @@ Viewer::Viewer(const ViewArgs& args)
   recolor(true);
   open_view();
   auto strategy = make_strategy(registry_, strategy_, args.scene.params);
-  if (const std::string why = paged_strategy_problem(scene_, *strategy, strategy_); !why.empty())
-    throw InputError(args.scene.model + ": " + why);
   read_params(*strategy);
   if (scene_.world) {
     if (const std::string why = per_object_limit_problem(*scene_.world, *strategy); !why.empty()) {
@@ -205,10 +203,6 @@ void Viewer::set_param_value(const std::string& name, double v) {
 
 void Viewer::switch_strategy(const std::string& name) {
   auto s = make_strategy(registry_, name, {});
-  if (const std::string why = paged_strategy_problem(scene_, *s, name); !why.empty()) {
-    say(why);  // the strategy drawing stays
-    return;
-  }
   read_params(*s);
   strategy_ = name;
   if (scene_.world) {
@@ -238,14 +232,6 @@ void Viewer::poll_loader() {
     done->error = done->file + ": no points to show";
     done->input_error = true;
     done->scene.reset();
-  } else if (done->scene) {
-    if (const std::string why = paged_strategy_problem(
-            *done->scene, *make_strategy(registry_, strategy_, {}), strategy_);
-        !why.empty()) {
-      done->error = done->file + ": " + why;
-      done->input_error = true;
-      done->scene.reset();
-    }
   }
   if (!done->scene) {
     // The old model stays. One line, on the HUD and on stderr; in a script the

@@ -91,10 +91,6 @@ struct Scene {
   std::shared_ptr<PagedHierarchy> paged;
 };
 
-/// Why strategy NAME cannot draw SCENE (a paged model: one that asks GPU
-/// queries of every node's sphere); empty when it can.
-std::string paged_strategy_problem(const Scene& scene, const Strategy& strategy,
-                                   const std::string& name);
 /// A paged model's GPU pool as --gpu-memory and --gpu-upload say.
 splat::GpuPoolOptions gpu_pool_options(const SceneArgs& args);
 /// The vertices the renderer's pool for SCENE starts with (0: a model held

@@ -209,17 +209,6 @@ void set_view_box(Scene& s, float splat) {
 
 }  // namespace
 
-std::string paged_strategy_problem(const Scene& scene, const Strategy& strategy,
-                                   const std::string& name) {
-  if (!scene.paged || !strategy.asks_queries()) return {};
-  // The queries would run (each carries its sphere); hoq, the one built-in
-  // strategy that asks them, groups every node of the hierarchy into its
-  // blocks at reset, which a paged model does not hold.
-  return name +
-         " asks GPU queries, which a model drawn from its pages (--memory) does not answer "
-         "yet; without --memory it opens whole";
-}
-
 splat::GpuPoolOptions gpu_pool_options(const SceneArgs& args) {
   splat::GpuPoolOptions o;
   o.memory_bytes = args.gpu_memory;

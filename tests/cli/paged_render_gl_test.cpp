@@ -63,9 +63,10 @@ std::vector<double> column(const std::vector<std::vector<std::string>>& rows,
 
 // `treecut render CACHE OPTIONS -s recursive`, headless, into DIR/out.
 treecut::test::CommandResult render_paged(const fs::path& dir, const fs::path& cache,
-                                          const std::string& options) {
-  return run_treecut("render " + quote(cache) + " " + options + " -s recursive " + kRun + "-o " +
-                     quote(dir / "out"));
+                                          const std::string& options,
+                                          const std::string& strategy = "recursive") {
+  return run_treecut("render " + quote(cache) + " " + options + " -s " + strategy + " " + kRun +
+                     "-o " + quote(dir / "out"));
 }
 
 }  // namespace
@@ -97,13 +98,40 @@ TEST(PagedRender, ACacheWithABudgetIsDrawnFromItsPages) {
   EXPECT_LE(most, 2.0) << "past the budget of 2 MiB";
 }
 
+// hoq on a paged model: its queries are answered (each carries its sphere)
+// and its blocks ask for pages, within the budget.
+TEST(PagedRender, HoqDrawsAPagedModelAskingItsQueries) {
+  const fs::path dir = treecut::test::scratch_dir("paged_render_hoq");
+  const fs::path cache = terrain_cache(dir);
+  const treecut::test::CommandResult r = render_paged(dir, cache, "--memory 2M --frames 40", "hoq");
+  ASSERT_EQ(r.code, 0) << r.out;
+  const auto rows = read_csv(dir / "out" / "stats.csv");
+  ASSERT_GT(rows.size(), 2u);
+  const auto& header = rows.front();
+  const auto column = [&](const std::string& name) {
+    for (std::size_t i = 0; i < header.size(); ++i)
+      if (header[i] == name) return i;
+    ADD_FAILURE() << "no column " << name;
+    return std::size_t{0};
+  };
+  const std::size_t answered = column("queries_answered"), loaded = column("pages_loaded"),
+                    resident = column("pages_resident_mib");
+  double answers = 0.0, most = 0.0;
+  for (std::size_t i = 1; i < rows.size(); ++i) {
+    answers += std::stod(rows[i][answered]);
+    most = std::max(most, std::stod(rows[i][resident]));
+  }
+  EXPECT_GT(answers, 0.0) << "no query answered";
+  EXPECT_GT(std::stod(rows.back()[loaded]), 0.0) << "no page was read";
+  EXPECT_LE(most, 2.0) << "past the budget of 2 MiB";
+}
+
 TEST(PagedRender, WhatAPagedModelCannotDoYetIsRefusedInOneLine) {
   const fs::path dir = treecut::test::scratch_dir("paged_render_refusals");
   const fs::path cache = terrain_cache(dir);
   const struct {
     std::string options, says;
   } cases[] = {
-      {"--memory 2M -s hoq", "GPU queries"},
       {"--memory 2M --color elevation", "drawn from its pages"},
       {"--memory 2M --psnr", "full detail"},
       {"--memory 2M --gpu-memory 20K", "--gpu-memory: 0.0 MiB is below"},

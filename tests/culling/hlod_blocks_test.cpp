@@ -13,6 +13,7 @@
 #include <span>
 
 #include "strategy_fixtures.hpp"
+#include "treecut/culling/resident_blocks.hpp"
 #include "treecut/tree_cut.hpp"
 
 namespace {
@@ -262,6 +263,31 @@ TEST(BlocksCut, OneBlockWhenTheModelIsSmallerThanABlock) {
   EXPECT_EQ(b.block_count(), 1u);
   EXPECT_TRUE(b.is_leaf(0));
   EXPECT_EQ(b.representation(0).size(), h->leaf_count());
+}
+
+// The blocks hoq makes as its traversal reaches them (resident_blocks.hpp)
+// are, on a model held whole, those HlodBlocks::build gives with fan-out 4:
+// the same representation, box and kind, block for block.
+TEST(ResidentBlocks, OnAModelHeldWholeTheyAreTheBlocksBuiltAtOnce) {
+  const auto h = small_hierarchy(ModelKind::City, 20000);
+  for (const std::uint32_t size : {1u, 200u, 1000u}) {
+    SCOPED_TRACE(size);
+    const HlodBlocks built = HlodBlocks::build(*h, size, treecut::culling::kHierarchyFanOut);
+    treecut::culling::ResidentBlocks made;
+    made.reset(size);
+    // Breadth-first ids: a parent block before its children, as a traversal asks.
+    for (BlockId b = 0; b < built.block_count(); ++b) {
+      const NodeId n = built.root(b);
+      const auto& m = made.at(*h, n);
+      const auto rep = built.representation(b);
+      ASSERT_EQ(m.rep, std::vector<NodeId>(rep.begin(), rep.end())) << "block " << b;
+      EXPECT_EQ(m.box.lo, built.box(b).lo) << "block " << b;
+      EXPECT_EQ(m.box.hi, built.box(b).hi) << "block " << b;
+      EXPECT_EQ(made.is_leaf(*h, n), built.is_leaf(b)) << "block " << b;
+      EXPECT_TRUE(m.hidden.empty());
+    }
+    EXPECT_EQ(made.size(), built.block_count());
+  }
 }
 
 }  // namespace

@@ -269,6 +269,13 @@ std::vector<float> error_radii(const HlodBlocks& b, const Hierarchy& h) {
   return r;
 }
 
+// The ids of a block cut named by the blocks' nodes (HoqStrategy::block_cut).
+std::vector<BlockId> ids(const HlodBlocks& b, std::span<const NodeId> cut) {
+  std::vector<BlockId> out;
+  for (const NodeId n : cut) out.push_back(b.block_of_root(n));
+  return out;
+}
+
 using treecut::test::street_view;
 
 class HoqStrategyTest : public ::testing::Test {
@@ -278,9 +285,12 @@ class HoqStrategyTest : public ::testing::Test {
     s.set_param("block_size", 200);
     s.set_param("theta", 2.0);
     s.reset(*h);
+    blocks = HlodBlocks::build(*h, 200, treecut::culling::kHierarchyFanOut);
   }
   std::shared_ptr<const Hierarchy> h;
   HoqStrategy s;
+  // The blocks `hoq` makes as it goes, built at once (the same, node for node).
+  HlodBlocks blocks;
 };
 
 TEST_F(HoqStrategyTest, CutIsValidEveryIterationWithLateAnswersOnAMovingCamera) {
@@ -301,7 +311,7 @@ TEST_F(HoqStrategyTest, CutIsValidEveryIterationWithLateAnswersOnAMovingCamera) 
       return st.nodes;
     }());
     ASSERT_EQ(why, "") << "frame " << frame;
-    ASSERT_EQ(s.blocks().validate_cut(s.block_cut()), "") << "frame " << frame;
+    ASSERT_EQ(blocks.validate_cut(ids(blocks, s.block_cut())), "") << "frame " << frame;
     // Latency 1 to 4 frames, varying per iteration.
     gpu.post(st.queries, frame, view, 1 + rng() % 4);
     answered += s.last().answers;
@@ -331,8 +341,8 @@ TEST_F(HoqStrategyTest, FullyVisibleAnswersConvergeToTheSseCut) {
   }
   ASSERT_TRUE(converged);
   std::vector<BlockId> expected;
-  sse_cut(s.blocks(), *h, fixed, error_radii(s.blocks(), *h), 0, 2.0f, expected);
-  std::vector<BlockId> got(s.block_cut().begin(), s.block_cut().end());
+  sse_cut(blocks, *h, fixed, error_radii(blocks, *h), 0, 2.0f, expected);
+  std::vector<BlockId> got = ids(blocks, s.block_cut());
   std::sort(expected.begin(), expected.end());
   std::sort(got.begin(), got.end());
   EXPECT_EQ(got, expected);
@@ -356,7 +366,7 @@ TEST_F(HoqStrategyTest, BarelyVisibleBlocksStopEarlyUnderVmsseButNotUnderBool) {
       converged = st.result.converged;
     }
     EXPECT_TRUE(converged);
-    return std::vector<BlockId>(strategy.block_cut().begin(), strategy.block_cut().end());
+    return ids(blocks, strategy.block_cut());
   };
   HoqStrategy boolean;
   boolean.set_param("block_size", 200);
@@ -365,8 +375,7 @@ TEST_F(HoqStrategyTest, BarelyVisibleBlocksStopEarlyUnderVmsseButNotUnderBool) {
   boolean.reset(*h);
   std::vector<BlockId> got = converge(boolean);
   std::vector<BlockId> expected;
-  sse_cut(boolean.blocks(), *h, street_view(*h, 0.4f), error_radii(boolean.blocks(), *h), 0, 2.0f,
-          expected);
+  sse_cut(blocks, *h, street_view(*h, 0.4f), error_radii(blocks, *h), 0, 2.0f, expected);
   std::sort(got.begin(), got.end());
   std::sort(expected.begin(), expected.end());
   EXPECT_EQ(got, expected);                        // Bool: the SSE cut, visibility only culls
@@ -386,7 +395,7 @@ TEST_F(HoqStrategyTest, OccludedBlocksStayCoarserThanTheSseCut) {
     gpu.post(st.queries, frame, view, 2);
   }
   std::vector<BlockId> sse;
-  sse_cut(s.blocks(), *h, fixed, error_radii(s.blocks(), *h), 0, 2.0f, sse);
+  sse_cut(blocks, *h, fixed, error_radii(blocks, *h), 0, 2.0f, sse);
   EXPECT_LT(s.block_cut().size(), sse.size());
   // Every answer says invisible: the front moves up (shift-up candidates,
   // AvgBias 0) until the root block is culled, and nothing refines again.
@@ -426,7 +435,7 @@ TEST_F(HoqStrategyTest, ADelayedBlockKeepsItsStateUntilItsAnswerArrives) {
   run(7, false);
   EXPECT_EQ(s.last().late_refined, 1u);
   EXPECT_EQ(s.last().late_frames, 7u + 1u - 1u);
-  EXPECT_EQ(s.block_cut().size(), s.blocks().child_count(0));
+  EXPECT_EQ(s.block_cut().size(), blocks.child_count(0));
   EXPECT_GE(s.last().delayed + s.last().culled, 1u);
 }
 
@@ -469,8 +478,8 @@ TEST_F(HoqStrategyTest, AssumingVisibleTheFirstIterationIsTheSseCutWithEveryBloc
   const ViewSnapshot view = street_view(*h, 0.4f);
   Step st = iterate(s, *h, view);
   std::vector<BlockId> expected;
-  sse_cut(s.blocks(), *h, view, error_radii(s.blocks(), *h), 0, 2.0f, expected);
-  std::vector<BlockId> got(s.block_cut().begin(), s.block_cut().end());
+  sse_cut(blocks, *h, view, error_radii(blocks, *h), 0, 2.0f, expected);
+  std::vector<BlockId> got = ids(blocks, s.block_cut());
   std::sort(expected.begin(), expected.end());
   std::sort(got.begin(), got.end());
   EXPECT_EQ(got, expected);
@@ -478,10 +487,10 @@ TEST_F(HoqStrategyTest, AssumingVisibleTheFirstIterationIsTheSseCutWithEveryBloc
   // blocks) wait for their first answer: delayed.
   std::uint64_t drawn_interior = 0, drawn = 0;
   for (BlockId b : got) {
-    const glm::vec4 sp = h->arrays().center_radius[s.blocks().root(b)];
+    const glm::vec4 sp = h->arrays().center_radius[blocks.root(b)];
     if (view.outside_frustum(glm::vec3(sp), sp.w)) continue;
     ++drawn;
-    if (!s.blocks().is_leaf(b)) ++drawn_interior;
+    if (!blocks.is_leaf(b)) ++drawn_interior;
   }
   EXPECT_EQ(s.last().drawn, drawn);
   EXPECT_EQ(s.last().delayed, drawn_interior);
@@ -550,12 +559,19 @@ TEST(HoqStage, AnswersPostedToTheStageReachTheStrategyAndEveryListIsValid) {
 }
 
 TEST_F(HoqStrategyTest, ABlockSizeChangeRebuildsTheBlocks) {
-  const std::uint32_t before = s.blocks().block_count();
-  s.set_param("block_size", 1000);
   ViewSnapshot view = street_view(*h, 0.0f);
   view.frame = 1;
+  (void)iterate(s, *h, view);
+  ASSERT_EQ(blocks.validate_cut(ids(blocks, s.block_cut())), "");
+  const std::size_t before = s.blocks_made();
+  s.set_param("block_size", 1000);
+  view.frame = 2;
   Step st = iterate(s, *h, view);
-  EXPECT_LT(s.blocks().block_count(), before);
+  // Blocks of 1000 leaves now: a cut of those (a block of 200 that is none
+  // of them has no id there).
+  const HlodBlocks big = HlodBlocks::build(*h, 1000, treecut::culling::kHierarchyFanOut);
+  EXPECT_EQ(big.validate_cut(ids(big, s.block_cut())), "");
+  EXPECT_LT(s.blocks_made(), before);
   std::sort(st.nodes.begin(), st.nodes.end());
   EXPECT_EQ(TreeCut::validate(*h, st.nodes), "");
 }

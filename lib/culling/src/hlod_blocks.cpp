@@ -14,23 +14,19 @@
 #include <glm/geometric.hpp>
 #include <stdexcept>
 
+#include "block_representation.hpp"
 #include "treecut/parallel.hpp"
 
 namespace treecut::culling {
 
-namespace {
-
-// The representation of a block whose subtrees are rooted at `roots`: for a
-// leaf block every leaf of them, else the roots refined in id order (ids are
-// breadth-first: the biggest splats first) while the node count stays
-// <= limit. The first node that does not fit ends the refinement, so the cut
-// stays breadth-first instead of refining small nodes deep in one corner. Id
-// order also makes a block's cut coarser than (or equal to) each child's: a
+// Id order makes a block's cut coarser than (or equal to) each child's: a
 // child refines a subset of the subtrees with the same limit, so it stops at
 // the same id or later.
 void collect_representation(const Hierarchy& h, std::span<const NodeId> roots, std::uint32_t limit,
-                            std::vector<NodeId>& queue, std::vector<NodeId>& out) {
+                            std::vector<NodeId>& queue, std::vector<NodeId>& out,
+                            std::vector<NodeId>* hidden) {
   out.clear();
+  if (hidden != nullptr) hidden->clear();
   const auto& a = h.arrays();
   std::uint64_t leaves = 0;
   for (const NodeId r : roots) leaves += a.point_count[r];
@@ -43,6 +39,7 @@ void collect_representation(const Hierarchy& h, std::span<const NodeId> roots, s
         const unsigned cc = a.child_count[n];
         if (cc == 0) {
           out.push_back(n);
+          if (hidden != nullptr && a.point_count[n] > 1) hidden->push_back(n);
           continue;
         }
         for (unsigned c = cc; c-- > 0;) queue.push_back(a.first_child[n] + c);
@@ -63,6 +60,9 @@ void collect_representation(const Hierarchy& h, std::span<const NodeId> roots, s
     const unsigned cc = a.child_count[n];
     if (cc == 0) {
       out.push_back(n);
+      // A leaf only because its children are not resident: the walk would
+      // have gone on below it.
+      if (hidden != nullptr && a.point_count[n] > 1) hidden->push_back(n);
       continue;
     }
     if (count + cc - 1 > limit) {
@@ -78,6 +78,25 @@ void collect_representation(const Hierarchy& h, std::span<const NodeId> roots, s
     }
   }
 }
+
+Box representation_box(const HierarchyArrays& a, std::span<const NodeId> rep) {
+  glm::vec3 mn(std::numeric_limits<float>::max()), mx(-std::numeric_limits<float>::max());
+  float slack = 0.0f;
+  for (const NodeId n : rep) {
+    const glm::vec4 s = a.center_radius[n];
+    const glm::vec3 c(s);
+    mn = glm::min(mn, c - s.w);
+    mx = glm::max(mx, c + s.w);
+    slack = std::max(slack, s.w);
+  }
+  // Descendants may reach past their ancestor's sphere by the builder's
+  // rounding (check_invariants allows 1e-5 of the radius per level); a
+  // relative margin keeps the box conservative for them.
+  const glm::vec3 margin = glm::vec3(slack * 1e-4f) + 1e-6f * glm::max(glm::abs(mn), glm::abs(mx));
+  return {mn - margin, mx + margin};
+}
+
+namespace {
 
 std::uint64_t leaves_of(const HierarchyArrays& a, std::span<const NodeId> nodes) {
   std::uint64_t sum = 0;
@@ -196,31 +215,12 @@ std::vector<std::uint64_t> representation_sizes(const Hierarchy& h, const HlodBl
             continue;
           }
           collect_representation(h, b.roots(id), interior_limit(block_size, b.roots(id)), queue,
-                                 out);
+                                 out, nullptr);
           sizes[i] = out.size();
         }
       },
       0, 64);
   return sizes;
-}
-
-// The box of a representation: its splats' spheres, widened for the
-// descendants that may reach past them.
-Box representation_box(const HierarchyArrays& a, std::span<const NodeId> rep) {
-  glm::vec3 mn(std::numeric_limits<float>::max()), mx(-std::numeric_limits<float>::max());
-  float slack = 0.0f;
-  for (const NodeId n : rep) {
-    const glm::vec4 s = a.center_radius[n];
-    const glm::vec3 c(s);
-    mn = glm::min(mn, c - s.w);
-    mx = glm::max(mx, c + s.w);
-    slack = std::max(slack, s.w);
-  }
-  // Descendants may reach past their ancestor's sphere by the builder's
-  // rounding (check_invariants allows 1e-5 of the radius per level); a
-  // relative margin keeps the box conservative for them.
-  const glm::vec3 margin = glm::vec3(slack * 1e-4f) + 1e-6f * glm::max(glm::abs(mn), glm::abs(mx));
-  return {mn - margin, mx + margin};
 }
 
 // Every block writes its representation into its range of `rep` (the
@@ -236,7 +236,7 @@ void write_representations(const Hierarchy& h, const HlodBlocks& b, std::size_t 
           const auto id = static_cast<BlockId>(i);
           collect_representation(
               h, b.roots(id), b.is_leaf(id) ? block_size : interior_limit(block_size, b.roots(id)),
-              queue, out);
+              queue, out, nullptr);
           std::copy(out.begin(), out.end(),
                     rep.begin() + static_cast<std::ptrdiff_t>(rep_begin[i]));
           box[i] = representation_box(h.arrays(), out);

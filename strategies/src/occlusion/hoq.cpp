@@ -54,20 +54,11 @@ HoqStrategy::HoqStrategy()
       }) {}
 
 void HoqStrategy::build_blocks(const Hierarchy& h) {
-  built_block_size_ = static_cast<std::uint32_t>(param_at(kBlockSize));
-  blocks_ = culling::HlodBlocks::build(h, built_block_size_);
+  // The blocks are made as the traversal reaches them (resident_blocks.hpp).
+  blocks_.reset(static_cast<std::uint32_t>(param_at(kBlockSize)));
   hierarchy_ = &h;
-  const auto& a = h.arrays();
-  const culling::BlockId n = blocks_.block_count();
-  error_radius_.assign(n, 0.0f);
-  for (culling::BlockId b = 0; b < n; ++b) {
-    // A leaf block draws its leaves: full detail, no error left to refine.
-    if (blocks_.is_leaf(b)) continue;
-    float r = 0.0f;
-    for (const NodeId node : blocks_.representation(b)) r = std::max(r, a.center_radius[node].w);
-    error_radius_[b] = r;
-  }
-  state_.assign(n, BlockState{});
+  hierarchy_nodes_ = h.node_count();
+  state_.clear();
   cut_.clear();
   previous_cut_.clear();
   iteration_ = 0;
@@ -79,6 +70,23 @@ void HoqStrategy::build_blocks(const Hierarchy& h) {
 
 void HoqStrategy::reset(const Hierarchy& hierarchy) {
   build_blocks(hierarchy);
+}
+
+// A paged model's pages changed: the blocks over them are made again, and
+// the state of those dropped with a concealed node's pages goes with them.
+void HoqStrategy::follow_residency(const IterationInput& input) {
+  if (input.revealed.empty() && input.concealed.empty()) return;
+  dropped_.clear();
+  blocks_.residency_changed(input.hierarchy, input.revealed, input.concealed, dropped_);
+  for (const NodeId n : dropped_) state_.erase(n);
+}
+
+void HoqStrategy::append_representations(const Hierarchy& h, std::vector<NodeId>& out) {
+  out.clear();
+  for (const NodeId b : cut_) {
+    const auto& rep = blocks_.at(h, b).rep;
+    out.insert(out.end(), rep.begin(), rep.end());
+  }
 }
 
 const ViewSnapshot* HoqStrategy::camera_of(std::uint64_t frame) const {
@@ -96,16 +104,15 @@ void HoqStrategy::take_answers(const IterationInput& input) {
   const float s = static_cast<float>(param_at(kS));
   const float t = static_cast<float>(param_at(kT));
   for (const VisibilityResult& r : view.visibility) {
-    // Only answers to this strategy's requests about these blocks (a list
-    // asked before a reset or a block-size change names other blocks).
-    if (r.object != input.object || r.tag >= blocks_.block_count() ||
-        blocks_.root(r.tag) != r.node) {
-      continue;
-    }
+    // Only answers to this strategy's requests (tag: the block's node) about
+    // blocks it still holds (not dropped with their pages since).
+    const auto it =
+        r.object == input.object && r.tag == r.node ? state_.find(r.node) : state_.end();
+    if (it == state_.end()) continue;
     ++last_.answers;
     last_.answer_age_frames += frame_ >= r.frame_issued ? frame_ - r.frame_issued : 0;
     last_.answer_gpu_frames += r.frame_read >= r.frame_issued ? r.frame_read - r.frame_issued : 0;
-    BlockState& st = state_[r.tag];
+    BlockState& st = it->second;
     if (r.frame_issued < st.answer_frame) continue;  // an older answer than the one taken
     const ViewSnapshot* cam = camera_of(r.frame_issued);
     const glm::vec4 sphere = a.center_radius[r.node];
@@ -120,33 +127,42 @@ void HoqStrategy::take_answers(const IterationInput& input) {
   }
 }
 
-void HoqStrategy::terminal(culling::BlockId b, bool known_invisible) {
-  state_[b].stop = true;
-  state_[b].culled = known_invisible;
+void HoqStrategy::terminal(NodeId b, bool known_invisible, IterationOutput& output) {
+  BlockState& s = state_[b];
+  s.stop = true;
+  s.culled = known_invisible;
   cut_.push_back(b);
   ++last_.blocks;
   if (known_invisible) {
     ++last_.culled;
-  } else {
-    ++last_.drawn;
+    return;
+  }
+  ++last_.drawn;
+  // A paged model: the block draws nodes it would refine past were their
+  // children resident; their pages are what it asks for (a block known
+  // invisible, out of the view or occluded, is drawn as it is).
+  if (output.wanted != nullptr) {
+    const auto& hidden = blocks_.at(*hierarchy_, b).hidden;
+    output.wanted->insert(output.wanted->end(), hidden.begin(), hidden.end());
   }
 }
 
-void HoqStrategy::query(culling::BlockId b, const IterationInput& input, IterationOutput& output) {
+void HoqStrategy::query(NodeId b, const IterationInput& input, IterationOutput& output) {
   // The proxy: the bounding sphere of the block's root node, which contains
   // every node of the block's subtree, drawn by the executor at the sphere's
   // nearest depth (a point sprite over its window rectangle).
-  output.queries->push_back(query_about(input, blocks_.root(b), b));
+  output.queries->push_back(query_about(input, b, b));
   ++last_.queries;
 }
 
-void HoqStrategy::children_states(culling::BlockId b, const ViewSnapshot& view) {
+void HoqStrategy::children_states(NodeId b, const IterationInput& input) {
   children_.clear();
-  const culling::BlockId first = blocks_.first_child(b);
-  for (culling::BlockId c = first; c < first + blocks_.child_count(b); ++c) {
+  const auto& a = input.hierarchy.arrays();
+  for (NodeId c = a.first_child[b]; c < a.first_child[b] + a.child_count[b]; ++c) {
     const BlockState& cs = state_[c];
+    const culling::ResidentBlocks::Block& block = blocks_.at(input.hierarchy, c);
     children_.push_back(
-        {cs.stop, cs.bias, culling::hoq::block_sse(view, blocks_.box(c), error_radius_[c])});
+        {cs.stop, cs.bias, culling::hoq::block_sse(input.view, block.box, block.error_radius)});
   }
 }
 
@@ -157,9 +173,10 @@ void HoqStrategy::children_states(culling::BlockId b, const ViewSnapshot& view) 
                                                        IterationOutput& output) {
   if (!v.was_refined) ++last_.refined;
   state_[v.block].stop = false;
-  const culling::BlockId first = blocks_.first_child(v.block);
+  const auto& a = input.hierarchy.arrays();
+  const NodeId first = a.first_child[v.block];
   bool any = false;
-  for (culling::BlockId c = first; c < first + blocks_.child_count(v.block); ++c) {
+  for (NodeId c = first; c < first + a.child_count[v.block]; ++c) {
     visit(c, input, output);
     any = any || state_[c].visible;
   }
@@ -171,7 +188,7 @@ void HoqStrategy::children_states(culling::BlockId b, const ViewSnapshot& view) 
 [[gnu::always_inline]] inline void HoqStrategy::decide_delayed(const Visit& v,
                                                                const IterationInput& input,
                                                                IterationOutput& output) {
-  const culling::BlockId b = v.block;
+  const NodeId b = v.block;
   BlockState& s = state_[b];
   if (s.answer_frame > s.delay_after) {
     // The answer the decision waited for (the paper's query queue): cull
@@ -182,7 +199,7 @@ void HoqStrategy::children_states(culling::BlockId b, const ViewSnapshot& view) 
     if (stop_here) {
       if (kind == Delay::ShiftUp) ++last_.coarsened;
       s.stop_bias = s.bias;
-      terminal(b, !s.visible);
+      terminal(b, !s.visible, output);
       query(b, input, output);
       return;
     }
@@ -198,7 +215,7 @@ void HoqStrategy::children_states(culling::BlockId b, const ViewSnapshot& view) 
   }
   if (s.delay == Delay::ShiftUp) {
     // Still waiting; a child that now needs refinement ends the candidacy.
-    children_states(b, input.view);
+    children_states(b, input);
     const culling::hoq::NodeState ns{true, true, false, s.bias};
     if (culling::hoq::predict_refinement(ns, v.sse, children_, v.tau) ==
         culling::hoq::Prediction::Refine) {
@@ -213,7 +230,7 @@ void HoqStrategy::children_states(culling::BlockId b, const ViewSnapshot& view) 
   }
   // A delayed termination block keeps its state (its level) until its answer.
   if (s.visible) ++last_.delayed;
-  terminal(b, !s.visible);
+  terminal(b, !s.visible, output);
   query(b, input, output);
 }
 
@@ -244,7 +261,7 @@ void HoqStrategy::children_states(culling::BlockId b, const ViewSnapshot& view) 
 [[gnu::always_inline]] inline void HoqStrategy::delay_decision(const Visit& v,
                                                                const IterationInput& input,
                                                                IterationOutput& output) {
-  const culling::BlockId b = v.block;
+  const NodeId b = v.block;
   BlockState& s = state_[b];
   s.delay_frame = frame_;
   if (v.was_refined) {
@@ -270,14 +287,14 @@ void HoqStrategy::children_states(culling::BlockId b, const ViewSnapshot& view) 
     s.delay = Delay::Front;
     s.delay_after = frame_;
     ++last_.delayed;
-    terminal(b, false);
+    terminal(b, false, output);
     query(b, input, output);
     return;
   }
   // Invisible last frame: the next answer will do; culled until then.
   s.delay = Delay::Hidden;
   s.delay_after = s.answer_frame;
-  terminal(b, true);
+  terminal(b, true, output);
   query(b, input, output);
 }
 
@@ -288,7 +305,7 @@ void HoqStrategy::children_states(culling::BlockId b, const ViewSnapshot& view) 
                                                                   IterationOutput& output) {
   BlockState& s = state_[v.block];
   culling::hoq::NodeState ns{v.was_visited, s.visible, v.was_terminal, s.bias};
-  if (v.was_refined) children_states(v.block, input.view);
+  if (v.was_refined) children_states(v.block, input);
   const culling::hoq::Prediction p = culling::hoq::predict_refinement(
       ns, v.sse,
       v.was_refined ? std::span<const culling::hoq::ChildState>(children_)
@@ -297,7 +314,7 @@ void HoqStrategy::children_states(culling::BlockId b, const ViewSnapshot& view) 
   switch (p) {
     case culling::hoq::Prediction::Stop:
       s.stop_bias = s.bias;
-      terminal(v.block, false);
+      terminal(v.block, false, output);
       query(v.block, input, output);
       return;
     case culling::hoq::Prediction::Refine:
@@ -309,13 +326,15 @@ void HoqStrategy::children_states(culling::BlockId b, const ViewSnapshot& view) 
   }
 }
 
-void HoqStrategy::visit(culling::BlockId b, const IterationInput& input, IterationOutput& output) {
+void HoqStrategy::visit(NodeId b, const IterationInput& input, IterationOutput& output) {
   const ViewSnapshot& view = input.view;
   const float tau = static_cast<float>(param_at(kTheta));
   BlockState& s = state_[b];
   // A block the frustum culled has no occlusion answer to go by: back in
   // view it is new to the traversal, as the paper's not-visited node.
-  const bool was_visited = s.visited != 0 && s.visited + 1 == iteration_ && !s.outside;
+  // One that waited for its pages enters now, as on the model held whole.
+  const bool was_visited =
+      s.visited != 0 && s.visited + 1 == iteration_ && !s.outside && !s.incomplete;
   const bool was_refined = was_visited && !s.stop;
   const bool was_terminal = was_visited && s.stop;
   if (!was_visited) {
@@ -330,7 +349,7 @@ void HoqStrategy::visit(culling::BlockId b, const IterationInput& input, Iterati
   s.visited = iteration_;
   ++output.result.visited;
 
-  const glm::vec4 sphere = input.hierarchy.arrays().center_radius[blocks_.root(b)];
+  const glm::vec4 sphere = input.hierarchy.arrays().center_radius[b];
   if (view.outside_frustum(glm::vec3(sphere), sphere.w)) {
     // Culled without a query, at the highest block found outside: its
     // subtree draws nothing the camera sees, so it is as coarse as it can be.
@@ -339,20 +358,36 @@ void HoqStrategy::visit(culling::BlockId b, const IterationInput& input, Iterati
     s.bias = 0.0f;
     s.delay = Delay::None;
     s.outside = true;
-    terminal(b, true);
+    terminal(b, true, output);
     return;
   }
   s.outside = false;
-  if (blocks_.is_leaf(b)) {
-    // Full detail: the refinement stops here whatever the answer; the query
-    // still gives its parent the bias the shift-up test reads.
+  if (blocks_.is_leaf(input.hierarchy, b)) {
+    // Full detail (or all of it that is resident): the refinement stops
+    // here whatever the answer; the query still gives its parent the bias
+    // the shift-up test reads.
     s.delay = Delay::None;
     s.stop_bias = s.bias;
-    terminal(b, !s.visible);
+    // A leaf only until its children's pages arrive: it enters anew then.
+    s.incomplete = input.hierarchy.is_hidden(b);
+    terminal(b, !s.visible, output);
     query(b, input, output);
     return;
   }
-  const float sse = culling::hoq::block_sse(view, blocks_.box(b), error_radius_[b]);
+  const culling::ResidentBlocks::Block& block = blocks_.at(input.hierarchy, b);
+  if (!block.hidden.empty()) {
+    // A paged model: the representation, and so the box and the error the
+    // decision reads, is not all resident yet. Drawn as it is and asked
+    // for (terminal); decided once its pages are in, as a block new to the
+    // traversal, so the decisions are those of the model held whole.
+    s.incomplete = true;
+    s.delay = Delay::None;
+    terminal(b, false, output);
+    query(b, input, output);
+    return;
+  }
+  s.incomplete = false;
+  const float sse = culling::hoq::block_sse(view, block.box, block.error_radius);
   const Visit v{b, was_visited, was_refined, was_terminal, sse, tau};
   if (s.delay != Delay::None) {
     decide_delayed(v, input, output);
@@ -363,16 +398,17 @@ void HoqStrategy::visit(culling::BlockId b, const IterationInput& input, Iterati
 
 void HoqStrategy::iterate(const IterationInput& input, IterationOutput& output) {
   const Hierarchy& h = input.hierarchy;
-  if (hierarchy_ != &h || blocks_.hierarchy_nodes() != h.node_count() ||
-      built_block_size_ != static_cast<std::uint32_t>(param_at(kBlockSize))) {
+  if (hierarchy_ != &h || hierarchy_nodes_ != h.node_count() ||
+      blocks_.block_size() != static_cast<std::uint32_t>(param_at(kBlockSize))) {
     build_blocks(h);
+  } else {
+    follow_residency(input);
   }
   IterationResult& r = output.result;
   if (input.cancelled()) {
     // Nothing decided yet: the last block cut (or the root block) stays.
-    blocks_.append_nodes(cut_.empty() ? std::span<const culling::BlockId>(blocks_.root_block_cut())
-                                      : std::span<const culling::BlockId>(cut_),
-                         *output.nodes);
+    if (cut_.empty()) cut_.push_back(h.root());
+    append_representations(h, *output.nodes);
     r.cancelled = true;
     return;
   }
@@ -391,8 +427,8 @@ void HoqStrategy::iterate(const IterationInput& input, IterationOutput& output) 
   take_answers(input);
   previous_cut_.swap(cut_);
   cut_.clear();
-  visit(0, input, output);
-  blocks_.append_nodes(cut_, *output.nodes);
+  visit(h.root(), input, output);
+  append_representations(h, *output.nodes);
 
   r.refined = last_.refined;
   r.coarsened = last_.coarsened;

@@ -7,7 +7,9 @@
 // treecut/culling/hoq_refinement.hpp, shared with the in-frame traversals
 // (Bool, SW(B), Simp(B), Coh(B) on the occlusion device). This file is
 // HoqStrategy (`hoq`), the Feedback Stage form: the same prediction on the
-// stage thread over a cut of HLOD blocks (hlod_blocks.hpp). Its queries go
+// stage thread over a cut of HLOD blocks, made as the traversal reaches them
+// among the resident nodes (resident_blocks.hpp: a model drawn from its
+// pages works as one held whole). Its queries go
 // through the View's executor and their answers reach the strategy frames
 // later; the render thread never waits. docs/occlusion.md ("## HOQ")
 // describes how that latency maps onto the paper's delay and RARN, with
@@ -20,10 +22,12 @@
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 #include <span>
+#include <unordered_map>
 #include <vector>
 
 #include "treecut/culling/hlod_blocks.hpp"
 #include "treecut/culling/hoq_refinement.hpp"
+#include "treecut/culling/resident_blocks.hpp"
 #include "treecut/strategy.hpp"
 
 namespace treecut::strategies {
@@ -93,9 +97,12 @@ class HoqStrategy final : public Strategy {
   [[nodiscard]] const HoqCounters& last() const { return last_; }
   [[nodiscard]] const HoqCounters& totals() const { return totals_; }
   [[nodiscard]] std::uint64_t iterations() const { return iteration_; }
-  [[nodiscard]] const culling::HlodBlocks& blocks() const { return blocks_; }
-  /// The block cut of the last iteration.
-  [[nodiscard]] std::span<const culling::BlockId> block_cut() const { return cut_; }
+  /// The block cut of the last iteration, each block named by its node (a
+  /// block of fan-out 4 is one node: HlodBlocks::block_of_root gives its id
+  /// among HlodBlocks::build(h, block_size, 4)'s).
+  [[nodiscard]] std::span<const NodeId> block_cut() const { return cut_; }
+  /// The blocks made so far (those the traversal reached among the resident nodes).
+  [[nodiscard]] std::size_t blocks_made() const { return blocks_.size(); }
 
  private:
   /// Publishes C as the iteration's named counters (hoq_*; treecut/counters.hpp).
@@ -115,13 +122,14 @@ class HoqStrategy final : public Strategy {
     bool stop = false;               // a termination block (in the cut) at its last visit
     bool outside = false;            // culled by the frustum at its last visit
     bool culled = false;             // a termination block known invisible at its last visit
+    bool incomplete = false;         // waiting for the pages of its representation (paged)
     Delay delay = Delay::None;
   };
 
   // What visit() found for a block: what it was at its last visit, its SSE
   // now and tau; read by the steps that decide it (inlined into visit()).
   struct Visit {
-    culling::BlockId block;
+    NodeId block;
     bool was_visited;
     bool was_refined;
     bool was_terminal;
@@ -130,26 +138,29 @@ class HoqStrategy final : public Strategy {
   };
 
   void build_blocks(const Hierarchy& h);
+  void follow_residency(const IterationInput& input);
+  void append_representations(const Hierarchy& h, std::vector<NodeId>& out);
   void take_answers(const IterationInput& input);
-  void visit(culling::BlockId b, const IterationInput& input, IterationOutput& output);
+  void visit(NodeId b, const IterationInput& input, IterationOutput& output);
   void refine(const Visit& v, const IterationInput& input, IterationOutput& output);
   void decide_delayed(const Visit& v, const IterationInput& input, IterationOutput& output);
   void follow_prediction(const Visit& v, const IterationInput& input, IterationOutput& output);
   void refine_predicted(const Visit& v, const IterationInput& input, IterationOutput& output);
   void delay_decision(const Visit& v, const IterationInput& input, IterationOutput& output);
-  void terminal(culling::BlockId b, bool known_invisible);
-  void query(culling::BlockId b, const IterationInput& input, IterationOutput& output);
-  void children_states(culling::BlockId b, const ViewSnapshot& view);
+  void terminal(NodeId b, bool known_invisible, IterationOutput& output);
+  void query(NodeId b, const IterationInput& input, IterationOutput& output);
+  void children_states(NodeId b, const IterationInput& input);
   [[nodiscard]] const ViewSnapshot* camera_of(std::uint64_t frame) const;
 
-  culling::HlodBlocks blocks_;
-  std::vector<float> error_radius_;  // per block: the largest splat radius of its representation
-  std::vector<BlockState> state_;
-  std::vector<culling::BlockId> cut_, previous_cut_;
-  std::vector<culling::BlockId> stack_;
+  culling::ResidentBlocks blocks_;
+  // By the block's node: the blocks the traversal has reached (dropped with
+  // the pages below a concealed node).
+  std::unordered_map<NodeId, BlockState> state_;
+  std::vector<NodeId> cut_, previous_cut_;
+  std::vector<NodeId> dropped_;
   std::vector<culling::hoq::ChildState> children_;
   const Hierarchy* hierarchy_ = nullptr;
-  std::uint32_t built_block_size_ = 0;
+  std::uint32_t hierarchy_nodes_ = 0;
   std::uint64_t iteration_ = 0;
   std::uint64_t frame_ = 0;
   std::uint64_t last_version_ = ~std::uint64_t{0};
