@@ -274,7 +274,7 @@ TEST(ResidentBlocks, OnAModelHeldWholeTheyAreTheBlocksBuiltAtOnce) {
     SCOPED_TRACE(size);
     const HlodBlocks built = HlodBlocks::build(*h, size, treecut::culling::kHierarchyFanOut);
     treecut::culling::ResidentBlocks made;
-    made.reset(size);
+    made.reset(*h, size);
     // Breadth-first ids: a parent block before its children, as a traversal asks.
     for (BlockId b = 0; b < built.block_count(); ++b) {
       const NodeId n = built.root(b);

@@ -10,15 +10,16 @@
 
 namespace treecut::culling {
 
-void ResidentBlocks::reset(std::uint32_t block_size) {
+void ResidentBlocks::reset(const Hierarchy& h, std::uint32_t block_size) {
   if (block_size == 0) throw std::invalid_argument("ResidentBlocks: block_size must be at least 1");
   block_size_ = block_size;
+  slot_of_.assign(h.node_count(), 0);
   blocks_.clear();
-  below_.clear();
+  free_.clear();
 }
 
-void ResidentBlocks::make(const Hierarchy& h, NodeId n, Block& b) {
-  const NodeId root = n;
+void ResidentBlocks::make(const Hierarchy& h, Block& b) {
+  const NodeId root = b.node;
   // HlodBlocks' limit for a one-node block: block_size for both kinds (a
   // leaf block's leaves fit it; an interior block refines within it).
   collect_representation(h, {&root, 1}, block_size_, queue_, b.rep, &b.hidden);
@@ -27,50 +28,62 @@ void ResidentBlocks::make(const Hierarchy& h, NodeId n, Block& b) {
   b.error_radius = 0.0f;
   // A leaf block at full detail has no error left; one whose nodes are not
   // all resident has theirs (a parent's shift-up test reads it).
-  if (!is_leaf(h, n) || !b.hidden.empty()) {
+  if (!is_leaf(h, root) || !b.hidden.empty()) {
     for (const NodeId r : b.rep) b.error_radius = std::max(b.error_radius, a.center_radius[r].w);
   }
   b.stale = false;
 }
 
 const ResidentBlocks::Block& ResidentBlocks::at(const Hierarchy& h, NodeId n) {
-  auto [it, made] = blocks_.try_emplace(n);
-  Block& b = it->second;
-  if (made) {
-    b.parent = n == h.root() ? kNoNode : h.arrays().parent[n];
-    below_[b.parent].push_back(n);
+  if (const std::uint32_t slot = find(n); slot != kNoSlot) {
+    Block& b = blocks_[slot];
+    if (b.stale) make(h, b);
+    return b;
   }
-  if (made || b.stale) make(h, n, b);
+  std::uint32_t slot = static_cast<std::uint32_t>(blocks_.size());
+  if (!free_.empty()) {
+    slot = free_.back();
+    free_.pop_back();
+  } else {
+    blocks_.emplace_back();
+  }
+  Block& b = blocks_[slot];
+  b.node = n;
+  b.slot = slot;
+  b.parent = n == h.root() ? kNoSlot : find(h.arrays().parent[n]);
+  if (b.parent != kNoSlot) blocks_[b.parent].children.push_back(slot);
+  slot_of_.set(n, slot + 1);
+  make(h, b);
   return b;
 }
 
 void ResidentBlocks::mark_stale_up(const Hierarchy& h, NodeId n) {
   // Every block whose representation may reach N: N's and its ancestors'.
   for (NodeId x = n;; x = h.arrays().parent[x]) {
-    if (const auto it = blocks_.find(x); it != blocks_.end()) it->second.stale = true;
+    if (const std::uint32_t slot = find(x); slot != kNoSlot) blocks_[slot].stale = true;
     if (x == h.root()) return;
   }
 }
 
-void ResidentBlocks::drop_below(NodeId n, std::vector<NodeId>& dropped) {
-  const auto it = below_.find(n);
-  if (it == below_.end()) return;
-  const std::vector<NodeId> children = std::move(it->second);
-  below_.erase(it);
-  for (const NodeId c : children) {
-    drop_below(c, dropped);
-    blocks_.erase(c);
+void ResidentBlocks::drop_below(Block& b, std::vector<std::uint32_t>& dropped) {
+  for (const std::uint32_t c : b.children) {
+    Block& child = blocks_[c];
+    drop_below(child, dropped);
+    slot_of_.set(child.node, 0);
+    child = Block{};
+    free_.push_back(c);
     dropped.push_back(c);
   }
+  b.children.clear();
 }
 
 void ResidentBlocks::residency_changed(const Hierarchy& h, std::span<const NodeId> revealed,
                                        std::span<const NodeId> concealed,
-                                       std::vector<NodeId>& dropped) {
+                                       std::vector<std::uint32_t>& dropped) {
   for (const NodeId n : revealed) mark_stale_up(h, n);
   for (const NodeId n : concealed) {
     mark_stale_up(h, n);
-    drop_below(n, dropped);
+    if (const std::uint32_t slot = find(n); slot != kNoSlot) drop_below(blocks_[slot], dropped);
   }
 }
 

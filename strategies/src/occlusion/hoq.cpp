@@ -55,11 +55,12 @@ HoqStrategy::HoqStrategy()
 
 void HoqStrategy::build_blocks(const Hierarchy& h) {
   // The blocks are made as the traversal reaches them (resident_blocks.hpp).
-  blocks_.reset(static_cast<std::uint32_t>(param_at(kBlockSize)));
+  blocks_.reset(h, static_cast<std::uint32_t>(param_at(kBlockSize)));
   hierarchy_ = &h;
   hierarchy_nodes_ = h.node_count();
   state_.clear();
   cut_.clear();
+  cut_slots_.clear();
   previous_cut_.clear();
   iteration_ = 0;
   settled_ = 0;
@@ -78,13 +79,21 @@ void HoqStrategy::follow_residency(const IterationInput& input) {
   if (input.revealed.empty() && input.concealed.empty()) return;
   dropped_.clear();
   blocks_.residency_changed(input.hierarchy, input.revealed, input.concealed, dropped_);
-  for (const NodeId n : dropped_) state_.erase(n);
+  for (const std::uint32_t slot : dropped_)
+    if (slot < state_.size()) state_[slot] = BlockState{};
 }
 
-void HoqStrategy::append_representations(const Hierarchy& h, std::vector<NodeId>& out) {
+HoqStrategy::BlockState& HoqStrategy::state(std::uint32_t slot) {
+  // A deque grows without moving the states the traversal holds
+  // references to.
+  if (slot >= state_.size()) state_.resize(std::size_t{slot} + 1);
+  return state_[slot];
+}
+
+void HoqStrategy::append_representations(std::vector<NodeId>& out) const {
   out.clear();
-  for (const NodeId b : cut_) {
-    const auto& rep = blocks_.at(h, b).rep;
+  for (const std::uint32_t slot : cut_slots_) {
+    const auto& rep = blocks_.block(slot).rep;
     out.insert(out.end(), rep.begin(), rep.end());
   }
 }
@@ -104,15 +113,16 @@ void HoqStrategy::take_answers(const IterationInput& input) {
   const float s = static_cast<float>(param_at(kS));
   const float t = static_cast<float>(param_at(kT));
   for (const VisibilityResult& r : view.visibility) {
-    // Only answers to this strategy's requests (tag: the block's node) about
-    // blocks it still holds (not dropped with their pages since).
-    const auto it =
-        r.object == input.object && r.tag == r.node ? state_.find(r.node) : state_.end();
-    if (it == state_.end()) continue;
+    // Only answers to this strategy's requests (tag: the block's slot)
+    // about blocks it still holds (not dropped with their pages since, nor
+    // the slot given to another block).
+    if (r.object != input.object || r.tag >= state_.size() || state_[r.tag].node != r.node)
+      continue;
+    const std::uint32_t slot = r.tag;
     ++last_.answers;
     last_.answer_age_frames += frame_ >= r.frame_issued ? frame_ - r.frame_issued : 0;
     last_.answer_gpu_frames += r.frame_read >= r.frame_issued ? r.frame_read - r.frame_issued : 0;
-    BlockState& st = it->second;
+    BlockState& st = state_[slot];
     if (r.frame_issued < st.answer_frame) continue;  // an older answer than the one taken
     const ViewSnapshot* cam = camera_of(r.frame_issued);
     const glm::vec4 sphere = a.center_radius[r.node];
@@ -127,11 +137,13 @@ void HoqStrategy::take_answers(const IterationInput& input) {
   }
 }
 
-void HoqStrategy::terminal(NodeId b, bool known_invisible, IterationOutput& output) {
-  BlockState& s = state_[b];
+void HoqStrategy::terminal(std::uint32_t slot, bool known_invisible, IterationOutput& output) {
+  BlockState& s = state_[slot];
+  const NodeId b = s.node;
   s.stop = true;
   s.culled = known_invisible;
   cut_.push_back(b);
+  cut_slots_.push_back(slot);
   ++last_.blocks;
   if (known_invisible) {
     ++last_.culled;
@@ -142,16 +154,16 @@ void HoqStrategy::terminal(NodeId b, bool known_invisible, IterationOutput& outp
   // children resident; their pages are what it asks for (a block known
   // invisible, out of the view or occluded, is drawn as it is).
   if (output.wanted != nullptr) {
-    const auto& hidden = blocks_.at(*hierarchy_, b).hidden;
+    const auto& hidden = blocks_.block(slot).hidden;
     output.wanted->insert(output.wanted->end(), hidden.begin(), hidden.end());
   }
 }
 
-void HoqStrategy::query(NodeId b, const IterationInput& input, IterationOutput& output) {
+void HoqStrategy::query(std::uint32_t slot, const IterationInput& input, IterationOutput& output) {
   // The proxy: the bounding sphere of the block's root node, which contains
   // every node of the block's subtree, drawn by the executor at the sphere's
   // nearest depth (a point sprite over its window rectangle).
-  output.queries->push_back(query_about(input, b, b));
+  output.queries->push_back(query_about(input, state_[slot].node, slot));
   ++last_.queries;
 }
 
@@ -159,8 +171,8 @@ void HoqStrategy::children_states(NodeId b, const IterationInput& input) {
   children_.clear();
   const auto& a = input.hierarchy.arrays();
   for (NodeId c = a.first_child[b]; c < a.first_child[b] + a.child_count[b]; ++c) {
-    const BlockState& cs = state_[c];
     const culling::ResidentBlocks::Block& block = blocks_.at(input.hierarchy, c);
+    const BlockState& cs = state(block.slot);
     children_.push_back(
         {cs.stop, cs.bias, culling::hoq::block_sse(input.view, block.box, block.error_radius)});
   }
@@ -172,15 +184,14 @@ void HoqStrategy::children_states(NodeId b, const IterationInput& input) {
 [[gnu::always_inline]] inline void HoqStrategy::refine(const Visit& v, const IterationInput& input,
                                                        IterationOutput& output) {
   if (!v.was_refined) ++last_.refined;
-  state_[v.block].stop = false;
+  state_[v.slot].stop = false;
   const auto& a = input.hierarchy.arrays();
   const NodeId first = a.first_child[v.block];
   bool any = false;
   for (NodeId c = first; c < first + a.child_count[v.block]; ++c) {
-    visit(c, input, output);
-    any = any || state_[c].visible;
+    any = visit(c, input, output) || any;
   }
-  state_[v.block].visible = any;
+  state_[v.slot].visible = any;
 }
 
 // A delayed block (the paper's case 3, its node in the query queue): decided
@@ -188,7 +199,7 @@ void HoqStrategy::children_states(NodeId b, const IterationInput& input) {
 [[gnu::always_inline]] inline void HoqStrategy::decide_delayed(const Visit& v,
                                                                const IterationInput& input,
                                                                IterationOutput& output) {
-  const NodeId b = v.block;
+  const std::uint32_t b = v.slot;
   BlockState& s = state_[b];
   if (s.answer_frame > s.delay_after) {
     // The answer the decision waited for (the paper's query queue): cull
@@ -215,7 +226,7 @@ void HoqStrategy::children_states(NodeId b, const IterationInput& input) {
   }
   if (s.delay == Delay::ShiftUp) {
     // Still waiting; a child that now needs refinement ends the candidacy.
-    children_states(b, input);
+    children_states(v.block, input);
     const culling::hoq::NodeState ns{true, true, false, s.bias};
     if (culling::hoq::predict_refinement(ns, v.sse, children_, v.tau) ==
         culling::hoq::Prediction::Refine) {
@@ -239,7 +250,7 @@ void HoqStrategy::children_states(NodeId b, const IterationInput& input) {
 [[gnu::always_inline]] inline void HoqStrategy::refine_predicted(const Visit& v,
                                                                  const IterationInput& input,
                                                                  IterationOutput& output) {
-  const BlockState& s = state_[v.block];
+  const BlockState& s = state_[v.slot];
   if (v.was_terminal && s.culled) {
     // Culled (hidden) at its last visit, visible in the newer answer and
     // needing refinement: a disocclusion, drawn too coarse since that
@@ -261,7 +272,7 @@ void HoqStrategy::children_states(NodeId b, const IterationInput& input) {
 [[gnu::always_inline]] inline void HoqStrategy::delay_decision(const Visit& v,
                                                                const IterationInput& input,
                                                                IterationOutput& output) {
-  const NodeId b = v.block;
+  const std::uint32_t b = v.slot;
   BlockState& s = state_[b];
   s.delay_frame = frame_;
   if (v.was_refined) {
@@ -303,7 +314,7 @@ void HoqStrategy::children_states(NodeId b, const IterationInput& input) {
 [[gnu::always_inline]] inline void HoqStrategy::follow_prediction(const Visit& v,
                                                                   const IterationInput& input,
                                                                   IterationOutput& output) {
-  BlockState& s = state_[v.block];
+  BlockState& s = state_[v.slot];
   culling::hoq::NodeState ns{v.was_visited, s.visible, v.was_terminal, s.bias};
   if (v.was_refined) children_states(v.block, input);
   const culling::hoq::Prediction p = culling::hoq::predict_refinement(
@@ -314,8 +325,8 @@ void HoqStrategy::children_states(NodeId b, const IterationInput& input) {
   switch (p) {
     case culling::hoq::Prediction::Stop:
       s.stop_bias = s.bias;
-      terminal(v.block, false, output);
-      query(v.block, input, output);
+      terminal(v.slot, false, output);
+      query(v.slot, input, output);
       return;
     case culling::hoq::Prediction::Refine:
       refine_predicted(v, input, output);
@@ -326,15 +337,19 @@ void HoqStrategy::children_states(NodeId b, const IterationInput& input) {
   }
 }
 
-void HoqStrategy::visit(NodeId b, const IterationInput& input, IterationOutput& output) {
+bool HoqStrategy::visit(NodeId b, const IterationInput& input, IterationOutput& output) {
   const ViewSnapshot& view = input.view;
   const float tau = static_cast<float>(param_at(kTheta));
-  BlockState& s = state_[b];
+  const culling::ResidentBlocks::Block& block = blocks_.at(input.hierarchy, b);
+  const std::uint32_t slot = block.slot;
+  BlockState& s = state(slot);
+  s.node = b;
   // A block the frustum culled has no occlusion answer to go by: back in
   // view it is new to the traversal, as the paper's not-visited node.
-  // One that waited for its pages enters now, as on the model held whole.
-  const bool was_visited =
-      s.visited != 0 && s.visited + 1 == iteration_ && !s.outside && !s.incomplete;
+  // One that was a leaf only for want of its children's pages enters anew
+  // once they are in, as on the model held whole.
+  const bool revealed = s.hidden && !input.hierarchy.is_hidden(b);
+  const bool was_visited = s.visited != 0 && s.visited + 1 == iteration_ && !s.outside && !revealed;
   const bool was_refined = was_visited && !s.stop;
   const bool was_terminal = was_visited && s.stop;
   if (!was_visited) {
@@ -358,8 +373,8 @@ void HoqStrategy::visit(NodeId b, const IterationInput& input, IterationOutput& 
     s.bias = 0.0f;
     s.delay = Delay::None;
     s.outside = true;
-    terminal(b, true, output);
-    return;
+    terminal(slot, true, output);
+    return s.visible;
   }
   s.outside = false;
   if (blocks_.is_leaf(input.hierarchy, b)) {
@@ -369,31 +384,26 @@ void HoqStrategy::visit(NodeId b, const IterationInput& input, IterationOutput& 
     s.delay = Delay::None;
     s.stop_bias = s.bias;
     // A leaf only until its children's pages arrive: it enters anew then.
-    s.incomplete = input.hierarchy.is_hidden(b);
-    terminal(b, !s.visible, output);
-    query(b, input, output);
-    return;
+    s.hidden = input.hierarchy.is_hidden(b);
+    terminal(slot, !s.visible, output);
+    query(slot, input, output);
+    return s.visible;
   }
-  const culling::ResidentBlocks::Block& block = blocks_.at(input.hierarchy, b);
-  if (!block.hidden.empty()) {
-    // A paged model: the representation, and so the box and the error the
-    // decision reads, is not all resident yet. Drawn as it is and asked
-    // for (terminal); decided once its pages are in, as a block new to the
-    // traversal, so the decisions are those of the model held whole.
-    s.incomplete = true;
-    s.delay = Delay::None;
-    terminal(b, false, output);
-    query(b, input, output);
-    return;
-  }
-  s.incomplete = false;
+  // A paged model: a representation not all resident yet gives a box and an
+  // error at least the whole one's (a hidden node's sphere holds its
+  // subtree, its radius its descendants'), so the SSE errs towards
+  // refining, into children whose own blocks are smaller: what a block
+  // asks for stays near the view. (Waiting for the whole representation
+  // instead stalled the root block under a budget its subtree's pages
+  // exceed.)
   const float sse = culling::hoq::block_sse(view, block.box, block.error_radius);
-  const Visit v{b, was_visited, was_refined, was_terminal, sse, tau};
+  const Visit v{b, slot, was_visited, was_refined, was_terminal, sse, tau};
   if (s.delay != Delay::None) {
     decide_delayed(v, input, output);
   } else {
     follow_prediction(v, input, output);
   }
+  return state_[slot].visible;
 }
 
 void HoqStrategy::iterate(const IterationInput& input, IterationOutput& output) {
@@ -408,7 +418,10 @@ void HoqStrategy::iterate(const IterationInput& input, IterationOutput& output) 
   if (input.cancelled()) {
     // Nothing decided yet: the last block cut (or the root block) stays.
     if (cut_.empty()) cut_.push_back(h.root());
-    append_representations(h, *output.nodes);
+    // (Made again where their pages changed since.)
+    cut_slots_.clear();
+    for (const NodeId b : cut_) cut_slots_.push_back(blocks_.at(h, b).slot);
+    append_representations(*output.nodes);
     r.cancelled = true;
     return;
   }
@@ -427,8 +440,9 @@ void HoqStrategy::iterate(const IterationInput& input, IterationOutput& output) 
   take_answers(input);
   previous_cut_.swap(cut_);
   cut_.clear();
+  cut_slots_.clear();
   visit(h.root(), input, output);
-  append_representations(h, *output.nodes);
+  append_representations(*output.nodes);
 
   r.refined = last_.refined;
   r.coarsened = last_.coarsened;

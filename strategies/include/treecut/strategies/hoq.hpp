@@ -18,11 +18,11 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <deque>
 #include <glm/mat4x4.hpp>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 #include <span>
-#include <unordered_map>
 #include <vector>
 
 #include "treecut/culling/hlod_blocks.hpp"
@@ -112,6 +112,7 @@ class HoqStrategy final : public Strategy {
   // frame, culled; ShiftUp: refined, a candidate to move the front up.
   enum class Delay : std::uint8_t { None, Front, Hidden, ShiftUp };
   struct BlockState {
+    NodeId node = kNoNode;           // the block's node (an answer's check)
     std::uint64_t visited = 0;       // iteration it was last traversed in (0: never)
     std::uint64_t answer_frame = 0;  // frame_issued of the newest answer taken in
     std::uint64_t delay_after = 0;   // a delay is resolved by an answer issued after this frame
@@ -122,7 +123,7 @@ class HoqStrategy final : public Strategy {
     bool stop = false;               // a termination block (in the cut) at its last visit
     bool outside = false;            // culled by the frustum at its last visit
     bool culled = false;             // a termination block known invisible at its last visit
-    bool incomplete = false;         // waiting for the pages of its representation (paged)
+    bool hidden = false;             // a leaf block only until its children's pages arrive
     Delay delay = Delay::None;
   };
 
@@ -130,6 +131,7 @@ class HoqStrategy final : public Strategy {
   // now and tau; read by the steps that decide it (inlined into visit()).
   struct Visit {
     NodeId block;
+    std::uint32_t slot;  // its state_ and ResidentBlocks slot
     bool was_visited;
     bool was_refined;
     bool was_terminal;
@@ -139,25 +141,30 @@ class HoqStrategy final : public Strategy {
 
   void build_blocks(const Hierarchy& h);
   void follow_residency(const IterationInput& input);
-  void append_representations(const Hierarchy& h, std::vector<NodeId>& out);
+  void append_representations(std::vector<NodeId>& out) const;
+  // The state of the block in SLOT, made on first use.
+  BlockState& state(std::uint32_t slot);
   void take_answers(const IterationInput& input);
-  void visit(NodeId b, const IterationInput& input, IterationOutput& output);
+  // Returns whether the block is visible (pulled up into its parent).
+  bool visit(NodeId b, const IterationInput& input, IterationOutput& output);
   void refine(const Visit& v, const IterationInput& input, IterationOutput& output);
   void decide_delayed(const Visit& v, const IterationInput& input, IterationOutput& output);
   void follow_prediction(const Visit& v, const IterationInput& input, IterationOutput& output);
   void refine_predicted(const Visit& v, const IterationInput& input, IterationOutput& output);
   void delay_decision(const Visit& v, const IterationInput& input, IterationOutput& output);
-  void terminal(NodeId b, bool known_invisible, IterationOutput& output);
-  void query(NodeId b, const IterationInput& input, IterationOutput& output);
+  void terminal(std::uint32_t slot, bool known_invisible, IterationOutput& output);
+  void query(std::uint32_t slot, const IterationInput& input, IterationOutput& output);
   void children_states(NodeId b, const IterationInput& input);
   [[nodiscard]] const ViewSnapshot* camera_of(std::uint64_t frame) const;
 
   culling::ResidentBlocks blocks_;
-  // By the block's node: the blocks the traversal has reached (dropped with
-  // the pages below a concealed node).
-  std::unordered_map<NodeId, BlockState> state_;
+  // By the block's slot (ResidentBlocks::Block::slot): the blocks the
+  // traversal has reached (reset when a block is dropped with the pages
+  // below a concealed node).
+  std::deque<BlockState> state_;
   std::vector<NodeId> cut_, previous_cut_;
-  std::vector<NodeId> dropped_;
+  std::vector<std::uint32_t> cut_slots_;  // cut_'s blocks' slots
+  std::vector<std::uint32_t> dropped_;
   std::vector<culling::hoq::ChildState> children_;
   const Hierarchy* hierarchy_ = nullptr;
   std::uint32_t hierarchy_nodes_ = 0;
