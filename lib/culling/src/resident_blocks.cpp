@@ -50,8 +50,9 @@ const ResidentBlocks::Block& ResidentBlocks::at(const Hierarchy& h, NodeId n) {
   Block& b = blocks_[slot];
   b.node = n;
   b.slot = slot;
-  b.parent = n == h.root() ? kNoSlot : find(h.arrays().parent[n]);
-  if (b.parent != kNoSlot) blocks_[b.parent].children.push_back(slot);
+  if (n != h.root())
+    if (const std::uint32_t parent = find(h.arrays().parent[n]); parent != kNoSlot)
+      blocks_[parent].children.push_back(slot);
   slot_of_.set(n, slot + 1);
   make(h, b);
   return b;

@@ -199,8 +199,8 @@ void HoqStrategy::children_states(NodeId b, const IterationInput& input) {
 [[gnu::always_inline]] inline void HoqStrategy::decide_delayed(const Visit& v,
                                                                const IterationInput& input,
                                                                IterationOutput& output) {
-  const std::uint32_t b = v.slot;
-  BlockState& s = state_[b];
+  const std::uint32_t slot = v.slot;
+  BlockState& s = state_[slot];
   if (s.answer_frame > s.delay_after) {
     // The answer the decision waited for (the paper's query queue): cull
     // an invisible block, stop where VMSSE <= tau, else refine.
@@ -210,8 +210,8 @@ void HoqStrategy::children_states(NodeId b, const IterationInput& input) {
     if (stop_here) {
       if (kind == Delay::ShiftUp) ++last_.coarsened;
       s.stop_bias = s.bias;
-      terminal(b, !s.visible, output);
-      query(b, input, output);
+      terminal(slot, !s.visible, output);
+      query(slot, input, output);
       return;
     }
     if (kind != Delay::ShiftUp) {
@@ -234,15 +234,15 @@ void HoqStrategy::children_states(NodeId b, const IterationInput& input) {
     } else {
       ++last_.delayed;
       ++last_.delayed_shift_up;
-      query(b, input, output);
+      query(slot, input, output);
     }
     refine(v, input, output);
     return;
   }
   // A delayed termination block keeps its state (its level) until its answer.
   if (s.visible) ++last_.delayed;
-  terminal(b, !s.visible, output);
-  query(b, input, output);
+  terminal(slot, !s.visible, output);
+  query(slot, input, output);
 }
 
 // The paper's Refine as predicted, with the too-coarse drawings it reveals:
@@ -272,8 +272,8 @@ void HoqStrategy::children_states(NodeId b, const IterationInput& input) {
 [[gnu::always_inline]] inline void HoqStrategy::delay_decision(const Visit& v,
                                                                const IterationInput& input,
                                                                IterationOutput& output) {
-  const std::uint32_t b = v.slot;
-  BlockState& s = state_[b];
+  const std::uint32_t slot = v.slot;
+  BlockState& s = state_[slot];
   s.delay_frame = frame_;
   if (v.was_refined) {
     // A candidate to shift up: its children stay drawn while its own
@@ -282,7 +282,7 @@ void HoqStrategy::children_states(NodeId b, const IterationInput& input) {
     s.delay_after = frame_;
     ++last_.delayed;
     ++last_.delayed_shift_up;
-    query(b, input, output);
+    query(slot, input, output);
     refine(v, input, output);
     return;
   }
@@ -298,15 +298,15 @@ void HoqStrategy::children_states(NodeId b, const IterationInput& input) {
     s.delay = Delay::Front;
     s.delay_after = frame_;
     ++last_.delayed;
-    terminal(b, false, output);
-    query(b, input, output);
+    terminal(slot, false, output);
+    query(slot, input, output);
     return;
   }
   // Invisible last frame: the next answer will do; culled until then.
   s.delay = Delay::Hidden;
   s.delay_after = s.answer_frame;
-  terminal(b, true, output);
-  query(b, input, output);
+  terminal(slot, true, output);
+  query(slot, input, output);
 }
 
 // PredictRefinement (the paper's figure 3) from the last iteration's state,

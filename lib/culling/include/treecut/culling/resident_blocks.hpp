@@ -13,7 +13,7 @@
 // which a model drawn from its pages does not hold (issue 45). Here memory
 // follows the blocks a traversal has reached among the resident nodes; a
 // block over nodes whose children are not resident draws them as they are
-// and names them (hidden()), what the strategy asks the pages for. On a
+// and names them (Block::hidden), what the strategy asks the pages for. On a
 // model held whole the blocks are HlodBlocks::build(h, block_size, 4)'s,
 // node for node (a test).
 //
@@ -47,7 +47,6 @@ class ResidentBlocks {
     /// Its place among the blocks made (dense: a caller's per-block state
     /// lives at this index; reused after the block is dropped).
     std::uint32_t slot = kNoSlot;
-    std::uint32_t parent = kNoSlot;       ///< the parent block's slot
     std::vector<std::uint32_t> children;  ///< the slots of its child blocks made so far
     bool stale = false;                   ///< the pages below changed: made again when asked for
   };
