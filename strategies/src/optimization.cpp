@@ -95,6 +95,7 @@ struct Pass {
   // A paged model's: the hidden nodes a refine chose (IterationOutput::
   // wanted), null for a model held whole.
   std::vector<NodeId>* wanted;
+  bool memory_short;  // IterationInput::memory_short
 
   // A node coarsened under the current view is not refined again under it.
   [[nodiscard]] bool refine_blocked(NodeId n) const {
@@ -167,8 +168,9 @@ struct Pass {
 // Apply: refine in descending priority while there is room; make room by
 // coarsening the lowest parents, but only for a gain above the threshold.
 // Inlined into iterate() like the evaluation.
-[[gnu::always_inline]] inline void apply_candidates(const Hierarchy& h, TreeCut& cut,
-                                                    const Pass& pass, std::vector<Candidate>& high,
+[[gnu::always_inline]] inline void apply_candidates(const Hierarchy& h, const ViewSnapshot& view,
+                                                    TreeCut& cut, const Pass& pass,
+                                                    std::vector<Candidate>& high,
                                                     std::vector<Candidate>& low,
                                                     IterationResult& r) {
   const HierarchyArrays& a = h.arrays();
@@ -233,6 +235,19 @@ struct Pass {
     pass.last_op.set(n, refined_mark);
     ++r.refined;
   }
+  // A paged model short of memory (IterationInput::memory_short): the
+  // cut's room is the budget's too. A parent the view does not see
+  // (outside the frustum: priority 0, the lowest) is coarsened whatever
+  // room the cut has left, so that the pages below it can go back for the
+  // nodes that are seen (issue 45). Otherwise it stays until its room is
+  // needed, as in figure 3: detail for a camera that turns back.
+  if (!pass.memory_short) return;
+  while (!low.empty() && low_left > 0 && priority_of(low.front()) == 0.0f) {
+    const NodeId parent = node_of(low.front());
+    const glm::vec4 cr = a.center_radius[parent];
+    if (!view.outside_frustum(glm::vec3(cr), cr.w)) break;  // seen, of priority 0
+    coarsen_next(0.0f, true);
+  }
 }
 
 }  // namespace
@@ -293,14 +308,14 @@ void OptimizationStrategy::iterate(const IterationInput& input, IterationOutput&
     last_params_ = input.params_version;
     view_start_ = iteration_;
   }
-  const Pass pass{max_nodes, k,           threshold,  weight,       min_size,
-                  last_op_,  view_start_, iteration_, output.wanted};
+  const Pass pass{max_nodes, k,           threshold,  weight,        min_size,
+                  last_op_,  view_start_, iteration_, output.wanted, input.memory_short};
 
   // The pass reads the node arrays at every cut node: in id order they are
   // read with ascending addresses instead of at random.
   cut.keep_sorted(sort_scratch_);
   evaluate_cut(h, view, cut, input, pass, high_, low_, r);
-  apply_candidates(h, cut, pass, high_, low_, r);
+  apply_candidates(h, view, cut, pass, high_, low_, r);
   r.cut_size = cut.size();
   r.converged = !r.cancelled && r.refined == 0 && r.coarsened == 0;
   forget_old_marks(cut.size());

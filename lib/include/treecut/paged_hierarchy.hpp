@@ -72,6 +72,11 @@ struct PagingStats {
   std::uint64_t in_flight = 0;       ///< being read, or read and not yet published
   std::uint64_t loaded = 0, evicted = 0, failed = 0;  ///< since opening
   std::uint64_t bytes_read = 0;                       ///< of the file, since opening
+  /// At the last evict(): what is asked next did not fit the budget even
+  /// after every page no list reaches into was given back. The lists hold
+  /// the memory: IterationInput::memory_short asks the strategy to let go
+  /// of what the view does not need.
+  bool memory_short = false;
 };
 
 /// Whether WHERE is a URL PagedHierarchy::open reads (http:// or https://).
@@ -127,7 +132,7 @@ class PagedHierarchy {
   /// when none below it is resident). Also marks the pages the lists use
   /// as used now. The nodes that lost their children are appended to
   /// CONCEALED (IterationInput::concealed). Returns how many groups were
-  /// given back.
+  /// given back. Sets PagingStats::memory_short.
   std::size_t evict(std::span<const ListHolds> lists, std::vector<NodeId>* concealed = nullptr);
 
   /// Waits until nothing asked for is waiting or being read (what a test

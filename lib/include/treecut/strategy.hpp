@@ -126,6 +126,12 @@ struct IterationInput {
   /// for a model held whole.
   std::span<const NodeId> revealed{};
   std::span<const NodeId> concealed{};
+  /// A paged model whose pages asked for last do not fit its memory budget
+  /// with what the lists hold (PagingStats::memory_short): a strategy that
+  /// keeps nodes the view does not need (detail outside the frustum, kept
+  /// for when the camera turns back) lets them go, so that their pages can
+  /// be given back. Always false for a model held whole.
+  bool memory_short = false;
 
   [[nodiscard]] bool cancelled() const {
     return cancel != nullptr && cancel->load(std::memory_order_relaxed);

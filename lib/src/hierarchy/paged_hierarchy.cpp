@@ -123,7 +123,8 @@ struct PagedHierarchy::Impl {
   std::vector<NodeId> loaded;    // read, to publish
   std::uint64_t resident_bytes = 0, pending_bytes = 0, resident_nodes = 0, resident_pages = 0;
   std::uint64_t in_flight = 0, loaded_count = 0, evicted = 0, failed = 0, bytes_read = 0;
-  std::uint64_t now = 0;  // evict() calls
+  std::uint64_t now = 0;      // evict() calls
+  bool memory_short = false;  // at the last evict()
   std::vector<std::string> problems;
   // Immutable after open(): every run by first id (place_of): its page,
   // and where the run ends in the page's order of nodes.
@@ -489,6 +490,7 @@ std::size_t PagedHierarchy::evict(std::span<const ListHolds> lists,
     else if (g.busy_below == 0)
       candidates.emplace_back(g.last_used, node);
   }
+  m.memory_short = false;
   if (m.options.memory_bytes == 0) return 0;
   // What is asked next, and what it needs.
   std::uint64_t need = 0;
@@ -508,6 +510,7 @@ std::size_t PagedHierarchy::evict(std::span<const ListHolds> lists,
     if (concealed) concealed->push_back(node);
     ++given;
   }
+  m.memory_short = need > 0 && m.resident_bytes + m.pending_bytes + need > m.options.memory_bytes;
   lock.unlock();
   if (given) m.wake.notify_all();
   return given;
@@ -571,6 +574,7 @@ PagingStats PagedHierarchy::stats() const {
   s.in_flight = m.in_flight;
   s.loaded = m.loaded_count, s.evicted = m.evicted, s.failed = m.failed;
   s.bytes_read = m.bytes_read;
+  s.memory_short = m.memory_short;
   return s;
 }
 

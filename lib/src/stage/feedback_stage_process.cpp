@@ -89,8 +89,14 @@ void FeedbackStage::Impl::process() {
     // A paged model: the pages read since the last iteration join the
     // hierarchy now, between iterations (paged_hierarchy.hpp).
     if (paged_) paged_->publish(&revealed_);
-    const IterationInput input{*hierarchy_, view_,     0, &cancel_, strategy_->params_version(),
-                               revealed_,   concealed_};
+    const IterationInput input{*hierarchy_,
+                               view_,
+                               0,
+                               &cancel_,
+                               strategy_->params_version(),
+                               revealed_,
+                               concealed_,
+                               paged_ && paged_->stats().memory_short};
     IterationOutput output;
     output.cut = &cut_;
     output.nodes = &back.nodes;
@@ -172,6 +178,7 @@ void FeedbackStage::Impl::follow_pages(std::span<const NodeId> list, Outbox& out
   c.set("pages_loaded", double(s.loaded), "groups");
   c.set("pages_evicted", double(s.evicted), "groups");
   c.set("pages_failed", double(s.failed), "groups");
+  c.set("pages_memory_short", s.memory_short ? 1.0 : 0.0, "flag");
 }
 
 // Stage thread. Always: ids in range and the cut's points add up to the

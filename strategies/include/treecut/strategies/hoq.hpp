@@ -141,7 +141,7 @@ class HoqStrategy final : public Strategy {
 
   void build_blocks(const Hierarchy& h);
   void follow_residency(const IterationInput& input);
-  void append_representations(std::vector<NodeId>& out) const;
+  void append_representations(std::vector<NodeId>& out, bool memory_short) const;
   // The state of the block in SLOT, made on first use.
   BlockState& state(std::uint32_t slot);
   void take_answers(const IterationInput& input);
