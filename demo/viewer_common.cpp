@@ -126,7 +126,7 @@ void add_scene_options(CLI::App& cmd, SceneArgs& args) {
       ->capture_default_str();
   cmd.add_option("--color-range", args.color_range,
                  "The values at the ends of the map, LOW HIGH (default: the 2nd and 98th "
-                 "percentiles of the points)")
+                 "percentiles of the points; a cache drawn from its pages: their extremes)")
       ->expected(2);
   cmd.add_option("--classes", args.classes,
                  "Show only these classes (2,6: ground and buildings) or hide some (-7,-18: "
@@ -378,30 +378,41 @@ std::vector<const Hierarchy*> scene_models(const Scene& scene) {
 
 }  // namespace
 
+// A model drawn from its pages, as far as it is known when it opens: the
+// leaves of its root page (each holds the points below it; nothing else is
+// read yet, and reading it would map the zero page where pages go later).
+std::vector<NodeId> known_leaves(const Scene& scene) {
+  std::vector<NodeRange> known;
+  scene.paged->page_ranges(0, known);
+  return sample_leaves(*scene.hierarchy, known, 65536);
+}
+
 splat::ColorBy resolve_color(const Scene& scene, const SceneArgs& args, std::string* note) {
-  if (scene.paged && args.color == "auto") {
-    // A model drawn from its pages: the colours in them (a colouring by
-    // value is made for every node at once).
-    splat::ColorBy by = color_by(args);
-    by.source = "rgb";
-    return by;
-  }
-  return splat::resolve_auto_color(*scene.hierarchy, color_by(args), note);
+  return splat::resolve_auto_color(*scene.hierarchy, color_by(args), note,
+                                   scene.paged ? known_leaves(scene) : std::vector<NodeId>{});
 }
 
 void check_coloring(const Scene& scene, const splat::ColorBy& by) {
-  if (scene.paged && (by.source != "rgb" || !by.show_classes.empty() || !by.hide_classes.empty()))
-    throw InputError("--color " + by.source +
-                     ": a model drawn from its pages (a .tch with --memory) is drawn in its "
-                     "file's colours; without --memory it opens whole and takes any colouring");
   for (const Hierarchy* h : scene_models(scene)) splat::check_color_by(*h, by);
 }
 
 splat::Legend apply_coloring(const Scene& scene, const splat::ColorBy& by,
                              splat::Renderer& renderer) {
-  if (scene.paged) check_coloring(scene, by);  // (the viewer falls back to rgb)
   const std::vector<const Hierarchy*> models = scene_models(scene);
   const bool own = by.source == "rgb" && by.show_classes.empty() && by.hide_classes.empty();
+  if (scene.paged) {
+    // Coloured as its pages go up to the GPU (node_pool.hpp): the map's
+    // ends and the categories' shares from the root page's leaves.
+    std::shared_ptr<const splat::NodeColoring> rule;
+    if (!own) {
+      rule = std::make_shared<const splat::NodeColoring>(*scene.hierarchy, by, scene.up,
+                                                         known_leaves(scene), true);
+    }
+    renderer.set_node_coloring(*scene.hierarchy, rule);
+    splat::Legend legend = rule ? rule->legend() : splat::Legend{};
+    if (own) legend.title = "rgb";
+    return legend;
+  }
   splat::Legend first;
   for (std::size_t i = 0; i < models.size(); ++i) {
     if (own) {
@@ -426,8 +437,12 @@ std::string legend_line(const splat::Legend& legend) {
   }
   std::string line = legend.title + ":";
   for (const splat::Legend::Entry& e : legend.entries) {
-    std::snprintf(text, sizeof text, " %s %.1f %%%s,", e.label.c_str(), 100.0 * e.share,
-                  e.hidden ? " (hidden)" : "");
+    if (std::isnan(e.share)) {
+      std::snprintf(text, sizeof text, " %s%s,", e.label.c_str(), e.hidden ? " (hidden)" : "");
+    } else {
+      std::snprintf(text, sizeof text, " %s %.1f %%%s,", e.label.c_str(), 100.0 * e.share,
+                    e.hidden ? " (hidden)" : "");
+    }
     line += text;
   }
   if (line.back() == ',') line.pop_back();

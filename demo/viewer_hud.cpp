@@ -272,8 +272,11 @@ void Viewer::color_panel() {
     ImGui::SameLine();
     if (classes && !std::isnan(e.value)) {
       bool shown = !e.hidden;
+      // (A model drawn from its pages counts none: NaN.)
       const std::string label =
-          e.label + "  " + std::to_string(int(std::lround(100 * e.share))) + " %";
+          std::isnan(e.share)
+              ? e.label
+              : e.label + "  " + std::to_string(int(std::lround(100 * e.share))) + " %";
       if (ImGui::Checkbox(label.c_str(), &shown)) {
         // The HUD speaks in classes to hide.
         std::vector<int> hidden;
@@ -287,7 +290,11 @@ void Viewer::color_panel() {
         return;  // the legend was replaced
       }
     } else {
-      ImGui::Text("%s  %.0f %%", e.label.c_str(), 100.0 * e.share);
+      if (std::isnan(e.share)) {
+        ImGui::TextUnformatted(e.label.c_str());
+      } else {
+        ImGui::Text("%s  %.0f %%", e.label.c_str(), 100.0 * e.share);
+      }
     }
   }
 }

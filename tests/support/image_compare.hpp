@@ -3,9 +3,12 @@
 // blend weight rounded another way, not a colour that is nowhere near.
 #pragma once
 
+#include <stb/stb_image.h>
+
 #include <algorithm>
 #include <cstddef>
 #include <cstdlib>
+#include <filesystem>
 
 #include "treecut/splat/image.hpp"
 
@@ -40,6 +43,18 @@ inline std::size_t unmatched_pixels(const splat::Image& a, const splat::Image& b
 /// unmatched_pixels both ways: the larger.
 inline std::size_t unmatched_either_way(const splat::Image& a, const splat::Image& b) {
   return std::max(unmatched_pixels(a, b), unmatched_pixels(b, a));
+}
+
+/// A PNG's pixels, RGBA (empty when it cannot be read). The test that calls
+/// it defines STB_IMAGE_IMPLEMENTATION in one file.
+inline splat::Image load_png(const std::filesystem::path& png) {
+  splat::Image im;
+  int channels = 0;
+  unsigned char* data = stbi_load(png.c_str(), &im.width, &im.height, &channels, 4);
+  if (data == nullptr) return {};
+  im.rgba.assign(data, data + std::size_t(im.width) * std::size_t(im.height) * 4);
+  stbi_image_free(data);
+  return im;
 }
 
 }  // namespace treecut::test

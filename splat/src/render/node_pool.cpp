@@ -78,6 +78,7 @@ GpuNodePool::GpuNodePool(Renderer& renderer, const PagedHierarchy& paged,
   stats_.capacity_bytes = std::uint64_t{max_blocks_} * kBlock * kVertexBytes;
   // The root's page, whole: every stand-in's last resort, never given back.
   grow(blocks_for(paged.page_nodes(0)));
+  coloring_version_ = renderer.coloring_version();
   upload(0, paged.page_nodes(0));
 }
 
@@ -159,6 +160,13 @@ std::uint32_t GpuNodePool::map(std::span<const NodeId> ids, std::size_t current,
 void GpuNodePool::prepare(CutBuffer& cut) {
   stats_.uploaded_bytes = 0;
   if (cut.hierarchy() != &paged_->hierarchy()) return;
+  if (renderer_->coloring_version() != coloring_version_) {
+    // Coloured anew (Renderer::set_node_coloring): the pages up written
+    // again in the new colours, whatever the frame's budget (a user's
+    // choice, once; at most the pool).
+    coloring_version_ = renderer_->coloring_version();
+    for (const auto& [page, u] : up_) write(page, 0, u.nodes, u);
+  }
   // The same list as last frame, still waiting for pages: mapped again, so
   // that its blocks count as used this frame.
   if (!mapped_ && !wanted_.empty()) cut.refresh();
@@ -201,9 +209,15 @@ void GpuNodePool::upload(std::uint32_t page, std::uint32_t prefix) {
     block_used_[b] = frame_;
     u.blocks.push_back(b);
   }
+  write(page, u.nodes, prefix, u);
+  if (u.nodes == 0) ++stats_.uploads;
+  u.nodes = std::max(u.nodes, prefix);
+}
+
+void GpuNodePool::write(std::uint32_t page, std::uint32_t from, std::uint32_t to, const Up& u) {
   // The page's k-th node goes to vertex k % kBlock of its block k / kBlock:
   // one copy a piece of a run within a block.
-  for_each_run(page, u.nodes, prefix, [&](NodeRange r, std::uint32_t k) {
+  for_each_run(page, from, to, [&](NodeRange r, std::uint32_t k) {
     for (std::uint32_t done = 0; done < r.count;) {
       const std::uint32_t at = (k + done) % kBlock;
       const std::uint32_t len = std::min(r.count - done, kBlock - at);
@@ -213,8 +227,6 @@ void GpuNodePool::upload(std::uint32_t page, std::uint32_t prefix) {
       done += len;
     }
   });
-  if (u.nodes == 0) ++stats_.uploads;
-  u.nodes = std::max(u.nodes, prefix);
 }
 
 void GpuNodePool::give_back(std::uint32_t page) {

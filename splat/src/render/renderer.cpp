@@ -323,8 +323,21 @@ void Renderer::write_vertices(std::uint32_t first, const Hierarchy& h, NodeRange
   gl::Buffer& b = segments_[s];
   b.sub_data(at.center_radius(v), std::as_bytes(a.center_radius.subspan(nodes.first, nodes.count)));
   b.sub_data(at.normal_cone(v), std::as_bytes(a.normal_cone.subspan(nodes.first, nodes.count)));
-  b.sub_data(at.color(v), std::as_bytes(a.color.subspan(nodes.first, nodes.count)));
+  if (coloring_ && coloring_model_ == &h) {
+    colors_scratch_.resize(nodes.count);
+    for (std::uint32_t i = 0; i < nodes.count; ++i)
+      colors_scratch_[i] = (*coloring_)(nodes.first + i);
+    b.sub_data(at.color(v), std::as_bytes(std::span<const glm::u8vec4>(colors_scratch_)));
+  } else {
+    b.sub_data(at.color(v), std::as_bytes(a.color.subspan(nodes.first, nodes.count)));
+  }
   b.sub_data(at.splat_radius(v), std::as_bytes(a.splat_radius.subspan(nodes.first, nodes.count)));
+}
+
+void Renderer::set_node_coloring(const Hierarchy& h, std::shared_ptr<const NodeColoring> rule) {
+  coloring_model_ = rule ? &h : nullptr;
+  coloring_ = std::move(rule);
+  ++coloring_version_;
 }
 
 void Renderer::set_vertex_format() {

@@ -1,8 +1,11 @@
 // Colouring a model by what its points carry (issue 29, item 3): the file's
 // RGB, the elevation, or any attribute (Hierarchy::attributes) through a
-// colour map; and hiding classes. Computes one colour per node on the CPU,
-// which Renderer::set_node_colors puts in place of the model's own; no GL
-// here, so any thread may call it.
+// colour map; and hiding classes. NodeColoring gives any node its colour;
+// color_nodes computes one per node on the CPU, which
+// Renderer::set_node_colors puts in place of the model's own, and a model
+// drawn from its pages has its nodes coloured as their pages go up to the
+// GPU (Renderer::set_node_coloring, issue 45). No GL here, so any thread
+// may call it.
 //
 // Maps: viridis (perceptually uniform, readable in grey and by the
 // colour-blind; van der Walt and Smith, matplotlib 2015), grey, and for
@@ -16,6 +19,7 @@
 #include <glm/gtc/type_precision.hpp>
 #include <glm/vec3.hpp>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -65,7 +69,7 @@ struct Legend {
     double value = 0.0;
     std::string label;  ///< "2 ground" or "3"
     glm::u8vec4 color{0};
-    double share = 0.0;  ///< of the points (sampled), 0..1
+    double share = 0.0;  ///< of the points, 0..1; NaN: not counted (a paged model's)
     bool hidden = false;
   };
   std::vector<Entry> entries;  ///< categories, by value (at most 32)
@@ -83,15 +87,60 @@ struct Coloring {
 /// the intensity where it varies, else the elevation. *NOTE (if given) says
 /// which and why, once ("no usable RGB (every point 0 0 0): coloured by
 /// intensity"); empty when RGB is used. Any other source is returned as it is.
-ColorBy resolve_auto_color(const Hierarchy& h, ColorBy by, std::string* note = nullptr);
+/// The colours looked at are those of LEAVES (a paged model's: the leaves of
+/// its known part, treecut::sample_leaves), or of every leaf of H when empty.
+ColorBy resolve_auto_color(const Hierarchy& h, ColorBy by, std::string* note = nullptr,
+                           std::span<const NodeId> leaves = {});
 
 /// Throws what color_nodes would for H and BY (an attribute H lacks, a
 /// class filter without classification), before any work.
 void check_color_by(const Hierarchy& h, const ColorBy& by);
 
-/// Colours every node of H by BY (UP: the elevation's direction, unit).
-/// Throws InputError naming what the model has for an unknown attribute or
-/// for a class filter without a "classification" attribute.
+/// BY for one node of H at a time: what color_nodes gives every node, with
+/// no colour a node kept (a model drawn from its pages colours a page's
+/// nodes when the page goes up). SAMPLE: leaves of H. Unless BY gives them,
+/// a continuous map's ends are the 2nd and 98th percentiles of SAMPLE's
+/// values, and a legend's categories are counted over every leaf of H.
+/// With PARTIAL, H is known only in part (a model drawn from its pages:
+/// SAMPLE is the leaves of its root page, coarse nodes whose values are
+/// their points' means or modes): the ends are the points' extremes (the
+/// attribute's, the bounds' along UP), the categories those SAMPLE has,
+/// not counted (share NaN). Throws InputError as check_color_by does. H
+/// must outlive it.
+class NodeColoring {
+ public:
+  NodeColoring(const Hierarchy& h, const ColorBy& by, glm::vec3 up, std::span<const NodeId> sample,
+               bool partial);
+  [[nodiscard]] glm::u8vec4 operator()(NodeId n) const;
+  /// Whether BY's class filter hides node N (alpha 0).
+  [[nodiscard]] bool hidden(NodeId n) const;
+  /// The file's own colours, none hidden: nothing to compute.
+  [[nodiscard]] bool own() const { return kind_ == Kind::own && !filtered(); }
+  [[nodiscard]] const Legend& legend() const { return legend_; }
+
+ private:
+  enum class Kind : std::uint8_t { own, elevation, measure, category };
+  [[nodiscard]] bool filtered() const {
+    return !by_.show_classes.empty() || !by_.hide_classes.empty();
+  }
+  [[nodiscard]] glm::u8vec4 category(float v) const;
+  void count_categories(std::span<const NodeId> sample, bool partial);
+
+  const Hierarchy* h_;
+  ColorBy by_;
+  Kind kind_ = Kind::own;
+  glm::vec3 up_{0.0f};
+  const NodeAttribute* source_ = nullptr;          // measure, category
+  const NodeAttribute* classification_ = nullptr;  // a class filter's
+  double low_ = 0.0, scale_ = 1.0;                 // continuous: (x - low) * scale in [0, 1]
+  bool asprs_ = false;                             // category: the ASPRS palette
+  Legend legend_;
+};
+
+/// Colours every node of H by BY (UP: the elevation's direction, unit):
+/// NodeColoring over H held whole. Throws InputError naming what the model
+/// has for an unknown attribute or for a class filter without a
+/// "classification" attribute.
 Coloring color_nodes(const Hierarchy& h, const ColorBy& by, glm::vec3 up);
 
 /// The map at T in [0, 1] (continuous maps).

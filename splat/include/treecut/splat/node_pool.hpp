@@ -123,6 +123,8 @@ class GpuNodePool final : public VertexMap {
   void for_each_run(std::uint32_t page, std::uint32_t from, std::uint32_t to, Fn&& fn);
   // Page PAGE's first PREFIX nodes up (the blocks they need are free).
   void upload(std::uint32_t page, std::uint32_t prefix);
+  // Page PAGE's nodes [FROM, TO) in its order written to U's blocks.
+  void write(std::uint32_t page, std::uint32_t from, std::uint32_t to, const Up& u);
   void give_back(std::uint32_t page);
   // Frees blocks until BLOCKS are free: segments added within the budget
   // (in one request a frame), else pages no list of this frame uses given
@@ -160,7 +162,8 @@ class GpuNodePool final : public VertexMap {
   std::size_t lru_next_ = 0;                                  // the next in lru_ to give back
   std::uint64_t lru_frame_ = ~std::uint64_t{0};               // the frame lru_ was gathered in
   std::uint64_t frame_ = 0;
-  bool mapped_ = false;  // this frame
+  std::uint64_t coloring_version_ = 0;  // Renderer::coloring_version() the pages up are in
+  bool mapped_ = false;                 // this frame
   GpuPoolStats stats_;
 };
 

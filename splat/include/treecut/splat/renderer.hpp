@@ -28,6 +28,7 @@
 #include <glm/mat4x4.hpp>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
+#include <memory>
 #include <optional>
 #include <span>
 #include <string_view>
@@ -37,6 +38,7 @@
 #include "treecut/hierarchy.hpp"
 #include "treecut/paged_hierarchy.hpp"
 #include "treecut/splat/camera.hpp"
+#include "treecut/splat/coloring.hpp"
 #include "treecut/splat/gl_objects.hpp"
 
 namespace treecut::splat {
@@ -312,8 +314,15 @@ class Renderer {
   /// The pool's segments (1 for models held whole: their buffer).
   [[nodiscard]] std::size_t segments() const { return segments_.size(); }
   /// A pool's vertices [FIRST, FIRST + NODES.count), all in one segment,
-  /// set to nodes NODES of the pool's hierarchy H, in its own colours.
+  /// set to nodes NODES of the pool's hierarchy H, in its own colours or
+  /// those set_node_coloring gave.
   void write_vertices(std::uint32_t first, const Hierarchy& h, NodeRange nodes);
+  /// A pool's hierarchy H (a model drawn from its pages) coloured by RULE
+  /// as its nodes are written (write_vertices), with no colour per node of
+  /// the model; null: its own colours. The pool writes its nodes again
+  /// when coloring_version() changes (GpuNodePool::prepare).
+  void set_node_coloring(const Hierarchy& h, std::shared_ptr<const NodeColoring> rule);
+  [[nodiscard]] std::uint64_t coloring_version() const { return coloring_version_; }
   [[nodiscard]] std::size_t model_count() const { return model_base_.size(); }
   [[nodiscard]] std::uint32_t model_base(std::size_t model) const { return model_base_[model]; }
   [[nodiscard]] std::uint32_t model_nodes(std::size_t model) const { return model_nodes_[model]; }
@@ -474,7 +483,11 @@ class Renderer {
     std::uint32_t nodes;
     std::vector<glm::u8vec4> colors;
   };
-  std::vector<NodeColors> node_colors_;  // set_node_colors
+  std::vector<NodeColors> node_colors_;           // set_node_colors
+  const Hierarchy* coloring_model_ = nullptr;     // set_node_coloring
+  std::shared_ptr<const NodeColoring> coloring_;  // its rule
+  std::uint64_t coloring_version_ = 0;            // set_node_coloring calls
+  std::vector<glm::u8vec4> colors_scratch_;       // write_vertices
   [[nodiscard]] std::span<const glm::u8vec4> colors_of(const Hierarchy& h) const;
   NodeId last_max_id_ = 0;
   bool pooled_ = false;  // set_pool
