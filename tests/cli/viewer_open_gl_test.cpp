@@ -5,7 +5,6 @@
 // one before the open. A missing model fails before the window opens, a
 // malformed one when it is loaded, each with one line naming the file, exit 2.
 #include <gtest/gtest.h>
-#include <stb/stb_image.h>
 
 #include <cmath>
 #include <cstdio>
@@ -16,11 +15,14 @@
 #include <utility>
 #include <vector>
 
+#include "image_compare.hpp"
 #include "test_support.hpp"
 
 namespace {
 
 namespace fs = std::filesystem;
+using treecut::splat::Image;
+using treecut::test::load_png;
 using treecut::test::quote;
 
 constexpr int kWidth = 960;
@@ -46,30 +48,15 @@ treecut::test::CommandResult view(const fs::path& dir, const std::string& args) 
   return r ? *r : treecut::test::CommandResult{-1, "xvfb-run is not installed"};
 }
 
-struct Rgb {
-  int w = 0, h = 0;
-  std::vector<unsigned char> px;  // RGB
-};
-
-Rgb load(const fs::path& png) {
-  Rgb im;
-  int n = 0;
-  unsigned char* data = stbi_load(png.c_str(), &im.w, &im.h, &n, 3);
-  if (data == nullptr) return im;
-  im.px.assign(data, data + std::size_t(im.w) * std::size_t(im.h) * 3);
-  stbi_image_free(data);
-  return im;
-}
-
 // Share of pixels of the right half (the HUD sits top left) that differ by
 // more than 24 in a channel.
-double right_half_difference(const Rgb& a, const Rgb& b) {
+double right_half_difference(const Image& a, const Image& b) {
   std::size_t differ = 0, all = 0;
-  for (int y = 0; y < a.h; ++y) {
-    for (int x = a.w / 2; x < a.w; ++x) {
-      const std::size_t i = (std::size_t(y) * std::size_t(a.w) + std::size_t(x)) * 3;
+  for (int y = 0; y < a.height; ++y) {
+    for (int x = a.width / 2; x < a.width; ++x) {
+      const std::size_t i = (std::size_t(y) * std::size_t(a.width) + std::size_t(x)) * 4;
       bool d = false;
-      for (int c = 0; c < 3; ++c) d |= std::abs(int(a.px[i + c]) - int(b.px[i + c])) > 24;
+      for (int c = 0; c < 3; ++c) d |= std::abs(int(a.rgba[i + c]) - int(b.rgba[i + c])) > 24;
       differ += d;
       ++all;
     }
@@ -121,12 +108,12 @@ TEST_F(ViewerOpen, TheScreenshotAfterOpenShowsTheOtherModel) {
       view(dir_, quote(dir_ / "b.ply") + " --script " + quote(dir_ / "direct.script"));
   ASSERT_EQ(direct.code, 0) << direct.out;
 
-  const Rgb before = load(dir_ / "before.png");
-  const Rgb after = load(dir_ / "after.png");
-  const Rgb b_alone = load(dir_ / "direct.png");
-  for (const Rgb* im : {&before, &after, &b_alone}) {
-    ASSERT_EQ(im->w, kWidth);
-    ASSERT_EQ(im->h, kHeight);
+  const Image before = load_png(dir_ / "before.png");
+  const Image after = load_png(dir_ / "after.png");
+  const Image b_alone = load_png(dir_ / "direct.png");
+  for (const Image* im : {&before, &after, &b_alone}) {
+    ASSERT_EQ(im->width, kWidth);
+    ASSERT_EQ(im->height, kHeight);
   }
   const double changed = right_half_difference(before, after);
   const double from_b = right_half_difference(after, b_alone);
@@ -196,11 +183,11 @@ TEST_F(ViewerOpen, EyeDomeClipAndMeasureInTheWindow) {
       view(dir_, quote(dir_ / "squares.ply") + " --mode fast --edl off --points 100000 --script " +
                      quote(dir_ / "tools.script"));
   ASSERT_EQ(r.code, 0) << r.out;
-  const Rgb plain = load(dir_ / "plain.png"), edl = load(dir_ / "edl.png"),
-            clip = load(dir_ / "clip.png");
-  ASSERT_EQ(plain.w, kWidth);
-  const auto red = [](const Rgb& im, int x, int y) {
-    return int(im.px[(std::size_t(y) * std::size_t(im.w) + std::size_t(x)) * 3]);
+  const Image plain = load_png(dir_ / "plain.png"), edl = load_png(dir_ / "edl.png"),
+              clip = load_png(dir_ / "clip.png");
+  ASSERT_EQ(plain.width, kWidth);
+  const auto red = [](const Image& im, int x, int y) {
+    return int(im.rgba[(std::size_t(y) * std::size_t(im.width) + std::size_t(x)) * 4]);
   };
   const int cx = kWidth / 2, cy = kHeight / 2;
   // The front square's edge: 0.3 / (2.5 tan 22.5 deg) of the half height.
