@@ -123,6 +123,33 @@ TEST_F(ViewerOpen, TheScreenshotAfterOpenShowsTheOtherModel) {
   EXPECT_LT(from_b, changed / 4) << "after open the window does not show b.ply";
 }
 
+// A model drawn from its pages coloured anew in the window: the pages on
+// the GPU are written again in the new colours (GpuNodePool::prepare), and
+// back in the file's own when the colouring is undone.
+TEST_F(ViewerOpen, APagedModelIsColouredAnewInTheWindow) {
+  ASSERT_EQ(treecut::test::run_treecut("gen survey -n 40000 -o " + quote(dir_ / "tile")).code, 0);
+  const auto built = treecut::test::run_treecut("build " + quote(dir_ / "tile") + " -o " +
+                                                quote(dir_ / "tile.tch"));
+  ASSERT_EQ(built.code, 0) << built.out;
+  write_file(dir_ / "colour.script",
+             "treecut-view-script 1\nconverge 200\nscreenshot own.png\ncolor classification\n"
+             "converge 200\nscreenshot classes.png\ncolor rgb\nconverge 200\n"
+             "screenshot back.png\nexit\n");
+  const auto v = view(
+      dir_, quote(dir_ / "tile.tch") + " --memory 64M --script " + quote(dir_ / "colour.script"));
+  ASSERT_EQ(v.code, 0) << v.out;
+  EXPECT_EQ(v.out.find("colours: rgb"), std::string::npos) << "fell back to rgb: " << v.out;
+  const Image own = load_png(dir_ / "own.png"), classes = load_png(dir_ / "classes.png"),
+              back = load_png(dir_ / "back.png");
+  for (const Image* im : {&own, &classes, &back}) ASSERT_EQ(im->width, kWidth);
+  const double recoloured = right_half_difference(own, classes);
+  const double undone = right_half_difference(own, back);
+  std::printf("right half: %.3f of pixels changed by the colouring, %.3f after undoing it\n",
+              recoloured, undone);
+  EXPECT_GT(recoloured, 0.05) << "the pages up kept their colours";
+  EXPECT_LT(undone, recoloured / 4) << "the file's colours did not come back";
+}
+
 TEST_F(ViewerOpen, AMissingModelFailsBeforeTheWindowWithOneLine) {
   write_file(dir_ / "missing.script", "treecut-view-script 1\nframes 2\nopen missing.ply\nexit\n");
   // Checked with the script, before a window (or a display) is needed.
