@@ -532,6 +532,17 @@ void run_render(const RenderArgs& a) {
     make_output_folder(dir);
     runs.push_back(run_strategy(rig, registry, name, dir));
   }
+  if (scene.paged) {
+    // What the budget counts (the resident nodes' bytes) against what the
+    // system holds under the arrays (with the memory pages their runs' ends
+    // share): the part of RSS that is the model's.
+    std::printf(
+        "memory    node arrays: %.1f MiB of memory pages for %.1f MiB of resident nodes "
+        "(budget %.1f MiB)\n",
+        double(scene.paged->held_bytes()) / (1 << 20),
+        double(scene.paged->stats().resident_bytes) / (1 << 20),
+        double(scene.paged->memory_budget()) / (1 << 20));
+  }
   write_plot_svg(out / "plot.svg", runs, scene.label + ": per frame, per strategy");
   std::printf("wrote     %s (stats.csv, summary.json, plot.svg%s)\n", quoted_name(out).c_str(),
               a.no_png ? "" : ", frame_*.png");

@@ -168,6 +168,12 @@ class PagedHierarchy {
 
   /// Bytes a resident node takes in the arrays (the budget's unit).
   [[nodiscard]] std::uint64_t bytes_per_node() const;
+  /// The bytes of the memory pages the system holds under the node arrays
+  /// (mincore): the resident nodes' bytes, and the rest of the memory pages
+  /// at the ends of their runs (a page's levels are runs of ids; each end
+  /// shares a memory page with another page's run, held or not). What RSS
+  /// counts of them. O(the model's nodes / 32,768): for a report, not a frame.
+  [[nodiscard]] std::uint64_t held_bytes() const;
 
  private:
   struct Impl;

@@ -14,30 +14,69 @@
 #include <cstring>
 #include <new>
 #include <span>
+#include <utility>
+#include <vector>
 
 namespace treecut {
+
+/// Whether an array counts the runs in use on each of its memory pages
+/// (ReservedArray::use).
+enum class PageSharing : std::uint8_t { alone, counted };
 
 template <class T>
 class ReservedArray {
  public:
   /// N values of T, all zero, from a 2 MiB boundary (advise_huge()).
-  explicit ReservedArray(std::size_t n) : bytes_(n * sizeof(T) + kHuge) {
-    void* p = ::mmap(nullptr, bytes_, PROT_READ | PROT_WRITE,
-                     MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE, -1, 0);
-    if (p == MAP_FAILED) throw std::bad_alloc();
-    base_ = p;
-    data_ = reinterpret_cast<T*>((reinterpret_cast<std::uintptr_t>(p) + kHuge - 1) / kHuge * kHuge);
+  /// COUNTED: release() gives back a page that runs share once the last of
+  /// them goes (each run told first to use()).
+  explicit ReservedArray(std::size_t n, PageSharing sharing = PageSharing::alone)
+      : bytes_(n * sizeof(T) + kHuge) {
+    base_ = map(bytes_);
+    data_ =
+        reinterpret_cast<T*>((reinterpret_cast<std::uintptr_t>(base_) + kHuge - 1) / kHuge * kHuge);
+    if (sharing == PageSharing::counted) {
+      // Pages of the system's size: a huge page (where they are on by
+      // default) would hold 2 MiB for any run on it.
+      (void)::madvise(base_, bytes_, MADV_NOHUGEPAGE);
+      users_bytes_ = (bytes_ / page_size() + 1) * sizeof(std::uint16_t);
+      try {
+        users_ = static_cast<std::uint16_t*>(map(users_bytes_));
+      } catch (...) {
+        ::munmap(base_, bytes_);
+        throw;
+      }
+    }
   }
-  ~ReservedArray() { ::munmap(base_, bytes_); }
+  ~ReservedArray() {
+    ::munmap(base_, bytes_);
+    if (users_ != nullptr) ::munmap(users_, users_bytes_);
+  }
   ReservedArray(const ReservedArray&) = delete;
   ReservedArray& operator=(const ReservedArray&) = delete;
   [[nodiscard]] T* data() const { return data_; }
   [[nodiscard]] std::span<const T> span(std::size_t n) const { return {data_, n}; }
   T& operator[](std::size_t i) const { return data_[i]; }
 
-  /// Values [FIRST, FIRST + COUNT) back to zeros, the memory pages wholly
-  /// inside given back to the system.
+  /// A counted array: values [FIRST, FIRST + COUNT) are about to be
+  /// written, a run release() will be told of; the memory pages they lie on
+  /// count one user more. Alone ones or an alone array: nothing.
+  void use(std::uint64_t first, std::uint64_t count) const {
+    if (users_ == nullptr || count == 0) return;
+    const auto [lo, hi] = pages_of(first, count);
+    for (std::uint64_t p = lo; p <= hi; ++p) ++users_[p];
+  }
+
+  /// Values [FIRST, FIRST + COUNT) back to zeros, and the memory pages no
+  /// run uses any more given back to the system: a counted array's pages
+  /// whose last user this run was (use()), an alone array's pages wholly
+  /// inside the run. (Alone, a page that runs shared stays, zeros, once
+  /// they all went one at a time: on a paged model the pages at the edges
+  /// of the levels of its pages, which a long flight gathered.)
   void release(std::uint64_t first, std::uint64_t count) const {
+    if (users_ != nullptr) {
+      release_counted(first, count);
+      return;
+    }
     auto* begin = reinterpret_cast<unsigned char*>(data_ + first);
     auto* end = reinterpret_cast<unsigned char*>(data_ + first + count);
     static const auto page = static_cast<std::uintptr_t>(::sysconf(_SC_PAGESIZE));
@@ -50,6 +89,21 @@ class ReservedArray {
     std::memset(begin, 0, lo - reinterpret_cast<std::uintptr_t>(begin));
     std::memset(reinterpret_cast<void*>(hi), 0, reinterpret_cast<std::uintptr_t>(end) - hi);
     (void)::madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_DONTNEED);
+  }
+
+  /// The bytes of the memory pages the system holds under values [0, N)
+  /// (mincore: what RSS counts of them, and a page given back and read
+  /// since, which maps the system's page of zeros). O(N) bits: for a
+  /// report, not a frame.
+  [[nodiscard]] std::uint64_t held_bytes(std::uint64_t n) const {
+    if (n == 0) return 0;
+    const auto [lo, hi] = pages_of(0, n);
+    const std::uintptr_t page = page_size();
+    std::vector<unsigned char> in(hi - lo + 1);
+    if (::mincore(data_, (hi - lo + 1) * page, in.data()) != 0) return 0;
+    return static_cast<std::uint64_t>(
+               std::count_if(in.begin(), in.end(), [](unsigned char c) { return (c & 1) != 0; })) *
+           page;
   }
 
   /// Asks for transparent huge pages under the 2 MiB pages wholly inside
@@ -65,9 +119,52 @@ class ReservedArray {
 
  private:
   static constexpr std::uintptr_t kHuge = std::uintptr_t{2} << 20;
+  static std::uintptr_t page_size() {
+    static const auto page = static_cast<std::uintptr_t>(::sysconf(_SC_PAGESIZE));
+    return page;
+  }
+  static void* map(std::size_t bytes) {
+    void* p = ::mmap(nullptr, bytes, PROT_READ | PROT_WRITE,
+                     MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE, -1, 0);
+    if (p == MAP_FAILED) throw std::bad_alloc();
+    return p;
+  }
+  // The memory pages (from data_) of values [FIRST, FIRST + COUNT), COUNT > 0.
+  [[nodiscard]] std::pair<std::uint64_t, std::uint64_t> pages_of(std::uint64_t first,
+                                                                 std::uint64_t count) const {
+    return {first * sizeof(T) / page_size(), ((first + count) * sizeof(T) - 1) / page_size()};
+  }
+  void release_counted(std::uint64_t first, std::uint64_t count) const {
+    if (count == 0) return;
+    const std::uintptr_t page = page_size();
+    auto* bytes = reinterpret_cast<unsigned char*>(data_);
+    const std::uint64_t begin = first * sizeof(T), end = (first + count) * sizeof(T);
+    const auto [lo, hi] = pages_of(first, count);
+    std::uint64_t free_from = hi + 1;  // a stretch of pages to give back
+    const auto give_back = [&](std::uint64_t to) {
+      if (free_from < to)
+        (void)::madvise(bytes + free_from * page, (to - free_from) * page, MADV_DONTNEED);
+      free_from = hi + 1;
+    };
+    for (std::uint64_t p = lo; p <= hi; ++p) {
+      if (--users_[p] == 0) {
+        if (free_from > hi) free_from = p;
+        continue;
+      }
+      give_back(p);
+      // Another run still uses the page: this run's part back to zeros.
+      const std::uint64_t from = std::max<std::uint64_t>(begin, p * page);
+      const std::uint64_t to = std::min<std::uint64_t>(end, (p + 1) * page);
+      std::memset(bytes + from, 0, to - from);
+    }
+    give_back(hi + 1);
+  }
+
   std::size_t bytes_;  // reserved from base_
   void* base_ = nullptr;
   T* data_ = nullptr;
+  std::uint16_t* users_ = nullptr;  // counted: by memory page from data_, the runs on it
+  std::size_t users_bytes_ = 0;
 };
 
 }  // namespace treecut

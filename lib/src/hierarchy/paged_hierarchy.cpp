@@ -40,21 +40,24 @@ namespace {
 template <class T>
 using Reserved = ReservedArray<T>;
 
-// The arrays of the whole, each reserved.
+// The arrays of the whole, each reserved, their memory pages counted: the
+// levels of a page are runs of ids that share memory pages with other
+// pages' runs, and a memory page goes back when the last run on it does.
 struct Arrays {
+  static constexpr PageSharing kShared = PageSharing::counted;
   explicit Arrays(std::size_t n, std::size_t streams)
-      : center_radius(n),
-        splat_radius(n),
-        normal_cone(n),
-        color(n),
-        priority(n),
-        point_count(n),
-        parent(n),
-        first_child(n),
-        child_count(n),
-        depth(n) {
+      : center_radius(n, kShared),
+        splat_radius(n, kShared),
+        normal_cone(n, kShared),
+        color(n, kShared),
+        priority(n, kShared),
+        point_count(n, kShared),
+        parent(n, kShared),
+        first_child(n, kShared),
+        child_count(n, kShared),
+        depth(n, kShared) {
     for (std::size_t s = 0; s < streams; ++s)
-      values.push_back(std::make_unique<Reserved<float>>(n));
+      values.push_back(std::make_unique<Reserved<float>>(n, kShared));
   }
   Reserved<glm::vec4> center_radius;
   Reserved<float> splat_radius;
@@ -81,13 +84,24 @@ struct Arrays {
     for (const auto& v : values) s.values.push_back(v->data());
     return s;
   }
+  template <class Fn>
+  void each(Fn&& fn) const {
+    fn(center_radius), fn(splat_radius), fn(normal_cone), fn(color), fn(priority);
+    fn(point_count), fn(parent), fn(first_child), fn(child_count), fn(depth);
+    for (const auto& v : values) fn(*v);
+  }
+  // Before values [FIRST, FIRST + COUNT) are written (ReservedArray::use).
+  void use(std::uint64_t first, std::uint64_t count) const {
+    each([&](const auto& a) { a.use(first, count); });
+  }
   void release(std::uint64_t first, std::uint64_t count) const {
-    center_radius.release(first, count), splat_radius.release(first, count);
-    normal_cone.release(first, count), color.release(first, count);
-    priority.release(first, count), point_count.release(first, count);
-    parent.release(first, count), first_child.release(first, count);
-    child_count.release(first, count), depth.release(first, count);
-    for (const auto& v : values) v->release(first, count);
+    each([&](const auto& a) { a.release(first, count); });
+  }
+  // The bytes of the memory pages the system holds under the first N values of each.
+  [[nodiscard]] std::uint64_t held_bytes(std::uint64_t n) const {
+    std::uint64_t bytes = 0;
+    each([&](const auto& a) { bytes += a.held_bytes(n); });
+    return bytes;
   }
 };
 
@@ -225,6 +239,9 @@ struct PagedHierarchy::Impl {
       Group& g = wanted->second;
       requests.erase(requests.begin() + static_cast<std::ptrdiff_t>(at));
       g.state = State::in_flight;
+      // Counted before the read writes them (a release of a page beside
+      // them then keeps the memory pages they share).
+      for (std::uint32_t q = g.first_page; q < g.first_page + g.pages; ++q) use_page(q);
       pending_bytes += g.nodes * node_bytes;
       ++in_flight;
       if (g.owner != kNoNode) ++groups.at(g.owner).busy_below;
@@ -241,7 +258,7 @@ struct PagedHierarchy::Impl {
         done.state = State::loaded;
         loaded.push_back(node);
       } else {
-        for (std::uint32_t q = first; q < p; ++q) release_page(q);
+        for (std::uint32_t q = first; q < first + pages; ++q) release_page(q);
         done.state = State::failed;
         pending_bytes -= done.nodes * node_bytes;
         --in_flight, ++failed;
@@ -311,6 +328,11 @@ struct PagedHierarchy::Impl {
     full_detail_bytes = (root + below[0]) * node_bytes;
   }
 
+  // Page P's runs of ids in the arrays: about to be written (use), or
+  // given back (release).
+  void use_page(std::uint32_t p) const {
+    for (const PageRun& run : index().links().runs_of(p)) arrays->use(run.first, run.count);
+  }
   void release_page(std::uint32_t p) const {
     for (const PageRun& run : index().links().runs_of(p)) arrays->release(run.first, run.count);
   }
@@ -374,6 +396,7 @@ std::unique_ptr<PagedHierarchy> PagedHierarchy::open(const std::filesystem::path
   m.node_bytes = sizeof(glm::vec4) + sizeof(float) + sizeof(glm::i16vec4) + sizeof(glm::u8vec4) +
                  sizeof(float) + sizeof(std::uint32_t) + 2 * sizeof(NodeId) + 2 + 4 * streams;
   std::vector<unsigned char> raw;
+  m.use_page(0);
   if (std::string problem = m.load_page(0, raw); !problem.empty())
     throw InputError(quoted_name(cache) + ": page 0 of " + std::to_string(index.pages()) + ": " +
                      problem);
@@ -585,6 +608,10 @@ std::vector<std::string> PagedHierarchy::take_problems() {
 
 std::uint64_t PagedHierarchy::bytes_per_node() const {
   return impl_->node_bytes;
+}
+
+std::uint64_t PagedHierarchy::held_bytes() const {
+  return impl_->arrays->held_bytes(impl_->hierarchy.node_count());
 }
 
 }  // namespace treecut
