@@ -19,7 +19,7 @@
 
 namespace treecut {
 
-/// Whether an array counts the runs in use on each of its memory pages
+/// Whether an array counts the values in use on each of its memory pages
 /// (ReservedArray::use).
 enum class PageSharing : std::uint8_t { alone, counted };
 
@@ -27,8 +27,8 @@ template <class T>
 class ReservedArray {
  public:
   /// N values of T, all zero, from a 2 MiB boundary (advise_huge()).
-  /// COUNTED: release() gives back a page that runs share once the last of
-  /// them goes (each run told first to use()).
+  /// COUNTED: release() gives back a memory page once no value on it is in
+  /// use (each told first to use(), in runs split or merged as they come).
   explicit ReservedArray(std::size_t n, PageSharing sharing = PageSharing::alone)
       : bytes_(n * sizeof(T) + kHuge) {
     base_ = map(bytes_);
@@ -38,9 +38,9 @@ class ReservedArray {
       // Pages of the system's size: a huge page (where they are on by
       // default) would hold 2 MiB for any run on it.
       (void)::madvise(base_, bytes_, MADV_NOHUGEPAGE);
-      users_bytes_ = (bytes_ / page_size() + 1) * sizeof(std::uint16_t);
+      users_bytes_ = (bytes_ / page_size() + 1) * sizeof(std::uint32_t);
       try {
-        users_ = static_cast<std::uint16_t*>(map(users_bytes_));
+        users_ = static_cast<std::uint32_t*>(map(users_bytes_));
       } catch (...) {
         ::munmap(base_, bytes_);
         throw;
@@ -57,20 +57,21 @@ class ReservedArray {
   [[nodiscard]] std::span<const T> span(std::size_t n) const { return {data_, n}; }
   T& operator[](std::size_t i) const { return data_[i]; }
 
-  /// A counted array: values [FIRST, FIRST + COUNT) are about to be
-  /// written, a run release() will be told of; the memory pages they lie on
-  /// count one user more. Alone ones or an alone array: nothing.
+  /// A counted array: values [FIRST, FIRST + COUNT), not in use, are about
+  /// to be written; the memory pages they lie on count their bytes in use.
+  /// An alone array: nothing.
   void use(std::uint64_t first, std::uint64_t count) const {
     if (users_ == nullptr || count == 0) return;
-    const auto [lo, hi] = pages_of(first, count);
-    for (std::uint64_t p = lo; p <= hi; ++p) ++users_[p];
+    for_each_page(first, count, [&](std::uint64_t p, std::uint64_t from, std::uint64_t to) {
+      users_[p] += static_cast<std::uint32_t>(to - from);
+    });
   }
 
-  /// Values [FIRST, FIRST + COUNT) back to zeros, and the memory pages no
-  /// run uses any more given back to the system: a counted array's pages
-  /// whose last user this run was (use()), an alone array's pages wholly
+  /// Values [FIRST, FIRST + COUNT) back to zeros, and the memory pages
+  /// nothing uses any more given back to the system: a counted array's
+  /// pages with no value in use left (use()), an alone array's pages wholly
   /// inside the run. (Alone, a page that runs shared stays, zeros, once
-  /// they all went one at a time: on a paged model the pages at the edges
+  /// they all went one at a time: on a paged model the pages at the ends
   /// of the levels of its pages, which a long flight gathered.)
   void release(std::uint64_t first, std::uint64_t count) const {
     if (users_ != nullptr) {
@@ -134,36 +135,44 @@ class ReservedArray {
                                                                  std::uint64_t count) const {
     return {first * sizeof(T) / page_size(), ((first + count) * sizeof(T) - 1) / page_size()};
   }
-  void release_counted(std::uint64_t first, std::uint64_t count) const {
-    if (count == 0) return;
-    const std::uintptr_t page = page_size();
-    auto* bytes = reinterpret_cast<unsigned char*>(data_);
+  // FN(page, from, to) for each memory page of values [FIRST, FIRST +
+  // COUNT), COUNT > 0, with the bytes [from, to) of them on it (from data_).
+  template <class Fn>
+  void for_each_page(std::uint64_t first, std::uint64_t count, Fn&& fn) const {
+    const std::uint64_t page = page_size();
     const std::uint64_t begin = first * sizeof(T), end = (first + count) * sizeof(T);
     const auto [lo, hi] = pages_of(first, count);
-    std::uint64_t free_from = hi + 1;  // a stretch of pages to give back
-    const auto give_back = [&](std::uint64_t to) {
-      if (free_from < to)
-        (void)::madvise(bytes + free_from * page, (to - free_from) * page, MADV_DONTNEED);
-      free_from = hi + 1;
+    for (std::uint64_t p = lo; p <= hi; ++p)
+      fn(p, std::max(begin, p * page), std::min(end, (p + 1) * page));
+  }
+  void release_counted(std::uint64_t first, std::uint64_t count) const {
+    if (count == 0) return;
+    const std::uint64_t page = page_size();
+    auto* bytes = reinterpret_cast<unsigned char*>(data_);
+    std::uint64_t free_from = 0, free_to = 0;  // a stretch of pages to give back
+    const auto give_back = [&] {
+      if (free_from < free_to)
+        (void)::madvise(bytes + free_from * page, (free_to - free_from) * page, MADV_DONTNEED);
+      free_from = free_to = 0;
     };
-    for (std::uint64_t p = lo; p <= hi; ++p) {
-      if (--users_[p] == 0) {
-        if (free_from > hi) free_from = p;
-        continue;
+    for_each_page(first, count, [&](std::uint64_t p, std::uint64_t from, std::uint64_t to) {
+      users_[p] -= static_cast<std::uint32_t>(to - from);
+      if (users_[p] == 0) {
+        if (free_from == free_to) free_from = p;
+        free_to = p + 1;
+        return;
       }
-      give_back(p);
-      // Another run still uses the page: this run's part back to zeros.
-      const std::uint64_t from = std::max<std::uint64_t>(begin, p * page);
-      const std::uint64_t to = std::min<std::uint64_t>(end, (p + 1) * page);
+      give_back();
+      // Other values on the page are in use: these back to zeros.
       std::memset(bytes + from, 0, to - from);
-    }
-    give_back(hi + 1);
+    });
+    give_back();
   }
 
   std::size_t bytes_;  // reserved from base_
   void* base_ = nullptr;
   T* data_ = nullptr;
-  std::uint16_t* users_ = nullptr;  // counted: by memory page from data_, the runs on it
+  std::uint32_t* users_ = nullptr;  // counted: by memory page from data_, its bytes in use
   std::size_t users_bytes_ = 0;
 };
 

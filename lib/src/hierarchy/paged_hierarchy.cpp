@@ -42,7 +42,7 @@ using Reserved = ReservedArray<T>;
 
 // The arrays of the whole, each reserved, their memory pages counted: the
 // levels of a page are runs of ids that share memory pages with other
-// pages' runs, and a memory page goes back when the last run on it does.
+// pages' runs, and a memory page goes back when no value on it is in use.
 struct Arrays {
   static constexpr PageSharing kShared = PageSharing::counted;
   explicit Arrays(std::size_t n, std::size_t streams)

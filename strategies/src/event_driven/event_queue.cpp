@@ -109,6 +109,7 @@ void EventQueueStrategy::make_records(const HierarchyArrays& a) {
       runs_, next_runs_, [&](NodeId n) { return children_of(a, n); },
       [&](NodeRange r) {
         records_->advise_huge(r.first, r.count);
+        records_->use(r.first, r.count);
         for (NodeId n = r.first; n < r.first + r.count; ++n) make_record(a, n);
         made_ += r.count;
       });
@@ -122,14 +123,23 @@ void EventQueueStrategy::give_back_records() {
         return NodeRange{st.first_child, st.made != 0 ? st.child_count : std::uint32_t{0}};
       },
       [&](NodeRange r) {
-        for (NodeId n = r.first; n < r.first + r.count; ++n) made_ -= state_[n].made;
-        records_->release(r.first, r.count);
+        // The made records only, in runs: the memory pages count what was
+        // made (make_records), and a record not made counted nothing.
+        NodeId from = r.first;
+        for (NodeId n = r.first; n <= r.first + r.count; ++n) {
+          if (n < r.first + r.count && state_[n].made != 0) continue;
+          if (from < n) records_->release(from, n - from);
+          made_ -= n - from;
+          from = n + 1;
+        }
       });
 }
 
 void EventQueueStrategy::reset(const Hierarchy& hierarchy) {
   node_count_ = hierarchy.node_count();
-  records_ = std::make_unique<ReservedArray<NodeState>>(node_count_);
+  // Counted: the records given back with a group of pages share memory
+  // pages with others at their runs' ends, given back with the last.
+  records_ = std::make_unique<ReservedArray<NodeState>>(node_count_, PageSharing::counted);
   state_ = records_->data();
   made_ = 0;
   const HierarchyArrays& a = hierarchy.arrays();
