@@ -401,8 +401,9 @@ splat::Legend apply_coloring(const Scene& scene, const splat::ColorBy& by,
   const std::vector<const Hierarchy*> models = scene_models(scene);
   const bool own = by.source == "rgb" && by.show_classes.empty() && by.hide_classes.empty();
   if (scene.paged) {
-    // Coloured as its pages go up to the GPU (node_pool.hpp): the map's
-    // ends and the categories' shares from the root page's leaves.
+    // Coloured as its pages go up to the GPU (node_pool.hpp), from what
+    // the root page's leaves and the points' extremes say
+    // (NodeColoring, partial).
     std::shared_ptr<const splat::NodeColoring> rule;
     if (!own) {
       rule = std::make_shared<const splat::NodeColoring>(*scene.hierarchy, by, scene.up,

@@ -246,7 +246,12 @@ struct Pass {
     const NodeId parent = node_of(low.front());
     const glm::vec4 cr = a.center_radius[parent];
     if (!view.outside_frustum(glm::vec3(cr), cr.w)) break;  // seen, of priority 0
-    coarsen_next(0.0f, true);
+    if (!cut.can_coarsen(h, parent)) {                      // a child was refined meanwhile
+      pop(low, lower);
+      --low_left;
+      continue;
+    }
+    coarsen_next(0.0f, true);  // (this one: it can be)
   }
 }
 

@@ -172,7 +172,7 @@ class PagedHierarchy {
   /// (mincore): the resident nodes' bytes, and the rest of the memory pages
   /// at the ends of their runs (a page's levels are runs of ids; each end
   /// shares a memory page with another page's run, held or not). What RSS
-  /// counts of them. O(the model's nodes / 32,768): for a report, not a frame.
+  /// counts of them. O(the arrays' memory pages): for a report, not a frame.
   [[nodiscard]] std::uint64_t held_bytes() const;
 
  private:

@@ -114,8 +114,6 @@ class NodeColoring {
   [[nodiscard]] glm::u8vec4 operator()(NodeId n) const;
   /// Whether BY's class filter hides node N (alpha 0).
   [[nodiscard]] bool hidden(NodeId n) const;
-  /// The file's own colours, none hidden: nothing to compute.
-  [[nodiscard]] bool own() const { return kind_ == Kind::own && !filtered(); }
   [[nodiscard]] const Legend& legend() const { return legend_; }
 
  private:
