@@ -461,6 +461,32 @@ TEST(EventQueue, static_camera_costs_nothing) {
   EXPECT_EQ(ev.s.stats().method, EventQueueStrategy::Method::kNone);
 }
 
+// The lists keep the storage of their busiest moment until a trim (every
+// kTrimEvery iterations) gives back what is past four times what a list
+// holds: after a big cut the camera moves away, the queue shrinks, and so
+// does the lists' storage.
+TEST(EventQueue, lists_give_back_the_storage_of_their_busiest_moment) {
+  const auto h = small_hierarchy(tools::ModelKind::Terrain, 200000);
+  const Scene s = scene_of(*h);
+  Runner<EventQueueStrategy> ev(*h);
+  const auto lists = [&] { return ev.s.state_bytes() - 32u * ev.s.records(); };
+  std::uint64_t version = 1;
+  const glm::vec3 near = s.center + glm::vec3(0.3f, 0.1f, 0.1f) * s.extent;
+  for (std::uint64_t i = 0; i < EventQueueStrategy::kTrimEvery; ++i)
+    ev.step(camera(s, near, s.center, version++));
+  const std::size_t busiest = lists();
+  const std::size_t queued = ev.s.stats().queued;
+  ASSERT_GT(ev.cut.size(), 1000u);
+  const glm::vec3 far = s.center + glm::vec3(0.3f, 0.1f, 40.0f) * s.extent;
+  for (std::uint64_t i = 0; i < 2 * EventQueueStrategy::kTrimEvery; ++i)
+    ev.step(
+        camera(s, far + glm::vec3(0.0f, 0.0f, 0.001f * float(i)) * s.extent, s.center, version++));
+  // (Here 678,240 bytes for 54,553 events, then 352,184 for 233: the lists
+  // of fewer than kTrimFloor entries keep theirs.)
+  EXPECT_LT(ev.s.stats().queued, queued / 10);
+  EXPECT_LT(lists(), busiest * 3 / 5);
+}
+
 TEST(EventQueue, cancelled_iteration_leaves_a_valid_cut_and_recovers) {
   const auto h = small_hierarchy(tools::ModelKind::Terrain, 40000);
   const Scene s = scene_of(*h);

@@ -175,6 +175,8 @@ void EventQueueStrategy::reset(const Hierarchy& hierarchy) {
   unit_ = peak_ = last_moved_ = 0.0;
   valid_ = false;
   stats_ = {};
+  iterations_ = 0;
+  list_bytes_ = 0;
 }
 
 // Inlined into its callers, the batch loop of run() above all: as a call it
@@ -919,6 +921,31 @@ void EventQueueStrategy::iterate(const IterationInput& input, IterationOutput& o
   stats_.queued = queued_;
   stats_.rotation_queued = wlive_;
   r.converged = !r.cancelled;
+  if (++iterations_ % kTrimEvery == 0) trim_lists();
+  r.counters.set("event_queue_records_mib", double(made_ * sizeof(NodeState)) / (1 << 20), "MiB");
+  r.counters.set("event_queue_lists_mib", double(list_bytes_) / (1 << 20), "MiB");
+}
+
+// A list keeps the storage of its busiest moment, and the clocks carry the
+// busy moments from slot to slot: along a flight over the 20 M terrain the
+// lists' storage grew to 77 MiB for 0.3-3 MiB of queued events. A list past
+// four times what it holds (and kTrimFloor entries) gives its storage back,
+// its entries in the same places (their records keep their indices). Every
+// kTrimEvery iterations: a trim of the 16,384 lists took 104-303 us on
+// that flight (its iterations 1.4-17 ms).
+void EventQueueStrategy::trim_lists() {
+  std::size_t entries = 0;
+  const auto trim = [&](std::vector<NodeId>& list) {
+    if (list.capacity() > kTrimFloor && list.capacity() > 4 * list.size()) {
+      std::vector<NodeId> smaller(list.begin(), list.end());
+      list.swap(smaller);
+    }
+    entries += list.capacity();
+  };
+  for (std::vector<NodeId>& list : slots_) trim(list);
+  for (std::vector<NodeId>& list : wslots_) trim(list);
+  for (std::vector<NodeId>& list : spare_) trim(list);
+  list_bytes_ = entries * sizeof(NodeId);
 }
 
 }  // namespace treecut::strategies

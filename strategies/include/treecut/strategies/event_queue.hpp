@@ -166,6 +166,10 @@ class EventQueueStrategy final : public Strategy {
   /// Bytes per resident node of the records, and per queued event.
   static constexpr std::size_t kBytesPerNode = 32;
   static constexpr std::size_t kBytesPerEvent = 4;
+  /// Every kTrimEvery iterations a list past four times what it holds, and
+  /// past kTrimFloor entries, gives its storage back (trim_lists).
+  static constexpr std::uint64_t kTrimEvery = 64;
+  static constexpr std::size_t kTrimFloor = 1024;
 
  private:
   // Per node, all that an event reads and writes, in one aligned 32-byte
@@ -329,6 +333,9 @@ class EventQueueStrategy final : public Strategy {
   // spare_, so no list is allocated.
   void rescale(double unit);
   std::vector<std::vector<NodeId>> spare_;
+  void trim_lists();
+  std::uint64_t iterations_ = 0;
+  std::size_t list_bytes_ = 0;  // the lists' storage at the last trim
   Stats stats_;
 };
 
