@@ -80,7 +80,7 @@ class ReservedArray {
     }
     auto* begin = reinterpret_cast<unsigned char*>(data_ + first);
     auto* end = reinterpret_cast<unsigned char*>(data_ + first + count);
-    static const auto page = static_cast<std::uintptr_t>(::sysconf(_SC_PAGESIZE));
+    const std::uintptr_t page = page_size();
     const auto lo = (reinterpret_cast<std::uintptr_t>(begin) + page - 1) / page * page;
     const auto hi = reinterpret_cast<std::uintptr_t>(end) / page * page;
     if (hi <= lo) {
