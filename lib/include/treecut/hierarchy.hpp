@@ -216,4 +216,24 @@ std::vector<NodeId> sample_leaves(const Hierarchy& h, std::span<const NodeRange>
 /// bound, parent/child links). Returns an empty string or the first violation.
 std::string check_invariants(const Hierarchy& h);
 
+/// Calls FN(n) for each leaf of H reached from the root through child
+/// links, depth first: every leaf of a hierarchy held whole; of a paged one
+/// (paged_hierarchy.hpp) the resident part's, hidden nodes included, and
+/// never a node that is not resident. O(the nodes reached).
+template <class Fn>
+void for_each_resident_leaf(const Hierarchy& h, Fn&& fn) {
+  if (h.empty()) return;
+  std::vector<NodeId> stack{h.root()};
+  while (!stack.empty()) {
+    const NodeId n = stack.back();
+    stack.pop_back();
+    const std::uint32_t children = h.child_count(n);
+    if (children == 0) {
+      fn(n);
+      continue;
+    }
+    for (std::uint32_t k = children; k-- > 0;) stack.push_back(h.first_child(n) + k);
+  }
+}
+
 }  // namespace treecut

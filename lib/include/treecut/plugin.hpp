@@ -23,7 +23,7 @@ namespace treecut {
 
 /// Bumped whenever strategy.hpp, view_snapshot.hpp, registry.hpp or the
 /// layout of Hierarchy/TreeCut change incompatibly.
-inline constexpr std::uint32_t kPluginApiVersion = 8;
+inline constexpr std::uint32_t kPluginApiVersion = 9;
 
 inline constexpr const char* kPluginVersionSymbol = "treecut_plugin_api_version";
 inline constexpr const char* kPluginRegisterSymbol = "treecut_plugin_register";

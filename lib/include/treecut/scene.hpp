@@ -24,12 +24,14 @@
 #include <glm/vec3.hpp>
 #include <glm/vec4.hpp>
 #include <memory>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
 
 #include "treecut/hierarchy.hpp"
 #include "treecut/model_io.hpp"
+#include "treecut/paged_hierarchy.hpp"
 #include "treecut/scene_object.hpp"
 
 namespace treecut {
@@ -68,6 +70,9 @@ struct SceneModel {
   glm::vec3 box_min{0.0f}, box_max{0.0f};
   std::uint32_t instances = 0;  ///< objects that use it
   bool from_cache = false;      ///< a file model mapped from its cache
+  /// A cache drawn from its pages (SceneLoadOptions::paging): `hierarchy`
+  /// is its hierarchy as far as it is resident; null for a model held whole.
+  std::shared_ptr<PagedHierarchy> paged;
 };
 
 struct Scene {
@@ -178,6 +183,12 @@ struct SceneLoadOptions {
   OpenOptions open;
   /// Threads that load distinct models at once; 0 = hardware threads.
   unsigned threads = 0;
+  /// Set: the models that are caches (.tch) are drawn from their pages
+  /// (issue 45), not held whole, within memory_bytes shared among them in
+  /// proportion to their files' sizes (each at least what its first page
+  /// and largest group of pages take); node_limit likewise. Other models
+  /// are loaded whole.
+  std::optional<PagingOptions> paging;
 };
 
 /// Parses FILE and loads every distinct model once, several at a time:

@@ -18,6 +18,8 @@
 
 namespace treecut {
 
+class PagedHierarchy;
+
 /// One object: an instance of a model placed in the world. Plain data,
 /// 180 bytes (the memory of one more instance of a model already loaded).
 struct SceneObject {
@@ -53,12 +55,21 @@ struct SceneObject {
 struct StageScene {
   std::vector<std::shared_ptr<const Hierarchy>> models;
   std::vector<SceneObject> objects;  ///< `model` indexes `models`
+  /// Per model: its pages when it is drawn from them (models[m] is then its
+  /// hierarchy as far as it is resident), else null (held whole). Empty:
+  /// every model held whole. The stage's thread alone publishes, asks for
+  /// and gives back their pages (paged_hierarchy.hpp).
+  std::vector<std::shared_ptr<PagedHierarchy>> paged{};
   /// The hierarchy object `i` draws (its model's, shared by every instance).
   [[nodiscard]] const Hierarchy& hierarchy(std::size_t i) const {
     return *models[objects[i].model];
   }
   /// The sum over objects of their model's node count (what per-object state costs).
   [[nodiscard]] std::uint64_t object_nodes() const;
+  /// Model M's pages, or null when it is held whole.
+  [[nodiscard]] PagedHierarchy* paged_model(std::size_t m) const {
+    return m < paged.size() ? paged[m].get() : nullptr;
+  }
 };
 
 }  // namespace treecut

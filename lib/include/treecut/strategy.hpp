@@ -254,10 +254,21 @@ struct SceneIterationInput {
 /// object is not drawn: culled, below the PET) or a cut of its model (every
 /// leaf under exactly one node: the stage checks it as any cut); the stage
 /// sorts each list. Both vectors are empty on entry (capacity kept).
+/// A node of an object's model (SceneIterationOutput::wanted).
+struct ObjectNode {
+  std::uint32_t object = 0;
+  NodeId node = 0;
+};
+
 struct SceneIterationOutput {
   std::vector<NodeId>* nodes = nullptr;
   std::vector<std::uint32_t>* offsets = nullptr;
   std::vector<QueryRequest>* queries = nullptr;  ///< refused on a scene for now (see FrontList)
+  /// A scene with models drawn from their pages (StageScene::paged): as
+  /// IterationOutput::wanted, the hidden nodes each object would have
+  /// refined, by object; their pages are read next, the largest on screen
+  /// first. Null when every model is held whole; empty on entry otherwise.
+  std::vector<ObjectNode>* wanted = nullptr;
   IterationResult result;
 };
 

@@ -488,8 +488,6 @@ std::size_t PagedHierarchy::publish(std::vector<NodeId>* revealed) {
     // Its pages' nodes were written by the I/O thread before it took the
     // lock; the node's children appear now, on the thread that iterates.
     m.arrays->child_count.data()[node] = static_cast<std::uint8_t>(g.pages);
-    for (std::uint32_t p = g.first_page; p < g.first_page + g.pages; ++p) {
-    }
     m.pending_bytes -= g.nodes * m.node_bytes;
     m.resident_bytes += g.nodes * m.node_bytes;
     m.resident_nodes += g.nodes, m.resident_pages += g.pages;

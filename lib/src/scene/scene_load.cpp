@@ -18,6 +18,7 @@
 #include <thread>
 #include <tuple>
 
+#include "treecut/cache.hpp"
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
 #include "treecut/parallel.hpp"
@@ -85,6 +86,39 @@ void splat_box(const Hierarchy& h, glm::vec3& lo, glm::vec3& hi) {
   }
 }
 
+// The same box for a model drawn from its pages, from what is resident (its
+// first page): each leaf's sphere, since a leaf there is most often a node
+// whose children are not read yet, and every splat below a node lies in
+// its sphere. Looser than a whole model's box, never smaller; the nodes
+// that are not resident read as zeros and are not visited.
+void paged_splat_box(const Hierarchy& h, glm::vec3& lo, glm::vec3& hi) {
+  lo = glm::vec3(INFINITY);
+  hi = glm::vec3(-INFINITY);
+  for_each_resident_leaf(h, [&](NodeId n) {
+    lo = glm::min(lo, h.center(n) - glm::vec3(h.radius(n)));
+    hi = glm::max(hi, h.center(n) + glm::vec3(h.radius(n)));
+  });
+}
+
+// Each cache's part of a paging budget TOTAL (0: none), in proportion to
+// its file's size among the caches a scene draws from their pages.
+std::vector<std::uint64_t> paging_shares(const std::vector<std::filesystem::path>& caches,
+                                         std::uint64_t total) {
+  std::vector<std::uint64_t> size(caches.size(), 0), share(caches.size(), 0);
+  double all = 0.0;
+  for (std::size_t i = 0; i < caches.size(); ++i) {
+    std::error_code ec;
+    if (!caches[i].empty()) size[i] = std::filesystem::file_size(caches[i], ec);
+    if (ec) size[i] = 0;
+    all += double(size[i]);
+  }
+  if (total == 0 || all <= 0.0) return share;
+  for (std::size_t i = 0; i < caches.size(); ++i)
+    if (!caches[i].empty())
+      share[i] = static_cast<std::uint64_t>(double(total) * double(size[i]) / all);
+  return share;
+}
+
 // A copy of EXAMPLE (InputError or not) with MESSAGE.
 [[noreturn]] void rethrow_with(std::exception_ptr example, const std::string& prefix) {
   try {
@@ -136,6 +170,20 @@ void load_models(const SceneDescription& d, const std::vector<std::uint32_t>& de
                  const SceneLoadOptions& options, Scene& scene) {
   const std::size_t count = decl_of_model.size();
   std::vector<std::shared_ptr<const Hierarchy>> loaded(count);
+  std::vector<std::shared_ptr<PagedHierarchy>> paged(count);
+  // The caches drawn from their pages, and their parts of the budgets.
+  std::vector<std::filesystem::path> caches(count);
+  if (options.paging) {
+    for (std::size_t i = 0; i < count; ++i) {
+      const SceneModelDecl& decl = d.models[decl_of_model[i]];
+      if (decl.source.type == SceneModelSource::Type::File && looks_like_cache(decl.source.file))
+        caches[i] = decl.source.file;
+    }
+  }
+  const std::vector<std::uint64_t> memory_share =
+      paging_shares(caches, options.paging ? options.paging->memory_bytes : 0);
+  const std::vector<std::uint64_t> node_share =
+      paging_shares(caches, options.paging ? options.paging->node_limit : 0);
   // char, not bool: the workers write neighbouring elements at once.
   std::vector<char> cached(count, 0);
   std::vector<std::exception_ptr> errors(count);
@@ -154,7 +202,15 @@ void load_models(const SceneDescription& d, const std::vector<std::uint32_t>& de
     for (std::size_t i = next++; i < count; i = next++) {
       const SceneModelDecl& decl = d.models[decl_of_model[i]];
       try {
-        if (decl.source.type == SceneModelSource::Type::File) {
+        if (!caches[i].empty()) {
+          PagingOptions paging = *options.paging;
+          paging.memory_bytes = std::max<std::uint64_t>(memory_share[i], 1);
+          paging.node_limit =
+              paging.node_limit != 0 ? std::max<std::uint64_t>(node_share[i], 1) : 0;
+          paged[i] = PagedHierarchy::open(caches[i], paging);
+          loaded[i] = std::shared_ptr<const Hierarchy>(paged[i], &paged[i]->hierarchy());
+          cached[i] = 1;
+        } else if (decl.source.type == SceneModelSource::Type::File) {
           OpenedModel opened = open_model(decl.source.file, open);
           cached[i] = opened.from_cache ? 1 : 0;
           loaded[i] = std::make_shared<const Hierarchy>(std::move(opened.hierarchy));
@@ -192,7 +248,11 @@ void load_models(const SceneDescription& d, const std::vector<std::uint32_t>& de
     m.declared_at = quoted_name(scene.files[decl.file]) + ":" + std::to_string(decl.line);
     m.hierarchy = std::move(loaded[i]);
     m.from_cache = cached[i] != 0;
-    splat_box(*m.hierarchy, m.box_min, m.box_max);
+    m.paged = std::move(paged[i]);
+    if (m.paged)
+      paged_splat_box(*m.hierarchy, m.box_min, m.box_max);
+    else
+      splat_box(*m.hierarchy, m.box_min, m.box_max);
   }
 }
 
@@ -335,11 +395,14 @@ double SceneMemory::per_object_bytes() const {
 SceneMemory scene_memory(const Scene& scene) {
   SceneMemory m;
   m.objects = scene.objects.size();
-  for (const auto& model : scene.models) m.hierarchy_bytes += model.hierarchy->memory_bytes();
+  // A model drawn from its pages holds what is resident.
+  const auto held = [](const SceneModel& model) {
+    return model.paged ? model.paged->stats().resident_bytes : model.hierarchy->memory_bytes();
+  };
+  for (const auto& model : scene.models) m.hierarchy_bytes += held(model);
   m.object_bytes =
       scene.objects.size() * sizeof(SceneObject) + scene.models.size() * sizeof(SceneModel);
-  for (const auto& o : scene.objects)
-    m.unshared_bytes += scene.models[o.model].hierarchy->memory_bytes();
+  for (const auto& o : scene.objects) m.unshared_bytes += held(scene.models[o.model]);
   return m;
 }
 

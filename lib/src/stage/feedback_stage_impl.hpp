@@ -172,6 +172,15 @@ class FeedbackStage::Impl {
   std::shared_ptr<PagedHierarchy> paged_;
   std::vector<NodeId> revealed_, concealed_, wanted_;
   void follow_pages(std::span<const NodeId> list, Outbox& out);
+  // A scene's models drawn from their pages (StageScene::paged): per model
+  // the nodes that gained or lost their children, and the hidden nodes the
+  // objects wanted (feedback_stage_scene_pages.cpp).
+  std::vector<std::vector<NodeId>> model_revealed_, model_concealed_;
+  std::vector<ObjectNode> scene_wanted_;
+  std::vector<NodeId> object_wanted_;  // one object's (per-object strategies)
+  [[nodiscard]] bool scene_paged() const { return !scene_->paged.empty(); }
+  void publish_scene_pages();
+  void follow_scene_pages(Outbox& out);
   TreeCut cut_;
   bool cut_stale_ = false;
   std::vector<NodeId> sort_scratch_;
@@ -196,6 +205,16 @@ class FeedbackStage::Impl {
 }  // namespace treecut
 
 namespace treecut::detail {
+
+/// Object I's list in a buffer of N objects' lists back to back (empty when
+/// the buffer does not hold N lists).
+std::span<const NodeId> object_list(const std::vector<NodeId>& nodes,
+                                    const std::vector<std::uint32_t>& offsets, std::size_t n,
+                                    std::size_t i);
+/// V: VIEW in object O's model space (feedback_stage_scene.cpp).
+void fold_object_view(ViewSnapshot& v, const ViewSnapshot& view, const SceneObject& o);
+/// A paged model's counters (pages_*) of S, WANTED hidden nodes wanted.
+void report_pages(const PagingStats& s, std::size_t wanted, Counters& c);
 
 /// Nanoseconds from a to b (the stage's phase timings).
 inline std::uint64_t ns_between(std::chrono::steady_clock::time_point a,

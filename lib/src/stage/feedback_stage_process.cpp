@@ -169,12 +169,15 @@ void FeedbackStage::Impl::follow_pages(std::span<const NodeId> list, Outbox& out
   // Not converged while pages it wants are on their way: the iterations
   // that follow take them in.
   if (!wanted_.empty() || s.in_flight > 0) out.result.converged = false;
-  Counters& c = out.result.counters;
+  detail::report_pages(s, wanted_.size(), out.result.counters);
+}
+
+void detail::report_pages(const PagingStats& s, std::size_t wanted, Counters& c) {
   c.set("pages_resident", double(s.resident_pages), "pages");
   c.set("pages_resident_mib", double(s.resident_bytes) / double(1 << 20), "MiB");
   c.set("pages_requested", double(s.requested), "pages");
   c.set("pages_in_flight", double(s.in_flight), "groups");
-  c.set("pages_wanted", double(wanted_.size()), "nodes");
+  c.set("pages_wanted", double(wanted), "nodes");
   c.set("pages_loaded", double(s.loaded), "groups");
   c.set("pages_evicted", double(s.evicted), "groups");
   c.set("pages_failed", double(s.failed), "groups");

@@ -28,19 +28,11 @@
 
 namespace treecut {
 
+using detail::fold_object_view;
 using detail::ns_between;
+using detail::object_list;
 
 namespace {
-
-// Object i's list in a buffer of n objects' lists back to back (empty when
-// the buffer does not hold n lists).
-std::span<const NodeId> object_list(const std::vector<NodeId>& nodes,
-                                    const std::vector<std::uint32_t>& offsets, std::size_t n,
-                                    std::size_t i) {
-  return offsets.size() == n + 1
-             ? std::span<const NodeId>(nodes).subspan(offsets[i], offsets[i + 1] - offsets[i])
-             : std::span<const NodeId>();
-}
 
 void refuse_scene_queries(const std::vector<QueryRequest>& queries) {
   // The query executor places a node of the one model it draws; on a
@@ -55,24 +47,6 @@ void refuse_scene_queries(const std::vector<QueryRequest>& queries) {
 [[noreturn]] void refuse_object_cut(bool& invalid_cut, std::size_t i, const std::string& why) {
   invalid_cut = true;
   throw std::runtime_error("object " + std::to_string(i) + ": returned an invalid cut: " + why);
-}
-
-// The object's model space: the view with its world matrix folded in, so an
-// unchanged strategy sees what it sees on a model.
-void fold_object_view(ViewSnapshot& v, const ViewSnapshot& view, const SceneObject& o) {
-  v.view = view.view * o.world;
-  v.projection = view.projection;
-  v.viewport = view.viewport;
-  // The light into model space (a direction: the inverse's linear part),
-  // renormalized only where that changed its length (a rotation or the
-  // identity leaves it bit for bit as the model would see it).
-  const glm::vec3 light = glm::mat3(o.world_inverse) * view.light_dir;
-  const float len = glm::length(light);
-  v.light_dir = !(len > 0.0f) ? view.light_dir : std::abs(len - 1.0f) > 1e-6f ? light / len : light;
-  v.frame = view.frame;
-  v.version = view.version;
-  v.visibility.clear();  // no queries on a scene (see refuse_scene_queries)
-  v.finalize();
 }
 
 void add_object_result(IterationResult& total, const IterationResult& r) {
@@ -90,6 +64,32 @@ void add_object_result(IterationResult& total, const IterationResult& r) {
 
 }  // namespace
 
+std::span<const NodeId> detail::object_list(const std::vector<NodeId>& nodes,
+                                            const std::vector<std::uint32_t>& offsets,
+                                            std::size_t n, std::size_t i) {
+  return offsets.size() == n + 1
+             ? std::span<const NodeId>(nodes).subspan(offsets[i], offsets[i + 1] - offsets[i])
+             : std::span<const NodeId>();
+}
+
+// The object's model space: the view with its world matrix folded in, so an
+// unchanged strategy sees what it sees on a model.
+void detail::fold_object_view(ViewSnapshot& v, const ViewSnapshot& view, const SceneObject& o) {
+  v.view = view.view * o.world;
+  v.projection = view.projection;
+  v.viewport = view.viewport;
+  // The light into model space (a direction: the inverse's linear part),
+  // renormalized only where that changed its length (a rotation or the
+  // identity leaves it bit for bit as the model would see it).
+  const glm::vec3 light = glm::mat3(o.world_inverse) * view.light_dir;
+  const float len = glm::length(light);
+  v.light_dir = !(len > 0.0f) ? view.light_dir : std::abs(len - 1.0f) > 1e-6f ? light / len : light;
+  v.frame = view.frame;
+  v.version = view.version;
+  v.visibility.clear();  // no queries on a scene (see refuse_scene_queries)
+  v.finalize();
+}
+
 std::uint64_t StageScene::object_nodes() const {
   std::uint64_t n = 0;
   for (const SceneObject& o : objects) {
@@ -102,6 +102,11 @@ std::shared_ptr<const StageScene> stage_scene(const Scene& scene) {
   auto s = std::make_shared<StageScene>();
   s->models.reserve(scene.models.size());
   for (const SceneModel& m : scene.models) s->models.push_back(m.hierarchy);
+  for (const SceneModel& m : scene.models)
+    if (m.paged) {
+      for (const SceneModel& each : scene.models) s->paged.push_back(each.paged);
+      break;
+    }
   s->objects.reserve(scene.objects.size());
   s->objects = scene.objects;
   return s;
@@ -249,6 +254,9 @@ void FeedbackStage::Impl::process_scene(Outbox& out) {
   back.offsets.clear();
   back.queries.clear();
   SceneTotals totals;
+  // Models drawn from their pages: what was read joins them now, between
+  // iterations (paged_hierarchy.hpp).
+  if (scene_paged()) publish_scene_pages();
   if (scene_strategy_ != nullptr) {
     iterate_scene_strategy(out, totals);
   } else {
@@ -267,6 +275,10 @@ void FeedbackStage::Impl::process_scene(Outbox& out) {
   const std::uint64_t all = ns_between(t1, t3);
   out.iteration_ns = all > totals.publish_ns ? all - totals.publish_ns : 0;
   out.publish_ns = totals.publish_ns;
+  if (scene_paged()) {
+    follow_scene_pages(out);
+    out.publish_ns += ns_between(t3, Clock::now());
+  }
 }
 
 // Extract on a scene: the inbox's strategy, parameters and view taken over.
@@ -320,6 +332,7 @@ void FeedbackStage::Impl::iterate_scene_strategy(Outbox& out, SceneTotals& total
   output.nodes = &back.nodes;
   output.offsets = &back.offsets;
   output.queries = &back.queries;
+  if (scene_paged()) output.wanted = &scene_wanted_;
   scene_strategy_->iterate_scene(input, output);
   const Clock::time_point t2 = Clock::now();
   refuse_scene_queries(back.queries);
@@ -390,12 +403,23 @@ void FeedbackStage::Impl::iterate_object(std::size_t i, bool evolve, Outbox& out
   v.derived.pixel_scale *= object_size_factor_[v.derived.perspective ? 1 : 0][i];
   Strategy& s = *object_strategies_[i];
   object_nodes_.clear();
-  const IterationInput input{h, v, static_cast<std::uint32_t>(i), &cancel_, s.params_version()};
+  // A model drawn from its pages: what its pages did is every instance's input.
+  const PagedHierarchy* paged = scene_->paged_model(o.model);
+  const std::span<const NodeId> revealed =
+      paged ? std::span<const NodeId>(model_revealed_[o.model]) : std::span<const NodeId>();
+  const std::span<const NodeId> concealed =
+      paged ? std::span<const NodeId>(model_concealed_[o.model]) : std::span<const NodeId>();
+  const IterationInput input{
+      h,        v,         static_cast<std::uint32_t>(i),       &cancel_, s.params_version(),
+      revealed, concealed, paged && paged->stats().memory_short};
   IterationOutput output;
   output.cut = evolve ? &object_cuts_[i] : &cut_;  // a Rebuild strategy ignores it
   output.nodes = &object_nodes_;
   output.queries = &back.queries;
+  object_wanted_.clear();
+  if (paged) output.wanted = &object_wanted_;
   s.iterate(input, output);
+  for (const NodeId w : object_wanted_) scene_wanted_.push_back({static_cast<std::uint32_t>(i), w});
   refuse_scene_queries(back.queries);
   const Clock::time_point p0 = Clock::now();
   if (evolve) {

@@ -19,7 +19,6 @@ constexpr double kMinDepth = 1e-6;
 // (rounds are parallel and nearly always few; the sort bounds the worst case).
 constexpr std::size_t kMaxRounds = 32;
 
-
 // An object with a term t_i > 0: its index, P_i and t_i.
 struct Active {
   std::uint32_t index;
@@ -268,7 +267,7 @@ std::vector<NodeId> best_cut(const Hierarchy& h, const ViewSnapshot& view, std::
 }
 
 void best_cut(const Hierarchy& h, const ViewSnapshot& view, std::size_t n, std::vector<NodeId>& cut,
-              const CutParams& params) {
+              const CutParams& params, std::vector<NodeId>* wanted) {
   cut.clear();
   if (n == 0 || h.empty()) return;
   // Max-heap of (priority, node) over the refinable cut nodes; the rest of the
@@ -289,6 +288,11 @@ void best_cut(const Hierarchy& h, const ViewSnapshot& view, std::size_t n, std::
     float px = 0.0f;
     const float p = OptimizationStrategy::priority(h, view, node, params.curvature_weight, &px);
     if (h.is_leaf(node) || !(px >= params.min_size) || !(p > 0.0f)) {
+      // A paged model's node whose children are not resident, which this
+      // rule would refine: its pages are asked for (they may not fit the
+      // share when they come; the next iteration decides).
+      if (wanted != nullptr && h.is_hidden(node) && px >= params.min_size && p > 0.0f)
+        wanted->push_back(node);
       cut.push_back(node);
     } else {
       heap.push_back({p, node});

@@ -85,9 +85,34 @@ void BudgetStrategy::iterate(const IterationInput& input, IterationOutput& outpu
   // One object, no culling, no sharing: the whole budget is its share. At
   // least the root, since a single model's list must be a cut.
   const auto n = static_cast<std::size_t>(std::max(1.0, param_at(kPoints)));
-  *output.nodes = many::best_cut(input.hierarchy, input.view, n);
+  many::best_cut(input.hierarchy, input.view, n, *output.nodes, {}, output.wanted);
   output.result.visited = output.nodes->size();
   output.result.converged = true;  // a function of the view and parameters only
+}
+
+// A model drawn from its pages (paged_hierarchy.hpp) has read its first
+// page when the scene is reset, not its points: the box is fitted to that
+// page's leaves (coarse nodes, most of them, each at the centre of the
+// points below it) and the splats' box is their spheres' (every splat
+// below a node lies in its sphere), so culling stays conservative. It
+// occludes nothing: an inner box found among so few samples could cover a
+// hole its points have, and an object culled wrongly is a hole in the
+// picture.
+void BudgetStrategy::paged_shape(const Hierarchy& h, std::vector<glm::vec3>& points,
+                                 ModelShape& s) {
+  s.splat_lo = glm::vec3(INFINITY);
+  s.splat_hi = glm::vec3(-INFINITY);
+  for_each_resident_leaf(h, [&](NodeId n) {
+    points.push_back(h.center(n));
+    s.splat_lo = glm::min(s.splat_lo, h.center(n) - glm::vec3(h.radius(n)));
+    s.splat_hi = glm::max(s.splat_hi, h.center(n) + glm::vec3(h.radius(n)));
+  });
+  const culling::Obb fitted = culling::fit_obb(points);
+  const glm::vec3 lo = h.bounds_min(), hi = h.bounds_max();
+  const culling::Obb aligned{0.5f * (lo + hi), glm::mat3(1.0f), 0.5f * (hi - lo)};
+  const auto volume = [](const culling::Obb& b) { return b.half.x * b.half.y * b.half.z; };
+  s.box = volume(fitted) < 0.98f * volume(aligned) ? fitted : aligned;
+  s.compactness = culling::compactness(points, s.box);
 }
 
 void BudgetStrategy::reset_scene(const StageScene& scene) {
@@ -104,6 +129,10 @@ void BudgetStrategy::reset_scene(const StageScene& scene) {
     const Hierarchy& h = *scene.models[o.model];
     s.hierarchy = &h;
     points.clear();
+    if (scene.paged_model(o.model) != nullptr) {
+      paged_shape(h, points, s);
+      continue;
+    }
     float radius = 0.0f;
     for (NodeId n = 0; n < h.node_count(); ++n) {
       if (h.is_leaf(n)) {
@@ -187,6 +216,7 @@ void BudgetStrategy::reset_scene(const StageScene& scene) {
   shapes_.swap(shapes);
   objects_.swap(made);
   cuts_.assign(objects_.size(), {});
+  wanted_.assign(objects_.size(), {});
   culler_.reset();  // preprocessed again for these objects
 }
 
@@ -303,9 +333,17 @@ std::size_t BudgetStrategy::select_cuts(const ViewSnapshot& view, WorkerPool& po
       }
       const ViewSnapshot v = culling::object_view(view, worlds_[i]);
       // Into the object's list of the last iteration: its storage is reused.
-      many::best_cut(*hierarchies_[i], v, shares_[i], cuts_[i]);
+      wanted_[i].clear();
+      many::best_cut(*hierarchies_[i], v, shares_[i], cuts_[i], {},
+                     output.wanted != nullptr ? &wanted_[i] : nullptr);
     }
   });
+  if (output.wanted != nullptr) {
+    for (std::size_t i = 0; i < n; ++i)
+      if (shares_[i] != 0)
+        for (const NodeId w : wanted_[i])
+          output.wanted->push_back({static_cast<std::uint32_t>(i), w});
+  }
   // The lists back to back, object i's at offsets[i] .. offsets[i + 1].
   output.offsets->resize(n + 1);
   (*output.offsets)[0] = 0;

@@ -80,8 +80,7 @@ struct BudgetStats {
 /// thousand of 100,000 in a street view). The result does not depend on the
 /// thread count.
 BudgetStats allocate_budget(std::span<const BudgetItem> items, const BudgetParams& params,
-                            std::vector<std::uint32_t>& shares,
-                            WorkerPool* pool = nullptr);
+                            std::vector<std::uint32_t>& shares, WorkerPool* pool = nullptr);
 
 /// The real-valued Eq. 1 share of every item without cap or rounding,
 /// N * t_i / sum t_j: the formula itself, for tests and documentation.
@@ -118,8 +117,10 @@ std::vector<NodeId> best_cut(const Hierarchy& h, const ViewSnapshot& view, std::
                              const CutParams& params = {});
 /// The same cut into `cut` (cleared first; its storage is reused, as is a
 /// per-thread heap: no allocation per object per iteration once the lists
-/// have grown).
+/// have grown). WANTED (if not null) gets the hidden nodes of a paged
+/// model (Hierarchy::is_hidden) that the cut would have refined by the same
+/// rule had their children been resident.
 void best_cut(const Hierarchy& h, const ViewSnapshot& view, std::size_t n, std::vector<NodeId>& cut,
-              const CutParams& params = {});
+              const CutParams& params = {}, std::vector<NodeId>* wanted = nullptr);
 
 }  // namespace treecut::strategies::many

@@ -115,6 +115,8 @@ class BudgetStrategy final : public Strategy, public SceneStrategy {
   };
   void ensure_pool();
   void ensure_culler();
+  /// SHAPE of a model drawn from its pages, from its resident part (POINTS: scratch).
+  static void paged_shape(const Hierarchy& h, std::vector<glm::vec3>& points, ModelShape& shape);
 
   // The phases of iterate_scene() (budget_strategy.cpp).
   struct PhaseClock;
@@ -142,6 +144,7 @@ class BudgetStrategy final : public Strategy, public SceneStrategy {
   std::vector<many::BudgetItem> items_;
   std::vector<std::uint32_t> shares_;
   std::vector<std::vector<NodeId>> cuts_;
+  std::vector<std::vector<NodeId>> wanted_;  // per object: hidden nodes best_cut would refine
   BudgetCounters last_;
 };
 
