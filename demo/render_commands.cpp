@@ -101,10 +101,25 @@ void describe_pages(const RenderArgs& a, const PagedHierarchy& paged) {
       double(a.scene.gpu_upload) / (1 << 20), double(paged.full_detail_memory()) / (1 << 20));
 }
 
+// A scene's models drawn from their pages: their pages' line.
+void describe_scene_pages(const RenderArgs& a, const Scene& scene,
+                          const std::vector<PagedHierarchy*>& paged) {
+  std::uint64_t pages = 0, memory = 0;
+  for (const PagedHierarchy* p : paged) pages += p->stats().pages, memory += p->memory_budget();
+  const double gpu =
+      double(splat::GpuNodePool::budget(pool_models(scene), gpu_pool_options(a.scene)));
+  std::printf(
+      "pages     %zu of %zu models drawn from their pages (%llu pages in their files), within "
+      "%.1f MiB of memory and %.1f MiB of GPU memory, %.1f MiB copied up a frame at most\n",
+      paged.size(), scene.world->models.size(), static_cast<unsigned long long>(pages),
+      double(memory) / (1 << 20), gpu / (1 << 20), double(a.scene.gpu_upload) / (1 << 20));
+}
+
 // The scene or model line; a scene past a strategy's per-object limit is
 // refused first, before any output, naming the file.
 void describe_scene(const RenderArgs& a, const StrategyRegistry& registry, const Scene& scene) {
-  if (scene.paged) check_paged(a);
+  const std::vector<PagedHierarchy*> paged = paged_models(scene);
+  if (!paged.empty()) check_paged(a);
   if (const std::shared_ptr<const StageScene>& world = scene.world) {
     for (const std::string& name : a.scene.strategies) {
       if (const std::string why =
@@ -122,6 +137,7 @@ void describe_scene(const RenderArgs& a, const StrategyRegistry& registry, const
                 h.node_count());
   }
   if (scene.paged) describe_pages(a, *scene.paged);
+  if (scene.world && !paged.empty()) describe_scene_pages(a, scene, paged);
 }
 
 // The full-detail reference of --psnr and --stability: a model's leaves, or
@@ -443,7 +459,7 @@ RunSummary run_strategy(const RenderRig& rig, const StrategyRegistry& registry,
     // run that replays the same, whatever the machine's load).
     if (a.sync) {
       controller.stage().step();
-      if (rig.scene.paged) (void)rig.scene.paged->wait_idle(60000);
+      for (PagedHierarchy* p : paged_models(rig.scene)) (void)p->wait_idle(60000);
     }
     return ms;
   };
@@ -473,8 +489,8 @@ RunSummary run_strategy(const RenderRig& rig, const StrategyRegistry& registry,
   write_file_atomically(dir / "summary.json", summary_json(run));
   print_run(a, name, run, world != nullptr, queries.stats(), controller, stage_options, governor);
   // Pages that could not be read: a line each (their parents stayed leaves).
-  if (rig.scene.paged)
-    for (const std::string& problem : rig.scene.paged->take_problems()) print_warning(problem);
+  for (PagedHierarchy* p : paged_models(rig.scene))
+    for (const std::string& problem : p->take_problems()) print_warning(problem);
   return run;
 }
 
@@ -532,16 +548,17 @@ void run_render(const RenderArgs& a) {
     make_output_folder(dir);
     runs.push_back(run_strategy(rig, registry, name, dir));
   }
-  if (scene.paged) {
+  if (const std::vector<PagedHierarchy*> paged = paged_models(scene); !paged.empty()) {
     // What the budget counts (the resident nodes' bytes) against what the
     // system holds under the arrays (with the memory pages their runs' ends
-    // share): the part of RSS that is the model's.
+    // share): the part of RSS that is the models'.
+    std::uint64_t held = 0, resident = 0, budget = 0;
+    for (const PagedHierarchy* p : paged)
+      held += p->held_bytes(), resident += p->stats().resident_bytes, budget += p->memory_budget();
     std::printf(
         "memory    node arrays: %.1f MiB of memory pages for %.1f MiB of resident nodes "
         "(budget %.1f MiB)\n",
-        double(scene.paged->held_bytes()) / (1 << 20),
-        double(scene.paged->stats().resident_bytes) / (1 << 20),
-        double(scene.paged->memory_budget()) / (1 << 20));
+        double(held) / (1 << 20), double(resident) / (1 << 20), double(budget) / (1 << 20));
   }
   write_plot_svg(out / "plot.svg", runs, scene.label + ": per frame, per strategy");
   std::printf("wrote     %s (stats.csv, summary.json, plot.svg%s)\n", quoted_name(out).c_str(),

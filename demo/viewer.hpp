@@ -91,6 +91,13 @@ struct Scene {
   std::shared_ptr<PagedHierarchy> paged;
 };
 
+/// The models of SCENE drawn from their pages: the model's, or a scene's
+/// (those of its models that are caches, with --memory). Empty: all whole.
+std::vector<PagedHierarchy*> paged_models(const Scene& scene);
+/// A scene's models as its GPU pool holds them (a cache's pages, the others
+/// whole); empty for a scene held whole or a single model.
+std::vector<splat::PoolModel> pool_models(const Scene& scene);
+
 /// A paged model's GPU pool as --gpu-memory and --gpu-upload say.
 splat::GpuPoolOptions gpu_pool_options(const SceneArgs& args);
 /// The vertices the renderer's pool for SCENE starts with (0: a model held

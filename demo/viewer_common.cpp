@@ -216,10 +216,30 @@ splat::GpuPoolOptions gpu_pool_options(const SceneArgs& args) {
   return o;
 }
 
+std::vector<PagedHierarchy*> paged_models(const Scene& scene) {
+  std::vector<PagedHierarchy*> out;
+  if (scene.paged) out.push_back(scene.paged.get());
+  if (scene.world)
+    for (const auto& p : scene.world->paged)
+      if (p) out.push_back(p.get());
+  return out;
+}
+
+std::vector<splat::PoolModel> pool_models(const Scene& scene) {
+  std::vector<splat::PoolModel> out;
+  if (!scene.world || scene.world->paged.empty()) return out;
+  for (std::size_t m = 0; m < scene.world->models.size(); ++m)
+    out.push_back({scene.world->models[m].get(), scene.world->paged_model(m)});
+  return out;
+}
+
 std::uint32_t pool_vertices(const Scene& scene, const SceneArgs& args) {
-  if (!scene.paged) return 0;
   try {
-    return splat::GpuNodePool::segment_vertices(*scene.paged, gpu_pool_options(args));
+    if (scene.paged)
+      return splat::GpuNodePool::segment_vertices(*scene.paged, gpu_pool_options(args));
+    if (const std::vector<splat::PoolModel> models = pool_models(scene); !models.empty())
+      return splat::GpuNodePool::segment_vertices(models, gpu_pool_options(args));
+    return 0;
   } catch (const InputError& e) {
     throw InputError(args.model + ": " + e.what());
   }
@@ -237,6 +257,15 @@ Scene load_scene_file(const SceneArgs& args) {
   so.open.crs = args.crs;
   so.open.memory = args.memory;
   so.open.warn = [](const std::string& w) { print_warning(w); };
+  if (args.memory != 0) {
+    // Its caches drawn from their pages within --memory (issue 45), no
+    // more of them in memory than the GPU budget draws.
+    so.paging.emplace();
+    so.paging->memory_bytes = args.memory;
+    so.paging->stall_ms = static_cast<int>(args.stall_timeout_s * 1000.0);
+    if (args.gpu_memory != 0)
+      so.paging->node_limit = splat::GpuNodePool::nodes_within(args.gpu_memory);
+  }
   const treecut::Scene scene = treecut::load_scene(std::filesystem::path(args.model), so);
   s.world = stage_scene(scene);
   s.hierarchy = scene.models.front().hierarchy;
@@ -266,6 +295,14 @@ Scene load_scene_file(const SceneArgs& args) {
   s.center = 0.5f * (s.bounds_min + s.bounds_max);
   s.radius = std::max(0.5f * glm::length(s.bounds_max - s.bounds_min), 1e-6f);
   set_view_box(s, 0.0f);
+  if (s.world->paged.empty()) {
+    if (args.gpu_memory != 0)
+      throw InputError(args.model +
+                       ": --gpu-memory: the scene has no cache (.tch) to draw from its pages "
+                       "(with --memory); a model held whole is on the GPU whole");
+  } else {
+    (void)pool_vertices(s, args);  // a GPU budget too small: refused now, in one line
+  }
   return s;
 }
 
@@ -307,7 +344,7 @@ void frame_model(Scene& s, const SceneArgs& args) {
 
 Scene load_scene(const SceneArgs& args, const LoadProgressFn& progress) {
   if (args.gpu_memory != 0 && !is_cache_url(args.model) &&
-      !(args.memory != 0 && looks_like_cache(args.model)))
+      !(args.memory != 0 && (looks_like_cache(args.model) || looks_like_scene(args.model))))
     throw InputError(
         "--gpu-memory: only a cache drawn from its pages (a .tch with --memory) is "
         "drawn within a GPU budget; a model held whole is on the GPU whole");
@@ -381,15 +418,27 @@ std::vector<const Hierarchy*> scene_models(const Scene& scene) {
 // A model drawn from its pages, as far as it is known when it opens: the
 // leaves of its root page (each holds the points below it; nothing else is
 // read yet, and reading it would map the zero page where pages go later).
-std::vector<NodeId> known_leaves(const Scene& scene) {
+std::vector<NodeId> known_leaves(const Hierarchy& h, const PagedHierarchy& paged) {
   std::vector<NodeRange> known;
-  scene.paged->page_ranges(0, known);
-  return sample_leaves(*scene.hierarchy, known, 65536);
+  paged.page_ranges(0, known);
+  return sample_leaves(h, known, 65536);
 }
 
+namespace {
+
+// The pages of the model SCENE opens with (a model's, or a scene's first
+// model's), or null when it is held whole.
+const PagedHierarchy* first_pages(const Scene& scene) {
+  return scene.world ? scene.world->paged_model(0) : scene.paged.get();
+}
+
+}  // namespace
+
 splat::ColorBy resolve_color(const Scene& scene, const SceneArgs& args, std::string* note) {
-  return splat::resolve_auto_color(*scene.hierarchy, color_by(args), note,
-                                   scene.paged ? known_leaves(scene) : std::vector<NodeId>{});
+  const PagedHierarchy* paged = first_pages(scene);
+  return splat::resolve_auto_color(
+      *scene.hierarchy, color_by(args), note,
+      paged ? known_leaves(*scene.hierarchy, *paged) : std::vector<NodeId>{});
 }
 
 void check_coloring(const Scene& scene, const splat::ColorBy& by) {
@@ -400,17 +449,22 @@ splat::Legend apply_coloring(const Scene& scene, const splat::ColorBy& by,
                              splat::Renderer& renderer) {
   const std::vector<const Hierarchy*> models = scene_models(scene);
   const bool own = by.source == "rgb" && by.show_classes.empty() && by.hide_classes.empty();
-  if (scene.paged) {
-    // Coloured as its pages go up to the GPU (node_pool.hpp), from what
-    // the root page's leaves and the points' extremes say
-    // (NodeColoring, partial).
-    std::shared_ptr<const splat::NodeColoring> rule;
-    if (!own) {
-      rule = std::make_shared<const splat::NodeColoring>(*scene.hierarchy, by, scene.up,
-                                                         known_leaves(scene), true);
+  if (!paged_models(scene).empty()) {
+    // Coloured as their pages go up to the GPU (node_pool.hpp): a paged
+    // model from what the root page's leaves and the points' extremes say
+    // (NodeColoring, partial), a scene's model held whole from all of it.
+    splat::Legend legend;
+    for (std::size_t i = 0; i < models.size(); ++i) {
+      const PagedHierarchy* paged = scene.world ? scene.world->paged_model(i) : scene.paged.get();
+      std::shared_ptr<const splat::NodeColoring> rule;
+      if (!own) {
+        rule = std::make_shared<const splat::NodeColoring>(
+            *models[i], by, scene.up,
+            paged ? known_leaves(*models[i], *paged) : std::vector<NodeId>{}, paged != nullptr);
+      }
+      renderer.set_node_coloring(*models[i], rule);
+      if (i == 0 && rule) legend = rule->legend();
     }
-    renderer.set_node_coloring(*scene.hierarchy, rule);
-    splat::Legend legend = rule ? rule->legend() : splat::Legend{};
     if (own) legend.title = "rgb";
     return legend;
   }

@@ -260,6 +260,80 @@ TEST(PagedRender, AColouringByValueIsTheWholeModelsPicture) {
       << value_paged_out;
 }
 
+// A scene of caches drawn from their pages (--memory), a generated model held
+// whole beside them in the same GPU pool: standing still, the picture of the
+// scene held whole.
+fs::path paged_scene(const fs::path& dir) {
+  terrain_cache(dir);
+  treecut::save_cache(treecut::build_from_points(treecut::tools::generate_model(
+                          treecut::tools::ModelKind::Sphere, 40000, 2)),
+                      {1, 2, 3}, dir / "sphere.tch");
+  std::ofstream(dir / "mix.scene") << "treecut-scene 1\n"
+                                      "model t terrain.tch\n"
+                                      "model s sphere.tch\n"
+                                      "generate b building 3 20000\n"
+                                      "object t\n"
+                                      "object t translate 2.2 0 0\n"
+                                      "object s scale 0.6 translate 1.1 2.0 0.3\n"
+                                      "object b scale 0.5 0.5 0.8 translate 1.1 -1.5 0\n";
+  return dir / "mix.scene";
+}
+
+TEST(PagedRender, ASceneOfCachesIsTheWholeScenesPicture) {
+  const fs::path dir = treecut::test::scratch_dir("paged_render_scene");
+  const fs::path scene = paged_scene(dir);
+  const auto last_frame = [&](const std::string& name, const std::string& options) {
+    const fs::path out = dir / name;
+    const treecut::test::CommandResult r = run_treecut(
+        "render " + quote(scene) + " " + options +
+        " -s budget --frames 4 --warmup 40 --sync --width 160 --height 96 -o " + quote(out));
+    EXPECT_EQ(r.code, 0) << r.out;
+    return std::make_pair(treecut::test::load_png(out / "frame_00003.png"), r.out);
+  };
+  const auto [whole, whole_out] = last_frame("whole", "");
+  const auto [paged, paged_out] = last_frame("paged", "--memory 64M");
+  ASSERT_EQ(whole.width, 160);
+  ASSERT_EQ(paged.width, 160);
+  EXPECT_NE(paged_out.find("pages     2 of 3 models drawn from their pages"), std::string::npos)
+      << paged_out;
+  EXPECT_EQ(whole_out.find("pages     "), std::string::npos) << whole_out;
+  const std::size_t off = treecut::test::unmatched_either_way(whole, paged);
+  std::printf("unmatched pixels of %d: %zu\n", 160 * 96, off);
+  EXPECT_LT(off, std::size_t{160 * 96 / 100});
+}
+
+TEST(PagedRender, ASceneKeepsTinyBudgetsInEveryFrame) {
+  const fs::path dir = treecut::test::scratch_dir("paged_render_scene_tiny");
+  const fs::path scene = paged_scene(dir);
+  for (const char* strategy : {"budget", "recursive"}) {
+    SCOPED_TRACE(strategy);
+    const fs::path out = dir / strategy;
+    const treecut::test::CommandResult r =
+        run_treecut("render " + quote(scene) + " --memory 3M --gpu-memory 4M --frames 40 -s " +
+                    strategy + " " + kRun + "-o " + quote(out));
+    ASSERT_EQ(r.code, 0) << r.out;
+    const auto rows = read_csv(out / "stats.csv");
+    const std::vector<double> memory = column(rows, "pages_resident_mib");
+    const std::vector<double> gpu = column(rows, "gpu_resident_mib");
+    const std::vector<double> loaded = column(rows, "pages_loaded");
+    ASSERT_EQ(memory.size(), 40u);
+    ASSERT_EQ(gpu.size(), 40u);
+    ASSERT_FALSE(loaded.empty());
+    EXPECT_GT(loaded.back(), 0.0) << "no page was read";
+    for (std::size_t f = 0; f < memory.size(); ++f) {
+      EXPECT_LE(memory[f], 3.0) << "frame " << f;
+      EXPECT_LE(gpu[f], 4.0) << "frame " << f;
+    }
+  }
+  // A GPU budget for a scene with no cache to draw from its pages: refused.
+  std::ofstream(dir / "whole.scene") << "treecut-scene 1\ngenerate b building 3 2000\nobject b\n";
+  treecut::test::expect_failure(
+      run_treecut("render " + quote(dir / "whole.scene") +
+                  " --memory 3M --gpu-memory 4M --frames 1 -o " + quote(dir / "refused")),
+      2, "--gpu-memory: the scene has no cache");
+  EXPECT_FALSE(fs::exists(dir / "refused"));
+}
+
 #define STB_IMAGE_IMPLEMENTATION
 #define STBI_ONLY_PNG
 #include <stb/stb_image.h>

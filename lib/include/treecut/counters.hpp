@@ -36,7 +36,9 @@ struct Counter {
 /// The named counters of one iteration, in the order first set.
 class Counters {
  public:
-  static constexpr std::size_t kMax = 24;  ///< counters an iteration may publish
+  /// Counters an iteration may publish: a strategy's (budget has 14), a paged
+  /// model's pages_* (9) and its GPU pool's in a render's row (6).
+  static constexpr std::size_t kMax = 32;
 
   /// Sets NAME to VALUE in UNIT; a name set before in this iteration gets the
   /// new value. Throws std::invalid_argument for a name that is empty, longer

@@ -117,15 +117,28 @@ FrameResult RenderThreadFrame::begin_scene(const FrameLists& lists) {
     // the renderer holds exactly these already), the objects' records.
     models_.clear();
     for (const auto& m : scene.models) models_.push_back(m.get());
-    bool held = renderer_->model_count() == models_.size();
-    for (std::size_t i = 0; held && i < models_.size(); ++i) {
-      held = renderer_->model_identity(i) == models_[i];
+    scene_cut_.set_vertex_map(nullptr);
+    pool_.reset();
+    if (!scene.paged.empty()) {
+      // Models drawn from their pages: one pool of every model's pages
+      // (those held whole are up for good), within the GPU budget.
+      std::vector<PoolModel> pool_models;
+      for (std::size_t m = 0; m < models_.size(); ++m)
+        pool_models.push_back({models_[m], scene.paged_model(m)});
+      pool_ = std::make_unique<GpuNodePool>(*renderer_, pool_models, gpu_);
+      scene_cut_.set_vertex_map(pool_.get());
+    } else {
+      bool held = renderer_->model_count() == models_.size();
+      for (std::size_t i = 0; held && i < models_.size(); ++i) {
+        held = renderer_->model_identity(i) == models_[i];
+      }
+      if (!held) renderer_->set_models(models_);
     }
-    if (!held) renderer_->set_models(models_);
     scene_cut_.set_objects(*renderer_, scene.objects);
     scene_ = &scene;
     switched = true;
   }
+  if (pool_) pool_->begin_frame();
   if (switched || lists.current.generation != scene_generation_) {
     // A new generation: the objects' lists, copied into the GPU buffers now
     // (the stage may reuse the list after the next exchange).
@@ -141,6 +154,9 @@ FrameResult RenderThreadFrame::begin_scene(const FrameLists& lists) {
     scene_cut_.upload(models_, object_lists_);
     scene_generation_ = lists.current.generation;
   }
+  // The pages the lists need go up (within the frame's budget) before
+  // they are drawn; the rest is drawn as ancestors meanwhile.
+  if (pool_) pool_->prepare(scene_cut_);
   current_ = FrameResult{};
   current_.model_switched = switched;
   if (switched) model_frame_ = controller_->frame();

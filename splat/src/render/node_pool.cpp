@@ -6,11 +6,13 @@
 #include "treecut/splat/node_pool.hpp"
 
 #include <algorithm>
+#include <array>
 #include <string>
 #include <utility>
 
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
+#include "treecut/splat/scene_draw.hpp"
 
 namespace treecut::splat {
 
@@ -20,52 +22,103 @@ std::uint32_t blocks_for(std::uint64_t nodes) {
   return static_cast<std::uint32_t>((nodes + GpuNodePool::kBlock - 1) / GpuNodePool::kBlock);
 }
 
-// The root's page and the largest page beside it: the least pool.
-std::uint64_t least_blocks(const PagedHierarchy& paged) {
+// A model's pages: a paged one's, or one page of all its nodes.
+std::uint32_t pages_of(const PoolModel& m) {
+  return m.paged ? m.paged->pages() : 1;
+}
+std::uint32_t page_nodes(const PoolModel& m, std::uint32_t p) {
+  return m.paged ? m.paged->page_nodes(p) : m.hierarchy->node_count();
+}
+
+// Every model's first page and the largest page beside them: the least pool.
+std::uint64_t least_blocks(std::span<const PoolModel> models) {
+  std::uint64_t first = 0;
   std::uint32_t largest = 0;
-  for (std::uint32_t p = 1; p < paged.pages(); ++p)
-    largest = std::max(largest, paged.page_nodes(p));
-  return std::uint64_t{blocks_for(paged.page_nodes(0))} + blocks_for(largest);
+  for (const PoolModel& m : models) {
+    first += blocks_for(page_nodes(m, 0));
+    for (std::uint32_t p = 1; p < pages_of(m); ++p) largest = std::max(largest, page_nodes(m, p));
+  }
+  return first + blocks_for(largest);
 }
 
 }  // namespace
 
-std::uint64_t GpuNodePool::budget(const PagedHierarchy& paged, const GpuPoolOptions& options) {
+std::uint64_t GpuNodePool::budget(std::span<const PoolModel> models,
+                                  const GpuPoolOptions& options) {
   if (options.memory_bytes != 0) return options.memory_bytes;
-  // Room for every node the RAM budget holds, and a quarter more for the
-  // blocks' last vertices that pages leave unused (nodes_within inverted).
-  return paged.memory_budget() / paged.bytes_per_node() * kVertexBytes / 4 * 5;
+  // Room for every node the RAM budgets hold, and a quarter more for the
+  // blocks' last vertices that pages leave unused (nodes_within inverted);
+  // a model held whole, all of its nodes.
+  std::uint64_t bytes = 0;
+  for (const PoolModel& m : models) {
+    bytes += m.paged ? m.paged->memory_budget() / m.paged->bytes_per_node() * kVertexBytes / 4 * 5
+                     : std::uint64_t{blocks_for(m.hierarchy->node_count())} * kBlock * kVertexBytes;
+  }
+  return bytes;
 }
 
-std::uint32_t GpuNodePool::blocks(const PagedHierarchy& paged, const GpuPoolOptions& options) {
-  const std::uint64_t bytes = budget(paged, options);
-  const std::uint64_t least = least_blocks(paged) * kBlock * kVertexBytes;
+std::uint64_t GpuNodePool::budget(const PagedHierarchy& paged, const GpuPoolOptions& options) {
+  const PoolModel one{&paged.hierarchy(), &paged};
+  return budget(std::span<const PoolModel>(&one, 1), options);
+}
+
+std::uint32_t GpuNodePool::blocks(std::span<const PoolModel> models,
+                                  const GpuPoolOptions& options) {
+  const std::uint64_t bytes = budget(models, options);
+  const std::uint64_t least = least_blocks(models) * kBlock * kVertexBytes;
   if (bytes < least)
     throw InputError("--gpu-memory: " + mib_text(bytes) + " is below the " + mib_text(least) +
-                     " the model's first page and its largest page take on the GPU");
+                     (models.size() > 1 ? " the models' first pages" : " the model's first page") +
+                     " and the largest page beside them take on the GPU");
   // The segments' vertices, a block's and one a segment (its vertex 0) at
   // most, address 2^31 - 1 (a GLint).
   return static_cast<std::uint32_t>(
       std::min<std::uint64_t>(bytes / (kBlock * kVertexBytes), 0x7fffffff / (kBlock + 1)));
 }
 
-std::uint32_t GpuNodePool::segment_vertices(const PagedHierarchy& paged,
+std::uint32_t GpuNodePool::blocks(const PagedHierarchy& paged, const GpuPoolOptions& options) {
+  const PoolModel one{&paged.hierarchy(), &paged};
+  return blocks(std::span<const PoolModel>(&one, 1), options);
+}
+
+std::uint32_t GpuNodePool::segment_vertices(std::span<const PoolModel> models,
                                             const GpuPoolOptions& options) {
-  const std::uint64_t most = blocks(paged, options);
+  const std::uint64_t most = blocks(models, options);
   const std::uint64_t wanted = options.segment_bytes / (kBlock * kVertexBytes);
   return static_cast<std::uint32_t>(1 + std::clamp<std::uint64_t>(wanted, 1, most) * kBlock);
 }
 
+std::uint32_t GpuNodePool::segment_vertices(const PagedHierarchy& paged,
+                                            const GpuPoolOptions& options) {
+  const PoolModel one{&paged.hierarchy(), &paged};
+  return segment_vertices(std::span<const PoolModel>(&one, 1), options);
+}
+
 GpuNodePool::GpuNodePool(Renderer& renderer, const PagedHierarchy& paged,
                          const GpuPoolOptions& options)
-    : renderer_(&renderer),
-      paged_(&paged),
-      options_(options),
-      max_blocks_(blocks(paged, options)),
-      slot_(paged.hierarchy().node_count()) {
-  const std::uint32_t vertices = segment_vertices(paged, options);
+    : GpuNodePool(renderer,
+                  std::span<const PoolModel>(std::array{PoolModel{&paged.hierarchy(), &paged}}),
+                  options) {}
+
+GpuNodePool::GpuNodePool(Renderer& renderer, std::span<const PoolModel> models,
+                         const GpuPoolOptions& options)
+    : renderer_(&renderer), options_(options), max_blocks_(blocks(models, options)) {
+  std::vector<const Hierarchy*> hierarchies;
+  std::uint32_t pages = 0;
+  for (const PoolModel& m : models) {
+    Held held;
+    held.hierarchy = m.hierarchy;
+    held.paged = m.paged;
+    held.first_page = pages;
+    // What it keeps is a slot a resident node, in reserved address space.
+    held.slot = std::make_unique<ReservedArray<std::uint32_t>>(m.hierarchy->node_count());
+    pages += pages_of(m);
+    models_.push_back(std::move(held));
+    hierarchies.push_back(m.hierarchy);
+  }
+  const std::uint32_t vertices = segment_vertices(models, options);
   segment_blocks_ = (vertices - 1) / kBlock;
-  renderer.set_pool(paged.hierarchy(), vertices);
+  renderer.set_pool(hierarchies, vertices);
   shift_ = renderer.pool_shift();
   // The segments' vertices address 2^31 - 1, the last one's whatever it holds.
   const std::uint64_t segments = ((std::uint64_t{0x7fffffff} - vertices) >> shift_) + 1;
@@ -74,12 +127,23 @@ GpuNodePool::GpuNodePool(Renderer& renderer, const PagedHierarchy& paged,
   blocks_ = segment_blocks_;
   for (std::uint32_t b = blocks_; b-- > 0;) free_.push_back(b);  // low blocks first
   block_used_.resize(blocks_, 0);
-  wanted_mark_.assign(paged.pages(), 0);
+  wanted_mark_.assign(pages, 0);
   stats_.capacity_bytes = std::uint64_t{max_blocks_} * kBlock * kVertexBytes;
-  // The root's page, whole: every stand-in's last resort, never given back.
-  grow(blocks_for(paged.page_nodes(0)));
+  // Each model's first page, whole: every stand-in's last resort, never
+  // given back (a model held whole: all of it).
+  std::size_t first = 0;
+  for (const PoolModel& m : models) first += blocks_for(page_nodes(m, 0));
+  grow(first);
   coloring_version_ = renderer.coloring_version();
-  upload(0, paged.page_nodes(0));
+  for (const Held& m : models_)
+    upload(m.first_page, page_nodes(PoolModel{m.hierarchy, m.paged}, 0));
+}
+
+std::pair<std::uint32_t, std::uint32_t> GpuNodePool::model_page(std::uint32_t p) const {
+  const auto it = std::upper_bound(models_.begin(), models_.end(), p,
+                                   [](std::uint32_t q, const Held& m) { return q < m.first_page; });
+  const auto m = static_cast<std::uint32_t>(std::prev(it) - models_.begin());
+  return {m, p - models_[m].first_page};
 }
 
 void GpuNodePool::grow(std::size_t blocks) {
@@ -102,17 +166,35 @@ void GpuNodePool::begin_frame() {
 
 std::uint32_t GpuNodePool::map(std::span<const NodeId> ids, std::size_t current,
                                std::vector<std::uint32_t>& out) {
-  const std::span<const NodeId> parent = paged_->hierarchy().arrays().parent;
+  begin_lists();
+  return map_into(0, ids, current, out);
+}
+
+void GpuNodePool::begin_lists() {
   for (const NodePlace& w : wanted_) wanted_mark_[w.page] = 0;
   wanted_.clear();
   stats_.stand_ins = 0;
+  mapped_ = true;
+  stats_.waiting_pages = 0;
+}
+
+std::uint32_t GpuNodePool::map_list(std::uint32_t model, std::span<const NodeId> ids,
+                                    std::vector<std::uint32_t>& out) {
+  return map_into(model, ids, ids.size(), out);
+}
+
+std::uint32_t GpuNodePool::map_into(std::uint32_t m, std::span<const NodeId> ids,
+                                    std::size_t current, std::vector<std::uint32_t>& out) {
+  const Held& held = models_[m];
+  const ReservedArray<std::uint32_t>& slot = *held.slot;
+  const std::span<const NodeId> parent = held.hierarchy->arrays().parent;
   out.resize(ids.size());
   std::uint32_t most = 0;
   NodeId last_parent = kNoNode;  // siblings share their stand-in
   stand_ins_.clear();
   for (std::size_t i = 0; i < ids.size(); ++i) {
     const NodeId id = ids[i];
-    std::uint32_t v = slot_[id];
+    std::uint32_t v = slot[id];
     if (v == 0 && i >= current) {
       // A fading exchange's leaving node whose page left the GPU: nothing
       // (its ancestors are no longer known to be resident).
@@ -123,26 +205,27 @@ std::uint32_t GpuNodePool::map(std::span<const NodeId> ids, std::size_t current,
       ++stats_.stand_ins;
       // Its page, up to its level: a cut through a page needs its levels
       // down to the cut's, not the whole page (most of a page's nodes lie
-      // in its deepest level).
-      const NodePlace place = paged_->place_of(id);
+      // in its deepest level). Only a paged model has a page not up.
+      NodePlace place = held.paged->place_of(id);
+      place.page += held.first_page;
       if (std::uint32_t& mark = wanted_mark_[place.page]; mark == 0) {
         wanted_.push_back(place);
         mark = static_cast<std::uint32_t>(wanted_.size());
       } else {
         wanted_[mark - 1].prefix = std::max(wanted_[mark - 1].prefix, place.prefix);
       }
-      // The nearest ancestor that is up stands in, once: the other nodes
-      // below it draw nothing (an ancestor's disc covers them all; drawn
-      // once per descendant it was most of a frame's fill). The list's
-      // nodes and their ancestors are resident (the stage's evict() knows
-      // the list): their parents can be read.
+      // The nearest ancestor that is up stands in, once a list: the other
+      // nodes below it draw nothing (an ancestor's disc covers them all;
+      // drawn once per descendant it was most of a frame's fill). The
+      // list's nodes and their ancestors are resident (the stage's evict()
+      // knows the list): their parents can be read.
       if (parent[id] == last_parent) {
         out[i] = kNullVertex;
         continue;
       }
       NodeId up = last_parent = parent[id];
-      while (slot_[up] == 0) up = parent[up];  // page 0 is always up
-      v = slot_[up];
+      while (slot[up] == 0) up = parent[up];  // the first page is always up
+      v = slot[up];
       if (!stand_ins_.insert(v).second) {
         out[i] = kNullVertex;
         continue;
@@ -152,14 +235,27 @@ std::uint32_t GpuNodePool::map(std::span<const NodeId> ids, std::size_t current,
     block_used_[block_of(v - 1)] = frame_;
     most = std::max(most, v - 1);
   }
-  mapped_ = true;
   stats_.waiting_pages = wanted_.size();
   return most;
 }
 
 void GpuNodePool::prepare(CutBuffer& cut) {
   stats_.uploaded_bytes = 0;
-  if (cut.hierarchy() != &paged_->hierarchy()) return;
+  if (cut.hierarchy() != models_.front().hierarchy) return;
+  prepare_lists([&cut] { cut.refresh(); });
+}
+
+void GpuNodePool::prepare(SceneCutBuffer& scene) {
+  stats_.uploaded_bytes = 0;
+  const std::span<const Hierarchy* const> set = scene.models();
+  if (set.size() != models_.size()) return;
+  for (std::size_t m = 0; m < set.size(); ++m)
+    if (set[m] != models_[m].hierarchy) return;
+  prepare_lists([&scene] { scene.refresh(); });
+}
+
+template <class Refresh>
+void GpuNodePool::prepare_lists(Refresh&& refresh) {
   if (renderer_->coloring_version() != coloring_version_) {
     // Coloured anew (Renderer::set_node_coloring): the pages up written
     // again in the new colours, whatever the frame's budget (a user's
@@ -169,7 +265,7 @@ void GpuNodePool::prepare(CutBuffer& cut) {
   }
   // The same list as last frame, still waiting for pages: mapped again, so
   // that its blocks count as used this frame.
-  if (!mapped_ && !wanted_.empty()) cut.refresh();
+  if (!mapped_ && !wanted_.empty()) refresh();
   if (wanted_.empty()) return;
   const std::vector<NodePlace> pages = wanted_;  // refresh() remakes wanted_
   std::size_t uploaded = 0;
@@ -187,12 +283,17 @@ void GpuNodePool::prepare(CutBuffer& cut) {
     ++uploaded;
     stats_.uploaded_bytes += bytes;
   }
-  if (uploaded > 0) cut.refresh();
+  if (uploaded > 0) refresh();
 }
 
 template <class Fn>
 void GpuNodePool::for_each_run(std::uint32_t page, std::uint32_t from, std::uint32_t to, Fn&& fn) {
-  paged_->page_ranges(page, ranges_);
+  const auto [m, own] = model_page(page);
+  const Held& held = models_[m];
+  if (held.paged)
+    held.paged->page_ranges(own, ranges_);
+  else
+    ranges_.assign(1, NodeRange{0, held.hierarchy->node_count()});
   std::uint32_t k = 0;
   for (const NodeRange& r : ranges_) {
     const std::uint32_t lo = std::max(k, from), hi = std::min(k + r.count, to);
@@ -217,13 +318,15 @@ void GpuNodePool::upload(std::uint32_t page, std::uint32_t prefix) {
 void GpuNodePool::write(std::uint32_t page, std::uint32_t from, std::uint32_t to, const Up& u) {
   // The page's k-th node goes to vertex k % kBlock of its block k / kBlock:
   // one copy a piece of a run within a block.
+  const Held& held = models_[model_page(page).first];
+  ReservedArray<std::uint32_t>& slot = *held.slot;
   for_each_run(page, from, to, [&](NodeRange r, std::uint32_t k) {
     for (std::uint32_t done = 0; done < r.count;) {
       const std::uint32_t at = (k + done) % kBlock;
       const std::uint32_t len = std::min(r.count - done, kBlock - at);
       const std::uint32_t vertex = first_vertex(u.blocks[(k + done) / kBlock]) + at;
-      renderer_->write_vertices(vertex, paged_->hierarchy(), {r.first + done, len});
-      for (std::uint32_t j = 0; j < len; ++j) slot_[r.first + done + j] = vertex + j + 1;
+      renderer_->write_vertices(vertex, *held.hierarchy, {r.first + done, len});
+      for (std::uint32_t j = 0; j < len; ++j) slot[r.first + done + j] = vertex + j + 1;
       done += len;
     }
   });
@@ -231,8 +334,9 @@ void GpuNodePool::write(std::uint32_t page, std::uint32_t from, std::uint32_t to
 
 void GpuNodePool::give_back(std::uint32_t page) {
   const auto it = up_.find(page);
+  ReservedArray<std::uint32_t>& slot = *models_[model_page(page).first].slot;
   for_each_run(page, 0, it->second.nodes,
-               [&](NodeRange r, std::uint32_t) { slot_.release(r.first, r.count); });
+               [&](NodeRange r, std::uint32_t) { slot.release(r.first, r.count); });
   free_.insert(free_.end(), it->second.blocks.begin(), it->second.blocks.end());
   up_.erase(it);
   ++stats_.evictions;
@@ -265,7 +369,7 @@ bool GpuNodePool::make_room(std::size_t blocks) {
     lru_.clear();
     lru_next_ = 0;
     for (const auto& [page, u] : up_)
-      if (const std::uint64_t used = last_used(u); page != 0 && used < frame_)
+      if (const std::uint64_t used = last_used(u); model_page(page).second != 0 && used < frame_)
         lru_.emplace_back(used, page);
     std::sort(lru_.begin(), lru_.end());
   }

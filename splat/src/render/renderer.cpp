@@ -258,14 +258,21 @@ void Renderer::set_models(std::span<const Hierarchy* const> models) {
 }
 
 void Renderer::set_pool(const Hierarchy& h, std::uint32_t vertices) {
-  if (pooled_ && hierarchy_ == &h && segment_vertices_.front() == vertices) {
+  const Hierarchy* one = &h;
+  set_pool(std::span<const Hierarchy* const>(&one, 1), vertices);
+}
+
+void Renderer::set_pool(std::span<const Hierarchy* const> models, std::uint32_t vertices) {
+  if (models.empty()) throw std::invalid_argument("Renderer: no model");
+  if (pooled_ && std::equal(models.begin(), models.end(), model_ids_.begin(), model_ids_.end()) &&
+      segment_vertices_.front() == vertices) {
     // The first segment kept (made for this pool: Renderer's constructor),
     // the others dropped: a new pool adds its own.
     segments_.resize(1);
     segment_vertices_.resize(1);
     bind_segment(0);
     node_count_ = vertices;
-    model_nodes_.assign(1, vertices);
+    model_nodes_.assign(models.size(), vertices);
     return;
   }
   if (vertices == 0 || vertices > 0x7fffffffu)
@@ -277,12 +284,13 @@ void Renderer::set_pool(const Hierarchy& h, std::uint32_t vertices) {
   pool_shift_ = static_cast<std::uint32_t>(std::countr_zero(std::bit_ceil(vertices)));
   node_count_ = vertices;
   // Vertex 0 zeros (alpha 0: drawn as nothing), the rest undefined until
-  // written: the pool writes what it maps to.
+  // written: the pool writes what it maps to. Every model's vertices are
+  // where the pool's map puts them: its base is 0.
   write_null_vertex();
-  model_base_.assign(1, 0);
-  model_nodes_.assign(1, vertices);
-  model_ids_.assign(1, &h);
-  hierarchy_ = &h;
+  model_base_.assign(models.size(), 0);
+  model_nodes_.assign(models.size(), vertices);
+  model_ids_.assign(models.begin(), models.end());
+  hierarchy_ = models.front();
   pooled_ = true;
   ++hierarchy_uploads_;
   gl::check("Renderer vertex pool");
@@ -307,7 +315,7 @@ void Renderer::add_pool_segment(std::uint32_t vertices) {
   }
   add_segment(vertices);
   node_count_ = static_cast<std::uint32_t>(extent);
-  model_nodes_.assign(1, node_count_);
+  model_nodes_.assign(model_ids_.size(), node_count_);
   gl::check("Renderer pool segment");
 }
 
@@ -323,10 +331,9 @@ void Renderer::write_vertices(std::uint32_t first, const Hierarchy& h, NodeRange
   gl::Buffer& b = segments_[s];
   b.sub_data(at.center_radius(v), std::as_bytes(a.center_radius.subspan(nodes.first, nodes.count)));
   b.sub_data(at.normal_cone(v), std::as_bytes(a.normal_cone.subspan(nodes.first, nodes.count)));
-  if (coloring_ && coloring_model_ == &h) {
+  if (const NodeColoring* rule = coloring_of(h)) {
     colors_scratch_.resize(nodes.count);
-    for (std::uint32_t i = 0; i < nodes.count; ++i)
-      colors_scratch_[i] = (*coloring_)(nodes.first + i);
+    for (std::uint32_t i = 0; i < nodes.count; ++i) colors_scratch_[i] = (*rule)(nodes.first + i);
     b.sub_data(at.color(v), std::as_bytes(std::span<const glm::u8vec4>(colors_scratch_)));
   } else {
     b.sub_data(at.color(v), std::as_bytes(a.color.subspan(nodes.first, nodes.count)));
@@ -335,9 +342,15 @@ void Renderer::write_vertices(std::uint32_t first, const Hierarchy& h, NodeRange
 }
 
 void Renderer::set_node_coloring(const Hierarchy& h, std::shared_ptr<const NodeColoring> rule) {
-  coloring_model_ = rule ? &h : nullptr;
-  coloring_ = std::move(rule);
+  std::erase_if(colorings_, [&](const auto& c) { return c.first == &h; });
+  if (rule) colorings_.emplace_back(&h, std::move(rule));
   ++coloring_version_;
+}
+
+const NodeColoring* Renderer::coloring_of(const Hierarchy& h) const {
+  for (const auto& [model, rule] : colorings_)
+    if (model == &h) return rule.get();
+  return nullptr;
 }
 
 void Renderer::set_vertex_format() {
@@ -385,7 +398,8 @@ void Renderer::set_node_colors(const Hierarchy& h, std::vector<glm::u8vec4> colo
     throw std::invalid_argument("Renderer::set_node_colors: " + std::to_string(colors.size()) +
                                 " colours for " + std::to_string(h.node_count()) + " nodes");
   }
-  if (pooled_ && hierarchy_ == &h && !colors.empty())
+  if (pooled_ && std::find(model_ids_.begin(), model_ids_.end(), &h) != model_ids_.end() &&
+      !colors.empty())
     throw std::invalid_argument("Renderer::set_node_colors: a pool's vertices are the file's");
   std::erase_if(node_colors_, [&](const NodeColors& c) { return c.model == &h; });
   if (!colors.empty()) node_colors_.push_back({&h, h.node_count(), std::move(colors)});

@@ -109,10 +109,13 @@ void Renderer::draw_runs(GLuint elements, const gl::Program& program, const Unif
   for (std::size_t r = 0; r < runs_.size(); ++r) {
     const Run& run = runs_[r];
     if (run.indirect) {
-      // A scene: every object's run, one command each, in one call.
+      // A scene: every object's run in a segment, one command each, in one call.
+      if (run.segment != bound_segment_) bind_segment(run.segment);
       gl::BindBuffer(GL_DRAW_INDIRECT_BUFFER, indirect_);
-      gl::MultiDrawElementsIndirect(GL_POINTS, GL_UNSIGNED_INT, nullptr,
-                                    static_cast<GLsizei>(run.count), 0);
+      gl::MultiDrawElementsIndirect(
+          GL_POINTS, GL_UNSIGNED_INT,
+          reinterpret_cast<const void*>(std::uintptr_t{run.first} * 5 * sizeof(std::uint32_t)),
+          static_cast<GLsizei>(run.count), 0);
       gl::BindBuffer(GL_DRAW_INDIRECT_BUFFER, 0);
       ++draw_calls_;
     } else if (run.count > 0) {
@@ -174,8 +177,9 @@ FrameStats Renderer::render(const CutBuffer* cut, const SceneCutBuffer* scene,
     check_scene(*scene);
     runs_.clear();
     run_hook_.clear();
-    if (scene->commands() > 0) {
-      runs_.push_back(Run{0, static_cast<std::uint32_t>(scene->commands()), 0, true});
+    // A run of commands a segment (one without a pool).
+    for (const SceneCutBuffer::SegmentRun& g : scene->segment_runs()) {
+      runs_.push_back(Run{g.first, g.count, 0, true, g.segment});
       run_hook_.push_back(SIZE_MAX);
     }
     elements = scene->elements().id();

@@ -99,6 +99,8 @@ void SceneCutBuffer::set_objects(const Renderer& renderer, std::span<const Scene
   records_ = gl::Buffer::create(records.size() * sizeof(ObjectRecord), records.data(), 0);
   size_ = commands_ = 0;
   points_ = 0;
+  lists_.clear();
+  segment_runs_.clear();
 }
 
 void SceneCutBuffer::upload(std::span<const Hierarchy* const> models,
@@ -111,7 +113,7 @@ void SceneCutBuffer::upload(std::span<const Hierarchy* const> models,
     throw std::invalid_argument("SceneCutBuffer: other models than set_objects saw");
   }
   ids_.clear();
-  cmds_.clear();
+  lists_.clear();
   std::uint64_t points = 0;
   for (std::size_t i = 0; i < cuts.size(); ++i) {
     const std::span<const NodeId> cut = cuts[i];
@@ -136,27 +138,96 @@ void SceneCutBuffer::upload(std::span<const Hierarchy* const> models,
       sort_node_ids(sorted_, static_cast<NodeId>(h.node_count()), scratch_);
       ids_.insert(ids_.end(), sorted_.begin(), sorted_.end());
     }
+    lists_.push_back({static_cast<std::uint32_t>(i), static_cast<std::uint32_t>(first),
+                      static_cast<std::uint32_t>(cut.size())});
+  }
+  size_ = ids_.size();
+  points_ = points;
+  write();
+}
+
+void SceneCutBuffer::refresh() {
+  if (map_ != nullptr) write();
+}
+
+void SceneCutBuffer::write() {
+  cmds_.clear();
+  segment_runs_.clear();
+  std::span<const std::uint32_t> elements = ids_;
+  if (map_ != nullptr) {
+    map_lists();
+    elements = grouped_;
+  } else {
     // DrawElementsIndirectCommand: count, instanceCount, firstIndex,
     // baseVertex, baseInstance (the object: its record).
-    cmds_.insert(cmds_.end(),
-                 {static_cast<std::uint32_t>(cut.size()), 1u, static_cast<std::uint32_t>(first),
-                  model_base_[object_models_[i]], static_cast<std::uint32_t>(i)});
+    for (const List& l : lists_)
+      cmds_.insert(cmds_.end(),
+                   {l.count, 1u, l.first, model_base_[object_models_[l.object]], l.object});
+    if (!lists_.empty()) segment_runs_.push_back({0, static_cast<std::uint32_t>(lists_.size()), 0});
   }
   // Write the buffers the last draws did not read (CutBuffer::write).
   const std::size_t next = elements_[current_] ? 1 - current_ : current_;
-  auto write = [](gl::Buffer& target, std::span<const std::byte> bytes) {
+  auto write_to = [](gl::Buffer& target, std::span<const std::byte> bytes) {
     if (!target || target.size() < bytes.size()) {
       const std::size_t capacity = std::bit_ceil(std::max<std::size_t>(bytes.size(), 4096));
       target = gl::Buffer::create(capacity, nullptr, GL_DYNAMIC_STORAGE_BIT);
     }
     if (!bytes.empty()) target.sub_data(0, bytes);
   };
-  write(elements_[next], std::as_bytes(std::span<const NodeId>(ids_)));
-  write(indirect_[next], std::as_bytes(std::span<const std::uint32_t>(cmds_)));
+  write_to(elements_[next], std::as_bytes(elements));
+  write_to(indirect_[next], std::as_bytes(std::span<const std::uint32_t>(cmds_)));
   current_ = next;
-  size_ = ids_.size();
   commands_ = cmds_.size() / 5;
-  points_ = points;
+}
+
+void SceneCutBuffer::map_lists() {
+  // Every list through the map at once (the pages any of them need are
+  // wanted together), then a counting sort of the vertices by segment that
+  // keeps each list's order (ascending ids: the coherent submission order)
+  // and the lists' order; the null vertex (a node drawn by its stand-in) is
+  // left out. Each segment's vertices as that segment numbers them.
+  map_->begin_lists();
+  vertices_.resize(ids_.size());
+  std::uint32_t most = 0;
+  for (const List& l : lists_) {
+    most = std::max(most, map_->map_list(object_models_[l.object],
+                                         std::span<const NodeId>(ids_).subspan(l.first, l.count),
+                                         list_vertices_));
+    std::copy(list_vertices_.begin(), list_vertices_.end(), vertices_.begin() + l.first);
+  }
+  const std::uint32_t shift = map_->segment_shift();
+  const std::uint32_t place = (std::uint32_t{1} << shift) - 1;
+  const std::size_t segments = (std::size_t{most} >> shift) + 1;
+  at_.assign(segments + 1, 0);
+  for (const std::uint32_t v : vertices_)
+    if (v != 0) ++at_[(v >> shift) + 1];
+  for (std::size_t g = 0; g < segments; ++g) at_[g + 1] += at_[g];
+  const std::uint32_t total = at_[segments];
+  grouped_.resize(total);
+  owner_.resize(total);
+  std::vector<std::uint32_t> next(at_.begin(), at_.end() - 1);
+  for (std::uint32_t k = 0; k < lists_.size(); ++k) {
+    const List& l = lists_[k];
+    for (std::uint32_t i = l.first; i < l.first + l.count; ++i) {
+      const std::uint32_t v = vertices_[i];
+      if (v == 0) continue;
+      const std::uint32_t j = next[v >> shift]++;
+      grouped_[j] = v & place;
+      owner_[j] = k;
+    }
+  }
+  // A command for each run of one list within a segment.
+  for (std::uint32_t g = 0; g < segments; ++g) {
+    const auto first_command = static_cast<std::uint32_t>(cmds_.size() / 5);
+    for (std::uint32_t j = at_[g]; j < at_[g + 1];) {
+      std::uint32_t e = j;
+      while (e < at_[g + 1] && owner_[e] == owner_[j]) ++e;
+      cmds_.insert(cmds_.end(), {e - j, 1u, j, 0u, lists_[owner_[j]].object});
+      j = e;
+    }
+    const auto commands = static_cast<std::uint32_t>(cmds_.size() / 5) - first_command;
+    if (commands > 0) segment_runs_.push_back({first_command, commands, g});
+  }
 }
 
 void Renderer::check_scene(const SceneCutBuffer& scene) const {

@@ -51,6 +51,14 @@ struct GpuPoolOptions {
   std::uint64_t segment_bytes = std::uint64_t{16} << 20;
 };
 
+/// One model the pool holds: a paged one's pages come and go; one held
+/// whole (PAGED null: a scene's model that is no cache) is one page of all
+/// its nodes, up as long as the pool lives.
+struct PoolModel {
+  const Hierarchy* hierarchy = nullptr;
+  const PagedHierarchy* paged = nullptr;
+};
+
 /// What the pool holds and did (this frame: the last prepare()).
 struct GpuPoolStats {
   std::uint64_t capacity_bytes = 0;   ///< the budget's vertices
@@ -75,22 +83,31 @@ class GpuNodePool final : public VertexMap {
   /// A vertex: center and bound, normal cone, colour, drawn radius.
   static constexpr std::uint64_t kVertexBytes = 32;
 
-  /// The budget OPTIONS give for PAGED, in bytes (memory_bytes, or its default).
+  /// The budget OPTIONS give for MODELS, in bytes (memory_bytes, or its
+  /// default: the paged models' default and the whole models' nodes).
+  static std::uint64_t budget(std::span<const PoolModel> models, const GpuPoolOptions& options);
   static std::uint64_t budget(const PagedHierarchy& paged, const GpuPoolOptions& options);
   /// The nodes a pool of BYTES holds whole pages of: its vertices less a
   /// fifth for the ends of blocks that pages leave empty (the default
   /// budget's rule, inverted; PagingOptions::node_limit).
   static std::uint64_t nodes_within(std::uint64_t bytes) { return bytes / kVertexBytes / 5 * 4; }
   /// The blocks of a pool of that budget. Throws InputError "--gpu-memory:
-  /// REASON" when it cannot hold the first page and the largest one beside it.
+  /// REASON" when it cannot hold every model's first page and the largest
+  /// page beside them.
+  static std::uint32_t blocks(std::span<const PoolModel> models, const GpuPoolOptions& options);
   static std::uint32_t blocks(const PagedHierarchy& paged, const GpuPoolOptions& options);
   /// The vertices of a segment (Renderer::set_pool): segment_bytes'
   /// blocks (one at least, the budget's at most) and vertex 0. Throws as
   /// blocks() does.
+  static std::uint32_t segment_vertices(std::span<const PoolModel> models,
+                                        const GpuPoolOptions& options);
   static std::uint32_t segment_vertices(const PagedHierarchy& paged, const GpuPoolOptions& options);
 
-  /// Makes RENDERER's vertex buffer the pool of PAGED's hierarchy and puts
-  /// the first page in it. Both must outlive the pool.
+  /// Makes RENDERER's vertex buffer the pool of MODELS' hierarchies (a
+  /// scene's, in its order: lists of model m are mapped by map_list(m, ...))
+  /// and puts each one's first page in it. All must outlive the pool.
+  GpuNodePool(Renderer& renderer, std::span<const PoolModel> models, const GpuPoolOptions& options);
+  /// The pool of one paged model.
   GpuNodePool(Renderer& renderer, const PagedHierarchy& paged, const GpuPoolOptions& options);
   GpuNodePool(const GpuNodePool&) = delete;
   GpuNodePool& operator=(const GpuNodePool&) = delete;
@@ -103,15 +120,39 @@ class GpuNodePool final : public VertexMap {
   /// node of this frame's lists uses, and maps CUT again if any arrived.
   /// CUT's nodes must be resident (a list the paged model's evict() knows).
   void prepare(CutBuffer& cut);
+  /// The same for a scene's lists (SceneCutBuffer::set_vertex_map; its
+  /// objects set for the renderer this pool made).
+  void prepare(SceneCutBuffer& scene);
 
   std::uint32_t map(std::span<const NodeId> ids, std::size_t current,
                     std::vector<std::uint32_t>& out) override;
+  void begin_lists() override;
+  std::uint32_t map_list(std::uint32_t model, std::span<const NodeId> ids,
+                         std::vector<std::uint32_t>& out) override;
   [[nodiscard]] std::uint32_t segment_shift() const override { return shift_; }
 
   [[nodiscard]] GpuPoolStats stats() const;
-  [[nodiscard]] const Hierarchy& hierarchy() const { return paged_->hierarchy(); }
+  /// The first model's hierarchy (the one model's).
+  [[nodiscard]] const Hierarchy& hierarchy() const { return *models_.front().hierarchy; }
 
  private:
+  // A model of the pool and where its pages start among all models' pages
+  // (a page's number in up_, wanted_ and lru_ is that start plus its own).
+  struct Held {
+    const Hierarchy* hierarchy = nullptr;
+    const PagedHierarchy* paged = nullptr;
+    std::uint32_t first_page = 0;
+    std::unique_ptr<ReservedArray<std::uint32_t>>
+        slot;  // by node id: its vertex + 1, 0 when not up
+  };
+  // The model of page P (a number among all models' pages), and its own number there.
+  [[nodiscard]] std::pair<std::uint32_t, std::uint32_t> model_page(std::uint32_t p) const;
+  // The lists' nodes of model M to vertices (CURRENT: see map()).
+  std::uint32_t map_into(std::uint32_t m, std::span<const NodeId> ids, std::size_t current,
+                         std::vector<std::uint32_t>& out);
+  // What prepare() does for lists that REFRESH maps again.
+  template <class Refresh>
+  void prepare_lists(Refresh&& refresh);
   // A page on the GPU: its first NODES nodes (in the page's order: its
   // levels from the top), in BLOCKS.
   struct Up {
@@ -143,14 +184,13 @@ class GpuNodePool final : public VertexMap {
   }
 
   Renderer* renderer_;
-  const PagedHierarchy* paged_;
+  std::vector<Held> models_;
   GpuPoolOptions options_;
   std::uint32_t blocks_ = 0;                       // in the segments now (they grow to max_blocks_)
   std::uint32_t max_blocks_ = 0;                   // within the budget
   std::uint32_t segment_blocks_ = 0;               // in a segment (B)
   std::uint32_t shift_ = 0;                        // Renderer::pool_shift
   std::uint64_t grown_frame_ = ~std::uint64_t{0};  // the frame segments were last added in
-  ReservedArray<std::uint32_t> slot_;              // by node id: its vertex + 1, 0 when not up
   std::vector<std::uint32_t> free_;                // blocks
   std::vector<std::uint64_t> block_used_;          // by block: the frame a list last used it
   std::unordered_map<std::uint32_t, Up> up_;       // the pages up

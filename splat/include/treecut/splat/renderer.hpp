@@ -110,6 +110,13 @@ class VertexMap {
   /// the rest a fading exchange's leaving run); returns the largest.
   virtual std::uint32_t map(std::span<const NodeId> ids, std::size_t current,
                             std::vector<std::uint32_t>& out) = 0;
+  /// A scene's lists (SceneCutBuffer): begin_lists() once for all of them,
+  /// then map_list() for each object's list, ids of the map's model MODEL
+  /// (the renderer's model index); the vertices into OUT (kNullVertex: not
+  /// drawn), returns the largest.
+  virtual void begin_lists() = 0;
+  virtual std::uint32_t map_list(std::uint32_t model, std::span<const NodeId> ids,
+                                 std::vector<std::uint32_t>& out) = 0;
   /// Vertex v lies in segment v >> segment_shift() of the pool
   /// (Renderer::pool_shift), at v & ((1 << segment_shift()) - 1).
   [[nodiscard]] virtual std::uint32_t segment_shift() const = 0;
@@ -302,6 +309,10 @@ class Renderer {
   /// and the others dropped. Throws std::invalid_argument for no vertex or
   /// more than 2^31 - 1.
   void set_pool(const Hierarchy& h, std::uint32_t vertices);
+  /// The same pool for the nodes of several hierarchies (a scene's models
+  /// drawn from their pages, GpuNodePool): model_base() is 0 for each,
+  /// their vertices where the map puts them.
+  void set_pool(std::span<const Hierarchy* const> models, std::uint32_t vertices);
   /// A segment's vertices rounded up to a power of two, as a shift: the
   /// segment of each vertex of each list drawn is a shift away, not a
   /// division.
@@ -483,11 +494,12 @@ class Renderer {
     std::uint32_t nodes;
     std::vector<glm::u8vec4> colors;
   };
-  std::vector<NodeColors> node_colors_;           // set_node_colors
-  const Hierarchy* coloring_model_ = nullptr;     // set_node_coloring
-  std::shared_ptr<const NodeColoring> coloring_;  // its rule
-  std::uint64_t coloring_version_ = 0;            // set_node_coloring calls
-  std::vector<glm::u8vec4> colors_scratch_;       // write_vertices
+  std::vector<NodeColors> node_colors_;  // set_node_colors
+  // set_node_coloring: a pool's hierarchies and their rules.
+  std::vector<std::pair<const Hierarchy*, std::shared_ptr<const NodeColoring>>> colorings_;
+  [[nodiscard]] const NodeColoring* coloring_of(const Hierarchy& h) const;
+  std::uint64_t coloring_version_ = 0;       // set_node_coloring calls
+  std::vector<glm::u8vec4> colors_scratch_;  // write_vertices
   [[nodiscard]] std::span<const glm::u8vec4> colors_of(const Hierarchy& h) const;
   NodeId last_max_id_ = 0;
   bool pooled_ = false;  // set_pool

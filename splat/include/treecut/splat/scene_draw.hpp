@@ -34,6 +34,7 @@
 namespace treecut::splat {
 
 class Renderer;
+class VertexMap;
 
 /// Objects a SceneCutBuffer takes: their index is a float in the object
 /// record, exact below 2^24, and 0xffffff is the ObjectId mode's background.
@@ -82,6 +83,25 @@ class SceneCutBuffer {
   void upload(std::span<const Hierarchy* const> models,
               std::span<const std::span<const NodeId>> cuts);
 
+  /// From the next upload on, the lists reach their vertices through MAP
+  /// (the pool of a scene whose models are drawn from their pages,
+  /// GpuNodePool; VertexMap::map_list per object); null: each id at its
+  /// model's base. Not owned.
+  void set_vertex_map(VertexMap* map) { map_ = map; }
+  /// Maps the uploaded lists again and writes them (the map changed: pages
+  /// that arrived on the GPU); nothing without a map.
+  void refresh();
+
+  /// Commands [first, first + count) whose vertices lie in one segment of
+  /// a pool, in the indirect buffer's order: a draw call each. One run
+  /// (segment 0) without a map; none when nothing is drawn.
+  struct SegmentRun {
+    std::uint32_t first = 0;
+    std::uint32_t count = 0;
+    std::uint32_t segment = 0;
+  };
+  [[nodiscard]] std::span<const SegmentRun> segment_runs() const { return segment_runs_; }
+
   [[nodiscard]] std::size_t object_count() const { return object_models_.size(); }
   /// Nodes in all lists.
   [[nodiscard]] std::size_t size() const { return size_; }
@@ -97,6 +117,24 @@ class SceneCutBuffer {
   [[nodiscard]] const gl::Buffer& indirect() const { return indirect_[current_]; }
 
  private:
+  // The lists' elements and commands into the buffers no frame in flight reads.
+  void write();
+  // Through the map: each list's vertices grouped by segment, a command per
+  // object and segment, into elements (grouped_) and cmds_.
+  void map_lists();
+
+  // An object's list in ids_.
+  struct List {
+    std::uint32_t object = 0, first = 0, count = 0;
+  };
+  VertexMap* map_ = nullptr;
+  std::vector<List> lists_;
+  std::vector<SegmentRun> segment_runs_;
+  std::vector<std::uint32_t> vertices_;       // mapped lists, as ids_ (reused)
+  std::vector<std::uint32_t> list_vertices_;  // one list's (reused)
+  std::vector<std::uint32_t> grouped_;        // their vertices by segment (reused)
+  std::vector<std::uint32_t> owner_;          // the list of each grouped_ entry (reused)
+  std::vector<std::uint32_t> at_;             // counting sort: per segment (reused)
   std::vector<std::uint32_t> object_models_;  // per object: its model (the records hold the rest)
   std::vector<const Hierarchy*> models_;
   std::vector<std::uint32_t> model_base_;
