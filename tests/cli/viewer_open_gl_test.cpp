@@ -150,6 +150,35 @@ TEST_F(ViewerOpen, APagedModelIsColouredAnewInTheWindow) {
   EXPECT_LT(undone, recoloured / 4) << "the file's colours did not come back";
 }
 
+// A scene whose models are caches, drawn from their pages in the window
+// (its GPU pool shared by its models) and coloured anew there.
+TEST_F(ViewerOpen, ASceneOfCachesIsDrawnFromItsPagesInTheWindow) {
+  for (const char* kind : {"terrain", "sphere"}) {
+    const fs::path ply = dir_ / (std::string(kind) + ".ply");
+    ASSERT_EQ(
+        treecut::test::run_treecut(std::string("gen ") + kind + " -n 40000 -o " + quote(ply)).code,
+        0);
+    const auto built = treecut::test::run_treecut("build " + quote(ply) + " -o " +
+                                                  quote(dir_ / (std::string(kind) + ".tch")));
+    ASSERT_EQ(built.code, 0) << built.out;
+  }
+  write_file(dir_ / "two.scene",
+             "treecut-scene 1\nmodel t terrain.tch\nmodel s sphere.tch\nobject t\n"
+             "object s scale 0.5 translate 0 0 0.8\n");
+  write_file(dir_ / "scene.script",
+             "treecut-view-script 1\nconverge 200\nscreenshot own.png\ncolor elevation\n"
+             "converge 200\nscreenshot elevation.png\nexit\n");
+  const auto v = view(dir_, quote(dir_ / "two.scene") + " --memory 64M --gpu-memory 32M --script " +
+                                quote(dir_ / "scene.script"));
+  ASSERT_EQ(v.code, 0) << v.out;
+  const Image own = load_png(dir_ / "own.png"), elevation = load_png(dir_ / "elevation.png");
+  ASSERT_EQ(own.width, kWidth);
+  ASSERT_EQ(elevation.width, kWidth);
+  const double recoloured = right_half_difference(own, elevation);
+  std::printf("right half: %.3f of pixels changed by the colouring\n", recoloured);
+  EXPECT_GT(recoloured, 0.05) << "the scene's pages kept their colours";
+}
+
 TEST_F(ViewerOpen, AMissingModelFailsBeforeTheWindowWithOneLine) {
   write_file(dir_ / "missing.script", "treecut-view-script 1\nframes 2\nopen missing.ply\nexit\n");
   // Checked with the script, before a window (or a display) is needed.
