@@ -114,6 +114,7 @@ void SceneCutBuffer::upload(std::span<const Hierarchy* const> models,
   }
   ids_.clear();
   lists_.clear();
+  cmds_.clear();
   std::uint64_t points = 0;
   for (std::size_t i = 0; i < cuts.size(); ++i) {
     const std::span<const NodeId> cut = cuts[i];
@@ -138,8 +139,17 @@ void SceneCutBuffer::upload(std::span<const Hierarchy* const> models,
       sort_node_ids(sorted_, static_cast<NodeId>(h.node_count()), scratch_);
       ids_.insert(ids_.end(), sorted_.begin(), sorted_.end());
     }
-    lists_.push_back({static_cast<std::uint32_t>(i), static_cast<std::uint32_t>(first),
-                      static_cast<std::uint32_t>(cut.size())});
+    const auto object = static_cast<std::uint32_t>(i);
+    if (map_ != nullptr) {
+      lists_.push_back(
+          {object, static_cast<std::uint32_t>(first), static_cast<std::uint32_t>(cut.size())});
+    } else {
+      // DrawElementsIndirectCommand: count, instanceCount, firstIndex,
+      // baseVertex, baseInstance (the object: its record).
+      cmds_.insert(cmds_.end(),
+                   {static_cast<std::uint32_t>(cut.size()), 1u, static_cast<std::uint32_t>(first),
+                    model_base_[object_models_[i]], object});
+    }
   }
   size_ = ids_.size();
   points_ = points;
@@ -150,20 +160,16 @@ void SceneCutBuffer::refresh() {
   if (map_ != nullptr) write();
 }
 
+// Without a map, upload() made the commands; with one, they are made here.
 void SceneCutBuffer::write() {
-  cmds_.clear();
   segment_runs_.clear();
   std::span<const std::uint32_t> elements = ids_;
   if (map_ != nullptr) {
+    cmds_.clear();
     map_lists();
     elements = grouped_;
-  } else {
-    // DrawElementsIndirectCommand: count, instanceCount, firstIndex,
-    // baseVertex, baseInstance (the object: its record).
-    for (const List& l : lists_)
-      cmds_.insert(cmds_.end(),
-                   {l.count, 1u, l.first, model_base_[object_models_[l.object]], l.object});
-    if (!lists_.empty()) segment_runs_.push_back({0, static_cast<std::uint32_t>(lists_.size()), 0});
+  } else if (!cmds_.empty()) {
+    segment_runs_.push_back({0, static_cast<std::uint32_t>(cmds_.size() / 5), 0});
   }
   // Write the buffers the last draws did not read (CutBuffer::write).
   const std::size_t next = elements_[current_] ? 1 - current_ : current_;
