@@ -488,6 +488,15 @@ RunSummary run_strategy(const RenderRig& rig, const StrategyRegistry& registry,
   write_stats_csv(dir / "stats.csv", run.rows);
   write_file_atomically(dir / "summary.json", summary_json(run));
   print_run(a, name, run, world != nullptr, queries.stats(), controller, stage_options, governor);
+  if (const splat::GpuNodePool* pool = frame_loop.gpu_pool()) {
+    // The pool's map from node ids to vertices (4 B a node up, in reserved
+    // address space): the memory pages the system holds under it.
+    std::printf(
+        "memory    GPU pool: %.1f MiB of memory pages under the slots of %.1f MiB of "
+        "vertices up\n",
+        double(pool->held_slot_bytes()) / (1 << 20),
+        double(pool->stats().resident_bytes) / (1 << 20));
+  }
   // Pages that could not be read: a line each (their parents stayed leaves).
   for (PagedHierarchy* p : paged_models(rig.scene))
     for (const std::string& problem : p->take_problems()) print_warning(problem);

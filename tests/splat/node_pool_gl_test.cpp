@@ -263,11 +263,18 @@ TEST_F(NodePool, TheBudgetHoldsAndPagesNoListUsesAreGivenBack) {
   EXPECT_LE(s.resident_bytes, s.capacity_bytes);
   EXPECT_LE(s.capacity_bytes, budget);
   EXPECT_TRUE(got.rgba == whole_image(right).rgba);
-  // And back: the left half comes up again.
-  p.frame(paged_->hierarchy(), camera_, &left);
+  // And back: the left half comes up again, its slots where the right
+  // half's went back (the memory pages they share counted: one given back
+  // too early reads as zeros, a node drawn as its ancestor).
+  const Image again = p.frame(paged_->hierarchy(), camera_, &left);
   s = p.pool.stats();
   EXPECT_EQ(s.waiting_pages, 0u);
   EXPECT_LE(s.resident_bytes, s.capacity_bytes);
+  EXPECT_EQ(s.stand_ins, 0u);
+  EXPECT_TRUE(again.rgba == whole_image(left).rgba);
+  // The slots' memory pages: those of the pages up, not the model's.
+  EXPECT_GT(p.pool.held_slot_bytes(), 0u);
+  EXPECT_LT(p.pool.held_slot_bytes(), std::uint64_t{whole_->node_count()} * 4);
 }
 
 TEST_F(NodePool, AListLargerThanTheBudgetIsDrawnCoarserNeverPastIt) {

@@ -111,7 +111,11 @@ GpuNodePool::GpuNodePool(Renderer& renderer, std::span<const PoolModel> models,
     held.paged = m.paged;
     held.first_page = pages;
     // What it keeps is a slot a resident node, in reserved address space.
-    held.slot = std::make_unique<ReservedArray<std::uint32_t>>(m.hierarchy->node_count());
+    // counted: a page's runs go up in pieces and leave whole, and the memory
+    // pages their ends share with other pages' runs go back with the last
+    // (as the node arrays', PagedHierarchy::held_bytes).
+    held.slot = std::make_unique<ReservedArray<std::uint32_t>>(m.hierarchy->node_count(),
+                                                               PageSharing::counted);
     pages += pages_of(m);
     models_.push_back(std::move(held));
     hierarchies.push_back(m.hierarchy);
@@ -304,6 +308,10 @@ void GpuNodePool::for_each_run(std::uint32_t page, std::uint32_t from, std::uint
 
 void GpuNodePool::upload(std::uint32_t page, std::uint32_t prefix) {
   Up& u = up_[page];
+  // The slots of the nodes going up now, in use from here to give_back().
+  const ReservedArray<std::uint32_t>& slot = *models_[model_page(page).first].slot;
+  for_each_run(page, u.nodes, prefix,
+               [&](NodeRange r, std::uint32_t) { slot.use(r.first, r.count); });
   while (u.blocks.size() < blocks_for(prefix)) {
     const std::uint32_t b = free_.back();
     free_.pop_back();
@@ -379,6 +387,12 @@ bool GpuNodePool::make_room(std::size_t blocks) {
     if (it != up_.end() && last_used(it->second) < frame_) give_back(page);
   }
   return free_.size() >= blocks;
+}
+
+std::uint64_t GpuNodePool::held_slot_bytes() const {
+  std::uint64_t bytes = 0;
+  for (const Held& m : models_) bytes += m.slot->held_bytes(m.hierarchy->node_count());
+  return bytes;
 }
 
 GpuPoolStats GpuNodePool::stats() const {

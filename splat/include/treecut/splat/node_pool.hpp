@@ -132,6 +132,10 @@ class GpuNodePool final : public VertexMap {
   [[nodiscard]] std::uint32_t segment_shift() const override { return shift_; }
 
   [[nodiscard]] GpuPoolStats stats() const;
+  /// The bytes of the memory pages the system holds under the pool's slots
+  /// (4 B a node of its pages up; mincore): O(the models' nodes), for a
+  /// report, not a frame.
+  [[nodiscard]] std::uint64_t held_slot_bytes() const;
   /// The first model's hierarchy (the one model's).
   [[nodiscard]] const Hierarchy& hierarchy() const { return *models_.front().hierarchy; }
 
