@@ -166,3 +166,21 @@ TEST(PagedScene, AFlightWithinATightBudgetKeepsEveryObjectsListResident) {
     EXPECT_EQ(stage.counters().errors, 0u) << stage.counters().last_error;
   }
 }
+
+// A strategy per object keeps state for what its object's model holds: a
+// paged model's budget, not its file, counts toward the limit.
+TEST(PagedScene, PerObjectStrategiesCountWhatAPagedModelHolds) {
+  const fs::path file = paged_scene_file("paged_scene_limit");
+  std::ofstream many(file.parent_path() / "many.scene");
+  many << "treecut-scene 1\nmodel t t.tch\n";
+  for (int i = 0; i < 2000; ++i)
+    many << "object t translate " << 2.2 * (i % 50) << " " << 2.2 * (i / 50) << " 0\n";
+  many.close();
+  const auto probe = strategies::builtin_registry().create("optimization");
+  const auto whole = load(file.parent_path() / "many.scene", 0);
+  ASSERT_GT(whole->object_nodes(), kMaxPerObjectNodes);
+  EXPECT_NE(per_object_limit_problem(*whole, *probe), "");
+  const auto paged = load(file.parent_path() / "many.scene", 1u << 20);
+  EXPECT_LE(paged->object_nodes(), kMaxPerObjectNodes);
+  EXPECT_EQ(per_object_limit_problem(*paged, *probe), "");
+}

@@ -64,7 +64,8 @@ struct StageScene {
   [[nodiscard]] const Hierarchy& hierarchy(std::size_t i) const {
     return *models[objects[i].model];
   }
-  /// The sum over objects of their model's node count (what per-object state costs).
+  /// The sum over objects of their model's node count (what per-object state
+  /// costs; a model drawn from its pages: the nodes its memory budget holds).
   [[nodiscard]] std::uint64_t object_nodes() const;
   /// Model M's pages, or null when it is held whole.
   [[nodiscard]] PagedHierarchy* paged_model(std::size_t m) const {

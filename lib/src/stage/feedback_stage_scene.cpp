@@ -24,6 +24,7 @@
 #include "feedback_stage_impl.hpp"
 #include "treecut/error.hpp"
 #include "treecut/feedback_stage.hpp"
+#include "treecut/paged_hierarchy.hpp"
 #include "treecut/scene.hpp"
 
 namespace treecut {
@@ -93,7 +94,13 @@ void detail::fold_object_view(ViewSnapshot& v, const ViewSnapshot& view, const S
 std::uint64_t StageScene::object_nodes() const {
   std::uint64_t n = 0;
   for (const SceneObject& o : objects) {
-    if (o.model < models.size() && models[o.model]) n += models[o.model]->node_count();
+    if (o.model >= models.size() || !models[o.model]) continue;
+    std::uint64_t nodes = models[o.model]->node_count();
+    // A model drawn from its pages holds no more than its budget's nodes,
+    // and a strategy's state follows what is resident.
+    if (const PagedHierarchy* p = paged_model(o.model); p && p->memory_budget() != 0)
+      nodes = std::min(nodes, p->memory_budget() / p->bytes_per_node());
+    n += nodes;
   }
   return n;
 }
