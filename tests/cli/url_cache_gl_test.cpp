@@ -149,6 +149,40 @@ TEST_F(UrlCache, AUrlIsDrawnAsTheFileIs) {
   }
 }
 
+// A scene file may name caches by URL: drawn from their pages as the same
+// files beside it are; without a memory budget, refused in one line.
+TEST_F(UrlCache, ASceneOfCachesByUrlIsDrawnAsItsFiles) {
+  const std::string objects = "object t\nobject t translate 2.2 0 0\n";
+  std::ofstream(dir_ / "file.scene") << "treecut-scene 1\nmodel t terrain.tch\n" << objects;
+  std::ofstream(dir_ / "url.scene")
+      << "treecut-scene 1\nmodel t " << server_->url("ok", "terrain.tch") << "\n"
+      << objects;
+  const std::string frames =
+      "--memory 4M --frames 12 --warmup 2 --width 160 --height 96 --sync "
+      "-s budget ";
+  const auto file = run_treecut("render " + quote(dir_ / "file.scene") + " " + frames + "-o " +
+                                quote(dir_ / "file"));
+  ASSERT_EQ(file.code, 0) << file.out;
+  const auto url = run_treecut("render " + quote(dir_ / "url.scene") + " " + frames + "-o " +
+                               quote(dir_ / "url"));
+  ASSERT_EQ(url.code, 0) << url.out;
+  EXPECT_NE(url.out.find("pages     1 of 1 models drawn from their pages"), std::string::npos)
+      << url.out;
+  const std::vector<std::string> loaded = column(dir_ / "url", "pages_loaded");
+  ASSERT_EQ(loaded.size(), 12u);
+  EXPECT_NE(loaded.back(), "0") << "no page read from the server";
+  EXPECT_EQ(column(dir_ / "file", "splats_drawn"), column(dir_ / "url", "splats_drawn"));
+  const std::string a = slurp(dir_ / "file" / "frame_00011.png"),
+                    b = slurp(dir_ / "url" / "frame_00011.png");
+  EXPECT_FALSE(a.empty());
+  EXPECT_TRUE(a == b) << "the scene by URL differs from its files";
+  const auto refused = run_treecut("render " + quote(dir_ / "url.scene") +
+                                   " --frames 2 --no-png -o " + quote(dir_ / "refused"));
+  treecut::test::expect_failure(refused, 2, "a cache by URL is drawn from its pages");
+  EXPECT_NE(refused.out.find("url.scene:2: model 't'"), std::string::npos) << refused.out;
+  EXPECT_FALSE(fs::exists(dir_ / "refused"));
+}
+
 TEST_F(UrlCache, ASlowServerDelaysPagesNeverTheCaller) {
   treecut::PagingOptions o;
   o.memory_bytes = 8 << 20;

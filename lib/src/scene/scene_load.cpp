@@ -101,21 +101,30 @@ void paged_splat_box(const Hierarchy& h, glm::vec3& lo, glm::vec3& hi) {
 }
 
 // Each cache's part of a paging budget TOTAL (0: none), in proportion to
-// its file's size among the caches a scene draws from their pages.
+// its file's size among the caches a scene draws from their pages; a cache
+// by URL (its size unknown until it opens) weighs the files' average.
 std::vector<std::uint64_t> paging_shares(const std::vector<std::filesystem::path>& caches,
                                          std::uint64_t total) {
-  std::vector<std::uint64_t> size(caches.size(), 0), share(caches.size(), 0);
+  std::vector<double> weight(caches.size(), 0.0);
+  std::vector<std::uint64_t> share(caches.size(), 0);
+  double files = 0.0, file_bytes = 0.0;
+  for (std::size_t i = 0; i < caches.size(); ++i) {
+    if (caches[i].empty() || is_cache_url(caches[i].string())) continue;
+    std::error_code ec;
+    const std::uintmax_t bytes = std::filesystem::file_size(caches[i], ec);
+    weight[i] = ec ? 0.0 : double(bytes);
+    files += 1.0, file_bytes += weight[i];
+  }
+  const double average = file_bytes > 0.0 ? file_bytes / files : 1.0;
   double all = 0.0;
   for (std::size_t i = 0; i < caches.size(); ++i) {
-    std::error_code ec;
-    if (!caches[i].empty()) size[i] = std::filesystem::file_size(caches[i], ec);
-    if (ec) size[i] = 0;
-    all += double(size[i]);
+    if (caches[i].empty()) continue;
+    if (is_cache_url(caches[i].string())) weight[i] = average;
+    all += weight[i];
   }
   if (total == 0 || all <= 0.0) return share;
   for (std::size_t i = 0; i < caches.size(); ++i)
-    if (!caches[i].empty())
-      share[i] = static_cast<std::uint64_t>(double(total) * double(size[i]) / all);
+    share[i] = static_cast<std::uint64_t>(double(total) * weight[i] / all);
   return share;
 }
 
@@ -138,6 +147,7 @@ std::vector<std::uint64_t> paging_shares(const std::vector<std::filesystem::path
 std::vector<std::uint32_t> distinct_models(const SceneDescription& d, const Scene& scene,
                                            std::vector<std::uint32_t>& model_of_decl) {
   std::map<std::pair<dev_t, ino_t>, std::uint32_t> by_file;
+  std::map<std::string, std::uint32_t> by_url;
   std::map<std::tuple<std::string, std::uint64_t, std::uint64_t>, std::uint32_t> by_kind;
   model_of_decl.assign(d.models.size(), UINT32_MAX);
   std::vector<std::uint32_t> decl_of_model;
@@ -146,7 +156,10 @@ std::vector<std::uint32_t> distinct_models(const SceneDescription& d, const Scen
     if (m != UINT32_MAX) continue;
     const SceneModelDecl& decl = d.models[o.model];
     const auto next = static_cast<std::uint32_t>(decl_of_model.size());
-    if (decl.source.type == SceneModelSource::Type::File) {
+    if (decl.source.type == SceneModelSource::Type::File &&
+        is_cache_url(decl.source.file.string())) {
+      m = by_url.try_emplace(decl.source.file.string(), next).first->second;
+    } else if (decl.source.type == SceneModelSource::Type::File) {
       struct stat st {};
       if (::stat(decl.source.file.c_str(), &st) != 0)
         throw InputError(quoted_name(scene.files[decl.file]) + ":" + std::to_string(decl.line) +
@@ -173,12 +186,16 @@ void load_models(const SceneDescription& d, const std::vector<std::uint32_t>& de
   std::vector<std::shared_ptr<PagedHierarchy>> paged(count);
   // The caches drawn from their pages, and their parts of the budgets.
   std::vector<std::filesystem::path> caches(count);
-  if (options.paging) {
-    for (std::size_t i = 0; i < count; ++i) {
-      const SceneModelDecl& decl = d.models[decl_of_model[i]];
-      if (decl.source.type == SceneModelSource::Type::File && looks_like_cache(decl.source.file))
-        caches[i] = decl.source.file;
-    }
+  for (std::size_t i = 0; i < count; ++i) {
+    const SceneModelDecl& decl = d.models[decl_of_model[i]];
+    if (decl.source.type != SceneModelSource::Type::File) continue;
+    const bool url = is_cache_url(decl.source.file.string());
+    if (url && !options.paging)
+      throw InputError(quoted_name(scene.files[decl.file]) + ":" + std::to_string(decl.line) +
+                       ": model '" + decl.name +
+                       "': a cache by URL is drawn from its pages, within a memory budget: "
+                       "give one (--memory)");
+    if (options.paging && (url || looks_like_cache(decl.source.file))) caches[i] = decl.source.file;
   }
   const std::vector<std::uint64_t> memory_share =
       paging_shares(caches, options.paging ? options.paging->memory_bytes : 0);

@@ -17,6 +17,7 @@
 
 #include "treecut/error.hpp"
 #include "treecut/file_io.hpp"
+#include "treecut/paged_hierarchy.hpp"
 #include "treecut/scene.hpp"
 
 namespace treecut {
@@ -217,7 +218,12 @@ struct Parser {
           d.name = model_name;
           d.file = file;
           d.line = line_no;
-          if (key == "model") {
+          if (key == "model" && is_cache_url(t[2])) {
+            // A cache on a web server (issue 45, item 2): read by range
+            // requests when the scene loads, drawn from its pages.
+            d.source.type = SceneModelSource::Type::File;
+            d.source.file = std::filesystem::path(std::string(t[2]));
+          } else if (key == "model") {
             d.source.type = SceneModelSource::Type::File;
             d.source.file = resolve(t[2]);
             try {
