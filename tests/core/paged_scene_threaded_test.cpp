@@ -184,3 +184,17 @@ TEST(PagedScene, PerObjectStrategiesCountWhatAPagedModelHolds) {
   EXPECT_LE(paged->object_nodes(), kMaxPerObjectNodes);
   EXPECT_EQ(per_object_limit_problem(*paged, *probe), "");
 }
+
+// Paging with no memory budget (PagingOptions' 0): the caches drawn from
+// their pages without a limit, not each within a share of nothing.
+TEST(PagedScene, PagingWithNoBudgetHasNoLimit) {
+  const fs::path file = paged_scene_file("paged_scene_unlimited");
+  SceneLoadOptions options;
+  options.paging.emplace();
+  const auto scene = stage_scene(load_scene(file, options));
+  ASSERT_EQ(scene->paged.size(), 2u);
+  for (const auto& p : scene->paged) {
+    ASSERT_TRUE(p);
+    EXPECT_EQ(p->memory_budget(), 0u);
+  }
+}

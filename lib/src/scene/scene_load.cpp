@@ -221,7 +221,9 @@ void load_models(const SceneDescription& d, const std::vector<std::uint32_t>& de
       try {
         if (!caches[i].empty()) {
           PagingOptions paging = *options.paging;
-          paging.memory_bytes = std::max<std::uint64_t>(memory_share[i], 1);
+          // Shares of the budgets (0 is none: no share of it either).
+          paging.memory_bytes =
+              paging.memory_bytes != 0 ? std::max<std::uint64_t>(memory_share[i], 1) : 0;
           paging.node_limit =
               paging.node_limit != 0 ? std::max<std::uint64_t>(node_share[i], 1) : 0;
           paged[i] = PagedHierarchy::open(caches[i], paging);
