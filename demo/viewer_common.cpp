@@ -415,6 +415,8 @@ std::vector<const Hierarchy*> scene_models(const Scene& scene) {
 
 }  // namespace
 
+namespace {
+
 // A model drawn from its pages, as far as it is known when it opens: the
 // leaves of its root page (each holds the points below it; nothing else is
 // read yet, and reading it would map the zero page where pages go later).
@@ -424,18 +426,16 @@ std::vector<NodeId> known_leaves(const Hierarchy& h, const PagedHierarchy& paged
   return sample_leaves(h, known, 65536);
 }
 
-namespace {
-
-// The pages of the model SCENE opens with (a model's, or a scene's first
-// model's), or null when it is held whole.
-const PagedHierarchy* first_pages(const Scene& scene) {
-  return scene.world ? scene.world->paged_model(0) : scene.paged.get();
+// Model I's pages (a scene's model I, or the model: I = 0), or null when it
+// is held whole.
+const PagedHierarchy* model_pages(const Scene& scene, std::size_t i) {
+  return scene.world ? scene.world->paged_model(i) : scene.paged.get();
 }
 
 }  // namespace
 
 splat::ColorBy resolve_color(const Scene& scene, const SceneArgs& args, std::string* note) {
-  const PagedHierarchy* paged = first_pages(scene);
+  const PagedHierarchy* paged = model_pages(scene, 0);
   return splat::resolve_auto_color(
       *scene.hierarchy, color_by(args), note,
       paged ? known_leaves(*scene.hierarchy, *paged) : std::vector<NodeId>{});
@@ -455,7 +455,7 @@ splat::Legend apply_coloring(const Scene& scene, const splat::ColorBy& by,
     // (NodeColoring, partial), a scene's model held whole from all of it.
     splat::Legend legend;
     for (std::size_t i = 0; i < models.size(); ++i) {
-      const PagedHierarchy* paged = scene.world ? scene.world->paged_model(i) : scene.paged.get();
+      const PagedHierarchy* paged = model_pages(scene, i);
       std::shared_ptr<const splat::NodeColoring> rule;
       if (!own) {
         rule = std::make_shared<const splat::NodeColoring>(

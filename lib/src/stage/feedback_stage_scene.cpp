@@ -109,11 +109,10 @@ std::shared_ptr<const StageScene> stage_scene(const Scene& scene) {
   auto s = std::make_shared<StageScene>();
   s->models.reserve(scene.models.size());
   for (const SceneModel& m : scene.models) s->models.push_back(m.hierarchy);
-  for (const SceneModel& m : scene.models)
-    if (m.paged) {
-      for (const SceneModel& each : scene.models) s->paged.push_back(each.paged);
-      break;
-    }
+  // Pages per model, only when one model at least is drawn from them.
+  if (std::any_of(scene.models.begin(), scene.models.end(),
+                  [](const SceneModel& m) { return m.paged != nullptr; }))
+    for (const SceneModel& m : scene.models) s->paged.push_back(m.paged);
   s->objects.reserve(scene.objects.size());
   s->objects = scene.objects;
   return s;

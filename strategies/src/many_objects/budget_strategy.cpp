@@ -98,8 +98,8 @@ void BudgetStrategy::iterate(const IterationInput& input, IterationOutput& outpu
 // occludes nothing: an inner box found among so few samples could cover a
 // hole its points have, and an object culled wrongly is a hole in the
 // picture.
-void BudgetStrategy::paged_shape(const Hierarchy& h, std::vector<glm::vec3>& points,
-                                 ModelShape& s) {
+void BudgetStrategy::paged_points(const Hierarchy& h, std::vector<glm::vec3>& points,
+                                  ModelShape& s) {
   s.splat_lo = glm::vec3(INFINITY);
   s.splat_hi = glm::vec3(-INFINITY);
   for_each_resident_leaf(h, [&](NodeId n) {
@@ -107,12 +107,6 @@ void BudgetStrategy::paged_shape(const Hierarchy& h, std::vector<glm::vec3>& poi
     s.splat_lo = glm::min(s.splat_lo, h.center(n) - glm::vec3(h.radius(n)));
     s.splat_hi = glm::max(s.splat_hi, h.center(n) + glm::vec3(h.radius(n)));
   });
-  const culling::Obb fitted = culling::fit_obb(points);
-  const glm::vec3 lo = h.bounds_min(), hi = h.bounds_max();
-  const culling::Obb aligned{0.5f * (lo + hi), glm::mat3(1.0f), 0.5f * (hi - lo)};
-  const auto volume = [](const culling::Obb& b) { return b.half.x * b.half.y * b.half.z; };
-  s.box = volume(fitted) < 0.98f * volume(aligned) ? fitted : aligned;
-  s.compactness = culling::compactness(points, s.box);
 }
 
 void BudgetStrategy::reset_scene(const StageScene& scene) {
@@ -129,21 +123,22 @@ void BudgetStrategy::reset_scene(const StageScene& scene) {
     const Hierarchy& h = *scene.models[o.model];
     s.hierarchy = &h;
     points.clear();
-    if (scene.paged_model(o.model) != nullptr) {
-      paged_shape(h, points, s);
-      continue;
-    }
-    float radius = 0.0f;
-    for (NodeId n = 0; n < h.node_count(); ++n) {
-      if (h.is_leaf(n)) {
-        points.push_back(h.center(n));
-        radius = std::max(radius, h.radius(n));
+    const bool paged = scene.paged_model(o.model) != nullptr;
+    if (paged) {
+      paged_points(h, points, s);
+    } else {
+      float radius = 0.0f;
+      for (NodeId n = 0; n < h.node_count(); ++n) {
+        if (h.is_leaf(n)) {
+          points.push_back(h.center(n));
+          radius = std::max(radius, h.radius(n));
+        }
       }
+      // The splats' box (centres grown by the largest splat radius): what the
+      // renderer can cover, so what frustum culling and the HZM test must take.
+      s.splat_lo = h.bounds_min() - glm::vec3(radius);
+      s.splat_hi = h.bounds_max() + glm::vec3(radius);
     }
-    // The splats' box (centres grown by the largest splat radius): what the
-    // renderer can cover, so what frustum culling and the HZM test must take.
-    s.splat_lo = h.bounds_min() - glm::vec3(radius);
-    s.splat_hi = h.bounds_max() + glm::vec3(radius);
     // The principal axes are arbitrary for a model whose covariance is
     // nearly isotropic (a cube): the model's own axis-aligned box is the
     // other candidate, the smaller volume wins.
@@ -153,6 +148,7 @@ void BudgetStrategy::reset_scene(const StageScene& scene) {
     const auto volume = [](const culling::Obb& b) { return b.half.x * b.half.y * b.half.z; };
     s.box = volume(fitted) < 0.98f * volume(aligned) ? fitted : aligned;
     s.compactness = culling::compactness(points, s.box);
+    if (paged) continue;  // occludes nothing (paged_points)
     // A grid with about 16 points per surface cell (the six faces of n x n
     // cells hold 6 n^2): random sampling then leaves no cell of a closed
     // surface empty (e^-16), and an empty cell would read as a hole.

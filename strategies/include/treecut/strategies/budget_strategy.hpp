@@ -115,8 +115,9 @@ class BudgetStrategy final : public Strategy, public SceneStrategy {
   };
   void ensure_pool();
   void ensure_culler();
-  /// SHAPE of a model drawn from its pages, from its resident part (POINTS: scratch).
-  static void paged_shape(const Hierarchy& h, std::vector<glm::vec3>& points, ModelShape& shape);
+  /// The POINTS a model drawn from its pages is fitted to (its resident
+  /// leaves) and SHAPE's splat box.
+  static void paged_points(const Hierarchy& h, std::vector<glm::vec3>& points, ModelShape& shape);
 
   // The phases of iterate_scene() (budget_strategy.cpp).
   struct PhaseClock;
