@@ -334,6 +334,41 @@ TEST(PagedRender, ASceneKeepsTinyBudgetsInEveryFrame) {
   EXPECT_FALSE(fs::exists(dir / "refused"));
 }
 
+// A scene whose cache has a corrupted page: the page named in one warning
+// (the file and the page), the rest of the scene drawn, exit 0.
+TEST(PagedRender, ASceneWhoseCacheHasABadPageNamesItAndDrawsTheRest) {
+  const fs::path dir = treecut::test::scratch_dir("paged_render_scene_bad_page");
+  const fs::path scene = paged_scene(dir);
+  {
+    std::fstream f(dir / "terrain.tch", std::ios::in | std::ios::out | std::ios::binary);
+    f.seekg(0, std::ios::end);
+    const auto at = static_cast<std::streamoff>(f.tellg()) - 9;  // the last page's last byte
+    char byte = 0;
+    f.seekg(at), f.read(&byte, 1);
+    byte = static_cast<char>(byte ^ 0x20);
+    f.seekp(at), f.write(&byte, 1);
+    ASSERT_TRUE(f.good());
+  }
+  const fs::path out = dir / "out";
+  const treecut::test::CommandResult r =
+      run_treecut("render " + quote(scene) +
+                  " --memory 64M -s budget --frames 4 --warmup 40 --sync --width 160 --height 96 "
+                  "-o " +
+                  quote(out));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("terrain.tch"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("checksum mismatch (corrupted)"), std::string::npos) << r.out;
+  const std::vector<double> failed = column(read_csv(out / "stats.csv"), "pages_failed");
+  ASSERT_FALSE(failed.empty());
+  EXPECT_EQ(failed.back(), 1.0);
+  const treecut::splat::Image last = treecut::test::load_png(out / "frame_00003.png");
+  ASSERT_EQ(last.width, 160);
+  std::size_t drawn = 0;
+  for (std::size_t i = 0; i < last.rgba.size(); i += 4)
+    drawn += last.rgba[i] != last.rgba[0] || last.rgba[i + 1] != last.rgba[1];
+  EXPECT_GT(drawn, std::size_t{160 * 96 / 10}) << "the rest of the scene was not drawn";
+}
+
 #define STB_IMAGE_IMPLEMENTATION
 #define STBI_ONLY_PNG
 #include <stb/stb_image.h>
