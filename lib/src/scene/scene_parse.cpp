@@ -156,22 +156,105 @@ struct Parser {
   // The files being parsed, outermost first (include cycles), with their ids.
   std::vector<std::pair<std::filesystem::path, FileId>> stack;
 
+  // PATH as spelled, beside the scene file in DIR: the system resolves `..`
+  // after any link in the folder (a lexical `lnk/../m.ply` -> `m.ply` would
+  // name another file than the one `cd lnk; ls ../m.ply` shows).
+  static std::filesystem::path resolve(const std::filesystem::path& dir, std::string_view p) {
+    const std::filesystem::path path(p);
+    const std::filesystem::path joined = path.is_absolute() || dir.empty() ? path : dir / path;
+    std::filesystem::path kept;  // without its "." components (harmless to drop)
+    for (const auto& part : joined)
+      if (part != ".") kept /= part;
+    return kept.empty() ? joined : kept;
+  }
+
+  // Where a `model` or `generate` line's model comes from (T its fields).
+  [[nodiscard]] SceneModelSource model_source(const std::vector<std::string_view>& t,
+                                              const std::string& model_name,
+                                              const std::filesystem::path& dir) const {
+    SceneModelSource source;
+    if (t[0] == "model" && is_cache_url(t[2])) {
+      // A cache on a web server (issue 45, item 2): read by range requests
+      // when the scene loads, drawn from its pages.
+      source.type = SceneModelSource::Type::File;
+      source.file = std::filesystem::path(std::string(t[2]));
+    } else if (t[0] == "model") {
+      source.type = SceneModelSource::Type::File;
+      source.file = resolve(dir, t[2]);
+      try {
+        require_regular_file(source.file);
+      } catch (const InputError& e) {
+        throw InputError("model '" + printable_excerpt(model_name) + "': " + e.what());
+      }
+    } else {
+      source.type = SceneModelSource::Type::Generated;
+      source.kind = std::string(t[2]);
+      bool known = false;
+      std::string kinds;
+      for (const auto& k : options.generator.kinds) {
+        known = known || k == source.kind;
+        kinds += (kinds.empty() ? "" : ", ") + k;
+      }
+      if (!known)
+        throw InputError(
+            "generate: unknown kind '" + printable_excerpt(t[2]) + "' (" +
+            (kinds.empty() ? "no generator given: SceneParseOptions::generator" : kinds) + ")");
+      source.seed = whole("generate: seed", t[3], 0, std::numeric_limits<std::uint64_t>::max());
+      source.points = whole("generate: points", t[4], 1, kMaxGeneratedPoints);
+    }
+    return source;
+  }
+
+  // O placed by WORLD (an object line's transform after its includes'),
+  // its inverse beside it, both checked to hold in floats.
+  static void place(SceneObject& o, const Mat& world) {
+    if (!invertible(world)) throw InputError(kNotInvertible);
+    const Mat inverse = glm::inverse(world);
+    // Checked in double: casting a double past the float range is undefined.
+    for (int c = 0; c < 4; ++c)
+      for (int r = 0; r < 4; ++r)
+        if (!(std::abs(world[c][r]) <= double(std::numeric_limits<float>::max())) ||
+            !(std::abs(inverse[c][r]) <= double(std::numeric_limits<float>::max())))
+          throw InputError("the transform or its inverse does not fit in floats");
+    o.world = glm::mat4(world);
+    o.world_inverse = glm::mat4(inverse);
+    // The engine keeps both in floats: after rounding they must still be
+    // inverses. A shear or scale spread near float precision (a column
+    // of 3e7 beside columns of 1) passes the determinant test, but its
+    // float pair is off by tenths and would move the lighting and the
+    // culling of the object.
+    const glm::mat4 product = o.world * o.world_inverse;
+    for (int c = 0; c < 4; ++c)
+      for (int r = 0; r < 4; ++r)
+        if (!(std::abs(product[c][r] - (c == r ? 1.0f : 0.0f)) <= 1e-3f))
+          throw InputError(
+              "the transform is too badly conditioned for single precision (its float "
+              "inverse is not one)");
+  }
+
+  // An included FILE (at DEPTH below the outermost): a regular file, no
+  // cycle through the files being parsed, not too deep. Returns its id.
+  [[nodiscard]] FileId check_include(const std::filesystem::path& file, int depth) const {
+    require_regular_file(file);
+    const FileId id = file_id(file).value_or(FileId{0, 0});
+    for (std::size_t k = 0; k < stack.size(); ++k) {
+      if (stack[k].second.dev == id.dev && stack[k].second.ino == id.ino) {
+        std::string chain;
+        for (std::size_t m = k; m < stack.size(); ++m)
+          chain += quoted_name(stack[m].first) + " -> ";
+        throw InputError("include cycle: " + chain + file.string());
+      }
+    }
+    if (depth + 1 >= kMaxSceneIncludeDepth)
+      throw InputError("includes nested deeper than " + std::to_string(kMaxSceneIncludeDepth));
+    return id;
+  }
+
   void parse(std::string_view text, const std::filesystem::path& name, const Mat& parent,
              int depth) {
     const auto file = static_cast<std::uint32_t>(out.files.size());
     out.files.push_back(name);
     const std::filesystem::path dir = name.parent_path();
-    // As spelled, beside the scene file: the system resolves `..` after any
-    // link in the folder (a lexical `lnk/../m.ply` -> `m.ply` would name
-    // another file than the one `cd lnk; ls ../m.ply` shows).
-    auto resolve = [&](std::string_view p) {
-      const std::filesystem::path path(p);
-      const std::filesystem::path joined = path.is_absolute() || dir.empty() ? path : dir / path;
-      std::filesystem::path kept;  // without its "." components (harmless to drop)
-      for (const auto& part : joined)
-        if (part != ".") kept /= part;
-      return kept.empty() ? joined : kept;
-    };
     // Names are those of this file: an included file's models are its own.
     std::unordered_map<std::string, std::uint32_t> names;
     bool header = false;
@@ -218,37 +301,7 @@ struct Parser {
           d.name = model_name;
           d.file = file;
           d.line = line_no;
-          if (key == "model" && is_cache_url(t[2])) {
-            // A cache on a web server (issue 45, item 2): read by range
-            // requests when the scene loads, drawn from its pages.
-            d.source.type = SceneModelSource::Type::File;
-            d.source.file = std::filesystem::path(std::string(t[2]));
-          } else if (key == "model") {
-            d.source.type = SceneModelSource::Type::File;
-            d.source.file = resolve(t[2]);
-            try {
-              require_regular_file(d.source.file);
-            } catch (const InputError& e) {
-              throw InputError("model '" + printable_excerpt(model_name) + "': " + e.what());
-            }
-          } else {
-            d.source.type = SceneModelSource::Type::Generated;
-            d.source.kind = std::string(t[2]);
-            bool known = false;
-            std::string kinds;
-            for (const auto& k : options.generator.kinds) {
-              known = known || k == d.source.kind;
-              kinds += (kinds.empty() ? "" : ", ") + k;
-            }
-            if (!known)
-              throw InputError(
-                  "generate: unknown kind '" + printable_excerpt(t[2]) + "' (" +
-                  (kinds.empty() ? "no generator given: SceneParseOptions::generator" : kinds) +
-                  ")");
-            d.source.seed =
-                whole("generate: seed", t[3], 0, std::numeric_limits<std::uint64_t>::max());
-            d.source.points = whole("generate: points", t[4], 1, kMaxGeneratedPoints);
-          }
+          d.source = model_source(t, model_name, dir);
           names.emplace(model_name, static_cast<std::uint32_t>(out.models.size()));
           out.models.push_back(std::move(d));
         } else if (key == "object") {
@@ -260,53 +313,18 @@ struct Parser {
           if (out.objects.size() >= options.max_objects)
             throw InputError("more than " + std::to_string(options.max_objects) +
                              " objects (the limit for a scene)");
-          const Mat world = parent * parse_transform(t, 2);
-          if (!invertible(world)) throw InputError(kNotInvertible);
           SceneObject o;
           o.model = it->second;  // the declaration (load_scene maps it)
-          const Mat inverse = glm::inverse(world);
-          // Checked in double: casting a double past the float range is undefined.
-          for (int c = 0; c < 4; ++c)
-            for (int r = 0; r < 4; ++r)
-              if (!(std::abs(world[c][r]) <= double(std::numeric_limits<float>::max())) ||
-                  !(std::abs(inverse[c][r]) <= double(std::numeric_limits<float>::max())))
-                throw InputError("the transform or its inverse does not fit in floats");
-          o.world = glm::mat4(world);
-          o.world_inverse = glm::mat4(inverse);
-          // The engine keeps both in floats: after rounding they must still be
-          // inverses. A shear or scale spread near float precision (a column
-          // of 3e7 beside columns of 1) passes the determinant test, but its
-          // float pair is off by tenths and would move the lighting and the
-          // culling of the object.
-          const glm::mat4 product = o.world * o.world_inverse;
-          for (int c = 0; c < 4; ++c)
-            for (int r = 0; r < 4; ++r)
-              if (!(std::abs(product[c][r] - (c == r ? 1.0f : 0.0f)) <= 1e-3f))
-                throw InputError(
-                    "the transform is too badly conditioned for single precision (its float "
-                    "inverse is not one)");
+          place(o, parent * parse_transform(t, 2));
           o.file = file;
           o.line = line_no;
           out.objects.push_back(o);
         } else if (key == "include") {
           if (t.size() < 2) throw InputError("include: expected FILE [TRANSFORM...]");
-          include.file = resolve(t[1]);
+          include.file = resolve(dir, t[1]);
           include.world = parent * parse_transform(t, 2);
-          require_regular_file(include.file);
-          const FileId id = file_id(include.file).value_or(FileId{0, 0});
-          for (std::size_t k = 0; k < stack.size(); ++k) {
-            if (stack[k].second.dev == id.dev && stack[k].second.ino == id.ino) {
-              std::string chain;
-              for (std::size_t m = k; m < stack.size(); ++m)
-                chain += quoted_name(stack[m].first) + " -> ";
-              throw InputError("include cycle: " + chain + include.file.string());
-            }
-          }
-          if (depth + 1 >= kMaxSceneIncludeDepth)
-            throw InputError("includes nested deeper than " +
-                             std::to_string(kMaxSceneIncludeDepth));
+          include.id = check_include(include.file, depth);
           include.text = read_text_file(include.file, kTextInputLimit);
-          include.id = id;
           include.pending = true;
         } else {
           throw InputError("unknown keyword '" + printable_excerpt(key) +

@@ -109,6 +109,58 @@ void BudgetStrategy::paged_points(const Hierarchy& h, std::vector<glm::vec3>& po
   });
 }
 
+// Section 6.1 for one distinct model H (instances share it): its points (a
+// paged model's: paged_points), the box fitted to them, Eq. 2, and a box
+// inside. POINTS: scratch.
+BudgetStrategy::ModelShape BudgetStrategy::model_shape(const Hierarchy& h, bool paged,
+                                                       std::vector<glm::vec3>& points) {
+  ModelShape s;
+  s.hierarchy = &h;
+  points.clear();
+  if (paged) {
+    paged_points(h, points, s);
+  } else {
+    float radius = 0.0f;
+    for (NodeId n = 0; n < h.node_count(); ++n) {
+      if (h.is_leaf(n)) {
+        points.push_back(h.center(n));
+        radius = std::max(radius, h.radius(n));
+      }
+    }
+    // The splats' box (centres grown by the largest splat radius): what the
+    // renderer can cover, so what frustum culling and the HZM test must take.
+    s.splat_lo = h.bounds_min() - glm::vec3(radius);
+    s.splat_hi = h.bounds_max() + glm::vec3(radius);
+  }
+  // The principal axes are arbitrary for a model whose covariance is
+  // nearly isotropic (a cube): the model's own axis-aligned box is the
+  // other candidate, the smaller volume wins.
+  const culling::Obb fitted = culling::fit_obb(points);
+  const glm::vec3 lo = h.bounds_min(), hi = h.bounds_max();
+  const culling::Obb aligned{0.5f * (lo + hi), glm::mat3(1.0f), 0.5f * (hi - lo)};
+  const auto volume = [](const culling::Obb& b) { return b.half.x * b.half.y * b.half.z; };
+  s.box = volume(fitted) < 0.98f * volume(aligned) ? fitted : aligned;
+  s.compactness = culling::compactness(points, s.box);
+  if (paged) return s;  // occludes nothing (paged_points)
+  // A grid with about 16 points per surface cell (the six faces of n x n
+  // cells hold 6 n^2): random sampling then leaves no cell of a closed
+  // surface empty (e^-16), and an empty cell would read as a hole.
+  const int cells = std::clamp(
+      static_cast<int>(std::sqrt(static_cast<double>(points.size()) / (6.0 * 16.0))), 3, 32);
+  s.inner = culling::inner_box(points, s.box, cells);
+  // A surface open on one face (a building without a floor: the flood
+  // from outside leaks in through it): closed by that face's plane, the
+  // box found (which may reach the plane) is inside the solid for every
+  // eye on the inner side of the plane (a ray from there cannot pass
+  // through the open face into the box without crossing the plane twice),
+  // so the object occludes exactly while the eye is there (iterate_scene).
+  for (int face = 0; !s.inner && face < 6 && !points.empty(); ++face) {
+    s.inner = culling::inner_box(points, s.box, cells, face);
+    if (s.inner) s.open_face = face;
+  }
+  return s;
+}
+
 void BudgetStrategy::reset_scene(const StageScene& scene) {
   const std::span<const SceneObject> objects = scene.objects;
   // Section 6.1 per distinct model (instances share it): the points are the
@@ -120,51 +172,7 @@ void BudgetStrategy::reset_scene(const StageScene& scene) {
   for (const SceneObject& o : objects) {
     ModelShape& s = shapes[o.model];
     if (s.hierarchy != nullptr) continue;
-    const Hierarchy& h = *scene.models[o.model];
-    s.hierarchy = &h;
-    points.clear();
-    const bool paged = scene.paged_model(o.model) != nullptr;
-    if (paged) {
-      paged_points(h, points, s);
-    } else {
-      float radius = 0.0f;
-      for (NodeId n = 0; n < h.node_count(); ++n) {
-        if (h.is_leaf(n)) {
-          points.push_back(h.center(n));
-          radius = std::max(radius, h.radius(n));
-        }
-      }
-      // The splats' box (centres grown by the largest splat radius): what the
-      // renderer can cover, so what frustum culling and the HZM test must take.
-      s.splat_lo = h.bounds_min() - glm::vec3(radius);
-      s.splat_hi = h.bounds_max() + glm::vec3(radius);
-    }
-    // The principal axes are arbitrary for a model whose covariance is
-    // nearly isotropic (a cube): the model's own axis-aligned box is the
-    // other candidate, the smaller volume wins.
-    const culling::Obb fitted = culling::fit_obb(points);
-    const glm::vec3 lo = h.bounds_min(), hi = h.bounds_max();
-    const culling::Obb aligned{0.5f * (lo + hi), glm::mat3(1.0f), 0.5f * (hi - lo)};
-    const auto volume = [](const culling::Obb& b) { return b.half.x * b.half.y * b.half.z; };
-    s.box = volume(fitted) < 0.98f * volume(aligned) ? fitted : aligned;
-    s.compactness = culling::compactness(points, s.box);
-    if (paged) continue;  // occludes nothing (paged_points)
-    // A grid with about 16 points per surface cell (the six faces of n x n
-    // cells hold 6 n^2): random sampling then leaves no cell of a closed
-    // surface empty (e^-16), and an empty cell would read as a hole.
-    const int cells = std::clamp(
-        static_cast<int>(std::sqrt(static_cast<double>(points.size()) / (6.0 * 16.0))), 3, 32);
-    s.inner = culling::inner_box(points, s.box, cells);
-    // A surface open on one face (a building without a floor: the flood
-    // from outside leaks in through it): closed by that face's plane, the
-    // box found (which may reach the plane) is inside the solid for every
-    // eye on the inner side of the plane (a ray from there cannot pass
-    // through the open face into the box without crossing the plane twice),
-    // so the object occludes exactly while the eye is there (iterate_scene).
-    for (int face = 0; !s.inner && face < 6 && !points.empty(); ++face) {
-      s.inner = culling::inner_box(points, s.box, cells, face);
-      if (s.inner) s.open_face = face;
-    }
+    s = model_shape(*scene.models[o.model], scene.paged_model(o.model) != nullptr, points);
   }
   std::vector<culling::ObjectBounds> made(objects.size());
   open_.clear();

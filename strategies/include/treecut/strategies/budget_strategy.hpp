@@ -115,6 +115,8 @@ class BudgetStrategy final : public Strategy, public SceneStrategy {
   };
   void ensure_pool();
   void ensure_culler();
+  /// The shape of model H (PAGED: drawn from its pages); POINTS scratch.
+  static ModelShape model_shape(const Hierarchy& h, bool paged, std::vector<glm::vec3>& points);
   /// The POINTS a model drawn from its pages is fitted to (its resident
   /// leaves) and SHAPE's splat box.
   static void paged_points(const Hierarchy& h, std::vector<glm::vec3>& points, ModelShape& shape);
