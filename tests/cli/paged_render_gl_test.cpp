@@ -10,6 +10,7 @@
 #include <numeric>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "image_compare.hpp"
@@ -69,6 +70,18 @@ treecut::test::CommandResult render_paged(const fs::path& dir, const fs::path& c
                                           const std::string& strategy = "recursive") {
   return run_treecut("render " + quote(cache) + " " + options + " -s " + strategy + " " + kRun +
                      "-o " + quote(dir / "out"));
+}
+
+// `treecut render MODEL OPTIONS` standing still (40 frames of warm-up with
+// --sync, then 4) into OUT: its last frame and its output.
+std::pair<treecut::splat::Image, std::string> settled_frame(const fs::path& model,
+                                                            const std::string& options,
+                                                            const fs::path& out) {
+  const treecut::test::CommandResult r =
+      run_treecut("render " + quote(model) + " " + options +
+                  " --frames 4 --warmup 40 --sync --width 160 --height 96 -o " + quote(out));
+  EXPECT_EQ(r.code, 0) << r.out;
+  return {treecut::test::load_png(out / "frame_00003.png"), r.out};
 }
 
 }  // namespace
@@ -223,12 +236,7 @@ TEST(PagedRender, AColouringByValueIsTheWholeModelsPicture) {
       run_treecut("build " + quote(dir / "tile") + " -o " + quote(cache));
   ASSERT_EQ(built.code, 0) << built.out;
   const auto last_frame = [&](const std::string& name, const std::string& options) {
-    const fs::path out = dir / name;
-    const treecut::test::CommandResult r = run_treecut(
-        "render " + quote(cache) + " " + options +
-        " -s recursive --frames 4 --warmup 40 --sync --width 160 --height 96 -o " + quote(out));
-    EXPECT_EQ(r.code, 0) << r.out;
-    return std::make_pair(treecut::test::load_png(out / "frame_00003.png"), r.out);
+    return settled_frame(cache, options + " -s recursive", dir / name);
   };
   const std::string classes = "--color classification --classes -2";
   const std::string intensity = "--color intensity --color-range 300 2000";
@@ -283,12 +291,7 @@ TEST(PagedRender, ASceneOfCachesIsTheWholeScenesPicture) {
   const fs::path dir = treecut::test::scratch_dir("paged_render_scene");
   const fs::path scene = paged_scene(dir);
   const auto last_frame = [&](const std::string& name, const std::string& options) {
-    const fs::path out = dir / name;
-    const treecut::test::CommandResult r = run_treecut(
-        "render " + quote(scene) + " " + options +
-        " -s budget --frames 4 --warmup 40 --sync --width 160 --height 96 -o " + quote(out));
-    EXPECT_EQ(r.code, 0) << r.out;
-    return std::make_pair(treecut::test::load_png(out / "frame_00003.png"), r.out);
+    return settled_frame(scene, options + " -s budget", dir / name);
   };
   const auto [whole, whole_out] = last_frame("whole", "");
   const auto [paged, paged_out] = last_frame("paged", "--memory 64M");
